@@ -4,12 +4,45 @@
 //! facet transfer functions, and the convolution of the two into an effective BRDF
 //! (Fournier 1992, "Normal Distribution Functions and Multiple Surfaces", Eq. 1–13).
 //!
-//! Conventions (directions, the local frame with the normal on +z, spherical coordinates) are
-//! written once in [`frame`]; every other module uses them.
+//! * [`frame`] — the conventions (directions, the local frame with the normal on +z, spherical
+//!   coordinates), written once;
+//! * [`ndf`] — the NDF representations, each normalised as Eq. 1, evaluated and sampled;
+//! * [`transfer`] — facet BRDFs (Phong, Lambert, mirror, rough microfacet) with Fresnel;
+//! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form;
+//! * [`material`] — the TOML material format;
+//! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output.
+//!
+//! ```
+//! use meso_core::{frame::spherical_direction_deg, material::Material};
+//! let m = Material::from_toml_str(r#"
+//!     [ndf]
+//!     kind = "phong-peaks"
+//!     lobes = [{ axis = [0.0, 0.0], weight = 1.0, exponent = 40.0 }]
+//!     [transfer]
+//!     kind = "phong"
+//!     exponent = 50.0
+//!     specular = [1.0, 1.0, 1.0]
+//! "#).unwrap();
+//! let f = m.brdf(spherical_direction_deg(30.0, 0.0), spherical_direction_deg(30.0, 180.0));
+//! assert!(f[0] > 0.0);
+//! ```
 #![warn(missing_docs)]
 
+pub mod convolution;
 pub mod frame;
 pub mod grid;
+pub mod io;
+pub mod material;
 pub mod ndf;
+pub mod pairs;
 pub mod quadrature;
 pub mod sh;
+pub mod transfer;
+
+/// An invalid NDF description.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NdfError {
+    /// The parameters do not describe a valid NDF; the message says which and why.
+    #[error("{0}")]
+    Invalid(String),
+}

@@ -1,3 +1,240 @@
-//! Normal distribution functions, normalised as in Eq. 1: ∫ n(m) dω = 1 over the whole sphere.
+//! Normal distribution functions, normalised as in Eq. 1: `∫ n(m) dω = 1` over the whole sphere,
+//! `m` a unit direction in the local frame ([`crate::frame`]); densities are in 1/sr.
+//!
+//! The representations form a closed set, [`Ndf`], dispatched by `match` (no virtual calls):
+//!
+//! | variant | paper | density | sampler pdf |
+//! |---|---|---|---|
+//! | [`Ndf::PhongPeaks`] | Eq. 12 | Σ wᵢ (η+2)/(8π) cos^η(αᵢ/2) | exact |
+//! | [`Ndf::Deltas`] | Eq. 3 | Σ wᵢ δ(m − Nᵢ) (singular) | discrete |
+//! | [`Ndf::Harmonics`] | §2.1 | truncated real SH series | table of max(0, n) |
+//! | [`Ndf::Tabulated`] | — | piecewise constant, equal-area grid | exact |
+//! | [`Ndf::Sphere`] | Eq. 14 | 1/(4π) | exact |
+//! | [`Ndf::Cylinder`] | Eq. 15 | δ(m·a)/(2π) (singular, a great circle) | uniform on the circle |
+//! | [`Ndf::VonMisesFisher`] | — | κ e^{κ(μ·m−1)} / (2π(1−e^{−2κ})) | exact |
+//! | [`Ndf::Microfacet`] | — | Beckmann / GGX `D(m)/A` | `D(m)(m·z)` |
+//!
+//! For the relation to the microfacet convention `∫ D(m)(m·z) dω = 1` see [`microfacet`].
+
+pub mod analytic;
+pub mod delta;
+pub mod harmonics;
+pub mod microfacet;
 pub mod phong;
-pub use phong::PhongLobe;
+pub mod tabulated;
+
+pub use analytic::{Cylinder, Sphere, VonMisesFisher};
+pub use delta::{DeltaSum, WeightedNormal};
+pub use harmonics::Harmonics;
+pub use microfacet::{Distribution, Microfacet};
+pub use phong::{PhongLobe, PhongPeaks};
+pub use tabulated::Tabulated;
+
+use crate::NdfError;
+use glam::{DMat3, DVec3};
+
+/// A normal distribution function in one of meso's representations.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Ndf {
+    /// Sum of Phong peaks, Eq. 12.
+    PhongPeaks(PhongPeaks),
+    /// Multiple surface: a finite set of normals, Eq. 3.
+    Deltas(DeltaSum),
+    /// Truncated real spherical-harmonics series.
+    Harmonics(Harmonics),
+    /// Piecewise constant on the equal-area grid.
+    Tabulated(Tabulated),
+    /// The sphere, Eq. 14.
+    Sphere(Sphere),
+    /// A cylinder, Eq. 15.
+    Cylinder(Cylinder),
+    /// A von Mises–Fisher lobe.
+    VonMisesFisher(VonMisesFisher),
+    /// Beckmann or GGX in the Eq. 1 convention.
+    Microfacet(Microfacet),
+}
+
+impl Ndf {
+    /// The single normal of a plain surface (+z), a one-element delta sum.
+    #[must_use]
+    pub fn surface_normal() -> Ndf {
+        Ndf::Deltas(DeltaSum::surface_normal())
+    }
+
+    /// A short name of the representation.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Ndf::PhongPeaks(_) => "phong-peaks",
+            Ndf::Deltas(_) => "deltas",
+            Ndf::Harmonics(_) => "harmonics",
+            Ndf::Tabulated(_) => "tabulated",
+            Ndf::Sphere(_) => "sphere",
+            Ndf::Cylinder(_) => "cylinder",
+            Ndf::VonMisesFisher(_) => "vmf",
+            Ndf::Microfacet(m) => match m.distribution {
+                Distribution::Beckmann => "beckmann",
+                Distribution::Ggx => "ggx",
+            },
+        }
+    }
+
+    /// True for the singular representations (deltas, cylinder) whose density is not a function:
+    /// [`Ndf::eval`] returns 0 for them and integrals are taken exactly (sums / 1-D integrals).
+    #[must_use]
+    pub fn is_singular(&self) -> bool {
+        matches!(self, Ndf::Deltas(_) | Ndf::Cylinder(_))
+    }
+
+    /// The density `n(m)` in 1/sr at the unit direction `m` (0 for singular NDFs).
+    #[must_use]
+    pub fn eval(&self, m: DVec3) -> f64 {
+        match self {
+            Ndf::PhongPeaks(p) => p.eval(m),
+            Ndf::Deltas(_) | Ndf::Cylinder(_) => 0.0,
+            Ndf::Harmonics(h) => h.eval(m),
+            Ndf::Tabulated(t) => t.eval(m),
+            Ndf::Sphere(s) => s.eval(m),
+            Ndf::VonMisesFisher(v) => v.eval(m),
+            Ndf::Microfacet(mf) => mf.eval(m),
+        }
+    }
+
+    /// Draw a normal; `u ∈ [0,1)²`. Its density is [`Ndf::pdf`] (for singular NDFs the draw follows
+    /// the weights / the circle exactly).
+    #[must_use]
+    pub fn sample(&self, u: [f64; 2]) -> DVec3 {
+        match self {
+            Ndf::PhongPeaks(p) => p.sample(u),
+            Ndf::Deltas(d) => d.sample(u[0]),
+            Ndf::Harmonics(h) => h.sample(u),
+            Ndf::Tabulated(t) => t.sample(u),
+            Ndf::Sphere(s) => s.sample(u),
+            Ndf::Cylinder(c) => c.sample(u[0]),
+            Ndf::VonMisesFisher(v) => v.sample(u),
+            Ndf::Microfacet(mf) => mf.sample(u),
+        }
+    }
+
+    /// The density (1/sr) of [`Ndf::sample`] at `m`; 0 for singular NDFs.
+    #[must_use]
+    pub fn pdf(&self, m: DVec3) -> f64 {
+        match self {
+            Ndf::Harmonics(h) => h.pdf(m),
+            Ndf::Microfacet(mf) => mf.pdf(m),
+            other => other.eval(m),
+        }
+    }
+
+    /// `∫ n(m) g(m) dω` for any NDF: exact sums for deltas, a 1-D rule on the cylinder's circle,
+    /// and [`crate::convolution::integrate`] (lobe-adapted quadrature) otherwise. `N` values at once.
+    pub fn integrate<const N: usize>(
+        &self,
+        accuracy: crate::convolution::Accuracy,
+        hint: Option<crate::convolution::Peak>,
+        g: impl Fn(DVec3) -> [f64; N],
+    ) -> [f64; N] {
+        crate::convolution::integrate(self, accuracy, hint, g)
+    }
+
+    /// Normalisation integral, mean normal and covariance (3×3, about the mean), by quadrature.
+    #[must_use]
+    pub fn stats(&self) -> NdfStats {
+        let acc = crate::convolution::Accuracy::fine();
+        let r = self.integrate(acc, None, |m| {
+            [
+                1.0,
+                m.x,
+                m.y,
+                m.z,
+                m.x * m.x,
+                m.y * m.y,
+                m.z * m.z,
+                m.x * m.y,
+                m.x * m.z,
+                m.y * m.z,
+            ]
+        });
+        let total = r[0];
+        let mean = DVec3::new(r[1], r[2], r[3]) / total;
+        let second = DMat3::from_cols(
+            DVec3::new(r[4], r[7], r[8]),
+            DVec3::new(r[7], r[5], r[9]),
+            DVec3::new(r[8], r[9], r[6]),
+        ) * (1.0 / total);
+        let outer = DMat3::from_cols(mean * mean.x, mean * mean.y, mean * mean.z);
+        NdfStats {
+            integral: total,
+            mean_normal: mean,
+            covariance: second - outer,
+        }
+    }
+}
+
+/// Moments of an NDF.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NdfStats {
+    /// `∫ n dω` (1 for a normalised NDF, Eq. 1).
+    pub integral: f64,
+    /// `∫ n(m) m dω` — its length is below 1 for a spread distribution.
+    pub mean_normal: DVec3,
+    /// `∫ n (m − μ)(m − μ)ᵀ dω`, a symmetric 3×3 matrix.
+    pub covariance: DMat3,
+}
+
+/// Check weights (finite, ≥ 0, positive sum) and rescale them to sum to 1.
+pub(crate) fn normalize_weights<T>(
+    mut items: Vec<T>,
+    get: impl Fn(&T) -> f64,
+    set: impl Fn(&mut T, f64),
+) -> Result<Vec<T>, NdfError> {
+    if items.is_empty() {
+        return Err(NdfError::Invalid("the NDF has no lobes".into()));
+    }
+    for (k, it) in items.iter().enumerate() {
+        let w = get(it);
+        if !(w.is_finite() && w >= 0.0) {
+            return Err(NdfError::Invalid(format!(
+                "lobe {}: weight must be a finite number >= 0, got {w}",
+                k + 1
+            )));
+        }
+    }
+    let total: f64 = items.iter().map(&get).sum();
+    if total <= 0.0 || !total.is_finite() {
+        return Err(NdfError::Invalid(
+            "the lobe weights sum to zero (an NDF needs positive total weight)".into(),
+        ));
+    }
+    for it in &mut items {
+        let w = get(it) / total;
+        set(it, w);
+    }
+    Ok(items)
+}
+
+/// Running sums of non-negative weights, normalised to end at 1.
+pub(crate) fn cumulative(weights: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut acc = 0.0;
+    let mut cdf: Vec<f64> = weights
+        .map(|w| {
+            acc += w;
+            acc
+        })
+        .collect();
+    let total = acc.max(f64::MIN_POSITIVE);
+    cdf.iter_mut().for_each(|c| *c /= total);
+    if let Some(last) = cdf.last_mut() {
+        *last = 1.0;
+    }
+    cdf
+}
+
+/// Choose the interval of `cdf` containing `u` and rescale `u` to `[0,1)` inside it.
+pub(crate) fn pick(cdf: &[f64], u: f64) -> (usize, f64) {
+    let k = cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
+    let lo = if k == 0 { 0.0 } else { cdf[k - 1] };
+    let width = cdf[k] - lo;
+    let r = if width > 0.0 { (u - lo) / width } else { 0.5 };
+    (k, r.clamp(0.0, 1.0 - f64::EPSILON))
+}

@@ -109,3 +109,56 @@ mod tests {
         }
     }
 }
+
+/// A sum of Phong peaks (Eq. 12) with probability weights summing to 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhongPeaks {
+    lobes: Vec<PhongLobe>,
+    /// Cumulative weights, for choosing a lobe when sampling.
+    cdf: Vec<f64>,
+}
+
+impl PhongPeaks {
+    /// Build from lobes; the weights are normalised to sum to 1.
+    ///
+    /// # Errors
+    /// When there are no lobes, a weight or exponent is negative or not finite, an axis is not a
+    /// finite non-zero vector, or the weights sum to zero.
+    pub fn new(lobes: Vec<PhongLobe>) -> Result<PhongPeaks, crate::NdfError> {
+        let lobes = super::normalize_weights(lobes, |l| l.weight, |l, w| l.weight = w)?;
+        for (k, l) in lobes.iter().enumerate() {
+            if !(l.exponent.is_finite() && l.exponent >= 0.0) {
+                return Err(crate::NdfError::Invalid(format!(
+                    "lobe {}: exponent must be a finite number >= 0, got {}",
+                    k + 1,
+                    l.exponent
+                )));
+            }
+        }
+        let lobes: Vec<PhongLobe> = lobes
+            .into_iter()
+            .map(|l| PhongLobe::new(l.axis, l.weight, l.exponent))
+            .collect();
+        let cdf = super::cumulative(lobes.iter().map(|l| l.weight));
+        Ok(PhongPeaks { lobes, cdf })
+    }
+
+    /// The lobes (weights sum to 1).
+    #[must_use]
+    pub fn lobes(&self) -> &[PhongLobe] {
+        &self.lobes
+    }
+
+    /// Density in 1/sr at the unit direction `m`.
+    #[must_use]
+    pub fn eval(&self, m: DVec3) -> f64 {
+        self.lobes.iter().map(|l| l.density(m)).sum()
+    }
+
+    /// Sample the mixture exactly: choose a lobe by weight with `u[0]`, rescale, sample it.
+    #[must_use]
+    pub fn sample(&self, u: [f64; 2]) -> DVec3 {
+        let (k, u0) = super::pick(&self.cdf, u[0]);
+        self.lobes[k].sample([u0, u[1]])
+    }
+}

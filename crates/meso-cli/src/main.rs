@@ -1,0 +1,47 @@
+//! `meso` — the command line over the meso libraries. Each subcommand lives in `cmd/<name>.rs`
+//! with a clap `Args` struct and a `run` function; this file only dispatches.
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+mod cmd;
+mod util;
+
+pub(crate) use util::{par_map_progress, progress, read_text};
+
+/// Load a material file, resolving height-map NDFs.
+pub(crate) fn load_material(path: &std::path::Path) -> anyhow::Result<meso_core::material::Material> {
+    Ok(meso_core::material::Material::from_file(path, &meso_core::material::NoExternalNdfs)?)
+}
+
+/// meso: normal distribution functions and multiple surfaces (Fournier 1992).
+#[derive(Parser)]
+#[command(name = "meso", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Evaluate a material's effective BRDF at direction pairs (CSV in, CSV out).
+    Brdf(cmd::brdf::Args),
+    /// Inspect an NDF: plot it or print its statistics.
+    #[command(subcommand)]
+    Ndf(cmd::ndf::NdfCommand),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Brdf(a) => cmd::brdf::run(a),
+        Command::Ndf(a) => cmd::ndf::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("meso: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! Transfer functions: the BRDF `f_μ(i, o; m)` of one facet, in 1/sr, evaluated in the facet's own
+//! frame (facet normal on +z; `i` towards the light, `o` towards the viewer, both unit).
+//!
+//! These are the `F_i` / `R` of Eq. 2 and Eq. 8: the convolution with an NDF
+//! ([`crate::convolution`]) turns them into the effective BRDF of the surface.
+
+pub mod fresnel;
+
+pub use fresnel::Fresnel;
+
+use crate::frame::{half_vector, reflect};
+use crate::ndf::Microfacet;
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// Which Phong lobe shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PhongVariant {
+    /// Eq. 10: `(N·H)^η` with `H` the bisector of `i` and `o` (Blinn's form).
+    Half,
+    /// The reflected-direction form `(R·o)^η`, `R` the mirror of `i` about `N` (Phong 1975).
+    Reflect,
+}
+
+/// A facet transfer function.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Transfer {
+    /// Phong specular, Eq. 10 as written, **unnormalised**: `specular · max(0, N·H)^η`
+    /// (or `specular · max(0, R·o)^η`). Not energy conserving for large `specular`.
+    Phong {
+        /// Exponent η ≥ 0.
+        exponent: f64,
+        /// RGB scale (1/sr).
+        specular: [f64; 3],
+        /// Bisector (Eq. 10) or reflected-direction form.
+        variant: PhongVariant,
+    },
+    /// Lambert: `albedo/π` for `i` and `o` above the facet, 0 otherwise.
+    Lambert {
+        /// RGB albedo in `[0, 1]`.
+        albedo: [f64; 3],
+    },
+    /// A perfect mirror facet with Fresnel: a Dirac BRDF, `F(i·m) δ(o − reflect(i, m))/(o·m)`. It is
+    /// only meaningful convolved with a continuous NDF, where the integral collapses onto `m = H`
+    /// (the classic microfacet BRDF; see [`crate::convolution`]).
+    Mirror {
+        /// Fresnel of the facet.
+        fresnel: Fresnel,
+    },
+    /// A rough microfacet facet (Cook–Torrance/Walter): `F(i·h) D(h) G₂(i,o) / (4 cos θᵢ cos θₒ)`
+    /// with Beckmann or GGX `D`, height-correlated Smith `G₂ = 1/(1 + Λ(i) + Λ(o))`.
+    Microfacet {
+        /// Beckmann or GGX with its roughness.
+        distribution: Microfacet,
+        /// Fresnel of the facet.
+        fresnel: Fresnel,
+    },
+}
+
+impl Transfer {
+    /// `f_μ(i, o)` in 1/sr, RGB, in the facet frame (facet normal +z). Zero when `i` or `o` is
+    /// below the facet, except for the Phong form which is Eq. 10 as written (it only needs `H`).
+    /// A [`Transfer::Mirror`] returns 0 here: it has no pointwise value.
+    #[must_use]
+    pub fn eval(&self, i: DVec3, o: DVec3) -> [f64; 3] {
+        match *self {
+            Transfer::Phong {
+                exponent,
+                specular,
+                variant,
+            } => {
+                let c = match variant {
+                    PhongVariant::Half => match half_vector(i, o) {
+                        Some(h) => h.z,
+                        None => return [0.0; 3],
+                    },
+                    PhongVariant::Reflect => reflect(i, DVec3::Z).dot(o),
+                };
+                if c <= 0.0 {
+                    return [0.0; 3];
+                }
+                let v = c.powf(exponent);
+                [specular[0] * v, specular[1] * v, specular[2] * v]
+            }
+            Transfer::Lambert { albedo } => {
+                if i.z <= 0.0 || o.z <= 0.0 {
+                    return [0.0; 3];
+                }
+                [albedo[0] / PI, albedo[1] / PI, albedo[2] / PI]
+            }
+            Transfer::Mirror { .. } => [0.0; 3],
+            Transfer::Microfacet {
+                distribution,
+                fresnel,
+            } => {
+                if i.z <= 0.0 || o.z <= 0.0 {
+                    return [0.0; 3];
+                }
+                let Some(h) = half_vector(i, o) else {
+                    return [0.0; 3];
+                };
+                let g2 = 1.0 / (1.0 + distribution.lambda(i) + distribution.lambda(o));
+                let common = distribution.d(h) * g2 / (4.0 * i.z * o.z);
+                let f = fresnel.eval(i.dot(h));
+                [f[0] * common, f[1] * common, f[2] * common]
+            }
+        }
+    }
+
+    /// Where in the space of facet normals `m` this transfer function peaks for the pair `(i, o)`
+    /// and how sharply — the hint the lobe-adapted quadrature uses. `None` for smooth ones.
+    #[must_use]
+    pub fn peak(&self, i: DVec3, o: DVec3) -> Option<crate::convolution::Peak> {
+        let h = half_vector(i, o)?;
+        let exponent = match *self {
+            // (m·H)^η ≈ exp(−η β²/2); a Phong-peak warp cos^e(β/2) ≈ exp(−e β²/8) ⇒ e = 4η.
+            Transfer::Phong {
+                exponent,
+                variant: PhongVariant::Half,
+                ..
+            } => 4.0 * exponent,
+            // (R·o)^η: moving m by β turns R by 2β ⇒ e = 16η.
+            Transfer::Phong {
+                exponent,
+                variant: PhongVariant::Reflect,
+                ..
+            } => 16.0 * exponent,
+            // D(h) ≈ exp(−β²/α²) ⇒ e = 8/α² (α the smaller roughness).
+            Transfer::Microfacet { distribution, .. } => {
+                8.0 / distribution.alpha_x.min(distribution.alpha_y).powi(2)
+            }
+            Transfer::Lambert { .. } | Transfer::Mirror { .. } => return None,
+        };
+        (exponent > 8.0).then_some(crate::convolution::Peak {
+            axis: h,
+            exponent: exponent.min(1e7),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::spherical_direction_deg;
+    use crate::ndf::Distribution;
+
+    #[test]
+    fn phong_is_eq10_as_written() {
+        let t = Transfer::Phong {
+            exponent: 50.0,
+            specular: [1.0, 0.8, 0.6],
+            variant: PhongVariant::Half,
+        };
+        let i = spherical_direction_deg(30.0, 0.0);
+        let o = spherical_direction_deg(20.0, 180.0);
+        let h = (i + o).normalize();
+        let v = t.eval(i, o);
+        assert!((v[0] / h.z.powf(50.0) - 1.0).abs() < 1e-12, "{v:?}");
+        assert!((v[2] / (0.6 * h.z.powf(50.0)) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rough_microfacet_is_reciprocal_and_bounded() {
+        let d = Microfacet::new(Distribution::Ggx, 0.3, 0.15).unwrap();
+        let t = Transfer::Microfacet {
+            distribution: d,
+            fresnel: Fresnel::None,
+        };
+        for (a, b, c, e) in [(10.0, 0.0, 60.0, 200.0), (45.0, 30.0, 45.0, 210.0)] {
+            let i = spherical_direction_deg(a, b);
+            let o = spherical_direction_deg(c, e);
+            let f1 = t.eval(i, o)[0];
+            let f2 = t.eval(o, i)[0];
+            assert!((f1 - f2).abs() <= 1e-12 * f1.abs().max(1.0));
+        }
+        // White furnace: ∫ f cos θo dωo ≤ 1 (energy is lost to single-scattering masking only).
+        for theta in [0.0, 40.0, 75.0] {
+            let i = spherical_direction_deg(theta, 20.0);
+            let albedo = crate::quadrature::integrate_hemisphere(
+                |o| t.eval(i, o)[0] * o.z,
+                400,
+                256,
+            );
+            assert!(albedo <= 1.0 + 2e-3 && albedo > 0.8, "θ={theta}: {albedo}");
+        }
+    }
+}
