@@ -1,0 +1,135 @@
+//! Meso-normals of a height map, with their per-area weights.
+//!
+//! # The surface
+//! The height map is the piecewise-linear surface a renderer would displace: every grid cell
+//! (corners `(i, j)`, `(i, j+1)`, `(i+1, j)`, `(i+1, j+1)`) is split along the diagonal from
+//! `(i, j)` to `(i+1, j+1)`, i.e. from `(x, y)` to `(x+S, y+S)`, into
+//! * triangle **A** = `(i,j), (i,j+1), (i+1,j+1)` (the half with `y − y_i < x − x_j`), slopes
+//!   `∂h/∂x = (h₀₁ − h₀₀)/S`, `∂h/∂y = (h₁₁ − h₀₁)/S`;
+//! * triangle **B** = `(i,j), (i+1,j+1), (i+1,j)`, slopes `∂h/∂x = (h₁₁ − h₁₀)/S`,
+//!   `∂h/∂y = (h₁₀ − h₀₀)/S`.
+//!
+//! Each facet's unit normal is `(−∂h/∂x, −∂h/∂y, 1)/‖·‖`. Its weight is its share of the
+//! *macro* (projected) area: facet area × n_z = S²/2 for both triangles, so the two facets of a
+//! cell carry weight ½ each. This is the per-area density of meso-normals `p(m)` used by the
+//! microfacet form of the effective BRDF (`∫ p = 1`); the microfacet area density is `p/m_z`.
+//!
+//! [`NormalMode::CentralDifferences`] instead gives one normal per cell, from the gradient of
+//! the bilinear patch at the cell centre, `∂h/∂x = ((h₀₁ − h₀₀) + (h₁₁ − h₁₀))/(2S)` (and
+//! likewise for y), with weight 1: smooth data agree with the triangles, creases do not.
+
+use crate::heightmap::{HeightMap, NormalMap};
+use glam::DVec3;
+
+/// How meso-normals are derived from heights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum NormalMode {
+    /// Two flat triangles per grid cell (the default; exact for the displaced surface).
+    #[default]
+    Triangles,
+    /// One normal per cell from central differences at the cell centre.
+    CentralDifferences,
+}
+
+/// Per-cell meso-normals: `per_cell` normals for each of `cols × rows` cells, with weights in
+/// units of one cell's projected area (so each cell's weights sum to 1).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FacetNormals {
+    /// Cells along x.
+    pub cols: usize,
+    /// Cells along y.
+    pub rows: usize,
+    /// Normals per cell (2 for triangles, 1 otherwise).
+    pub per_cell: usize,
+    /// Unit normals; cell `(r, c)` owns `normals[(r·cols + c)·per_cell ..][..per_cell]`.
+    pub normals: Vec<DVec3>,
+    /// Projected-area weight of each normal (cell units).
+    pub weights: Vec<f64>,
+}
+
+#[inline]
+fn normal_from_slopes(gx: f64, gy: f64) -> DVec3 {
+    DVec3::new(-gx, -gy, 1.0).normalize()
+}
+
+impl FacetNormals {
+    /// The meso-normals of a height map.
+    #[must_use]
+    pub fn from_heightmap(map: &HeightMap, mode: NormalMode) -> FacetNormals {
+        let (cols, rows) = (map.cells_x(), map.cells_y());
+        let s = map.texel_size();
+        let per_cell = match mode {
+            NormalMode::Triangles => 2,
+            NormalMode::CentralDifferences => 1,
+        };
+        let mut normals = Vec::with_capacity(cols * rows * per_cell);
+        for i in 0..rows as isize {
+            for j in 0..cols as isize {
+                let h00 = map.at(i, j);
+                let h01 = map.at(i, j + 1);
+                let h10 = map.at(i + 1, j);
+                let h11 = map.at(i + 1, j + 1);
+                match mode {
+                    NormalMode::Triangles => {
+                        normals.push(normal_from_slopes((h01 - h00) / s, (h11 - h01) / s));
+                        normals.push(normal_from_slopes((h11 - h10) / s, (h10 - h00) / s));
+                    }
+                    NormalMode::CentralDifferences => {
+                        let gx = ((h01 - h00) + (h11 - h10)) / (2.0 * s);
+                        let gy = ((h10 - h00) + (h11 - h01)) / (2.0 * s);
+                        normals.push(normal_from_slopes(gx, gy));
+                    }
+                }
+            }
+        }
+        let weights = vec![1.0 / per_cell as f64; normals.len()];
+        FacetNormals {
+            cols,
+            rows,
+            per_cell,
+            normals,
+            weights,
+        }
+    }
+
+    /// The normals of a tangent-space normal map: one per texel, weight 1.
+    #[must_use]
+    pub fn from_normal_map(map: &NormalMap) -> FacetNormals {
+        FacetNormals {
+            cols: map.width(),
+            rows: map.height(),
+            per_cell: 1,
+            normals: map.normals().to_vec(),
+            weights: vec![1.0; map.normals().len()],
+        }
+    }
+
+    /// Iterate over `(normal, weight)` of the cells in rows `r0..r1`, columns `c0..c1`.
+    pub fn footprint(
+        &self,
+        r0: usize,
+        r1: usize,
+        c0: usize,
+        c1: usize,
+    ) -> impl Iterator<Item = (DVec3, f64)> + '_ {
+        (r0..r1).flat_map(move |r| {
+            let a = (r * self.cols + c0) * self.per_cell;
+            let b = (r * self.cols + c1) * self.per_cell;
+            self.normals[a..b]
+                .iter()
+                .copied()
+                .zip(self.weights[a..b].iter().copied())
+        })
+    }
+
+    /// All `(normal, weight)` pairs with weights normalised to sum to 1.
+    #[must_use]
+    pub fn normalized(&self) -> Vec<(DVec3, f64)> {
+        let total: f64 = self.weights.iter().sum();
+        self.normals
+            .iter()
+            .zip(&self.weights)
+            .map(|(n, w)| (*n, w / total))
+            .collect()
+    }
+}

@@ -1,0 +1,93 @@
+//! Height maps generated in code, for tests, benchmarks and examples. All are tileable
+//! ([`Border::Wrap`]) with texel size `s` (length units).
+
+use crate::error::Result;
+use crate::heightmap::{Border, HeightMap};
+use rand::RngExt;
+use rand::SeedableRng;
+
+/// A flat map (all heights 0).
+pub fn flat(n: usize, s: f64) -> Result<HeightMap> {
+    HeightMap::from_fn(n, n, s, Border::Wrap, |_, _| 0.0)
+}
+
+/// V-grooves along y, period `period` texels: `h = depth·|2·frac(x/(period·s)) − 1|` (rims at
+/// `x = 0` and `x = period·s`, valley in the middle). Walls have slope `±2·depth/(period·s)`.
+pub fn v_grooves(n: usize, period: usize, depth: f64, s: f64) -> Result<HeightMap> {
+    let p = period as f64 * s;
+    HeightMap::from_fn(n, n, s, Border::Wrap, |x, _| {
+        let f = (x / p).rem_euclid(1.0);
+        depth * (2.0 * f - 1.0).abs()
+    })
+}
+
+/// Parallel half-cylinders along y, touching, of radius `period·s/2`: bumps for `sign = +1`,
+/// grooves for `sign = −1` (same NDF, §3.1 of the paper).
+pub fn half_cylinders(n: usize, period: usize, s: f64, sign: f64) -> Result<HeightMap> {
+    let p = period as f64 * s;
+    let r = 0.5 * p;
+    HeightMap::from_fn(n, n, s, Border::Wrap, |x, _| {
+        let u = (x / p).rem_euclid(1.0) * p - r;
+        sign * (r * r - u * u).max(0.0).sqrt()
+    })
+}
+
+/// A Gaussian random surface: white noise (PCG, `seed`) blurred by a periodic Gaussian of
+/// standard deviation `corr` texels, scaled to RMS height `rms`.
+pub fn gaussian(n: usize, corr: f64, rms: f64, seed: u64, s: f64) -> Result<HeightMap> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut a: Vec<f64> = (0..n * n).map(|_| rng.random::<f64>() - 0.5).collect();
+    let rad = (3.0 * corr).ceil() as isize;
+    let k: Vec<f64> = (-rad..=rad)
+        .map(|d| (-(d * d) as f64 / (2.0 * corr * corr)).exp())
+        .collect();
+    let mut b = vec![0.0; n * n];
+    let ni = n as isize;
+    for i in 0..n {
+        for j in 0..n {
+            let mut v = 0.0;
+            for (t, kv) in k.iter().enumerate() {
+                let jj = (j as isize + t as isize - rad).rem_euclid(ni) as usize;
+                v += kv * a[i * n + jj];
+            }
+            b[i * n + j] = v;
+        }
+    }
+    for i in 0..n {
+        for j in 0..n {
+            let mut v = 0.0;
+            for (t, kv) in k.iter().enumerate() {
+                let ii = (i as isize + t as isize - rad).rem_euclid(ni) as usize;
+                v += kv * b[ii * n + j];
+            }
+            a[i * n + j] = v;
+        }
+    }
+    let mean = a.iter().sum::<f64>() / a.len() as f64;
+    let sd = (a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / a.len() as f64).sqrt();
+    let h = a.iter().map(|v| (v - mean) / sd * rms).collect();
+    HeightMap::from_heights(n, n, h, s, Border::Wrap)
+}
+
+/// A plain-weave pattern of period `period` texels (a multiple of 4 works best): warp threads
+/// along y and weft threads along x, each a rounded ridge of height `amp` that dips under the
+/// crossing thread every other crossing.
+pub fn woven(n: usize, period: usize, amp: f64, s: f64) -> Result<HeightMap> {
+    let p = period as f64 * s;
+    let tau = std::f64::consts::TAU;
+    HeightMap::from_fn(n, n, s, Border::Wrap, |x, y| {
+        let u = x / p;
+        let v = y / p;
+        // Ridge profiles across each thread family (two threads per period).
+        let warp_profile = (tau * u).cos().abs();
+        let weft_profile = (tau * v).cos().abs();
+        // Over/under modulation along each thread.
+        let warp = amp
+            * warp_profile
+            * (0.6 + 0.4 * (tau * v / 2.0 + std::f64::consts::PI * (2.0 * u).floor()).sin());
+        let weft = amp
+            * weft_profile
+            * (0.6 - 0.4 * (tau * u / 2.0 + std::f64::consts::PI * (2.0 * v).floor()).sin());
+        warp.max(weft)
+    })
+}

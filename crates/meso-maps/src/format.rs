@@ -1,0 +1,337 @@
+//! The map file: a versioned little-endian binary serialisation of a [`Pyramid`]
+//! (documented in `docs/map-format.md`). Every size is validated against the limits and the
+//! file length before anything is allocated.
+
+use crate::error::{MapError, Result};
+use crate::facets::NormalMode;
+use crate::fit::{ETA_MAX, MAX_LOBES};
+use crate::heightmap::{Border, MAX_DIMENSION, MAX_TEXELS};
+use crate::horizon::HorizonStats;
+use crate::pyramid::{level_count, Level, Pyramid, Residual};
+use glam::DVec3;
+use meso_core::ndf::PhongLobe;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The 8 magic bytes opening every map file.
+pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
+/// The format version written and read by this build.
+pub const VERSION: u32 = 1;
+const LOBE_BYTES: u64 = 20;
+const HORIZON_BYTES: u64 = 36;
+
+fn put_u32(w: &mut dyn Write, v: u32) -> std::io::Result<()> {
+    w.write_all(&v.to_le_bytes())
+}
+fn put_f64(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
+    w.write_all(&v.to_le_bytes())
+}
+fn put_f32(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
+    w.write_all(&(v as f32).to_le_bytes())
+}
+
+impl Pyramid {
+    /// Serialise into a writer (format of `docs/map-format.md`).
+    pub fn write_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
+        w.write_all(&MAGIC)?;
+        put_u32(w, VERSION)?;
+        put_u32(w, self.width as u32)?;
+        put_u32(w, self.height as u32)?;
+        put_u32(w, self.levels[0].cols as u32)?;
+        put_u32(w, self.levels[0].rows as u32)?;
+        put_f64(w, self.texel_size)?;
+        let has_h = self.levels[0].horizon.is_some();
+        w.write_all(&[
+            match self.border {
+                Border::Wrap => 0,
+                Border::Clamp => 1,
+            },
+            match self.normal_mode {
+                NormalMode::Triangles => 0,
+                NormalMode::CentralDifferences => 1,
+            },
+            has_h as u8,
+            0,
+        ])?;
+        put_u32(w, self.max_lobes as u32)?;
+        put_u32(w, self.levels.len() as u32)?;
+        for l in &self.levels {
+            put_u32(w, l.cols as u32)?;
+            put_u32(w, l.rows as u32)?;
+            put_u32(w, l.span as u32)?;
+            put_u32(w, l.lobes.len() as u32)?;
+            put_f64(w, l.residual.mean)?;
+            put_f64(w, l.residual.max)?;
+            put_u32(w, l.residual.texels)?;
+            let counts: Vec<u8> = l
+                .lobe_start
+                .windows(2)
+                .map(|p| (p[1] - p[0]) as u8)
+                .collect();
+            w.write_all(&counts)?;
+            for lobe in &l.lobes {
+                put_f32(w, lobe.axis.x)?;
+                put_f32(w, lobe.axis.y)?;
+                put_f32(w, lobe.axis.z)?;
+                put_f32(w, lobe.weight)?;
+                put_f32(w, lobe.exponent)?;
+            }
+            if let Some(h) = &l.horizon {
+                for s in h {
+                    put_f32(w, s.weight)?;
+                    for d in 0..4 {
+                        put_f32(w, s.mean[d])?;
+                    }
+                    for d in 0..4 {
+                        put_f32(w, s.var[d])?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The file as bytes.
+    #[must_use]
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut v = Vec::new();
+        self.write_to(&mut v)
+            .expect("writing to memory cannot fail");
+        v
+    }
+
+    /// Write the map file atomically (`meso_core::io::write_atomic_with`): on error no partial
+    /// file is left.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        meso_core::io::write_atomic_with(path, |w| self.write_to(w)).map_err(|e| MapError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })
+    }
+
+    /// Read a map file, validating magic, version, sizes (before allocating) and every value.
+    pub fn read(path: &Path) -> Result<Pyramid> {
+        let bytes = std::fs::read(path).map_err(|e| MapError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        Pyramid::from_bytes(path, &bytes)
+    }
+
+    /// Parse a map file from bytes; `path` only names the source in errors.
+    pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Pyramid> {
+        let mut r = Reader {
+            b: bytes,
+            pos: 0,
+            path: path.to_path_buf(),
+        };
+        let magic = r.take(8, "magic")?;
+        if magic != MAGIC {
+            return Err(r.err("not a meso map file (bad magic bytes)".into()));
+        }
+        let version = r.u32("version")?;
+        if version != VERSION {
+            return Err(MapError::MapVersion {
+                path: r.path.clone(),
+                found: version,
+                expected: VERSION,
+            });
+        }
+        let width = r.u32("width")? as usize;
+        let height = r.u32("height")? as usize;
+        let cols = r.u32("cols")? as usize;
+        let rows = r.u32("rows")? as usize;
+        for (name, v) in [
+            ("width", width),
+            ("height", height),
+            ("cols", cols),
+            ("rows", rows),
+        ] {
+            if v == 0 || v as u64 > MAX_DIMENSION {
+                return Err(r.err(format!("{name} = {v} outside 1..={MAX_DIMENSION}")));
+            }
+        }
+        if (width as u64) * (height as u64) > MAX_TEXELS || cols > width || rows > height {
+            return Err(r.err(format!(
+                "sizes {width}x{height} samples / {cols}x{rows} cells exceed the limits"
+            )));
+        }
+        let texel_size = r.f64("texel_size")?;
+        if !(texel_size.is_finite() && texel_size > 0.0) {
+            return Err(r.err(format!("texel_size {texel_size} is not > 0")));
+        }
+        let flags = r.take(4, "flags")?;
+        let border = match flags[0] {
+            0 => Border::Wrap,
+            1 => Border::Clamp,
+            b => return Err(r.err(format!("unknown border code {b}"))),
+        };
+        let normal_mode = match flags[1] {
+            0 => NormalMode::Triangles,
+            1 => NormalMode::CentralDifferences,
+            b => return Err(r.err(format!("unknown normal mode code {b}"))),
+        };
+        let has_h = match flags[2] {
+            0 => false,
+            1 => true,
+            b => return Err(r.err(format!("bad horizon flag {b}"))),
+        };
+        let max_lobes = r.u32("max_lobes")? as usize;
+        if max_lobes == 0 || max_lobes > MAX_LOBES {
+            return Err(r.err(format!("max_lobes {max_lobes} outside 1..={MAX_LOBES}")));
+        }
+        let nlev = r.u32("level count")? as usize;
+        let expect = level_count(cols, rows);
+        if nlev != expect {
+            return Err(r.err(format!(
+                "{nlev} levels, but a {cols}x{rows} grid has {expect}"
+            )));
+        }
+        let mut levels = Vec::with_capacity(nlev);
+        let (mut ec, mut er) = (cols, rows);
+        for k in 0..nlev {
+            let lc = r.u32("level cols")? as usize;
+            let lr = r.u32("level rows")? as usize;
+            let span = r.u32("level span")? as usize;
+            let nl = r.u32("level lobe count")? as usize;
+            if lc != ec || lr != er || span != 1 << k {
+                return Err(r.err(format!(
+                    "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
+                    1u64 << k
+                )));
+            }
+            let texels = lc * lr;
+            if nl > texels * max_lobes {
+                return Err(r.err(format!("level {k} claims {nl} lobes for {texels} texels")));
+            }
+            let need = texels as u64
+                + nl as u64 * LOBE_BYTES
+                + if has_h {
+                    texels as u64 * HORIZON_BYTES
+                } else {
+                    0
+                }
+                + 20;
+            if ((r.b.len() - r.pos) as u64) < need {
+                return Err(r.err(format!("truncated in level {k}")));
+            }
+            let residual = Residual {
+                mean: r.f64("residual")?,
+                max: r.f64("residual")?,
+                texels: r.u32("residual texels")?,
+            };
+            let counts = r.take(texels, "lobe counts")?;
+            let mut lobe_start = Vec::with_capacity(texels + 1);
+            lobe_start.push(0u32);
+            let mut sum = 0usize;
+            for &c in counts {
+                if c as usize > max_lobes {
+                    return Err(r.err(format!("level {k}: a texel has {c} lobes")));
+                }
+                sum += c as usize;
+                lobe_start.push(sum as u32);
+            }
+            if sum != nl {
+                return Err(r.err(format!(
+                    "level {k}: lobe counts add to {sum}, header says {nl}"
+                )));
+            }
+            let mut lobes = Vec::with_capacity(nl);
+            for _ in 0..nl {
+                let a = DVec3::new(r.f32("axis")?, r.f32("axis")?, r.f32("axis")?);
+                let weight = r.f32("weight")?;
+                let exponent = r.f32("exponent")?;
+                if !a.is_finite() || (a.length() - 1.0).abs() > 1e-3 {
+                    return Err(r.err(format!("level {k}: lobe axis {a} is not a unit vector")));
+                }
+                if !(weight.is_finite() && weight >= 0.0) {
+                    return Err(r.err(format!("level {k}: lobe weight {weight}")));
+                }
+                if !(exponent.is_finite() && (0.0..=ETA_MAX * 1.0001).contains(&exponent)) {
+                    return Err(r.err(format!("level {k}: lobe exponent {exponent}")));
+                }
+                lobes.push(PhongLobe {
+                    axis: a.normalize(),
+                    weight,
+                    exponent,
+                });
+            }
+            let horizon = if has_h {
+                let mut h = Vec::with_capacity(texels);
+                for _ in 0..texels {
+                    let weight = r.f32("horizon")?;
+                    let mean = [r.f32("h")?, r.f32("h")?, r.f32("h")?, r.f32("h")?];
+                    let var = [r.f32("h")?, r.f32("h")?, r.f32("h")?, r.f32("h")?];
+                    if !(weight.is_finite()
+                        && weight >= 0.0
+                        && mean.iter().chain(&var).all(|v| v.is_finite()))
+                    {
+                        return Err(r.err(format!("level {k}: bad horizon statistics")));
+                    }
+                    h.push(HorizonStats { weight, mean, var });
+                }
+                Some(h)
+            } else {
+                None
+            };
+            levels.push(Level {
+                cols: lc,
+                rows: lr,
+                span,
+                lobe_start,
+                lobes,
+                horizon,
+                residual,
+            });
+            ec = ec.div_ceil(2);
+            er = er.div_ceil(2);
+        }
+        if r.pos != r.b.len() {
+            return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
+        }
+        Ok(Pyramid {
+            width,
+            height,
+            texel_size,
+            border,
+            normal_mode,
+            max_lobes,
+            levels,
+        })
+    }
+}
+
+struct Reader<'a> {
+    b: &'a [u8],
+    pos: usize,
+    path: PathBuf,
+}
+
+impl<'a> Reader<'a> {
+    fn err(&self, message: String) -> MapError {
+        MapError::MapFormat {
+            path: self.path.clone(),
+            message,
+        }
+    }
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
+        if self.b.len() - self.pos < n {
+            return Err(self.err(format!(
+                "truncated while reading {what} at byte {}",
+                self.pos
+            )));
+        }
+        let s = &self.b[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+    fn u32(&mut self, what: &str) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.take(4, what)?.try_into().unwrap()))
+    }
+    fn f64(&mut self, what: &str) -> Result<f64> {
+        Ok(f64::from_le_bytes(self.take(8, what)?.try_into().unwrap()))
+    }
+    fn f32(&mut self, what: &str) -> Result<f64> {
+        Ok(f32::from_le_bytes(self.take(4, what)?.try_into().unwrap()) as f64)
+    }
+}

@@ -1,0 +1,288 @@
+//! A virtual gonioreflectometer: brute-force ray tracing of the triangulated height map (tiled
+//! periodically, so neighbours mask and shadow), under a directional light and an orthographic
+//! view.
+//!
+//! For a direction pair `(i, o)`, `n × n` parallel rays along `−o` are shot through jittered
+//! stratified points of one period of the tile (each ray stands for the same projected macro
+//! area). The first facet hit, with normal `m`, contributes `f_μ(i, o; m)·max(0, i·m)·V` where
+//! `V` is 1 unless a shadow ray towards `i` (also tiled) hits the surface; the BRDF is the
+//! mean contribution divided by `cos θ_i` (radiance / (E cos θ_i)). Single bounce: light
+//! reflected between facets is not followed.
+//!
+//! Acceleration: a 2-D DDA over the grid cells with the per-cell maximum height; a ray is
+//! tested against a cell's two triangles only where its height range over the cell reaches
+//! below that maximum. The triangles are those of `crate::facets` (diagonal `(i,j)–(i+1,j+1)`).
+
+use crate::brdf::FacetBrdf;
+use crate::error::{MapError, Result};
+use crate::heightmap::{Border, HeightMap};
+use glam::DVec3;
+use meso_core::frame::Frame;
+use rand::RngExt;
+use rand::SeedableRng;
+use rayon::prelude::*;
+
+/// Parameters of a measurement.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GonioParams {
+    /// Rays per side of the stratified grid (`n²` rays per direction pair; default 256).
+    pub rays_per_side: usize,
+    /// Trace shadow rays towards the light (default true). Masking of the view is always on.
+    pub shadowing: bool,
+    /// Seed of the jitter.
+    pub seed: u64,
+}
+
+impl Default for GonioParams {
+    fn default() -> Self {
+        GonioParams {
+            rays_per_side: 256,
+            shadowing: true,
+            seed: 1,
+        }
+    }
+}
+
+/// A ray tracer over one tileable height map (cell space: unit cells, heights divided by S).
+#[derive(Clone, Debug)]
+pub struct Gonio {
+    w: usize,
+    h: usize,
+    /// Heights in cell units.
+    z: Vec<f64>,
+    cell_max: Vec<f64>,
+    zmin: f64,
+    zmax: f64,
+}
+
+/// A hit: the facet normal (macro frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter (cell units).
+    pub t: f64,
+    /// Unit facet normal.
+    pub normal: DVec3,
+}
+
+impl Gonio {
+    /// Prepare a wrapped height map for tracing. Clamped maps are refused (the tile would not
+    /// continue, so rays near the border would see a cliff).
+    pub fn new(map: &HeightMap) -> Result<Gonio> {
+        if map.border() != Border::Wrap {
+            return Err(MapError::InvalidParameter {
+                name: "border",
+                value: "clamp".into(),
+                reason: "the gonioreflectometer tiles the map: it needs a wrapped map",
+            });
+        }
+        let (w, h) = (map.width(), map.height());
+        let s = map.texel_size();
+        let z: Vec<f64> = map.heights().iter().map(|v| v / s).collect();
+        let at = |r: usize, c: usize| z[(r % h) * w + (c % w)];
+        let mut cell_max = vec![0.0; w * h];
+        for r in 0..h {
+            for c in 0..w {
+                cell_max[r * w + c] = at(r, c)
+                    .max(at(r, c + 1))
+                    .max(at(r + 1, c))
+                    .max(at(r + 1, c + 1));
+            }
+        }
+        let (zmin, zmax) = z
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        Ok(Gonio {
+            w,
+            h,
+            z,
+            cell_max,
+            zmin,
+            zmax,
+        })
+    }
+
+    #[inline]
+    fn zat(&self, r: i64, c: i64) -> f64 {
+        let rr = r.rem_euclid(self.h as i64) as usize;
+        let cc = c.rem_euclid(self.w as i64) as usize;
+        self.z[rr * self.w + cc]
+    }
+
+    /// First intersection of the ray `o + t·d`, `t > t_min`, with the tiled surface (cell space).
+    #[must_use]
+    pub fn intersect(&self, o: DVec3, d: DVec3, t_min: f64) -> Option<Hit> {
+        let eps = 1e-12;
+        // Parameter range where the ray is inside the slab [zmin, zmax].
+        let (mut t0, t1) = if d.z.abs() < 1e-15 {
+            if o.z < self.zmin || o.z > self.zmax + 1e-9 {
+                return None;
+            }
+            (t_min, t_min + 4.0 * (self.w + self.h) as f64 + 1e6)
+        } else {
+            let a = (self.zmin - 1e-9 - o.z) / d.z;
+            let b = (self.zmax + 1e-9 - o.z) / d.z;
+            (a.min(b).max(t_min), a.max(b))
+        };
+        if t0 > t1 {
+            return None;
+        }
+        t0 = t0.max(t_min);
+        let p = o + d * t0;
+        let mut cx = p.x.floor() as i64;
+        let mut cy = p.y.floor() as i64;
+        let step_x: i64 = if d.x > 0.0 { 1 } else { -1 };
+        let step_y: i64 = if d.y > 0.0 { 1 } else { -1 };
+        let inv_x = if d.x.abs() > eps {
+            1.0 / d.x.abs()
+        } else {
+            f64::INFINITY
+        };
+        let inv_y = if d.y.abs() > eps {
+            1.0 / d.y.abs()
+        } else {
+            f64::INFINITY
+        };
+        let fx = p.x - cx as f64;
+        let fy = p.y - cy as f64;
+        let mut tmx = t0
+            + if d.x > 0.0 {
+                (1.0 - fx) * inv_x
+            } else {
+                fx * inv_x
+            };
+        let mut tmy = t0
+            + if d.y > 0.0 {
+                (1.0 - fy) * inv_y
+            } else {
+                fy * inv_y
+            };
+        let mut t_enter = t0;
+        let mut guard = 0usize;
+        loop {
+            let t_exit = tmx.min(tmy).min(t1);
+            let za = o.z + d.z * t_enter;
+            let zb = o.z + d.z * t_exit;
+            let cmax = self.cell_max[(cy.rem_euclid(self.h as i64) as usize) * self.w
+                + cx.rem_euclid(self.w as i64) as usize];
+            if za.min(zb) <= cmax + 1e-12 {
+                if let Some(hit) = self.cell_hit(cx, cy, o, d, t_enter.max(t_min), t_exit) {
+                    return Some(hit);
+                }
+            }
+            if t_exit >= t1 {
+                return None;
+            }
+            if tmx < tmy {
+                cx += step_x;
+                t_enter = tmx;
+                tmx += inv_x;
+            } else {
+                cy += step_y;
+                t_enter = tmy;
+                tmy += inv_y;
+            }
+            guard += 1;
+            if guard > 100_000_000 {
+                return None;
+            }
+        }
+    }
+
+    fn cell_hit(&self, cx: i64, cy: i64, o: DVec3, d: DVec3, ta: f64, tb: f64) -> Option<Hit> {
+        let h00 = self.zat(cy, cx);
+        let h01 = self.zat(cy, cx + 1);
+        let h10 = self.zat(cy + 1, cx);
+        let h11 = self.zat(cy + 1, cx + 1);
+        // Local origin relative to the cell corner.
+        let lo = DVec3::new(o.x - cx as f64, o.y - cy as f64, o.z);
+        let mut best: Option<Hit> = None;
+        for (gx, gy, tri_a) in [(h01 - h00, h11 - h01, true), (h11 - h10, h10 - h00, false)] {
+            // Plane z = h00 + gx x + gy y.
+            let den = d.z - gx * d.x - gy * d.y;
+            if den.abs() < 1e-300 {
+                continue;
+            }
+            let t = (h00 + gx * lo.x + gy * lo.y - lo.z) / den;
+            let tol = 1e-9 * (1.0 + t.abs());
+            if t < ta - tol || t > tb + tol || t <= ta.min(tb) - 1.0 {
+                continue;
+            }
+            let x = lo.x + d.x * t;
+            let y = lo.y + d.y * t;
+            let e = 1e-9;
+            if x < -e || x > 1.0 + e || y < -e || y > 1.0 + e {
+                continue;
+            }
+            if (tri_a && y > x + e) || (!tri_a && y < x - e) {
+                continue;
+            }
+            if best.is_none_or(|b| t < b.t) {
+                best = Some(Hit {
+                    t,
+                    normal: DVec3::new(-gx, -gy, 1.0).normalize(),
+                });
+            }
+        }
+        best
+    }
+
+    /// Measure the BRDF (1/sr, RGB) for light direction `i` and view direction `o` (unit, macro
+    /// frame, both with z > 0).
+    #[must_use]
+    pub fn measure(
+        &self,
+        facet: &dyn FacetBrdf,
+        i: DVec3,
+        o: DVec3,
+        params: &GonioParams,
+    ) -> [f64; 3] {
+        if i.z <= 0.0 || o.z <= 0.0 {
+            return [0.0; 3];
+        }
+        let n = params.rays_per_side.max(1);
+        let (w, h) = (self.w as f64, self.h as f64);
+        let start_z = self.zmax + 1.0;
+        let sums: Vec<[f64; 3]> = (0..n)
+            .into_par_iter()
+            .map(|a| {
+                let mut rng = rand_pcg::Pcg64::seed_from_u64(
+                    params.seed ^ (a as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                );
+                let mut acc = [0.0; 3];
+                for b in 0..n {
+                    let px = (a as f64 + rng.random::<f64>()) / n as f64 * w;
+                    let py = (b as f64 + rng.random::<f64>()) / n as f64 * h;
+                    let origin = DVec3::new(px, py, 0.0) + o * (start_z / o.z);
+                    let Some(hit) = self.intersect(origin, -o, 0.0) else {
+                        continue;
+                    };
+                    let m = hit.normal;
+                    let im = i.dot(m);
+                    if im <= 0.0 || o.dot(m) <= 0.0 {
+                        continue;
+                    }
+                    let p = origin - o * hit.t;
+                    if params.shadowing && self.intersect(p + m * 1e-7, i, 1e-9).is_some() {
+                        continue;
+                    }
+                    let fr = Frame::from_normal_tangent(m, DVec3::X);
+                    let f = facet.eval(fr.to_local(i), fr.to_local(o));
+                    for c in 0..3 {
+                        acc[c] += f[c] * im;
+                    }
+                }
+                acc
+            })
+            .collect();
+        let mut tot = [0.0; 3];
+        for s in sums {
+            for c in 0..3 {
+                tot[c] += s[c];
+            }
+        }
+        let k = 1.0 / ((n * n) as f64 * i.z);
+        tot.map(|v| v * k)
+    }
+}

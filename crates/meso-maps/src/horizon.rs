@@ -1,0 +1,186 @@
+//! Horizon angles (Max 1988, "Horizon mapping"): for every sample of a height map, the elevation
+//! angle of the horizon seen along +x, +y, −x and −y (azimuths 0°, 90°, 180°, 270°), in
+//! radians in `[0, π/2)`; 0 means nothing rises above the sample's own tangent plane... of the
+//! macro surface (the horizontal plane through the sample).
+//!
+//! The piecewise-linear surface along a grid line is linear between samples, so the horizon is
+//! the largest slope from the sample to any later sample on its line: found for a whole line in
+//! O(n) with the upper convex hull of the samples ahead. Wrapped maps look one full period ahead
+//! (enough: farther copies are seen under smaller angles); clamped maps stop at the border.
+//!
+//! [`HorizonStats`] filters the angles over a footprint as a mean and a variance per direction;
+//! [`HorizonStats::visibility`] turns them into the fraction of the footprint that sees a
+//! direction: the horizon angle is modelled as uniformly distributed with that mean and variance
+//! (a ramp of half-width √3·σ around the mean) and the ramp is smoothed by a smoothstep.
+
+use crate::heightmap::{Border, HeightMap};
+use glam::DVec3;
+
+/// Directions of the four horizon angles: +x, +y, −x, −y.
+pub const HORIZON_AZIMUTHS_DEG: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
+
+/// Horizon elevation angles of every sample: `angles[d][i·width + j]` for direction `d`
+/// (order of [`HORIZON_AZIMUTHS_DEG`]), radians.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HorizonMap {
+    /// Samples along x.
+    pub width: usize,
+    /// Samples along y.
+    pub height: usize,
+    /// Per direction, per sample (row-major) horizon elevation angle in radians.
+    pub angles: [Vec<f64>; 4],
+}
+
+/// Horizon angles along one line towards increasing index; `s` = sample spacing.
+fn horizon_line(h: &[f64], s: f64, wrap: bool, out: &mut [f64], stack: &mut Vec<(f64, f64)>) {
+    let n = h.len();
+    let len = if wrap { 2 * n } else { n };
+    stack.clear();
+    for idx in (0..len).rev() {
+        let p = (idx as f64 * s, h[idx % n]);
+        let slope = |q: (f64, f64)| (q.1 - p.1) / (q.0 - p.0);
+        while stack.len() >= 2 && slope(stack[stack.len() - 1]) <= slope(stack[stack.len() - 2]) {
+            stack.pop();
+        }
+        if idx < n {
+            out[idx] = match stack.last() {
+                Some(&q) => slope(q).max(0.0).atan(),
+                None => 0.0,
+            };
+        }
+        stack.push(p);
+    }
+}
+
+impl HorizonMap {
+    /// Horizon angles of every sample of `map` along ±x and ±y.
+    #[must_use]
+    pub fn compute(map: &HeightMap) -> HorizonMap {
+        let (w, h) = (map.width(), map.height());
+        let s = map.texel_size();
+        let wrap = map.border() == Border::Wrap;
+        let hs = map.heights();
+        let mut angles: [Vec<f64>; 4] = std::array::from_fn(|_| vec![0.0; w * h]);
+        let mut stack = Vec::new();
+        let mut line = Vec::new();
+        let mut out = Vec::new();
+        for i in 0..h {
+            // +x
+            line.clear();
+            line.extend_from_slice(&hs[i * w..(i + 1) * w]);
+            out.resize(w, 0.0);
+            horizon_line(&line, s, wrap, &mut out, &mut stack);
+            angles[0][i * w..(i + 1) * w].copy_from_slice(&out);
+            // −x
+            line.reverse();
+            horizon_line(&line, s, wrap, &mut out, &mut stack);
+            for j in 0..w {
+                angles[2][i * w + j] = out[w - 1 - j];
+            }
+        }
+        for j in 0..w {
+            line.clear();
+            line.extend((0..h).map(|i| hs[i * w + j]));
+            out.resize(h, 0.0);
+            horizon_line(&line, s, wrap, &mut out, &mut stack);
+            for i in 0..h {
+                angles[1][i * w + j] = out[i];
+            }
+            line.reverse();
+            horizon_line(&line, s, wrap, &mut out, &mut stack);
+            for i in 0..h {
+                angles[3][i * w + j] = out[h - 1 - i];
+            }
+        }
+        HorizonMap {
+            width: w,
+            height: h,
+            angles,
+        }
+    }
+
+    /// The statistics of the single sample `(row, col)`.
+    #[must_use]
+    pub fn sample_stats(&self, row: usize, col: usize) -> HorizonStats {
+        let k = row * self.width + col;
+        HorizonStats {
+            weight: 1.0,
+            mean: std::array::from_fn(|d| self.angles[d][k]),
+            var: [0.0; 4],
+        }
+    }
+
+    /// Statistics over all samples.
+    #[must_use]
+    pub fn total_stats(&self) -> HorizonStats {
+        let mut s = HorizonStats::default();
+        for r in 0..self.height {
+            for c in 0..self.width {
+                s.merge(&self.sample_stats(r, c));
+            }
+        }
+        s
+    }
+}
+
+/// Mean and variance (radians, radians²) of the horizon angles of a footprint along +x, +y, −x,
+/// −y, with the weight (number of samples) they summarise.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct HorizonStats {
+    /// Number of samples summarised (0 = no information: everything is visible).
+    pub weight: f64,
+    /// Mean horizon elevation angle per direction (radians).
+    pub mean: [f64; 4],
+    /// Variance of the horizon angle per direction (radians²).
+    pub var: [f64; 4],
+}
+
+impl HorizonStats {
+    /// Merge another footprint's statistics into this one (exact pooled mean and variance).
+    pub fn merge(&mut self, o: &HorizonStats) {
+        if o.weight <= 0.0 {
+            return;
+        }
+        let n = self.weight + o.weight;
+        for d in 0..4 {
+            let delta = o.mean[d] - self.mean[d];
+            let mean = self.mean[d] + delta * o.weight / n;
+            let m2 = self.var[d] * self.weight
+                + o.var[d] * o.weight
+                + delta * delta * self.weight * o.weight / n;
+            self.mean[d] = mean;
+            self.var[d] = m2 / n;
+        }
+        self.weight = n;
+    }
+
+    /// Fraction of the footprint from which the direction `w` (local frame, z up) is above the
+    /// horizon, in `[0, 1]`. Mean and variance are interpolated in azimuth between the two
+    /// nearest of the four directions with weights cos²φ and sin²φ.
+    #[must_use]
+    pub fn visibility(&self, w: DVec3) -> f64 {
+        if self.weight <= 0.0 {
+            return 1.0;
+        }
+        if w.z <= 0.0 {
+            return 0.0;
+        }
+        let rxy = (w.x * w.x + w.y * w.y).sqrt();
+        let elev = w.z.atan2(rxy);
+        if rxy < 1e-12 {
+            return 1.0;
+        }
+        let (c, s) = (w.x / rxy, w.y / rxy);
+        let ix = if c >= 0.0 { 0 } else { 2 };
+        let iy = if s >= 0.0 { 1 } else { 3 };
+        let (c2, s2) = (c * c, s * s);
+        let mu = c2 * self.mean[ix] + s2 * self.mean[iy];
+        let var = c2 * self.var[ix] + s2 * self.var[iy];
+        let half = 3f64.sqrt() * var.max(0.0).sqrt();
+        if half < 1e-9 {
+            return if elev > mu { 1.0 } else { 0.0 };
+        }
+        let x = ((elev - (mu - half)) / (2.0 * half)).clamp(0.0, 1.0);
+        x * x * (3.0 - 2.0 * x)
+    }
+}

@@ -1,0 +1,45 @@
+//! # meso-maps
+//!
+//! Bump maps to multiple surfaces (Fournier 1992, §3.2, and "Filtering Normal Maps and Creating
+//! Multiple Surfaces", UBC TR-92-41): height maps → meso-normals → a pyramid of per-texel NDFs
+//! fitted as sums of Phong peaks, with filtered horizon angles for masking and self-shadowing;
+//! the effective BRDF of a patch in microfacet form; a map file; a virtual gonioreflectometer
+//! that ray-traces the height field to check all of it; baselines (mip normal, Toksvig, LEAN,
+//! vMF).
+//!
+//! Conventions are those of `meso_core::frame`: the macro surface has its normal on +z, x along
+//! the map's columns, y along its rows; directions are unit vectors pointing away from the
+//! surface; radians in code.
+//!
+//! ```
+//! use meso_maps::{extract, fixtures, ExtractParams, Source};
+//! let map = fixtures::v_grooves(16, 8, 0.1, 0.05).unwrap();
+//! let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |_| {}).unwrap();
+//! assert_eq!(pyr.top().texels(), 1);
+//! assert_eq!(pyr.top().lobes.len(), 2); // the two walls of the grooves
+//! ```
+#![warn(missing_docs)]
+
+pub mod brdf;
+pub mod error;
+pub mod facets;
+pub mod fit;
+pub mod fixtures;
+pub mod format;
+pub mod gonio;
+pub mod heightmap;
+pub mod horizon;
+pub mod pyramid;
+pub mod sphgrid;
+
+pub use brdf::{
+    fit_baseline, Baseline, EffectiveBrdf, FacetBrdf, Form, Lambert, PatchNdf, PhongFacet,
+    Shadowing,
+};
+pub use error::{MapError, Result};
+pub use facets::{FacetNormals, NormalMode};
+pub use fit::FitParams;
+pub use gonio::{Gonio, GonioParams};
+pub use heightmap::{Border, HeightMap, NormalConvention, NormalMap};
+pub use horizon::{HorizonMap, HorizonStats};
+pub use pyramid::{extract, ExtractParams, Level, Progress, Pyramid, PyramidInfo, Source};

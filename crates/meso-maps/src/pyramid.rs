@@ -1,0 +1,492 @@
+//! The NDF pyramid: for every texel of every level, a few Phong lobes fitted to the meso-normals
+//! of its footprint, plus horizon statistics.
+//!
+//! * Level 0 has one texel per grid cell (two triangle normals, or one normal with central
+//!   differences or for normal maps).
+//! * Level k has `⌈cols/2^k⌉ × ⌈rows/2^k⌉` texels; texel `(r, c)` covers cells
+//!   `r·2^k .. min((r+1)·2^k, rows)` × `c·2^k .. min((c+1)·2^k, cols)`. Maps whose sides are not
+//!   powers of two get a **ragged** last row/column (smaller footprints), not padding.
+//! * The top level is the first with a single texel; it covers the whole map.
+//! * Each level reports its fit residual ([`Residual`]): the relative NDF L2 error of
+//!   `crate::fit::ndf_l2_error` over all its texels, or a strided sample of
+//!   `residual_texels` of them on large levels.
+
+use crate::error::{MapError, Result};
+use crate::facets::{FacetNormals, NormalMode};
+use crate::fit::{fit_lobes, merge_entries, ndf_l2_error, Entry, FitParams, MAX_LOBES};
+use crate::heightmap::{Border, HeightMap, NormalMap};
+use crate::horizon::{HorizonMap, HorizonStats};
+use meso_core::ndf::PhongLobe;
+use rayon::prelude::*;
+
+/// What to extract from.
+#[derive(Clone, Copy, Debug)]
+pub enum Source<'a> {
+    /// A height map (normals from triangles or central differences, plus horizon angles).
+    Heights(&'a HeightMap),
+    /// A tangent-space normal map (normals only; no horizon statistics).
+    Normals(&'a NormalMap),
+}
+
+/// Parameters of [`extract`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExtractParams {
+    /// Lobe fit parameters (max lobes, likelihood threshold, EM budget).
+    pub fit: FitParams,
+    /// Triangles (default) or central differences.
+    pub normal_mode: NormalMode,
+    /// Texels per level on which the NDF residual is measured (all when the level has fewer;
+    /// default 64).
+    pub residual_texels: usize,
+}
+
+impl Default for ExtractParams {
+    fn default() -> Self {
+        ExtractParams {
+            fit: FitParams::default(),
+            normal_mode: NormalMode::Triangles,
+            residual_texels: 64,
+        }
+    }
+}
+
+/// Progress of [`extract`], reported after each level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    /// Levels finished so far.
+    pub levels_done: usize,
+    /// Total number of levels.
+    pub levels: usize,
+    /// Texels fitted so far (all levels).
+    pub texels_done: u64,
+    /// Texels to fit in all.
+    pub texels_total: u64,
+}
+
+/// The NDF fit residual of one level.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Residual {
+    /// Mean relative NDF L2 error over the measured texels.
+    pub mean: f64,
+    /// Largest relative NDF L2 error among them.
+    pub max: f64,
+    /// Number of texels measured.
+    pub texels: u32,
+}
+
+/// One level of the pyramid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Level {
+    /// Texels along x.
+    pub cols: usize,
+    /// Texels along y.
+    pub rows: usize,
+    /// Footprint side in level-0 cells (2^k).
+    pub span: usize,
+    /// `lobe_start[t]..lobe_start[t+1]` indexes `lobes` for texel `t = row·cols + col`.
+    pub lobe_start: Vec<u32>,
+    /// All lobes of the level (local frame, normal +z; weights of a texel sum to 1).
+    pub lobes: Vec<PhongLobe>,
+    /// Horizon statistics per texel (height maps only).
+    pub horizon: Option<Vec<HorizonStats>>,
+    /// Fit residual.
+    pub residual: Residual,
+}
+
+impl Level {
+    /// The lobes of texel `(row, col)`.
+    pub fn texel_lobes(&self, row: usize, col: usize) -> Result<&[PhongLobe]> {
+        let t = self.index(row, col)?;
+        Ok(&self.lobes[self.lobe_start[t] as usize..self.lobe_start[t + 1] as usize])
+    }
+    /// The horizon statistics of texel `(row, col)` (`None` for normal maps).
+    pub fn texel_horizon(&self, row: usize, col: usize) -> Result<Option<HorizonStats>> {
+        let t = self.index(row, col)?;
+        Ok(self.horizon.as_ref().map(|h| h[t]))
+    }
+    fn index(&self, row: usize, col: usize) -> Result<usize> {
+        if row >= self.rows {
+            return Err(MapError::OutOfRange {
+                what: "row",
+                index: row,
+                count: self.rows,
+            });
+        }
+        if col >= self.cols {
+            return Err(MapError::OutOfRange {
+                what: "column",
+                index: col,
+                count: self.cols,
+            });
+        }
+        Ok(row * self.cols + col)
+    }
+    /// Number of texels.
+    #[must_use]
+    pub fn texels(&self) -> usize {
+        self.cols * self.rows
+    }
+}
+
+/// An extracted pyramid (see the module docs). Written and read by `Pyramid::write`/`read`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pyramid {
+    /// Samples along x of the source map.
+    pub width: usize,
+    /// Samples along y of the source map.
+    pub height: usize,
+    /// Texel size S (length units; 1 for normal maps).
+    pub texel_size: f64,
+    /// Border mode of the source.
+    pub border: Border,
+    /// How normals were derived.
+    pub normal_mode: NormalMode,
+    /// `max_lobes` used for the fit.
+    pub max_lobes: usize,
+    /// Levels, finest (0) first; the last has one texel.
+    pub levels: Vec<Level>,
+}
+
+/// Summary of a pyramid for `meso map info`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PyramidInfo {
+    /// Source size in samples.
+    pub width: usize,
+    /// Source size in samples.
+    pub height: usize,
+    /// Texel size.
+    pub texel_size: f64,
+    /// Per level: `(cols, rows, span, total lobes, histogram of lobe counts 0..=MAX_LOBES,
+    /// residual)`.
+    pub levels: Vec<LevelInfo>,
+}
+
+/// Summary of one level.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelInfo {
+    /// Texels along x.
+    pub cols: usize,
+    /// Texels along y.
+    pub rows: usize,
+    /// Footprint side in cells.
+    pub span: usize,
+    /// Total number of lobes.
+    pub lobes: usize,
+    /// `lobe_counts[k]` = number of texels with k lobes.
+    pub lobe_counts: Vec<usize>,
+    /// Fit residual.
+    pub residual: Residual,
+}
+
+impl std::fmt::Display for PyramidInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "map {}x{} samples, texel size {}, {} levels",
+            self.width,
+            self.height,
+            self.texel_size,
+            self.levels.len()
+        )?;
+        writeln!(
+            f,
+            "level  texels       span  lobes     lobes/texel  lobe-count histogram  residual mean/max (n)"
+        )?;
+        for (k, l) in self.levels.iter().enumerate() {
+            let hist: Vec<String> = l
+                .lobe_counts
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c > 0)
+                .map(|(n, c)| format!("{n}:{c}"))
+                .collect();
+            writeln!(
+                f,
+                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:.4}/{:.4} ({})",
+                format!("{}x{}", l.cols, l.rows),
+                l.span,
+                l.lobes,
+                l.lobes as f64 / (l.cols * l.rows) as f64,
+                hist.join(" "),
+                l.residual.mean,
+                l.residual.max,
+                l.residual.texels
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl Pyramid {
+    /// The top level (one texel covering the whole map).
+    #[must_use]
+    pub fn top(&self) -> &Level {
+        self.levels
+            .last()
+            .expect("a pyramid has at least one level")
+    }
+    /// Level `k`, or an error naming the range.
+    pub fn level(&self, k: usize) -> Result<&Level> {
+        self.levels.get(k).ok_or(MapError::OutOfRange {
+            what: "level",
+            index: k,
+            count: self.levels.len(),
+        })
+    }
+    /// A summary: sizes, lobe counts and residuals per level.
+    #[must_use]
+    pub fn info(&self) -> PyramidInfo {
+        PyramidInfo {
+            width: self.width,
+            height: self.height,
+            texel_size: self.texel_size,
+            levels: self
+                .levels
+                .iter()
+                .map(|l| {
+                    let mut counts = vec![0; MAX_LOBES + 1];
+                    for t in 0..l.texels() {
+                        let n = (l.lobe_start[t + 1] - l.lobe_start[t]) as usize;
+                        counts[n.min(MAX_LOBES)] += 1;
+                    }
+                    LevelInfo {
+                        cols: l.cols,
+                        rows: l.rows,
+                        span: l.span,
+                        lobes: l.lobes.len(),
+                        lobe_counts: counts,
+                        residual: l.residual,
+                    }
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Number of levels of a `cols × rows` cell grid (level 0 … the first 1×1 level).
+#[must_use]
+pub fn level_count(cols: usize, rows: usize) -> usize {
+    let mut n = 1;
+    let (mut c, mut r) = (cols, rows);
+    while c > 1 || r > 1 {
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+        n += 1;
+    }
+    n
+}
+
+/// Extract the pyramid of `source`: meso-normals, per-texel lobe fits at every level, horizon
+/// statistics and per-level residuals. `progress` is called after every level (on the calling
+/// thread). The work inside a level runs on rayon's pool.
+pub fn extract(
+    source: Source<'_>,
+    params: &ExtractParams,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Pyramid> {
+    if params.fit.max_lobes == 0 || params.fit.max_lobes > MAX_LOBES {
+        return Err(MapError::InvalidParameter {
+            name: "max_lobes",
+            value: params.fit.max_lobes.to_string(),
+            reason: "must be between 1 and 8",
+        });
+    }
+    if !(params.fit.min_gain.is_finite() && params.fit.min_gain >= 0.0) {
+        return Err(MapError::InvalidParameter {
+            name: "min_gain",
+            value: params.fit.min_gain.to_string(),
+            reason: "must be a finite number ≥ 0",
+        });
+    }
+    let (facets, horizon, width, height, texel_size, border) = match source {
+        Source::Heights(m) => (
+            FacetNormals::from_heightmap(m, params.normal_mode),
+            Some(HorizonMap::compute(m)),
+            m.width(),
+            m.height(),
+            m.texel_size(),
+            m.border(),
+        ),
+        Source::Normals(n) => (
+            FacetNormals::from_normal_map(n),
+            None,
+            n.width(),
+            n.height(),
+            1.0,
+            Border::Wrap,
+        ),
+    };
+    let nlev = level_count(facets.cols, facets.rows);
+    let mut total = 0u64;
+    {
+        let (mut c, mut r) = (facets.cols, facets.rows);
+        for _ in 0..nlev {
+            total += (c * r) as u64;
+            c = c.div_ceil(2);
+            r = r.div_ceil(2);
+        }
+    }
+    let mut levels: Vec<Level> = Vec::with_capacity(nlev);
+    // Entries of the previous level, flat, with per-texel offsets.
+    let mut prev_entries: Vec<Entry> = Vec::new();
+    let mut prev_start: Vec<u32> = Vec::new();
+    let mut done = 0u64;
+    let (mut cols, mut rows) = (facets.cols, facets.rows);
+    for k in 0..nlev {
+        let span = 1usize << k;
+        let prev_cols = if k == 0 { 0 } else { levels[k - 1].cols };
+        let prev_rows = if k == 0 { 0 } else { levels[k - 1].rows };
+        let prev_h = if k == 0 {
+            None
+        } else {
+            levels[k - 1].horizon.as_ref()
+        };
+        struct RowOut {
+            entries: Vec<Entry>,
+            ecount: Vec<u32>,
+            lobes: Vec<PhongLobe>,
+            lcount: Vec<u32>,
+            horizon: Vec<HorizonStats>,
+        }
+        let rows_out: Vec<RowOut> = (0..rows)
+            .into_par_iter()
+            .map(|r| {
+                let mut out = RowOut {
+                    entries: Vec::new(),
+                    ecount: Vec::with_capacity(cols),
+                    lobes: Vec::new(),
+                    lcount: Vec::with_capacity(cols),
+                    horizon: Vec::new(),
+                };
+                let mut merged = Vec::new();
+                let mut singles = Vec::new();
+                let mut lobes = Vec::new();
+                for c in 0..cols {
+                    if k == 0 {
+                        singles.clear();
+                        for (n, w) in facets.footprint(r, r + 1, c, c + 1) {
+                            singles.push(Entry::new(n, w));
+                        }
+                        merge_entries(&[&singles], &mut merged);
+                        if let Some(h) = &horizon {
+                            out.horizon.push(h.sample_stats(r, c));
+                        }
+                    } else {
+                        let mut lists: [&[Entry]; 4] = [&[]; 4];
+                        let mut hs = HorizonStats::default();
+                        let mut n = 0;
+                        for cr in 2 * r..(2 * r + 2).min(prev_rows) {
+                            for cc in 2 * c..(2 * c + 2).min(prev_cols) {
+                                let t = cr * prev_cols + cc;
+                                lists[n] = &prev_entries
+                                    [prev_start[t] as usize..prev_start[t + 1] as usize];
+                                n += 1;
+                                if let Some(ph) = prev_h {
+                                    hs.merge(&ph[t]);
+                                }
+                            }
+                        }
+                        merge_entries(&lists[..n], &mut merged);
+                        if prev_h.is_some() {
+                            out.horizon.push(hs);
+                        }
+                    }
+                    fit_lobes(&merged, &params.fit, &mut lobes);
+                    out.entries.extend_from_slice(&merged);
+                    out.ecount.push(merged.len() as u32);
+                    out.lobes.extend_from_slice(&lobes);
+                    out.lcount.push(lobes.len() as u32);
+                }
+                out
+            })
+            .collect();
+        let mut entries = Vec::with_capacity(rows_out.iter().map(|r| r.entries.len()).sum());
+        let mut estart = Vec::with_capacity(cols * rows + 1);
+        let mut lobes = Vec::with_capacity(rows_out.iter().map(|r| r.lobes.len()).sum());
+        let mut lstart = Vec::with_capacity(cols * rows + 1);
+        let mut hz = Vec::new();
+        estart.push(0u32);
+        lstart.push(0u32);
+        for ro in rows_out {
+            for (ec, lc) in ro.ecount.iter().zip(&ro.lcount) {
+                estart.push(estart.last().unwrap() + ec);
+                lstart.push(lstart.last().unwrap() + lc);
+            }
+            entries.extend_from_slice(&ro.entries);
+            lobes.extend_from_slice(&ro.lobes);
+            hz.extend_from_slice(&ro.horizon);
+        }
+        let mut level = Level {
+            cols,
+            rows,
+            span,
+            lobe_start: lstart,
+            lobes,
+            horizon: horizon.as_ref().map(|_| hz),
+            residual: Residual::default(),
+        };
+        level.residual = level_residual(&level, &facets, params.residual_texels);
+        levels.push(level);
+        prev_entries = entries;
+        prev_start = estart;
+        done += (cols * rows) as u64;
+        progress(Progress {
+            levels_done: k + 1,
+            levels: nlev,
+            texels_done: done,
+            texels_total: total,
+        });
+        cols = cols.div_ceil(2);
+        rows = rows.div_ceil(2);
+    }
+    Ok(Pyramid {
+        width,
+        height,
+        texel_size,
+        border,
+        normal_mode: params.normal_mode,
+        max_lobes: params.fit.max_lobes,
+        levels,
+    })
+}
+
+/// Cells covered by texel `(r, c)` of a level with footprint side `span`.
+#[must_use]
+pub fn footprint_cells(
+    facets: &FacetNormals,
+    span: usize,
+    r: usize,
+    c: usize,
+) -> (usize, usize, usize, usize) {
+    (
+        r * span,
+        ((r + 1) * span).min(facets.rows),
+        c * span,
+        ((c + 1) * span).min(facets.cols),
+    )
+}
+
+fn level_residual(level: &Level, facets: &FacetNormals, max_texels: usize) -> Residual {
+    let n = level.texels();
+    let stride = n.div_ceil(max_texels.max(1)).max(1);
+    let errs: Vec<f64> = (0..n)
+        .step_by(stride)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|t| {
+            let (r, c) = (t / level.cols, t % level.cols);
+            let (r0, r1, c0, c1) = footprint_cells(facets, level.span, r, c);
+            let lobes =
+                &level.lobes[level.lobe_start[t] as usize..level.lobe_start[t + 1] as usize];
+            ndf_l2_error(facets.footprint(r0, r1, c0, c1), |g, out| {
+                crate::fit::lobe_bin_mass(lobes, g, out)
+            })
+        })
+        .collect();
+    let texels = errs.len() as u32;
+    Residual {
+        mean: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
+        max: errs.iter().copied().fold(0.0, f64::max),
+        texels,
+    }
+}
