@@ -1,0 +1,547 @@
+//! The fitting framework: a parameterised BRDF model, fitted to samples by Levenberg–Marquardt
+//! in a chosen [`Metric`], with linear per-channel amplitudes, bounds, several starts and a
+//! coarse-to-fine schedule.
+//!
+//! # Model structure
+//! Every model is written as a sum of *basis lobes* with per-channel non-negative amplitudes:
+//!
+//! ```text
+//! f_c(i, o) = Σ_j A[c][j] · b_j(θ; i, o)        c ∈ {r, g, b}
+//! ```
+//!
+//! where `θ` are the non-linear (shared) parameters — lobe geometry, exponents, roughness —
+//! and `A ≥ 0` the linear amplitudes (diffuse albedo, specular colour, ...). This is the "shared
+//! lobe geometry, per-channel amplitudes" structure: the amplitudes are initialised by
+//! non-negative linear least squares for every start (variable projection) and then refined
+//! together with `θ` by LM; the Jacobian in `A` is exact (`b_j`), in `θ` by forward differences
+//! of the basis.
+//!
+//! # Schedule ([`fit`])
+//! 1. coarse subsample (`coarse_samples`, stratified);
+//! 2. every start of [`BrdfModel::initial_guesses`]: amplitudes by NNLS, cost in the metric;
+//! 3. the best `refine_starts` starts: LM on the coarse subsample;
+//! 4. the best of them: LM on all samples given.
+//!
+//! Residual and normal-equation evaluation is parallel (rayon), allocation-free per sample.
+
+use crate::lm::{self, LeastSquares, LmOptions};
+use crate::metric::Metric;
+use crate::samples::{Sample, SampleSet};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// A parameterised BRDF model `f_c = Σ_j A[c][j]·b_j(θ; i, o)` (see the module docs).
+pub trait BrdfModel: Sync {
+    /// A short human-readable name, e.g. `"lobes-2"`, `"ggx"`.
+    fn name(&self) -> String;
+    /// Names of the non-linear parameters `θ` (their count is the number of parameters).
+    fn nonlinear_names(&self) -> Vec<String>;
+    /// Names of the basis lobes `b_j` (their count is the number of amplitudes per channel).
+    fn basis_names(&self) -> Vec<String>;
+    /// Box bounds `(lo, hi)` of each non-linear parameter.
+    fn bounds(&self) -> Vec<(f64, f64)>;
+    /// Starting values of `θ` to try (at least one; amplitudes are solved for each).
+    fn initial_guesses(&self) -> Vec<Vec<f64>>;
+    /// Evaluate the basis lobes `b_j(θ; wi, wo)` (1/sr, non-negative) into `out`
+    /// (`out.len()` = number of basis lobes). `wi`, `wo` are unit, local frame, upper hemisphere.
+    fn basis(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]);
+
+    /// Number of non-linear parameters.
+    fn n_nonlinear(&self) -> usize {
+        self.nonlinear_names().len()
+    }
+    /// Number of basis lobes.
+    fn n_basis(&self) -> usize {
+        self.basis_names().len()
+    }
+}
+
+/// Evaluate a model with parameters `theta` and amplitudes `amps[j] = [r, g, b]` (1/sr).
+/// `scratch` must hold at least `n_basis` values (kept outside for allocation-free loops).
+#[must_use]
+pub fn eval_model(
+    model: &dyn BrdfModel,
+    theta: &[f64],
+    amps: &[[f64; 3]],
+    wi: DVec3,
+    wo: DVec3,
+    scratch: &mut [f64],
+) -> [f64; 3] {
+    let nb = amps.len();
+    model.basis(theta, wi, wo, &mut scratch[..nb]);
+    let mut f = [0.0; 3];
+    for (a, b) in amps.iter().zip(&scratch[..nb]) {
+        for c in 0..3 {
+            f[c] += a[c] * b;
+        }
+    }
+    f
+}
+
+/// Errors of a model against samples, per channel (r, g, b), in both metrics.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FitErrors {
+    /// [`Metric::NganL2`] RMS, 1/sr.
+    pub ngan_l2: [f64; 3],
+    /// [`Metric::LowLog`] RMS, dimensionless.
+    pub low_log: [f64; 3],
+}
+
+/// Score `theta`/`amps` of `model` on `data` in both metrics (weighted RMS per channel).
+#[must_use]
+pub fn evaluate(
+    model: &dyn BrdfModel,
+    theta: &[f64],
+    amps: &[[f64; 3]],
+    data: &SampleSet,
+) -> FitErrors {
+    let nb = amps.len();
+    let sums = data
+        .samples
+        .par_chunks(2048)
+        .map(|chunk| {
+            let mut scratch = vec![0.0; nb];
+            let mut acc = [0.0f64; 7];
+            for s in chunk {
+                let f = eval_model(model, theta, amps, s.wi, s.wo, &mut scratch);
+                let ci = s.wi.z;
+                for c in 0..3 {
+                    let a = Metric::NganL2.residual(f[c], s.rgb[c], ci);
+                    let b = Metric::LowLog.residual(f[c], s.rgb[c], ci);
+                    acc[c] += s.weight * a * a;
+                    acc[3 + c] += s.weight * b * b;
+                }
+                acc[6] += s.weight;
+            }
+            acc
+        })
+        .reduce(
+            || [0.0; 7],
+            |mut a, b| {
+                for k in 0..7 {
+                    a[k] += b[k];
+                }
+                a
+            },
+        );
+    let w = sums[6].max(f64::MIN_POSITIVE);
+    FitErrors {
+        ngan_l2: [0, 1, 2].map(|c| (sums[c] / w).sqrt()),
+        low_log: [0, 1, 2].map(|c| (sums[3 + c] / w).sqrt()),
+    }
+}
+
+/// Options of [`fit`].
+#[derive(Clone, Copy, Debug)]
+pub struct FitOptions {
+    /// The metric minimised.
+    pub metric: Metric,
+    /// Size of the coarse subsample used to rank starts and for the first LM run.
+    pub coarse_samples: usize,
+    /// How many of the best starts are refined by LM on the coarse subsample.
+    pub refine_starts: usize,
+    /// LM iterations on the coarse subsample.
+    pub coarse_iterations: usize,
+    /// LM iterations on the full sample set.
+    pub fine_iterations: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            metric: Metric::LowLog,
+            coarse_samples: 4000,
+            refine_starts: 3,
+            coarse_iterations: 60,
+            fine_iterations: 40,
+        }
+    }
+}
+
+/// Errors of [`fit`].
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// No samples with positive weight.
+    #[error("no samples to fit (after filtering)")]
+    NoData,
+    /// A sample is not usable.
+    #[error("sample {index}: {what}")]
+    BadSample {
+        /// Index in the sample set.
+        index: usize,
+        /// What is wrong.
+        what: String,
+    },
+    /// The model's starting points or bounds are inconsistent.
+    #[error("model {model}: {what}")]
+    BadModel {
+        /// Model name.
+        model: String,
+        /// What is wrong.
+        what: String,
+    },
+}
+
+/// The outcome of [`fit`].
+#[derive(Clone, Debug)]
+pub struct FitResult {
+    /// Model name.
+    pub model: String,
+    /// Metric minimised.
+    pub metric: Metric,
+    /// Non-linear parameters (names: [`BrdfModel::nonlinear_names`]).
+    pub theta: Vec<f64>,
+    /// Amplitudes per basis lobe, `[r, g, b]` (names: [`BrdfModel::basis_names`]).
+    pub amps: Vec<[f64; 3]>,
+    /// Errors on the fitted samples, both metrics, per channel.
+    pub errors: FitErrors,
+    /// Total LM iterations (all starts, both stages).
+    pub iterations: usize,
+    /// Number of starts tried.
+    pub starts: usize,
+    /// Wall-clock time, seconds.
+    pub seconds: f64,
+}
+
+struct Problem<'a> {
+    model: &'a dyn BrdfModel,
+    data: &'a [Sample],
+    metric: Metric,
+    nt: usize,
+    nb: usize,
+}
+
+impl Problem<'_> {
+    fn split<'p>(&self, p: &'p [f64]) -> (&'p [f64], Vec<[f64; 3]>) {
+        let (t, a) = p.split_at(self.nt);
+        let amps = (0..self.nb)
+            .map(|j| [a[j], a[self.nb + j], a[2 * self.nb + j]])
+            .collect();
+        (t, amps)
+    }
+}
+
+impl LeastSquares for Problem<'_> {
+    fn n_params(&self) -> usize {
+        self.nt + 3 * self.nb
+    }
+
+    fn cost(&self, p: &[f64]) -> f64 {
+        let (theta, amps) = self.split(p);
+        let nb = self.nb;
+        self.data
+            .par_chunks(1024)
+            .map(|chunk| {
+                let mut scratch = vec![0.0; nb];
+                let mut acc = 0.0;
+                for s in chunk {
+                    let f = eval_model(self.model, theta, &amps, s.wi, s.wo, &mut scratch);
+                    for c in 0..3 {
+                        let r = self.metric.residual(f[c], s.rgb[c], s.wi.z);
+                        acc += s.weight * r * r;
+                    }
+                }
+                acc
+            })
+            .sum::<f64>()
+            * 0.5
+    }
+
+    fn normal_equations(&self, p: &[f64], jtj: &mut [f64], jtr: &mut [f64]) -> f64 {
+        let (theta, amps) = self.split(p);
+        let (nt, nb) = (self.nt, self.nb);
+        let n = nt + 3 * nb;
+        let bounds = self.model.bounds();
+        let steps: Vec<f64> = (0..nt)
+            .map(|k| {
+                let h = 1e-6 * (1.0 + theta[k].abs());
+                if theta[k] + h > bounds[k].1 {
+                    -h
+                } else {
+                    h
+                }
+            })
+            .collect();
+        let thetas: Vec<Vec<f64>> = (0..nt)
+            .map(|k| {
+                let mut t = theta.to_vec();
+                t[k] += steps[k];
+                t
+            })
+            .collect();
+        let (a, g, cost) = self
+            .data
+            .par_chunks(512)
+            .map(|chunk| {
+                let mut a = vec![0.0; n * n];
+                let mut g = vec![0.0; n];
+                let mut cost = 0.0;
+                let mut b0 = vec![0.0; nb];
+                let mut bk = vec![0.0; nt * nb];
+                let mut row = vec![0.0; n];
+                for s in chunk {
+                    self.model.basis(theta, s.wi, s.wo, &mut b0);
+                    for k in 0..nt {
+                        self.model
+                            .basis(&thetas[k], s.wi, s.wo, &mut bk[k * nb..(k + 1) * nb]);
+                    }
+                    let sw = s.weight.sqrt();
+                    for c in 0..3 {
+                        let f: f64 = (0..nb).map(|j| amps[j][c] * b0[j]).sum();
+                        let r = sw * self.metric.residual(f, s.rgb[c], s.wi.z);
+                        let dr = sw * self.metric.d_residual(f, s.wi.z);
+                        cost += r * r;
+                        row.iter_mut().for_each(|x| *x = 0.0);
+                        for k in 0..nt {
+                            let mut df = 0.0;
+                            for j in 0..nb {
+                                df += amps[j][c] * (bk[k * nb + j] - b0[j]);
+                            }
+                            row[k] = dr * df / steps[k];
+                        }
+                        for j in 0..nb {
+                            row[nt + c * nb + j] = dr * b0[j];
+                        }
+                        for x in 0..n {
+                            let rx = row[x];
+                            if rx == 0.0 {
+                                continue;
+                            }
+                            g[x] += rx * r;
+                            for y in x..n {
+                                a[x * n + y] += rx * row[y];
+                            }
+                        }
+                    }
+                }
+                (a, g, cost)
+            })
+            .reduce(
+                || (vec![0.0; n * n], vec![0.0; n], 0.0),
+                |(mut a, mut g, c), (a2, g2, c2)| {
+                    a.iter_mut().zip(&a2).for_each(|(x, y)| *x += y);
+                    g.iter_mut().zip(&g2).for_each(|(x, y)| *x += y);
+                    (a, g, c + c2)
+                },
+            );
+        for x in 0..n {
+            jtr[x] = g[x];
+            for y in x..n {
+                jtj[x * n + y] = a[x * n + y];
+                jtj[y * n + x] = a[x * n + y];
+            }
+        }
+        0.5 * cost
+    }
+}
+
+/// Non-negative least squares for one channel's amplitudes from the normal equations
+/// (`m` row-major `nb×nb`, `v` right-hand side), by an active set that drops negative entries.
+fn nnls_small(m: &[f64], v: &[f64], nb: usize) -> Vec<f64> {
+    let mut free = vec![true; nb];
+    for _ in 0..=nb {
+        let idx: Vec<usize> = (0..nb).filter(|&j| free[j]).collect();
+        let k = idx.len();
+        let mut x = vec![0.0; nb];
+        if k == 0 {
+            return x;
+        }
+        let mut a = vec![0.0; k * k];
+        let mut b = vec![0.0; k];
+        let scale = idx.iter().map(|&j| m[j * nb + j]).fold(0.0f64, f64::max).max(1e-300);
+        for (p, &i) in idx.iter().enumerate() {
+            b[p] = v[i];
+            for (q, &j) in idx.iter().enumerate() {
+                a[p * k + q] = m[i * nb + j];
+            }
+            a[p * k + p] += 1e-12 * scale;
+        }
+        if !lm::cholesky_solve(&mut a, &mut b, k) {
+            return x;
+        }
+        let mut all_pos = true;
+        for (p, &i) in idx.iter().enumerate() {
+            if b[p] < 0.0 {
+                free[i] = false;
+                all_pos = false;
+            } else {
+                x[i] = b[p];
+            }
+        }
+        if all_pos {
+            return x;
+        }
+    }
+    vec![0.0; nb]
+}
+
+/// Amplitudes for fixed `theta` by non-negative weighted least squares in the cosine-weighted L2
+/// sense (a good start for either metric).
+#[must_use]
+pub fn solve_amplitudes(model: &dyn BrdfModel, theta: &[f64], data: &SampleSet) -> Vec<[f64; 3]> {
+    let nb = model.n_basis();
+    let (m, v) = data
+        .samples
+        .par_chunks(1024)
+        .map(|chunk| {
+            let mut m = vec![0.0; nb * nb];
+            let mut v = vec![0.0; 3 * nb];
+            let mut b = vec![0.0; nb];
+            for s in chunk {
+                model.basis(theta, s.wi, s.wo, &mut b);
+                let w = s.weight * s.wi.z * s.wi.z;
+                for x in 0..nb {
+                    for y in 0..nb {
+                        m[x * nb + y] += w * b[x] * b[y];
+                    }
+                    for c in 0..3 {
+                        v[c * nb + x] += w * b[x] * s.rgb[c];
+                    }
+                }
+            }
+            (m, v)
+        })
+        .reduce(
+            || (vec![0.0; nb * nb], vec![0.0; 3 * nb]),
+            |(mut m, mut v), (m2, v2)| {
+                m.iter_mut().zip(&m2).for_each(|(x, y)| *x += y);
+                v.iter_mut().zip(&v2).for_each(|(x, y)| *x += y);
+                (m, v)
+            },
+        );
+    let per_c: Vec<Vec<f64>> = (0..3)
+        .map(|c| nnls_small(&m, &v[c * nb..(c + 1) * nb], nb))
+        .collect();
+    (0..nb)
+        .map(|j| [per_c[0][j], per_c[1][j], per_c[2][j]])
+        .collect()
+}
+
+fn check_data(data: &SampleSet) -> Result<(), FitError> {
+    if data.samples.iter().all(|s| s.weight <= 0.0) {
+        return Err(FitError::NoData);
+    }
+    for (index, s) in data.samples.iter().enumerate() {
+        let ok = s.wi.is_finite()
+            && s.wo.is_finite()
+            && s.weight.is_finite()
+            && s.weight >= 0.0
+            && s.rgb.iter().all(|v| v.is_finite() && *v >= 0.0);
+        if !ok {
+            return Err(FitError::BadSample {
+                index,
+                what: "non-finite or negative value, weight or direction".into(),
+            });
+        }
+        if s.wi.z <= 0.0 || s.wo.z <= 0.0 {
+            return Err(FitError::BadSample {
+                index,
+                what: "direction below the horizon".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn pack(theta: &[f64], amps: &[[f64; 3]]) -> Vec<f64> {
+    let nb = amps.len();
+    let mut p = theta.to_vec();
+    for c in 0..3 {
+        for a in amps.iter().take(nb) {
+            p.push(a[c]);
+        }
+    }
+    p
+}
+
+/// Fit `model` to `data` (see the module docs for the schedule); errors are reported on `data`.
+pub fn fit(model: &dyn BrdfModel, data: &SampleSet, opts: &FitOptions) -> Result<FitResult, FitError> {
+    fit_from(model, data, opts, &model.initial_guesses())
+}
+
+/// [`fit`] from the given starting values of `θ` instead of the model's own.
+pub fn fit_from(
+    model: &dyn BrdfModel,
+    data: &SampleSet,
+    opts: &FitOptions,
+    starts: &[Vec<f64>],
+) -> Result<FitResult, FitError> {
+    let t0 = Instant::now();
+    check_data(data)?;
+    let nt = model.n_nonlinear();
+    let nb = model.n_basis();
+    let tb = model.bounds();
+    let bad = |what: String| FitError::BadModel {
+        model: model.name(),
+        what,
+    };
+    if tb.len() != nt {
+        return Err(bad(format!("{} bounds for {nt} parameters", tb.len())));
+    }
+    if starts.is_empty() || starts.iter().any(|s| s.len() != nt) {
+        return Err(bad("starting points missing or of the wrong length".into()));
+    }
+    let mut bounds = tb.clone();
+    bounds.extend(std::iter::repeat_n((0.0, f64::INFINITY), 3 * nb));
+    let coarse = data.stratified(opts.coarse_samples);
+    let pc = Problem {
+        model,
+        data: &coarse.samples,
+        metric: opts.metric,
+        nt,
+        nb,
+    };
+    let mut ranked: Vec<(f64, Vec<f64>)> = starts
+        .iter()
+        .map(|s| {
+            let s: Vec<f64> = s.iter().zip(&tb).map(|(x, (lo, hi))| x.clamp(*lo, *hi)).collect();
+            let amps = solve_amplitudes(model, &s, &coarse);
+            let p = pack(&s, &amps);
+            (pc.cost(&p), p)
+        })
+        .collect();
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut iterations = 0;
+    let coarse_opts = LmOptions {
+        max_iterations: opts.coarse_iterations,
+        rel_tolerance: 1e-7,
+        ..LmOptions::default()
+    };
+    let mut best: Option<lm::LmResult> = None;
+    for (_, p) in ranked.iter().take(opts.refine_starts.max(1)) {
+        let r = lm::minimize(&pc, p, &bounds, &coarse_opts);
+        iterations += r.iterations;
+        if best.as_ref().is_none_or(|b| r.cost < b.cost) {
+            best = Some(r);
+        }
+    }
+    let best = best.expect("at least one start");
+    let pf = Problem {
+        model,
+        data: &data.samples,
+        metric: opts.metric,
+        nt,
+        nb,
+    };
+    let fine_opts = LmOptions {
+        max_iterations: opts.fine_iterations,
+        rel_tolerance: 1e-10,
+        ..LmOptions::default()
+    };
+    let r = lm::minimize(&pf, &best.params, &bounds, &fine_opts);
+    iterations += r.iterations;
+    let (theta, amps) = pf.split(&r.params);
+    let theta = theta.to_vec();
+    let errors = evaluate(model, &theta, &amps, data);
+    Ok(FitResult {
+        model: model.name(),
+        metric: opts.metric,
+        theta,
+        amps,
+        errors,
+        iterations,
+        starts: starts.len(),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}

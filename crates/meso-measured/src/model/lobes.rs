@@ -1,0 +1,438 @@
+//! The paper's model (Fournier 1992, §3.3): an NDF that is a sum of K Phong peaks (Eq. 12) with
+//! a Phong transfer function (Eq. 10), convolved as in Eq. 2 in its default "multiple-surface"
+//! form, plus a Lambertian diffuse term:
+//!
+//! ```text
+//! f_c(i, o) = albedo_c/π + specular_c · S(i, o)
+//! S(i, o)   = ∫ n(m) · max(0, m·H)^η_t · max(0, m·i) dω_m / cos θi
+//! n(m)      = Σ_k w_k (η_k+2)/(8π) · cos^η_k(α_k/2),     Σ w_k = 1
+//! ```
+//!
+//! # Closed form (von Mises–Fisher)
+//! `S` is evaluated in closed form by the von Mises–Fisher correspondence:
+//! `cos^η(α/2) = ((1+cos α)/2)^(η/2) ≈ exp(κ (cos α − 1))` with `κ = η/4` (equal to second order
+//! at the peak), and `(m·H)^η_t ≈ exp(κ_t (m·H − 1))` with `κ_t = η_t` (idem). The product of two
+//! such lobes is one lobe with `v = κ_k N_k + κ_t H`, `κ₃ = |v|`, `μ₃ = v/κ₃`, and
+//! `∫ exp(κ₃ μ₃·m) dω = 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃)`. The smooth cosine `max(0, m·i)` is taken at
+//! the product lobe's axis. Hence
+//!
+//! ```text
+//! S ≈ Σ_k w_k (η_k+2)/(8π) · 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃ − κ_k − κ_t) · max(0, μ₃·i) / cos θi.
+//! ```
+//!
+//! The approximation is good for sharp lobes (η_k, η_t ≳ 10) and degrades for broad ones; a fitted
+//! model *is* this closed form, so its parameters describe the closed-form BRDF.
+//!
+//! **Switch point:** meso-core is getting the same closed form
+//! (`meso_core::convolution::…`); when it lands, [`lobe_sum_closed_form`] should call it so that
+//! the fitted materials render exactly as fitted.
+//!
+//! # Parameters (non-linear θ, per lobe k, then shared)
+//! * `ax_k, ay_k`: the lobe axis as the point `(ax, ay, 1)` of the tangent plane at the normal
+//!   (axis = normalize(ax, ay, 1)) — no singularity at the normal, off-specular and anisotropic
+//!   placements allowed; bounded to `|ax|, |ay| ≤ 2.75` (θ ≲ 75°);
+//! * `ln η_k`, `η_k ∈ [1, 10⁶]`;
+//! * `logit_k` for k ≥ 1 (k = 0 fixed at 0): weights `w = softmax(logits)`, bounded to ±10;
+//! * `ln η_t` when the transfer exponent is free.
+//!
+//! Linear amplitudes: `albedo` (basis 1/π) and `specular` (basis `S`), per channel.
+//!
+//! **Identifiability:** near the peak only the combination `κ_k κ_t/(κ_k + κ_t)` and the peak
+//! height are strongly determined; the split between lobe exponents and the transfer exponent rests
+//! on the weaker `μ₃·i/cos θi` factor. Fix the transfer exponent ([`TransferExponent::Fixed`])
+//! to pin the lobe exponents exactly.
+
+use crate::fit::{BrdfModel, FitResult};
+use glam::DVec3;
+use meso_core::frame::{rad_to_deg, spherical_angles};
+use meso_core::ndf::PhongLobe;
+use std::f64::consts::PI;
+
+/// Largest number of lobes supported by [`LobeModel`].
+pub const MAX_LOBES: usize = 6;
+const AXIS_BOUND: f64 = 2.75;
+const LN_ETA: (f64, f64) = (0.0, 13.815_510_557_964_274); // ln 1 .. ln 1e6
+const LOGIT: (f64, f64) = (-10.0, 10.0);
+
+/// `S(i, o)` of the module docs (1/sr per unit specular): the closed-form vMF approximation of
+/// the Eq. 2 convolution of a Phong-peak NDF with the Phong transfer `max(0, m·H)^η_t`, with each
+/// facet lit by its own cosine, divided by `cos θi`. Zero if either direction is below the horizon.
+/// Lobe weights are used as given (callers normalise them).
+#[must_use]
+pub fn lobe_sum_closed_form(lobes: &[PhongLobe], transfer_exponent: f64, wi: DVec3, wo: DVec3) -> f64 {
+    let ci = wi.z;
+    if ci <= 0.0 || wo.z <= 0.0 {
+        return 0.0;
+    }
+    let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+        return 0.0;
+    };
+    let kt = transfer_exponent;
+    let mut s = 0.0;
+    for l in lobes {
+        let kk = 0.25 * l.exponent;
+        let v = kk * l.axis + kt * h;
+        let k3 = v.length();
+        let (integral, c) = if k3 < 1e-9 {
+            // Both lobes flat: ∫ dω = 4π, cosine at … any axis; use the normal.
+            (4.0 * PI * (-(kk + kt)).exp(), wi.z)
+        } else {
+            let mu = v / k3;
+            (
+                2.0 * PI * (-(-2.0 * k3).exp_m1()) / k3 * (k3 - kk - kt).exp(),
+                mu.dot(wi),
+            )
+        };
+        if c > 0.0 {
+            s += l.weight * PhongLobe::normalization(l.exponent) * integral * c;
+        }
+    }
+    s / ci
+}
+
+/// Whether the transfer exponent η_t is fitted or fixed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TransferExponent {
+    /// Fitted (one shared non-linear parameter).
+    Free,
+    /// Fixed at this value.
+    Fixed(f64),
+}
+
+/// The lobe-sum model with `k` lobes (1 ≤ k ≤ [`MAX_LOBES`]); see the module docs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LobeModel {
+    /// Number of Phong peaks.
+    pub k: usize,
+    /// The transfer exponent: fitted or fixed.
+    pub transfer: TransferExponent,
+}
+
+/// A concrete lobe-sum material: the fitted (or generating) parameters in physical terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LobeParams {
+    /// The Phong peaks (unit axes, weights summing to 1, exponents on cos(α/2)).
+    pub lobes: Vec<PhongLobe>,
+    /// Transfer exponent η_t of `max(0, m·H)^η_t`.
+    pub transfer_exponent: f64,
+    /// Specular colour (the transfer's `specular`), per channel.
+    pub specular: [f64; 3],
+    /// Lambertian albedo per channel (`f = albedo/π`).
+    pub albedo: [f64; 3],
+}
+
+impl LobeParams {
+    /// The BRDF (1/sr) per channel at `wi`, `wo` (unit, local frame).
+    #[must_use]
+    pub fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
+        let s = lobe_sum_closed_form(&self.lobes, self.transfer_exponent, wi, wo);
+        [0, 1, 2].map(|c| self.albedo[c] / PI + self.specular[c] * s)
+    }
+
+    /// The material as meso TOML (the `phong-peaks` NDF, the `phong` transfer and a `[diffuse]`
+    /// albedo; axes as `[theta_deg, phi_deg]`). `comment` lines (e.g. the fit report) are
+    /// prepended as `#` comments.
+    #[must_use]
+    pub fn to_material_toml(&self, comment: &str) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        for l in comment.lines() {
+            let _ = writeln!(s, "# {l}");
+        }
+        s.push_str("[ndf]\nkind = \"phong-peaks\"\nlobes = [\n");
+        for l in &self.lobes {
+            let (t, p) = spherical_angles(l.axis);
+            let (t, mut p) = (rad_to_deg(t), rad_to_deg(p));
+            if t < 1e-9 {
+                p = 0.0;
+            }
+            let _ = writeln!(
+                s,
+                "  {{ axis = [{:?}, {:?}], weight = {:?}, exponent = {:?} }},",
+                t, p, l.weight, l.exponent
+            );
+        }
+        s.push_str("]\n\n[transfer]\nkind = \"phong\"\n");
+        let _ = writeln!(s, "exponent = {:?}", self.transfer_exponent);
+        let _ = writeln!(
+            s,
+            "specular = [{:?}, {:?}, {:?}]",
+            self.specular[0], self.specular[1], self.specular[2]
+        );
+        let _ = writeln!(
+            s,
+            "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
+            self.albedo[0], self.albedo[1], self.albedo[2]
+        );
+        s
+    }
+}
+
+impl LobeModel {
+    /// A model with `k` lobes and a fitted transfer exponent. `k` is clamped to `1..=MAX_LOBES`.
+    #[must_use]
+    pub fn new(k: usize) -> LobeModel {
+        LobeModel {
+            k: k.clamp(1, MAX_LOBES),
+            transfer: TransferExponent::Free,
+        }
+    }
+
+    /// The same model with the transfer exponent fixed at `eta_t`.
+    #[must_use]
+    pub fn with_fixed_transfer(self, eta_t: f64) -> LobeModel {
+        LobeModel {
+            transfer: TransferExponent::Fixed(eta_t),
+            ..self
+        }
+    }
+
+    fn decode(&self, theta: &[f64], out: &mut [PhongLobe; MAX_LOBES]) -> f64 {
+        let k = self.k;
+        let logit = |j: usize| if j == 0 { 0.0 } else { theta[3 * k + j - 1] };
+        let mx = (0..k).map(logit).fold(f64::NEG_INFINITY, f64::max);
+        let mut total = 0.0;
+        for (j, l) in out.iter_mut().enumerate().take(k) {
+            let w = (logit(j) - mx).exp();
+            total += w;
+            *l = PhongLobe {
+                axis: DVec3::new(theta[3 * j], theta[3 * j + 1], 1.0).normalize(),
+                weight: w,
+                exponent: theta[3 * j + 2].exp(),
+            };
+        }
+        for l in out.iter_mut().take(k) {
+            l.weight /= total;
+        }
+        match self.transfer {
+            TransferExponent::Free => theta[4 * k - 1].exp(),
+            TransferExponent::Fixed(e) => e,
+        }
+    }
+
+    /// Physical parameters from a fit of this model.
+    #[must_use]
+    pub fn params(&self, fit: &FitResult) -> LobeParams {
+        self.params_from(&fit.theta, &fit.amps)
+    }
+
+    /// Physical parameters from `θ` and amplitudes (`[albedo, specular]`).
+    #[must_use]
+    pub fn params_from(&self, theta: &[f64], amps: &[[f64; 3]]) -> LobeParams {
+        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
+        let eta_t = self.decode(theta, &mut lobes);
+        LobeParams {
+            lobes: lobes[..self.k].to_vec(),
+            transfer_exponent: eta_t,
+            specular: amps[1],
+            albedo: amps[0],
+        }
+    }
+
+    /// `θ` encoding `p` (lobe axes must lie in the upper hemisphere; weights are renormalised;
+    /// values are not clamped to the bounds). `p.lobes.len()` must equal `k`.
+    #[must_use]
+    pub fn theta_of(&self, p: &LobeParams) -> Vec<f64> {
+        let mut t = Vec::with_capacity(4 * self.k);
+        for l in &p.lobes {
+            let a = l.axis / l.axis.z.max(1e-9);
+            t.extend([a.x, a.y, l.exponent.max(1e-300).ln()]);
+        }
+        let w0 = p.lobes[0].weight.max(1e-300);
+        for l in &p.lobes[1..] {
+            t.push((l.weight.max(1e-300) / w0).ln());
+        }
+        if self.transfer == TransferExponent::Free {
+            t.push(p.transfer_exponent.ln());
+        }
+        t
+    }
+}
+
+impl BrdfModel for LobeModel {
+    fn name(&self) -> String {
+        match self.transfer {
+            TransferExponent::Free => format!("lobes-{}", self.k),
+            TransferExponent::Fixed(e) => format!("lobes-{} (eta_t = {e})", self.k),
+        }
+    }
+
+    fn nonlinear_names(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        for j in 0..self.k {
+            v.extend([format!("ax{j}"), format!("ay{j}"), format!("ln_eta{j}")]);
+        }
+        for j in 1..self.k {
+            v.push(format!("logit{j}"));
+        }
+        if self.transfer == TransferExponent::Free {
+            v.push("ln_eta_t".into());
+        }
+        v
+    }
+
+    fn basis_names(&self) -> Vec<String> {
+        vec!["diffuse".into(), "specular".into()]
+    }
+
+    fn bounds(&self) -> Vec<(f64, f64)> {
+        let mut v = Vec::new();
+        for _ in 0..self.k {
+            v.extend([(-AXIS_BOUND, AXIS_BOUND), (-AXIS_BOUND, AXIS_BOUND), LN_ETA]);
+        }
+        for _ in 1..self.k {
+            v.push(LOGIT);
+        }
+        if self.transfer == TransferExponent::Free {
+            v.push(LN_ETA);
+        }
+        v
+    }
+
+    fn initial_guesses(&self) -> Vec<Vec<f64>> {
+        // Starts described by the Blinn-equivalent sharpness e_j of each lobe convolved with the
+        // transfer: κ_eff = κ_j κ_t/(κ_j + κ_t). Lobes on the normal, equal weights.
+        let grid: &[&[f64]] = match self.k {
+            1 => &[&[3.0], &[10.0], &[30.0], &[100.0], &[300.0], &[1e3], &[3e3], &[1e4], &[3e4]],
+            2 => &[
+                &[3.0, 30.0],
+                &[3.0, 300.0],
+                &[10.0, 100.0],
+                &[10.0, 1e3],
+                &[30.0, 300.0],
+                &[30.0, 3e3],
+                &[100.0, 1e3],
+                &[100.0, 1e4],
+                &[300.0, 3e3],
+                &[1e3, 1e4],
+            ],
+            _ => &[
+                &[3.0, 30.0, 300.0],
+                &[3.0, 100.0, 3e3],
+                &[10.0, 100.0, 1e3],
+                &[10.0, 300.0, 1e4],
+                &[30.0, 300.0, 3e3],
+                &[30.0, 1e3, 3e4],
+                &[100.0, 1e3, 1e4],
+                &[3.0, 10.0, 30.0],
+            ],
+        };
+        grid.iter()
+            .map(|es| {
+                let emax = es.iter().copied().fold(0.0, f64::max);
+                let kt = match self.transfer {
+                    TransferExponent::Free => 2.0 * emax,
+                    TransferExponent::Fixed(e) => e,
+                };
+                let mut t = Vec::new();
+                for j in 0..self.k {
+                    let e = es[j.min(es.len() - 1)] * (1.0 + 0.1 * (j / es.len()) as f64);
+                    let e = e.min(0.9 * kt);
+                    let kk = e * kt / (kt - e);
+                    t.extend([0.0, 0.0, (4.0 * kk).clamp(1.0, 1e6).ln()]);
+                }
+                t.extend(std::iter::repeat_n(0.0, self.k - 1));
+                if self.transfer == TransferExponent::Free {
+                    t.push(kt.clamp(1.0, 1e6).ln());
+                }
+                t
+            })
+            .collect()
+    }
+
+    fn basis(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
+        let mut lobes = [PhongLobe {
+            axis: DVec3::Z,
+            weight: 0.0,
+            exponent: 0.0,
+        }; MAX_LOBES];
+        let eta_t = self.decode(theta, &mut lobes);
+        out[0] = 1.0 / PI;
+        out[1] = lobe_sum_closed_form(&lobes[..self.k], eta_t, wi, wo);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use meso_core::frame::spherical_direction_deg;
+
+    /// Independent truth: the vMF-shaped integrand of the module docs integrated numerically over
+    /// the sphere (θ, φ midpoint rule), where the product formula is exact but the cosine is not
+    /// taken at the mean.
+    fn quadrature_vmf(l: &PhongLobe, kt: f64, wi: DVec3, wo: DVec3, exact_phong: bool) -> f64 {
+        let h = (wi + wo).normalize();
+        let (nt, np) = (1200, 1200);
+        let mut s = 0.0;
+        for a in 0..nt {
+            let t = PI * (a as f64 + 0.5) / nt as f64;
+            for b in 0..np {
+                let p = 2.0 * PI * (b as f64 + 0.5) / np as f64;
+                let m = meso_core::frame::spherical_direction(t, p);
+                let (nd, tr) = if exact_phong {
+                    (l.unit_density(m), m.dot(h).max(0.0).powf(kt))
+                } else {
+                    (
+                        PhongLobe::normalization(l.exponent) * (0.25 * l.exponent * (l.axis.dot(m) - 1.0)).exp(),
+                        (kt * (m.dot(h) - 1.0)).exp(),
+                    )
+                };
+                s += nd * tr * m.dot(wi).max(0.0) * t.sin();
+            }
+        }
+        s * (PI / nt as f64) * (2.0 * PI / np as f64) / wi.z
+    }
+
+    #[test]
+    fn closed_form_matches_quadrature() {
+        let l = PhongLobe::new(spherical_direction_deg(10.0, 30.0), 1.0, 200.0);
+        for (ti, pi, to, po) in [(20.0, 180.0, 25.0, 10.0), (40.0, 200.0, 30.0, 40.0), (60.0, 0.0, 50.0, 150.0)] {
+            let wi = spherical_direction_deg(ti, pi);
+            let wo = spherical_direction_deg(to, po);
+            let cf = lobe_sum_closed_form(&[l], 100.0, wi, wo);
+            let q = quadrature_vmf(&l, 100.0, wi, wo, false);
+            assert!((cf / q - 1.0).abs() < 0.01, "vMF shapes: closed {cf} vs quadrature {q}");
+            let qp = quadrature_vmf(&l, 100.0, wi, wo, true);
+            assert!((cf / qp - 1.0).abs() < 0.05, "Phong shapes: closed {cf} vs quadrature {qp}");
+        }
+    }
+
+    #[test]
+    fn theta_round_trip_and_toml() {
+        let m = LobeModel::new(2);
+        let p = LobeParams {
+            lobes: vec![
+                PhongLobe::new(spherical_direction_deg(0.0, 0.0), 0.25, 50.0),
+                PhongLobe::new(spherical_direction_deg(30.0, 90.0), 0.75, 400.0),
+            ],
+            transfer_exponent: 80.0,
+            specular: [1.0, 0.8, 0.6],
+            albedo: [0.1, 0.2, 0.3],
+        };
+        let t = m.theta_of(&p);
+        let back = m.params_from(&t, &[p.albedo, p.specular]);
+        for (a, b) in back.lobes.iter().zip(&p.lobes) {
+            assert!((a.axis - b.axis).length() < 1e-12);
+            assert!((a.weight - b.weight).abs() < 1e-12 && (a.exponent - b.exponent).abs() < 1e-9);
+        }
+        let text = back.to_material_toml("fit report\nline 2");
+        assert!(text.starts_with("# fit report\n# line 2\n[ndf]\n"));
+        let v: toml::Value = toml::from_str(&text).expect("valid TOML");
+        assert_eq!(v["ndf"]["kind"].as_str(), Some("phong-peaks"));
+        let lobes = v["ndf"]["lobes"].as_array().unwrap();
+        let num = |x: &toml::Value| x.as_float().unwrap();
+        let expect = [(0.0, 0.0, 0.25, 50.0), (30.0, 90.0, 0.75, 400.0)];
+        for (l, e) in lobes.iter().zip(expect) {
+            let ax = l["axis"].as_array().unwrap();
+            assert!((num(&ax[0]) - e.0).abs() < 1e-9 && (num(&ax[1]) - e.1).abs() < 1e-9);
+            assert!((num(&l["weight"]) - e.2).abs() < 1e-12);
+            assert!((num(&l["exponent"]) - e.3).abs() < 1e-9);
+        }
+        assert_eq!(v["transfer"]["kind"].as_str(), Some("phong"));
+        assert!((num(&v["transfer"]["exponent"]) - 80.0).abs() < 1e-9);
+        let spec = v["transfer"]["specular"].as_array().unwrap();
+        assert!((num(&spec[1]) - 0.8).abs() < 1e-15);
+        let alb = v["diffuse"]["albedo"].as_array().unwrap();
+        assert!((num(&alb[2]) - 0.3).abs() < 1e-15);
+    }
+}

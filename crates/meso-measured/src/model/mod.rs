@@ -1,0 +1,23 @@
+//! Fittable BRDF models: the paper's lobe sums ([`lobes`]) and the baselines ([`baselines`]).
+pub mod baselines;
+pub mod lobes;
+
+pub use baselines::{AshikhminShirley, BlinnPhong, Lafortune, Microfacet, MicrofacetKind};
+pub use lobes::{lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent};
+
+use crate::fit::BrdfModel;
+
+/// All baseline models in the order of the benchmark table: Blinn-Phong, Cook-Torrance (Beckmann),
+/// GGX, Ashikhmin–Shirley, Lafortune with 1, 2, 3 lobes.
+#[must_use]
+pub fn baselines() -> Vec<Box<dyn BrdfModel>> {
+    vec![
+        Box::new(BlinnPhong),
+        Box::new(Microfacet::COOK_TORRANCE),
+        Box::new(Microfacet::GGX),
+        Box::new(AshikhminShirley),
+        Box::new(Lafortune::new(1)),
+        Box::new(Lafortune::new(2)),
+        Box::new(Lafortune::new(3)),
+    ]
+}
