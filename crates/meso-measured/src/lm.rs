@@ -114,6 +114,7 @@ pub fn minimize<P: LeastSquares>(
     let mut cost = f64::INFINITY;
     let mut iterations = 0;
     let mut evaluations = 0;
+    let mut small_steps = 0;
     'outer: while iterations < opts.max_iterations {
         iterations += 1;
         cost = problem.normal_equations(&p, &mut jtj, &mut jtr);
@@ -158,8 +159,14 @@ pub fn minimize<P: LeastSquares>(
                     p.copy_from_slice(&trial);
                     cost = c;
                     lambda = (lambda / 3.0).max(1e-12);
+                    // Stop after two consecutive accepted steps with a negligible decrease.
                     if rel < opts.rel_tolerance {
-                        break 'outer;
+                        small_steps += 1;
+                        if small_steps >= 2 {
+                            break 'outer;
+                        }
+                    } else {
+                        small_steps = 0;
                     }
                     break;
                 }

@@ -29,6 +29,11 @@ pub struct MerlSampling {
     pub target: usize,
     /// The direction pair representing each cell.
     pub position: CellPosition,
+    /// Rotate each cell's direction pair about the normal by a stratified azimuth φh (golden-ratio
+    /// sequence) instead of φh = 0. A MERL table describes an *isotropic* BRDF, so every φh is
+    /// equally valid; spreading them lets models with anisotropic freedom (tilted lobe axes) see
+    /// the isotropy instead of one azimuthal slice.
+    pub spread_phi_h: bool,
 }
 
 impl Default for MerlSampling {
@@ -37,6 +42,7 @@ impl Default for MerlSampling {
             max_theta_deg: 80.0,
             target: 30_000,
             position: CellPosition::Edge,
+            spread_phi_h: true,
         }
     }
 }
@@ -90,9 +96,17 @@ impl SampleSet {
                 stats.beyond_theta += 1;
                 continue;
             }
+            let (wi, wo) = if opts.spread_phi_h {
+                let a = 2.0 * std::f64::consts::PI * (c.index as f64 * 0.618_033_988_749_895).fract();
+                let (sa, ca) = a.sin_cos();
+                let rot = |w: DVec3| DVec3::new(ca * w.x - sa * w.y, sa * w.x + ca * w.y, w.z);
+                (rot(c.wi), rot(c.wo))
+            } else {
+                (c.wi, c.wo)
+            };
             valid.push(Sample {
-                wi: c.wi,
-                wo: c.wo,
+                wi,
+                wo,
                 rgb: c.rgb,
                 weight: c.measure,
             });

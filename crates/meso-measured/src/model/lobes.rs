@@ -42,7 +42,8 @@
 //! on the weaker `μ₃·i/cos θi` factor. Fix the transfer exponent ([`TransferExponent::Fixed`])
 //! to pin the lobe exponents exactly.
 
-use crate::fit::{BrdfModel, FitResult};
+use crate::fit::{eval_model, fit_from, BrdfModel, FitError, FitOptions, FitResult};
+use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::frame::{rad_to_deg, spherical_angles};
 use meso_core::ndf::PhongLobe;
@@ -350,6 +351,93 @@ impl BrdfModel for LobeModel {
         out[0] = 1.0 / PI;
         out[1] = lobe_sum_closed_form(&lobes[..self.k], eta_t, wi, wo);
     }
+}
+
+/// Half vectors of the samples where the data most exceed the current model (log residual,
+/// channels averaged), at least 5° apart: seeds for new lobe axes. `current` is `None` for an
+/// empty model.
+fn peak_seeds(data: &SampleSet, current: Option<(&LobeModel, &FitResult)>, n: usize) -> Vec<DVec3> {
+    let mut scored: Vec<(f64, DVec3)> = data
+        .samples
+        .iter()
+        .filter_map(|s| {
+            let f = match current {
+                Some((m, r)) => eval_model(m, &r.theta, &r.amps, s.wi, s.wo, &mut [0.0; 2]),
+                None => [0.0; 3],
+            };
+            let ci = s.wi.z;
+            let e: f64 = (0..3)
+                .map(|c| (s.rgb[c] * ci).ln_1p() - (f[c] * ci).ln_1p())
+                .sum();
+            meso_core::frame::half_vector(s.wi, s.wo).map(|h| (e, h))
+        })
+        .collect();
+    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let cos_sep = 5f64.to_radians().cos();
+    let mut out: Vec<DVec3> = Vec::new();
+    for (_, h) in scored {
+        if out.len() >= n {
+            break;
+        }
+        if h.z > 0.2 && out.iter().all(|o| o.dot(h) < cos_sep) {
+            out.push(h);
+        }
+    }
+    out
+}
+
+/// Lobe exponent η giving the Blinn-equivalent sharpness `e` once convolved with a transfer of
+/// exponent `eta_t` (κ_eff = κ κ_t/(κ + κ_t), κ = η/4, κ_t = η_t).
+fn eta_for(e: f64, eta_t: f64) -> f64 {
+    let e = e.min(0.9 * eta_t);
+    (4.0 * e * eta_t / (eta_t - e)).clamp(1.0, 1e6)
+}
+
+/// Fit lobe sums with 1, 2, …, `k` lobes progressively (coarse to fine in model size): each fit
+/// starts from the model's own start grid, plus starts that keep the previous fit and add a
+/// lobe at the half vector where the data most exceed it (several exponents). Returns every
+/// model fitted, with its result.
+pub fn fit_lobes_progressive(
+    k: usize,
+    transfer: TransferExponent,
+    data: &SampleSet,
+    opts: &FitOptions,
+) -> Result<Vec<(LobeModel, FitResult)>, FitError> {
+    let mut out: Vec<(LobeModel, FitResult)> = Vec::new();
+    for j in 1..=k.clamp(1, MAX_LOBES) {
+        let m = LobeModel { k: j, transfer };
+        let mut starts = m.initial_guesses();
+        let prev = out.last().map(|(pm, r)| (pm, r));
+        for h in peak_seeds(data, prev, 3) {
+            for e in [10.0, 100.0, 1000.0, 10000.0] {
+                let p = match prev {
+                    Some((pm, r)) => {
+                        let mut p = pm.params(r);
+                        let eta = eta_for(e, p.transfer_exponent);
+                        p.lobes.iter_mut().for_each(|l| l.weight *= 0.75);
+                        p.lobes.push(PhongLobe::new(h, 0.25, eta));
+                        p
+                    }
+                    None => {
+                        let eta_t = match transfer {
+                            TransferExponent::Free => 2.0 * e,
+                            TransferExponent::Fixed(t) => t,
+                        };
+                        LobeParams {
+                            lobes: vec![PhongLobe::new(h, 1.0, eta_for(e, eta_t))],
+                            transfer_exponent: eta_t,
+                            specular: [0.0; 3],
+                            albedo: [0.0; 3],
+                        }
+                    }
+                };
+                starts.push(m.theta_of(&p));
+            }
+        }
+        let r = fit_from(&m, data, opts, &starts)?;
+        out.push((m, r));
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

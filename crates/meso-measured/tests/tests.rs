@@ -1,0 +1,361 @@
+//! Acceptance tests of meso-measured: file round trips, bad input, and fits that recover the
+//! parameters that generated their data. All data are generated here.
+
+use glam::DVec3;
+use meso_core::frame::spherical_direction_deg;
+use meso_core::ndf::PhongLobe;
+use meso_measured::csv::{read_csv, write_csv, CsvError, CsvSample};
+use meso_measured::fit::{eval_model, evaluate, fit, BrdfModel, FitOptions};
+use meso_measured::merl::{self, CellPosition, MerlError, MerlTable};
+use meso_measured::metric::Metric;
+use meso_measured::model::{self, LobeModel, LobeParams, TransferExponent};
+use meso_measured::rusinkiewicz::{dirs_from_half_diff, HalfDiff};
+use meso_measured::samples::{MerlSampling, Sample, SampleSet};
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::path::PathBuf;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meso-measured-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// Direction pairs covering the upper hemisphere pairs with θ < 80°, dense near the specular
+/// peak (θh sampled like MERL's non-linear axis), all four half/difference angles varying.
+fn pairs(n: usize) -> Vec<(DVec3, DVec3)> {
+    let g = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2, 0.430_159_709_001_946_8, 0.324_717_957_244_746];
+    let cmax = 80f64.to_radians().cos();
+    let mut out = Vec::with_capacity(n);
+    let mut k = 0usize;
+    while out.len() < n {
+        k += 1;
+        let u: Vec<f64> = g.iter().map(|a| (0.5 + a * k as f64).fract()).collect();
+        let hd = HalfDiff {
+            theta_h: u[0] * u[0] * FRAC_PI_2,
+            phi_h: 2.0 * PI * u[1],
+            theta_d: u[2] * FRAC_PI_2,
+            phi_d: 2.0 * PI * u[3],
+        };
+        let (wi, wo) = dirs_from_half_diff(hd);
+        if wi.z > cmax && wo.z > cmax {
+            out.push((wi, wo));
+        }
+    }
+    out
+}
+
+fn samples_of(f: impl Fn(DVec3, DVec3) -> [f64; 3], n: usize) -> SampleSet {
+    SampleSet {
+        samples: pairs(n)
+            .into_iter()
+            .map(|(wi, wo)| Sample {
+                wi,
+                wo,
+                rgb: f(wi, wo),
+                weight: 1.0,
+            })
+            .collect(),
+    }
+}
+
+fn iso_truth(k: usize) -> LobeParams {
+    let all = [(0.6, 30.0), (0.3, 300.0), (0.1, 3000.0)];
+    let wsum: f64 = all[..k].iter().map(|x| x.0).sum();
+    LobeParams {
+        lobes: all[..k]
+            .iter()
+            .map(|&(w, e)| PhongLobe::new(DVec3::Z, w / wsum, e))
+            .collect(),
+        transfer_exponent: 2000.0,
+        specular: [0.9, 0.6, 0.3],
+        albedo: [0.05, 0.12, 0.3],
+    }
+}
+
+/// Compare fitted and true lobe parameters, matching lobes by exponent order.
+fn assert_lobes_close(fit: &LobeParams, truth: &LobeParams, tol_rel: f64, tol_deg: f64) {
+    let mut a = fit.lobes.clone();
+    let mut b = truth.lobes.clone();
+    a.sort_by(|x, y| x.exponent.total_cmp(&y.exponent));
+    b.sort_by(|x, y| x.exponent.total_cmp(&y.exponent));
+    for (x, y) in a.iter().zip(&b) {
+        let ang = x.axis.dot(y.axis).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!(ang < tol_deg, "axis off by {ang}°: {fit:?} vs {truth:?}");
+        assert!((x.exponent / y.exponent - 1.0).abs() < tol_rel, "exponent {} vs {}", x.exponent, y.exponent);
+        assert!((x.weight - y.weight).abs() < tol_rel, "weight {} vs {}", x.weight, y.weight);
+    }
+    for c in 0..3 {
+        assert!((fit.specular[c] / truth.specular[c] - 1.0).abs() < tol_rel, "specular {:?}", fit.specular);
+        assert!((fit.albedo[c] / truth.albedo[c] - 1.0).abs() < tol_rel, "albedo {:?}", fit.albedo);
+    }
+}
+
+#[test]
+fn merl_write_read_lookup_round_trip() {
+    let truth = iso_truth(2);
+    let table = MerlTable::from_fn(CellPosition::Edge, |i, o| truth.eval(i, o)).unwrap();
+    let p = tmp("rt.binary");
+    table.write(&p).unwrap();
+    assert_eq!(std::fs::metadata(&p).unwrap().len(), merl::MERL_FILE_BYTES);
+    let back = MerlTable::read(&p).unwrap();
+    // Below-horizon cells are "not measured" and survive the round trip.
+    assert!(back.missing_count() > 0);
+    assert_eq!(back.missing_count(), table.missing_count());
+    let mut checked = 0;
+    for c in back.cells(CellPosition::Edge).step_by(997) {
+        let want = if c.wi.z > 0.0 && c.wo.z > 0.0 { Some(truth.eval(c.wi, c.wo)) } else { None };
+        match want {
+            Some(v) => {
+                for k in 0..3 {
+                    assert!((c.rgb[k] - v[k]).abs() <= 1e-12 * v[k].max(1e-3), "{c:?} vs {v:?}");
+                }
+                // Nearest-cell lookup slightly inside the cell returns that cell.
+                let hd = merl::cell_angles(c.bins[0], c.bins[1], c.bins[2], CellPosition::Centre);
+                let (i2, o2) = dirs_from_half_diff(hd);
+                if let Some(l) = back.lookup(i2, o2) {
+                    assert_eq!(l, c.rgb);
+                }
+                checked += 1;
+            }
+            None => assert!(c.rgb.iter().all(|&x| x < 0.0)),
+        }
+    }
+    assert!(checked > 800);
+    // Reciprocity in the lookup: swapping i and o reads the same cell.
+    let wi = spherical_direction_deg(30.0, 10.0);
+    let wo = spherical_direction_deg(50.0, 200.0);
+    assert_eq!(back.lookup(wi, wo), back.lookup(wo, wi));
+    let v = back.lookup(wi, wo).unwrap();
+    let e = truth.eval(wi, wo);
+    assert!((v[0] / e[0] - 1.0).abs() < 0.1, "nearest cell close to the function: {v:?} {e:?}");
+}
+
+fn write_bytes(name: &str, bytes: &[u8]) -> PathBuf {
+    let p = tmp(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn merl_bad_input_gives_clear_errors() {
+    let header = |d: [i32; 3]| d.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+    // Too short for a header.
+    let e = MerlTable::read(&write_bytes("short.binary", &[1, 2, 3])).unwrap_err();
+    assert!(matches!(e, MerlError::NoHeader { size: 3, .. }), "{e}");
+    // Wrong header.
+    let mut b = header([90, 90, 360]);
+    b.extend(vec![0u8; 64]);
+    let e = MerlTable::read(&write_bytes("hdr.binary", &b)).unwrap_err();
+    assert!(e.to_string().contains("header dimensions [90, 90, 360]"), "{e}");
+    // Truncated: refused from the size alone.
+    let mut b = header([90, 90, 180]);
+    b.extend(vec![0u8; 1000]);
+    let e = MerlTable::read(&write_bytes("trunc.binary", &b)).unwrap_err();
+    assert!(matches!(e, MerlError::BadSize { size: 1012, .. }), "{e}");
+    assert!(e.to_string().contains("truncated"));
+    // Missing file.
+    let e = MerlTable::read(&tmp("does-not-exist.binary")).unwrap_err();
+    assert!(matches!(e, MerlError::Io { .. }), "{e}");
+    // NaN sample in the green block, and negative samples (missing, counted).
+    let mut b = header([90, 90, 180]);
+    b.reserve(3 * merl::N_CELLS * 8);
+    for k in 0..3 * merl::N_CELLS {
+        let v = if k == merl::N_CELLS + 181 { f64::NAN } else if k % 1000 == 0 { -1.0 } else { 1.0 };
+        b.extend(v.to_le_bytes());
+    }
+    let p = write_bytes("nan.binary", &b);
+    let e = MerlTable::read(&p).unwrap_err();
+    assert!(matches!(e, MerlError::NonFinite { channel: 1, ih: 0, id: 1, ip: 1, .. }), "{e}");
+    let nan_at = 12 + 8 * (merl::N_CELLS + 181);
+    b[nan_at..nan_at + 8].copy_from_slice(&1.0f64.to_le_bytes());
+    let t = MerlTable::read(&write_bytes("neg.binary", &b)).unwrap();
+    let expect = (0..merl::N_CELLS)
+        .filter(|c| (0..3).any(|ch| (ch * merl::N_CELLS + c) % 1000 == 0))
+        .count();
+    assert_eq!(t.missing_count(), expect);
+    assert!((t.value(2, 0, 0, 1) - merl::MERL_SCALES[2]).abs() < 1e-18);
+    // A closure producing NaN cannot be tabulated, and no file is written.
+    let e = MerlTable::from_fn(CellPosition::Edge, |_, _| [f64::NAN, 0.0, 0.0]).unwrap_err();
+    assert!(matches!(e, MerlError::BadValue { .. }));
+}
+
+#[test]
+fn csv_file_round_trip_and_empty_file() {
+    let truth = iso_truth(1);
+    let s: Vec<CsvSample> = pairs(500)
+        .into_iter()
+        .map(|(i, o)| CsvSample::from_dirs(i, o, truth.eval(i, o)))
+        .collect();
+    let p = tmp("s.csv");
+    write_csv(&p, &s).unwrap();
+    assert_eq!(read_csv(&p).unwrap(), s);
+    let e = read_csv(&write_bytes("empty.csv", b"")).unwrap_err();
+    assert!(matches!(e, CsvError::Empty), "{e}");
+    let e = read_csv(&write_bytes("neg.csv", b"theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,0.1,-0.2,0.3\n")).unwrap_err();
+    assert_eq!(e.to_string(), "line 2, column g: negative BRDF value -0.2");
+}
+
+#[test]
+fn lobe_fits_recover_isotropic_materials_from_merl_files() {
+    for k in 1..=3 {
+        let truth = iso_truth(k);
+        let table = MerlTable::from_fn(CellPosition::Edge, |i, o| truth.eval(i, o)).unwrap();
+        let p = tmp(&format!("iso{k}.binary"));
+        table.write(&p).unwrap();
+        let table = MerlTable::read(&p).unwrap();
+        let (data, stats) = SampleSet::from_merl(&table, &MerlSampling::default());
+        assert!(stats.missing > 0 && stats.kept <= 30_001 && stats.valid > stats.kept);
+        let m = LobeModel::new(k).with_fixed_transfer(truth.transfer_exponent);
+        let r = fit(&m, &data, &FitOptions::default()).unwrap();
+        let got = m.params(&r);
+        eprintln!("K={k}: {} iterations, {:.2} s, errors {:?}", r.iterations, r.seconds, r.errors);
+        assert_lobes_close(&got, &truth, 1e-3, 0.05);
+        assert!(r.errors.low_log.iter().all(|&e| e < 1e-5), "{:?}", r.errors);
+    }
+}
+
+#[test]
+fn lobe_fits_recover_anisotropic_materials_from_csv_files() {
+    let cases = [
+        vec![(25.0, 60.0, 1.0, 300.0)],
+        vec![(0.0, 0.0, 0.5, 80.0), (30.0, 90.0, 0.5, 600.0)],
+        vec![(10.0, 0.0, 0.5, 40.0), (35.0, 120.0, 0.3, 500.0), (20.0, 250.0, 0.2, 2000.0)],
+    ];
+    for (n, lobes) in cases.iter().enumerate() {
+        let truth = LobeParams {
+            lobes: lobes
+                .iter()
+                .map(|&(t, p, w, e)| PhongLobe::new(spherical_direction_deg(t, p), w, e))
+                .collect(),
+            transfer_exponent: 200.0,
+            specular: [1.2, 0.7, 0.4],
+            albedo: [0.2, 0.1, 0.05],
+        };
+        let s: Vec<CsvSample> = pairs(30_000)
+            .into_iter()
+            .map(|(i, o)| CsvSample::from_dirs(i, o, truth.eval(i, o)))
+            .collect();
+        let p = tmp(&format!("aniso{n}.csv"));
+        write_csv(&p, &s).unwrap();
+        let data = SampleSet::from_csv(&read_csv(&p).unwrap());
+        let fits = model::fit_lobes_progressive(
+            lobes.len(),
+            TransferExponent::Fixed(truth.transfer_exponent),
+            &data,
+            &FitOptions::default(),
+        )
+        .unwrap();
+        let (m, r) = fits.last().unwrap();
+        let got = m.params(r);
+        assert_lobes_close(&got, &truth, 2e-3, 0.1);
+    }
+}
+
+#[test]
+fn free_transfer_exponent_reproduces_the_brdf() {
+    let truth = iso_truth(2);
+    let data = samples_of(|i, o| truth.eval(i, o), 20_000);
+    for metric in [Metric::LowLog, Metric::NganL2] {
+        let m = LobeModel::new(2);
+        let opts = FitOptions { metric, ..FitOptions::default() };
+        let r = fit(&m, &data, &opts).unwrap();
+        assert!(r.errors.low_log.iter().all(|&e| e < 2e-3), "{metric:?} {:?}", r.errors);
+        let got = m.params(&r);
+        for c in 0..3 {
+            assert!((got.albedo[c] / truth.albedo[c] - 1.0).abs() < 0.02, "{got:?}");
+        }
+    }
+}
+
+/// Baselines: each recovers its own generating parameters (from a start grid that does not
+/// contain them).
+#[test]
+fn baselines_recover_their_own_parameters() {
+    let cases: Vec<(Box<dyn BrdfModel>, Vec<f64>, Vec<[f64; 3]>)> = vec![
+        (Box::new(model::BlinnPhong), vec![150f64.ln()], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
+        (Box::new(model::Microfacet::COOK_TORRANCE), vec![0.15f64.ln(), 0.2], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
+        (Box::new(model::Microfacet::GGX), vec![0.2f64.ln(), 0.7], vec![[0.3, 0.2, 0.1], [0.5, 0.6, 0.9]]),
+        (Box::new(model::AshikhminShirley), vec![50f64.ln(), 400f64.ln(), 0.3], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
+        (Box::new(model::Lafortune::new(1)), vec![2.3, 70f64.ln()], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
+        (
+            Box::new(model::Lafortune::new(2)),
+            vec![2.4, 20f64.ln(), 2.3, 500f64.ln()],
+            vec![[0.1, 0.2, 0.3], [0.4, 0.3, 0.2], [0.8, 0.6, 0.5]],
+        ),
+    ];
+    for (m, theta, amps) in cases {
+        let mut scratch = vec![0.0; amps.len()];
+        let data = samples_of(|i, o| eval_model(m.as_ref(), &theta, &amps, i, o, &mut scratch.clone()), 20_000);
+        let r = fit(m.as_ref(), &data, &FitOptions::default()).unwrap();
+        for (a, b) in r.theta.iter().zip(&theta) {
+            assert!((a - b).abs() < 2e-3 * (1.0 + b.abs()), "{}: θ {:?} vs {theta:?}", m.name(), r.theta);
+        }
+        for (a, b) in r.amps.iter().zip(&amps) {
+            for c in 0..3 {
+                assert!((a[c] / b[c] - 1.0).abs() < 5e-3, "{}: amps {:?} vs {amps:?}", m.name(), r.amps);
+            }
+        }
+        let e = evaluate(m.as_ref(), &r.theta, &r.amps, &data);
+        assert!(e.low_log.iter().all(|&x| x < 1e-4), "{}: {e:?}", m.name());
+        scratch.clear();
+    }
+}
+
+/// Directional albedo ∫ f(i, o) cos θi dω_i by a (θ, φ) midpoint rule.
+fn albedo(f: &dyn Fn(DVec3, DVec3) -> f64, wo: DVec3, n: usize) -> f64 {
+    let mut s = 0.0;
+    for a in 0..n {
+        let t = FRAC_PI_2 * (a as f64 + 0.5) / n as f64;
+        for b in 0..2 * n {
+            let p = PI * (b as f64 + 0.5) / n as f64;
+            let wi = meso_core::frame::spherical_direction(t, p);
+            s += f(wi, wo) * wi.z * t.sin();
+        }
+    }
+    s * (FRAC_PI_2 / n as f64) * (PI / n as f64)
+}
+
+#[test]
+fn baselines_are_reciprocal_and_physical_ones_conserve_energy() {
+    let models: Vec<(Box<dyn BrdfModel>, Vec<f64>)> = vec![
+        (Box::new(model::BlinnPhong), vec![40f64.ln()]),
+        (Box::new(model::Microfacet::COOK_TORRANCE), vec![0.3f64.ln(), 1.0]),
+        (Box::new(model::Microfacet::GGX), vec![0.3f64.ln(), 1.0]),
+        (Box::new(model::AshikhminShirley), vec![20f64.ln(), 200f64.ln(), 0.5]),
+        (Box::new(model::Lafortune::new(3)), vec![2.3, 10f64.ln(), 1.0, 3f64.ln(), 2.6, 100f64.ln()]),
+    ];
+    for (m, theta) in &models {
+        let nb = m.n_basis();
+        let mut b1 = vec![0.0; nb];
+        let mut b2 = vec![0.0; nb];
+        for (i, o) in pairs(2000) {
+            m.basis(theta, i, o, &mut b1);
+            m.basis(theta, o, i, &mut b2);
+            for j in 0..nb {
+                assert!((b1[j] - b2[j]).abs() <= 1e-12 * b1[j].abs().max(1.0), "{} not reciprocal", m.name());
+            }
+        }
+    }
+    // White furnace: Lambert with albedo 1 reflects exactly 1; the microfacet models with F = 1
+    // reflect at most 1 (and most of it when smooth).
+    let lambert = |_: DVec3, _: DVec3| 1.0 / PI;
+    assert!((albedo(&lambert, DVec3::Z, 200) - 1.0).abs() < 1e-4);
+    for m in [model::Microfacet::COOK_TORRANCE, model::Microfacet::GGX] {
+        for alpha in [0.1f64, 0.3, 0.8] {
+            let spec = |i: DVec3, o: DVec3| {
+                let mut b = [0.0; 2];
+                m.basis(&[alpha.ln(), 1.0], i, o, &mut b);
+                b[1]
+            };
+            for t in [0.0f64, 40.0, 70.0] {
+                let a = albedo(&spec, spherical_direction_deg(t, 0.0), 400);
+                assert!(a <= 1.005, "{} α {alpha} θ {t}: albedo {a}", m.name());
+                // Single scattering loses little energy when smooth (more with GGX's long tails).
+                let min = if alpha <= 0.1 { 0.97 } else if alpha <= 0.3 { 0.85 } else { 0.4 };
+                if t == 0.0 {
+                    assert!(a > min, "{} α {alpha}: albedo {a} at normal incidence", m.name());
+                }
+            }
+        }
+    }
+}
