@@ -109,6 +109,12 @@ impl Harmonics {
         self.sampler.sample(u)
     }
 
+    /// The table of `max(0, n)` that [`Harmonics::sample`] draws from.
+    #[must_use]
+    pub fn sampling_table(&self) -> &Tabulated {
+        &self.sampler
+    }
+
     /// The density of [`Harmonics::sample`].
     #[must_use]
     pub fn pdf(&self, m: DVec3) -> f64 {
