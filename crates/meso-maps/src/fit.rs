@@ -12,8 +12,9 @@
 //!   `t = ln((1 + a·m)/2)` the log-density of a lobe is `ln((η+2)/(8π)) + (η/2)·t`, so the
 //!   exponent's M-step is closed-form, `η + 2 = −2 / E_r[t]` (clamped to `[0, ETA_MAX]`), and
 //!   the axis satisfies `a ∝ Σ r_n m_n / (1 + a·m_n)`, iterated once per EM step.
-//!   K grows from 1: each new lobe starts at the worst-explained normal; a lobe is kept only if
-//!   it raises the mean log-likelihood (per unit weight) by more than `min_gain` nats.
+//!   K grows from 1; each K starts from a spherical k-means (greedy weighted k-means++ seeds);
+//!   K lobes are kept only if they raise the mean log-likelihood (per unit weight) over K − 1
+//!   lobes by more than `min_gain` nats.
 //!   Footprints with more than `max_em_points` entries are fitted on a strided subset.
 //!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
@@ -93,7 +94,7 @@ pub struct FitParams {
     /// Largest number of lobes per texel, 1..=[`MAX_LOBES`] (default 4).
     pub max_lobes: usize,
     /// Smallest gain in mean log-likelihood (nats per unit weight) that justifies one more
-    /// lobe (default 0.05).
+    /// lobe (default 0.01).
     pub min_gain: f64,
     /// EM iterations per K (default 30; stops earlier when the likelihood settles).
     pub em_iterations: usize,
@@ -105,7 +106,7 @@ impl Default for FitParams {
     fn default() -> Self {
         FitParams {
             max_lobes: 4,
-            min_gain: 0.05,
+            min_gain: 0.01,
             em_iterations: 30,
             max_em_points: 512,
         }
@@ -140,6 +141,66 @@ impl L {
             + ((self.eta + 2.0) / (8.0 * PI)).ln()
             + 0.5 * self.eta * log_t(self.a, m)
     }
+}
+
+/// Spherical k-means with a greedy weighted k-means++ start (first centre: the heaviest entry;
+/// then the entry maximising weight × squared chord distance to the nearest centre), 5 Lloyd
+/// steps, then lobes with the cluster shares and the closed-form exponent of each cluster.
+fn kmeans_init(pts: &[Entry], k: usize) -> Vec<L> {
+    let mut centres: Vec<DVec3> = Vec::with_capacity(k);
+    let first = pts
+        .iter()
+        .max_by(|a, b| a.w.total_cmp(&b.w))
+        .map(|e| e.mean().normalize())
+        .unwrap_or(DVec3::Z);
+    centres.push(first);
+    while centres.len() < k {
+        let mut best = (-1.0, DVec3::Z);
+        for e in pts {
+            let d = e.mean().normalize();
+            let dist = centres
+                .iter()
+                .map(|c| 2.0 - 2.0 * c.dot(d))
+                .fold(f64::INFINITY, f64::min);
+            if e.w * dist > best.0 {
+                best = (e.w * dist, d);
+            }
+        }
+        centres.push(best.1);
+    }
+    let mut sums = vec![(DVec3::ZERO, 0.0f64, 0.0f64); k];
+    for _ in 0..5 {
+        sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
+        for e in pts {
+            let d = e.mean();
+            let j = (0..k)
+                .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
+                .unwrap_or(0);
+            sums[j].0 += e.m;
+            sums[j].1 += e.w;
+        }
+        for j in 0..k {
+            if sums[j].0.length_squared() > 0.0 {
+                centres[j] = sums[j].0.normalize();
+            }
+        }
+    }
+    for e in pts {
+        let d = e.mean();
+        let j = (0..k)
+            .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
+            .unwrap_or(0);
+        sums[j].2 += e.w * log_t(centres[j], d);
+    }
+    let total: f64 = sums.iter().map(|s| s.1).sum();
+    (0..k)
+        .filter(|&j| sums[j].1 > 0.0)
+        .map(|j| L {
+            a: centres[j],
+            w: sums[j].1 / total,
+            eta: eta_from_mean_t(sums[j].2 / sums[j].1).min(1e4),
+        })
+        .collect()
 }
 
 /// Mean log-likelihood per unit weight of the mixture, and the worst-explained entry.
@@ -277,21 +338,10 @@ pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>
         eta: 0.0,
     }];
     let mut ll = em(pts, &mut lobes, ptotal, params.em_iterations.max(3));
-    while lobes.len() < kmax {
-        let (_, worst) = loglik(pts, &lobes, ptotal);
-        let mut trial = lobes.clone();
-        let kk = trial.len() as f64;
-        for l in &mut trial {
-            l.w *= kk / (kk + 1.0);
-        }
-        let eta0 = trial.iter().map(|l| l.eta).fold(0.0, f64::max).max(8.0);
-        trial.push(L {
-            a: pts[worst].mean().normalize(),
-            w: 1.0 / (kk + 1.0),
-            eta: eta0,
-        });
+    for k in 2..=kmax {
+        let mut trial = kmeans_init(pts, k);
         let ll2 = em(pts, &mut trial, ptotal, params.em_iterations);
-        if ll2 - ll > params.min_gain && trial.len() > lobes.len() {
+        if ll2 - ll > params.min_gain && trial.len() == k {
             lobes = trial;
             ll = ll2;
         } else {

@@ -104,6 +104,12 @@ fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicImage> {
             height: 0,
         });
     }
+    // PNG: the size is in the IHDR chunk at a fixed offset; check it before the decoder reads on.
+    if bytes.len() >= 24 && bytes[..8] == [0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A] {
+        let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap_or([0; 4]));
+        let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap_or([0; 4]));
+        check_dims(path, w as u64, h as u64)?;
+    }
     let reader = || {
         let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
         r.set_format(image::ImageFormat::from_path(path).unwrap_or(image::ImageFormat::Png));

@@ -1,0 +1,127 @@
+//! Timing of a 1024 × 1024 extraction at K ≤ 4, plus the NDF and BRDF error table of the
+//! fixture maps as K goes 1, 2, 4, 7 and for the baselines.
+//!
+//! ```text
+//! CARGO_TARGET_DIR=/work/targets/maps cargo run --release -p meso-maps --example extract_bench
+//! ```
+use meso_core::frame::spherical_direction_deg as dir;
+use meso_maps::fit::ndf_l2_error;
+use meso_maps::*;
+use std::time::Instant;
+
+fn brdf_error(ndf: &PatchNdf, exact: &EffectiveBrdf, facet: &dyn FacetBrdf) -> f64 {
+    let fit = EffectiveBrdf::new(ndf, 48, Shadowing::None, Form::Microfacet);
+    let mut vals = Vec::new();
+    for ti in [0.0, 30.0, 60.0] {
+        for to in [0.0, 20.0, 45.0, 60.0] {
+            for po in [0.0, 90.0, 180.0] {
+                let (i, o) = (dir(ti, 0.0), dir(to, po));
+                vals.push((fit.eval(facet, i, o)[0], exact.eval(facet, i, o)[0]));
+            }
+        }
+    }
+    let peak = vals.iter().map(|v| v.1).fold(0.0, f64::max);
+    vals.iter()
+        .map(|(a, b)| (a - b).abs() / peak)
+        .fold(0.0, f64::max)
+}
+
+fn main() {
+    let maps = [
+        (
+            "v-grooves",
+            fixtures::v_grooves(128, 16, 0.2, 0.05).unwrap(),
+        ),
+        (
+            "cylinders",
+            fixtures::half_cylinders(128, 16, 0.05, 1.0).unwrap(),
+        ),
+        (
+            "gaussian",
+            fixtures::gaussian(128, 3.0, 0.15, 11, 0.1).unwrap(),
+        ),
+        ("woven", fixtures::woven(128, 16, 0.1, 0.05).unwrap()),
+    ];
+    let phong = PhongFacet {
+        exponent: 20.0,
+        specular: [1.0; 3],
+    };
+    println!("map        method     top-level NDF L2 (rel)  BRDF err (Phong 20, of peak)  lobes");
+    for (name, map) in &maps {
+        let facets = FacetNormals::from_heightmap(map, NormalMode::Triangles).normalized();
+        let exact = EffectiveBrdf::new(
+            &PatchNdf::Facets(facets.clone()),
+            1,
+            Shadowing::None,
+            Form::Microfacet,
+        );
+        for k in [1, 2, 4, 7] {
+            let mut p = ExtractParams::default();
+            p.fit.max_lobes = k;
+            let pyr = extract(Source::Heights(map), &p, &mut |_| {}).unwrap();
+            let ndf = PatchNdf::Lobes(pyr.top().lobes.clone());
+            println!(
+                "{name:<10} K={k:<7} {:<23.4} {:<29.4} {}",
+                pyr.top().residual.mean,
+                brdf_error(&ndf, &exact, &phong),
+                pyr.top().lobes.len()
+            );
+        }
+        for b in [
+            Baseline::MipNormal,
+            Baseline::Toksvig,
+            Baseline::Lean,
+            Baseline::Vmf,
+        ] {
+            let ndf = fit_baseline(b, &facets);
+            let e = ndf_l2_error(facets.iter().copied(), |g, out| ndf.bin_mass(g, out));
+            println!(
+                "{name:<10} {:<9} {:<23.4} {:<29.4} 1",
+                format!("{b:?}"),
+                e,
+                brdf_error(&ndf, &exact, &phong)
+            );
+        }
+    }
+    // Triangles vs central differences on a creased map (V-grooves).
+    let vg = &maps[0].1;
+    let tri =
+        PatchNdf::Facets(FacetNormals::from_heightmap(vg, NormalMode::Triangles).normalized());
+    let cd = PatchNdf::Facets(
+        FacetNormals::from_heightmap(vg, NormalMode::CentralDifferences).normalized(),
+    );
+    let (a, b) = (
+        EffectiveBrdf::new(&tri, 1, Shadowing::None, Form::Microfacet),
+        EffectiveBrdf::new(&cd, 1, Shadowing::None, Form::Microfacet),
+    );
+    let mut worst: f64 = 0.0;
+    for (i, o) in [
+        (dir(0.0, 0.0), dir(0.0, 0.0)),
+        (dir(30.0, 0.0), dir(30.0, 180.0)),
+        (dir(45.0, 0.0), dir(10.0, 0.0)),
+    ] {
+        let (x, y) = (a.eval(&phong, i, o)[0], b.eval(&phong, i, o)[0]);
+        println!("v-grooves triangles vs central differences: i={i:.3} o={o:.3}: {x:.4} vs {y:.4}");
+        worst = worst.max((x - y).abs() / x.max(y));
+    }
+    println!("largest relative disagreement: {worst:.3}");
+
+    // Timing: 1024 × 1024 Gaussian random surface, K ≤ 4.
+    let map = fixtures::gaussian(1024, 4.0, 0.1, 3, 0.01).unwrap();
+    let t = Instant::now();
+    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |p| {
+        eprintln!(
+            "level {}/{} ({} texels)",
+            p.levels_done, p.levels, p.texels_done
+        )
+    })
+    .unwrap();
+    let dt = t.elapsed().as_secs_f64();
+    let texels: usize = pyr.levels.iter().map(|l| l.texels()).sum();
+    println!(
+        "1024x1024 K<=4: {dt:.2} s on {} threads, {:.0} texels/s\n{}",
+        rayon::current_num_threads(),
+        texels as f64 / dt,
+        pyr.info()
+    );
+}

@@ -1,0 +1,587 @@
+//! Integration tests of meso-maps against independent truth.
+
+use glam::DVec3;
+use meso_core::frame::spherical_direction_deg as dir;
+use meso_maps::fit::ETA_MAX;
+use meso_maps::*;
+
+fn pyr(map: &HeightMap, k: usize) -> Pyramid {
+    let mut p = ExtractParams::default();
+    p.fit.max_lobes = k;
+    extract(Source::Heights(map), &p, &mut |_| {}).unwrap()
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs().max(1e-12)
+}
+
+const LAMBERT: Lambert = Lambert { albedo: [1.0; 3] };
+
+mod inputs {
+    use super::*;
+    use std::path::Path;
+
+    fn png16(w: u32, h: u32, f: impl Fn(u32, u32) -> u16) -> Vec<u8> {
+        let img =
+            image::ImageBuffer::<image::Luma<u16>, _>::from_fn(w, h, |x, y| image::Luma([f(x, y)]));
+        let mut v = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
+            .unwrap();
+        v
+    }
+
+    #[test]
+    fn png16_and_8_scale() {
+        let b = png16(4, 3, |x, y| (x * 1000 + y * 7) as u16);
+        let m = HeightMap::from_bytes(Path::new("a.png"), &b, 0.5, 2.0, Border::Wrap).unwrap();
+        assert_eq!((m.width(), m.height()), (4, 3));
+        // Row i = y, column j = x.
+        assert!((m.at(2, 3) - (3000.0 + 14.0) / 65535.0 * 2.0).abs() < 1e-12);
+        let img =
+            image::GrayImage::from_fn(2, 2, |x, _| image::Luma([if x == 1 { 255 } else { 51 }]));
+        let mut v = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
+            .unwrap();
+        let m = HeightMap::from_bytes(Path::new("b.png"), &v, 1.0, 3.0, Border::Wrap).unwrap();
+        assert!((m.at(0, 1) - 3.0).abs() < 1e-12 && (m.at(1, 0) - 0.6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn exr_and_tiff_load() {
+        let img = image::Rgb32FImage::from_fn(3, 2, |x, y| {
+            image::Rgb([x as f32 * 0.25 + y as f32, 0.0, 0.0])
+        });
+        let mut v = Vec::new();
+        image::DynamicImage::ImageRgb32F(img)
+            .write_to(
+                &mut std::io::Cursor::new(&mut v),
+                image::ImageFormat::OpenExr,
+            )
+            .unwrap();
+        let m = HeightMap::from_bytes(Path::new("a.exr"), &v, 1.0, 2.0, Border::Wrap).unwrap();
+        assert!((m.at(1, 2) - (0.5 + 1.0) * 2.0).abs() < 1e-6);
+        let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(3, 2, |x, _| {
+            image::Luma([x as u16 * 30000])
+        });
+        let mut v = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Tiff)
+            .unwrap();
+        let m = HeightMap::from_bytes(Path::new("a.tif"), &v, 1.0, 1.0, Border::Wrap).unwrap();
+        assert!((m.at(0, 2) - 60000.0 / 65535.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_images_are_clear_errors() {
+        let good = png16(8, 8, |x, _| x as u16);
+        let p = Path::new("x.png");
+        let e =
+            HeightMap::from_bytes(p, &good[..good.len() / 2], 1.0, 1.0, Border::Wrap).unwrap_err();
+        assert!(matches!(e, MapError::Decode { .. }), "truncated: {e}");
+        let e = HeightMap::from_bytes(p, b"this is not an image at all", 1.0, 1.0, Border::Wrap)
+            .unwrap_err();
+        assert!(matches!(e, MapError::Decode { .. }), "corrupt: {e}");
+        let e = HeightMap::from_bytes(p, b"", 1.0, 1.0, Border::Wrap).unwrap_err();
+        assert!(matches!(e, MapError::Empty { .. }), "empty: {e}");
+        for (s, h) in [(0.0, 1.0), (-1.0, 1.0), (1.0, 0.0), (1.0, f64::NAN)] {
+            let e = HeightMap::from_bytes(p, &good, s, h, Border::Wrap).unwrap_err();
+            assert!(matches!(e, MapError::InvalidParameter { .. }), "{e}");
+            assert!(e.to_string().contains("must be a finite number > 0"));
+        }
+        let e = HeightMap::from_heights(2, 2, vec![0.0, f64::NAN, 0.0, 0.0], 1.0, Border::Wrap)
+            .unwrap_err();
+        assert_eq!(e.to_string(), "height at row 0, column 1 is not finite");
+        let e =
+            HeightMap::load(Path::new("/nonexistent/x.png"), 1.0, 1.0, Border::Wrap).unwrap_err();
+        assert!(matches!(e, MapError::Io { .. }));
+    }
+
+    fn crc32(data: &[u8]) -> u32 {
+        let mut c = 0xFFFF_FFFFu32;
+        for &b in data {
+            c ^= b as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+
+    #[test]
+    fn absurd_size_refused_from_header() {
+        // A valid PNG header claiming 100000 × 100000 pixels, and no image data at all: the
+        // refusal must come from the header, before any decoding or allocation.
+        let mut f = vec![0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A, 0, 0, 0, 13];
+        let mut chunk = b"IHDR".to_vec();
+        chunk.extend_from_slice(&100_000u32.to_be_bytes());
+        chunk.extend_from_slice(&100_000u32.to_be_bytes());
+        chunk.extend_from_slice(&[16, 0, 0, 0, 0]);
+        f.extend_from_slice(&chunk);
+        f.extend_from_slice(&crc32(&chunk).to_be_bytes());
+        let e =
+            HeightMap::from_bytes(Path::new("big.png"), &f, 1.0, 1.0, Border::Wrap).unwrap_err();
+        assert!(
+            matches!(e, MapError::TooLarge { width: 100_000, .. }),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn normal_map_conventions() {
+        let img = image::RgbImage::from_fn(1, 1, |_, _| image::Rgb([128, 200, 220]));
+        let dir_ = std::env::temp_dir().join(format!("meso-maps-nm-{}", std::process::id()));
+        std::fs::create_dir_all(&dir_).unwrap();
+        let p = dir_.join("n.png");
+        img.save(&p).unwrap();
+        let gl = NormalMap::load(&p, NormalConvention::Gl).unwrap();
+        let dx = NormalMap::load(&p, NormalConvention::Dx).unwrap();
+        let (a, b) = (gl.normals()[0], dx.normals()[0]);
+        assert!(a.y > 0.3 && (a.y + b.y).abs() < 1e-12 && (a.x - b.x).abs() < 1e-12);
+        std::fs::remove_dir_all(&dir_).unwrap();
+        let e = NormalMap::from_normals(1, 1, vec![DVec3::new(0.0, 0.0, -1.0)]).unwrap_err();
+        assert!(e.to_string().contains("row 0, column 0"));
+    }
+}
+
+mod pyramid {
+    use super::*;
+
+    #[test]
+    fn flat_gives_one_delta_lobe_everywhere() {
+        let map = fixtures::flat(24, 0.1).unwrap(); // not a power of two: ragged levels
+        let p = pyr(&map, 4);
+        assert_eq!(p.levels.len(), 6); // 24, 12, 6, 3, 2, 1
+        assert_eq!((p.levels[4].cols, p.levels[4].rows), (2, 2));
+        for l in &p.levels {
+            for t in 0..l.texels() {
+                let lobes = l.texel_lobes(t / l.cols, t % l.cols).unwrap();
+                assert_eq!(lobes.len(), 1);
+                assert!((lobes[0].axis - DVec3::Z).length() < 1e-12);
+                assert!((lobes[0].weight - 1.0).abs() < 1e-12 && lobes[0].exponent == ETA_MAX);
+            }
+            assert!(l.residual.max < 1e-12);
+        }
+    }
+
+    #[test]
+    fn v_grooves_give_two_exact_lobes() {
+        let map = fixtures::v_grooves(32, 8, 0.2, 0.1).unwrap();
+        let p = pyr(&map, 4);
+        let top = p.top().texel_lobes(0, 0).unwrap();
+        assert_eq!(top.len(), 2);
+        let slope: f64 = 2.0 * 0.2 / 0.8;
+        let expect = DVec3::new(slope, 0.0, 1.0).normalize();
+        for l in top {
+            assert!((l.weight - 0.5).abs() < 1e-9);
+            assert!((l.axis.x.abs() - expect.x).abs() < 1e-9 && l.axis.y.abs() < 1e-12);
+            assert_eq!(l.exponent, ETA_MAX);
+        }
+    }
+
+    #[test]
+    fn half_cylinders_spread_on_a_great_circle() {
+        let map = fixtures::half_cylinders(64, 16, 0.1, 1.0).unwrap();
+        let p = pyr(&map, 7);
+        let lobes = p.top().texel_lobes(0, 0).unwrap();
+        assert!(lobes.len() >= 3, "{} lobes", lobes.len());
+        // Eq. 15: the cylinder's normals lie on the great circle y = 0 (axis along y).
+        let mut spread = 0.0f64;
+        for l in lobes {
+            assert!(
+                l.axis.y.abs() < 1e-6,
+                "axis {:?} off the great circle",
+                l.axis
+            );
+            spread = spread.max(l.axis.x.abs());
+        }
+        assert!(
+            spread > 0.5,
+            "lobes spread along the circle: max |x| = {spread}"
+        );
+        // The lobe sum matches the histogram of the normals.
+        // Isotropic lobes cannot be as thin as the great circle, so the binned L2 error stays
+        // high, but it must fall as lobes are added.
+        let r7 = p.top().residual.mean;
+        let r1 = pyr(&map, 1).top().residual.mean;
+        assert!(r7 < 0.9 && r7 < r1 - 0.05, "K=1 {r1}, K=7 {r7}");
+        // Symmetric: the weighted mean axis is +z.
+        let mean: DVec3 = lobes.iter().map(|l| l.axis * l.weight).sum();
+        assert!(mean.x.abs() < 0.02, "{mean}");
+    }
+
+    #[test]
+    fn residual_is_bounded_and_falls_with_k() {
+        let map = fixtures::gaussian(64, 3.0, 0.15, 7, 0.1).unwrap();
+        let e1 = pyr(&map, 1).top().residual.mean;
+        let e4 = pyr(&map, 4).top().residual.mean;
+        assert!(e4 <= e1 + 1e-9 && e4 < 0.35, "K=1 {e1}, K=4 {e4}");
+        let woven = fixtures::woven(64, 16, 0.1, 0.05).unwrap();
+        let w1 = pyr(&woven, 1).top().residual.mean;
+        let w4 = pyr(&woven, 4).top().residual.mean;
+        assert!(w4 < w1, "woven K=1 {w1}, K=4 {w4}");
+    }
+
+    #[test]
+    fn map_file_round_trip_and_errors() {
+        let map = fixtures::gaussian(20, 2.0, 0.1, 3, 0.1).unwrap();
+        let p = pyr(&map, 3);
+        let dir_ = std::env::temp_dir().join(format!("meso-maps-fmt-{}", std::process::id()));
+        std::fs::create_dir_all(&dir_).unwrap();
+        let path = dir_.join("a.map");
+        p.write(&path).unwrap();
+        let q = Pyramid::read(&path).unwrap();
+        assert_eq!(q.levels.len(), p.levels.len());
+        for (a, b) in p.levels.iter().zip(&q.levels) {
+            assert_eq!(a.lobe_start, b.lobe_start);
+            for (x, y) in a.lobes.iter().zip(&b.lobes) {
+                assert!((x.axis - y.axis).length() < 1e-6 && rel(y.weight, x.weight) < 1e-6);
+                assert!(rel(y.exponent, x.exponent) < 1e-6);
+            }
+            assert_eq!(a.residual, b.residual);
+        }
+        assert_eq!(q.info(), p.info());
+        let bytes = std::fs::read(&path).unwrap();
+        for cut in [0, 7, 30, bytes.len() / 2, bytes.len() - 1] {
+            let e = Pyramid::from_bytes(&path, &bytes[..cut]).unwrap_err();
+            assert!(
+                e.to_string().contains("truncated") || e.to_string().contains("magic"),
+                "{e}"
+            );
+        }
+        let mut v2 = bytes.clone();
+        v2[8] = 2;
+        let e = Pyramid::from_bytes(&path, &v2).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                MapError::MapVersion {
+                    found: 2,
+                    expected: 1,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let mut big = bytes.clone();
+        big[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(Pyramid::from_bytes(&path, &big)
+            .unwrap_err()
+            .to_string()
+            .contains("outside"));
+        // A failing write leaves nothing behind.
+        let e = p.write(&dir_.join("no/such/dir/x.map")).unwrap_err();
+        assert!(matches!(e, MapError::Io { .. }));
+        std::fs::remove_dir_all(&dir_).unwrap();
+        assert!(p.info().to_string().contains("level"));
+    }
+}
+
+mod shadowing {
+    use super::*;
+
+    #[test]
+    fn v_groove_horizon_angles_are_analytic() {
+        let (n, period, depth, s) = (32usize, 16usize, 0.3, 0.05);
+        let map = fixtures::v_grooves(n, period, depth, s).unwrap();
+        let hz = HorizonMap::compute(&map);
+        let p = period as f64 * s;
+        let wall = (2.0 * depth / p).atan();
+        for j in 0..n {
+            let x = (j % period) as f64 * s;
+            let h = map.at(0, j as isize);
+            // Looking +x: on the descending wall the far rim is the horizon; on the rising wall,
+            // the wall itself.
+            let expect_px = if x <= 0.5 * p {
+                ((depth - h) / (p - x)).atan()
+            } else {
+                wall
+            };
+            let xr = if x == 0.0 { p } else { x }; // looking −x: mirror image
+            let expect_mx = if xr >= 0.5 * p {
+                ((depth - h) / xr).atan()
+            } else {
+                wall
+            };
+            assert!(
+                (hz.angles[0][j] - expect_px).abs() < 1e-12,
+                "j {j}: {} vs {expect_px}",
+                hz.angles[0][j]
+            );
+            assert!((hz.angles[2][j] - expect_mx).abs() < 1e-12, "j {j}");
+            assert!(hz.angles[1][j].abs() < 1e-12 && hz.angles[3][j].abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn horizon_stats_merge_exactly() {
+        let map = fixtures::gaussian(16, 2.0, 0.1, 1, 0.1).unwrap();
+        let p = pyr(&map, 1);
+        let hz = HorizonMap::compute(&map);
+        let all = hz.total_stats();
+        let top = p.top().texel_horizon(0, 0).unwrap().unwrap();
+        for d in 0..4 {
+            let vals = &hz.angles[d];
+            let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+            let var = vals.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / vals.len() as f64;
+            assert!((top.mean[d] - mean).abs() < 1e-12 && (top.var[d] - var).abs() < 1e-12);
+            assert!((all.mean[d] - mean).abs() < 1e-12);
+        }
+        // Visibility: straight up always visible, below the horizon never; monotone in elevation.
+        assert_eq!(top.visibility(DVec3::Z), 1.0);
+        let mut last = 0.0;
+        for t in (0..=89).rev() {
+            let v = top.visibility(dir(t as f64, 30.0));
+            assert!(v >= last - 1e-12);
+            last = v;
+        }
+    }
+
+    #[test]
+    fn smith_lambda_of_v_groove_is_exact() {
+        // For a symmetric V-groove with wall slope s, in the plane of the grooves:
+        // 1 + Λ(ω) = (Σ_m p_m max(0, ω·m)/m_z)/cos θ = (½)(|tanθ| + s)... for tanθ > s: tanθ/tanθ=1.
+        let map = fixtures::v_grooves(16, 8, 0.1, 0.05).unwrap();
+        let f = FacetNormals::from_heightmap(&map, NormalMode::Triangles);
+        let b = EffectiveBrdf::new(
+            &PatchNdf::Facets(f.normalized()),
+            1,
+            Shadowing::Smith,
+            Form::Microfacet,
+        );
+        let s: f64 = 2.0 * 0.1 / 0.4;
+        for t in [10.0f64, 40.0, 70.0, 85.0] {
+            let w = dir(t, 0.0);
+            let tt = t.to_radians().tan();
+            // Facets at ±s: ω·m/m_z = −(±s)·sinθ... = cosθ(1 ∓ s tanθ) when positive.
+            let sum = 0.5 * ((1.0 + s * tt).max(0.0) + (1.0 - s * tt).max(0.0));
+            assert!((b.lambda(w) - (sum - 1.0)).abs() < 1e-12, "θ {t}");
+        }
+    }
+}
+
+mod brdf {
+    use super::*;
+
+    fn facets(map: &HeightMap) -> PatchNdf {
+        PatchNdf::Facets(FacetNormals::from_heightmap(map, NormalMode::Triangles).normalized())
+    }
+
+    fn pairs() -> Vec<(DVec3, DVec3)> {
+        let mut v = Vec::new();
+        for ti in [0.0, 30.0, 60.0] {
+            for to in [0.0, 20.0, 45.0, 60.0] {
+                for po in [0.0, 90.0, 180.0] {
+                    v.push((dir(ti, 0.0), dir(to, po)));
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn top_level_lobes_match_brute_force_facet_sum() {
+        let phong = PhongFacet {
+            exponent: 20.0,
+            specular: [1.0; 3],
+        };
+        for (name, map) in [
+            (
+                "gaussian",
+                fixtures::gaussian(64, 3.0, 0.15, 11, 0.1).unwrap(),
+            ),
+            (
+                "cylinders",
+                fixtures::half_cylinders(64, 16, 0.1, 1.0).unwrap(),
+            ),
+        ] {
+            let p = pyr(&map, 7);
+            let lobes = PatchNdf::Lobes(p.top().texel_lobes(0, 0).unwrap().to_vec());
+            let fit = EffectiveBrdf::new(&lobes, 48, Shadowing::None, Form::Microfacet);
+            let exact = EffectiveBrdf::new(&facets(&map), 1, Shadowing::None, Form::Microfacet);
+            // Errors relative to the largest value of the set (a peaked BRDF's far tail is
+            // reported, not bounded: see docs/heightmaps.md).
+            for f in [&LAMBERT as &dyn FacetBrdf, &phong] {
+                let vals: Vec<(f64, f64)> = pairs()
+                    .into_iter()
+                    .map(|(i, o)| (fit.eval(f, i, o)[0], exact.eval(f, i, o)[0]))
+                    .collect();
+                let peak = vals.iter().map(|v| v.1).fold(0.0, f64::max);
+                let worst = vals
+                    .iter()
+                    .map(|(a, b)| (a - b).abs() / peak)
+                    .fold(0.0, f64::max);
+                assert!(worst < 0.10, "{name}: worst BRDF error {worst} of the peak");
+            }
+        }
+    }
+
+    #[test]
+    fn flat_facet_sum_is_the_facet_brdf() {
+        let map = fixtures::flat(8, 0.1).unwrap();
+        let b = EffectiveBrdf::new(&facets(&map), 1, Shadowing::Smith, Form::Microfacet);
+        let phong = PhongFacet {
+            exponent: 30.0,
+            specular: [1.0, 0.5, 0.25],
+        };
+        for (i, o) in pairs() {
+            let a = b.eval(&phong, i, o);
+            let e = phong.eval(i, o);
+            for c in 0..3 {
+                assert!((a[c] - e[c]).abs() < 1e-12 * (1.0 + e[c]));
+            }
+        }
+    }
+
+    #[test]
+    fn baselines_fit_their_moments() {
+        let map = fixtures::gaussian(32, 2.0, 0.1, 5, 0.1).unwrap();
+        let normals = FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized();
+        let mean: DVec3 = normals.iter().map(|(n, w)| *n * *w).sum();
+        for m in [
+            Baseline::MipNormal,
+            Baseline::Toksvig,
+            Baseline::Lean,
+            Baseline::Vmf,
+        ] {
+            let ndf = fit_baseline(m, &normals);
+            let nodes = ndf.nodes(64);
+            let s: f64 = nodes.iter().map(|p| p.1).sum();
+            let nm: DVec3 = nodes.iter().map(|(n, w)| *n * *w).sum();
+            assert!((s - 1.0).abs() < 1e-9);
+            // Mean normal direction preserved.
+            assert!((nm.normalize() - mean.normalize()).length() < 0.02, "{m:?}");
+            // Density integrates to 1 (quadrature over an equal-area grid).
+            if m != Baseline::MipNormal {
+                let g = meso_maps::sphgrid::SphereGrid { res: 128 };
+                let tot: f64 = (0..g.bins())
+                    .map(|k| ndf.density(g.point(k, 0.5, 0.5)))
+                    .sum::<f64>()
+                    * g.bin_solid_angle();
+                assert!((tot - 1.0).abs() < 2e-2, "{m:?}: {tot}");
+            }
+        }
+    }
+}
+
+mod gonio {
+    use super::*;
+
+    #[test]
+    fn flat_map_gives_exactly_the_facet_brdf() {
+        let map = fixtures::flat(8, 0.1).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let phong = PhongFacet {
+            exponent: 10.0,
+            specular: [1.0; 3],
+        };
+        let gp = GonioParams {
+            rays_per_side: 16,
+            ..Default::default()
+        };
+        for (i, o) in [
+            (dir(30.0, 0.0), dir(30.0, 180.0)),
+            (dir(60.0, 45.0), dir(10.0, 100.0)),
+        ] {
+            let a = g.measure(&phong, i, o, &gp)[0];
+            let e = phong.eval(i, o)[0];
+            assert!((a - e).abs() < 1e-12 * (1.0 + e), "{a} vs {e}");
+        }
+    }
+
+    #[test]
+    fn v_groove_without_masking_equals_facet_sum() {
+        // Wall slope 0.5 (26.6°): directions within 20° of the normal in the groove plane
+        // neither mask nor shadow, so the gonio result is the plain facet sum.
+        let map = fixtures::v_grooves(16, 8, 0.1, 0.05).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let ndf = PatchNdf::Facets(
+            FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized(),
+        );
+        let sum = EffectiveBrdf::new(&ndf, 1, Shadowing::None, Form::Microfacet);
+        let gp = GonioParams {
+            rays_per_side: 64,
+            ..Default::default()
+        };
+        for (i, o) in [
+            (dir(10.0, 0.0), dir(15.0, 180.0)),
+            (dir(0.0, 0.0), dir(20.0, 90.0)),
+        ] {
+            let a = g.measure(&LAMBERT, i, o, &gp)[0];
+            let b = sum.eval(&LAMBERT, i, o)[0];
+            assert!(rel(a, b) < 0.01, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn random_surface_gonio_matches_microfacet_smith() {
+        let map = fixtures::gaussian(64, 4.0, 0.12, 21, 0.1).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let ndf = PatchNdf::Facets(
+            FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized(),
+        );
+        let smith = EffectiveBrdf::new(&ndf, 1, Shadowing::Smith, Form::Microfacet);
+        let none = EffectiveBrdf::new(&ndf, 1, Shadowing::None, Form::Microfacet);
+        let gp = GonioParams {
+            rays_per_side: 160,
+            ..Default::default()
+        };
+        let mut worst_smith: f64 = 0.0;
+        let mut worst_none: f64 = 0.0;
+        for (ti, to, po) in [
+            (0.0, 0.0, 0.0),
+            (30.0, 30.0, 180.0),
+            (45.0, 60.0, 90.0),
+            (60.0, 60.0, 180.0),
+            (60.0, 45.0, 0.0),
+        ] {
+            let (i, o) = (dir(ti, 0.0), dir(to, po));
+            let a = g.measure(&LAMBERT, i, o, &gp)[0];
+            worst_smith = worst_smith.max(rel(smith.eval(&LAMBERT, i, o)[0], a));
+            worst_none = worst_none.max(rel(none.eval(&LAMBERT, i, o)[0], a));
+        }
+        assert!(worst_smith < 0.05, "Smith vs gonio: {worst_smith}");
+        assert!(
+            worst_none > worst_smith,
+            "shadowing matters: none {worst_none}, Smith {worst_smith}"
+        );
+    }
+
+    #[test]
+    fn bumps_and_grooves_same_ndf_different_brdf() {
+        let bumps = fixtures::half_cylinders(64, 16, 0.1, 1.0).unwrap();
+        let grooves = bumps.negated();
+        // Same NDF: the two normal sets are mirror images about the groove axis (x → −x) and
+        // the set is symmetric, so their histograms coincide.
+        let hb = FacetNormals::from_heightmap(&bumps, NormalMode::Triangles).normalized();
+        let hg = FacetNormals::from_heightmap(&grooves, NormalMode::Triangles).normalized();
+        let grid = meso_maps::sphgrid::SphereGrid { res: 32 };
+        let (mut a, mut b) = (vec![0.0; grid.bins()], vec![0.0; grid.bins()]);
+        PatchNdf::Facets(hb).bin_mass(grid, &mut a);
+        PatchNdf::Facets(hg).bin_mass(grid, &mut b);
+        let d: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum();
+        assert!(d < 0.02, "histograms differ by {d}");
+        // Different BRDFs at grazing light across the cylinders.
+        let gp = GonioParams {
+            rays_per_side: 96,
+            ..Default::default()
+        };
+        let (i, o) = (dir(70.0, 0.0), dir(30.0, 180.0));
+        let fb = Gonio::new(&bumps).unwrap().measure(&LAMBERT, i, o, &gp)[0];
+        let fg = Gonio::new(&grooves).unwrap().measure(&LAMBERT, i, o, &gp)[0];
+        assert!(rel(fb, fg) > 0.05, "bumps {fb}, grooves {fg}");
+        // The horizon model sees the difference, Smith (NDF only) cannot.
+        let pb = pyr(&bumps, 4);
+        let pg = pyr(&grooves, 4);
+        let hb = pb.top().texel_horizon(0, 0).unwrap().unwrap();
+        let hg = pg.top().texel_horizon(0, 0).unwrap().unwrap();
+        assert!(
+            (hb.visibility(i) - hg.visibility(i)).abs() > 0.05,
+            "{} {}",
+            hb.visibility(i),
+            hg.visibility(i)
+        );
+    }
+}
