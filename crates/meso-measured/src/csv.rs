@@ -285,12 +285,27 @@ mod tests {
             (String::new(), "empty"),
             ("\n  \n".into(), "empty"),
             (format!("{h}\n"), "no samples"),
-            ("theta_i,phi_i,theta_o,phi_o,r,g\n1,2,3,4,5,6\n".into(), "bad header"),
-            (format!("{h}\n1,2,3,4,5,6,7\n1,2,3,4,5,6\n"), "line 3: 6 columns"),
+            (
+                "theta_i,phi_i,theta_o,phi_o,r,g\n1,2,3,4,5,6\n".into(),
+                "bad header",
+            ),
+            (
+                format!("{h}\n1,2,3,4,5,6,7\n1,2,3,4,5,6\n"),
+                "line 3: 6 columns",
+            ),
             (format!("{h}\n1,2,3,4,5,6,7,8\n"), "line 2: 8 columns"),
-            (format!("{h}\n1,2,3,4,NaN,6,7\n"), "line 2, column r: value is not finite"),
-            (format!("{h}\n1,2,3,4,5,-6,7\n"), "line 2, column g: negative"),
-            (format!("{h}\n1,2,3,4,5,6,x\n"), "line 2, column b: `x` is not a number"),
+            (
+                format!("{h}\n1,2,3,4,NaN,6,7\n"),
+                "line 2, column r: value is not finite",
+            ),
+            (
+                format!("{h}\n1,2,3,4,5,-6,7\n"),
+                "line 2, column g: negative",
+            ),
+            (
+                format!("{h}\n1,2,3,4,5,6,x\n"),
+                "line 2, column b: `x` is not a number",
+            ),
             (format!("{h}\n1,2,93,4,5,6,7\n"), "line 2, column theta_o"),
         ];
         for (text, want) in cases {

@@ -106,9 +106,9 @@ pub fn evaluate(
             for s in chunk {
                 let f = eval_model(model, theta, amps, s.wi, s.wo, &mut scratch);
                 let ci = s.wi.z;
-                for c in 0..3 {
-                    let a = Metric::NganL2.residual(f[c], s.rgb[c], ci);
-                    let b = Metric::LowLog.residual(f[c], s.rgb[c], ci);
+                for (c, (&fc, &dc)) in f.iter().zip(&s.rgb).enumerate() {
+                    let a = Metric::NganL2.residual(fc, dc, ci);
+                    let b = Metric::LowLog.residual(fc, dc, ci);
                     acc[c] += s.weight * a * a;
                     acc[3 + c] += s.weight * b * b;
                 }
@@ -237,8 +237,8 @@ impl LeastSquares for Problem<'_> {
                 let mut acc = 0.0;
                 for s in chunk {
                     let f = eval_model(self.model, theta, &amps, s.wi, s.wo, &mut scratch);
-                    for c in 0..3 {
-                        let r = self.metric.residual(f[c], s.rgb[c], s.wi.z);
+                    for (&fc, &dc) in f.iter().zip(&s.rgb) {
+                        let r = self.metric.residual(fc, dc, s.wi.z);
                         acc += s.weight * r * r;
                     }
                 }
@@ -349,7 +349,11 @@ fn nnls_small(m: &[f64], v: &[f64], nb: usize) -> Vec<f64> {
         }
         let mut a = vec![0.0; k * k];
         let mut b = vec![0.0; k];
-        let scale = idx.iter().map(|&j| m[j * nb + j]).fold(0.0f64, f64::max).max(1e-300);
+        let scale = idx
+            .iter()
+            .map(|&j| m[j * nb + j])
+            .fold(0.0f64, f64::max)
+            .max(1e-300);
         for (p, &i) in idx.iter().enumerate() {
             b[p] = v[i];
             for (q, &j) in idx.iter().enumerate() {
@@ -456,7 +460,11 @@ fn pack(theta: &[f64], amps: &[[f64; 3]]) -> Vec<f64> {
 }
 
 /// Fit `model` to `data` (see the module docs for the schedule); errors are reported on `data`.
-pub fn fit(model: &dyn BrdfModel, data: &SampleSet, opts: &FitOptions) -> Result<FitResult, FitError> {
+pub fn fit(
+    model: &dyn BrdfModel,
+    data: &SampleSet,
+    opts: &FitOptions,
+) -> Result<FitResult, FitError> {
     fit_from(model, data, opts, &model.initial_guesses())
 }
 
@@ -495,7 +503,11 @@ pub fn fit_from(
     let mut ranked: Vec<(f64, Vec<f64>)> = starts
         .iter()
         .map(|s| {
-            let s: Vec<f64> = s.iter().zip(&tb).map(|(x, (lo, hi))| x.clamp(*lo, *hi)).collect();
+            let s: Vec<f64> = s
+                .iter()
+                .zip(&tb)
+                .map(|(x, (lo, hi))| x.clamp(*lo, *hi))
+                .collect();
             let amps = solve_amplitudes(model, &s, &coarse);
             let p = pack(&s, &amps);
             (pc.cost(&p), p)

@@ -58,7 +58,7 @@ pub fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
         for k in 0..j {
             d -= a[j * n + k] * a[j * n + k];
         }
-        if !(d > 0.0) || !d.is_finite() {
+        if d.is_nan() || d <= 0.0 || !d.is_finite() {
             return false;
         }
         let d = d.sqrt();
@@ -217,11 +217,17 @@ mod tests {
     fn rosenbrock_unconstrained_and_bounded() {
         let free = [(-10.0, 10.0); 2];
         let r = minimize(&Rosen, &[-1.2, 1.0], &free, &LmOptions::default());
-        assert!((r.params[0] - 1.0).abs() < 1e-6 && (r.params[1] - 1.0).abs() < 1e-6, "{r:?}");
+        assert!(
+            (r.params[0] - 1.0).abs() < 1e-6 && (r.params[1] - 1.0).abs() < 1e-6,
+            "{r:?}"
+        );
         // With x ≤ 0.5 the constrained minimum is at x = 0.5, y = 0.25.
         let boxed = [(-10.0, 0.5), (-10.0, 10.0)];
         let r = minimize(&Rosen, &[-1.2, 1.0], &boxed, &LmOptions::default());
-        assert!((r.params[0] - 0.5).abs() < 1e-9 && (r.params[1] - 0.25).abs() < 1e-6, "{r:?}");
+        assert!(
+            (r.params[0] - 0.5).abs() < 1e-9 && (r.params[1] - 0.25).abs() < 1e-6,
+            "{r:?}"
+        );
     }
 
     #[test]
@@ -229,7 +235,9 @@ mod tests {
         let mut a = vec![4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0];
         let a0 = a.clone();
         let x = [1.0, -2.0, 0.5];
-        let mut b: Vec<f64> = (0..3).map(|i| (0..3).map(|k| a0[i * 3 + k] * x[k]).sum()).collect();
+        let mut b: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|k| a0[i * 3 + k] * x[k]).sum())
+            .collect();
         assert!(cholesky_solve(&mut a, &mut b, 3));
         for i in 0..3 {
             assert!((b[i] - x[i]).abs() < 1e-12);

@@ -240,7 +240,12 @@ impl MerlTable {
         let mut head = [0u8; 12];
         f.read_exact(&mut head).map_err(io)?;
         let dims = [0, 1, 2].map(|k| {
-            i32::from_le_bytes([head[4 * k], head[4 * k + 1], head[4 * k + 2], head[4 * k + 3]])
+            i32::from_le_bytes([
+                head[4 * k],
+                head[4 * k + 1],
+                head[4 * k + 2],
+                head[4 * k + 3],
+            ])
         });
         if dims != [N_THETA_H as i32, N_THETA_D as i32, N_PHI_D as i32] {
             return Err(MerlError::BadHeader { path: p, dims });
@@ -305,7 +310,11 @@ impl MerlTable {
                     value: v,
                 });
             }
-            data.push(if v < 0.0 { -1.0 } else { v * MERL_SCALES[channel] });
+            data.push(if v < 0.0 {
+                -1.0
+            } else {
+                v * MERL_SCALES[channel]
+            });
         }
         Ok(MerlTable { data })
     }
@@ -409,7 +418,13 @@ impl MerlTable {
 
     /// [`MerlTable::lookup`] from spherical angles `(θi, φi, θo, φo)` in radians.
     #[must_use]
-    pub fn lookup_angles(&self, theta_i: f64, phi_i: f64, theta_o: f64, phi_o: f64) -> Option<[f64; 3]> {
+    pub fn lookup_angles(
+        &self,
+        theta_i: f64,
+        phi_i: f64,
+        theta_o: f64,
+        phi_o: f64,
+    ) -> Option<[f64; 3]> {
         self.lookup(
             meso_core::frame::spherical_direction(theta_i, phi_i),
             meso_core::frame::spherical_direction(theta_o, phi_o),

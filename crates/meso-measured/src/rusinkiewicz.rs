@@ -99,7 +99,9 @@ mod tests {
     use std::f64::consts::PI;
 
     fn pseudo(k: usize, salt: f64) -> f64 {
-        ((k as f64 * 0.618_033_988_749_895 + salt) * 7.31).fract().abs()
+        ((k as f64 * 0.618_033_988_749_895 + salt) * 7.31)
+            .fract()
+            .abs()
     }
 
     #[test]

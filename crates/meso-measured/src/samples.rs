@@ -97,7 +97,8 @@ impl SampleSet {
                 continue;
             }
             let (wi, wo) = if opts.spread_phi_h {
-                let a = 2.0 * std::f64::consts::PI * (c.index as f64 * 0.618_033_988_749_895).fract();
+                let a =
+                    2.0 * std::f64::consts::PI * (c.index as f64 * 0.618_033_988_749_895).fract();
                 let (sa, ca) = a.sin_cos();
                 let rot = |w: DVec3| DVec3::new(ca * w.x - sa * w.y, sa * w.x + ca * w.y, w.z);
                 (rot(c.wi), rot(c.wo))

@@ -23,7 +23,12 @@ fn tmp(name: &str) -> PathBuf {
 /// Direction pairs covering the upper hemisphere pairs with θ < 80°, dense near the specular
 /// peak (θh sampled like MERL's non-linear axis), all four half/difference angles varying.
 fn pairs(n: usize) -> Vec<(DVec3, DVec3)> {
-    let g = [0.754_877_666_246_692_7, 0.569_840_290_998_053_2, 0.430_159_709_001_946_8, 0.324_717_957_244_746];
+    let g = [
+        0.754_877_666_246_692_7,
+        0.569_840_290_998_053_2,
+        0.430_159_709_001_946_8,
+        0.324_717_957_244_746,
+    ];
     let cmax = 80f64.to_radians().cos();
     let mut out = Vec::with_capacity(n);
     let mut k = 0usize;
@@ -81,12 +86,30 @@ fn assert_lobes_close(fit: &LobeParams, truth: &LobeParams, tol_rel: f64, tol_de
     for (x, y) in a.iter().zip(&b) {
         let ang = x.axis.dot(y.axis).clamp(-1.0, 1.0).acos().to_degrees();
         assert!(ang < tol_deg, "axis off by {ang}°: {fit:?} vs {truth:?}");
-        assert!((x.exponent / y.exponent - 1.0).abs() < tol_rel, "exponent {} vs {}", x.exponent, y.exponent);
-        assert!((x.weight - y.weight).abs() < tol_rel, "weight {} vs {}", x.weight, y.weight);
+        assert!(
+            (x.exponent / y.exponent - 1.0).abs() < tol_rel,
+            "exponent {} vs {}",
+            x.exponent,
+            y.exponent
+        );
+        assert!(
+            (x.weight - y.weight).abs() < tol_rel,
+            "weight {} vs {}",
+            x.weight,
+            y.weight
+        );
     }
     for c in 0..3 {
-        assert!((fit.specular[c] / truth.specular[c] - 1.0).abs() < tol_rel, "specular {:?}", fit.specular);
-        assert!((fit.albedo[c] / truth.albedo[c] - 1.0).abs() < tol_rel, "albedo {:?}", fit.albedo);
+        assert!(
+            (fit.specular[c] / truth.specular[c] - 1.0).abs() < tol_rel,
+            "specular {:?}",
+            fit.specular
+        );
+        assert!(
+            (fit.albedo[c] / truth.albedo[c] - 1.0).abs() < tol_rel,
+            "albedo {:?}",
+            fit.albedo
+        );
     }
 }
 
@@ -103,11 +126,18 @@ fn merl_write_read_lookup_round_trip() {
     assert_eq!(back.missing_count(), table.missing_count());
     let mut checked = 0;
     for c in back.cells(CellPosition::Edge).step_by(997) {
-        let want = if c.wi.z > 0.0 && c.wo.z > 0.0 { Some(truth.eval(c.wi, c.wo)) } else { None };
+        let want = if c.wi.z > 0.0 && c.wo.z > 0.0 {
+            Some(truth.eval(c.wi, c.wo))
+        } else {
+            None
+        };
         match want {
             Some(v) => {
                 for k in 0..3 {
-                    assert!((c.rgb[k] - v[k]).abs() <= 1e-12 * v[k].max(1e-3), "{c:?} vs {v:?}");
+                    assert!(
+                        (c.rgb[k] - v[k]).abs() <= 1e-12 * v[k].max(1e-3),
+                        "{c:?} vs {v:?}"
+                    );
                 }
                 // Nearest-cell lookup slightly inside the cell returns that cell.
                 let hd = merl::cell_angles(c.bins[0], c.bins[1], c.bins[2], CellPosition::Centre);
@@ -127,7 +157,10 @@ fn merl_write_read_lookup_round_trip() {
     assert_eq!(back.lookup(wi, wo), back.lookup(wo, wi));
     let v = back.lookup(wi, wo).unwrap();
     let e = truth.eval(wi, wo);
-    assert!((v[0] / e[0] - 1.0).abs() < 0.1, "nearest cell close to the function: {v:?} {e:?}");
+    assert!(
+        (v[0] / e[0] - 1.0).abs() < 0.1,
+        "nearest cell close to the function: {v:?} {e:?}"
+    );
 }
 
 fn write_bytes(name: &str, bytes: &[u8]) -> PathBuf {
@@ -146,7 +179,10 @@ fn merl_bad_input_gives_clear_errors() {
     let mut b = header([90, 90, 360]);
     b.extend(vec![0u8; 64]);
     let e = MerlTable::read(&write_bytes("hdr.binary", &b)).unwrap_err();
-    assert!(e.to_string().contains("header dimensions [90, 90, 360]"), "{e}");
+    assert!(
+        e.to_string().contains("header dimensions [90, 90, 360]"),
+        "{e}"
+    );
     // Truncated: refused from the size alone.
     let mut b = header([90, 90, 180]);
     b.extend(vec![0u8; 1000]);
@@ -160,17 +196,35 @@ fn merl_bad_input_gives_clear_errors() {
     let mut b = header([90, 90, 180]);
     b.reserve(3 * merl::N_CELLS * 8);
     for k in 0..3 * merl::N_CELLS {
-        let v = if k == merl::N_CELLS + 181 { f64::NAN } else if k % 1000 == 0 { -1.0 } else { 1.0 };
+        let v = if k == merl::N_CELLS + 181 {
+            f64::NAN
+        } else if k % 1000 == 0 {
+            -1.0
+        } else {
+            1.0
+        };
         b.extend(v.to_le_bytes());
     }
     let p = write_bytes("nan.binary", &b);
     let e = MerlTable::read(&p).unwrap_err();
-    assert!(matches!(e, MerlError::NonFinite { channel: 1, ih: 0, id: 1, ip: 1, .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            MerlError::NonFinite {
+                channel: 1,
+                ih: 0,
+                id: 1,
+                ip: 1,
+                ..
+            }
+        ),
+        "{e}"
+    );
     let nan_at = 12 + 8 * (merl::N_CELLS + 181);
     b[nan_at..nan_at + 8].copy_from_slice(&1.0f64.to_le_bytes());
     let t = MerlTable::read(&write_bytes("neg.binary", &b)).unwrap();
     let expect = (0..merl::N_CELLS)
-        .filter(|c| (0..3).any(|ch| (ch * merl::N_CELLS + c) % 1000 == 0))
+        .filter(|c| (0..3).any(|ch| (ch * merl::N_CELLS + c).is_multiple_of(1000)))
         .count();
     assert_eq!(t.missing_count(), expect);
     assert!((t.value(2, 0, 0, 1) - merl::MERL_SCALES[2]).abs() < 1e-18);
@@ -191,7 +245,11 @@ fn csv_file_round_trip_and_empty_file() {
     assert_eq!(read_csv(&p).unwrap(), s);
     let e = read_csv(&write_bytes("empty.csv", b"")).unwrap_err();
     assert!(matches!(e, CsvError::Empty), "{e}");
-    let e = read_csv(&write_bytes("neg.csv", b"theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,0.1,-0.2,0.3\n")).unwrap_err();
+    let e = read_csv(&write_bytes(
+        "neg.csv",
+        b"theta_i,phi_i,theta_o,phi_o,r,g,b\n10,0,10,180,0.1,-0.2,0.3\n",
+    ))
+    .unwrap_err();
     assert_eq!(e.to_string(), "line 2, column g: negative BRDF value -0.2");
 }
 
@@ -208,7 +266,10 @@ fn lobe_fits_recover_isotropic_materials_from_merl_files() {
         let m = LobeModel::new(k).with_fixed_transfer(truth.transfer_exponent);
         let r = fit(&m, &data, &FitOptions::default()).unwrap();
         let got = m.params(&r);
-        eprintln!("K={k}: {} iterations, {:.2} s, errors {:?}", r.iterations, r.seconds, r.errors);
+        eprintln!(
+            "K={k}: {} iterations, {:.2} s, errors {:?}",
+            r.iterations, r.seconds, r.errors
+        );
         assert_lobes_close(&got, &truth, 1e-3, 0.05);
         assert!(r.errors.low_log.iter().all(|&e| e < 1e-5), "{:?}", r.errors);
     }
@@ -219,7 +280,11 @@ fn lobe_fits_recover_anisotropic_materials_from_csv_files() {
     let cases = [
         vec![(25.0, 60.0, 1.0, 300.0)],
         vec![(0.0, 0.0, 0.5, 80.0), (30.0, 90.0, 0.5, 600.0)],
-        vec![(10.0, 0.0, 0.5, 40.0), (35.0, 120.0, 0.3, 500.0), (20.0, 250.0, 0.2, 2000.0)],
+        vec![
+            (10.0, 0.0, 0.5, 40.0),
+            (35.0, 120.0, 0.3, 500.0),
+            (20.0, 250.0, 0.2, 2000.0),
+        ],
     ];
     for (n, lobes) in cases.iter().enumerate() {
         let truth = LobeParams {
@@ -257,26 +322,59 @@ fn free_transfer_exponent_reproduces_the_brdf() {
     let data = samples_of(|i, o| truth.eval(i, o), 20_000);
     for metric in [Metric::LowLog, Metric::NganL2] {
         let m = LobeModel::new(2);
-        let opts = FitOptions { metric, ..FitOptions::default() };
+        let opts = FitOptions {
+            metric,
+            ..FitOptions::default()
+        };
         let r = fit(&m, &data, &opts).unwrap();
-        assert!(r.errors.low_log.iter().all(|&e| e < 2e-3), "{metric:?} {:?}", r.errors);
+        assert!(
+            r.errors.low_log.iter().all(|&e| e < 2e-3),
+            "{metric:?} {:?}",
+            r.errors
+        );
         let got = m.params(&r);
         for c in 0..3 {
-            assert!((got.albedo[c] / truth.albedo[c] - 1.0).abs() < 0.02, "{got:?}");
+            assert!(
+                (got.albedo[c] / truth.albedo[c] - 1.0).abs() < 0.02,
+                "{got:?}"
+            );
         }
     }
 }
+
+/// A baseline model with generating parameters θ and amplitudes.
+type Case = (Box<dyn BrdfModel>, Vec<f64>, Vec<[f64; 3]>);
 
 /// Baselines: each recovers its own generating parameters (from a start grid that does not
 /// contain them).
 #[test]
 fn baselines_recover_their_own_parameters() {
-    let cases: Vec<(Box<dyn BrdfModel>, Vec<f64>, Vec<[f64; 3]>)> = vec![
-        (Box::new(model::BlinnPhong), vec![150f64.ln()], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
-        (Box::new(model::Microfacet::COOK_TORRANCE), vec![0.15f64.ln(), 0.2], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
-        (Box::new(model::Microfacet::GGX), vec![0.2f64.ln(), 0.7], vec![[0.3, 0.2, 0.1], [0.5, 0.6, 0.9]]),
-        (Box::new(model::AshikhminShirley), vec![50f64.ln(), 400f64.ln(), 0.3], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
-        (Box::new(model::Lafortune::new(1)), vec![2.3, 70f64.ln()], vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]]),
+    let cases: Vec<Case> = vec![
+        (
+            Box::new(model::BlinnPhong),
+            vec![150f64.ln()],
+            vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]],
+        ),
+        (
+            Box::new(model::Microfacet::COOK_TORRANCE),
+            vec![0.15f64.ln(), 0.2],
+            vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]],
+        ),
+        (
+            Box::new(model::Microfacet::GGX),
+            vec![0.2f64.ln(), 0.7],
+            vec![[0.3, 0.2, 0.1], [0.5, 0.6, 0.9]],
+        ),
+        (
+            Box::new(model::AshikhminShirley),
+            vec![50f64.ln(), 400f64.ln(), 0.3],
+            vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]],
+        ),
+        (
+            Box::new(model::Lafortune::new(1)),
+            vec![2.3, 70f64.ln()],
+            vec![[0.1, 0.2, 0.3], [0.8, 0.6, 0.5]],
+        ),
         (
             Box::new(model::Lafortune::new(2)),
             vec![2.4, 20f64.ln(), 2.3, 500f64.ln()],
@@ -285,14 +383,27 @@ fn baselines_recover_their_own_parameters() {
     ];
     for (m, theta, amps) in cases {
         let mut scratch = vec![0.0; amps.len()];
-        let data = samples_of(|i, o| eval_model(m.as_ref(), &theta, &amps, i, o, &mut scratch.clone()), 20_000);
+        let data = samples_of(
+            |i, o| eval_model(m.as_ref(), &theta, &amps, i, o, &mut scratch.clone()),
+            20_000,
+        );
         let r = fit(m.as_ref(), &data, &FitOptions::default()).unwrap();
         for (a, b) in r.theta.iter().zip(&theta) {
-            assert!((a - b).abs() < 2e-3 * (1.0 + b.abs()), "{}: θ {:?} vs {theta:?}", m.name(), r.theta);
+            assert!(
+                (a - b).abs() < 2e-3 * (1.0 + b.abs()),
+                "{}: θ {:?} vs {theta:?}",
+                m.name(),
+                r.theta
+            );
         }
         for (a, b) in r.amps.iter().zip(&amps) {
             for c in 0..3 {
-                assert!((a[c] / b[c] - 1.0).abs() < 5e-3, "{}: amps {:?} vs {amps:?}", m.name(), r.amps);
+                assert!(
+                    (a[c] / b[c] - 1.0).abs() < 5e-3,
+                    "{}: amps {:?} vs {amps:?}",
+                    m.name(),
+                    r.amps
+                );
             }
         }
         let e = evaluate(m.as_ref(), &r.theta, &r.amps, &data);
@@ -319,10 +430,19 @@ fn albedo(f: &dyn Fn(DVec3, DVec3) -> f64, wo: DVec3, n: usize) -> f64 {
 fn baselines_are_reciprocal_and_physical_ones_conserve_energy() {
     let models: Vec<(Box<dyn BrdfModel>, Vec<f64>)> = vec![
         (Box::new(model::BlinnPhong), vec![40f64.ln()]),
-        (Box::new(model::Microfacet::COOK_TORRANCE), vec![0.3f64.ln(), 1.0]),
+        (
+            Box::new(model::Microfacet::COOK_TORRANCE),
+            vec![0.3f64.ln(), 1.0],
+        ),
         (Box::new(model::Microfacet::GGX), vec![0.3f64.ln(), 1.0]),
-        (Box::new(model::AshikhminShirley), vec![20f64.ln(), 200f64.ln(), 0.5]),
-        (Box::new(model::Lafortune::new(3)), vec![2.3, 10f64.ln(), 1.0, 3f64.ln(), 2.6, 100f64.ln()]),
+        (
+            Box::new(model::AshikhminShirley),
+            vec![20f64.ln(), 200f64.ln(), 0.5],
+        ),
+        (
+            Box::new(model::Lafortune::new(3)),
+            vec![2.3, 10f64.ln(), 1.0, 3f64.ln(), 2.6, 100f64.ln()],
+        ),
     ];
     for (m, theta) in &models {
         let nb = m.n_basis();
@@ -332,7 +452,11 @@ fn baselines_are_reciprocal_and_physical_ones_conserve_energy() {
             m.basis(theta, i, o, &mut b1);
             m.basis(theta, o, i, &mut b2);
             for j in 0..nb {
-                assert!((b1[j] - b2[j]).abs() <= 1e-12 * b1[j].abs().max(1.0), "{} not reciprocal", m.name());
+                assert!(
+                    (b1[j] - b2[j]).abs() <= 1e-12 * b1[j].abs().max(1.0),
+                    "{} not reciprocal",
+                    m.name()
+                );
             }
         }
     }
@@ -351,9 +475,19 @@ fn baselines_are_reciprocal_and_physical_ones_conserve_energy() {
                 let a = albedo(&spec, spherical_direction_deg(t, 0.0), 400);
                 assert!(a <= 1.005, "{} α {alpha} θ {t}: albedo {a}", m.name());
                 // Single scattering loses little energy when smooth (more with GGX's long tails).
-                let min = if alpha <= 0.1 { 0.97 } else if alpha <= 0.3 { 0.85 } else { 0.4 };
+                let min = if alpha <= 0.1 {
+                    0.97
+                } else if alpha <= 0.3 {
+                    0.85
+                } else {
+                    0.4
+                };
                 if t == 0.0 {
-                    assert!(a > min, "{} α {alpha}: albedo {a} at normal incidence", m.name());
+                    assert!(
+                        a > min,
+                        "{} α {alpha}: albedo {a} at normal incidence",
+                        m.name()
+                    );
                 }
             }
         }

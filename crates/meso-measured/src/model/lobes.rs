@@ -60,7 +60,12 @@ const LOGIT: (f64, f64) = (-10.0, 10.0);
 /// facet lit by its own cosine, divided by `cos θi`. Zero if either direction is below the horizon.
 /// Lobe weights are used as given (callers normalise them).
 #[must_use]
-pub fn lobe_sum_closed_form(lobes: &[PhongLobe], transfer_exponent: f64, wi: DVec3, wo: DVec3) -> f64 {
+pub fn lobe_sum_closed_form(
+    lobes: &[PhongLobe],
+    transfer_exponent: f64,
+    wi: DVec3,
+    wo: DVec3,
+) -> f64 {
     let ci = wi.z;
     if ci <= 0.0 || wo.z <= 0.0 {
         return 0.0;
@@ -281,9 +286,7 @@ impl BrdfModel for LobeModel {
         for _ in 0..self.k {
             v.extend([(-AXIS_BOUND, AXIS_BOUND), (-AXIS_BOUND, AXIS_BOUND), LN_ETA]);
         }
-        for _ in 1..self.k {
-            v.push(LOGIT);
-        }
+        v.extend(std::iter::repeat_n(LOGIT, self.k - 1));
         if self.transfer == TransferExponent::Free {
             v.push(LN_ETA);
         }
@@ -294,7 +297,17 @@ impl BrdfModel for LobeModel {
         // Starts described by the Blinn-equivalent sharpness e_j of each lobe convolved with the
         // transfer: κ_eff = κ_j κ_t/(κ_j + κ_t). Lobes on the normal, equal weights.
         let grid: &[&[f64]] = match self.k {
-            1 => &[&[3.0], &[10.0], &[30.0], &[100.0], &[300.0], &[1e3], &[3e3], &[1e4], &[3e4]],
+            1 => &[
+                &[3.0],
+                &[10.0],
+                &[30.0],
+                &[100.0],
+                &[300.0],
+                &[1e3],
+                &[3e3],
+                &[1e4],
+                &[3e4],
+            ],
             2 => &[
                 &[3.0, 30.0],
                 &[3.0, 300.0],
@@ -461,7 +474,8 @@ mod tests {
                     (l.unit_density(m), m.dot(h).max(0.0).powf(kt))
                 } else {
                     (
-                        PhongLobe::normalization(l.exponent) * (0.25 * l.exponent * (l.axis.dot(m) - 1.0)).exp(),
+                        PhongLobe::normalization(l.exponent)
+                            * (0.25 * l.exponent * (l.axis.dot(m) - 1.0)).exp(),
                         (kt * (m.dot(h) - 1.0)).exp(),
                     )
                 };
@@ -474,14 +488,24 @@ mod tests {
     #[test]
     fn closed_form_matches_quadrature() {
         let l = PhongLobe::new(spherical_direction_deg(10.0, 30.0), 1.0, 200.0);
-        for (ti, pi, to, po) in [(20.0, 180.0, 25.0, 10.0), (40.0, 200.0, 30.0, 40.0), (60.0, 0.0, 50.0, 150.0)] {
+        for (ti, pi, to, po) in [
+            (20.0, 180.0, 25.0, 10.0),
+            (40.0, 200.0, 30.0, 40.0),
+            (60.0, 0.0, 50.0, 150.0),
+        ] {
             let wi = spherical_direction_deg(ti, pi);
             let wo = spherical_direction_deg(to, po);
             let cf = lobe_sum_closed_form(&[l], 100.0, wi, wo);
             let q = quadrature_vmf(&l, 100.0, wi, wo, false);
-            assert!((cf / q - 1.0).abs() < 0.01, "vMF shapes: closed {cf} vs quadrature {q}");
+            assert!(
+                (cf / q - 1.0).abs() < 0.01,
+                "vMF shapes: closed {cf} vs quadrature {q}"
+            );
             let qp = quadrature_vmf(&l, 100.0, wi, wo, true);
-            assert!((cf / qp - 1.0).abs() < 0.05, "Phong shapes: closed {cf} vs quadrature {qp}");
+            assert!(
+                (cf / qp - 1.0).abs() < 0.05,
+                "Phong shapes: closed {cf} vs quadrature {qp}"
+            );
         }
     }
 

@@ -3,7 +3,9 @@ pub mod baselines;
 pub mod lobes;
 
 pub use baselines::{AshikhminShirley, BlinnPhong, Lafortune, Microfacet, MicrofacetKind};
-pub use lobes::{fit_lobes_progressive, lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent};
+pub use lobes::{
+    fit_lobes_progressive, lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent,
+};
 
 use crate::fit::BrdfModel;
 
