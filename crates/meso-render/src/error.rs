@@ -1,0 +1,132 @@
+//! Error types. Every message names the file and, for scene validation, the field
+//! (`object[2].radius`, `light[0].direction`, …) and the problem.
+
+use std::path::{Path, PathBuf};
+
+fn ctx(file: &Option<PathBuf>) -> String {
+    match file {
+        Some(p) => format!("{}: ", p.display()),
+        None => String::new(),
+    }
+}
+
+/// Why a scene could not be loaded or built.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The scene file could not be read.
+    #[error("{}: cannot read scene file: {source}", file.display())]
+    Read {
+        /// The scene file.
+        file: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The scene file is not valid TOML or does not match the schema (unknown field, wrong
+    /// type, missing field); the message carries the line and column.
+    #[error("{}: {message}", file.display())]
+    Parse {
+        /// The scene file.
+        file: PathBuf,
+        /// What the TOML parser reported.
+        message: String,
+    },
+    /// A value is out of range or inconsistent.
+    #[error("{}{field}: {problem}", ctx(file))]
+    Invalid {
+        /// The scene file, if the scene came from one.
+        file: Option<PathBuf>,
+        /// The field, e.g. `object[1].radius`.
+        field: String,
+        /// The problem, e.g. `must be > 0, got -1`.
+        problem: String,
+    },
+    /// The material resolver failed.
+    #[error("{}{field}: material {}: {message}", ctx(file), resolved.display())]
+    Material {
+        /// The scene file, if any.
+        file: Option<PathBuf>,
+        /// The field holding the reference, e.g. `object[0].material`.
+        field: String,
+        /// The material path after resolution against the scene's directory.
+        resolved: PathBuf,
+        /// The resolver's message.
+        message: String,
+    },
+    /// A mesh file is missing or broken.
+    #[error("{}: mesh: {message}", file.display())]
+    Mesh {
+        /// The OBJ file.
+        file: PathBuf,
+        /// The problem.
+        message: String,
+    },
+    /// An environment map file is missing or broken.
+    #[error("{}: environment map: {message}", file.display())]
+    Environment {
+        /// The image file.
+        file: PathBuf,
+        /// The problem.
+        message: String,
+    },
+}
+
+impl SceneError {
+    /// An [`SceneError::Invalid`] without a file (attach one with [`SceneError::in_file`]).
+    #[must_use]
+    pub fn invalid(field: impl Into<String>, problem: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            file: None,
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+
+    /// Attach the scene file to errors that do not carry one yet.
+    #[must_use]
+    pub fn in_file(self, path: &Path) -> SceneError {
+        match self {
+            SceneError::Invalid {
+                file: None,
+                field,
+                problem,
+            } => SceneError::Invalid {
+                file: Some(path.to_path_buf()),
+                field,
+                problem,
+            },
+            SceneError::Material {
+                file: None,
+                field,
+                resolved,
+                message,
+            } => SceneError::Material {
+                file: Some(path.to_path_buf()),
+                field,
+                resolved,
+                message,
+            },
+            e => e,
+        }
+    }
+}
+
+/// Why an image could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// Writing the file failed (nothing is left behind).
+    #[error("{}: cannot write image: {source}", file.display())]
+    Write {
+        /// The output file.
+        file: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Encoding failed.
+    #[error("{}: cannot encode image: {message}", file.display())]
+    Encode {
+        /// The output file.
+        file: PathBuf,
+        /// The encoder's message.
+        message: String,
+    },
+}

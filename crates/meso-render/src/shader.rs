@@ -1,0 +1,213 @@
+//! Materials as seen by the renderer: the [`Shader`] trait and two built-in shaders.
+//!
+//! # Contract
+//! [`Shader::eval`] returns the BRDF `f(wi, wo)` in **1/sr**, RGB, *without* the cosine
+//! factor, for unit directions given in the hit's **local frame** (normal `+z`, tangent `+x`,
+//! bitangent `+y`, see `meso_core::frame`), both pointing away from the surface: `wi` towards the
+//! light, `wo` towards the viewer. The renderer multiplies by the incident radiance (or
+//! irradiance) and by `cos θi = max(0, wi.z)` (the shading normal's cosine).
+//!
+//! Shaders are shared between threads (`Send + Sync`) and evaluated in the per-pixel inner
+//! loop: they must not allocate.
+
+use crate::geometry::ShadingPoint;
+use glam::DVec3;
+use std::f64::consts::FRAC_1_PI;
+
+/// A material the renderer can shade with. See the module docs for the contract.
+pub trait Shader: Send + Sync {
+    /// BRDF value (1/sr, no cosine) for local unit directions `wi` (to the light) and `wo`
+    /// (to the viewer) at the shading point `sp`.
+    fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3];
+}
+
+/// A Lambertian (perfectly diffuse) reflector: `f = albedo / π`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lambert {
+    /// Hemispherical reflectance per channel, in `[0, 1]` for energy conservation.
+    pub albedo: [f32; 3],
+}
+
+impl Shader for Lambert {
+    #[inline]
+    fn eval(&self, _sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return [0.0; 3];
+        }
+        let k = FRAC_1_PI as f32;
+        [self.albedo[0] * k, self.albedo[1] * k, self.albedo[2] * k]
+    }
+}
+
+/// The number of lanes of [`PhongLobes`]: up to 8 lobes, evaluated as one flat f32 array.
+pub const PHONG_LANES: usize = 8;
+
+/// A multiple surface in the paper's shading form (§4, after [Dret90]): a sum of Phong terms,
+/// one per normal,
+/// `f(wi, wo) = Σ_k w_k · max(0, n_k · H)^{η_k}` (1/sr), `H = (wi + wo)/|wi + wo|`,
+/// with the lobe normals `n_k` in the local frame. Stored as a structure of arrays of
+/// [`PHONG_LANES`] f32 lanes (unused lanes have weight 0), so the loop over lobes is flat,
+/// branch-free and vectorised by the compiler; the power uses [`fast_pow`] (relative error
+/// below ~`η·2e-7`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhongLobes {
+    nx: [f32; PHONG_LANES],
+    ny: [f32; PHONG_LANES],
+    nz: [f32; PHONG_LANES],
+    weight: [f32; PHONG_LANES],
+    exponent: [f32; PHONG_LANES],
+    /// RGB colour multiplying the sum.
+    pub color: [f32; 3],
+    count: usize,
+}
+
+impl PhongLobes {
+    /// Build from `(unit local normal, weight in 1/sr, exponent η ≥ 0)` triples; returns `None`
+    /// when there are more than [`PHONG_LANES`] lobes or a value is not finite / negative.
+    #[must_use]
+    pub fn new(lobes: &[(DVec3, f64, f64)], color: [f32; 3]) -> Option<PhongLobes> {
+        if lobes.len() > PHONG_LANES {
+            return None;
+        }
+        let mut s = PhongLobes {
+            nx: [0.0; PHONG_LANES],
+            ny: [0.0; PHONG_LANES],
+            nz: [1.0; PHONG_LANES],
+            weight: [0.0; PHONG_LANES],
+            exponent: [1.0; PHONG_LANES],
+            color,
+            count: lobes.len(),
+        };
+        for (k, &(n, w, e)) in lobes.iter().enumerate() {
+            if !(n.is_finite() && n.length() > 0.0 && w.is_finite() && w >= 0.0 && e.is_finite() && e >= 0.0) {
+                return None;
+            }
+            let n = n.normalize();
+            s.nx[k] = n.x as f32;
+            s.ny[k] = n.y as f32;
+            s.nz[k] = n.z as f32;
+            s.weight[k] = w as f32;
+            s.exponent[k] = e as f32;
+        }
+        Some(s)
+    }
+
+    /// Number of lobes in use.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    /// True when no lobe is in use.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// `Σ_k w_k max(0, n_k·h)^{η_k}` for a unit local half vector `h` (f32 kernel).
+    #[inline]
+    #[must_use]
+    pub fn sum_at(&self, h: [f32; 3]) -> f32 {
+        let mut acc = [0.0f32; PHONG_LANES];
+        for k in 0..PHONG_LANES {
+            let c = (self.nx[k] * h[0] + self.ny[k] * h[1] + self.nz[k] * h[2]).max(0.0);
+            acc[k] = self.weight[k] * fast_pow(c, self.exponent[k]);
+        }
+        acc.iter().sum()
+    }
+}
+
+impl Shader for PhongLobes {
+    #[inline]
+    fn eval(&self, _sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return [0.0; 3];
+        }
+        let h = wi + wo;
+        let l = h.length();
+        if l < 1e-12 {
+            return [0.0; 3];
+        }
+        let h = h / l;
+        let s = self.sum_at([h.x as f32, h.y as f32, h.z as f32]);
+        [self.color[0] * s, self.color[1] * s, self.color[2] * s]
+    }
+}
+
+/// `x^y` for `x ≥ 0`, `y ≥ 0` in f32 without libm calls (branch-free, vectorisable):
+/// `exp2(y · log2 x)` with `log2` from the `atanh` series on the mantissa reduced to
+/// `[√½, √2)` and `exp2` from a degree-7 polynomial on `[−½, ½]`. Relative error about
+/// `2e-7 · max(1, y)`. `0^y = 0` for `y > 0` (up to a denormal-size value) and `x^0 = 1`.
+#[inline]
+#[must_use]
+pub fn fast_pow(x: f32, y: f32) -> f32 {
+    let x = x.max(1e-30);
+    // log2 x = e + log2 m, m in [sqrt(1/2), sqrt(2)).
+    let bits = x.to_bits() as i32;
+    let mut e = ((bits >> 23) & 0xff) - 127;
+    let mut mbits = (bits & 0x007f_ffff) | 0x3f80_0000;
+    // If m >= sqrt 2, halve it and bump the exponent.
+    let big = (mbits > 0x3fb5_04f3) as i32;
+    e += big;
+    mbits -= big << 23;
+    let m = f32::from_bits(mbits as u32);
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    // 2/ln2 · (s + s³/3 + s⁵/5 + s⁷/7 + s⁹/9)
+    let p = s * (2.885_39 + s2 * (0.961_796_7 + s2 * (0.577_078 + s2 * (0.412_198_6 + s2 * 0.320_598_9))));
+    let l = e as f32 + p;
+    let z = (y * l).clamp(-126.0, 126.0);
+    // exp2(z) = 2^i · 2^f, i = round(z), f in [-1/2, 1/2].
+    let i = ((z + 126.5) as i32) - 126;
+    let f = z - i as f32;
+    let q = 1.0
+        + f * (0.693_147_2
+            + f * (0.240_226_5
+                + f * (0.055_504_11
+                    + f * (0.009_618_129 + f * (0.001_333_355_8 + f * (0.000_154_035_3 + f * 0.000_015_252_73))))));
+    q * f32::from_bits(((i + 127) as u32) << 23)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_pow_matches_powf() {
+        for k in 0..2000 {
+            let x = (k as f32 + 0.5) / 2000.0;
+            for y in [0.0f32, 0.5, 1.0, 2.0, 7.3, 30.0, 100.0, 500.0] {
+                let a = fast_pow(x, y);
+                let b = x.powf(y);
+                if b > 1e-30 {
+                    assert!(((a - b) / b).abs() < 3e-7 * y.max(1.0) + 2e-7, "{x}^{y}: {a} vs {b}");
+                } else {
+                    assert!(a < 1e-29);
+                }
+            }
+        }
+        assert!(fast_pow(0.0, 3.0) < 1e-30);
+        assert_eq!(fast_pow(1.0, 123.0), 1.0);
+    }
+
+    #[test]
+    fn phong_lobes_sum_matches_scalar_formula() {
+        let lobes = [
+            (DVec3::new(0.2, 0.1, 1.0).normalize(), 0.3, 20.0),
+            (DVec3::new(-0.4, 0.0, 1.0).normalize(), 0.5, 5.0),
+            (DVec3::new(0.0, 0.7, 0.7).normalize(), 0.2, 60.0),
+        ];
+        let s = PhongLobes::new(&lobes, [1.0, 0.5, 0.25]).unwrap();
+        assert_eq!(s.len(), 3);
+        let wi = DVec3::new(0.3, -0.2, 0.9).normalize();
+        let wo = DVec3::new(-0.1, 0.4, 0.8).normalize();
+        let h = (wi + wo).normalize();
+        let expect: f64 = lobes.iter().map(|(n, w, e)| w * n.dot(h).max(0.0).powf(*e)).sum();
+        let sp = crate::geometry::tests_support::dummy_point();
+        let got = s.eval(&sp, wi, wo);
+        assert!((f64::from(got[0]) - expect).abs() < 1e-5 * expect.max(1e-3));
+        assert!((f64::from(got[2]) - 0.25 * expect).abs() < 1e-5 * expect.max(1e-3));
+        assert!(PhongLobes::new(&[(DVec3::Z, 1.0, 1.0); 9], [1.0; 3]).is_none());
+        assert!(PhongLobes::new(&[(DVec3::Z, -1.0, 1.0)], [1.0; 3]).is_none());
+    }
+}
