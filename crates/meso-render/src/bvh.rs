@@ -493,7 +493,7 @@ mod tests {
                 _ => panic!("bvh {a:?} vs brute force {b:?}"),
             }
         }
-        assert!(hits > 500, "the test must exercise hits ({hits})");
+        assert!(hits > 300, "the test must exercise hits ({hits})");
     }
 
     #[test]

@@ -395,6 +395,22 @@ impl SceneBuilder {
     }
 }
 
+impl std::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scene")
+            .field("camera", &self.camera)
+            .field("image", &self.image)
+            .field("lights", &self.lights)
+            .field("environment", &self.environment.as_ref().map(|e| e.size()))
+            .field("materials", &self.materials.len())
+            .field("spheres", &self.spheres.len())
+            .field("quads", &self.quads.len())
+            .field("planes", &self.planes.len())
+            .field("meshes", &self.meshes.len())
+            .finish()
+    }
+}
+
 /// Closest-hit bookkeeping.
 enum HitWhat {
     Prim(u32),
