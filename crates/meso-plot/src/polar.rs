@@ -1,0 +1,437 @@
+//! [`PolarPlot`]: a function of θ drawn in polar coordinates, as BRDF and NDF slices are drawn
+//! in the literature: the radius is the value, θ is measured from the normal (straight up),
+//! positive θ to the right of the vertical axis and negative θ to the left (the two
+//! half-planes of the slice).
+
+use crate::canvas::{arc_points, Canvas, Rect};
+use crate::color::{self, Rgb};
+use crate::font::{self, Anchor};
+use crate::plot::{auto_text_scale, draw_legend, stroke_series, LegendEntry, LineStyle, Series};
+use crate::ticks;
+use crate::PlotError;
+use std::f64::consts::FRAC_PI_2;
+
+/// One curve of a [`PolarPlot`]: samples `(θ, value)` with θ in radians, signed
+/// (negative: left half-plane), in `[−π/2, π/2]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolarSeries {
+    /// Name shown in the legend (empty: not listed).
+    pub name: String,
+    /// Samples `[θ, value]`; non-finite or negative values break the curve.
+    pub points: Vec<[f64; 2]>,
+    /// Colour; `None` takes the next palette colour.
+    pub color: Option<Rgb>,
+    /// Line width in pixels at text scale 1.
+    pub width: f64,
+    /// Line style.
+    pub style: LineStyle,
+    /// Draw a small disc at every sample (for measured data).
+    pub markers: bool,
+}
+
+impl PolarSeries {
+    /// A solid curve from samples `[θ, value]` (θ in radians, signed).
+    #[must_use]
+    pub fn new(name: impl Into<String>, points: Vec<[f64; 2]>) -> PolarSeries {
+        PolarSeries {
+            name: name.into(),
+            points,
+            color: None,
+            width: 1.5,
+            style: LineStyle::Solid,
+            markers: false,
+        }
+    }
+
+    /// Sample `f(θ)` at `n` (≥ 2) evenly spaced θ in `[−π/2, π/2]`.
+    #[must_use]
+    pub fn from_fn(name: impl Into<String>, f: impl Fn(f64) -> f64, n: usize) -> PolarSeries {
+        let n = n.max(2);
+        let pts = (0..n)
+            .map(|k| {
+                let t = -FRAC_PI_2 + std::f64::consts::PI * k as f64 / (n - 1) as f64;
+                [t, f(t)]
+            })
+            .collect();
+        PolarSeries::new(name, pts)
+    }
+
+    /// Set the colour.
+    #[must_use]
+    pub fn with_color(mut self, c: Rgb) -> PolarSeries {
+        self.color = Some(c);
+        self
+    }
+
+    /// Set the line style.
+    #[must_use]
+    pub fn with_style(mut self, s: LineStyle) -> PolarSeries {
+        self.style = s;
+        self
+    }
+
+    /// Turn sample markers on or off.
+    #[must_use]
+    pub fn with_markers(mut self, on: bool) -> PolarSeries {
+        self.markers = on;
+        self
+    }
+}
+
+/// A polar slice plot over the upper half-plane.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PolarPlot {
+    /// Title above the plot (empty: none).
+    pub title: String,
+    /// Caption of the radial axis, under its tick labels (empty: none).
+    pub r_label: String,
+    /// The curves.
+    pub series: Vec<PolarSeries>,
+    /// Fixed outer radius value; `None`: the data maximum rounded up to a nice number.
+    pub r_max: Option<f64>,
+    /// Incident direction θᵢ (radians, signed) drawn as a dashed ray, if any.
+    pub incident: Option<f64>,
+    /// Label at the end of the incident ray.
+    pub incident_label: String,
+    /// Show a legend (top right) when at least one series is named.
+    pub legend: bool,
+    /// Integer text scale; 0 chooses from the size.
+    pub text_scale: u32,
+}
+
+impl PolarPlot {
+    /// An empty polar plot with a title.
+    #[must_use]
+    pub fn new(title: impl Into<String>) -> PolarPlot {
+        PolarPlot {
+            title: title.into(),
+            r_label: String::new(),
+            series: Vec::new(),
+            r_max: None,
+            incident: None,
+            incident_label: String::from("in"),
+            legend: true,
+            text_scale: 0,
+        }
+    }
+
+    /// Add a curve.
+    pub fn add(&mut self, s: PolarSeries) -> &mut PolarPlot {
+        self.series.push(s);
+        self
+    }
+
+    /// Render on a new white `width`×`height` canvas.
+    pub fn render(&self, width: u32, height: u32) -> Result<Canvas, PlotError> {
+        let mut c = Canvas::try_new(width, height, color::PAPER)?;
+        self.draw(&mut c, Rect::new(0, 0, width, height))?;
+        Ok(c)
+    }
+
+    /// Draw into `area` of an existing canvas (the area is not cleared).
+    pub fn draw(&self, canvas: &mut Canvas, area: Rect) -> Result<(), PlotError> {
+        let ts = if self.text_scale > 0 {
+            self.text_scale
+        } else {
+            auto_text_scale(area.w, area.h)
+        };
+        let u = ts as i32;
+        let vmax = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|p| p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0)
+            .map(|p| p[1])
+            .fold(f64::NAN, f64::max);
+        let rmax = match self.r_max {
+            Some(r) if r.is_finite() && r > 0.0 => r,
+            Some(r) => return Err(PlotError::Invalid(format!("r_max {r} must be positive"))),
+            None if vmax.is_finite() && vmax > 0.0 => ticks::nice_ticks(0.0, vmax, 4).max,
+            None => {
+                return Err(PlotError::NoData(format!(
+                    "polar plot '{}' has no positive finite values",
+                    self.title
+                )))
+            }
+        };
+        let rt = ticks::nice_ticks(0.0, rmax, 4);
+        let rticks: Vec<f64> = ticks::ticks_within(0.0, rmax, 4)
+            .into_iter()
+            .filter(|v| *v > 0.0)
+            .collect();
+
+        let pad = 10 * u;
+        let gap = 5 * u;
+        let cap = (font::CAP_HEIGHT * ts) as i32;
+        let title_scale = ts + 1;
+        let mut top = area.y + pad;
+        if !self.title.is_empty() {
+            top += (font::CAP_HEIGHT * title_scale) as i32 + 3 * gap;
+        }
+        let label_w = font::text_width("90°", ts) as i32;
+        top += cap + 2 * gap; // room for the 0° label
+        let mut base = area.bottom() - pad - gap - cap; // r tick labels under the baseline
+        if !self.r_label.is_empty() {
+            base -= cap + 2 * gap;
+        }
+        let half_w = area.w as i32 / 2 - pad - label_w - 2 * gap;
+        let radius = half_w.min(base - top);
+        if radius < 20 {
+            return Err(PlotError::Invalid(format!(
+                "area {}×{} too small for a polar plot",
+                area.w, area.h
+            )));
+        }
+        let cx = f64::from(area.x) + f64::from(area.w) / 2.0;
+        let cy = f64::from(base) + 0.5;
+        let rr = f64::from(radius);
+        let to_screen = |theta: f64, r: f64| {
+            let s = r / rmax * rr;
+            [cx + s * theta.sin(), cy - s * theta.cos()]
+        };
+
+        // Grid: spokes every 15°, semicircles at the radial ticks.
+        for k in -6i32..=6 {
+            let t = f64::from(k) * 15f64.to_radians();
+            let alpha = if k % 2 == 0 { 1.0 } else { 0.5 };
+            canvas.polyline_alpha(&[[cx, cy], to_screen(t, rmax)], 1.0, color::GRID, alpha);
+        }
+        for v in &rticks {
+            let r = v / rmax * rr;
+            let c = if (v - rmax).abs() < 1e-9 * rmax {
+                color::AXIS
+            } else {
+                color::GRID
+            };
+            canvas.polyline(&arc_points([cx, cy], r, 0.0, std::f64::consts::PI), 1.0, c);
+        }
+        if rticks.last().is_none_or(|v| (v - rmax).abs() > 1e-9 * rmax) {
+            canvas.polyline(
+                &arc_points([cx, cy], rr, 0.0, std::f64::consts::PI),
+                1.0,
+                color::AXIS,
+            );
+        }
+        canvas.line([cx - rr - 0.5, cy], [cx + rr + 0.5, cy], 1.0, color::AXIS);
+
+        // Angle labels around the outside.
+        for k in -3i32..=3 {
+            let t = f64::from(k) * 30f64.to_radians();
+            let [x, y] = to_screen(t, rmax * (1.0 + f64::from(2 * gap) / rr));
+            let text = format!("{}°", (k * 30).abs());
+            let anchor = match k {
+                0 => Anchor::BottomCenter,
+                3 => Anchor::BottomLeft,
+                -3 => Anchor::BottomRight,
+                k if k > 0 => Anchor::BottomLeft,
+                _ => Anchor::BottomRight,
+            };
+            let (x, y) = (x.round() as i32, y.round() as i32);
+            let y = if k.abs() == 3 { cy as i32 - gap / 2 } else { y };
+            font::draw_text_anchored(canvas, x, y, &text, ts, color::INK_SOFT, anchor);
+        }
+        // Radial tick labels under the baseline, on both sides.
+        let y_lab = base + 1 + gap;
+        font::draw_text_anchored(
+            canvas,
+            cx as i32,
+            y_lab,
+            "0",
+            ts,
+            color::INK_SOFT,
+            Anchor::TopCenter,
+        );
+        for v in &rticks {
+            let text = ticks::format_tick(*v, rt.step);
+            let d = (v / rmax * rr).round() as i32;
+            for side in [-1, 1] {
+                let x = cx as i32 + side * d;
+                canvas.fill_rect(Rect::new(x, base + 1, 1, (2 * u) as u32), color::AXIS);
+                font::draw_text_anchored(
+                    canvas,
+                    x,
+                    y_lab,
+                    &text,
+                    ts,
+                    color::INK_SOFT,
+                    Anchor::TopCenter,
+                );
+            }
+        }
+        if !self.r_label.is_empty() {
+            font::draw_text_anchored(
+                canvas,
+                cx as i32,
+                y_lab + cap + 2 * gap,
+                &self.r_label,
+                ts,
+                color::INK,
+                Anchor::TopCenter,
+            );
+        }
+
+        // Incident direction.
+        if let Some(ti) = self.incident.filter(|t| t.is_finite()) {
+            let ti = ti.clamp(-FRAC_PI_2, FRAC_PI_2);
+            let end = to_screen(ti, rmax);
+            let lw = f64::from(ts);
+            canvas.dashed_polyline(&[[cx, cy], end], lw, 6.0 * lw, 4.0 * lw, color::INK_SOFT);
+            // Arrow head pointing at the surface.
+            let (dx, dy) = ((cx - end[0]) / rr, (cy - end[1]) / rr);
+            let head = 7.0 * lw;
+            let tip = [cx - dx * 0.35 * rr, cy - dy * 0.35 * rr];
+            let back = [tip[0] - dx * head, tip[1] - dy * head];
+            let (nx, ny) = (-dy * head * 0.45, dx * head * 0.45);
+            canvas.polyline(
+                &[
+                    [back[0] + nx, back[1] + ny],
+                    tip,
+                    [back[0] - nx, back[1] - ny],
+                ],
+                1.5 * lw,
+                color::INK_SOFT,
+            );
+            if !self.incident_label.is_empty() {
+                let p = to_screen(ti, rmax * 0.75);
+                let anchor = if ti < 0.0 {
+                    Anchor::BottomRight
+                } else {
+                    Anchor::BottomLeft
+                };
+                let off = if ti < 0.0 { -gap } else { gap };
+                font::draw_text_anchored(
+                    canvas,
+                    p[0] as i32 + off,
+                    p[1] as i32 - gap,
+                    &self.incident_label,
+                    ts,
+                    color::INK_SOFT,
+                    anchor,
+                );
+            }
+        }
+
+        // Curves, clipped to the upper half-plane region.
+        let saved = canvas.clip();
+        canvas.set_clip(Some(Rect::new(
+            area.x,
+            area.y,
+            area.w,
+            (base + 1 - area.y).max(0) as u32,
+        )));
+        let mut legend = Vec::new();
+        for (i, s) in self.series.iter().enumerate() {
+            let c = s.color.unwrap_or_else(|| color::palette(i));
+            let pts: Vec<[f64; 2]> = s
+                .points
+                .iter()
+                .map(|p| {
+                    if p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0 {
+                        to_screen(p[0].clamp(-FRAC_PI_2, FRAC_PI_2), p[1])
+                    } else {
+                        [f64::NAN, f64::NAN]
+                    }
+                })
+                .collect();
+            let as_series = Series {
+                name: String::new(),
+                points: Vec::new(),
+                color: Some(c),
+                width: s.width,
+                style: s.style,
+                markers: s.markers,
+            };
+            stroke_series(canvas, &pts, &as_series, c, ts);
+            legend.push(LegendEntry {
+                name: &s.name,
+                color: c,
+                style: s.style,
+                markers: s.markers,
+            });
+        }
+        canvas.set_clip(saved);
+
+        if !self.title.is_empty() {
+            font::draw_text(
+                canvas,
+                area.x + pad,
+                area.y + pad,
+                &self.title,
+                title_scale,
+                color::INK,
+            );
+        }
+        if self.legend {
+            let legend_top = area.y
+                + pad
+                + if self.title.is_empty() {
+                    0
+                } else {
+                    (font::CAP_HEIGHT * title_scale) as i32 + 3 * gap
+                };
+            draw_legend(canvas, area.right() - pad, legend_top, &legend, ts);
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constant_function_is_a_semicircle() {
+        // f = 1 everywhere with r_max = 1: the curve coincides with the outer arc, so every red
+        // pixel lies at the same distance from the centre.
+        let red = color::hex(0xFF0000);
+        let mut p = PolarPlot::new("");
+        p.legend = false;
+        p.r_max = Some(2.0);
+        p.add(PolarSeries::from_fn("one", |_| 1.0, 181).with_color(red));
+        let c = p.render(400, 300).unwrap();
+        let reds: Vec<(i32, i32)> = (0..300)
+            .flat_map(|y| (0..400).map(move |x| (x, y)))
+            .filter(|&(x, y)| c.get(x, y) == Some(red))
+            .collect();
+        assert!(reds.len() > 100);
+        let cx = reds.iter().map(|p| f64::from(p.0)).sum::<f64>() / reds.len() as f64;
+        assert!(
+            (cx - 199.5).abs() < 1.5,
+            "symmetric about the vertical axis: {cx}"
+        );
+        let ymax = reds.iter().map(|p| p.1).max().unwrap();
+        let ymin = reds.iter().map(|p| p.1).min().unwrap();
+        let xmin = reds.iter().map(|p| p.0).min().unwrap();
+        let xmax = reds.iter().map(|p| p.0).max().unwrap();
+        // Width of the semicircle is twice its height.
+        let (w, h) = (f64::from(xmax - xmin), f64::from(ymax - ymin));
+        assert!((w / h - 2.0).abs() < 0.06, "w {w} h {h}");
+    }
+
+    #[test]
+    fn right_half_plane_is_positive_theta() {
+        let red = color::hex(0xFF0000);
+        let mut p = PolarPlot::new("");
+        p.legend = false;
+        p.add(PolarSeries::new("", vec![[0.0, 0.0], [FRAC_PI_2 * 0.5, 1.0]]).with_color(red));
+        let c = p.render(300, 220).unwrap();
+        let reds: Vec<i32> = (0..220)
+            .flat_map(|y| (0..300).map(move |x| (x, y)))
+            .filter(|&(x, y)| c.get(x, y) == Some(red))
+            .map(|(x, _)| x)
+            .collect();
+        assert!(!reds.is_empty() && reds.iter().all(|&x| x >= 148));
+    }
+
+    #[test]
+    fn errors_on_empty_or_bad_input() {
+        let mut p = PolarPlot::new("x");
+        assert!(matches!(p.render(300, 300), Err(PlotError::NoData(_))));
+        p.add(PolarSeries::from_fn("", |t| t.cos(), 50));
+        p.r_max = Some(-1.0);
+        assert!(p.render(300, 300).is_err());
+        p.r_max = None;
+        assert!(p.render(300, 300).is_ok());
+        assert!(p.render(40, 30).is_err());
+    }
+}
