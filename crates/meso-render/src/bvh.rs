@@ -59,7 +59,9 @@ impl Prim {
     fn bounds(&self) -> (DVec3, DVec3) {
         match *self {
             Prim::Sphere { center, radius, .. } => (center - radius, center + radius),
-            Prim::Quad { origin, pu, pv, n, .. } => {
+            Prim::Quad {
+                origin, pu, pv, n, ..
+            } => {
                 // Recover the edges from the dual vectors.
                 let (eu, ev) = dual_edges(pu, pv, n);
                 let ps = [origin, origin + eu, origin + ev, origin + eu + ev];
@@ -244,7 +246,10 @@ impl Bvh {
             if slab(nd, ray.o, inv, tmin, tmax) {
                 if nd.count > 0 {
                     let first = nd.offset as usize;
-                    for (k, p) in self.prims[first..first + nd.count as usize].iter().enumerate() {
+                    for (k, p) in self.prims[first..first + nd.count as usize]
+                        .iter()
+                        .enumerate()
+                    {
                         if let Some((t, a, b)) = p.intersect(ray, tmin, tmax) {
                             tmax = t;
                             best = Some(PrimHit {
@@ -442,7 +447,13 @@ mod tests {
     #[test]
     fn bvh_hit_equals_brute_force_hit_for_random_rays() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
-        let mut r3 = |s: f64| DVec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5) * s;
+        let mut r3 = |s: f64| {
+            DVec3::new(
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+            ) * s
+        };
         let mut prims = Vec::new();
         for i in 0..300u32 {
             let c = r3(10.0);

@@ -75,7 +75,10 @@ fn check_vec(field: &str, v: DVec3) -> Result<(), SceneError> {
     if v.is_finite() {
         Ok(())
     } else {
-        Err(SceneError::invalid(field, format!("must be finite, got {v:?}")))
+        Err(SceneError::invalid(
+            field,
+            format!("must be finite, got {v:?}"),
+        ))
     }
 }
 
@@ -234,7 +237,10 @@ mod tests {
             let px = 2.5 / 256.0;
             let ex = -1.25 + (f64::from(i) + 0.5) * px;
             let ey = 0.625 - (f64::from(j) + 0.5) * px;
-            assert!((p.x - ex).abs() < 1e-12 && (p.y - ey).abs() < 1e-12, "{p:?}");
+            assert!(
+                (p.x - ex).abs() < 1e-12 && (p.y - ey).abs() < 1e-12,
+                "{p:?}"
+            );
             assert!((r.ray.d - DVec3::NEG_Z).length() < 1e-15);
             assert!((r.dodx - DVec3::new(px, 0.0, 0.0)).length() < 1e-15);
             assert!((r.dody - DVec3::new(0.0, -px, 0.0)).length() < 1e-15);
@@ -266,14 +272,29 @@ mod tests {
 
     #[test]
     fn bad_cameras_name_the_field() {
-        let e = Camera::new(Projection::Perspective { fov_deg: 180.0 }, DVec3::Z, DVec3::ZERO, DVec3::Y)
-            .unwrap_err();
+        let e = Camera::new(
+            Projection::Perspective { fov_deg: 180.0 },
+            DVec3::Z,
+            DVec3::ZERO,
+            DVec3::Y,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("camera.fov_deg"), "{e}");
-        let e = Camera::new(Projection::Orthographic { width: 1.0 }, DVec3::Z, DVec3::ZERO, DVec3::Z)
-            .unwrap_err();
+        let e = Camera::new(
+            Projection::Orthographic { width: 1.0 },
+            DVec3::Z,
+            DVec3::ZERO,
+            DVec3::Z,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("camera.up"), "{e}");
-        let e = Camera::new(Projection::Orthographic { width: 0.0 }, DVec3::Z, DVec3::ZERO, DVec3::Y)
-            .unwrap_err();
+        let e = Camera::new(
+            Projection::Orthographic { width: 0.0 },
+            DVec3::Z,
+            DVec3::ZERO,
+            DVec3::Y,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("camera.width"), "{e}");
     }
 }

@@ -181,7 +181,13 @@ impl Mesh {
         }
         let normals = normals.map(|ns| {
             ns.into_iter()
-                .map(|v| if v.length() > 0.0 && v.is_finite() { v.normalize() } else { DVec3::ZERO })
+                .map(|v| {
+                    if v.length() > 0.0 && v.is_finite() {
+                        v.normalize()
+                    } else {
+                        DVec3::ZERO
+                    }
+                })
                 .collect::<Vec<_>>()
         });
         let mut mesh = Mesh {
@@ -207,6 +213,8 @@ impl Mesh {
         if !path.is_file() {
             return Err(err("file not found".into()));
         }
+        // Some LoadOptions fields exist only with tobj features: keep the struct update.
+        #[allow(clippy::needless_update)]
         let opts = tobj::LoadOptions {
             triangulate: true,
             single_index: true,
@@ -226,13 +234,17 @@ impl Mesh {
             let mm = &m.mesh;
             let base = positions.len() as u32;
             let nv = mm.positions.len() / 3;
-            positions.extend(mm.positions.chunks_exact(3).map(|p| {
-                DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
-            }));
+            positions.extend(
+                mm.positions
+                    .chunks_exact(3)
+                    .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))),
+            );
             if mm.normals.len() == 3 * nv {
-                normals.extend(mm.normals.chunks_exact(3).map(|p| {
-                    DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
-                }));
+                normals.extend(
+                    mm.normals
+                        .chunks_exact(3)
+                        .map(|p| DVec3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))),
+                );
             } else {
                 all_normals = false;
             }
@@ -399,7 +411,11 @@ pub(crate) struct SurfaceGeom {
 }
 
 /// Orient the frame towards the viewer and add the ray-differential footprint.
-pub(crate) fn finish_shading_point(g: SurfaceGeom, rd: Option<&RayDifferential>, ray: &Ray) -> ShadingPoint {
+pub(crate) fn finish_shading_point(
+    g: SurfaceGeom,
+    rd: Option<&RayDifferential>,
+    ray: &Ray,
+) -> ShadingPoint {
     let mut ng = g.ng;
     let mut frame = Frame::from_normal_tangent(g.ns, g.tangent);
     if ng.dot(ray.d) > 0.0 {
@@ -518,7 +534,13 @@ impl Plane {
 }
 
 impl Mesh {
-    pub(crate) fn surface(&self, tri: usize, b1: f64, b2: f64, material: MaterialId) -> SurfaceGeom {
+    pub(crate) fn surface(
+        &self,
+        tri: usize,
+        b1: f64,
+        b2: f64,
+        material: MaterialId,
+    ) -> SurfaceGeom {
         let [i0, i1, i2] = self.indices[tri].map(|i| i as usize);
         let b0 = 1.0 - b1 - b2;
         let (p0, p1, p2) = (self.positions[i0], self.positions[i1], self.positions[i2]);
@@ -549,13 +571,16 @@ impl Mesh {
             }
             None => (DVec2::new(b1, b2), p1 - p0, p2 - p0),
         };
-        let tangent =
-            self.tangents[i0] * b0 + self.tangents[i1] * b1 + self.tangents[i2] * b2;
+        let tangent = self.tangents[i0] * b0 + self.tangents[i1] * b1 + self.tangents[i2] * b2;
         SurfaceGeom {
             position: p0 * b0 + p1 * b1 + p2 * b2,
             ng,
             ns,
-            tangent: if tangent.length_squared() > 1e-30 { tangent } else { dpdu },
+            tangent: if tangent.length_squared() > 1e-30 {
+                tangent
+            } else {
+                dpdu
+            },
             uv,
             dpdu,
             dpdv,

@@ -104,7 +104,11 @@ impl Image {
         Ok(out)
     }
 
-    fn encode_png_into(&self, w: &mut dyn std::io::Write, exposure_stops: f32) -> Result<(), String> {
+    fn encode_png_into(
+        &self,
+        w: &mut dyn std::io::Write,
+        exposure_stops: f32,
+    ) -> Result<(), String> {
         image::codecs::png::PngEncoder::new(w)
             .write_image(
                 &self.to_srgb8(exposure_stops),
@@ -141,7 +145,12 @@ impl Image {
             .collect();
         let mut cursor = std::io::Cursor::new(Vec::new());
         image::codecs::openexr::OpenExrEncoder::new(&mut cursor)
-            .write_image(&raw, self.width, self.height, image::ExtendedColorType::Rgb32F)
+            .write_image(
+                &raw,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgb32F,
+            )
             .map_err(|e| ImageError::Encode {
                 file: path.to_path_buf(),
                 message: e.to_string(),

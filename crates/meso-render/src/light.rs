@@ -211,11 +211,22 @@ impl EnvironmentMap {
     /// `scale` and a rotation about `+y` in radians. Returns `None` if the sizes do not match,
     /// the map is empty or a texel is negative or not finite.
     #[must_use]
-    pub fn new(width: usize, height: usize, texels: Vec<[f32; 3]>, scale: f32, rotation: f64) -> Option<EnvironmentMap> {
+    pub fn new(
+        width: usize,
+        height: usize,
+        texels: Vec<[f32; 3]>,
+        scale: f32,
+        rotation: f64,
+    ) -> Option<EnvironmentMap> {
         if width == 0 || height == 0 || texels.len() != width * height {
             return None;
         }
-        if texels.iter().flatten().any(|v| !(v.is_finite() && *v >= 0.0)) || !(scale.is_finite() && scale >= 0.0) {
+        if texels
+            .iter()
+            .flatten()
+            .any(|v| !(v.is_finite() && *v >= 0.0))
+            || !(scale.is_finite() && scale >= 0.0)
+        {
             return None;
         }
         let mut f = vec![0.0; width * height];
@@ -223,7 +234,8 @@ impl EnvironmentMap {
             let sin_t = (PI * (v as f64 + 0.5) / height as f64).sin();
             for u in 0..width {
                 let t = texels[v * width + u];
-                let lum = 0.2126 * f64::from(t[0]) + 0.7152 * f64::from(t[1]) + 0.0722 * f64::from(t[2]);
+                let lum =
+                    0.2126 * f64::from(t[0]) + 0.7152 * f64::from(t[1]) + 0.0722 * f64::from(t[2]);
                 // Keep a floor so that every non-black texel can be sampled.
                 let maxc = f64::from(t[0].max(t[1]).max(t[2]));
                 f[v * width + u] = (lum.max(1e-3 * maxc)) * sin_t;
@@ -249,7 +261,11 @@ impl EnvironmentMap {
     /// Load an equirectangular map from an image file (OpenEXR for HDR; PNG is read as sRGB
     /// and linearised), with a radiance `scale` and a rotation about `+y` in radians. Errors
     /// name the file and the problem.
-    pub fn from_file(path: &std::path::Path, scale: f32, rotation: f64) -> Result<EnvironmentMap, crate::error::SceneError> {
+    pub fn from_file(
+        path: &std::path::Path,
+        scale: f32,
+        rotation: f64,
+    ) -> Result<EnvironmentMap, crate::error::SceneError> {
         let err = |message: String| crate::error::SceneError::Environment {
             file: path.to_path_buf(),
             message,
@@ -276,7 +292,10 @@ impl EnvironmentMap {
                 *t = t.map(crate::image::srgb_to_linear);
             }
         }
-        if let Some(k) = texels.iter().position(|t| t.iter().any(|v| !(v.is_finite() && *v >= 0.0))) {
+        if let Some(k) = texels
+            .iter()
+            .position(|t| t.iter().any(|v| !(v.is_finite() && *v >= 0.0)))
+        {
             return Err(err(format!(
                 "texel ({}, {}) is negative or not finite: {:?}",
                 k % w.max(1),
@@ -362,7 +381,11 @@ mod tests {
         let texels: Vec<[f32; 3]> = (0..w * h)
             .map(|k| {
                 let (x, y) = (k % w, k / w);
-                let v = if x == 3 && y == 2 { 40.0 } else { 0.5 + (y as f32) * 0.1 };
+                let v = if x == 3 && y == 2 {
+                    40.0
+                } else {
+                    0.5 + (y as f32) * 0.1
+                };
                 [v, v * 0.8, v * 1.1]
             })
             .collect();
@@ -404,7 +427,10 @@ mod tests {
                 let m = 20;
                 for a in 0..m {
                     for b in 0..m {
-                        let uv = [(x as f64 + (a as f64 + 0.5) / m as f64) / w as f64, (y as f64 + (b as f64 + 0.5) / m as f64) / h as f64];
+                        let uv = [
+                            (x as f64 + (a as f64 + 0.5) / m as f64) / w as f64,
+                            (y as f64 + (b as f64 + 0.5) / m as f64) / h as f64,
+                        ];
                         let (d, st) = env.uv_to_dir(uv);
                         p += env.pdf(d) * st * 2.0 * PI * PI / (w * h * m * m) as f64;
                     }

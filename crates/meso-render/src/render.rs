@@ -57,10 +57,17 @@ impl Default for RenderOptions {
 /// Render `scene`. `progress(done_tiles, total_tiles)` is called (from worker threads) after
 /// each tile. The result holds linear radiance (W/(m²·sr)) per pixel.
 #[must_use]
-pub fn render(scene: &Scene, opts: &RenderOptions, progress: Option<&(dyn Fn(usize, usize) + Sync)>) -> Image {
+pub fn render(
+    scene: &Scene,
+    opts: &RenderOptions,
+    progress: Option<&(dyn Fn(usize, usize) + Sync)>,
+) -> Image {
     let w = opts.width.unwrap_or(scene.image.width).max(1);
     let h = opts.height.unwrap_or(scene.image.height).max(1);
-    let spp = opts.spp.unwrap_or(scene.image.spp).clamp(1, MAX_SAMPLES_PER_PIXEL);
+    let spp = opts
+        .spp
+        .unwrap_or(scene.image.spp)
+        .clamp(1, MAX_SAMPLES_PER_PIXEL);
     let ts = opts.tile_size.max(1);
     let (tx, ty) = (w.div_ceil(ts), h.div_ceil(ts));
     let total = (tx * ty) as usize;
@@ -97,7 +104,15 @@ pub fn render(scene: &Scene, opts: &RenderOptions, progress: Option<&(dyn Fn(usi
 /// The average radiance of pixel `(x, y)` over `spp` samples.
 #[inline]
 #[must_use]
-pub fn render_pixel(scene: &Scene, x: u32, y: u32, w: u32, h: u32, spp: u32, seed: u32) -> [f32; 3] {
+pub fn render_pixel(
+    scene: &Scene,
+    x: u32,
+    y: u32,
+    w: u32,
+    h: u32,
+    spp: u32,
+    seed: u32,
+) -> [f32; 3] {
     let mut acc = DVec3::ZERO;
     for s in 0..spp {
         let sampler = PixelSampler::new(x, y, seed, s);
@@ -147,7 +162,10 @@ pub fn shade(scene: &Scene, sp: &ShadingPoint, wo: DVec3, sampler: &PixelSampler
         if f[0] <= 0.0 && f[1] <= 0.0 && f[2] <= 0.0 {
             return;
         }
-        let ray = Ray { o: origin, d: ls.wi };
+        let ray = Ray {
+            o: origin,
+            d: ls.wi,
+        };
         let tmax = if ls.dist.is_finite() {
             ls.dist * (1.0 - 1e-9) - eps
         } else {

@@ -52,7 +52,9 @@ impl PixelSampler {
         if dim < SOBOL_DIMENSIONS {
             f64::from(sobol_burley::sample(self.index, dim, self.seed))
         } else {
-            let h = hash_u32(self.seed ^ hash_u32(dim.wrapping_mul(0x68e3_1da4) ^ hash_u32(self.index)));
+            let h = hash_u32(
+                self.seed ^ hash_u32(dim.wrapping_mul(0x68e3_1da4) ^ hash_u32(self.index)),
+            );
             f64::from(h >> 8) * (1.0 / (1u32 << 24) as f64)
         }
     }
@@ -268,7 +270,10 @@ mod tests {
         assert!((0.0..1.0).contains(&s.get(300)));
         for (c, fv) in counts.iter().zip(&f) {
             let expect = n as f64 * fv / total / (nu * nv) as f64;
-            assert!(((*c as f64) - expect).abs() < 0.02 * expect, "{c} vs {expect}");
+            assert!(
+                ((*c as f64) - expect).abs() < 0.02 * expect,
+                "{c} vs {expect}"
+            );
         }
     }
 

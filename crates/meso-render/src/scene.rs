@@ -107,7 +107,10 @@ fn finite(field: &str, v: DVec3) -> Result<(), SceneError> {
     if v.is_finite() {
         Ok(())
     } else {
-        Err(SceneError::invalid(field, format!("must be finite, got {v:?}")))
+        Err(SceneError::invalid(
+            field,
+            format!("must be finite, got {v:?}"),
+        ))
     }
 }
 
@@ -115,7 +118,10 @@ fn positive(field: &str, x: f64) -> Result<(), SceneError> {
     if x.is_finite() && x > 0.0 {
         Ok(())
     } else {
-        Err(SceneError::invalid(field, format!("must be a finite number > 0, got {x}")))
+        Err(SceneError::invalid(
+            field,
+            format!("must be a finite number > 0, got {x}"),
+        ))
     }
 }
 
@@ -155,7 +161,10 @@ impl ImageSettings {
     pub fn validate(&self) -> Result<(), SceneError> {
         for (f, v) in [("image.width", self.width), ("image.height", self.height)] {
             if !(1..=16384).contains(&v) {
-                return Err(SceneError::invalid(f, format!("must be in 1..=16384 pixels, got {v}")));
+                return Err(SceneError::invalid(
+                    f,
+                    format!("must be in 1..=16384 pixels, got {v}"),
+                ));
             }
         }
         if !(1..=MAX_SAMPLES_PER_PIXEL).contains(&self.spp) {
@@ -194,7 +203,10 @@ pub fn validate_light(field: &str, l: &Light) -> Result<(), SceneError> {
             finite(&format!("{field}.start"), start)?;
             finite(&format!("{field}.end"), end)?;
             if (end - start).length() <= 0.0 {
-                return Err(SceneError::invalid(format!("{field}.end"), "must differ from start"));
+                return Err(SceneError::invalid(
+                    format!("{field}.end"),
+                    "must differ from start",
+                ));
             }
             nonneg_rgb(&format!("{field}.intensity"), intensity)
         }
@@ -248,7 +260,13 @@ impl SceneBuilder {
     }
 
     /// Add a sphere (pole normalised here).
-    pub fn sphere(&mut self, center: DVec3, radius: f64, pole: DVec3, material: MaterialId) -> Result<&mut Self, SceneError> {
+    pub fn sphere(
+        &mut self,
+        center: DVec3,
+        radius: f64,
+        pole: DVec3,
+        material: MaterialId,
+    ) -> Result<&mut Self, SceneError> {
         let f = format!("sphere[{}]", self.spheres.len());
         finite(&format!("{f}.center"), center)?;
         positive(&format!("{f}.radius"), radius)?;
@@ -263,7 +281,13 @@ impl SceneBuilder {
     }
 
     /// Add a parallelogram `origin + u·edge_u + v·edge_v`.
-    pub fn quad(&mut self, origin: DVec3, edge_u: DVec3, edge_v: DVec3, material: MaterialId) -> Result<&mut Self, SceneError> {
+    pub fn quad(
+        &mut self,
+        origin: DVec3,
+        edge_u: DVec3,
+        edge_v: DVec3,
+        material: MaterialId,
+    ) -> Result<&mut Self, SceneError> {
         let f = format!("quad[{}]", self.quads.len());
         finite(&format!("{f}.origin"), origin)?;
         finite(&format!("{f}.edge_u"), edge_u)?;
@@ -279,7 +303,14 @@ impl SceneBuilder {
     }
 
     /// Add an infinite plane (normal normalised; tangent made orthogonal to it).
-    pub fn plane(&mut self, point: DVec3, normal: DVec3, tangent: DVec3, uv_scale: f64, material: MaterialId) -> Result<&mut Self, SceneError> {
+    pub fn plane(
+        &mut self,
+        point: DVec3,
+        normal: DVec3,
+        tangent: DVec3,
+        uv_scale: f64,
+        material: MaterialId,
+    ) -> Result<&mut Self, SceneError> {
         let f = format!("plane[{}]", self.planes.len());
         finite(&format!("{f}.point"), point)?;
         nonzero(&format!("{f}.normal"), normal)?;
@@ -432,7 +463,11 @@ impl Scene {
     }
 
     /// Replace the shader of an existing material (no rebuild). Errors if `id` is unknown.
-    pub fn set_material(&mut self, id: MaterialId, shader: Arc<dyn Shader>) -> Result<(), SceneError> {
+    pub fn set_material(
+        &mut self,
+        id: MaterialId,
+        shader: Arc<dyn Shader>,
+    ) -> Result<(), SceneError> {
         let n = self.materials.len();
         match self.materials.get_mut(id.0 as usize) {
             Some(s) => {
@@ -452,7 +487,11 @@ impl Scene {
         self.spheres.len()
             + self.quads.len()
             + self.planes.len()
-            + self.meshes.iter().map(|(m, _)| m.indices().len()).sum::<usize>()
+            + self
+                .meshes
+                .iter()
+                .map(|(m, _)| m.indices().len())
+                .sum::<usize>()
     }
 
     fn closest(&self, ray: &Ray) -> Option<(f64, f64, f64, HitWhat)> {
@@ -471,7 +510,11 @@ impl Scene {
         best
     }
 
-    fn shading_point(&self, ray: &Ray, rd: Option<&RayDifferential>) -> Option<(f64, ShadingPoint)> {
+    fn shading_point(
+        &self,
+        ray: &Ray,
+        rd: Option<&RayDifferential>,
+    ) -> Option<(f64, ShadingPoint)> {
         let (t, a, b, what) = self.closest(ray)?;
         let g = match what {
             HitWhat::Plane(i) => self.planes[i].surface(ray.at(t)),
@@ -512,7 +555,10 @@ impl Scene {
 
     /// Load a scene file (format: `docs/scene-format.md`). Material paths and mesh /
     /// environment files are relative to the scene file's directory.
-    pub fn from_toml_file(path: &Path, resolver: &dyn MaterialResolver) -> Result<Scene, SceneError> {
+    pub fn from_toml_file(
+        path: &Path,
+        resolver: &dyn MaterialResolver,
+    ) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
             file: path.to_path_buf(),
             source,
@@ -522,11 +568,20 @@ impl Scene {
     }
 
     /// Parse a scene from TOML text; relative paths resolve against `base_dir`.
-    pub fn from_toml_str(text: &str, base_dir: &Path, resolver: &dyn MaterialResolver) -> Result<Scene, SceneError> {
+    pub fn from_toml_str(
+        text: &str,
+        base_dir: &Path,
+        resolver: &dyn MaterialResolver,
+    ) -> Result<Scene, SceneError> {
         Scene::from_toml_str_in(text, Path::new("<scene>"), base_dir, resolver)
     }
 
-    fn from_toml_str_in(text: &str, file: &Path, base: &Path, resolver: &dyn MaterialResolver) -> Result<Scene, SceneError> {
+    fn from_toml_str_in(
+        text: &str,
+        file: &Path,
+        base: &Path,
+        resolver: &dyn MaterialResolver,
+    ) -> Result<Scene, SceneError> {
         let parsed: SceneFile = toml::from_str(text).map_err(|e| SceneError::Parse {
             file: file.to_path_buf(),
             message: e.to_string().trim_end().to_string(),
@@ -710,13 +765,23 @@ impl SceneFile {
                 look_at,
                 up,
                 fov_deg,
-            } => Camera::new(Projection::Perspective { fov_deg }, v(position), v(look_at), v(up))?,
+            } => Camera::new(
+                Projection::Perspective { fov_deg },
+                v(position),
+                v(look_at),
+                v(up),
+            )?,
             CameraFile::Orthographic {
                 position,
                 look_at,
                 up,
                 width,
-            } => Camera::new(Projection::Orthographic { width }, v(position), v(look_at), v(up))?,
+            } => Camera::new(
+                Projection::Orthographic { width },
+                v(position),
+                v(look_at),
+                v(up),
+            )?,
         };
         let image = ImageSettings {
             width: self.image.width,
@@ -727,24 +792,25 @@ impl SceneFile {
         image.validate()?;
         let mut b = SceneBuilder::new(camera, image);
         let mut cache: HashMap<PathBuf, MaterialId> = HashMap::new();
-        let mut resolve = |b: &mut SceneBuilder, field: String, m: &str| -> Result<MaterialId, SceneError> {
-            if m.trim().is_empty() {
-                return Err(SceneError::invalid(field, "must name a material file"));
-            }
-            let p = base.join(m);
-            if let Some(id) = cache.get(&p) {
-                return Ok(*id);
-            }
-            let shader = resolver.resolve(&p).map_err(|e| SceneError::Material {
-                file: None,
-                field,
-                resolved: p.clone(),
-                message: e.to_string(),
-            })?;
-            let id = b.material(shader);
-            cache.insert(p, id);
-            Ok(id)
-        };
+        let mut resolve =
+            |b: &mut SceneBuilder, field: String, m: &str| -> Result<MaterialId, SceneError> {
+                if m.trim().is_empty() {
+                    return Err(SceneError::invalid(field, "must name a material file"));
+                }
+                let p = base.join(m);
+                if let Some(id) = cache.get(&p) {
+                    return Ok(*id);
+                }
+                let shader = resolver.resolve(&p).map_err(|e| SceneError::Material {
+                    file: None,
+                    field,
+                    resolved: p.clone(),
+                    message: e.to_string(),
+                })?;
+                let id = b.material(shader);
+                cache.insert(p, id);
+                Ok(id)
+            };
         for (i, o) in self.object.into_iter().enumerate() {
             let pre = format!("object[{i}]");
             match o {
@@ -755,7 +821,8 @@ impl SceneFile {
                     pole,
                 } => {
                     let m = resolve(&mut b, format!("{pre}.material"), &material)?;
-                    b.sphere(v(center), radius, v(pole), m).map_err(|e| rename(e, &pre))?;
+                    b.sphere(v(center), radius, v(pole), m)
+                        .map_err(|e| rename(e, &pre))?;
                 }
                 ObjectFile::Quad {
                     origin,
@@ -764,7 +831,8 @@ impl SceneFile {
                     material,
                 } => {
                     let m = resolve(&mut b, format!("{pre}.material"), &material)?;
-                    b.quad(v(origin), v(edge_u), v(edge_v), m).map_err(|e| rename(e, &pre))?;
+                    b.quad(v(origin), v(edge_u), v(edge_v), m)
+                        .map_err(|e| rename(e, &pre))?;
                 }
                 ObjectFile::Plane {
                     point,
@@ -779,7 +847,8 @@ impl SceneFile {
                         Some(t) => v(t),
                         None => meso_core::frame::Frame::from_normal(n.normalize_or_zero()).t,
                     };
-                    b.plane(v(point), n, t, uv_scale, m).map_err(|e| rename(e, &pre))?;
+                    b.plane(v(point), n, t, uv_scale, m)
+                        .map_err(|e| rename(e, &pre))?;
                 }
                 ObjectFile::Mesh {
                     file,
@@ -855,7 +924,10 @@ impl SceneFile {
                 ));
             }
             if !env.rotation_deg.is_finite() {
-                return Err(SceneError::invalid("environment.rotation_deg", "must be finite"));
+                return Err(SceneError::invalid(
+                    "environment.rotation_deg",
+                    "must be finite",
+                ));
             }
             let map = EnvironmentMap::from_file(
                 &base.join(&env.file),

@@ -48,7 +48,11 @@ irradiance = [1.0, 1.0, 1.0]
 #[test]
 fn issue_scene_lambert_sphere_matches_the_analytic_image() {
     let dir = tmpdir("issue");
-    std::fs::write(dir.join("white.toml"), "[transfer]\nkind = \"lambert\"\nalbedo = [1, 1, 1]\n").unwrap();
+    std::fs::write(
+        dir.join("white.toml"),
+        "[transfer]\nkind = \"lambert\"\nalbedo = [1, 1, 1]\n",
+    )
+    .unwrap();
     let path = dir.join("scene.toml");
     std::fs::write(&path, ISSUE_SCENE).unwrap();
     let scene = Scene::from_toml_file(&path, &white_resolver).unwrap();
@@ -75,7 +79,10 @@ fn issue_scene_lambert_sphere_matches_the_analytic_image() {
             }
             let expect = acc / 64.0;
             let got = img.get(i, j);
-            assert!(got[0] == got[1] && got[1] == got[2], "white light on white stays grey");
+            assert!(
+                got[0] == got[1] && got[1] == got[2],
+                "white light on white stays grey"
+            );
             let err = (f64::from(got[0]) - expect).abs();
             // Interior: all four pixel corners inside the disc (it is convex).
             let corner_in = (0..4).all(|c| {
@@ -94,7 +101,10 @@ fn issue_scene_lambert_sphere_matches_the_analytic_image() {
     }
     assert!(max_in < 2e-3, "interior pixels: max error {max_in}");
     assert!(max_all < 0.06, "silhouette pixels: max error {max_all}");
-    assert!((sum_r / sum_a - 1.0).abs() < 2e-3, "image sums {sum_r} vs {sum_a}");
+    assert!(
+        (sum_r / sum_a - 1.0).abs() < 2e-3,
+        "image sums {sum_r} vs {sum_a}"
+    );
     // The centre pixel and a pixel outside the sphere.
     assert!((f64::from(img.get(128, 128)[0]) - 0.866 / l.length().recip() / PI).abs() < 5e-3);
     assert_eq!(img.get(2, 2), [0.0; 3]);
@@ -124,15 +134,26 @@ fn floor_scene(n: u32, spp: u32, light: Option<Light>) -> (Scene, impl Fn(u32, u
         },
     );
     let m = b.material(Arc::new(Lambert { albedo: [1.0; 3] }));
-    b.quad(DVec3::new(-4.0, 0.0, 4.0), DVec3::new(8.0, 0.0, 0.0), DVec3::new(0.0, 0.0, -8.0), m)
-        .unwrap();
+    b.quad(
+        DVec3::new(-4.0, 0.0, 4.0),
+        DVec3::new(8.0, 0.0, 0.0),
+        DVec3::new(0.0, 0.0, -8.0),
+        m,
+    )
+    .unwrap();
     if let Some(l) = light {
         b.light(l).unwrap();
     }
     let scene = b.build().unwrap();
     let px = 2.0 / f64::from(n);
     // Right = x, image up = -z (camera up), so y (down the image) grows with +z.
-    let at = move |i: u32, j: u32| DVec3::new(-1.0 + (f64::from(i) + 0.5) * px, 0.0, -1.0 + (f64::from(j) + 0.5) * px);
+    let at = move |i: u32, j: u32| {
+        DVec3::new(
+            -1.0 + (f64::from(i) + 0.5) * px,
+            0.0,
+            -1.0 + (f64::from(j) + 0.5) * px,
+        )
+    };
     (scene, at)
 }
 
@@ -154,9 +175,16 @@ fn rms_rel(img: &Image, exact: impl Fn(u32, u32) -> f64) -> (f64, f64) {
 fn orthographic_camera_maps_pixels_to_world_points_on_a_floor() {
     let (scene, at) = floor_scene(40, 1, None);
     for (i, j) in [(0, 0), (39, 0), (7, 31), (20, 20)] {
-        let rd = scene.camera.generate_ray(f64::from(i) + 0.5, f64::from(j) + 0.5, 40, 40);
+        let rd = scene
+            .camera
+            .generate_ray(f64::from(i) + 0.5, f64::from(j) + 0.5, 40, 40);
         let sp = scene.intersect(&rd).unwrap();
-        assert!((sp.position - at(i, j)).length() < 1e-12, "{:?} vs {:?}", sp.position, at(i, j));
+        assert!(
+            (sp.position - at(i, j)).length() < 1e-12,
+            "{:?} vs {:?}",
+            sp.position,
+            at(i, j)
+        );
         // Footprint: one pixel is 2/40 world units = 0.05/8 in u (edge_u has length 8).
         assert!((sp.dpdx - DVec3::new(0.05, 0.0, 0.0)).length() < 1e-12);
         assert!((sp.duvdx - DVec2::new(0.05 / 8.0, 0.0)).length() < 1e-12);
@@ -168,11 +196,32 @@ fn orthographic_camera_maps_pixels_to_world_points_on_a_floor() {
 #[test]
 fn point_light_on_a_floor_matches_inverse_square_cosine_law() {
     let lp = DVec3::new(0.2, 1.3, -0.4);
-    let (scene, at) = floor_scene(32, 1, Some(Light::Point { position: lp, intensity: DVec3::splat(3.0) }));
-    let img = render(&scene, &RenderOptions { spp: Some(1), ..Default::default() }, None);
+    let (scene, at) = floor_scene(
+        32,
+        1,
+        Some(Light::Point {
+            position: lp,
+            intensity: DVec3::splat(3.0),
+        }),
+    );
+    let img = render(
+        &scene,
+        &RenderOptions {
+            spp: Some(1),
+            ..Default::default()
+        },
+        None,
+    );
     // With one sample the pixel is the radiance at a jittered point: compare against the
     // closed form at that same point is not possible from outside, so use 64 spp instead.
-    let img64 = render(&scene, &RenderOptions { spp: Some(64), ..Default::default() }, None);
+    let img64 = render(
+        &scene,
+        &RenderOptions {
+            spp: Some(64),
+            ..Default::default()
+        },
+        None,
+    );
     let exact = |i, j| {
         let d = lp - at(i, j);
         3.0 * d.y / d.length().powi(3) / PI
@@ -186,7 +235,11 @@ fn point_light_on_a_floor_matches_inverse_square_cosine_law() {
 #[test]
 fn spherical_area_light_matches_pi_l_sin2_alpha() {
     let (c, r, l) = (DVec3::new(0.3, 1.5, -0.2), 0.5, 2.0);
-    let light = Light::Sphere { center: c, radius: r, radiance: DVec3::splat(l) };
+    let light = Light::Sphere {
+        center: c,
+        radius: r,
+        radiance: DVec3::splat(l),
+    };
     let (scene, at) = floor_scene(32, 64, Some(light));
     let img = render(&scene, &RenderOptions::default(), None);
     // Unoccluded sphere wholly above the horizon: E = π L sin²α cos β, sin α = r/d.
@@ -200,7 +253,10 @@ fn spherical_area_light_matches_pi_l_sin2_alpha() {
     // Directly below the centre: E = π L sin²α exactly.
     let p = DVec3::new(0.3, 0.0, -0.2);
     let rd = RayDifferential {
-        ray: Ray { o: p + DVec3::Y * 5.0, d: DVec3::NEG_Y },
+        ray: Ray {
+            o: p + DVec3::Y * 5.0,
+            d: DVec3::NEG_Y,
+        },
         dodx: DVec3::ZERO,
         dody: DVec3::ZERO,
         dddx: DVec3::ZERO,
@@ -209,7 +265,12 @@ fn spherical_area_light_matches_pi_l_sin2_alpha() {
     let sp = scene.intersect(&rd).unwrap();
     let mut e = DVec3::ZERO;
     for s in 0..4096 {
-        e += shade(&scene, &sp, DVec3::Y, &sampling::PixelSampler::new(0, 0, 1, s));
+        e += shade(
+            &scene,
+            &sp,
+            DVec3::Y,
+            &sampling::PixelSampler::new(0, 0, 1, s),
+        );
     }
     let e = e.x / 4096.0 * PI;
     let exact = PI * l * (r / 1.5).powi(2);
@@ -235,7 +296,13 @@ fn rect_light() -> (Light, [DVec3; 4]) {
     let eu = DVec3::new(1.0, 0.0, 0.0);
     let ev = DVec3::new(0.0, 0.3, 0.8);
     (
-        Light::Rectangle { corner, edge_u: eu, edge_v: ev, radiance: DVec3::splat(1.5), two_sided: false },
+        Light::Rectangle {
+            corner,
+            edge_u: eu,
+            edge_v: ev,
+            radiance: DVec3::splat(1.5),
+            two_sided: false,
+        },
         [corner, corner + eu, corner + eu + ev, corner + ev],
     )
 }
@@ -258,7 +325,12 @@ fn rectangular_area_light_matches_the_polygon_form_factor() {
     let poly = polygon_irradiance(
         DVec3::ZERO,
         DVec3::Y,
-        &[DVec3::new(0.0, h, 0.0), DVec3::new(a, h, 0.0), DVec3::new(a, h, b), DVec3::new(0.0, h, b)],
+        &[
+            DVec3::new(0.0, h, 0.0),
+            DVec3::new(a, h, 0.0),
+            DVec3::new(a, h, b),
+            DVec3::new(0.0, h, b),
+        ],
         1.0,
     );
     assert!((poly - PI * f).abs() < 1e-12, "{poly} vs {}", PI * f);
@@ -271,7 +343,21 @@ fn error_falls_as_spp_grows() {
     let exact = |i, j| polygon_irradiance(at(i, j), DVec3::Y, &verts, 1.5) / PI;
     let errs: Vec<f64> = [1u32, 4, 16, 64]
         .iter()
-        .map(|&spp| rms_rel(&render(&scene, &RenderOptions { spp: Some(spp), seed: 3, ..Default::default() }, None), exact).0)
+        .map(|&spp| {
+            rms_rel(
+                &render(
+                    &scene,
+                    &RenderOptions {
+                        spp: Some(spp),
+                        seed: 3,
+                        ..Default::default()
+                    },
+                    None,
+                ),
+                exact,
+            )
+            .0
+        })
         .collect();
     for k in 1..errs.len() {
         assert!(errs[k] < 0.6 * errs[k - 1], "rms errors {errs:?}");
@@ -297,7 +383,10 @@ fn environment_map_from_an_exr_file_is_importance_sampled_to_the_analytic_irradi
     let mut map = Image::new(w, h);
     for j in 0..h {
         // The exact mean of 1 + cos θ over the row's solid angle.
-        let (t0, t1) = (PI * f64::from(j) / f64::from(h), PI * f64::from(j + 1) / f64::from(h));
+        let (t0, t1) = (
+            PI * f64::from(j) / f64::from(h),
+            PI * f64::from(j + 1) / f64::from(h),
+        );
         let mean = 1.0 + 0.5 * (t1.sin().powi(2) - t0.sin().powi(2)) / (t0.cos() - t1.cos());
         for i in 0..w {
             map.set(i, j, [mean as f32; 3]);
@@ -342,21 +431,47 @@ fn multiple_surface_equals_the_sum_of_its_single_normal_renders() {
         (DVec3::new(0.0, -0.5, 1.0).normalize(), 0.3, 5.0),
     ];
     let mk = |ls: &[(DVec3, f64, f64)]| {
-        let cam = Camera::new(Projection::Perspective { fov_deg: 40.0 }, DVec3::new(0.0, 0.5, 4.0), DVec3::ZERO, DVec3::Y).unwrap();
-        let mut b = SceneBuilder::new(cam, ImageSettings { width: 48, height: 40, spp: 4, background: [0.0; 3] });
+        let cam = Camera::new(
+            Projection::Perspective { fov_deg: 40.0 },
+            DVec3::new(0.0, 0.5, 4.0),
+            DVec3::ZERO,
+            DVec3::Y,
+        )
+        .unwrap();
+        let mut b = SceneBuilder::new(
+            cam,
+            ImageSettings {
+                width: 48,
+                height: 40,
+                spp: 4,
+                background: [0.0; 3],
+            },
+        );
         let m = b.material(Arc::new(PhongLobes::new(ls, [1.0, 0.8, 0.6]).unwrap()));
         b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m).unwrap();
-        b.light(Light::Point { position: DVec3::new(2.0, 3.0, 3.0), intensity: DVec3::splat(10.0) }).unwrap();
-        b.light(Light::Linear { start: DVec3::new(-2.0, 2.0, 1.0), end: DVec3::new(-1.0, 2.5, 2.0), intensity: DVec3::splat(3.0) }).unwrap();
+        b.light(Light::Point {
+            position: DVec3::new(2.0, 3.0, 3.0),
+            intensity: DVec3::splat(10.0),
+        })
+        .unwrap();
+        b.light(Light::Linear {
+            start: DVec3::new(-2.0, 2.0, 1.0),
+            end: DVec3::new(-1.0, 2.5, 2.0),
+            intensity: DVec3::splat(3.0),
+        })
+        .unwrap();
         render(&b.build().unwrap(), &RenderOptions::default(), None)
     };
     let all = mk(&lobes);
     let parts: Vec<Image> = lobes.iter().map(|l| mk(std::slice::from_ref(l))).collect();
     let mut nonzero = 0;
     for (k, p) in all.pixels().iter().enumerate() {
-        for c in 0..3 {
+        for (c, &pc) in p.iter().enumerate() {
             let s: f32 = parts.iter().map(|im| im.pixels()[k][c]).sum();
-            assert!((p[c] - s).abs() <= 1e-5 * s.max(1e-3), "pixel {k}: {} vs {s}", p[c]);
+            assert!(
+                (pc - s).abs() <= 1e-5 * s.max(1e-3),
+                "pixel {k}: {pc} vs {s}"
+            );
             if s > 1e-3 {
                 nonzero += 1;
             }
@@ -367,7 +482,13 @@ fn multiple_surface_equals_the_sum_of_its_single_normal_renders() {
 
 #[test]
 fn sphere_tangents_are_orthonormal_and_follow_the_uv_directions() {
-    let cam = Camera::new(Projection::Perspective { fov_deg: 50.0 }, DVec3::new(0.5, 0.8, 4.0), DVec3::ZERO, DVec3::Y).unwrap();
+    let cam = Camera::new(
+        Projection::Perspective { fov_deg: 50.0 },
+        DVec3::new(0.5, 0.8, 4.0),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .unwrap();
     let mut b = SceneBuilder::new(cam, ImageSettings::default());
     let m = b.material(Arc::new(Lambert { albedo: [1.0; 3] }));
     let pole = DVec3::new(0.2, 1.0, 0.3).normalize();
@@ -376,11 +497,22 @@ fn sphere_tangents_are_orthonormal_and_follow_the_uv_directions() {
     let mut n = 0;
     for j in 0..32 {
         for i in 0..32 {
-            let rd = scene.camera.generate_ray(f64::from(i) * 8.0 + 4.0, f64::from(j) * 8.0 + 4.0, 256, 256);
-            let Some(sp) = scene.intersect(&rd) else { continue };
+            let rd = scene.camera.generate_ray(
+                f64::from(i) * 8.0 + 4.0,
+                f64::from(j) * 8.0 + 4.0,
+                256,
+                256,
+            );
+            let Some(sp) = scene.intersect(&rd) else {
+                continue;
+            };
             n += 1;
             let f = sp.frame;
-            assert!(f.t.dot(f.b).abs() < 1e-12 && f.t.dot(f.n).abs() < 1e-12 && f.b.dot(f.n).abs() < 1e-12);
+            assert!(
+                f.t.dot(f.b).abs() < 1e-12
+                    && f.t.dot(f.n).abs() < 1e-12
+                    && f.b.dot(f.n).abs() < 1e-12
+            );
             assert!((f.t.cross(f.b) - f.n).length() < 1e-12);
             assert!(f.t.dot(pole).abs() < 1e-12, "tangent goes around the pole");
             assert!((f.t.dot(sp.dpdu.normalize()) - 1.0).abs() < 1e-12);
@@ -456,12 +588,18 @@ material = "white.toml"
     let mut n = 0;
     for j in 0..32 {
         for i in 0..32 {
-            let rd = scene.camera.generate_ray(f64::from(i) + 0.5, f64::from(j) + 0.5, 32, 32);
+            let rd = scene
+                .camera
+                .generate_ray(f64::from(i) + 0.5, f64::from(j) + 0.5, 32, 32);
             let sp = scene.intersect(&rd).unwrap();
             n += 1;
             let f = sp.frame;
             assert!((f.t.length() - 1.0).abs() < 1e-12 && (f.b.length() - 1.0).abs() < 1e-12);
-            assert!(f.t.dot(f.n).abs() < 1e-12 && f.b.dot(f.n).abs() < 1e-12 && f.t.dot(f.b).abs() < 1e-12);
+            assert!(
+                f.t.dot(f.n).abs() < 1e-12
+                    && f.b.dot(f.n).abs() < 1e-12
+                    && f.t.dot(f.b).abs() < 1e-12
+            );
             assert!((f.t.cross(f.b) - f.n).length() < 1e-12);
             assert!(f.n.y > 0.0, "faces the camera");
             // The tangent follows ∂p/∂u of the hit triangle (smoothly averaged: within ~10°).
@@ -509,8 +647,15 @@ fn generated_mesh_tangents_on_a_uv_sphere_follow_the_parallels() {
         if along.length() < 0.3 {
             continue; // near the poles the parallels shrink
         }
-        assert!((t.length() - 1.0).abs() < 1e-12 && t.dot(p).abs() < 1e-9, "vertex {k}");
-        assert!(t.dot(along.normalize()) > 0.99, "vertex {k}: {}", t.dot(along.normalize()));
+        assert!(
+            (t.length() - 1.0).abs() < 1e-12 && t.dot(p).abs() < 1e-9,
+            "vertex {k}"
+        );
+        assert!(
+            t.dot(along.normalize()) > 0.99,
+            "vertex {k}: {}",
+            t.dot(along.normalize())
+        );
     }
 }
 
@@ -518,7 +663,11 @@ fn generated_mesh_tangents_on_a_uv_sphere_follow_the_parallels() {
 fn broken_and_missing_files_give_errors_naming_the_file() {
     let dir = tmpdir("errors");
     std::fs::write(dir.join("white.toml"), "").unwrap();
-    std::fs::write(dir.join("bad.obj"), "v 1.0 2.0 zz\nv 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        dir.join("bad.obj"),
+        "v 1.0 2.0 zz\nv 0 0 0\nv 1 0 0\nf 1 2 3\n",
+    )
+    .unwrap();
     std::fs::write(dir.join("sky.exr"), b"this is not an exr file").unwrap();
     let head = ISSUE_SCENE.split("[[object]]").next().unwrap().to_string();
     let cases: Vec<(String, &str)> = vec![
@@ -546,7 +695,10 @@ fn broken_and_missing_files_give_errors_naming_the_file() {
         if !needle.contains('.') || needle.ends_with(".obj") || needle.ends_with(".exr") {
             // file errors name the file; schema errors name the scene file
         } else {
-            assert!(e.contains(&format!("case{k}.toml")), "case {k}: `{e}` should name the scene file");
+            assert!(
+                e.contains(&format!("case{k}.toml")),
+                "case {k}: `{e}` should name the scene file"
+            );
         }
     }
     let e = Scene::from_toml_file(&dir.join("missing.toml"), &white_resolver).unwrap_err();
@@ -556,7 +708,14 @@ fn broken_and_missing_files_give_errors_naming_the_file() {
 
 #[test]
 fn progress_reports_every_tile_and_options_override_the_size() {
-    let (scene, _) = floor_scene(16, 1, Some(Light::Directional { direction: DVec3::Y, irradiance: DVec3::ONE }));
+    let (scene, _) = floor_scene(
+        16,
+        1,
+        Some(Light::Directional {
+            direction: DVec3::Y,
+            irradiance: DVec3::ONE,
+        }),
+    );
     let calls = std::sync::atomic::AtomicUsize::new(0);
     let last = std::sync::Mutex::new((0, 0));
     let cb = |d: usize, t: usize| {
@@ -566,7 +725,16 @@ fn progress_reports_every_tile_and_options_override_the_size() {
             *l = (d, t);
         }
     };
-    let img = render(&scene, &RenderOptions { width: Some(70), height: Some(33), tile_size: 16, ..Default::default() }, Some(&cb));
+    let img = render(
+        &scene,
+        &RenderOptions {
+            width: Some(70),
+            height: Some(33),
+            tile_size: 16,
+            ..Default::default()
+        },
+        Some(&cb),
+    );
     assert_eq!((img.width(), img.height()), (70, 33));
     assert_eq!(calls.into_inner(), 5 * 3);
     assert_eq!(*last.lock().unwrap(), (15, 15));
