@@ -81,6 +81,13 @@ pub struct LightSample {
 }
 
 impl Light {
+    /// True for lights without extent (point, directional): their sample ignores `u`.
+    #[inline]
+    #[must_use]
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Light::Point { .. } | Light::Directional { .. })
+    }
+
     /// Sample the light as seen from `p`, with `u ∈ [0,1)²`. `None` when the light cannot
     /// contribute (the receiver is inside a sphere light or behind a one-sided rectangle, …).
     #[inline]

@@ -177,7 +177,13 @@ pub fn shade(scene: &Scene, sp: &ShadingPoint, wo: DVec3, sampler: &PixelSampler
         sum += DVec3::new(f64::from(f[0]), f64::from(f[1]), f64::from(f[2])) * ls.weight * cos;
     };
     for (k, light) in scene.lights.iter().enumerate() {
-        if let Some(ls) = light.sample(p, sampler.get2(2 + 2 * k as u32)) {
+        // Point and directional lights need no random numbers: skip the Sobol evaluation.
+        let u = if light.is_delta() {
+            [0.5, 0.5]
+        } else {
+            sampler.get2(2 + 2 * k as u32)
+        };
+        if let Some(ls) = light.sample(p, u) {
             contribute(ls);
         }
     }
