@@ -10,8 +10,13 @@ mod util;
 pub(crate) use util::{par_map_progress, progress, read_text};
 
 /// Load a material file, resolving height-map NDFs.
-pub(crate) fn load_material(path: &std::path::Path) -> anyhow::Result<meso_core::material::Material> {
-    Ok(meso_core::material::Material::from_file(path, &meso_core::material::NoExternalNdfs)?)
+pub(crate) fn load_material(
+    path: &std::path::Path,
+) -> anyhow::Result<meso_core::material::Material> {
+    Ok(meso_core::material::Material::from_file(
+        path,
+        &meso_core::material::NoExternalNdfs,
+    )?)
 }
 
 /// meso: normal distribution functions and multiple surfaces (Fournier 1992).

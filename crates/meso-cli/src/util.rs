@@ -7,7 +7,8 @@ use std::path::Path;
 
 /// Read a UTF-8 text file of at most `limit` bytes, naming the file in every error.
 pub fn read_text(path: &Path, limit: u64) -> Result<String> {
-    let meta = std::fs::metadata(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let meta =
+        std::fs::metadata(path).with_context(|| format!("{}: cannot read", path.display()))?;
     if meta.len() > limit {
         bail!(
             "{}: {} bytes is larger than the limit of {limit} bytes",

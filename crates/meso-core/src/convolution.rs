@@ -166,7 +166,11 @@ fn warps(ndf: &Ndf, hint: Option<Peak>) -> Vec<Warp> {
             let len = mean.length() * s.cell_solid_angle();
             if len > 1e-6 {
                 // Mean resultant length R of a vMF ≈ 1 − 1/κ for large κ.
-                let kappa = if len < 0.999 { 1.0 / (1.0 - len) } else { 1000.0 };
+                let kappa = if len < 0.999 {
+                    1.0 / (1.0 - len)
+                } else {
+                    1000.0
+                };
                 lobes.push((mean.normalize(), 4.0 * kappa.min(1e4), 1.0));
             }
         }

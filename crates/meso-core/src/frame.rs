@@ -130,7 +130,11 @@ impl Frame {
             return Frame::from_normal(n);
         }
         let t = t / l;
-        Frame { t, b: n.cross(t), n }
+        Frame {
+            t,
+            b: n.cross(t),
+            n,
+        }
     }
 
     /// Express a world direction in this frame's local coordinates.

@@ -85,8 +85,12 @@ pub trait NdfResolver {
     ///
     /// # Errors
     /// Any problem with the file or the table, as a message naming it.
-    fn resolve(&self, kind: &str, table: &toml::Table, file: &Path)
-        -> Result<ResolvedNdf, MaterialError>;
+    fn resolve(
+        &self,
+        kind: &str,
+        table: &toml::Table,
+        file: &Path,
+    ) -> Result<ResolvedNdf, MaterialError>;
 }
 
 /// The core resolver: knows no external NDFs.
@@ -303,7 +307,10 @@ impl<'a> Fields<'a> {
         match self.get(key) {
             None => Ok(None),
             Some(toml::Value::Boolean(b)) => Ok(Some(*b)),
-            Some(v) => err(format!("{} {key}: expected true or false, got {v}", self.name)),
+            Some(v) => err(format!(
+                "{} {key}: expected true or false, got {v}",
+                self.name
+            )),
         }
     }
 
@@ -406,7 +413,10 @@ fn parse_lobes(
         return err(format!("{name} lobes: the list is empty"));
     }
     if arr.len() > 10_000 {
-        return err(format!("{name} lobes: {} lobes is above the limit 10000", arr.len()));
+        return err(format!(
+            "{name} lobes: {} lobes is above the limit 10000",
+            arr.len()
+        ));
     }
     let mut out = Vec::with_capacity(arr.len());
     for (k, item) in arr.iter().enumerate() {
@@ -519,9 +529,7 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
                 (None, Some(v)) => {
                     let inner = sub_ndf(name, v, depth)?;
                     let lmax = band.unwrap_or(16.0) as usize;
-                    Ndf::Harmonics(
-                        Harmonics::project(lmax, 4, |m| inner.eval(m)).map_err(ndf_err)?,
-                    )
+                    Ndf::Harmonics(Harmonics::project(lmax, 4, |m| inner.eval(m)).map_err(ndf_err)?)
                 }
                 _ => {
                     return err(format!(
@@ -537,12 +545,12 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
             let values = f.array("values", 0)?;
             let of = f.get("of");
             match (values, of) {
-                (Some(v), None) => Ndf::Tabulated(Tabulated::from_values(grid, v).map_err(ndf_err)?),
+                (Some(v), None) => {
+                    Ndf::Tabulated(Tabulated::from_values(grid, v).map_err(ndf_err)?)
+                }
                 (None, Some(v)) => {
                     let inner = sub_ndf(name, v, depth)?;
-                    Ndf::Tabulated(
-                        Tabulated::from_fn(grid, 4, |m| inner.eval(m)).map_err(ndf_err)?,
-                    )
+                    Ndf::Tabulated(Tabulated::from_fn(grid, 4, |m| inner.eval(m)).map_err(ndf_err)?)
                 }
                 _ => {
                     return err(format!(
@@ -706,9 +714,9 @@ impl MaterialSpec {
     /// # Errors
     /// A [`MaterialError`] naming the table, the key and the problem.
     pub fn parse(text: &str, dir: &Path) -> Result<MaterialSpec, MaterialError> {
-        let doc: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| MaterialError(format!("not valid TOML: {}", e.message())))?;
+        let doc: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+            MaterialError(format!("not valid TOML: {}", e.message()))
+        })?;
         let mut top = Fields::new("material", &doc);
         let name = top.string("name")?.map(str::to_owned);
         let form = match top.string("form")? {
@@ -793,7 +801,9 @@ impl MaterialSpec {
                     .ok_or_else(|| MaterialError("[quadrature]: expected a table".into()))?;
                 let mut f = Fields::new("[quadrature]", t);
                 let d = Accuracy::default();
-                let radial = f.bounded("radial", 2.0, 128.0)?.map_or(d.radial, |x| x as usize);
+                let radial = f
+                    .bounded("radial", 2.0, 128.0)?
+                    .map_or(d.radial, |x| x as usize);
                 let azimuth = f
                     .bounded("azimuth", 4.0, 1024.0)?
                     .map_or(d.azimuth, |x| x as usize);

@@ -41,7 +41,12 @@ pub fn parse_pairs(text: &str) -> Result<Vec<DirectionPair>, PairsError> {
             "the pairs file is empty (expected the header theta_i,phi_i,theta_o,phi_o)".into(),
         ));
     };
-    let cols: Vec<&str> = header.trim().trim_start_matches('\u{feff}').split(',').map(str::trim).collect();
+    let cols: Vec<&str> = header
+        .trim()
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .map(str::trim)
+        .collect();
     if cols != PAIRS_HEADER {
         return Err(PairsError(format!(
             "line {}: expected the header theta_i,phi_i,theta_o,phi_o, got `{}`",

@@ -74,7 +74,12 @@ fn issue_example_matches_brute_force_quadrature_within_1_percent() {
         let want = brute_force_multiple_surface(&m.ndf, &m.transfer, i, o);
         for c in 0..3 {
             let rel = (got[c] - want[c]).abs() / want[c].abs().max(1e-6);
-            assert!(rel < 0.01, "i={i:?} o={o:?} c={c}: {} vs {}", got[c], want[c]);
+            assert!(
+                rel < 0.01,
+                "i={i:?} o={o:?} c={c}: {} vs {}",
+                got[c],
+                want[c]
+            );
         }
     }
 }
@@ -82,7 +87,10 @@ fn issue_example_matches_brute_force_quadrature_within_1_percent() {
 #[test]
 fn quadrature_converges_with_accuracy() {
     let m = Material::from_toml_str(ISSUE_EXAMPLE).unwrap();
-    let (i, o) = (spherical_direction_deg(45.0, 90.0), spherical_direction_deg(20.0, 250.0));
+    let (i, o) = (
+        spherical_direction_deg(45.0, 90.0),
+        spherical_direction_deg(20.0, 250.0),
+    );
     let reference = brute_force_multiple_surface(&m.ndf, &m.transfer, i, o)[0];
     let err = |a: Accuracy| {
         (effective_brdf(&m.ndf, &m.transfer, Form::MultipleSurface, i, o, a)[0] / reference - 1.0)
@@ -106,13 +114,22 @@ fn eq4_delta_sum_equals_the_limit_of_sharp_peaks() {
         DeltaSum::new(
             normals
                 .iter()
-                .map(|&(n, w)| WeightedNormal { normal: n, weight: w })
+                .map(|&(n, w)| WeightedNormal {
+                    normal: n,
+                    weight: w,
+                })
                 .collect(),
         )
         .unwrap(),
     );
     let sharp = Ndf::PhongPeaks(
-        PhongPeaks::new(normals.iter().map(|&(n, w)| PhongLobe::new(n, w, 1e6)).collect()).unwrap(),
+        PhongPeaks::new(
+            normals
+                .iter()
+                .map(|&(n, w)| PhongLobe::new(n, w, 1e6))
+                .collect(),
+        )
+        .unwrap(),
     );
     for t in [
         Transfer::Phong {
@@ -123,7 +140,14 @@ fn eq4_delta_sum_equals_the_limit_of_sharp_peaks() {
         Transfer::Lambert { albedo: [0.7; 3] },
     ] {
         for (i, o) in pairs() {
-            let exact = effective_brdf(&deltas, &t, Form::MultipleSurface, i, o, Accuracy::default());
+            let exact = effective_brdf(
+                &deltas,
+                &t,
+                Form::MultipleSurface,
+                i,
+                o,
+                Accuracy::default(),
+            );
             // Eq. 4 written out by hand.
             let mut by_hand = 0.0;
             for &(n, w) in &normals {
@@ -133,7 +157,12 @@ fn eq4_delta_sum_equals_the_limit_of_sharp_peaks() {
             assert!((exact[0] - by_hand).abs() <= 1e-12 * by_hand.abs().max(1.0));
             let quad = effective_brdf(&sharp, &t, Form::MultipleSurface, i, o, Accuracy::fine());
             let tol = 2e-3 * exact[0].abs() + 1e-9;
-            assert!((quad[0] - exact[0]).abs() < tol, "{i:?} {o:?}: {} vs {}", quad[0], exact[0]);
+            assert!(
+                (quad[0] - exact[0]).abs() < tol,
+                "{i:?} {o:?}: {} vs {}",
+                quad[0],
+                exact[0]
+            );
         }
     }
 }
@@ -154,8 +183,14 @@ fn continuous_ndfs() -> Vec<(&'static str, Ndf)> {
             "beckmann",
             Ndf::Microfacet(Microfacet::new(Distribution::Beckmann, 0.3, 0.15).unwrap()),
         ),
-        ("ggx", Ndf::Microfacet(Microfacet::isotropic(Distribution::Ggx, 0.25).unwrap())),
-        ("vmf", Ndf::VonMisesFisher(VonMisesFisher::new(DVec3::new(0.1, 0.0, 1.0), 30.0).unwrap())),
+        (
+            "ggx",
+            Ndf::Microfacet(Microfacet::isotropic(Distribution::Ggx, 0.25).unwrap()),
+        ),
+        (
+            "vmf",
+            Ndf::VonMisesFisher(VonMisesFisher::new(DVec3::new(0.1, 0.0, 1.0), 30.0).unwrap()),
+        ),
     ]
 }
 
@@ -168,7 +203,10 @@ fn microfacet_form_with_mirror_facets_is_reciprocal() {
         for (i, o) in pairs() {
             let a = effective_brdf(&ndf, &t, Form::Microfacet, i, o, Accuracy::default())[0];
             let b = effective_brdf(&ndf, &t, Form::Microfacet, o, i, Accuracy::default())[0];
-            assert!((a - b).abs() <= 1e-3 * a.abs().max(1e-9), "{name} {i:?} {o:?}: {a} vs {b}");
+            assert!(
+                (a - b).abs() <= 1e-3 * a.abs().max(1e-9),
+                "{name} {i:?} {o:?}: {a} vs {b}"
+            );
         }
     }
 }
@@ -187,7 +225,10 @@ fn microfacet_form_matches_closed_form_beckmann_ggx() {
             let h = half_vector(i, o).unwrap();
             let closed = mf.d(h) / (1.0 + mf.lambda(i) + mf.lambda(o)) / (4.0 * i.z * o.z);
             let got = effective_brdf(&ndf, &t, Form::Microfacet, i, o, Accuracy::fine())[0];
-            assert!((got / closed - 1.0).abs() < 5e-3, "{dist:?} {i:?} {o:?}: {got} vs {closed}");
+            assert!(
+                (got / closed - 1.0).abs() < 5e-3,
+                "{dist:?} {i:?} {o:?}: {got} vs {closed}"
+            );
         }
     }
 }
@@ -206,7 +247,10 @@ fn microfacet_form_gains_no_energy_under_a_white_furnace() {
                 96,
             );
             assert!(albedo <= 1.01, "{name} θi={theta}: albedo {albedo}");
-            assert!(albedo > 0.5, "{name} θi={theta}: albedo {albedo} implausibly low");
+            assert!(
+                albedo > 0.5,
+                "{name} θi={theta}: albedo {albedo} implausibly low"
+            );
         }
     }
 }
@@ -221,7 +265,10 @@ fn smith_lambda_of_tabulated_beckmann_matches_closed_form() {
     for theta in [20.0, 50.0, 70.0, 85.0] {
         let w = spherical_direction_deg(theta, 0.0);
         let (num, exact) = (sm.lambda(w), mf.lambda(w));
-        assert!((num - exact).abs() < 2e-3 * (1.0 + exact), "θ={theta}: {num} vs {exact}");
+        assert!(
+            (num - exact).abs() < 2e-3 * (1.0 + exact),
+            "θ={theta}: {num} vs {exact}"
+        );
     }
 }
 
@@ -229,11 +276,17 @@ fn smith_lambda_of_tabulated_beckmann_matches_closed_form() {
 fn multiple_surface_form_is_neither_reciprocal_nor_energy_conserving() {
     // The default form's known defects, measured (docs/ndf-conventions.md quotes these bounds).
     let m = Material::from_toml_str(ISSUE_EXAMPLE).unwrap();
-    let (i, o) = (spherical_direction_deg(60.0, 10.0), spherical_direction_deg(20.0, 190.0));
+    let (i, o) = (
+        spherical_direction_deg(60.0, 10.0),
+        spherical_direction_deg(20.0, 190.0),
+    );
     let a = m.brdf(i, o)[0];
     let b = m.brdf(o, i)[0];
     let asym = (a - b).abs() / a.max(b);
-    assert!(asym > 0.05, "expected a visible reciprocity defect, got {asym}");
+    assert!(
+        asym > 0.05,
+        "expected a visible reciprocity defect, got {asym}"
+    );
     // A Lambert facet on a spread NDF at grazing light: facets tilted towards the light see more
     // than cos θi, so the directional albedo exceeds the facet albedo.
     let ndf = continuous_ndfs().remove(0).1;
@@ -244,7 +297,9 @@ fn multiple_surface_form_is_neither_reciprocal_nor_energy_conserving() {
         64,
         64,
     );
-    println!("multiple-surface form: reciprocity defect {asym:.3}, grazing Lambert albedo {albedo:.4}");
+    println!(
+        "multiple-surface form: reciprocity defect {asym:.3}, grazing Lambert albedo {albedo:.4}"
+    );
     assert!(albedo > 1.005, "grazing Lambert albedo {albedo}");
 }
 

@@ -25,7 +25,9 @@ fn continuous() -> Vec<(&'static str, Ndf)> {
         ("sphere", Ndf::Sphere(Sphere)),
         (
             "vmf",
-            Ndf::VonMisesFisher(VonMisesFisher::new(spherical_direction_deg(20.0, 45.0), 25.0).unwrap()),
+            Ndf::VonMisesFisher(
+                VonMisesFisher::new(spherical_direction_deg(20.0, 45.0), 25.0).unwrap(),
+            ),
         ),
         (
             "beckmann",
@@ -37,7 +39,9 @@ fn continuous() -> Vec<(&'static str, Ndf)> {
         ),
         (
             "tabulated",
-            Ndf::Tabulated(Tabulated::from_fn(EqualAreaGrid::new(64, 128), 3, |m| p.eval(m)).unwrap()),
+            Ndf::Tabulated(
+                Tabulated::from_fn(EqualAreaGrid::new(64, 128), 3, |m| p.eval(m)).unwrap(),
+            ),
         ),
         (
             "harmonics",
@@ -62,8 +66,14 @@ fn every_continuous_representation_integrates_to_one() {
 #[test]
 fn singular_representations_carry_unit_mass() {
     let d = DeltaSum::new(vec![
-        WeightedNormal { normal: DVec3::Z, weight: 2.0 },
-        WeightedNormal { normal: DVec3::X, weight: 6.0 },
+        WeightedNormal {
+            normal: DVec3::Z,
+            weight: 2.0,
+        },
+        WeightedNormal {
+            normal: DVec3::X,
+            weight: 6.0,
+        },
     ])
     .unwrap();
     let s: f64 = d.normals().iter().map(|n| n.weight).sum();
@@ -99,7 +109,10 @@ fn phong_peak_mean_and_stats_match_quadrature() {
 fn every_sampler_passes_chi_square_against_its_own_pdf() {
     let all = continuous();
     let n = all.len() + 2;
-    for (name, ndf) in all.iter().filter(|(n, _)| !["tabulated", "harmonics"].contains(n)) {
+    for (name, ndf) in all
+        .iter()
+        .filter(|(n, _)| !["tabulated", "harmonics"].contains(n))
+    {
         let test = ChiSquareTest {
             samples: 400_000,
             tests_run: n,
@@ -110,7 +123,10 @@ fn every_sampler_passes_chi_square_against_its_own_pdf() {
     }
     // Piecewise-constant samplers (tabulated, and harmonics through its table) are tested on their
     // own grid, where the cell probabilities are exact: counts per cell by χ².
-    for (name, ndf) in all.iter().filter(|(n, _)| ["tabulated", "harmonics"].contains(n)) {
+    for (name, ndf) in all
+        .iter()
+        .filter(|(n, _)| ["tabulated", "harmonics"].contains(n))
+    {
         let grid = match ndf {
             Ndf::Tabulated(t) => t.grid(),
             Ndf::Harmonics(h) => h.sampling_table().grid(),
@@ -144,7 +160,10 @@ fn every_sampler_passes_chi_square_against_its_own_pdf() {
             dof += 1;
         }
         let pv = meso_testkit::gamma::chi_square_sf(chi2, dof - 1);
-        assert!(pv > 0.001 / n as f64, "{name}: χ² = {chi2}, dof {dof}, p = {pv}");
+        assert!(
+            pv > 0.001 / n as f64,
+            "{name}: χ² = {chi2}, dof {dof}, p = {pv}"
+        );
     }
     // The exact samplers' pdf is the NDF itself.
     for (name, ndf) in &all[..3] {
@@ -171,9 +190,18 @@ fn a_wrong_sampler_is_rejected() {
 #[test]
 fn delta_and_cylinder_samplers_follow_their_weights() {
     let d = DeltaSum::new(vec![
-        WeightedNormal { normal: DVec3::Z, weight: 0.2 },
-        WeightedNormal { normal: DVec3::X, weight: 0.5 },
-        WeightedNormal { normal: DVec3::Y, weight: 0.3 },
+        WeightedNormal {
+            normal: DVec3::Z,
+            weight: 0.2,
+        },
+        WeightedNormal {
+            normal: DVec3::X,
+            weight: 0.5,
+        },
+        WeightedNormal {
+            normal: DVec3::Y,
+            weight: 0.3,
+        },
     ])
     .unwrap();
     let mut rng = meso_testkit::rng(7);
@@ -189,7 +217,10 @@ fn delta_and_cylinder_samplers_follow_their_weights() {
         .zip([0.2, 0.5, 0.3])
         .map(|(&c, p)| (c as f64 - n as f64 * p).powi(2) / (n as f64 * p))
         .sum();
-    assert!(meso_testkit::gamma::chi_square_sf(chi2, 2) > 0.001, "χ² = {chi2}");
+    assert!(
+        meso_testkit::gamma::chi_square_sf(chi2, 2) > 0.001,
+        "χ² = {chi2}"
+    );
     // Cylinder: the angle along the circle is uniform (20-bin χ²) and every sample is ⊥ axis.
     let c = Cylinder::new(spherical_direction_deg(90.0, 30.0), true).unwrap();
     let (e1, e2) = c.circle_basis();
@@ -203,7 +234,10 @@ fn delta_and_cylinder_samplers_follow_their_weights() {
     }
     let e = n as f64 / 20.0;
     let chi2: f64 = bins.iter().map(|&c| (c as f64 - e).powi(2) / e).sum();
-    assert!(meso_testkit::gamma::chi_square_sf(chi2, 19) > 0.001, "χ² = {chi2}");
+    assert!(
+        meso_testkit::gamma::chi_square_sf(chi2, 19) > 0.001,
+        "χ² = {chi2}"
+    );
 }
 
 #[test]
@@ -227,7 +261,11 @@ fn sampling_is_consistent_with_histogram_tabulation() {
     let p = peaks();
     let mut rng = meso_testkit::rng(11);
     let grid = EqualAreaGrid::new(32, 64);
-    let t = Tabulated::from_samples(grid, (0..4_000_000).map(|_| (p.sample(uniform2(&mut rng)), 1.0))).unwrap();
+    let t = Tabulated::from_samples(
+        grid,
+        (0..4_000_000).map(|_| (p.sample(uniform2(&mut rng)), 1.0)),
+    )
+    .unwrap();
     let exact = Tabulated::from_fn(grid, 4, |m| p.eval(m)).unwrap();
     let l1: f64 = t
         .values()

@@ -1,3 +1,4 @@
 //! One module per subcommand.
 pub mod brdf;
 pub mod ndf;
+pub mod ndf_plot;

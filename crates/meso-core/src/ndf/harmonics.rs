@@ -56,8 +56,7 @@ impl Harmonics {
         coeffs.iter_mut().for_each(|c| *c *= scale);
         let cells = (8 * (lmax + 1) * (lmax + 1)).max(2048);
         let grid = EqualAreaGrid::with_cells(cells);
-        let sampler =
-            Tabulated::from_fn(grid, 3, |w| sh_reconstruct(&coeffs, lmax, w).max(0.0))?;
+        let sampler = Tabulated::from_fn(grid, 3, |w| sh_reconstruct(&coeffs, lmax, w).max(0.0))?;
         Ok(Harmonics {
             lmax,
             coeffs,

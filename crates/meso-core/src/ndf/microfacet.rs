@@ -79,7 +79,10 @@ impl Microfacet {
     ///
     /// # Errors
     /// As [`Microfacet::new`].
-    pub fn isotropic(distribution: Distribution, alpha: f64) -> Result<Microfacet, crate::NdfError> {
+    pub fn isotropic(
+        distribution: Distribution,
+        alpha: f64,
+    ) -> Result<Microfacet, crate::NdfError> {
         Microfacet::new(distribution, alpha, alpha)
     }
 
@@ -100,15 +103,17 @@ impl Microfacet {
             let mut s = 0.0;
             for (x, w) in xs.iter().zip(&ws) {
                 let t = 0.5 * (x + 1.0); // [0,1]
-                s += 0.5 * w * match self.distribution {
-                    // r² ~ Exp(1): r² = −ln(1−u); u = 1 − e^{−τ}, τ = t/(1−t)... use τ ∈ [0, 60].
-                    Distribution::Beckmann => {
-                        let tau = 60.0 * t * t;
-                        (-tau).exp() * (1.0 + tau * a2).sqrt() * 120.0 * t
-                    }
-                    // r² = u/(1−u); u = 1 − v²: integrand 2√(v² + (1−v²) a²).
-                    Distribution::Ggx => 2.0 * (t * t + (1.0 - t * t) * a2).sqrt(),
-                };
+                s += 0.5
+                    * w
+                    * match self.distribution {
+                        // r² ~ Exp(1): r² = −ln(1−u); u = 1 − e^{−τ}, τ = t/(1−t)... use τ ∈ [0, 60].
+                        Distribution::Beckmann => {
+                            let tau = 60.0 * t * t;
+                            (-tau).exp() * (1.0 + tau * a2).sqrt() * 120.0 * t
+                        }
+                        // r² = u/(1−u); u = 1 − v²: integrand 2√(v² + (1−v²) a²).
+                        Distribution::Ggx => 2.0 * (t * t + (1.0 - t * t) * a2).sqrt(),
+                    };
             }
             total += s;
         }
@@ -225,7 +230,10 @@ mod tests {
                 let w = crate::frame::spherical_direction_deg(theta_deg, 30.0);
                 let proj = integrate_sphere(|n| m.d(n) * w.dot(n).max(0.0), 1000, 512);
                 let lhs = (1.0 + m.lambda(w)) * w.z;
-                assert!((lhs / proj - 1.0).abs() < 3e-3, "{dist:?} θ={theta_deg}: {lhs} vs {proj}");
+                assert!(
+                    (lhs / proj - 1.0).abs() < 3e-3,
+                    "{dist:?} θ={theta_deg}: {lhs} vs {proj}"
+                );
             }
         }
     }

@@ -176,11 +176,8 @@ mod tests {
         // White furnace: ∫ f cos θo dωo ≤ 1 (energy is lost to single-scattering masking only).
         for theta in [0.0, 40.0, 75.0] {
             let i = spherical_direction_deg(theta, 20.0);
-            let albedo = crate::quadrature::integrate_hemisphere(
-                |o| t.eval(i, o)[0] * o.z,
-                400,
-                256,
-            );
+            let albedo =
+                crate::quadrature::integrate_hemisphere(|o| t.eval(i, o)[0] * o.z, 400, 256);
             assert!(albedo <= 1.0 + 2e-3 && albedo > 0.8, "θ={theta}: {albedo}");
         }
     }
