@@ -84,7 +84,11 @@ fn main() {
         }
     }
     // Triangles vs central differences on a creased map (V-grooves).
-    let vg = &maps[0].1;
+    // Grooves across the triangulation diagonal, so that cells straddle the creases.
+    let vg = &HeightMap::from_fn(128, 128, 0.05, Border::Wrap, |x, y| {
+        0.2 * (2.0 * ((x + y) / 0.75).rem_euclid(1.0) - 1.0).abs()
+    })
+    .unwrap();
     let tri =
         PatchNdf::Facets(FacetNormals::from_heightmap(vg, NormalMode::Triangles).normalized());
     let cd = PatchNdf::Facets(

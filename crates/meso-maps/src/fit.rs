@@ -15,7 +15,8 @@
 //!   K grows from 1; each K starts from a spherical k-means (greedy weighted k-means++ seeds);
 //!   K lobes are kept only if they raise the mean log-likelihood (per unit weight) over K − 1
 //!   lobes by more than `min_gain` nats.
-//!   Footprints with more than `max_em_points` entries are fitted on a strided subset.
+//!   Footprints with more than `max_em_points` entries are fitted on a strided subset; footprints
+//!   with at most 4 entries per lobe use the k-means clusters directly (no EM).
 //!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
@@ -340,7 +341,12 @@ pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>
     let mut ll = em(pts, &mut lobes, ptotal, params.em_iterations.max(3));
     for k in 2..=kmax {
         let mut trial = kmeans_init(pts, k);
-        let ll2 = em(pts, &mut trial, ptotal, params.em_iterations);
+        // Small footprints (≤ 4 entries per lobe): the k-means clusters are used as they are.
+        let ll2 = if pts.len() <= 4 * kmax {
+            loglik(pts, &trial, ptotal).0
+        } else {
+            em(pts, &mut trial, ptotal, params.em_iterations)
+        };
         if ll2 - ll > params.min_gain && trial.len() == k {
             lobes = trial;
             ll = ll2;
