@@ -3,7 +3,7 @@
 //! Cell: 7 rows above the baseline (cap height 7, x-height 5) and 2 descender rows. Letters and
 //! punctuation are proportional (trimmed to their ink, one pixel of spacing); digits are tabular
 //! (all 5 pixels wide) so that tick labels line up. Covers ASCII 32..126 and
-//! `° θ φ · µ σ α π ² ³ × −` (U+2212 minus, the same width as `+`). Unknown characters draw as `?`.
+//! `° θ φ · µ σ α π ² ³ × − – ∈` (U+2212 minus, the same width as `+`). Unknown characters draw as `?`.
 //!
 //! The glyphs are drawn in `font_data.txt` as `#`/`.` rows, one block per character after an
 //! `@` line, so they can be read and fixed by eye.

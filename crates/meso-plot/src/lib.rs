@@ -5,7 +5,7 @@
 //!
 //! * [`Canvas`] — an RGB image (f32 per channel, display-referred sRGB values in `[0, 1]`) with
 //!   anti-aliased lines, polylines, circles, discs, rectangles, scaled blits and PNG output;
-//! * [`font`] — an embedded 5×7 bitmap font (ASCII 32..126 plus `° θ φ µ σ α π · × − ² ³`) with
+//! * [`font`] — an embedded 5×7 bitmap font (ASCII 32..126 plus `° θ φ µ σ α π · × − – ∈ ² ³`) with
 //!   proportional letters, tabular digits and integer scaling;
 //! * [`ColorMap`] — viridis, magma, a diverging blue–white–red and grey, plus [`colorbar`];
 //! * [`LinePlot`] and [`PolarPlot`] — axes with nice ticks, labels, legends, linear/log scales;

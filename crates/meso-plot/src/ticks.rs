@@ -175,7 +175,8 @@ mod tests {
         assert!((t.step - 0.02).abs() < 1e-12, "{t:?}");
         assert!((t.min - 0.0).abs() < 1e-12 && (t.max - 0.1).abs() < 1e-12);
         let t = nice_ticks(1234.0, 1290.0, 5);
-        assert!((t.step - 10.0).abs() < 1e-9 && (t.min - 1230.0).abs() < 1e-9);
+        assert!((t.step - 20.0).abs() < 1e-9 && (t.min - 1220.0).abs() < 1e-9);
+        assert!((t.max - 1300.0).abs() < 1e-9);
         // Degenerate and non-finite ranges still give usable axes.
         let t = nice_ticks(5.0, 5.0, 5);
         assert!(t.min < 5.0 && t.max > 5.0 && t.values.len() >= 2);
