@@ -38,7 +38,8 @@ fn scene(size: u32) -> Scene {
         },
     );
     let m = b.material(Arc::new(seven_lobes()));
-    b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m).expect("valid sphere");
+    b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m)
+        .expect("valid sphere");
     for p in [
         DVec3::new(3.0, 3.0, 4.0),
         DVec3::new(-3.0, 2.0, 4.0),

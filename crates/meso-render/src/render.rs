@@ -21,8 +21,10 @@
 use crate::camera::Ray;
 use crate::geometry::ShadingPoint;
 use crate::image::Image;
+use crate::light::LightSample;
 use crate::sampling::{PixelSampler, MAX_SAMPLES_PER_PIXEL};
 use crate::scene::Scene;
+use crate::shader::Shader;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -136,45 +138,108 @@ fn background(scene: &Scene, d: DVec3) -> DVec3 {
     }
 }
 
+/// The number of light samples handed to [`crate::Shader::eval_many`] at once.
+pub const LIGHT_BATCH: usize = 16;
+
+/// Light samples gathered at one shading point, waiting for BRDF evaluation and shadow rays.
+struct Batch<'a> {
+    scene: &'a Scene,
+    shader: &'a dyn Shader,
+    sp: &'a ShadingPoint,
+    wo_l: DVec3,
+    origin: DVec3,
+    eps: f64,
+    sum: DVec3,
+    n: usize,
+    wi_local: [DVec3; LIGHT_BATCH],
+    wi_world: [DVec3; LIGHT_BATCH],
+    /// `L/pdf · cos θi`.
+    weight: [DVec3; LIGHT_BATCH],
+    dist: [f64; LIGHT_BATCH],
+    f: [[f32; 3]; LIGHT_BATCH],
+}
+
+impl Batch<'_> {
+    /// Queue one light sample (after the geometric-normal and cosine tests).
+    #[inline]
+    fn push(&mut self, ls: LightSample) {
+        if self.sp.geometric_normal.dot(ls.wi) <= 0.0 {
+            return;
+        }
+        let wi_l = self.sp.frame.to_local(ls.wi);
+        if wi_l.z <= 0.0 {
+            return;
+        }
+        let k = self.n;
+        self.wi_local[k] = wi_l;
+        self.wi_world[k] = ls.wi;
+        self.weight[k] = ls.weight * wi_l.z;
+        self.dist[k] = ls.dist;
+        self.n += 1;
+        if self.n == LIGHT_BATCH {
+            self.flush();
+        }
+    }
+
+    /// Evaluate the BRDF for the gathered samples, trace their shadow rays, add to `sum`.
+    #[inline]
+    fn flush(&mut self) {
+        let (scene, sp, origin, eps) = (self.scene, self.sp, self.origin, self.eps);
+        let n = self.n;
+        if n == 0 {
+            return;
+        }
+        self.shader
+            .eval_many(sp, self.wo_l, &self.wi_local[..n], &mut self.f[..n]);
+        for k in 0..n {
+            let f = self.f[k];
+            if f[0] <= 0.0 && f[1] <= 0.0 && f[2] <= 0.0 {
+                continue;
+            }
+            let ray = Ray {
+                o: origin,
+                d: self.wi_world[k],
+            };
+            let d = self.dist[k];
+            let tmax = if d.is_finite() {
+                d * (1.0 - 1e-9) - eps
+            } else {
+                f64::INFINITY
+            };
+            if scene.occluded(&ray, tmax) {
+                continue;
+            }
+            self.sum +=
+                DVec3::new(f64::from(f[0]), f64::from(f[1]), f64::from(f[2])) * self.weight[k];
+        }
+        self.n = 0;
+    }
+}
+
 /// Outgoing radiance at `sp` towards the unit world direction `wo` (one sample per light).
+/// Allocation-free: light samples are gathered in fixed-size batches of [`LIGHT_BATCH`].
 #[inline]
 #[must_use]
 pub fn shade(scene: &Scene, sp: &ShadingPoint, wo: DVec3, sampler: &PixelSampler) -> DVec3 {
     let Some(shader) = scene.shader(sp.material) else {
         return DVec3::ZERO;
     };
-    let wo_l = sp.frame.to_local(wo);
     let p = sp.position;
-    let ng = sp.geometric_normal;
     let eps = 1e-9 * (1.0 + p.abs().max_element());
-    let origin = p + ng * eps;
-    let mut sum = DVec3::ZERO;
-    let mut contribute = |ls: crate::light::LightSample| {
-        if ng.dot(ls.wi) <= 0.0 {
-            return;
-        }
-        let wi_l = sp.frame.to_local(ls.wi);
-        let cos = wi_l.z;
-        if cos <= 0.0 {
-            return;
-        }
-        let f = shader.eval(sp, wi_l, wo_l);
-        if f[0] <= 0.0 && f[1] <= 0.0 && f[2] <= 0.0 {
-            return;
-        }
-        let ray = Ray {
-            o: origin,
-            d: ls.wi,
-        };
-        let tmax = if ls.dist.is_finite() {
-            ls.dist * (1.0 - 1e-9) - eps
-        } else {
-            f64::INFINITY
-        };
-        if scene.occluded(&ray, tmax) {
-            return;
-        }
-        sum += DVec3::new(f64::from(f[0]), f64::from(f[1]), f64::from(f[2])) * ls.weight * cos;
+    let mut batch = Batch {
+        scene,
+        shader,
+        sp,
+        wo_l: sp.frame.to_local(wo),
+        origin: p + sp.geometric_normal * eps,
+        eps,
+        sum: DVec3::ZERO,
+        n: 0,
+        wi_local: [DVec3::ZERO; LIGHT_BATCH],
+        wi_world: [DVec3::ZERO; LIGHT_BATCH],
+        weight: [DVec3::ZERO; LIGHT_BATCH],
+        dist: [0.0; LIGHT_BATCH],
+        f: [[0.0; 3]; LIGHT_BATCH],
     };
     for (k, light) in scene.lights.iter().enumerate() {
         // Point and directional lights need no random numbers: skip the Sobol evaluation.
@@ -184,13 +249,14 @@ pub fn shade(scene: &Scene, sp: &ShadingPoint, wo: DVec3, sampler: &PixelSampler
             sampler.get2(2 + 2 * k as u32)
         };
         if let Some(ls) = light.sample(p, u) {
-            contribute(ls);
+            batch.push(ls);
         }
     }
     if let Some(env) = &scene.environment {
         if let Some(ls) = env.sample(sampler.get2(2 + 2 * scene.lights.len() as u32)) {
-            contribute(ls);
+            batch.push(ls);
         }
     }
-    sum
+    batch.flush();
+    batch.sum
 }

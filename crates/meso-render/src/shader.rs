@@ -19,6 +19,18 @@ pub trait Shader: Send + Sync {
     /// BRDF value (1/sr, no cosine) for local unit directions `wi` (to the light) and `wo`
     /// (to the viewer) at the shading point `sp`.
     fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3];
+
+    /// Evaluate several incident directions at once: `out[k] = eval(sp, wi[k], wo)`
+    /// (`wi.len() == out.len()`, at most [`crate::render::LIGHT_BATCH`]). The renderer calls
+    /// this once per hit and batch of light samples, so a material that must do per-point work
+    /// first (e.g. fetch and blend the lobes of an NDF pyramid at the footprint's level) can do
+    /// it once per point. The default calls [`Shader::eval`] for each direction.
+    #[inline]
+    fn eval_many(&self, sp: &ShadingPoint, wo: DVec3, wi: &[DVec3], out: &mut [[f32; 3]]) {
+        for (o, &w) in out.iter_mut().zip(wi) {
+            *o = self.eval(sp, w, wo);
+        }
+    }
 }
 
 /// A Lambertian (perfectly diffuse) reflector: `f = albedo / π`.
