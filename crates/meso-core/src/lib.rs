@@ -37,6 +37,7 @@ pub mod ndf;
 pub mod pairs;
 pub mod quadrature;
 pub mod sh;
+pub mod shading;
 pub mod transfer;
 
 /// An invalid NDF description.

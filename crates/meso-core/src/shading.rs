@@ -1,0 +1,379 @@
+//! Fast evaluation of a material's effective BRDF for renderers and interactive previews.
+//!
+//! [`FastBrdf::new`] compiles a [`Material`] into the cheapest evaluation that is exact or
+//! documented-approximate for it:
+//!
+//! | material | evaluation | error |
+//! |---|---|---|
+//! | delta sum (multiple surface), Phong (N·H) facets | Eq. 4/11, flat f32 arrays of ≤ 8 lanes per chunk | f32 rounding |
+//! | delta sum, any other facet | Eq. 4, f64 | exact |
+//! | Phong peaks × Phong (N·H) facets, multiple-surface form | vMF closed form ([`crate::convolution::phong_closed_form`]) | a few % (docs/benchmarks.md) |
+//! | mirror facets (either form) | collapses onto `m = H`; Smith `Λ` tabulated once | table interpolation, < 1e-3 |
+//! | anything else | the Eq. 2/8 quadrature at [`Accuracy::fast`] | ~1e-3 |
+//!
+//! The renderer calls it per shading point and light, so nothing here allocates per call.
+
+use crate::convolution::{
+    effective_brdf_with, phong_closed_form, Accuracy, Form, SmithMasking, Visibility,
+};
+use crate::frame::{half_vector, Frame};
+use crate::material::{Material, ShadowingKind};
+use crate::ndf::{Ndf, PhongLobe};
+use crate::transfer::{PhongVariant, Transfer};
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// Lanes of the f32 delta-sum kernel.
+pub const LANES: usize = 8;
+
+/// A chunk of up to [`LANES`] normals of a multiple surface, structure of arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct DeltaChunk {
+    nx: [f32; LANES],
+    ny: [f32; LANES],
+    nz: [f32; LANES],
+    w: [f32; LANES],
+}
+
+/// Smith Λ tabulated over the upper hemisphere in (cos θ, φ), bilinear.
+#[derive(Clone, Debug, PartialEq)]
+struct LambdaTable {
+    n_u: usize,
+    n_phi: usize,
+    values: Vec<f64>,
+}
+
+impl LambdaTable {
+    fn new(m: &SmithMasking<'_>) -> LambdaTable {
+        let (n_u, n_phi) = (48, 32);
+        let mut values = Vec::with_capacity(n_u * n_phi);
+        for a in 0..n_u {
+            // Nodes denser near grazing: u = cos θ = ((a + 0.5)/n_u)^2 …(keeps Λ smooth in u).
+            let u = Self::node_u(a, n_u);
+            for b in 0..n_phi {
+                let phi = 2.0 * PI * b as f64 / n_phi as f64;
+                let s = (1.0 - u * u).max(0.0).sqrt();
+                values.push(m.lambda(DVec3::new(s * phi.cos(), s * phi.sin(), u)));
+            }
+        }
+        LambdaTable { n_u, n_phi, values }
+    }
+
+    fn node_u(a: usize, n: usize) -> f64 {
+        let t = (a as f64 + 0.5) / n as f64;
+        t.sqrt()
+    }
+
+    fn lookup(&self, w: DVec3) -> f64 {
+        if w.z <= 0.0 {
+            return f64::INFINITY;
+        }
+        let t = (w.z * w.z * self.n_u as f64 - 0.5).clamp(0.0, (self.n_u - 1) as f64);
+        let a0 = (t as usize).min(self.n_u - 2);
+        let fa = t - a0 as f64;
+        let mut phi = w.y.atan2(w.x);
+        if phi < 0.0 {
+            phi += 2.0 * PI;
+        }
+        let p = phi / (2.0 * PI) * self.n_phi as f64;
+        let b0 = (p as usize) % self.n_phi;
+        let b1 = (b0 + 1) % self.n_phi;
+        let fb = p - p.floor();
+        let v = |a: usize, b: usize| self.values[a * self.n_phi + b];
+        let l0 = v(a0, b0) * (1.0 - fb) + v(a0, b1) * fb;
+        let l1 = v(a0 + 1, b0) * (1.0 - fb) + v(a0 + 1, b1) * fb;
+        l0 * (1.0 - fa) + l1 * fa
+    }
+}
+
+/// How a [`FastBrdf`] evaluates.
+#[derive(Clone, Debug)]
+enum Kind {
+    DeltaPhong {
+        chunks: Vec<DeltaChunk>,
+        exponent: f32,
+        specular: [f32; 3],
+    },
+    Deltas,
+    PhongClosed {
+        lobes: Vec<PhongLobe>,
+        exponent: f64,
+        specular: [f64; 3],
+    },
+    Mirror {
+        lambda: Option<LambdaTable>,
+        projected_area: f64,
+    },
+    Quadrature,
+}
+
+/// A material compiled for fast repeated evaluation (see the module docs).
+#[derive(Clone, Debug)]
+pub struct FastBrdf {
+    material: Material,
+    kind: Kind,
+    diffuse: [f64; 3],
+}
+
+impl FastBrdf {
+    /// Compile a material.
+    #[must_use]
+    pub fn new(material: &Material) -> FastBrdf {
+        let mut material = material.clone();
+        let kind = match (&material.ndf, &material.transfer, material.form) {
+            (
+                Ndf::Deltas(d),
+                Transfer::Phong {
+                    exponent,
+                    specular,
+                    variant: PhongVariant::Half,
+                },
+                Form::MultipleSurface,
+            ) => {
+                let chunks = d
+                    .normals()
+                    .chunks(LANES)
+                    .map(|c| {
+                        let mut ch = DeltaChunk {
+                            nx: [0.0; LANES],
+                            ny: [0.0; LANES],
+                            nz: [1.0; LANES],
+                            w: [0.0; LANES],
+                        };
+                        for (k, n) in c.iter().enumerate() {
+                            ch.nx[k] = n.normal.x as f32;
+                            ch.ny[k] = n.normal.y as f32;
+                            ch.nz[k] = n.normal.z as f32;
+                            ch.w[k] = n.weight as f32;
+                        }
+                        ch
+                    })
+                    .collect();
+                Kind::DeltaPhong {
+                    chunks,
+                    exponent: *exponent as f32,
+                    specular: specular.map(|s| s as f32),
+                }
+            }
+            (Ndf::Deltas(_), _, _) => Kind::Deltas,
+            (
+                Ndf::PhongPeaks(p),
+                Transfer::Phong {
+                    exponent,
+                    specular,
+                    variant: PhongVariant::Half,
+                },
+                Form::MultipleSurface,
+            ) => Kind::PhongClosed {
+                lobes: p.lobes().to_vec(),
+                exponent: *exponent,
+                specular: *specular,
+            },
+            (ndf, Transfer::Mirror { .. }, form) => {
+                let sm = SmithMasking::new(ndf, Accuracy::default());
+                let lambda = (form == Form::Microfacet
+                    && material.shadowing == ShadowingKind::Smith)
+                    .then(|| LambdaTable::new(&sm));
+                Kind::Mirror {
+                    projected_area: sm.projected_area,
+                    lambda,
+                }
+            }
+            _ => {
+                material.accuracy = Accuracy::fast();
+                Kind::Quadrature
+            }
+        };
+        FastBrdf {
+            diffuse: material.diffuse,
+            material,
+            kind,
+        }
+    }
+
+    /// The material this was compiled from.
+    #[must_use]
+    pub fn material(&self) -> &Material {
+        &self.material
+    }
+
+    /// A short name of the evaluation path (for reports).
+    #[must_use]
+    pub fn path(&self) -> &'static str {
+        match self.kind {
+            Kind::DeltaPhong { .. } => "delta-sum, f32 Phong kernel (Eq. 11)",
+            Kind::Deltas => "delta-sum (Eq. 4)",
+            Kind::PhongClosed { .. } => "Phong peaks, vMF closed form",
+            Kind::Mirror { .. } => "mirror facets, collapsed at H",
+            Kind::Quadrature => "quadrature (fast)",
+        }
+    }
+
+    /// The effective BRDF (RGB, 1/sr, no cosine) for unit local directions; 0 below the surface.
+    #[must_use]
+    pub fn eval(&self, i: DVec3, o: DVec3) -> [f64; 3] {
+        if i.z <= 0.0 || o.z <= 0.0 {
+            return [0.0; 3];
+        }
+        let mut f = match &self.kind {
+            Kind::DeltaPhong {
+                chunks,
+                exponent,
+                specular,
+            } => {
+                let Some(h) = half_vector(i, o) else {
+                    return [0.0; 3];
+                };
+                let (hx, hy, hz) = (h.x as f32, h.y as f32, h.z as f32);
+                let (ix, iy, iz) = (i.x as f32, i.y as f32, i.z as f32);
+                let mut acc = 0.0f32;
+                for c in chunks {
+                    let mut lane = [0.0f32; LANES];
+                    for k in 0..LANES {
+                        let nh = (c.nx[k] * hx + c.ny[k] * hy + c.nz[k] * hz).max(0.0);
+                        let ni = (c.nx[k] * ix + c.ny[k] * iy + c.nz[k] * iz).max(0.0);
+                        lane[k] = c.w[k] * nh.powf(*exponent) * ni;
+                    }
+                    acc += lane.iter().sum::<f32>();
+                }
+                let s = f64::from(acc) / i.z;
+                [
+                    f64::from(specular[0]) * s,
+                    f64::from(specular[1]) * s,
+                    f64::from(specular[2]) * s,
+                ]
+            }
+            Kind::Deltas | Kind::Quadrature => {
+                let m = &self.material;
+                let horizon = m.horizon.clone();
+                let custom = move |a: DVec3, b: DVec3| horizon.as_ref().map_or(1.0, |h| h.g(a, b));
+                let vis = match m.shadowing {
+                    ShadowingKind::Smith => Visibility::Smith,
+                    ShadowingKind::None => Visibility::None,
+                    ShadowingKind::Horizon => Visibility::Custom(&custom),
+                };
+                effective_brdf_with(&m.ndf, &m.transfer, m.form, vis, i, o, m.accuracy)
+            }
+            Kind::PhongClosed {
+                lobes,
+                exponent,
+                specular,
+            } => phong_closed_form(lobes, *exponent, *specular, i, o),
+            Kind::Mirror {
+                lambda,
+                projected_area,
+            } => {
+                let Transfer::Mirror { fresnel } = self.material.transfer else {
+                    unreachable!("Mirror kind is built from mirror transfers only")
+                };
+                let Some(h) = half_vector(i, o) else {
+                    return [0.0; 3];
+                };
+                let n = self.material.ndf.eval(h);
+                let fr = fresnel.eval(i.dot(h));
+                let c = match self.material.form {
+                    Form::MultipleSurface => n / (4.0 * o.dot(h) * i.z),
+                    Form::Microfacet => {
+                        if h.z <= 0.0 {
+                            return [0.0; 3];
+                        }
+                        let g2 = match (lambda, self.material.shadowing) {
+                            (Some(t), _) => 1.0 / (1.0 + t.lookup(i) + t.lookup(o)),
+                            (None, ShadowingKind::Horizon) => {
+                                self.material.horizon.as_ref().map_or(1.0, |hz| hz.g(i, o))
+                            }
+                            (None, _) => 1.0,
+                        };
+                        n / projected_area * g2 / (4.0 * i.z * o.z)
+                    }
+                };
+                [fr[0] * c, fr[1] * c, fr[2] * c]
+            }
+        };
+        for (c, d) in f.iter_mut().zip(self.diffuse) {
+            *c += d / PI;
+        }
+        f
+    }
+
+    /// [`FastBrdf::eval`] in a world frame: `frame` is the surface's local frame.
+    #[must_use]
+    pub fn eval_world(&self, frame: &Frame, i: DVec3, o: DVec3) -> [f64; 3] {
+        self.eval(frame.to_local(i), frame.to_local(o))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::spherical_direction_deg;
+
+    fn check(toml: &str, tol: f64) {
+        let m = Material::from_toml_str(toml).unwrap();
+        let fast = FastBrdf::new(&m);
+        for (a, b, c, d) in [
+            (0.0, 0.0, 0.0, 0.0),
+            (30.0, 0.0, 30.0, 180.0),
+            (45.0, 90.0, 20.0, 250.0),
+            (60.0, 10.0, 50.0, 200.0),
+            (70.0, 300.0, 10.0, 45.0),
+        ] {
+            let (i, o) = (spherical_direction_deg(a, b), spherical_direction_deg(c, d));
+            let exact = m.brdf(i, o);
+            let got = fast.eval(i, o);
+            for k in 0..3 {
+                let err = (got[k] - exact[k]).abs() / exact[k].abs().max(1e-3);
+                assert!(
+                    err < tol,
+                    "{} {k} {a} {b} {c} {d}: {} vs {}",
+                    fast.path(),
+                    got[k],
+                    exact[k]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn fast_paths_agree_with_the_exact_material() {
+        check(
+            r#"
+            [ndf]
+            kind = "deltas"
+            lobes = [ { axis = [0, 0], weight = 1 }, { axis = [30, 0], weight = 2 }, { axis = [25, 200], weight = 1 } ]
+            [transfer]
+            kind = "phong"
+            exponent = 30
+            specular = [1.0, 0.5, 0.2]
+            [diffuse]
+            albedo = [0.2, 0.2, 0.2]
+            "#,
+            1e-5,
+        );
+        check(
+            r#"
+            form = "microfacet"
+            [ndf]
+            kind = "beckmann"
+            alpha_x = 0.3
+            alpha_y = 0.15
+            [transfer]
+            kind = "mirror"
+            fresnel = "dielectric"
+            eta = 1.5
+            "#,
+            1e-2,
+        );
+        check(
+            r#"
+            [ndf]
+            kind = "vmf"
+            kappa = 20
+            [transfer]
+            kind = "lambert"
+            albedo = [0.8, 0.8, 0.8]
+            "#,
+            5e-3,
+        );
+    }
+}
