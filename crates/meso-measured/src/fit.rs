@@ -47,6 +47,13 @@ pub trait BrdfModel: Sync {
     /// (`out.len()` = number of basis lobes). `wi`, `wo` are unit, local frame, upper hemisphere.
     fn basis(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]);
 
+    /// Bounds `(lo, hi)` of each basis amplitude, the same for the three channels; `lo == hi`
+    /// holds the amplitude fixed (e.g. the Fresnel grazing term of a Schlick microfacet model,
+    /// whose amplitude is 1). Default: `[0, ∞)` for every basis lobe.
+    fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
+        vec![(0.0, f64::INFINITY); self.n_basis()]
+    }
+
     /// Number of non-linear parameters.
     fn n_nonlinear(&self) -> usize {
         self.nonlinear_names().len()
@@ -381,10 +388,13 @@ fn nnls_small(m: &[f64], v: &[f64], nb: usize) -> Vec<f64> {
 }
 
 /// Amplitudes for fixed `theta` by non-negative weighted least squares in the cosine-weighted L2
-/// sense (a good start for either metric).
+/// sense (a good start for either metric). Amplitudes held fixed by
+/// [`BrdfModel::amplitude_bounds`] keep their value; the others are solved for and clamped to
+/// their bounds.
 #[must_use]
 pub fn solve_amplitudes(model: &dyn BrdfModel, theta: &[f64], data: &SampleSet) -> Vec<[f64; 3]> {
     let nb = model.n_basis();
+    let ab = model.amplitude_bounds();
     let (m, v) = data
         .samples
         .par_chunks(1024)
@@ -414,8 +424,34 @@ pub fn solve_amplitudes(model: &dyn BrdfModel, theta: &[f64], data: &SampleSet) 
                 (m, v)
             },
         );
+    // Fixed amplitudes move to the right-hand side; NNLS on the free ones.
+    let free: Vec<usize> = (0..nb).filter(|&j| ab[j].0 < ab[j].1).collect();
+    let nf = free.len();
+    let mut mf = vec![0.0; nf * nf];
+    for (p, &x) in free.iter().enumerate() {
+        for (q, &y) in free.iter().enumerate() {
+            mf[p * nf + q] = m[x * nb + y];
+        }
+    }
     let per_c: Vec<Vec<f64>> = (0..3)
-        .map(|c| nnls_small(&m, &v[c * nb..(c + 1) * nb], nb))
+        .map(|c| {
+            let vf: Vec<f64> = free
+                .iter()
+                .map(|&x| {
+                    let fixed: f64 = (0..nb)
+                        .filter(|&j| ab[j].0 >= ab[j].1)
+                        .map(|j| m[x * nb + j] * ab[j].0)
+                        .sum();
+                    v[c * nb + x] - fixed
+                })
+                .collect();
+            let xf = nnls_small(&mf, &vf, nf);
+            let mut out: Vec<f64> = ab.iter().map(|b| b.0).collect();
+            for (p, &x) in free.iter().enumerate() {
+                out[x] = xf[p].clamp(ab[x].0.max(0.0), ab[x].1);
+            }
+            out
+        })
         .collect();
     (0..nb)
         .map(|j| [per_c[0][j], per_c[1][j], per_c[2][j]])
@@ -490,8 +526,14 @@ pub fn fit_from(
     if starts.is_empty() || starts.iter().any(|s| s.len() != nt) {
         return Err(bad("starting points missing or of the wrong length".into()));
     }
+    let ab = model.amplitude_bounds();
+    if ab.len() != nb || ab.iter().any(|(lo, hi)| !(lo <= hi) || *lo < 0.0) {
+        return Err(bad(format!("{} amplitude bounds for {nb} basis lobes", ab.len())));
+    }
     let mut bounds = tb.clone();
-    bounds.extend(std::iter::repeat_n((0.0, f64::INFINITY), 3 * nb));
+    for _ in 0..3 {
+        bounds.extend(ab.iter().copied());
+    }
     let coarse = data.stratified(opts.coarse_samples);
     let pc = Problem {
         model,

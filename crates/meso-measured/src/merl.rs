@@ -289,6 +289,63 @@ impl MerlTable {
         })
     }
 
+    /// Decode a whole MERL file held in memory (header and body), with the checks of
+    /// [`MerlTable::read`]; errors name the file as `(memory)`.
+    pub fn from_bytes(bytes: &[u8]) -> Result<MerlTable, MerlError> {
+        let p = || "(memory)".to_string();
+        let size = bytes.len() as u64;
+        if bytes.len() < 12 {
+            return Err(MerlError::NoHeader { path: p(), size });
+        }
+        let dims = [0, 1, 2].map(|k| {
+            i32::from_le_bytes([
+                bytes[4 * k],
+                bytes[4 * k + 1],
+                bytes[4 * k + 2],
+                bytes[4 * k + 3],
+            ])
+        });
+        if dims != [N_THETA_H as i32, N_THETA_D as i32, N_PHI_D as i32] {
+            return Err(MerlError::BadHeader { path: p(), dims });
+        }
+        if size != MERL_FILE_BYTES {
+            return Err(MerlError::BadSize {
+                path: p(),
+                size,
+                expected: MERL_FILE_BYTES,
+            });
+        }
+        Self::from_le_bytes(&bytes[12..]).map_err(|e| match e {
+            MerlError::NonFinite {
+                channel,
+                ih,
+                id,
+                ip,
+                value,
+                ..
+            } => MerlError::NonFinite {
+                path: p(),
+                channel,
+                ih,
+                id,
+                ip,
+                value,
+            },
+            other => other,
+        })
+    }
+
+    /// Whether `bytes` (the start of a file, at least 12 bytes) begin with the MERL header
+    /// `90, 90, 180` — a cheap format detection.
+    #[must_use]
+    pub fn has_header(bytes: &[u8]) -> bool {
+        bytes.len() >= 12
+            && bytes[..12]
+                .chunks_exact(4)
+                .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .eq([N_THETA_H as i32, N_THETA_D as i32, N_PHI_D as i32])
+    }
+
     /// Decode the three channel blocks (without header) from little-endian `f64` bytes; the
     /// slice must be exactly `3·8·N_CELLS` bytes long (checked by [`MerlTable::read`]).
     fn from_le_bytes(bytes: &[u8]) -> Result<MerlTable, MerlError> {

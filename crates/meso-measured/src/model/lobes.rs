@@ -14,18 +14,19 @@
 //! at the peak), and `(m·H)^η_t ≈ exp(κ_t (m·H − 1))` with `κ_t = η_t` (idem). The product of two
 //! such lobes is one lobe with `v = κ_k N_k + κ_t H`, `κ₃ = |v|`, `μ₃ = v/κ₃`, and
 //! `∫ exp(κ₃ μ₃·m) dω = 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃)`. The smooth cosine `max(0, m·i)` is taken at
-//! the product lobe's axis. Hence
+//! the product lobe's mean `A(κ₃) μ₃` (the axis shrunk by the mean resultant length
+//! `A(κ) = coth κ − 1/κ`). Hence
 //!
 //! ```text
-//! S ≈ Σ_k w_k (η_k+2)/(8π) · 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃ − κ_k − κ_t) · max(0, μ₃·i) / cos θi.
+//! S ≈ Σ_k w_k (η_k+2)/(8π) · 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃ − κ_k − κ_t) · max(0, A(κ₃) μ₃·i) / cos θi.
 //! ```
 //!
-//! The approximation is good for sharp lobes (η_k, η_t ≳ 10) and degrades for broad ones; a fitted
-//! model *is* this closed form, so its parameters describe the closed-form BRDF.
-//!
-//! **Switch point:** meso-core is getting the same closed form
-//! (`meso_core::convolution::…`); when it lands, [`lobe_sum_closed_form`] should call it so that
-//! the fitted materials render exactly as fitted.
+//! This is meso-core's [`meso_core::convolution::phong_closed_form`] — one implementation, so
+//! the fitted closed form and `meso brdf`'s closed form are the same function. The written
+//! material is evaluated by `meso brdf` with the exact quadrature of Eq. 2
+//! ([`meso_core::material::Material::brdf`]); the approximation is good for sharp lobes
+//! (η_k, η_t ≳ 10) and degrades for broad ones, so `meso fit` reports the exact error of the
+//! written file too.
 //!
 //! # Parameters (non-linear θ, per lobe k, then shared)
 //! * `ax_k, ay_k`: the lobe axis as the point `(ax, ay, 1)` of the tangent plane at the normal
@@ -66,34 +67,7 @@ pub fn lobe_sum_closed_form(
     wi: DVec3,
     wo: DVec3,
 ) -> f64 {
-    let ci = wi.z;
-    if ci <= 0.0 || wo.z <= 0.0 {
-        return 0.0;
-    }
-    let Some(h) = meso_core::frame::half_vector(wi, wo) else {
-        return 0.0;
-    };
-    let kt = transfer_exponent;
-    let mut s = 0.0;
-    for l in lobes {
-        let kk = 0.25 * l.exponent;
-        let v = kk * l.axis + kt * h;
-        let k3 = v.length();
-        let (integral, c) = if k3 < 1e-9 {
-            // Both lobes flat: ∫ dω = 4π, cosine at … any axis; use the normal.
-            (4.0 * PI * (-(kk + kt)).exp(), wi.z)
-        } else {
-            let mu = v / k3;
-            (
-                2.0 * PI * (-(-2.0 * k3).exp_m1()) / k3 * (k3 - kk - kt).exp(),
-                mu.dot(wi),
-            )
-        };
-        if c > 0.0 {
-            s += l.weight * PhongLobe::normalization(l.exponent) * integral * c;
-        }
-    }
-    s / ci
+    meso_core::convolution::phong_closed_form(lobes, transfer_exponent, [1.0; 3], wi, wo)[0]
 }
 
 /// Whether the transfer exponent η_t is fitted or fixed.
@@ -279,6 +253,11 @@ impl BrdfModel for LobeModel {
 
     fn basis_names(&self) -> Vec<String> {
         vec!["diffuse".into(), "specular".into()]
+    }
+
+    fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
+        // The material format's ranges: albedo in [0, 1], specular in [0, 1e6].
+        vec![(0.0, 1.0), (0.0, 1e6)]
     }
 
     fn bounds(&self) -> Vec<(f64, f64)> {
