@@ -119,20 +119,8 @@ impl LobeParams {
         for l in comment.lines() {
             let _ = writeln!(s, "# {l}");
         }
-        s.push_str("[ndf]\nkind = \"phong-peaks\"\nlobes = [\n");
-        for l in &self.lobes {
-            let (t, p) = spherical_angles(l.axis);
-            let (t, mut p) = (rad_to_deg(t), rad_to_deg(p));
-            if t < 1e-9 {
-                p = 0.0;
-            }
-            let _ = writeln!(
-                s,
-                "  {{ axis = [{:?}, {:?}], weight = {:?}, exponent = {:?} }},",
-                t, p, l.weight, l.exponent
-            );
-        }
-        s.push_str("]\n\n[transfer]\nkind = \"phong\"\n");
+        s.push_str(&ndf_toml(&self.lobes));
+        s.push_str("\n[transfer]\nkind = \"phong\"\n");
         let _ = writeln!(s, "exponent = {:?}", self.transfer_exponent);
         let _ = writeln!(
             s,
@@ -146,6 +134,60 @@ impl LobeParams {
         );
         s
     }
+}
+
+/// Decode the first `k` lobes of `θ` (per lobe `ax, ay, ln η`, then `k − 1` logits) into `out`,
+/// weights normalised by a softmax.
+pub(crate) fn decode_lobes(k: usize, theta: &[f64], out: &mut [PhongLobe; MAX_LOBES]) {
+    let logit = |j: usize| if j == 0 { 0.0 } else { theta[3 * k + j - 1] };
+    let mx = (0..k).map(logit).fold(f64::NEG_INFINITY, f64::max);
+    let mut total = 0.0;
+    for (j, l) in out.iter_mut().enumerate().take(k) {
+        let w = (logit(j) - mx).exp();
+        total += w;
+        *l = PhongLobe {
+            axis: DVec3::new(theta[3 * j], theta[3 * j + 1], 1.0).normalize(),
+            weight: w,
+            exponent: theta[3 * j + 2].exp(),
+        };
+    }
+    for l in out.iter_mut().take(k) {
+        l.weight /= total;
+    }
+}
+
+/// `θ` entries of lobes (inverse of [`decode_lobes`], axes in the upper hemisphere).
+pub(crate) fn encode_lobes(lobes: &[PhongLobe]) -> Vec<f64> {
+    let mut t = Vec::with_capacity(4 * lobes.len());
+    for l in lobes {
+        let a = l.axis / l.axis.z.max(1e-9);
+        t.extend([a.x, a.y, l.exponent.max(1e-300).ln()]);
+    }
+    let w0 = lobes[0].weight.max(1e-300);
+    for l in &lobes[1..] {
+        t.push((l.weight.max(1e-300) / w0).ln());
+    }
+    t
+}
+
+/// The `[ndf]` table of Phong peaks (axes as `[theta_deg, phi_deg]`).
+pub(crate) fn ndf_toml(lobes: &[PhongLobe]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from("[ndf]\nkind = \"phong-peaks\"\nlobes = [\n");
+    for l in lobes {
+        let (t, p) = spherical_angles(l.axis);
+        let (t, mut p) = (rad_to_deg(t), rad_to_deg(p));
+        if t < 1e-9 {
+            p = 0.0;
+        }
+        let _ = writeln!(
+            s,
+            "  {{ axis = [{:?}, {:?}], weight = {:?}, exponent = {:?} }},",
+            t, p, l.weight, l.exponent
+        );
+    }
+    s.push_str("]\n");
+    s
 }
 
 impl LobeModel {
@@ -168,24 +210,9 @@ impl LobeModel {
     }
 
     fn decode(&self, theta: &[f64], out: &mut [PhongLobe; MAX_LOBES]) -> f64 {
-        let k = self.k;
-        let logit = |j: usize| if j == 0 { 0.0 } else { theta[3 * k + j - 1] };
-        let mx = (0..k).map(logit).fold(f64::NEG_INFINITY, f64::max);
-        let mut total = 0.0;
-        for (j, l) in out.iter_mut().enumerate().take(k) {
-            let w = (logit(j) - mx).exp();
-            total += w;
-            *l = PhongLobe {
-                axis: DVec3::new(theta[3 * j], theta[3 * j + 1], 1.0).normalize(),
-                weight: w,
-                exponent: theta[3 * j + 2].exp(),
-            };
-        }
-        for l in out.iter_mut().take(k) {
-            l.weight /= total;
-        }
+        decode_lobes(self.k, theta, out);
         match self.transfer {
-            TransferExponent::Free => theta[4 * k - 1].exp(),
+            TransferExponent::Free => theta[4 * self.k - 1].exp(),
             TransferExponent::Fixed(e) => e,
         }
     }
@@ -213,15 +240,7 @@ impl LobeModel {
     /// values are not clamped to the bounds). `p.lobes.len()` must equal `k`.
     #[must_use]
     pub fn theta_of(&self, p: &LobeParams) -> Vec<f64> {
-        let mut t = Vec::with_capacity(4 * self.k);
-        for l in &p.lobes {
-            let a = l.axis / l.axis.z.max(1e-9);
-            t.extend([a.x, a.y, l.exponent.max(1e-300).ln()]);
-        }
-        let w0 = p.lobes[0].weight.max(1e-300);
-        for l in &p.lobes[1..] {
-            t.push((l.weight.max(1e-300) / w0).ln());
-        }
+        let mut t = encode_lobes(&p.lobes);
         if self.transfer == TransferExponent::Free {
             t.push(p.transfer_exponent.ln());
         }
@@ -348,13 +367,17 @@ impl BrdfModel for LobeModel {
 /// Half vectors of the samples where the data most exceed the current model (log residual,
 /// channels averaged), at least 5° apart: seeds for new lobe axes. `current` is `None` for an
 /// empty model.
-fn peak_seeds(data: &SampleSet, current: Option<(&LobeModel, &FitResult)>, n: usize) -> Vec<DVec3> {
+pub(crate) fn peak_seeds(
+    data: &SampleSet,
+    current: Option<(&dyn BrdfModel, &FitResult)>,
+    n: usize,
+) -> Vec<DVec3> {
     let mut scored: Vec<(f64, DVec3)> = data
         .samples
         .iter()
         .filter_map(|s| {
             let f = match current {
-                Some((m, r)) => eval_model(m, &r.theta, &r.amps, s.wi, s.wo, &mut [0.0; 2]),
+                Some((m, r)) => eval_model(m, &r.theta, &r.amps, s.wi, s.wo, &mut [0.0; 8]),
                 None => [0.0; 3],
             };
             let ci = s.wi.z;
@@ -400,7 +423,7 @@ pub fn fit_lobes_progressive(
         let m = LobeModel { k: j, transfer };
         let mut starts = m.initial_guesses();
         let prev = out.last().map(|(pm, r)| (pm, r));
-        for h in peak_seeds(data, prev, 3) {
+        for h in peak_seeds(data, prev.map(|(pm, r)| (pm as &dyn BrdfModel, r)), 3) {
             for e in [10.0, 100.0, 1000.0, 10000.0] {
                 let p = match prev {
                     Some((pm, r)) => {

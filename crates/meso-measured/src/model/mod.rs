@@ -1,8 +1,14 @@
-//! Fittable BRDF models: the paper's lobe sums ([`lobes`]) and the baselines ([`baselines`]).
+//! Fittable BRDF models: the paper's lobe sums with the Phong transfer ([`lobes`]) and with the
+//! microfacet transfer ([`lobes_microfacet`]), and the baselines ([`baselines`]).
 pub mod baselines;
 pub mod lobes;
+pub mod lobes_microfacet;
 
 pub use baselines::{AshikhminShirley, BlinnPhong, Lafortune, Microfacet, MicrofacetKind};
+pub use lobes_microfacet::{
+    fit_microfacet_lobes_progressive, microfacet_lobes_fast, LobeMicrofacetModel,
+    LobeMicrofacetParams,
+};
 pub use lobes::{
     fit_lobes_progressive, lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent,
 };
