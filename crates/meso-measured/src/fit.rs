@@ -103,15 +103,27 @@ pub fn evaluate(
     amps: &[[f64; 3]],
     data: &SampleSet,
 ) -> FitErrors {
-    let nb = amps.len();
+    evaluate_fn(data, |wi, wo| {
+        let mut scratch = [0.0; 16];
+        if amps.len() <= 16 {
+            eval_model(model, theta, amps, wi, wo, &mut scratch)
+        } else {
+            eval_model(model, theta, amps, wi, wo, &mut vec![0.0; amps.len()])
+        }
+    })
+}
+
+/// Score any BRDF `f(wi, wo) → [r, g, b]` (1/sr) on `data` in both metrics (weighted RMS per
+/// channel); `f` is evaluated once per sample, in parallel.
+#[must_use]
+pub fn evaluate_fn(data: &SampleSet, f: impl Fn(DVec3, DVec3) -> [f64; 3] + Sync) -> FitErrors {
     let sums = data
         .samples
-        .par_chunks(2048)
+        .par_chunks(256)
         .map(|chunk| {
-            let mut scratch = vec![0.0; nb];
             let mut acc = [0.0f64; 7];
             for s in chunk {
-                let f = eval_model(model, theta, amps, s.wi, s.wo, &mut scratch);
+                let f = f(s.wi, s.wo);
                 let ci = s.wi.z;
                 for (c, (&fc, &dc)) in f.iter().zip(&s.rgb).enumerate() {
                     let a = Metric::NganL2.residual(fc, dc, ci);

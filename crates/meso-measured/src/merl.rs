@@ -223,6 +223,51 @@ fn flat(ih: usize, id: usize, ip: usize) -> usize {
     (ih * N_THETA_D + id) * N_PHI_D + ip
 }
 
+/// Decode stored MERL values (little-endian `f64`, 8 bytes each, a trailing partial value is
+/// ignored) whose first one has the flat index `first` in the body (channel-major, `channel ·
+/// N_CELLS + (ih·90 + id)·180 + ip`), appending BRDF values in 1/sr (scaled by the channel's
+/// scale; negative stored values become −1, "not measured") to `out`. The body of a table is
+/// `first = 0` and `3·N_CELLS` values. Indices past the body are errors.
+///
+/// # Errors
+/// [`MerlError::NonFinite`] (with an empty path) naming the channel and cell of the first NaN or
+/// infinite value; [`MerlError::BadSize`] if the values run past the body.
+pub fn decode_values(bytes: &[u8], first: usize, out: &mut Vec<f64>) -> Result<(), MerlError> {
+    let n = bytes.len() / 8;
+    if first.checked_add(n).is_none_or(|end| end > 3 * N_CELLS) {
+        return Err(MerlError::BadSize {
+            path: String::new(),
+            size: 12 + 8 * (first as u64).saturating_add(n as u64),
+            expected: MERL_FILE_BYTES,
+        });
+    }
+    out.reserve(n);
+    for (j, chunk) in bytes.chunks_exact(8).enumerate() {
+        let k = first + j;
+        let mut b = [0u8; 8];
+        b.copy_from_slice(chunk);
+        let v = f64::from_le_bytes(b);
+        let channel = k / N_CELLS;
+        if !v.is_finite() {
+            let c = k % N_CELLS;
+            return Err(MerlError::NonFinite {
+                path: String::new(),
+                channel,
+                ih: c / (N_THETA_D * N_PHI_D),
+                id: (c / N_PHI_D) % N_THETA_D,
+                ip: c % N_PHI_D,
+                value: v,
+            });
+        }
+        out.push(if v < 0.0 {
+            -1.0
+        } else {
+            v * MERL_SCALES[channel]
+        });
+    }
+    Ok(())
+}
+
 impl MerlTable {
     /// Read a MERL binary. The header and the file size are checked before any allocation; NaN
     /// or infinite samples are errors; negative samples are kept as "not measured".
@@ -351,28 +396,7 @@ impl MerlTable {
     fn from_le_bytes(bytes: &[u8]) -> Result<MerlTable, MerlError> {
         debug_assert_eq!(bytes.len(), 3 * N_CELLS * 8);
         let mut data = Vec::with_capacity(3 * N_CELLS);
-        for (k, chunk) in bytes.chunks_exact(8).enumerate() {
-            let mut b = [0u8; 8];
-            b.copy_from_slice(chunk);
-            let v = f64::from_le_bytes(b);
-            let channel = k / N_CELLS;
-            if !v.is_finite() {
-                let c = k % N_CELLS;
-                return Err(MerlError::NonFinite {
-                    path: String::new(),
-                    channel,
-                    ih: c / (N_THETA_D * N_PHI_D),
-                    id: (c / N_PHI_D) % N_THETA_D,
-                    ip: c % N_PHI_D,
-                    value: v,
-                });
-            }
-            data.push(if v < 0.0 {
-                -1.0
-            } else {
-                v * MERL_SCALES[channel]
-            });
-        }
+        decode_values(bytes, 0, &mut data)?;
         Ok(MerlTable { data })
     }
 

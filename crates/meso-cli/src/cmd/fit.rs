@@ -1,0 +1,771 @@
+//! `meso fit DATA --lobes K [--metric ngan|log] [--transfer phong|microfacet]
+//! [--per-channel-lobes] [--baselines] [--plot DIR] --out MATERIAL.toml` — fit a measured BRDF with
+//! a sum of Phong peaks (Fournier 1992, §3.3) and write it as a meso material.
+
+use anyhow::{bail, Context, Result};
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use meso_core::material::Material;
+use meso_measured::fit::{self, FitErrors, FitOptions, FitResult};
+use meso_measured::merl::{MerlTable, MERL_FILE_BYTES};
+use meso_measured::metric::Metric;
+use meso_measured::model::{self, LobeMicrofacetParams, LobeParams, TransferExponent};
+use meso_measured::samples::{MerlSampling, SampleSet};
+use meso_plot::{Canvas, LineStyle, PolarPlot, PolarSeries, Sheet};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Number of data cells on which the written material is evaluated exactly.
+const EXACT_CELLS: usize = 500;
+
+/// The metric minimised.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum MetricArg {
+    /// Cosine-weighted L2 of Ngan, Durand & Matusik 2005.
+    Ngan,
+    /// Log metric of Löw et al. 2012, `ln(1 + f cos θi)`.
+    Log,
+}
+
+/// The facet transfer function of the lobe model.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransferArg {
+    /// Phong facets `max(0, m·H)^η_t`, multiple-surface form (Eq. 2, 10).
+    Phong,
+    /// Mirror facets with Schlick Fresnel and Smith masking–shadowing, microfacet form.
+    Microfacet,
+}
+
+/// Fit a measured BRDF with K Phong peaks and write a meso material.
+///
+/// DATA is a MERL binary (detected by its header or size) or a CSV of samples with the header
+/// `theta_i,phi_i,theta_o,phi_o,r,g,b` (degrees, BRDF in 1/sr). The report (stdout) gives the
+/// lobes, the per-channel errors in both metrics of the fitted closed form and of the written
+/// material evaluated exactly (meso-core quadrature) on a subsample, the time and iterations.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Measured data: MERL binary or sample CSV.
+    pub data: PathBuf,
+    /// Number of Phong peaks (1–6).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=6))]
+    pub lobes: u32,
+    /// Metric minimised.
+    #[arg(long, value_enum, default_value = "log")]
+    pub metric: MetricArg,
+    /// Facet transfer function.
+    #[arg(long, value_enum, default_value = "phong")]
+    pub transfer: TransferArg,
+    /// Fit each channel with its own lobes: writes OUT's stem + `.red.toml`, `.green.toml`,
+    /// `.blue.toml` (channel c of the BRDF is channel c of file c; the files are grey).
+    #[arg(long)]
+    pub per_channel_lobes: bool,
+    /// Also fit every baseline model by the same machinery and print the table.
+    #[arg(long)]
+    pub baselines: bool,
+    /// Write polar slices and rendered spheres (data against model) as PNGs into this directory.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Number of MERL cells fitted (stratified subsample; 0 = all valid cells).
+    #[arg(long, default_value_t = 30_000)]
+    pub samples: usize,
+    /// Output material file (TOML).
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+/// The loaded data.
+struct Data {
+    samples: SampleSet,
+    merl: Option<MerlTable>,
+    description: String,
+}
+
+fn load(path: &Path, target: usize) -> Result<Data> {
+    let meta =
+        std::fs::metadata(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut head = [0u8; 12];
+    let n = {
+        use std::io::Read;
+        let mut f =
+            std::fs::File::open(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        let mut n = 0;
+        while n < 12 {
+            let k = f
+                .read(&mut head[n..])
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            if k == 0 {
+                break;
+            }
+            n += k;
+        }
+        n
+    };
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let is_merl = MerlTable::has_header(&head[..n])
+        || meta.len() == MERL_FILE_BYTES
+        || ext.eq_ignore_ascii_case("binary");
+    if is_merl {
+        let table = MerlTable::read(path)?;
+        let (samples, stats) = SampleSet::from_merl(
+            &table,
+            &MerlSampling {
+                target,
+                ..MerlSampling::default()
+            },
+        );
+        if samples.is_empty() {
+            bail!(
+                "{}: no measured cells with θi, θo < 80° (of {} cells, {} missing)",
+                path.display(),
+                stats.total,
+                stats.missing
+            );
+        }
+        return Ok(Data {
+            samples,
+            merl: Some(table),
+            description: format!(
+                "MERL binary, {} of {} valid cells (θi, θo < 80°; {} cells not measured)",
+                stats.kept, stats.valid, stats.missing
+            ),
+        });
+    }
+    if meta.len() > 1 << 30 {
+        bail!("{}: {} bytes is too large for a sample CSV", path.display(), meta.len());
+    }
+    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let Ok(text) = String::from_utf8(bytes) else {
+        bail!(
+            "{}: neither a MERL binary (header 90, 90, 180) nor a UTF-8 sample CSV",
+            path.display()
+        );
+    };
+    let rows = meso_measured::csv::parse_csv(&text)
+        .with_context(|| format!("{}: not a valid sample CSV", path.display()))?;
+    let samples = SampleSet::from_csv(&rows);
+    let usable = samples
+        .samples
+        .iter()
+        .filter(|s| s.wi.z > 1e-9 && s.wo.z > 1e-9)
+        .count();
+    if usable == 0 {
+        bail!("{}: no sample has both directions above the horizon", path.display());
+    }
+    let samples = SampleSet {
+        samples: samples
+            .samples
+            .into_iter()
+            .filter(|s| s.wi.z > 1e-9 && s.wo.z > 1e-9)
+            .collect(),
+    };
+    Ok(Data {
+        description: format!("sample CSV, {} samples above the horizon", samples.len()),
+        samples,
+        merl: None,
+    })
+}
+
+/// A fitted lobe material (either transfer).
+#[derive(Clone, Debug)]
+enum Lobes {
+    Phong(LobeParams),
+    Microfacet(LobeMicrofacetParams),
+}
+
+impl Lobes {
+    fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
+        match self {
+            Lobes::Phong(p) => p.eval(wi, wo),
+            Lobes::Microfacet(p) => p.eval(wi, wo),
+        }
+    }
+    fn lobes(&self) -> &[meso_core::ndf::PhongLobe] {
+        match self {
+            Lobes::Phong(p) => &p.lobes,
+            Lobes::Microfacet(p) => &p.lobes,
+        }
+    }
+    fn to_toml(&self, comment: &str) -> String {
+        match self {
+            Lobes::Phong(p) => p.to_material_toml(comment),
+            Lobes::Microfacet(p) => p.to_material_toml(comment),
+        }
+    }
+    fn describe(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "  lobe  theta(deg)  phi(deg)    weight    exponent");
+        for (j, l) in self.lobes().iter().enumerate() {
+            let (t, p) = meso_core::frame::spherical_angles(l.axis);
+            let (t, p) = (t.to_degrees(), if t < 1e-9 { 0.0 } else { p.to_degrees() });
+            let _ = writeln!(
+                s,
+                "  {:>4}  {:>10.3}  {:>8.2}  {:>8.4}  {:>10.2}",
+                j + 1,
+                t,
+                p,
+                l.weight,
+                l.exponent
+            );
+        }
+        match self {
+            Lobes::Phong(p) => {
+                let _ = writeln!(
+                    s,
+                    "  transfer phong: exponent {:.3}, specular [{:.4}, {:.4}, {:.4}]",
+                    p.transfer_exponent, p.specular[0], p.specular[1], p.specular[2]
+                );
+                let _ = write!(
+                    s,
+                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
+                    p.albedo[0], p.albedo[1], p.albedo[2]
+                );
+            }
+            Lobes::Microfacet(p) => {
+                let _ = writeln!(
+                    s,
+                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], Smith masking-shadowing",
+                    p.f0[0], p.f0[1], p.f0[2]
+                );
+                let _ = write!(
+                    s,
+                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
+                    p.albedo[0], p.albedo[1], p.albedo[2]
+                );
+            }
+        }
+        s
+    }
+}
+
+/// Fit K = 1..k lobe sums progressively; every size with its result.
+fn fit_lobes(
+    k: usize,
+    transfer: TransferArg,
+    data: &SampleSet,
+    opts: &FitOptions,
+) -> Result<Vec<(Lobes, FitResult)>> {
+    Ok(match transfer {
+        TransferArg::Phong => {
+            model::fit_lobes_progressive(k, TransferExponent::Free, data, opts)?
+                .into_iter()
+                .map(|(m, r)| (Lobes::Phong(m.params(&r)), r))
+                .collect()
+        }
+        TransferArg::Microfacet => model::fit_microfacet_lobes_progressive(k, data, opts)?
+            .into_iter()
+            .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
+            .collect(),
+    })
+}
+
+fn fmt3(v: [f64; 3], prec: usize) -> String {
+    format!("{:.p$} {:.p$} {:.p$}", v[0], v[1], v[2], p = prec)
+}
+
+fn error_row(label: &str, e: &FitErrors) -> String {
+    format!(
+        "  {:<34} {:<26} {}",
+        label,
+        fmt3(e.ngan_l2, 5),
+        fmt3(e.low_log, 5)
+    )
+}
+
+fn bar(len: u64) -> ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let b = ProgressBar::new(len);
+    b.set_style(
+        ProgressStyle::with_template("     fit [{bar:30}] {pos}/{len} {msg} ({elapsed})")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    b.enable_steady_tick(std::time::Duration::from_millis(200));
+    b
+}
+
+/// The output paths: one file, or three per-channel files.
+fn out_paths(out: &Path, per_channel: bool) -> Vec<PathBuf> {
+    if !per_channel {
+        return vec![out.to_path_buf()];
+    }
+    let stem = out.file_stem().and_then(|s| s.to_str()).unwrap_or("material");
+    ["red", "green", "blue"]
+        .iter()
+        .map(|c| out.with_file_name(format!("{stem}.{c}.toml")))
+        .collect()
+}
+
+/// Run the command.
+pub fn run(a: Args) -> Result<()> {
+    let t0 = Instant::now();
+    let k = a.lobes as usize;
+    let data = load(&a.data, a.samples)?;
+    let metric = match a.metric {
+        MetricArg::Ngan => Metric::NganL2,
+        MetricArg::Log => Metric::LowLog,
+    };
+    let opts = FitOptions {
+        metric,
+        ..FitOptions::default()
+    };
+    let baselines = if a.baselines {
+        model::baselines()
+    } else {
+        Vec::new()
+    };
+    let fits_per_pass = if a.per_channel_lobes { 3 } else { 1 };
+    let progress = bar((fits_per_pass + baselines.len() + 1) as u64);
+
+    // The lobe fits: shared geometry, or one mono fit per channel.
+    let mut channel_fits: Vec<Vec<(Lobes, FitResult)>> = Vec::new();
+    if a.per_channel_lobes {
+        for (c, name) in ["red", "green", "blue"].iter().enumerate() {
+            progress.set_message(format!("lobes, {name} channel"));
+            let mono = SampleSet {
+                samples: data
+                    .samples
+                    .samples
+                    .iter()
+                    .map(|s| meso_measured::samples::Sample {
+                        rgb: [s.rgb[c]; 3],
+                        ..*s
+                    })
+                    .collect(),
+            };
+            channel_fits.push(fit_lobes(k, a.transfer, &mono, &opts)?);
+            progress.inc(1);
+        }
+    } else {
+        progress.set_message(format!("{k} lobe(s), {:?} transfer", a.transfer));
+        channel_fits.push(fit_lobes(k, a.transfer, &data.samples, &opts)?);
+        progress.inc(1);
+    }
+    let finals: Vec<(Lobes, FitResult)> = channel_fits
+        .iter()
+        .map(|v| v.last().expect("at least one lobe fit").clone())
+        .collect();
+    let pick = |wi: DVec3, wo: DVec3, f: &dyn Fn(usize, DVec3, DVec3) -> [f64; 3]| -> [f64; 3] {
+        if finals.len() == 1 {
+            f(0, wi, wo)
+        } else {
+            [0, 1, 2].map(|c| f(c, wi, wo)[c])
+        }
+    };
+    let model_eval = |wi: DVec3, wo: DVec3| pick(wi, wo, &|j, wi, wo| finals[j].0.eval(wi, wo));
+    let fitted_errors = fit::evaluate_fn(&data.samples, model_eval);
+
+    // The written material(s), parsed back by meso-core before anything is written.
+    let paths = out_paths(&a.out, a.per_channel_lobes);
+    let mut texts = Vec::new();
+    let mut materials = Vec::new();
+    for (j, (lobes, r)) in finals.iter().enumerate() {
+        let mut comment = format!(
+            "meso fit {} --lobes {k} --metric {} --transfer {:?}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
+            a.data.display(),
+            metric.name(),
+            a.transfer,
+            if a.per_channel_lobes { " --per-channel-lobes" } else { "" },
+            r.model,
+            data.description,
+            r.seconds,
+            r.iterations
+        );
+        if a.per_channel_lobes {
+            let _ = writeln!(
+                comment,
+                "per-channel lobes: this file is the {} channel of the fit (grey material)",
+                ["red", "green", "blue"][j]
+            );
+        }
+        let _ = writeln!(
+            comment,
+            "errors of the fitted closed form: ngan-l2 [{}], low-log [{}]",
+            fmt3(r.errors.ngan_l2, 5),
+            fmt3(r.errors.low_log, 5)
+        );
+        let lobes = match (lobes, a.per_channel_lobes) {
+            (Lobes::Phong(p), true) => Lobes::Phong(LobeParams {
+                specular: [p.specular[j]; 3],
+                albedo: [p.albedo[j]; 3],
+                ..p.clone()
+            }),
+            (Lobes::Microfacet(p), true) => Lobes::Microfacet(LobeMicrofacetParams {
+                f0: [p.f0[j]; 3],
+                albedo: [p.albedo[j]; 3],
+                ..p.clone()
+            }),
+            (l, false) => l.clone(),
+        };
+        let text = lobes.to_toml(&comment);
+        let material = Material::from_toml_str(&text).map_err(|e| {
+            anyhow::anyhow!("internal error: the fitted material does not parse: {}", e.0)
+        })?;
+        texts.push(text);
+        materials.push(material);
+    }
+
+    // The written material evaluated exactly on a subsample, next to the closed form there.
+    progress.set_message("exact evaluation of the written material");
+    let sub = data.samples.stratified(EXACT_CELLS);
+    let exact_values: Vec<[f64; 3]> = sub
+        .samples
+        .par_iter()
+        .map(|s| {
+            if materials.len() == 1 {
+                materials[0].brdf(s.wi, s.wo)
+            } else {
+                [0, 1, 2].map(|c| materials[c].brdf(s.wi, s.wo)[c])
+            }
+        })
+        .collect();
+    let lookup: std::collections::HashMap<[u64; 6], [f64; 3]> = sub
+        .samples
+        .iter()
+        .zip(&exact_values)
+        .map(|(s, v)| (key(s.wi, s.wo), *v))
+        .collect();
+    let exact_errors = fit::evaluate_fn(&sub, |wi, wo| lookup[&key(wi, wo)]);
+    let sub_fitted_errors = fit::evaluate_fn(&sub, model_eval);
+    let rel_diff = {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (s, e) in sub.samples.iter().zip(&exact_values) {
+            let m = model_eval(s.wi, s.wo);
+            for c in 0..3 {
+                num += s.weight * ((e[c] - m[c]) * s.wi.z).powi(2);
+                den += s.weight * (m[c] * s.wi.z).powi(2);
+            }
+        }
+        (num / den.max(1e-300)).sqrt()
+    };
+    progress.inc(1);
+
+    // Baselines.
+    let mut baseline_rows = Vec::new();
+    for b in &baselines {
+        progress.set_message(format!("baseline {}", b.name()));
+        let r = fit::fit(b.as_ref(), &data.samples, &opts)?;
+        baseline_rows.push(r);
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+
+    // Write the material(s) only once everything succeeded.
+    for (p, t) in paths.iter().zip(&texts) {
+        meso_core::io::write_atomic(p, t.as_bytes())
+            .with_context(|| format!("{}: cannot write", p.display()))?;
+    }
+
+    // Report.
+    let mut rep = String::new();
+    let _ = writeln!(rep, "data: {} — {}", a.data.display(), data.description);
+    let _ = writeln!(
+        rep,
+        "metric minimised: {}; transfer: {:?}; lobes: {k}{}",
+        metric.name(),
+        a.transfer,
+        if a.per_channel_lobes { " per channel" } else { " shared by r, g, b" }
+    );
+    for (j, (lobes, r)) in finals.iter().enumerate() {
+        if a.per_channel_lobes {
+            let _ = writeln!(rep, "\n{} channel:", ["red", "green", "blue"][j]);
+        } else {
+            let _ = writeln!(rep);
+        }
+        let _ = writeln!(
+            rep,
+            "{}: {:.2} s, {} LM iterations, {} starts (all sizes 1..{k}: {:.2} s)",
+            r.model,
+            r.seconds,
+            r.iterations,
+            r.starts,
+            channel_fits[j].iter().map(|(_, r)| r.seconds).sum::<f64>()
+        );
+        let _ = writeln!(rep, "{}", lobes.describe());
+    }
+    let _ = writeln!(
+        rep,
+        "\nerrors per channel (r g b)           {:<26} {}",
+        "ngan-l2 (1/sr)", "low-log"
+    );
+    let _ = writeln!(
+        rep,
+        "{}",
+        error_row(
+            &format!("fitted closed form ({} samples)", data.samples.len()),
+            &fitted_errors
+        )
+    );
+    let _ = writeln!(
+        rep,
+        "{}",
+        error_row(
+            &format!("fitted closed form ({} samples)", sub.len()),
+            &sub_fitted_errors
+        )
+    );
+    let _ = writeln!(
+        rep,
+        "{}",
+        error_row(
+            &format!("written material, exact ({})", sub.len()),
+            &exact_errors
+        )
+    );
+    let _ = writeln!(
+        rep,
+        "  written material vs fitted closed form: relative cos-weighted RMS difference {:.2} %",
+        100.0 * rel_diff
+    );
+    if a.baselines {
+        let _ = writeln!(
+            rep,
+            "\n{:<26} {:>8} {:>6}   {:<26} {}",
+            "model (same machinery)", "time(s)", "iters", "ngan-l2 r g b", "low-log r g b"
+        );
+        let mut rows: Vec<&FitResult> = Vec::new();
+        if !a.per_channel_lobes {
+            rows.extend(channel_fits[0].iter().map(|(_, r)| r));
+        }
+        rows.extend(&baseline_rows);
+        for r in rows {
+            let _ = writeln!(
+                rep,
+                "{:<26} {:>8.2} {:>6}   {:<26} {}",
+                r.model,
+                r.seconds,
+                r.iterations,
+                fmt3(r.errors.ngan_l2, 5),
+                fmt3(r.errors.low_log, 5)
+            );
+        }
+    }
+    for p in &paths {
+        let _ = writeln!(rep, "\nwrote {}", p.display());
+    }
+
+    if let Some(dir) = &a.plot {
+        let files = write_plots(dir, &data, &model_eval, &|wi, wo| {
+            if materials.len() == 1 {
+                materials[0].brdf(wi, wo)
+            } else {
+                [0, 1, 2].map(|c| materials[c].brdf(wi, wo)[c])
+            }
+        })?;
+        for f in files {
+            let _ = writeln!(rep, "wrote {}", f.display());
+        }
+    }
+    let _ = write!(rep, "total time {:.2} s", t0.elapsed().as_secs_f64());
+    println!("{rep}");
+    Ok(())
+}
+
+fn key(wi: DVec3, wo: DVec3) -> [u64; 6] {
+    [wi.x, wi.y, wi.z, wo.x, wo.y, wo.z].map(f64::to_bits)
+}
+
+/// Rec. 709 luminance.
+fn luminance(v: [f64; 3]) -> f64 {
+    0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]
+}
+
+/// The in-plane pair for signed outgoing θo: light at `(θi, φ = 180°)`, viewer at `(|θo|, 0°)`
+/// for θo ≥ 0 and `(|θo|, 180°)` otherwise.
+fn in_plane(theta_i: f64, theta_o: f64) -> (DVec3, DVec3) {
+    let wi = meso_core::frame::spherical_direction(theta_i, std::f64::consts::PI);
+    let po = if theta_o >= 0.0 { 0.0 } else { std::f64::consts::PI };
+    (wi, meso_core::frame::spherical_direction(theta_o.abs(), po))
+}
+
+type Brdf<'a> = &'a (dyn Fn(DVec3, DVec3) -> [f64; 3] + Sync);
+
+/// Polar slices (in-plane, θi = 0°, 30°, 60°) of `ln(1 + Y cos θi)` for the data, the fitted
+/// closed form and the written material (exact), and rendered spheres of data and model.
+fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let mut written = Vec::new();
+    let save = |c: &Canvas, name: &str, written: &mut Vec<PathBuf>| -> Result<()> {
+        let p = dir.join(name);
+        let bytes = c.to_png_bytes().map_err(|e| anyhow::anyhow!("{e}"))?;
+        meso_core::io::write_atomic(&p, &bytes)
+            .with_context(|| format!("{}: cannot write", p.display()))?;
+        written.push(p);
+        Ok(())
+    };
+    let lm = |f: [f64; 3], ci: f64| (luminance(f) * ci).max(0.0).ln_1p();
+    let mut sheet = Sheet::new(
+        "in-plane slices: ln(1 + Y·cos θi), Y = luminance of the BRDF",
+        3,
+        420,
+        420,
+    );
+    for ti_deg in [0.0f64, 30.0, 60.0] {
+        let ti = ti_deg.to_radians();
+        let ci = ti.cos();
+        let thetas: Vec<f64> = (-89..=89).map(|d| f64::from(d).to_radians()).collect();
+        let mut plot = PolarPlot::new(format!("θi = {ti_deg}°"));
+        plot.incident = Some(-ti);
+        plot.incident_label = "light".into();
+        plot.r_label = "ln(1 + Y cos θi)".into();
+        // Data.
+        let data_pts: Vec<[f64; 2]> = match &data.merl {
+            Some(t) => thetas
+                .iter()
+                .step_by(2)
+                .filter_map(|&to| {
+                    let (wi, wo) = in_plane(ti, to);
+                    t.lookup(wi, wo).map(|f| [to, lm(f, ci)])
+                })
+                .collect(),
+            None => data
+                .samples
+                .samples
+                .iter()
+                .filter_map(|s| {
+                    let (th_i, ph_i) = meso_core::frame::spherical_angles(s.wi);
+                    let (th_o, ph_o) = meso_core::frame::spherical_angles(s.wo);
+                    let dphi = (ph_o - ph_i).rem_euclid(2.0 * std::f64::consts::PI);
+                    let in_plane = (dphi - std::f64::consts::PI).abs() < 0.05
+                        || th_i < 0.02
+                        || th_o < 0.02;
+                    if (th_i - ti).abs() < 0.05 && in_plane {
+                        let sign = if dphi.cos() < 0.0 { 1.0 } else { -1.0 };
+                        Some([sign * th_o, lm(s.rgb, ci)])
+                    } else {
+                        None
+                    }
+                })
+                .collect(),
+        };
+        plot.add(
+            PolarSeries::new("data", data_pts)
+                .with_color(meso_plot::color::hex(0x222222))
+                .with_style(LineStyle::Solid)
+                .with_markers(true),
+        );
+        let mpts = thetas
+            .iter()
+            .map(|&to| {
+                let (wi, wo) = in_plane(ti, to);
+                [to, lm(model(wi, wo), ci)]
+            })
+            .collect();
+        plot.add(PolarSeries::new("fitted model", mpts).with_color(meso_plot::color::hex(0xD62728)));
+        let epts: Vec<[f64; 2]> = thetas
+            .par_iter()
+            .step_by(3)
+            .map(|&to| {
+                let (wi, wo) = in_plane(ti, to);
+                [to, lm(exact(wi, wo), ci)]
+            })
+            .collect();
+        plot.add(
+            PolarSeries::new("written material (exact)", epts)
+                .with_color(meso_plot::color::hex(0x1F77B4))
+                .with_style(LineStyle::Dashed),
+        );
+        let c = plot
+            .render(420, 420)
+            .map_err(|e| anyhow::anyhow!("polar plot: {e}"))?;
+        sheet.add(c, format!("θi = {ti_deg}°, in the plane of incidence"));
+    }
+    let slices = sheet.render().map_err(|e| anyhow::anyhow!("{e}"))?;
+    save(&slices, "slices.png", &mut written)?;
+
+    // Spheres under the same directional light, same exposure.
+    let light = DVec3::new(-0.5, 0.55, 0.67).normalize();
+    let size = 320usize;
+    let render = |f: &(dyn Fn(DVec3, DVec3) -> Option<[f64; 3]> + Sync)| -> Vec<Option<[f64; 3]>> {
+        (0..size * size)
+            .into_par_iter()
+            .map(|p| {
+                let (px, py) = (p % size, p / size);
+                let x = (px as f64 + 0.5) / size as f64 * 2.0 - 1.0;
+                let y = 1.0 - (py as f64 + 0.5) / size as f64 * 2.0;
+                let r2 = x * x + y * y;
+                if r2 >= 1.0 {
+                    return None;
+                }
+                let n = DVec3::new(x, y, (1.0 - r2).sqrt());
+                let t = if x * x + y * y > 1e-12 {
+                    DVec3::new(-y, x, 0.0).normalize()
+                } else {
+                    DVec3::X
+                };
+                let b = n.cross(t);
+                let to_local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(n));
+                let (wi, wo) = (to_local(light), to_local(DVec3::Z));
+                if wi.z <= 0.0 || wo.z <= 0.0 {
+                    return Some([0.0; 3]);
+                }
+                f(wi, wo).map(|v| v.map(|c| c * wi.z))
+            })
+            .collect()
+    };
+    let model_img = render(&|wi, wo| Some(model(wi, wo)));
+    let data_img = match &data.merl {
+        Some(t) => Some(render(&|wi, wo| t.lookup(wi, wo))),
+        None => None,
+    };
+    // Exposure: the 90th percentile of the reference image's luminance maps to 0.6 (before the
+    // tone curve), highlights roll off with x/(1+x).
+    let reference = data_img.as_ref().unwrap_or(&model_img);
+    let mut lum: Vec<f64> = reference
+        .iter()
+        .flatten()
+        .map(|v| luminance(*v))
+        .filter(|l| *l > 0.0)
+        .collect();
+    lum.sort_by(f64::total_cmp);
+    let p90 = lum.get(lum.len() * 9 / 10).copied().unwrap_or(1.0).max(1e-12);
+    let exposure = 1.5 / p90;
+    let to_canvas = |img: &[Option<[f64; 3]>]| -> Result<Canvas> {
+        let mut v = Vec::with_capacity(size * size * 3);
+        for p in img {
+            match p {
+                None => v.extend([0.25f32, 0.25, 0.27]),
+                Some(c) => v.extend(c.map(|x| {
+                    let e = x * exposure;
+                    let t = e / (1.0 + e);
+                    srgb(t) as f32
+                })),
+            }
+        }
+        Canvas::from_rgb_f32(size as u32, size as u32, &v).map_err(|e| anyhow::anyhow!("{e}"))
+    };
+    let mut sheet = Sheet::new(
+        "sphere under a directional light (same light, same exposure)",
+        2,
+        size as u32,
+        size as u32,
+    );
+    match &data_img {
+        Some(d) => {
+            sheet.add(to_canvas(d)?, "data (MERL, nearest cell)");
+        }
+        None => {
+            let mut c = Canvas::new(size as u32, size as u32, [0.25, 0.25, 0.27]);
+            meso_plot::draw_text(&mut c, 20, (size / 2) as i32, "CSV data: no image", 2, [1.0; 3]);
+            sheet.add(c, "data (scattered samples)");
+        }
+    }
+    sheet.add(to_canvas(&model_img)?, "fitted model");
+    let spheres = sheet.render().map_err(|e| anyhow::anyhow!("{e}"))?;
+    save(&spheres, "spheres.png", &mut written)?;
+    Ok(written)
+}
+
+/// Linear → sRGB transfer.
+fn srgb(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
