@@ -34,6 +34,8 @@ enum Command {
     /// Inspect an NDF: plot it or print its statistics.
     #[command(subcommand)]
     Ndf(cmd::ndf::NdfCommand),
+    /// Fit a measured BRDF (MERL binary or sample CSV) with K Phong peaks; write a material.
+    Fit(cmd::fit::Args),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +43,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Brdf(a) => cmd::brdf::run(a),
         Command::Ndf(a) => cmd::ndf::run(a),
+        Command::Fit(a) => cmd::fit::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
