@@ -1,21 +1,28 @@
 //! Patch NDFs (fitted lobes, raw facets, baselines) and the effective BRDF of a patch.
 //!
-//! # The microfacet form (default)
-//! ```text
-//! f(i, o) = ∫ p(m) f_μ(i, o; m) (i·m)(o·m) / ((i·z)(o·z)(m·z)) · G(i, o, m) dm
-//! ```
-//! over `m·z > 0`, `i·m > 0`, `o·m > 0`, with `p` the per-area (projected-area) density of
-//! meso-normals restricted to `m·z > 0` and renormalised there, `f_μ` the facet BRDF evaluated in
-//! the facet frame ([`FacetBrdf`], normal +z, tangent = macro +x projected), and `G` one of
-//! [`Shadowing`]. Summed over every facet of a map with [`PatchNdf::Facets`] and no shadowing this
-//! is exact for the piecewise-linear surface as long as nothing is masked.
+//! # Convention
+//! Every [`PatchNdf`] is the paper's Eq. 1 density `n(m)`: normals per unit of *microsurface*
+//! area, `∫ n dω = 1` — the convention of `meso_core::ndf` (raw facets carry their true areas,
+//! see `crate::facets`; fitted lobes are fitted to those).
 //!
-//! [`Form::NormalMapping`] is the classic bump/normal-mapping shading (the core's default form):
-//! `f(i, o) = ∫ p(m) f_μ(i, o; m) max(0, m·i) dm / (i·z)`, no foreshortening, no `G`.
+//! # The microfacet form (default)
+//! The same as `meso_core::convolution`'s: with `D(m) = n(m) / ∫_{z>0} n (m·z) dω` (so that
+//! `p(m) = D(m)(m·z)` is the density of normals per unit *projected* area, `∫_{z>0} p = 1`),
+//! ```text
+//! f(i, o) = ∫_{z>0} D(m) f_μ(i, o; m) (i·m)⁺(o·m)⁺ / ((i·z)(o·z)) · G(i, o, m) dm
+//!         = ∫ p(m) f_μ(i, o; m) (i·m)⁺(o·m)⁺ / ((i·z)(o·z)(m·z)) · G dm,
+//! ```
+//! with `f_μ` the facet BRDF evaluated in the facet frame ([`FacetBrdf`], normal +z, tangent =
+//! macro +x projected), and `G` one of [`Shadowing`]. Summed over every facet of a map with
+//! [`PatchNdf::Facets`] and no shadowing this is exact for the piecewise-linear surface as long
+//! as nothing is masked.
+//!
+//! [`Form::NormalMapping`] is the classic bump/normal-mapping shading (the core's default,
+//! multiple-surface form): `f(i, o) = ∫ n(m) f_μ(i, o; m) max(0, m·i) dm / (i·z)`, no
+//! foreshortening, no `G`.
 //!
 //! # Smith masking–shadowing
-//! `Λ(ω) = ∫ max(0, ω·m) D(m) dm / cos θ_ω − 1` with the microfacet (area) density
-//! `D(m) = p(m)/(m·z)` on `m·z > 0`, normalised so that `∫ D(m)(m·z) dm = 1`;
+//! `Λ(ω) = ∫_{z>0} D(m) max(0, ω·m) dm / cos θ_ω − 1` with `D` as above (`∫ D (m·z) dm = 1`);
 //! height-correlated `G₂ = 1/(1 + Λ(i) + Λ(o))`.
 //!
 //! Integrals over fitted lobes use a deterministic stratified quadrature: `n × n` samples of
@@ -30,11 +37,20 @@ use meso_core::ndf::PhongLobe;
 use std::f64::consts::PI;
 
 /// A facet BRDF `f_μ(i, o)` in 1/sr, RGB, with both directions in the facet's local frame
-/// (facet normal +z, pointing away from the surface). The lead implements it for
-/// `meso_core::transfer::Transfer`.
+/// (facet normal +z, pointing away from the surface). Implemented for
+/// `meso_core::transfer::Transfer`, [`Lambert`] and [`PhongFacet`].
 pub trait FacetBrdf: Sync {
     /// BRDF value (1/sr, without cosine) for unit directions `i` (to the light), `o` (to the eye).
     fn eval(&self, i: DVec3, o: DVec3) -> [f64; 3];
+}
+
+/// A core transfer function as a facet BRDF: `meso_core::transfer::Transfer::eval` already takes
+/// its directions in the facet frame (normal +z, tangent = macro +x projected), as the core's
+/// convolution and this crate both build it with `Frame::from_normal_tangent(m, DVec3::X)`.
+impl FacetBrdf for meso_core::transfer::Transfer {
+    fn eval(&self, i: DVec3, o: DVec3) -> [f64; 3] {
+        meso_core::transfer::Transfer::eval(self, i, o)
+    }
 }
 
 /// Lambertian facet: `albedo/π` (1/sr) whenever both directions are above the facet.
@@ -75,17 +91,55 @@ impl FacetBrdf for PhongFacet {
 }
 
 /// LEAN mapping (Olano & Baker 2010): the five slope moments of a footprint as an anisotropic
-/// Beckmann (Gaussian slope) distribution. Slopes of a normal are `s = (−m_x/m_z, −m_y/m_z)`.
+/// Beckmann (Gaussian slope) distribution. Slopes of a normal are `s = (−m_x/m_z, −m_y/m_z)`;
+/// the Gaussian `P22(s)` is a density per unit *projected* area, so the moments are taken with
+/// projected weights (area weight × `m_z`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lean {
     /// Mean slope `E[s]`.
     pub mean: DVec2,
     /// Slope covariance `E[s sᵀ] − E[s]E[s]ᵀ` (a small floor is added on the diagonal).
     pub cov: DMat2,
+    /// Microsurface area per unit projected area, `E_P22[√(1 + |s|²)] = ∫ P22/m_z⁴ dω` (≥ 1).
+    pub area: f64,
 }
 
 impl Lean {
-    /// Density in the Eq. 1 (per projected area) convention: `P22(s(m)) / m_z³` for `m_z > 0`.
+    /// A LEAN distribution from its slope mean and covariance; computes [`Lean::area`] by
+    /// quadrature (64 × 64 stratified Gaussian nodes).
+    #[must_use]
+    pub fn new(mean: DVec2, cov: DMat2) -> Lean {
+        let mut l = Lean {
+            mean,
+            cov,
+            area: 1.0,
+        };
+        let nodes = l.slope_nodes(64);
+        l.area = nodes
+            .iter()
+            .map(|s| (1.0 + s.length_squared()).sqrt())
+            .sum::<f64>()
+            / nodes.len() as f64;
+        l
+    }
+
+    /// `n × n` stratified slopes of the Gaussian (Box–Muller on cell centres), equal weights.
+    fn slope_nodes(&self, n: usize) -> Vec<DVec2> {
+        let chol = cholesky(self.cov);
+        let mut out = Vec::with_capacity(n * n);
+        for a in 0..n {
+            for b in 0..n {
+                let u = [(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64];
+                let r = (-2.0 * (1.0 - u[0]).ln()).sqrt();
+                let g = DVec2::new(r * (2.0 * PI * u[1]).cos(), r * (2.0 * PI * u[1]).sin());
+                out.push(self.mean + chol * g);
+            }
+        }
+        out
+    }
+
+    /// Density in the Eq. 1 convention (per microsurface area, ∫ = 1):
+    /// `P22(s(m)) / (m_z⁴ · area)` for `m_z > 0` (the Beckmann `D` over its total area).
     #[must_use]
     pub fn density(&self, m: DVec3) -> f64 {
         if m.z <= 0.0 {
@@ -94,16 +148,18 @@ impl Lean {
         let s = DVec2::new(-m.x / m.z, -m.y / m.z) - self.mean;
         let det = self.cov.determinant();
         let q = s.dot(self.cov.inverse() * s);
-        (-0.5 * q).exp() / (2.0 * PI * det.sqrt()) / (m.z * m.z * m.z)
+        let mz2 = m.z * m.z;
+        (-0.5 * q).exp() / (2.0 * PI * det.sqrt()) / (mz2 * mz2 * self.area)
     }
 }
 
-/// The distribution of meso-normals of a patch, per projected area, normalised to 1.
+/// The distribution of meso-normals of a patch in the Eq. 1 convention (per unit microsurface
+/// area, normalised to 1).
 #[derive(Clone, Debug, PartialEq)]
 pub enum PatchNdf {
     /// A sum of Phong peaks (weights summing to 1).
     Lobes(Vec<PhongLobe>),
-    /// Raw facets `(unit normal, projected-area weight)`, weights summing to 1.
+    /// Raw facets `(unit normal, area weight)`, weights summing to 1.
     Facets(Vec<(DVec3, f64)>),
     /// LEAN: anisotropic Beckmann from five moments.
     Lean(Lean),
@@ -131,7 +187,8 @@ pub enum Baseline {
     Vmf,
 }
 
-/// Fit a baseline to weighted normals (weights need not be normalised).
+/// Fit a baseline to area-weighted normals (Eq. 1 weights; need not be normalised). The mean
+/// normal of the single-lobe baselines is the area-weighted mean; LEAN takes projected weights.
 #[must_use]
 pub fn fit_baseline(method: Baseline, normals: &[(DVec3, f64)]) -> PatchNdf {
     let tot: f64 = normals.iter().map(|p| p.1).sum::<f64>().max(1e-300);
@@ -171,8 +228,10 @@ pub fn fit_baseline(method: Baseline, normals: &[(DVec3, f64)]) -> PatchNdf {
                 if n.z <= 1e-6 {
                     continue;
                 }
+                // Projected weight: the slope moments are per unit projected area.
+                let w = w * n.z;
                 let s = DVec2::new(-n.x / n.z, -n.y / n.z);
-                m1 += s * *w;
+                m1 += s * w;
                 sxx += s.x * s.x * w;
                 sxy += s.x * s.y * w;
                 syy += s.y * s.y * w;
@@ -184,10 +243,10 @@ pub fn fit_baseline(method: Baseline, normals: &[(DVec3, f64)]) -> PatchNdf {
             let cxx = (sxx / wt - mu.x * mu.x).max(0.0) + floor;
             let cyy = (syy / wt - mu.y * mu.y).max(0.0) + floor;
             let cxy = sxy / wt - mu.x * mu.y;
-            PatchNdf::Lean(Lean {
-                mean: mu,
-                cov: DMat2::from_cols(DVec2::new(cxx, cxy), DVec2::new(cxy, cyy)),
-            })
+            PatchNdf::Lean(Lean::new(
+                mu,
+                DMat2::from_cols(DVec2::new(cxx, cxy), DVec2::new(cxy, cyy)),
+            ))
         }
     }
 }
@@ -223,19 +282,15 @@ impl PatchNdf {
                 }
             }
             PatchNdf::Lean(l) => {
-                let chol = cholesky(l.cov);
-                for a in 0..n {
-                    for b in 0..n {
-                        let u = uv(a, b);
-                        let r = (-2.0 * (1.0 - u[0]).ln()).sqrt();
-                        let g =
-                            DVec2::new(r * (2.0 * PI * u[1]).cos(), r * (2.0 * PI * u[1]).sin());
-                        let s = l.mean + chol * g;
-                        out.push((
-                            DVec3::new(-s.x, -s.y, 1.0).normalize(),
-                            1.0 / (n * n) as f64,
-                        ));
-                    }
+                // Gaussian slopes are projected-area samples: weight each by its area 1/m_z.
+                let slopes = l.slope_nodes(n);
+                let tot: f64 = slopes
+                    .iter()
+                    .map(|s| (1.0 + s.length_squared()).sqrt())
+                    .sum();
+                for s in slopes {
+                    let w = (1.0 + s.length_squared()).sqrt() / tot;
+                    out.push((DVec3::new(-s.x, -s.y, 1.0).normalize(), w));
                 }
             }
             PatchNdf::Vmf { axis, kappa } => {
@@ -357,8 +412,10 @@ pub enum Form {
 /// The effective BRDF of a patch: quadrature nodes of its NDF plus the shadowing model.
 #[derive(Clone, Debug)]
 pub struct EffectiveBrdf {
+    /// `(m, n-weight, facet frame)`; the weights sum to 1 (Eq. 1 area shares).
     nodes: Vec<(DVec3, f64, Frame)>,
-    upper_norm: f64,
+    /// `1 / ∫_{z>0} n (m·z) dω`: turns `n` into the microfacet `D` (0 if nothing faces up).
+    inv_projected: f64,
     shadowing: Shadowing,
     form: Form,
 }
@@ -369,16 +426,35 @@ impl EffectiveBrdf {
     pub fn new(ndf: &PatchNdf, n: usize, shadowing: Shadowing, form: Form) -> EffectiveBrdf {
         let raw = ndf.nodes(n);
         let tot: f64 = raw.iter().map(|p| p.1).sum::<f64>().max(1e-300);
-        let upper: f64 = raw.iter().filter(|p| p.0.z > 0.0).map(|p| p.1).sum::<f64>() / tot;
+        let projected: f64 = raw
+            .iter()
+            .filter(|p| p.0.z > 0.0)
+            .map(|p| p.1 * p.0.z)
+            .sum::<f64>()
+            / tot;
         let nodes = raw
             .into_iter()
             .map(|(m, w)| (m, w / tot, Frame::from_normal_tangent(m, DVec3::X)))
             .collect();
         EffectiveBrdf {
             nodes,
-            upper_norm: if upper > 0.0 { 1.0 / upper } else { 0.0 },
+            inv_projected: if projected > 0.0 {
+                1.0 / projected
+            } else {
+                0.0
+            },
             shadowing,
             form,
+        }
+    }
+
+    /// `∫_{z>0} n(m)(m·z) dω`: projected area per unit microsurface area (1 for a flat patch).
+    #[must_use]
+    pub fn projected_area(&self) -> f64 {
+        if self.inv_projected > 0.0 {
+            1.0 / self.inv_projected
+        } else {
+            0.0
         }
     }
 
@@ -391,10 +467,10 @@ impl EffectiveBrdf {
         let mut s = 0.0;
         for (m, wt, _) in &self.nodes {
             if m.z > 0.0 {
-                s += wt * w.dot(*m).max(0.0) / m.z;
+                s += wt * w.dot(*m).max(0.0);
             }
         }
-        (s * self.upper_norm / w.z - 1.0).max(0.0)
+        (s * self.inv_projected / w.z - 1.0).max(0.0)
     }
 
     /// The masking–shadowing factor `G(i, o)` of the chosen [`Shadowing`].
@@ -426,12 +502,12 @@ impl EffectiveBrdf {
                         continue;
                     }
                     let f = facet.eval(fr.to_local(i), fr.to_local(o));
-                    let k = w * im * om / (i.z * o.z * m.z);
+                    let k = w * im * om / (i.z * o.z);
                     for c in 0..3 {
                         acc[c] += k * f[c];
                     }
                 }
-                let s = g * self.upper_norm;
+                let s = g * self.inv_projected;
                 acc.map(|a| a * s)
             }
             Form::NormalMapping => {

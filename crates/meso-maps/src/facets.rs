@@ -1,4 +1,4 @@
-//! Meso-normals of a height map, with their per-area weights.
+//! Meso-normals of a height map, with their microsurface-area weights (Eq. 1).
 //!
 //! # The surface
 //! The height map is the piecewise-linear surface a renderer would displace: every grid cell
@@ -9,14 +9,16 @@
 //! * triangle **B** = `(i,j), (i+1,j+1), (i+1,j)`, slopes `∂h/∂x = (h₁₁ − h₁₀)/S`,
 //!   `∂h/∂y = (h₁₀ − h₀₀)/S`.
 //!
-//! Each facet's unit normal is `(−∂h/∂x, −∂h/∂y, 1)/‖·‖`. Its weight is its share of the
-//! *macro* (projected) area: facet area × n_z = S²/2 for both triangles, so the two facets of a
-//! cell carry weight ½ each. This is the per-area density of meso-normals `p(m)` used by the
-//! microfacet form of the effective BRDF (`∫ p = 1`); the microfacet area density is `p/m_z`.
+//! Each facet's unit normal is `(−∂h/∂x, −∂h/∂y, 1)/‖·‖`. Its weight is its **true area** in
+//! units of one cell's projected area, `½ / n_z` for a triangle (its projected area is `S²/2`):
+//! normalised, these weights are the paper's Eq. 1 density `n(m)` — normals per unit of
+//! *microsurface* area, `∫ n dω = 1` — the convention of `meso_core::ndf`. The microfacet form
+//! turns it into `D = n / ∫_{z>0} n (m·z) dω`, so the projected (macro-area) share of a facet is
+//! `D(m)(m·z)` (`meso_core::convolution`).
 //!
 //! [`NormalMode::CentralDifferences`] instead gives one normal per cell, from the gradient of
 //! the bilinear patch at the cell centre, `∂h/∂x = ((h₀₁ − h₀₀) + (h₁₁ − h₁₀))/(2S)` (and
-//! likewise for y), with weight 1: smooth data agree with the triangles, creases do not.
+//! likewise for y), with area weight `1/n_z`: smooth data agree with the triangles, creases do not.
 
 use crate::heightmap::{HeightMap, NormalMap};
 use glam::DVec3;
@@ -31,8 +33,9 @@ pub enum NormalMode {
     CentralDifferences,
 }
 
-/// Per-cell meso-normals: `per_cell` normals for each of `cols × rows` cells, with weights in
-/// units of one cell's projected area (so each cell's weights sum to 1).
+/// Per-cell meso-normals: `per_cell` normals for each of `cols × rows` cells, with their true
+/// (microsurface) areas as weights, in units of one cell's projected area (a cell's projected
+/// shares `weight · n_z` sum to 1).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FacetNormals {
     /// Cells along x.
@@ -43,7 +46,7 @@ pub struct FacetNormals {
     pub per_cell: usize,
     /// Unit normals; cell `(r, c)` owns `normals[(r·cols + c)·per_cell ..][..per_cell]`.
     pub normals: Vec<DVec3>,
-    /// Projected-area weight of each normal (cell units).
+    /// Microsurface area of each facet (cell units: projected share / `n_z`).
     pub weights: Vec<f64>,
 }
 
@@ -82,7 +85,8 @@ impl FacetNormals {
                 }
             }
         }
-        let weights = vec![1.0 / per_cell as f64; normals.len()];
+        let share = 1.0 / per_cell as f64;
+        let weights = normals.iter().map(|n| share / n.z).collect();
         FacetNormals {
             cols,
             rows,
@@ -92,7 +96,8 @@ impl FacetNormals {
         }
     }
 
-    /// The normals of a tangent-space normal map: one per texel, weight 1.
+    /// The normals of a tangent-space normal map: one per texel, standing for one texel of
+    /// projected area, hence the area weight `1/n_z` (normal maps have `n_z > 0`).
     #[must_use]
     pub fn from_normal_map(map: &NormalMap) -> FacetNormals {
         FacetNormals {
@@ -100,7 +105,7 @@ impl FacetNormals {
             rows: map.height(),
             per_cell: 1,
             normals: map.normals().to_vec(),
-            weights: vec![1.0; map.normals().len()],
+            weights: map.normals().iter().map(|n| 1.0 / n.z).collect(),
         }
     }
 
@@ -122,7 +127,8 @@ impl FacetNormals {
         })
     }
 
-    /// All `(normal, weight)` pairs with weights normalised to sum to 1.
+    /// All `(normal, area weight)` pairs with weights normalised to sum to 1: the Eq. 1 density
+    /// of the whole map as a sum of deltas.
     #[must_use]
     pub fn normalized(&self) -> Vec<(DVec3, f64)> {
         let total: f64 = self.weights.iter().sum();

@@ -41,7 +41,7 @@ pub const RESIDUAL_GRID_RES: usize = 32;
 pub struct Entry {
     /// Bin index in the [`ENTRY_GRID_RES`] grid (entries are kept sorted by it).
     pub bin: u32,
-    /// Total projected-area weight.
+    /// Total microsurface-area weight (Eq. 1 convention, see `crate::facets`).
     pub w: f64,
     /// Sum of weight × unit normal.
     pub m: DVec3,

@@ -585,3 +585,84 @@ mod gonio {
         );
     }
 }
+
+/// The Eq. 1 convention: fitted lobes and raw facets are densities per unit microsurface area,
+/// and the effective BRDF is the core's microfacet form.
+mod convention {
+    use super::*;
+    use meso_core::convolution::{effective_brdf_with, Accuracy, Form as CoreForm, Visibility};
+    use meso_core::ndf::{Ndf, PhongPeaks};
+    use meso_core::transfer::Transfer;
+
+    #[test]
+    fn lobe_weights_are_true_area_shares() {
+        // Asymmetric sawtooth along x, period 8 cells: rises by d over 2 cells, falls over 6.
+        // Projected shares 1/4 and 3/4; true areas ∝ share·√(1 + slope²).
+        let (s, d) = (0.1, 0.3);
+        let map = HeightMap::from_fn(32, 32, s, Border::Wrap, |x, _| {
+            let u = (x / s).round() as i64 % 8;
+            if u <= 2 {
+                d * u as f64 / 2.0
+            } else {
+                d * (8 - u) as f64 / 6.0
+            }
+        })
+        .unwrap();
+        let (g1, g2) = (d / (2.0 * s), d / (6.0 * s));
+        let (a1, a2) = (0.25 * (1.0 + g1 * g1).sqrt(), 0.75 * (1.0 + g2 * g2).sqrt());
+        let p = pyr(&map, 4);
+        let top = p.top().texel_lobes(0, 0).unwrap();
+        assert_eq!(top.len(), 2);
+        for l in top {
+            let (expect, g) = if l.axis.x < 0.0 {
+                (a1 / (a1 + a2), g1)
+            } else {
+                (a2 / (a1 + a2), g2)
+            };
+            assert!((l.weight - expect).abs() < 1e-9, "{} vs {expect}", l.weight);
+            assert!((l.axis.x.abs() - g / (1.0 + g * g).sqrt()).abs() < 1e-9);
+        }
+        // The raw facets carry the same areas.
+        let f = FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized();
+        let steep: f64 = f.iter().filter(|(n, _)| n.x < 0.0).map(|p| p.1).sum();
+        assert!((steep - a1 / (a1 + a2)).abs() < 1e-12);
+        // The effective BRDF's projected area ∫ n m_z is the macro/micro area ratio.
+        let b = EffectiveBrdf::new(&PatchNdf::Facets(f), 1, Shadowing::None, Form::Microfacet);
+        assert!((b.projected_area() - 1.0 / (a1 + a2)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn effective_brdf_is_the_core_microfacet_form() {
+        // Smooth lobes from a Gaussian surface, evaluated by meso-core's own quadrature.
+        let map = fixtures::gaussian(64, 3.0, 0.15, 11, 0.1).unwrap();
+        let p = pyr(&map, 3);
+        let lobes = p.top().texel_lobes(0, 0).unwrap().to_vec();
+        let core = Ndf::PhongPeaks(PhongPeaks::new(lobes.clone()).unwrap());
+        let transfer = Transfer::Lambert { albedo: [1.0; 3] };
+        let acc = Accuracy {
+            radial: 64,
+            azimuth: 96,
+        };
+        for (shadow, vis) in [
+            (Shadowing::None, Visibility::None),
+            (Shadowing::Smith, Visibility::Smith),
+        ] {
+            let ours = EffectiveBrdf::new(
+                &PatchNdf::Lobes(lobes.clone()),
+                64,
+                shadow,
+                Form::Microfacet,
+            );
+            for (ti, to, po) in [(0.0, 0.0, 0.0), (30.0, 45.0, 180.0), (60.0, 20.0, 90.0)] {
+                let (i, o) = (dir(ti, 0.0), dir(to, po));
+                let a = ours.eval(&transfer, i, o)[0];
+                let b =
+                    effective_brdf_with(&core, &transfer, CoreForm::Microfacet, vis, i, o, acc)[0];
+                assert!(
+                    rel(a, b) < 0.01,
+                    "{shadow:?} θi {ti} θo {to}: {a} vs core {b}"
+                );
+            }
+        }
+    }
+}
