@@ -35,6 +35,8 @@ pub struct Camera {
     forward: DVec3,
     right: DVec3,
     true_up: DVec3,
+    /// `tan(fov/2)` for perspective cameras (0 for orthographic).
+    tan_half: f64,
 }
 
 /// A ray: origin and unit direction (world).
@@ -130,7 +132,12 @@ impl Camera {
         }
         let right = r.normalize();
         let true_up = right.cross(forward);
+        let tan_half = match projection {
+            Projection::Perspective { fov_deg } => (0.5 * fov_deg.to_radians()).tan(),
+            Projection::Orthographic { .. } => 0.0,
+        };
         Ok(Camera {
+            tan_half,
             projection,
             position,
             look_at,
@@ -190,8 +197,8 @@ impl Camera {
                     dddy: DVec3::ZERO,
                 }
             }
-            Projection::Perspective { fov_deg } => {
-                let t = (0.5 * fov_deg.to_radians()).tan();
+            Projection::Perspective { .. } => {
+                let t = self.tan_half;
                 let u = self.forward + self.right * (sx * t) + self.true_up * (sy * t);
                 let inv = 1.0 / u.length();
                 let d = u * inv;

@@ -461,9 +461,9 @@ pub(crate) fn finish_shading_point(
 }
 
 impl Sphere {
-    pub(crate) fn surface(&self, p: DVec3) -> SurfaceGeom {
+    /// The surface at `p`; `pf` is [`Sphere::pole_frame`] (cached by the scene).
+    pub(crate) fn surface(&self, pf: &Frame, p: DVec3) -> SurfaceGeom {
         let n = ((p - self.center) / self.radius).normalize();
-        let pf = self.pole_frame();
         let l = pf.to_local(n);
         let theta = l.z.clamp(-1.0, 1.0).acos();
         let mut phi = l.y.atan2(l.x);

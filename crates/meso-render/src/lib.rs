@@ -54,6 +54,6 @@ pub use error::{ImageError, SceneError};
 pub use geometry::{MaterialId, Mesh, Plane, Quad, ShadingPoint, Sphere};
 pub use image::Image;
 pub use light::{EnvironmentMap, Light, LightSample};
-pub use render::{render, render_pixel, shade, RenderOptions};
+pub use render::{render, render_pixel, shade, shade_with, RenderOptions, ShadeScratch};
 pub use scene::{ImageSettings, MaterialResolver, ResolveError, Scene, SceneBuilder};
 pub use shader::{Lambert, PhongLobes, Shader};

@@ -80,9 +80,19 @@ pub fn render(
             let (x0, y0) = ((k % tx) * ts, (k / tx) * ts);
             let (x1, y1) = ((x0 + ts).min(w), (y0 + ts).min(h));
             let mut buf = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+            let mut scratch = ShadeScratch::default();
             for y in y0..y1 {
                 for x in x0..x1 {
-                    buf.push(render_pixel(scene, x, y, w, h, spp, opts.seed));
+                    buf.push(render_pixel(
+                        scene,
+                        x,
+                        y,
+                        w,
+                        h,
+                        spp,
+                        opts.seed,
+                        &mut scratch,
+                    ));
                 }
             }
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
@@ -103,9 +113,10 @@ pub fn render(
     img
 }
 
-/// The average radiance of pixel `(x, y)` over `spp` samples.
+/// The average radiance of pixel `(x, y)` of a `w × h` image over `spp` samples.
 #[inline]
 #[must_use]
+#[allow(clippy::too_many_arguments)]
 pub fn render_pixel(
     scene: &Scene,
     x: u32,
@@ -114,6 +125,7 @@ pub fn render_pixel(
     h: u32,
     spp: u32,
     seed: u32,
+    scratch: &mut ShadeScratch,
 ) -> [f32; 3] {
     let mut acc = DVec3::ZERO;
     for s in 0..spp {
@@ -123,7 +135,7 @@ pub fn render_pixel(
             .camera
             .generate_ray(f64::from(x) + j[0], f64::from(y) + j[1], w, h);
         acc += match scene.intersect(&rd) {
-            Some(sp) => shade(scene, &sp, -rd.ray.d, &sampler),
+            Some(sp) => shade_with(scene, &sp, -rd.ray.d, &sampler, scratch),
             None => background(scene, rd.ray.d),
         };
     }
@@ -141,6 +153,30 @@ fn background(scene: &Scene, d: DVec3) -> DVec3 {
 /// The number of light samples handed to [`crate::Shader::eval_many`] at once.
 pub const LIGHT_BATCH: usize = 16;
 
+/// Reusable per-thread storage for the light samples of one shading point (about 1.5 KB),
+/// so that shading does not even clear memory per pixel. Create one per tile or thread.
+#[derive(Clone, Debug)]
+pub struct ShadeScratch {
+    wi_local: [DVec3; LIGHT_BATCH],
+    wi_world: [DVec3; LIGHT_BATCH],
+    /// `L/pdf · cos θi`.
+    weight: [DVec3; LIGHT_BATCH],
+    dist: [f64; LIGHT_BATCH],
+    f: [[f32; 3]; LIGHT_BATCH],
+}
+
+impl Default for ShadeScratch {
+    fn default() -> Self {
+        ShadeScratch {
+            wi_local: [DVec3::ZERO; LIGHT_BATCH],
+            wi_world: [DVec3::ZERO; LIGHT_BATCH],
+            weight: [DVec3::ZERO; LIGHT_BATCH],
+            dist: [0.0; LIGHT_BATCH],
+            f: [[0.0; 3]; LIGHT_BATCH],
+        }
+    }
+}
+
 /// Light samples gathered at one shading point, waiting for BRDF evaluation and shadow rays.
 struct Batch<'a> {
     scene: &'a Scene,
@@ -151,12 +187,7 @@ struct Batch<'a> {
     eps: f64,
     sum: DVec3,
     n: usize,
-    wi_local: [DVec3; LIGHT_BATCH],
-    wi_world: [DVec3; LIGHT_BATCH],
-    /// `L/pdf · cos θi`.
-    weight: [DVec3; LIGHT_BATCH],
-    dist: [f64; LIGHT_BATCH],
-    f: [[f32; 3]; LIGHT_BATCH],
+    s: &'a mut ShadeScratch,
 }
 
 impl Batch<'_> {
@@ -171,10 +202,10 @@ impl Batch<'_> {
             return;
         }
         let k = self.n;
-        self.wi_local[k] = wi_l;
-        self.wi_world[k] = ls.wi;
-        self.weight[k] = ls.weight * wi_l.z;
-        self.dist[k] = ls.dist;
+        self.s.wi_local[k] = wi_l;
+        self.s.wi_world[k] = ls.wi;
+        self.s.weight[k] = ls.weight * wi_l.z;
+        self.s.dist[k] = ls.dist;
         self.n += 1;
         if self.n == LIGHT_BATCH {
             self.flush();
@@ -190,17 +221,17 @@ impl Batch<'_> {
             return;
         }
         self.shader
-            .eval_many(sp, self.wo_l, &self.wi_local[..n], &mut self.f[..n]);
+            .eval_many(sp, self.wo_l, &self.s.wi_local[..n], &mut self.s.f[..n]);
         for k in 0..n {
-            let f = self.f[k];
+            let f = self.s.f[k];
             if f[0] <= 0.0 && f[1] <= 0.0 && f[2] <= 0.0 {
                 continue;
             }
             let ray = Ray {
                 o: origin,
-                d: self.wi_world[k],
+                d: self.s.wi_world[k],
             };
-            let d = self.dist[k];
+            let d = self.s.dist[k];
             let tmax = if d.is_finite() {
                 d * (1.0 - 1e-9) - eps
             } else {
@@ -210,17 +241,31 @@ impl Batch<'_> {
                 continue;
             }
             self.sum +=
-                DVec3::new(f64::from(f[0]), f64::from(f[1]), f64::from(f[2])) * self.weight[k];
+                DVec3::new(f64::from(f[0]), f64::from(f[1]), f64::from(f[2])) * self.s.weight[k];
         }
         self.n = 0;
     }
 }
 
 /// Outgoing radiance at `sp` towards the unit world direction `wo` (one sample per light).
-/// Allocation-free: light samples are gathered in fixed-size batches of [`LIGHT_BATCH`].
-#[inline]
+/// Convenience form of [`shade_with`] with a fresh scratch.
 #[must_use]
 pub fn shade(scene: &Scene, sp: &ShadingPoint, wo: DVec3, sampler: &PixelSampler) -> DVec3 {
+    shade_with(scene, sp, wo, sampler, &mut ShadeScratch::default())
+}
+
+/// Outgoing radiance at `sp` towards the unit world direction `wo` (one sample per light),
+/// using `scratch` for the light samples (gathered in batches of [`LIGHT_BATCH`]).
+/// Allocation-free.
+#[inline]
+#[must_use]
+pub fn shade_with(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    wo: DVec3,
+    sampler: &PixelSampler,
+    scratch: &mut ShadeScratch,
+) -> DVec3 {
     let Some(shader) = scene.shader(sp.material) else {
         return DVec3::ZERO;
     };
@@ -235,11 +280,7 @@ pub fn shade(scene: &Scene, sp: &ShadingPoint, wo: DVec3, sampler: &PixelSampler
         eps,
         sum: DVec3::ZERO,
         n: 0,
-        wi_local: [DVec3::ZERO; LIGHT_BATCH],
-        wi_world: [DVec3::ZERO; LIGHT_BATCH],
-        weight: [DVec3::ZERO; LIGHT_BATCH],
-        dist: [0.0; LIGHT_BATCH],
-        f: [[0.0; 3]; LIGHT_BATCH],
+        s: scratch,
     };
     for (k, light) in scene.lights.iter().enumerate() {
         // Point and directional lights need no random numbers: skip the Sobol evaluation.

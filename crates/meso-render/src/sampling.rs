@@ -21,6 +21,8 @@ pub const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 16;
 pub struct PixelSampler {
     seed: u32,
     index: u32,
+    /// Dimensions 0–3 (pixel jitter and the first light), computed at once.
+    first: [f32; 4],
 }
 
 /// A 32-bit integer hash (Wellons' "lowbias32"), used to decorrelate pixels and dimensions.
@@ -42,14 +44,20 @@ impl PixelSampler {
     #[must_use]
     pub fn new(x: u32, y: u32, seed: u32, index: u32) -> PixelSampler {
         let s = hash_u32(x.wrapping_mul(0x9e37_79b9) ^ hash_u32(y ^ hash_u32(seed)));
-        PixelSampler { seed: s, index }
+        PixelSampler {
+            seed: s,
+            index,
+            first: sobol_burley::sample_4d(index, 0, s),
+        }
     }
 
     /// The value of dimension `dim` for this sample, in `[0, 1)`.
     #[inline]
     #[must_use]
     pub fn get(&self, dim: u32) -> f64 {
-        if dim < SOBOL_DIMENSIONS {
+        if dim < 4 {
+            f64::from(self.first[dim as usize])
+        } else if dim < SOBOL_DIMENSIONS {
             f64::from(sobol_burley::sample(self.index, dim, self.seed))
         } else {
             let h = hash_u32(

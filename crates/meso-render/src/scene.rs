@@ -82,6 +82,7 @@ pub struct Scene {
     pub environment_visible: bool,
     materials: Vec<Arc<dyn Shader>>,
     spheres: Vec<Sphere>,
+    sphere_frames: Vec<meso_core::frame::Frame>,
     quads: Vec<Quad>,
     planes: Vec<Plane>,
     meshes: Vec<(Arc<Mesh>, MaterialId)>,
@@ -417,6 +418,7 @@ impl SceneBuilder {
             environment: self.environment,
             environment_visible: self.environment_visible,
             materials: self.materials,
+            sphere_frames: self.spheres.iter().map(Sphere::pole_frame).collect(),
             spheres: self.spheres,
             quads: self.quads,
             planes: self.planes,
@@ -519,7 +521,10 @@ impl Scene {
         let g = match what {
             HitWhat::Plane(i) => self.planes[i].surface(ray.at(t)),
             HitWhat::Prim(k) => match *self.bvh.prim(k) {
-                Prim::Sphere { index, .. } => self.spheres[index as usize].surface(ray.at(t)),
+                Prim::Sphere { index, .. } => {
+                    let i = index as usize;
+                    self.spheres[i].surface(&self.sphere_frames[i], ray.at(t))
+                }
                 Prim::Quad { index, .. } => self.quads[index as usize].surface(a, b),
                 Prim::Tri { mesh, tri, .. } => {
                     let (m, mat) = &self.meshes[mesh as usize];

@@ -1,0 +1,52 @@
+//! The benchmark scene, shared by `benches/sphere.rs` and `examples/bench_sphere.rs`.
+
+use glam::DVec3;
+use meso_render::*;
+use std::sync::Arc;
+
+/// Seven normals tilted around the surface normal (a "cylinder bump" NDF like the paper's).
+pub fn seven_lobes() -> PhongLobes {
+    let mut lobes = vec![(DVec3::Z, 0.4, 40.0)];
+    for k in 0..6 {
+        let a = std::f64::consts::PI * f64::from(k) / 3.0;
+        let n = DVec3::new(0.35 * a.cos(), 0.35 * a.sin(), 1.0).normalize();
+        lobes.push((n, 0.1, 20.0 + 5.0 * f64::from(k)));
+    }
+    PhongLobes::new(&lobes, [1.0, 0.9, 0.8]).expect("seven valid lobes")
+}
+
+/// A `size × size` sphere with the 7-lobe shader under 4 point lights, 1 spp.
+pub fn scene(size: u32) -> Scene {
+    let cam = Camera::new(
+        Projection::Perspective { fov_deg: 40.0 },
+        DVec3::new(0.0, 0.0, 3.2),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .expect("valid camera");
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp: 1,
+            background: [0.0; 3],
+        },
+    );
+    let m = b.material(Arc::new(seven_lobes()));
+    b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m)
+        .expect("valid sphere");
+    for p in [
+        DVec3::new(3.0, 3.0, 4.0),
+        DVec3::new(-3.0, 2.0, 4.0),
+        DVec3::new(0.0, -3.0, 3.0),
+        DVec3::new(2.0, 0.5, -1.0),
+    ] {
+        b.light(Light::Point {
+            position: p,
+            intensity: DVec3::splat(10.0),
+        })
+        .expect("valid light");
+    }
+    b.build().expect("valid scene")
+}

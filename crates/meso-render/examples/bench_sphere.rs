@@ -1,0 +1,48 @@
+//! Time the benchmark scene (1024² sphere, 7-lobe multiple surface, 4 point lights, 1 spp)
+//! in wall-clock and process CPU time, which stays meaningful on a loaded machine:
+//!
+//! `cargo run --release -p meso-render --example bench_sphere -- [SIZE] [FRAMES] [OUT.png]`
+
+#[path = "../benches/common/mod.rs"]
+mod common;
+
+use meso_render::{render, RenderOptions};
+use std::time::Instant;
+
+/// User + system CPU seconds of this process (Linux `/proc/self/stat`, 100 ticks/s).
+fn cpu_seconds() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = s.rsplit_once(')').map_or("", |x| x.1);
+    let f: Vec<&str> = after.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(11) + tick(12)) / 100.0
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let size: u32 = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(1024);
+    let frames: u32 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(20);
+    let scene = common::scene(size);
+    let opts = RenderOptions::default();
+    let _ = render(&scene, &opts, None); // warm-up
+    let (c0, t0) = (cpu_seconds(), Instant::now());
+    let mut img = None;
+    for _ in 0..frames {
+        img = Some(render(&scene, &opts, None));
+    }
+    let wall = t0.elapsed().as_secs_f64() / f64::from(frames);
+    let cpu = (cpu_seconds() - c0) / f64::from(frames);
+    let threads = rayon::current_num_threads();
+    println!(
+        "{size}x{size}: wall {:.1} ms/frame, CPU {:.1} ms/frame ({threads} threads; CPU/threads = {:.1} ms)",
+        wall * 1e3,
+        cpu * 1e3,
+        cpu * 1e3 / threads as f64
+    );
+    if let (Some(out), Some(img)) = (args.get(3), img) {
+        if let Err(e) = img.write_png(std::path::Path::new(out), 0.0) {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    }
+}
