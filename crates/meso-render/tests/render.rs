@@ -743,3 +743,45 @@ fn progress_reports_every_tile_and_options_override_the_size() {
         assert!((f64::from(p[0]) - 1.0 / PI).abs() < 1e-6);
     }
 }
+
+#[test]
+fn more_lights_than_one_batch_add_up() {
+    // 37 point lights (more than two batches of LIGHT_BATCH) vs the closed form of their sum.
+    let lights: Vec<DVec3> = (0..37)
+        .map(|k| {
+            let a = 2.0 * PI * f64::from(k) / 37.0;
+            DVec3::new(1.5 * a.cos(), 1.0 + 0.02 * f64::from(k), 1.5 * a.sin())
+        })
+        .collect();
+    let (scene, at) = floor_scene(12, 1, None);
+    let mut scene = scene;
+    scene.lights = lights
+        .iter()
+        .map(|&p| Light::Point {
+            position: p,
+            intensity: DVec3::splat(0.5),
+        })
+        .collect();
+    let img = render(
+        &scene,
+        &RenderOptions {
+            spp: Some(16),
+            ..Default::default()
+        },
+        None,
+    );
+    let exact = |i, j| {
+        let q: DVec3 = at(i, j);
+        lights
+            .iter()
+            .map(|&p| {
+                let d = p - q;
+                0.5 * d.y / d.length().powi(3)
+            })
+            .sum::<f64>()
+            / PI
+    };
+    let (rms, mx) = rms_rel(&img, exact);
+    assert!(rms < 1e-3 && mx < 5e-3, "rms {rms} max {mx}");
+    assert!(meso_render::render::LIGHT_BATCH < 37);
+}
