@@ -398,6 +398,13 @@ fn axis(fields: &mut Fields<'_>, key: &'static str) -> Result<Option<DVec3>, Mat
 /// Largest exponent accepted anywhere (beyond it a lobe is a delta; use `kind = "deltas"`).
 pub const MAX_EXPONENT: f64 = 1e7;
 
+/// Most lobes of a `phong-peaks` NDF (the quadrature's cost grows as the square of the count).
+pub const MAX_PHONG_LOBES: usize = 256;
+/// Most normals of a `deltas` NDF.
+pub const MAX_DELTAS: usize = 100_000;
+/// Most cells of a `tabulated` NDF.
+pub const MAX_TABLE_CELLS: usize = 1 << 20;
+
 fn parse_lobes(
     f: &mut Fields<'_>,
     with_exponent: bool,
@@ -541,6 +548,11 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
         "tabulated" => {
             let nz = f.bounded("n_z", 1.0, 4096.0)?.unwrap_or(64.0) as usize;
             let np = f.bounded("n_phi", 1.0, 8192.0)?.unwrap_or(128.0) as usize;
+            if nz * np > MAX_TABLE_CELLS {
+                return err(format!(
+                    "{name}: {nz} × {np} cells is above the limit {MAX_TABLE_CELLS}"
+                ));
+            }
             let grid = crate::grid::EqualAreaGrid::new(nz, np);
             let values = f.array("values", 0)?;
             let of = f.get("of");
