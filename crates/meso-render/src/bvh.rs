@@ -175,7 +175,10 @@ pub(crate) struct Bvh {
 
 const BINS: usize = 16;
 const MAX_LEAF: usize = 4;
-const STACK: usize = 64;
+/// Traversal stack size. Beyond [`MAX_SAH_DEPTH`] the build splits at the median, so the depth
+/// is at most `MAX_SAH_DEPTH + log2(n)` < 128 for any primitive count that fits in memory.
+const STACK: usize = 128;
+const MAX_SAH_DEPTH: usize = 48;
 
 #[derive(Clone, Copy)]
 struct Aabb {
@@ -220,7 +223,7 @@ impl Bvh {
         let centroids: Vec<DVec3> = boxes.iter().map(|b| 0.5 * (b.lo + b.hi)).collect();
         let mut order: Vec<u32> = (0..n as u32).collect();
         let mut nodes = Vec::with_capacity(2 * n);
-        build_rec(&boxes, &centroids, &mut order, 0, n, &mut nodes);
+        build_rec(&boxes, &centroids, &mut order, 0, n, 0, &mut nodes);
         let prims = order.iter().map(|&i| prims[i as usize]).collect();
         Bvh { nodes, prims }
     }
@@ -267,10 +270,9 @@ impl Bvh {
                     } else {
                         (node + 1, nd.offset)
                     };
-                    if sp < STACK {
-                        stack[sp] = far;
-                        sp += 1;
-                    }
+                    // Cannot overflow: the depth is bounded (see STACK).
+                    stack[sp.min(STACK - 1)] = far;
+                    sp = (sp + 1).min(STACK);
                     node = near;
                     continue;
                 }
@@ -305,10 +307,8 @@ impl Bvh {
                         }
                     }
                 } else {
-                    if sp < STACK {
-                        stack[sp] = nd.offset;
-                        sp += 1;
-                    }
+                    stack[sp.min(STACK - 1)] = nd.offset;
+                    sp = (sp + 1).min(STACK);
                     node += 1;
                     continue;
                 }
@@ -338,6 +338,7 @@ fn build_rec(
     order: &mut [u32],
     start: usize,
     end: usize,
+    depth: usize,
     nodes: &mut Vec<Node>,
 ) {
     let mut bb = Aabb::EMPTY;
@@ -361,7 +362,8 @@ fn build_rec(
     // Binned SAH over the centroid bounds.
     let ext = cb.hi - cb.lo;
     let mut best = (f64::INFINITY, 0usize, 0usize); // cost, axis, split bin
-    for axis in 0..3 {
+    let sah = depth < MAX_SAH_DEPTH;
+    for axis in (0..3).filter(|_| sah) {
         if ext[axis] <= 0.0 {
             continue;
         }
@@ -411,7 +413,18 @@ fn build_rec(
         nodes[me].axis = axis as u8;
         start + l
     } else {
-        // All centroids coincide: split in the middle of the list.
+        // Too deep for SAH (or all centroids coincide): median split on the widest axis.
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        nodes[me].axis = axis as u8;
+        order[start..end].select_nth_unstable_by(n / 2, |&a, &b| {
+            cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
+        });
         start + n / 2
     };
     let mid = if mid == start || mid == end {
@@ -420,9 +433,9 @@ fn build_rec(
         mid
     };
     nodes[me].count = 0;
-    build_rec(boxes, cents, order, start, mid, nodes);
+    build_rec(boxes, cents, order, start, mid, depth + 1, nodes);
     nodes[me].offset = nodes.len() as u32;
-    build_rec(boxes, cents, order, mid, end, nodes);
+    build_rec(boxes, cents, order, mid, end, depth + 1, nodes);
 }
 
 #[cfg(test)]
@@ -505,6 +518,42 @@ mod tests {
             }
         }
         assert!(hits > 300, "the test must exercise hits ({hits})");
+    }
+
+    #[test]
+    fn exponentially_spaced_primitives_keep_the_tree_shallow_and_correct() {
+        // Centroids at 2^k: binned SAH peels one primitive per level; the depth cap must hold.
+        let prims: Vec<Prim> = (0..400u32)
+            .map(|k| Prim::Sphere {
+                center: DVec3::new(1.1f64.powi(k as i32), 0.0, 0.0),
+                radius: 0.01,
+                index: k,
+            })
+            .collect();
+        let bvh = Bvh::build(prims.clone());
+        fn depth(b: &Bvh, i: u32) -> usize {
+            let n = &b.nodes[i as usize];
+            if n.count > 0 {
+                1
+            } else {
+                1 + depth(b, i + 1).max(depth(b, n.offset))
+            }
+        }
+        assert!(depth(&bvh, 0) < STACK, "depth {}", depth(&bvh, 0));
+        for k in [0u32, 7, 123, 399] {
+            let c = 1.1f64.powi(k as i32);
+            let ray = Ray {
+                o: DVec3::new(c, 5.0, 0.0),
+                d: DVec3::NEG_Y,
+            };
+            let h = bvh.intersect(&ray, 0.0, f64::INFINITY).expect("hit");
+            let id = match *bvh.prim(h.prim) {
+                Prim::Sphere { index, .. } => index,
+                _ => unreachable!(),
+            };
+            assert_eq!(id, k);
+            assert_eq!(brute(&prims, &ray).map(|b| b.1), Some(k));
+        }
     }
 
     #[test]
