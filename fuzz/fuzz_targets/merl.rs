@@ -1,12 +1,12 @@
 //! The MERL reader never panics. Two paths: the raw input as a whole file (header and size
-//! checks), and the input patched into a valid full-size table at an offset it chooses (value
-//! decoding: NaN/inf must be errors naming a cell inside the table, negative values "missing").
+//! checks, format detection), and the input as a run of stored values at a flat index it chooses
+//! (value decoding: NaN/inf are errors naming a cell inside the table, the rest are finite, scaled,
+//! negative ones "missing" = −1).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use meso_measured::merl::{MerlError, MerlTable, MERL_FILE_BYTES, N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H};
-use std::sync::Mutex;
-
-static FULL: Mutex<Vec<u8>> = Mutex::new(Vec::new());
+use meso_measured::merl::{
+    decode_values, MerlError, MerlTable, MERL_SCALES, N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H,
+};
 
 fuzz_target!(|data: &[u8]| {
     let _ = MerlTable::from_bytes(data);
@@ -14,31 +14,35 @@ fuzz_target!(|data: &[u8]| {
     if data.len() < 4 {
         return;
     }
-    let mut full = FULL.lock().unwrap_or_else(|e| e.into_inner());
-    if full.is_empty() {
-        full.resize(MERL_FILE_BYTES as usize, 0);
-        for (k, d) in [N_THETA_H, N_THETA_D, N_PHI_D].iter().enumerate() {
-            full[4 * k..4 * k + 4].copy_from_slice(&(*d as i32).to_le_bytes());
+    let first = u32::from_le_bytes([data[0], data[1], data[2], data[3]]) as usize;
+    let body = &data[4..];
+    let mut out = Vec::new();
+    match decode_values(body, first, &mut out) {
+        Ok(()) => {
+            assert_eq!(out.len(), body.len() / 8);
+            for (j, v) in out.iter().enumerate() {
+                let raw = f64::from_le_bytes(body[8 * j..8 * j + 8].try_into().unwrap());
+                if raw < 0.0 {
+                    assert_eq!(*v, -1.0);
+                } else {
+                    let c = (first + j) / N_CELLS;
+                    assert!(v.is_finite() && *v >= 0.0);
+                    assert_eq!(*v, raw * MERL_SCALES[c]);
+                }
+            }
         }
-    }
-    let patch = &data[4..];
-    let span = full.len() - 12 - patch.len().min(full.len() - 12);
-    let off = 12 + (u32::from_le_bytes([data[0], data[1], data[2], data[3]]) as usize % (span + 1));
-    let end = (off + patch.len()).min(full.len());
-    let saved = full[off..end].to_vec();
-    full[off..end].copy_from_slice(&patch[..end - off]);
-    match MerlTable::from_bytes(&full) {
-        Ok(t) => {
-            // Patched values are either scaled finite values or "missing" (< 0).
-            let first = (off - 12) / 8;
-            let cell = first % N_CELLS;
-            let (ih, id, ip) = (cell / (N_THETA_D * N_PHI_D), (cell / N_PHI_D) % N_THETA_D, cell % N_PHI_D);
-            assert!(t.value(first / N_CELLS, ih, id, ip).is_finite());
-        }
-        Err(MerlError::NonFinite { ih, id, ip, channel, .. }) => {
+        Err(MerlError::NonFinite {
+            ih,
+            id,
+            ip,
+            channel,
+            value,
+            ..
+        }) => {
             assert!(ih < N_THETA_H && id < N_THETA_D && ip < N_PHI_D && channel < 3);
+            assert!(!value.is_finite());
         }
-        Err(e) => panic!("unexpected error on a full-size table: {e}"),
+        Err(MerlError::BadSize { .. }) => assert!(first + body.len() / 8 > 3 * N_CELLS),
+        Err(e) => panic!("unexpected error: {e}"),
     }
-    full[off..end].copy_from_slice(&saved);
 });

@@ -539,8 +539,15 @@ pub fn fit_from(
         return Err(bad("starting points missing or of the wrong length".into()));
     }
     let ab = model.amplitude_bounds();
-    if ab.len() != nb || ab.iter().any(|(lo, hi)| !(lo <= hi) || *lo < 0.0) {
-        return Err(bad(format!("{} amplitude bounds for {nb} basis lobes", ab.len())));
+    if ab.len() != nb
+        || ab
+            .iter()
+            .any(|(lo, hi)| lo.is_nan() || hi.is_nan() || lo > hi || *lo < 0.0)
+    {
+        return Err(bad(format!(
+            "{} amplitude bounds for {nb} basis lobes",
+            ab.len()
+        )));
     }
     let mut bounds = tb.clone();
     for _ in 0..3 {

@@ -88,8 +88,8 @@ fn load(path: &Path, target: usize) -> Result<Data> {
     let mut head = [0u8; 12];
     let n = {
         use std::io::Read;
-        let mut f =
-            std::fs::File::open(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        let mut f = std::fs::File::open(path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
         let mut n = 0;
         while n < 12 {
             let k = f
@@ -133,7 +133,11 @@ fn load(path: &Path, target: usize) -> Result<Data> {
         });
     }
     if meta.len() > 1 << 30 {
-        bail!("{}: {} bytes is too large for a sample CSV", path.display(), meta.len());
+        bail!(
+            "{}: {} bytes is too large for a sample CSV",
+            path.display(),
+            meta.len()
+        );
     }
     let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let Ok(text) = String::from_utf8(bytes) else {
@@ -151,7 +155,10 @@ fn load(path: &Path, target: usize) -> Result<Data> {
         .filter(|s| s.wi.z > 1e-9 && s.wo.z > 1e-9)
         .count();
     if usable == 0 {
-        bail!("{}: no sample has both directions above the horizon", path.display());
+        bail!(
+            "{}: no sample has both directions above the horizon",
+            path.display()
+        );
     }
     let samples = SampleSet {
         samples: samples
@@ -247,12 +254,10 @@ fn fit_lobes(
     opts: &FitOptions,
 ) -> Result<Vec<(Lobes, FitResult)>> {
     Ok(match transfer {
-        TransferArg::Phong => {
-            model::fit_lobes_progressive(k, TransferExponent::Free, data, opts)?
-                .into_iter()
-                .map(|(m, r)| (Lobes::Phong(m.params(&r)), r))
-                .collect()
-        }
+        TransferArg::Phong => model::fit_lobes_progressive(k, TransferExponent::Free, data, opts)?
+            .into_iter()
+            .map(|(m, r)| (Lobes::Phong(m.params(&r)), r))
+            .collect(),
         TransferArg::Microfacet => model::fit_microfacet_lobes_progressive(k, data, opts)?
             .into_iter()
             .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
@@ -293,7 +298,10 @@ fn out_paths(out: &Path, per_channel: bool) -> Vec<PathBuf> {
     if !per_channel {
         return vec![out.to_path_buf()];
     }
-    let stem = out.file_stem().and_then(|s| s.to_str()).unwrap_or("material");
+    let stem = out
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("material");
     ["red", "green", "blue"]
         .iter()
         .map(|c| out.with_file_name(format!("{stem}.{c}.toml")))
@@ -403,7 +411,10 @@ pub fn run(a: Args) -> Result<()> {
         };
         let text = lobes.to_toml(&comment);
         let material = Material::from_toml_str(&text).map_err(|e| {
-            anyhow::anyhow!("internal error: the fitted material does not parse: {}", e.0)
+            anyhow::anyhow!(
+                "internal error: the fitted material does not parse: {}",
+                e.0
+            )
         })?;
         texts.push(text);
         materials.push(material);
@@ -468,7 +479,11 @@ pub fn run(a: Args) -> Result<()> {
         "metric minimised: {}; transfer: {:?}; lobes: {k}{}",
         metric.name(),
         a.transfer,
-        if a.per_channel_lobes { " per channel" } else { " shared by r, g, b" }
+        if a.per_channel_lobes {
+            " per channel"
+        } else {
+            " shared by r, g, b"
+        }
     );
     for (j, (lobes, r)) in finals.iter().enumerate() {
         if a.per_channel_lobes {
@@ -489,8 +504,8 @@ pub fn run(a: Args) -> Result<()> {
     }
     let _ = writeln!(
         rep,
-        "\nerrors per channel (r g b)           {:<26} {}",
-        "ngan-l2 (1/sr)", "low-log"
+        "\nerrors per channel (r g b)           {:<26} low-log",
+        "ngan-l2 (1/sr)"
     );
     let _ = writeln!(
         rep,
@@ -524,8 +539,8 @@ pub fn run(a: Args) -> Result<()> {
     if a.baselines {
         let _ = writeln!(
             rep,
-            "\n{:<26} {:>8} {:>6}   {:<26} {}",
-            "model (same machinery)", "time(s)", "iters", "ngan-l2 r g b", "low-log r g b"
+            "\n{:<26} {:>8} {:>6}   {:<26} low-log r g b",
+            "model (same machinery)", "time(s)", "iters", "ngan-l2 r g b"
         );
         let mut rows: Vec<&FitResult> = Vec::new();
         if !a.per_channel_lobes {
@@ -578,7 +593,11 @@ fn luminance(v: [f64; 3]) -> f64 {
 /// for θo ≥ 0 and `(|θo|, 180°)` otherwise.
 fn in_plane(theta_i: f64, theta_o: f64) -> (DVec3, DVec3) {
     let wi = meso_core::frame::spherical_direction(theta_i, std::f64::consts::PI);
-    let po = if theta_o >= 0.0 { 0.0 } else { std::f64::consts::PI };
+    let po = if theta_o >= 0.0 {
+        0.0
+    } else {
+        std::f64::consts::PI
+    };
     (wi, meso_core::frame::spherical_direction(theta_o.abs(), po))
 }
 
@@ -630,9 +649,8 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
                     let (th_i, ph_i) = meso_core::frame::spherical_angles(s.wi);
                     let (th_o, ph_o) = meso_core::frame::spherical_angles(s.wo);
                     let dphi = (ph_o - ph_i).rem_euclid(2.0 * std::f64::consts::PI);
-                    let in_plane = (dphi - std::f64::consts::PI).abs() < 0.05
-                        || th_i < 0.02
-                        || th_o < 0.02;
+                    let in_plane =
+                        (dphi - std::f64::consts::PI).abs() < 0.05 || th_i < 0.02 || th_o < 0.02;
                     if (th_i - ti).abs() < 0.05 && in_plane {
                         let sign = if dphi.cos() < 0.0 { 1.0 } else { -1.0 };
                         Some([sign * th_o, lm(s.rgb, ci)])
@@ -655,7 +673,9 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
                 [to, lm(model(wi, wo), ci)]
             })
             .collect();
-        plot.add(PolarSeries::new("fitted model", mpts).with_color(meso_plot::color::hex(0xD62728)));
+        plot.add(
+            PolarSeries::new("fitted model", mpts).with_color(meso_plot::color::hex(0xD62728)),
+        );
         let epts: Vec<[f64; 2]> = thetas
             .par_iter()
             .step_by(3)
@@ -708,10 +728,10 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
             .collect()
     };
     let model_img = render(&|wi, wo| Some(model(wi, wo)));
-    let data_img = match &data.merl {
-        Some(t) => Some(render(&|wi, wo| t.lookup(wi, wo))),
-        None => None,
-    };
+    let data_img = data
+        .merl
+        .as_ref()
+        .map(|t| render(&|wi, wo| t.lookup(wi, wo)));
     // Exposure: the 90th percentile of the reference image's luminance maps to 0.6 (before the
     // tone curve), highlights roll off with x/(1+x).
     let reference = data_img.as_ref().unwrap_or(&model_img);
@@ -722,7 +742,11 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
         .filter(|l| *l > 0.0)
         .collect();
     lum.sort_by(f64::total_cmp);
-    let p90 = lum.get(lum.len() * 9 / 10).copied().unwrap_or(1.0).max(1e-12);
+    let p90 = lum
+        .get(lum.len() * 9 / 10)
+        .copied()
+        .unwrap_or(1.0)
+        .max(1e-12);
     let exposure = 1.5 / p90;
     let to_canvas = |img: &[Option<[f64; 3]>]| -> Result<Canvas> {
         let mut v = Vec::with_capacity(size * size * 3);
@@ -750,7 +774,14 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
         }
         None => {
             let mut c = Canvas::new(size as u32, size as u32, [0.25, 0.25, 0.27]);
-            meso_plot::draw_text(&mut c, 20, (size / 2) as i32, "CSV data: no image", 2, [1.0; 3]);
+            meso_plot::draw_text(
+                &mut c,
+                20,
+                (size / 2) as i32,
+                "CSV data: no image",
+                2,
+                [1.0; 3],
+            );
             sheet.add(c, "data (scattered samples)");
         }
     }

@@ -156,7 +156,11 @@ impl LobeMicrofacetParams {
         let _ = writeln!(s, "f0 = [{:?}, {:?}, {:?}]", f[0], f[1], f[2]);
         s.push_str("\n[shadowing]\nkind = \"smith\"\n");
         let a = self.albedo.map(|x| x.clamp(0.0, 1.0));
-        let _ = writeln!(s, "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]", a[0], a[1], a[2]);
+        let _ = writeln!(
+            s,
+            "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
+            a[0], a[1], a[2]
+        );
         s
     }
 }

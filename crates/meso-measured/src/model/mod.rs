@@ -5,12 +5,12 @@ pub mod lobes;
 pub mod lobes_microfacet;
 
 pub use baselines::{AshikhminShirley, BlinnPhong, Lafortune, Microfacet, MicrofacetKind};
+pub use lobes::{
+    fit_lobes_progressive, lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent,
+};
 pub use lobes_microfacet::{
     fit_microfacet_lobes_progressive, microfacet_lobes_fast, LobeMicrofacetModel,
     LobeMicrofacetParams,
-};
-pub use lobes::{
-    fit_lobes_progressive, lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent,
 };
 
 use crate::fit::BrdfModel;
