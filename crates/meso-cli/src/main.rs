@@ -15,7 +15,7 @@ pub(crate) fn load_material(
 ) -> anyhow::Result<meso_core::material::Material> {
     Ok(meso_core::material::Material::from_file(
         path,
-        &meso_core::material::NoExternalNdfs,
+        &meso_maps::MapsResolver::new(),
     )?)
 }
 
@@ -36,6 +36,13 @@ enum Command {
     Ndf(cmd::ndf::NdfCommand),
     /// Fit a measured BRDF (MERL binary or sample CSV) with K Phong peaks; write a material.
     Fit(cmd::fit::Args),
+    /// Extract the NDF pyramid of a height map (or normal map) into a map file.
+    Extract(cmd::extract::Args),
+    /// Inspect map files (NDF pyramids).
+    #[command(subcommand)]
+    Map(cmd::map::MapCommand),
+    /// Measure a height-map material's BRDF by ray tracing (virtual gonioreflectometer).
+    Gonio(cmd::gonio::Args),
 }
 
 fn main() -> ExitCode {
@@ -44,6 +51,9 @@ fn main() -> ExitCode {
         Command::Brdf(a) => cmd::brdf::run(a),
         Command::Ndf(a) => cmd::ndf::run(a),
         Command::Fit(a) => cmd::fit::run(a),
+        Command::Extract(a) => cmd::extract::run(a),
+        Command::Map(a) => cmd::map::run(a),
+        Command::Gonio(a) => cmd::gonio::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -317,6 +317,33 @@ impl PatchNdf {
         out
     }
 
+    /// The NDF as Phong peaks (weights summing to 1), for storage in a map file: lobes as they
+    /// are; a vMF lobe as the Phong peak of the same small-angle shape, `η = 4κ`
+    /// (`cos^η(α/2) ≈ exp((η/4)(cos α − 1))`); LEAN isotropised, about its mean normal with
+    /// `η = 8/tr(Σ)` (angular variance `8/η` = slope variance); raw facets one delta-like lobe
+    /// each (η = [`ETA_MAX`]).
+    #[must_use]
+    pub fn to_phong_lobes(&self) -> Vec<PhongLobe> {
+        match self {
+            PatchNdf::Lobes(l) => l.clone(),
+            PatchNdf::Facets(f) => f
+                .iter()
+                .map(|(n, w)| PhongLobe::new(*n, *w, ETA_MAX))
+                .collect(),
+            PatchNdf::Vmf { axis, kappa } => {
+                vec![PhongLobe::new(*axis, 1.0, (4.0 * kappa).min(ETA_MAX))]
+            }
+            PatchNdf::Lean(l) => {
+                let tr = (l.cov.x_axis.x + l.cov.y_axis.y).max(1e-300);
+                vec![PhongLobe::new(
+                    DVec3::new(-l.mean.x, -l.mean.y, 1.0),
+                    1.0,
+                    (8.0 / tr).min(ETA_MAX),
+                )]
+            }
+        }
+    }
+
     /// Probability per bin of an equal-area grid (used for NDF errors).
     pub fn bin_mass(&self, grid: SphereGrid, out: &mut [f64]) {
         match self {

@@ -6,8 +6,9 @@
 //! stratified points of one period of the tile (each ray stands for the same projected macro
 //! area). The first facet hit, with normal `m`, contributes `f_μ(i, o; m)·max(0, i·m)·V` where
 //! `V` is 1 unless a shadow ray towards `i` (also tiled) hits the surface; the BRDF is the
-//! mean contribution divided by `cos θ_i` (radiance / (E cos θ_i)). Single bounce: light
-//! reflected between facets is not followed.
+//! mean contribution divided by `cos θ_i` (radiance / (E cos θ_i)). Single bounce by default;
+//! [`GonioParams::bounces`] > 1 adds light inter-reflected between facets (path tracing with
+//! cosine-weighted continuation and a shadow ray at every hit).
 //!
 //! Acceleration: a 2-D DDA over the grid cells with the per-cell maximum height; a ray is
 //! tested against a cell's two triangles only where its height range over the cell reaches
@@ -31,6 +32,11 @@ pub struct GonioParams {
     pub shadowing: bool,
     /// Seed of the jitter.
     pub seed: u64,
+    /// Scattering events followed per ray (default 1: single bounce). With `b > 1` light
+    /// inter-reflected between facets is added: from each hit, a cosine-weighted direction about
+    /// the facet normal continues the path (throughput `f_μ·π`), and every hit is lit directly
+    /// (shadow ray towards `i`); paths that leave the surface end (the light is directional).
+    pub bounces: usize,
 }
 
 impl Default for GonioParams {
@@ -39,6 +45,7 @@ impl Default for GonioParams {
             rays_per_side: 256,
             shadowing: true,
             seed: 1,
+            bounces: 1,
         }
     }
 }
@@ -255,22 +262,50 @@ impl Gonio {
                     let px = (a as f64 + rng.random::<f64>()) / n as f64 * w;
                     let py = (b as f64 + rng.random::<f64>()) / n as f64 * h;
                     let origin = DVec3::new(px, py, 0.0) + o * (start_z / o.z);
-                    let Some(hit) = self.intersect(origin, -o, 0.0) else {
-                        continue;
-                    };
-                    let m = hit.normal;
-                    let im = i.dot(m);
-                    if im <= 0.0 || o.dot(m) <= 0.0 {
-                        continue;
-                    }
-                    let p = origin - o * hit.t;
-                    if params.shadowing && self.intersect(p + m * 1e-7, i, 1e-9).is_some() {
-                        continue;
-                    }
-                    let fr = Frame::from_normal_tangent(m, DVec3::X);
-                    let f = facet.eval(fr.to_local(i), fr.to_local(o));
-                    for c in 0..3 {
-                        acc[c] += f[c] * im;
+                    let mut ray_o = origin;
+                    let mut ray_d = -o;
+                    let mut wo = o;
+                    let mut through = [1.0f64; 3];
+                    for bounce in 0..params.bounces.max(1) {
+                        let t_min = if bounce == 0 { 0.0 } else { 1e-9 };
+                        let Some(hit) = self.intersect(ray_o, ray_d, t_min) else {
+                            break;
+                        };
+                        let m = hit.normal;
+                        if wo.dot(m) <= 0.0 {
+                            break;
+                        }
+                        let p = ray_o + ray_d * hit.t;
+                        let fr = Frame::from_normal_tangent(m, DVec3::X);
+                        let im = i.dot(m);
+                        if im > 0.0
+                            && !(params.shadowing
+                                && self.intersect(p + m * 1e-7, i, 1e-9).is_some())
+                        {
+                            let f = facet.eval(fr.to_local(i), fr.to_local(wo));
+                            for c in 0..3 {
+                                acc[c] += through[c] * f[c] * im;
+                            }
+                        }
+                        if bounce + 1 >= params.bounces {
+                            break;
+                        }
+                        // Cosine-weighted continuation about m: weight f·cos/pdf = f·π.
+                        let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+                        let r = u1.sqrt();
+                        let ph = 2.0 * std::f64::consts::PI * u2;
+                        let local = DVec3::new(r * ph.cos(), r * ph.sin(), (1.0 - u1).sqrt());
+                        let wi = fr.to_world(local);
+                        let f = facet.eval(local, fr.to_local(wo));
+                        for c in 0..3 {
+                            through[c] *= f[c] * std::f64::consts::PI;
+                        }
+                        if through.iter().all(|t| *t <= 0.0) {
+                            break;
+                        }
+                        ray_o = p + m * 1e-7;
+                        ray_d = wi;
+                        wo = -wi;
                     }
                 }
                 acc

@@ -30,6 +30,7 @@ pub mod gonio;
 pub mod heightmap;
 pub mod horizon;
 pub mod pyramid;
+pub mod resolver;
 pub mod sphgrid;
 
 pub use brdf::{
@@ -42,4 +43,5 @@ pub use fit::FitParams;
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{Border, HeightMap, NormalConvention, NormalMap};
 pub use horizon::{HorizonMap, HorizonStats};
-pub use pyramid::{extract, ExtractParams, Level, Progress, Pyramid, PyramidInfo, Source};
+pub use pyramid::{extract, ExtractParams, Level, Method, Progress, Pyramid, PyramidInfo, Source};
+pub use resolver::{HorizonVisibility, MapsResolver};

@@ -38,6 +38,19 @@ pub struct ExtractParams {
     /// Texels per level on which the NDF residual is measured (all when the level has fewer;
     /// default 64).
     pub residual_texels: usize,
+    /// What to store per texel: fitted lobes (default) or a single-lobe baseline.
+    pub method: Method,
+}
+
+/// What [`extract`] stores per texel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Up to `max_lobes` fitted Phong peaks (the multiple surface).
+    #[default]
+    Lobes,
+    /// A single-lobe baseline, converted to one Phong peak (`PatchNdf::to_phong_lobes`): the
+    /// map file stores isotropic Phong lobes only, so LEAN is isotropised.
+    Baseline(crate::brdf::Baseline),
 }
 
 impl Default for ExtractParams {
@@ -46,6 +59,7 @@ impl Default for ExtractParams {
             fit: FitParams::default(),
             normal_mode: NormalMode::Triangles,
             residual_texels: 64,
+            method: Method::Lobes,
         }
     }
 }
@@ -391,7 +405,15 @@ pub fn extract(
                             out.horizon.push(hs);
                         }
                     }
-                    fit_lobes(&merged, &params.fit, &mut lobes);
+                    match params.method {
+                        Method::Lobes => fit_lobes(&merged, &params.fit, &mut lobes),
+                        Method::Baseline(b) => {
+                            let pts: Vec<(glam::DVec3, f64)> =
+                                merged.iter().map(|e| (e.mean(), e.w)).collect();
+                            lobes.clear();
+                            lobes.extend(crate::brdf::fit_baseline(b, &pts).to_phong_lobes());
+                        }
+                    }
                     out.entries.extend_from_slice(&merged);
                     out.ecount.push(merged.len() as u32);
                     out.lobes.extend_from_slice(&lobes);

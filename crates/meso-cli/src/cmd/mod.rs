@@ -1,5 +1,8 @@
 //! One module per subcommand.
 pub mod brdf;
+pub mod extract;
 pub mod fit;
+pub mod gonio;
+pub mod map;
 pub mod ndf;
 pub mod ndf_plot;

@@ -1,0 +1,147 @@
+//! `meso extract HEIGHTMAP --texel-size S --height-scale H [--max-lobes K] --out MAP` — build the
+//! NDF pyramid of a height map (or normal map) and write it as a map file (docs/map-format.md).
+
+use anyhow::{bail, Context, Result};
+use meso_maps::{
+    extract, Baseline, Border, ExtractParams, HeightMap, Method, NormalConvention, NormalMap,
+    NormalMode, Source,
+};
+use std::path::PathBuf;
+
+/// Green-channel convention of a normal map.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Convention {
+    /// OpenGL: green is +y.
+    Gl,
+    /// DirectX: green is −y.
+    Dx,
+}
+
+/// What to store per texel.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodArg {
+    /// Up to K fitted Phong peaks (the multiple surface).
+    Lobes,
+    /// Toksvig: one Phong peak about the mean normal.
+    Toksvig,
+    /// LEAN (five moments), isotropised to one Phong peak.
+    Lean,
+    /// One von Mises–Fisher lobe, as a Phong peak.
+    Vmf,
+    /// The mip-mapped (averaged) normal: one delta-like lobe.
+    Mip,
+}
+
+/// Normals from the height map.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NormalsArg {
+    /// Two flat triangles per grid cell (exact for the displaced surface).
+    Triangles,
+    /// Central differences, one normal per cell (smooth data).
+    Central,
+}
+
+/// Extract the NDF pyramid of a height map (docs/heightmaps.md) and write a map file.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Height map (8/16-bit grey PNG, 16-bit TIFF, float EXR) or, with --normal-map, an RGB
+    /// tangent-space normal map.
+    pub heightmap: PathBuf,
+    /// Distance between samples S (length units, > 0); required for height maps.
+    #[arg(long)]
+    pub texel_size: Option<f64>,
+    /// Height of the full code range H (same unit, > 0); required for height maps.
+    #[arg(long)]
+    pub height_scale: Option<f64>,
+    /// Largest number of lobes per texel (1–8).
+    #[arg(long, default_value_t = 4)]
+    pub max_lobes: usize,
+    /// The input is a tangent-space normal map (no heights: no horizon statistics).
+    #[arg(long)]
+    pub normal_map: bool,
+    /// Green-channel convention of the normal map.
+    #[arg(long, value_enum, default_value = "gl", requires = "normal_map")]
+    pub convention: Convention,
+    /// The map is one tile of a periodic surface (the default).
+    #[arg(long, conflicts_with = "clamp")]
+    pub wrap: bool,
+    /// Only the samples inside the image exist.
+    #[arg(long)]
+    pub clamp: bool,
+    /// Normals from two triangles per cell (default) or central differences.
+    #[arg(long, value_enum, default_value = "triangles")]
+    pub normals: NormalsArg,
+    /// Fitted lobes (default) or a single-lobe baseline.
+    #[arg(long, value_enum, default_value = "lobes")]
+    pub method: MethodArg,
+    /// Output map file (written atomically).
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+/// Run the command.
+pub fn run(a: Args) -> Result<()> {
+    if !(1..=meso_maps::fit::MAX_LOBES).contains(&a.max_lobes) {
+        bail!(
+            "--max-lobes {}: must be between 1 and {}",
+            a.max_lobes,
+            meso_maps::fit::MAX_LOBES
+        );
+    }
+    let border = if a.clamp { Border::Clamp } else { Border::Wrap };
+    let mut params = ExtractParams {
+        normal_mode: match a.normals {
+            NormalsArg::Triangles => NormalMode::Triangles,
+            NormalsArg::Central => NormalMode::CentralDifferences,
+        },
+        method: match a.method {
+            MethodArg::Lobes => Method::Lobes,
+            MethodArg::Toksvig => Method::Baseline(Baseline::Toksvig),
+            MethodArg::Lean => Method::Baseline(Baseline::Lean),
+            MethodArg::Vmf => Method::Baseline(Baseline::Vmf),
+            MethodArg::Mip => Method::Baseline(Baseline::MipNormal),
+        },
+        ..ExtractParams::default()
+    };
+    params.fit.max_lobes = a.max_lobes;
+    let heights;
+    let normals;
+    let source = if a.normal_map {
+        if a.texel_size.is_some() || a.height_scale.is_some() {
+            bail!("--texel-size and --height-scale do not apply to a normal map (--normal-map)");
+        }
+        let conv = match a.convention {
+            Convention::Gl => NormalConvention::Gl,
+            Convention::Dx => NormalConvention::Dx,
+        };
+        normals = NormalMap::load(&a.heightmap, conv)?;
+        Source::Normals(&normals)
+    } else {
+        let (Some(s), Some(h)) = (a.texel_size, a.height_scale) else {
+            bail!("a height map needs --texel-size S and --height-scale H");
+        };
+        heights = HeightMap::load(&a.heightmap, s, h, border)?;
+        Source::Heights(&heights)
+    };
+    let bar = crate::progress(u64::MAX, "extract");
+    let mut started = false;
+    let pyr = extract(source, &params, &mut |p| {
+        if !started {
+            bar.set_length(p.texels_total);
+            started = true;
+        }
+        bar.set_position(p.texels_done);
+    })
+    .with_context(|| format!("{}", a.heightmap.display()))?;
+    bar.finish_and_clear();
+    pyr.write(&a.out)?;
+    let top = pyr.top();
+    eprintln!(
+        "{}: {} levels, top level {} lobes (NDF residual {:.4})",
+        a.out.display(),
+        pyr.levels.len(),
+        top.lobes.len(),
+        top.residual.mean
+    );
+    Ok(())
+}

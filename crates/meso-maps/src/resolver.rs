@@ -1,0 +1,363 @@
+//! Material integration: [`MapsResolver`] loads the `[ndf]` tables of material files whose NDF
+//! comes from a height map or a map file (`meso_core::material::NdfResolver`).
+//!
+//! # `kind = "heightmap"`
+//! | key | value |
+//! | --- | --- |
+//! | `file` | the height map (PNG, TIFF, EXR), relative to the material file |
+//! | `texel_size` | distance between samples `S` (> 0, length units) |
+//! | `height_scale` | height of the full code range `H` (> 0, same unit) |
+//! | `max_lobes` | lobes per texel, 1–8 (default 4) |
+//! | `border` | `"wrap"` (default) or `"clamp"` |
+//! | `normals` | `"triangles"` (default) or `"central"` (central differences) |
+//!
+//! The pyramid is extracted once per (file, modification time, parameters) and cached in the
+//! resolver; the NDF is the top level's lobes (the whole map).
+//!
+//! # `kind = "map"`
+//! | key | value |
+//! | --- | --- |
+//! | `file` | a map file written by `meso extract` (docs/map-format.md) |
+//! | `level` | `"top"` (default) or a level number (0 = finest) |
+//! | `texel` | `[row, col]` of the texel; required with a numbered level (default `[0, 0]` at the top) |
+//!
+//! Unknown keys are errors naming them. The resolved NDF is `Ndf::PhongPeaks` (the fitted lobes
+//! are the Eq. 1 area density, see `crate::facets`), the horizon model is the texel's
+//! [`HorizonStats`] (for the top level: the statistics merged over the whole map) as
+//! `G(i, o) = V(i)·V(o)`, and the default form is the microfacet form.
+
+use crate::facets::NormalMode;
+use crate::heightmap::{Border, HeightMap};
+use crate::horizon::HorizonStats;
+use crate::pyramid::{extract, ExtractParams, Pyramid, Source};
+use glam::DVec3;
+use meso_core::convolution::Form;
+use meso_core::material::{MaterialError, NdfResolver, ResolvedNdf, VisibilityModel};
+use meso_core::ndf::{Ndf, PhongPeaks};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// The horizon masking–shadowing model of one texel: `G(i, o) = V(i)·V(o)` with
+/// [`HorizonStats::visibility`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HorizonVisibility(pub HorizonStats);
+
+impl VisibilityModel for HorizonVisibility {
+    fn g(&self, i: DVec3, o: DVec3) -> f64 {
+        self.0.visibility(i) * self.0.visibility(o)
+    }
+}
+
+/// The parameters of a `kind = "heightmap"` table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeightmapParams {
+    /// Texel size `S` (length units).
+    pub texel_size: f64,
+    /// Height scale `H` (length units).
+    pub height_scale: f64,
+    /// Largest number of lobes per texel.
+    pub max_lobes: usize,
+    /// Border mode.
+    pub border: Border,
+    /// How normals are derived.
+    pub normal_mode: NormalMode,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+struct CacheKey {
+    path: PathBuf,
+    len: u64,
+    modified: Option<std::time::SystemTime>,
+    texel_size: u64,
+    height_scale: u64,
+    max_lobes: usize,
+    clamp: bool,
+    central: bool,
+}
+
+/// An `NdfResolver` for `[ndf] kind = "heightmap"` and `kind = "map"` (see the module docs).
+/// Extracted pyramids are cached per resolver.
+#[derive(Debug, Default)]
+pub struct MapsResolver {
+    cache: Mutex<HashMap<CacheKey, Arc<Pyramid>>>,
+}
+
+fn merr<T>(msg: impl Into<String>) -> Result<T, MaterialError> {
+    Err(MaterialError(msg.into()))
+}
+
+fn check_keys(table: &toml::Table, known: &[&str]) -> Result<(), MaterialError> {
+    let unknown: Vec<&str> = table
+        .keys()
+        .map(String::as_str)
+        .filter(|k| !known.contains(k))
+        .collect();
+    if unknown.is_empty() {
+        Ok(())
+    } else {
+        merr(format!(
+            "[ndf]: unknown key{} {} (known here: {})",
+            if unknown.len() > 1 { "s" } else { "" },
+            unknown
+                .iter()
+                .map(|k| format!("`{k}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            known.join(", ")
+        ))
+    }
+}
+
+fn positive_number(table: &toml::Table, key: &str) -> Result<f64, MaterialError> {
+    let v = match table.get(key) {
+        None => {
+            return merr(format!(
+                "[ndf]: kind = \"heightmap\" needs `{key}` (a number > 0)"
+            ))
+        }
+        Some(toml::Value::Float(f)) => *f,
+        Some(toml::Value::Integer(i)) => *i as f64,
+        Some(v) => return merr(format!("[ndf] {key}: expected a number, got {v}")),
+    };
+    if !(v.is_finite() && v > 0.0) {
+        return merr(format!("[ndf] {key}: must be a finite number > 0, got {v}"));
+    }
+    Ok(v)
+}
+
+fn integer(v: &toml::Value, what: &str) -> Result<usize, MaterialError> {
+    match v {
+        toml::Value::Integer(i) if *i >= 0 => Ok(*i as usize),
+        _ => merr(format!("[ndf] {what}: expected an integer ≥ 0, got {v}")),
+    }
+}
+
+fn choice<'a>(
+    table: &'a toml::Table,
+    key: &str,
+    known: &[&'a str],
+) -> Result<Option<&'a str>, MaterialError> {
+    match table.get(key) {
+        None => Ok(None),
+        Some(toml::Value::String(s)) if known.contains(&s.as_str()) => Ok(Some(s.as_str())),
+        Some(v) => merr(format!(
+            "[ndf] {key}: expected one of {}, got {v}",
+            known
+                .iter()
+                .map(|k| format!("\"{k}\""))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )),
+    }
+}
+
+/// Turn a texel's lobes and horizon statistics into a [`ResolvedNdf`].
+fn resolved(
+    lobes: &[meso_core::ndf::PhongLobe],
+    horizon: Option<HorizonStats>,
+    what: &str,
+) -> Result<ResolvedNdf, MaterialError> {
+    if lobes.is_empty() {
+        return merr(format!("{what}: the texel has no lobes"));
+    }
+    let ndf = Ndf::PhongPeaks(
+        PhongPeaks::new(lobes.to_vec()).map_err(|e| MaterialError(format!("{what}: {e}")))?,
+    );
+    Ok(ResolvedNdf {
+        ndf,
+        horizon: horizon.map(|h| Arc::new(HorizonVisibility(h)) as Arc<dyn VisibilityModel>),
+        default_form: Form::Microfacet,
+    })
+}
+
+impl MapsResolver {
+    /// A resolver with an empty cache.
+    #[must_use]
+    pub fn new() -> MapsResolver {
+        MapsResolver::default()
+    }
+
+    /// Parse and check a `kind = "heightmap"` table (module docs).
+    ///
+    /// # Errors
+    /// Unknown keys and missing or bad values, as a message naming them.
+    pub fn heightmap_params(table: &toml::Table) -> Result<HeightmapParams, MaterialError> {
+        check_keys(
+            table,
+            &[
+                "kind",
+                "file",
+                "texel_size",
+                "height_scale",
+                "max_lobes",
+                "border",
+                "normals",
+            ],
+        )?;
+        let texel_size = positive_number(table, "texel_size")?;
+        let height_scale = positive_number(table, "height_scale")?;
+        let max_lobes = match table.get("max_lobes") {
+            None => 4,
+            Some(v) => {
+                let k = integer(v, "max_lobes")?;
+                if !(1..=crate::fit::MAX_LOBES).contains(&k) {
+                    return merr(format!(
+                        "[ndf] max_lobes: must be between 1 and {}, got {k}",
+                        crate::fit::MAX_LOBES
+                    ));
+                }
+                k
+            }
+        };
+        let border = match choice(table, "border", &["wrap", "clamp"])? {
+            Some("clamp") => Border::Clamp,
+            _ => Border::Wrap,
+        };
+        let normal_mode = match choice(table, "normals", &["triangles", "central"])? {
+            Some("central") => NormalMode::CentralDifferences,
+            _ => NormalMode::Triangles,
+        };
+        Ok(HeightmapParams {
+            texel_size,
+            height_scale,
+            max_lobes,
+            border,
+            normal_mode,
+        })
+    }
+
+    /// Load the height map of a `kind = "heightmap"` table.
+    ///
+    /// # Errors
+    /// Bad keys or values, and every height-map error, as a message.
+    pub fn heightmap(table: &toml::Table, file: &Path) -> Result<HeightMap, MaterialError> {
+        let p = Self::heightmap_params(table)?;
+        HeightMap::load(file, p.texel_size, p.height_scale, p.border)
+            .map_err(|e| MaterialError(format!("[ndf]: {e}")))
+    }
+
+    /// The pyramid of a `kind = "heightmap"` table (extracted, or from the cache).
+    ///
+    /// # Errors
+    /// Unknown keys, bad values, and every height-map or extraction error, as a message.
+    pub fn heightmap_pyramid(
+        &self,
+        table: &toml::Table,
+        file: &Path,
+    ) -> Result<Arc<Pyramid>, MaterialError> {
+        let HeightmapParams {
+            texel_size,
+            height_scale,
+            max_lobes,
+            border,
+            normal_mode,
+        } = Self::heightmap_params(table)?;
+        let meta = std::fs::metadata(file)
+            .map_err(|e| MaterialError(format!("[ndf] file {}: {e}", file.display())))?;
+        let key = CacheKey {
+            path: std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf()),
+            len: meta.len(),
+            modified: meta.modified().ok(),
+            texel_size: texel_size.to_bits(),
+            height_scale: height_scale.to_bits(),
+            max_lobes,
+            clamp: border == Border::Clamp,
+            central: normal_mode == NormalMode::CentralDifferences,
+        };
+        if let Some(p) = self.cache_get(&key) {
+            return Ok(p);
+        }
+        let map = HeightMap::load(file, texel_size, height_scale, border)
+            .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+        let mut params = ExtractParams {
+            normal_mode,
+            ..ExtractParams::default()
+        };
+        params.fit.max_lobes = max_lobes;
+        let pyr = Arc::new(
+            extract(Source::Heights(&map), &params, &mut |_| {})
+                .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))?,
+        );
+        if let Ok(mut c) = self.cache.lock() {
+            c.insert(key, pyr.clone());
+        }
+        Ok(pyr)
+    }
+
+    fn cache_get(&self, key: &CacheKey) -> Option<Arc<Pyramid>> {
+        self.cache.lock().ok()?.get(key).cloned()
+    }
+
+    fn resolve_map(&self, table: &toml::Table, file: &Path) -> Result<ResolvedNdf, MaterialError> {
+        check_keys(table, &["kind", "file", "level", "texel"])?;
+        let pyr = Pyramid::read(file).map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+        let top = pyr.levels.len() - 1;
+        let (level, numbered) = match table.get("level") {
+            None => (top, false),
+            Some(toml::Value::String(s)) if s == "top" => (top, false),
+            Some(v @ toml::Value::Integer(_)) => (integer(v, "level")?, true),
+            Some(v) => {
+                return merr(format!(
+                    "[ndf] level: expected \"top\" or a level number, got {v}"
+                ))
+            }
+        };
+        let (row, col) = match table.get("texel") {
+            None if numbered => {
+                return merr(format!("[ndf]: level = {level} needs `texel = [row, col]`"))
+            }
+            None => (0, 0),
+            Some(v) => {
+                let a = v.as_array().filter(|a| a.len() == 2).ok_or_else(|| {
+                    MaterialError(format!("[ndf] texel: expected [row, col], got {v}"))
+                })?;
+                (
+                    integer(&a[0], "texel row")?,
+                    integer(&a[1], "texel column")?,
+                )
+            }
+        };
+        let lv = pyr
+            .level(level)
+            .map_err(|e| MaterialError(format!("[ndf] level: {e} in {}", file.display())))?;
+        let what = format!(
+            "[ndf] {} level {level} texel [{row}, {col}]",
+            file.display()
+        );
+        let lobes = lv
+            .texel_lobes(row, col)
+            .map_err(|e| MaterialError(format!("[ndf] texel: {e} in level {level}")))?;
+        let horizon = lv
+            .texel_horizon(row, col)
+            .map_err(|e| MaterialError(format!("[ndf] texel: {e}")))?;
+        resolved(lobes, horizon, &what)
+    }
+}
+
+impl NdfResolver for MapsResolver {
+    fn resolve(
+        &self,
+        kind: &str,
+        table: &toml::Table,
+        file: &Path,
+    ) -> Result<ResolvedNdf, MaterialError> {
+        match kind {
+            "heightmap" => {
+                let pyr = self.heightmap_pyramid(table, file)?;
+                let top = pyr.top();
+                let lobes = top
+                    .texel_lobes(0, 0)
+                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+                let horizon = top
+                    .texel_horizon(0, 0)
+                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+                resolved(lobes, horizon, &format!("[ndf] {}", file.display()))
+            }
+            "map" => self.resolve_map(table, file),
+            other => merr(format!(
+                "[ndf] kind = \"{other}\": not a height-map NDF (known: heightmap, map)"
+            )),
+        }
+    }
+}
