@@ -475,10 +475,12 @@ mod tests {
                 let (nd, tr) = if exact_phong {
                     (l.unit_density(m), m.dot(h).max(0.0).powf(kt))
                 } else {
+                    // The core's vMF shapes: κ₁ = (η+2)/4 normalised, κ₂ = η_t + 1.
+                    let k1 = 0.25 * (l.exponent + 2.0);
                     (
-                        PhongLobe::normalization(l.exponent)
-                            * (0.25 * l.exponent * (l.axis.dot(m) - 1.0)).exp(),
-                        (kt * (m.dot(h) - 1.0)).exp(),
+                        k1 / (2.0 * PI * (1.0 - (-2.0 * k1).exp()))
+                            * (k1 * (l.axis.dot(m) - 1.0)).exp(),
+                        ((kt + 1.0) * (m.dot(h) - 1.0)).exp(),
                     )
                 };
                 s += nd * tr * m.dot(wi).max(0.0) * t.sin();
