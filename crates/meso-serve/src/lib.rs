@@ -1,0 +1,405 @@
+//! # meso-serve
+//!
+//! `meso serve`: an interactive NDF editor in the browser (Fournier 1992, §3.4 "Making them
+//! up"). One self-contained page (HTML, CSS and JavaScript embedded in the binary, no CDN) edits
+//! the lobes of a material on an equal-area hemisphere disc and shows a live preview rendered by
+//! `meso_render`, a picture of the NDF and BRDF slices drawn by `meso_plot`.
+//!
+//! The page talks to a small JSON/PNG HTTP API (documented in `docs/http-api.md`) that scripts
+//! can use too:
+//!
+//! | route | body | answer |
+//! |---|---|---|
+//! | `GET /` | — | the editor page |
+//! | `GET /api/health` | — | `{"status": "ok", …}` |
+//! | `GET /api/presets` | — | the preset materials |
+//! | `POST /api/render` | `{material, view?, lights?}` | PNG preview |
+//! | `POST /api/ndf.png` | `{material, size?, style?, scale?}` | PNG of the NDF |
+//! | `POST /api/slices.png` | `{material, width?, height?, theta_i_deg?, planes_deg?}` | PNG of BRDF slices |
+//! | `POST /api/toml` | a material (JSON) | its TOML text |
+//! | `POST /api/parse` | TOML text | the material (JSON) |
+//! | `POST /api/blend` | `{a, b, t}` | the blended material (JSON) |
+//!
+//! Errors are `{"error": "<message>"}` with a 4xx status: 400 for malformed JSON and values out
+//! of range, 404 for unknown routes, 405 for wrong methods, 413 for bodies over
+//! [`MAX_BODY_BYTES`].
+//!
+//! ```no_run
+//! let server = meso_serve::spawn("127.0.0.1:0".parse().unwrap()).unwrap();
+//! println!("editor at http://{}/", server.addr());
+//! ```
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod material_json;
+pub mod plots;
+pub mod presets;
+pub mod preview;
+
+use axum::body::Bytes;
+use axum::extract::rejection::BytesRejection;
+use axum::extract::{DefaultBodyLimit, State};
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+pub use error::ApiError;
+use serde_json::Value;
+use std::net::SocketAddr;
+use std::sync::{Arc, OnceLock};
+use tokio::sync::Semaphore;
+
+/// Largest request body (1 MiB); larger bodies are answered 413.
+pub const MAX_BODY_BYTES: usize = 1 << 20;
+
+/// Renders (preview and plots) running at once; further requests wait, and requests whose
+/// client went away while waiting are dropped without rendering.
+pub const MAX_CONCURRENT_RENDERS: usize = 2;
+
+const PAGE_HTML: &str = include_str!("page/index.html");
+const PAGE_CSS: &str = include_str!("page/style.css");
+const PAGE_JS: &str = include_str!("page/app.js");
+
+/// The editor page: the HTML with its stylesheet and script inlined.
+#[must_use]
+pub fn page() -> &'static str {
+    static PAGE: OnceLock<String> = OnceLock::new();
+    PAGE.get_or_init(|| {
+        PAGE_HTML
+            .replacen("/*STYLE*/", PAGE_CSS, 1)
+            .replacen("/*SCRIPT*/", PAGE_JS, 1)
+    })
+}
+
+#[derive(Clone)]
+struct AppState {
+    renders: Arc<Semaphore>,
+}
+
+/// The application's router (all routes, limits and fallbacks).
+#[must_use]
+pub fn router() -> Router {
+    let state = AppState {
+        renders: Arc::new(Semaphore::new(MAX_CONCURRENT_RENDERS)),
+    };
+    Router::new()
+        .route("/", get(index))
+        .route("/index.html", get(index))
+        .route("/api/health", get(health))
+        .route("/api/presets", get(presets_route))
+        .route("/api/render", post(render_route))
+        .route("/api/ndf.png", post(ndf_route))
+        .route("/api/slices.png", post(slices_route))
+        .route("/api/toml", post(toml_route))
+        .route("/api/parse", post(parse_route))
+        .route("/api/blend", post(blend_route))
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
+        .with_state(state)
+}
+
+async fn index() -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, "text/html; charset=utf-8"),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        page(),
+    )
+        .into_response()
+}
+
+async fn health() -> Json<Value> {
+    Json(serde_json::json!({
+        "status": "ok",
+        "name": "meso serve",
+        "version": env!("CARGO_PKG_VERSION"),
+        "threads": rayon::current_num_threads(),
+    }))
+}
+
+async fn presets_route() -> Json<Value> {
+    Json(presets::presets_json())
+}
+
+async fn not_found(uri: axum::http::Uri) -> ApiError {
+    ApiError::not_found(format!(
+        "no route {} (see docs/http-api.md; routes: /, /api/health, /api/presets, /api/render, \
+         /api/ndf.png, /api/slices.png, /api/toml, /api/parse, /api/blend)",
+        uri.path()
+    ))
+}
+
+async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        format!("{method} is not allowed on {}", uri.path()),
+    )
+}
+
+/// The body as bytes, with the limit's 413 as a JSON error.
+fn body(b: Result<Bytes, BytesRejection>) -> Result<Bytes, ApiError> {
+    b.map_err(|r| {
+        let status = r.status();
+        if status == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::too_large(format!(
+                "request body above the limit of {MAX_BODY_BYTES} bytes"
+            ))
+        } else {
+            ApiError::new(status, r.body_text())
+        }
+    })
+}
+
+/// Parse a JSON body.
+fn json_body(b: Result<Bytes, BytesRejection>) -> Result<Value, ApiError> {
+    let bytes = body(b)?;
+    serde_json::from_slice(&bytes)
+        .map_err(|e| ApiError::bad_request(format!("malformed JSON: {e}")))
+}
+
+/// Split `{material, …params}` into the validated material and the parameters.
+fn material_and<T: serde::de::DeserializeOwned>(
+    mut v: Value,
+) -> Result<(material_json::Validated, T), ApiError> {
+    let Value::Object(o) = &mut v else {
+        return Err(ApiError::bad_request(
+            "expected a JSON object with a `material` key",
+        ));
+    };
+    let m = o
+        .remove("material")
+        .ok_or_else(|| ApiError::bad_request("missing `material`"))?;
+    let params: T =
+        serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
+    Ok((material_json::validate(&m)?, params))
+}
+
+/// Run `f` on the blocking pool once a render slot is free.
+async fn blocking<T: Send + 'static>(
+    state: &AppState,
+    f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    let _permit = state
+        .renders
+        .acquire()
+        .await
+        .map_err(|_| ApiError::internal("server shutting down"))?;
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| ApiError::internal(format!("render task failed: {e}")))?
+}
+
+fn png_response(png: Vec<u8>) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, "image/png"),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        png,
+    )
+        .into_response()
+}
+
+async fn render_route(
+    State(state): State<AppState>,
+    b: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let v = json_body(b)?;
+    let req: preview::RenderRequest =
+        serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
+    req.check()?;
+    let m = material_json::validate(&req.material)?;
+    let r = blocking(&state, move || preview::render_preview(&req, &m.material)).await?;
+    let mut resp = png_response(r.png);
+    let h = resp.headers_mut();
+    if let Ok(v) = HeaderValue::from_str(&format!("{:.1}", r.render_ms)) {
+        h.insert("x-render-ms", v);
+    }
+    if let Ok(v) = HeaderValue::from_str(&r.path.replace(|c: char| !c.is_ascii(), "?")) {
+        h.insert("x-brdf-path", v);
+    }
+    h.insert(
+        header::ACCESS_CONTROL_EXPOSE_HEADERS,
+        HeaderValue::from_static("x-render-ms, x-brdf-path"),
+    );
+    Ok(resp)
+}
+
+async fn ndf_route(
+    State(state): State<AppState>,
+    b: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let (m, p): (_, plots::NdfParams) = material_and(json_body(b)?)?;
+    let png = blocking(&state, move || plots::ndf_png(&m.material, p)).await?;
+    Ok(png_response(png))
+}
+
+async fn slices_route(
+    State(state): State<AppState>,
+    b: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let (m, p): (_, plots::SliceParams) = material_and(json_body(b)?)?;
+    let png = blocking(&state, move || plots::slices_png(&m.material, &p)).await?;
+    Ok(png_response(png))
+}
+
+async fn toml_route(b: Result<Bytes, BytesRejection>) -> Result<Response, ApiError> {
+    let v = json_body(b)?;
+    let m = material_json::validate(&v)?;
+    Ok((
+        [(header::CONTENT_TYPE, "application/toml; charset=utf-8")],
+        m.toml,
+    )
+        .into_response())
+}
+
+async fn parse_route(b: Result<Bytes, BytesRejection>) -> Result<Json<Value>, ApiError> {
+    let bytes = body(b)?;
+    let text = std::str::from_utf8(&bytes)
+        .map_err(|_| ApiError::bad_request("the TOML text is not UTF-8"))?;
+    Ok(Json(material_json::parse_toml(text)?))
+}
+
+async fn blend_route(b: Result<Bytes, BytesRejection>) -> Result<Json<Value>, ApiError> {
+    let v = json_body(b)?;
+    let (Some(a), Some(bm)) = (v.get("a"), v.get("b")) else {
+        return Err(ApiError::bad_request(
+            "expected {\"a\": material, \"b\": material, \"t\": number}",
+        ));
+    };
+    let t = v
+        .get("t")
+        .and_then(Value::as_f64)
+        .ok_or_else(|| ApiError::bad_request("t: expected a number in [0, 1]"))?;
+    let out = material_json::blend(a, bm, t)?;
+    material_json::validate(&out)?;
+    Ok(Json(out))
+}
+
+/// Errors of starting the server.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// Binding the address failed (in use, no permission, …).
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Any other I/O problem of the server.
+    #[error("server error: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Serve the editor on `listener` until `shutdown` completes.
+///
+/// # Errors
+/// I/O errors of the listener.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    shutdown: impl std::future::Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    axum::serve(listener, router())
+        .with_graceful_shutdown(shutdown)
+        .await
+}
+
+/// A server running on its own threads (for tests and embedding); stops when dropped.
+pub struct RunningServer {
+    addr: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl RunningServer {
+    /// The bound address (with the real port when port 0 was asked).
+    #[must_use]
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+}
+
+impl Drop for RunningServer {
+    fn drop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Bind `addr` and serve in the background on a new runtime.
+///
+/// # Errors
+/// [`ServeError::Bind`] when the address cannot be bound.
+pub fn spawn(addr: SocketAddr) -> Result<RunningServer, ServeError> {
+    let std_listener = std::net::TcpListener::bind(addr).map_err(|source| ServeError::Bind {
+        addr: addr.to_string(),
+        source,
+    })?;
+    std_listener.set_nonblocking(true)?;
+    let bound = std_listener.local_addr()?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    let thread = std::thread::Builder::new()
+        .name("meso-serve".into())
+        .spawn(move || {
+            rt.block_on(async move {
+                match tokio::net::TcpListener::from_std(std_listener) {
+                    Ok(l) => {
+                        if let Err(e) = serve(l, async {
+                            let _ = rx.await;
+                        })
+                        .await
+                        {
+                            eprintln!("meso serve: {e}");
+                        }
+                    }
+                    Err(e) => eprintln!("meso serve: {e}"),
+                }
+            });
+        })?;
+    Ok(RunningServer {
+        addr: bound,
+        stop: Some(tx),
+        thread: Some(thread),
+    })
+}
+
+/// Run the editor in the foreground (the `meso serve` command): bind `host:port`, call
+/// `on_listening` with the bound address, serve until Ctrl-C.
+///
+/// # Errors
+/// [`ServeError::Bind`] when the address cannot be bound, I/O errors of the server.
+pub fn run(
+    host: &str,
+    port: u16,
+    on_listening: impl FnOnce(SocketAddr),
+) -> Result<(), ServeError> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async move {
+        let addr = format!("{host}:{port}");
+        let listener = tokio::net::TcpListener::bind(&addr)
+            .await
+            .map_err(|source| ServeError::Bind {
+                addr: addr.clone(),
+                source,
+            })?;
+        on_listening(listener.local_addr()?);
+        serve(listener, async {
+            let _ = tokio::signal::ctrl_c().await;
+        })
+        .await?;
+        Ok(())
+    })
+}

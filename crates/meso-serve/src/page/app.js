@@ -1,0 +1,797 @@
+'use strict';
+// meso NDF editor. One page, no dependencies. The material is kept in the JSON form of the TOML
+// material format (docs/material-format.md, docs/http-api.md); every edit re-renders through the
+// server's API with at most one request of each kind in flight (latest wins).
+
+(() => {
+  const $ = (id) => document.getElementById(id);
+  const PALETTE = ['#e0a84a', '#6fa8dc', '#e06c75', '#98c379', '#c678dd', '#56b6c2',
+    '#d19a66', '#61afef', '#be5046', '#a6e22e', '#f4bf75', '#ae81ff'];
+  const lobeColor = (i) => PALETTE[i % PALETTE.length];
+  const clamp = (x, a, b) => Math.min(b, Math.max(a, x));
+  const deg = (r) => r * 180 / Math.PI;
+  const rad = (d) => d * Math.PI / 180;
+  const round = (x, n) => { const k = Math.pow(10, n); return Math.round(x * k) / k; };
+  const clone = (x) => JSON.parse(JSON.stringify(x));
+
+  // ---------------------------------------------------------------- state
+  const state = {
+    material: {
+      name: 'untitled',
+      ndf: { kind: 'phong-peaks', lobes: [{ axis: [0, 0], weight: 1, exponent: 100 }] },
+      transfer: { kind: 'phong', exponent: 50, specular: [1, 1, 1] },
+    },
+    selected: 0,
+    view: { object: 'sphere', exposure: 0, tangent_deg: 0, size: 384, spp: 1 },
+    lights: [
+      { name: 'Key', on: true, azimuth_deg: -35, elevation_deg: 40, intensity: 3, color: [1, 1, 1], dot: '#f2f2f2' },
+      { name: 'Grazing', on: true, azimuth_deg: 80, elevation_deg: 6, intensity: 4, color: [1, 0.92, 0.8], dot: '#ffd9a0' },
+      { name: 'Rim', on: false, azimuth_deg: 165, elevation_deg: 25, intensity: 3, color: [0.8, 0.88, 1], dot: '#b8d0ff' },
+    ],
+    ndfScale: 'linear',
+    sliceTheta: 45,
+  };
+  let presets = [];
+  const history = { undo: [], redo: [], committed: null };
+  const blend = { a: null, b: null, t: 0 };
+
+  // ---------------------------------------------------------------- colour helpers
+  const srgbToLin = (c) => (c <= 0.04045 ? c / 12.92 : Math.pow((c + 0.055) / 1.055, 2.4));
+  const linToSrgb = (c) => (c <= 0.0031308 ? 12.92 * c : 1.055 * Math.pow(c, 1 / 2.4) - 0.055);
+  const hexToLin = (h) => [1, 3, 5].map((i) => round(srgbToLin(parseInt(h.substr(i, 2), 16) / 255), 4));
+  const linToHex = (rgb) => '#' + rgb.map((c) => Math.round(clamp(linToSrgb(clamp(c, 0, 1)), 0, 1) * 255)
+    .toString(16).padStart(2, '0')).join('');
+
+  // ---------------------------------------------------------------- history
+  function snapshot() { return JSON.stringify(state.material); }
+  function commit() {
+    const s = snapshot();
+    if (history.committed !== null && s !== history.committed) {
+      history.undo.push(history.committed);
+      if (history.undo.length > 200) history.undo.shift();
+      history.redo = [];
+    }
+    history.committed = s;
+    updateHistoryButtons();
+  }
+  function restore(s) {
+    state.material = JSON.parse(s);
+    history.committed = s;
+    state.selected = Math.min(state.selected, lobes().length - 1);
+    buildAll();
+    changed();
+  }
+  function undo() { if (history.undo.length) { history.redo.push(snapshot()); restore(history.undo.pop()); updateHistoryButtons(); } }
+  function redo() { if (history.redo.length) { history.undo.push(snapshot()); restore(history.redo.pop()); updateHistoryButtons(); } }
+  function updateHistoryButtons() {
+    $('btn-undo').disabled = history.undo.length === 0;
+    $('btn-redo').disabled = history.redo.length === 0;
+  }
+
+  // ---------------------------------------------------------------- material helpers
+  function lobes() {
+    const m = state.material;
+    if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
+    if (!Array.isArray(m.ndf.lobes)) m.ndf.lobes = [];
+    return m.ndf.lobes;
+  }
+  const isPeaks = () => state.material.ndf && state.material.ndf.kind === 'phong-peaks';
+
+  // Client-side blend, the same rule as POST /api/blend.
+  function blendMaterials(a, b, t) {
+    const ka = a.ndf.kind, kb = b.ndf.kind;
+    const kind = ka === kb ? ka : 'phong-peaks';
+    const part = (m, k, s) => {
+      const total = m.ndf.lobes.reduce((acc, l) => acc + (l.weight || 0), 0) || 1;
+      if (s <= 0) return [];
+      return m.ndf.lobes.map((l) => {
+        const o = clone(l);
+        o.weight = round(l.weight / total * s, 6);
+        if (k === 'deltas' && kind === 'phong-peaks') o.exponent = 20000;
+        return o;
+      });
+    };
+    const out = clone(t < 0.5 ? a : b);
+    out.ndf = { kind, lobes: part(a, ka, 1 - t).concat(part(b, kb, t)) };
+    const alb = (m) => (m.diffuse && m.diffuse.albedo) || [0, 0, 0];
+    const da = alb(a), db = alb(b);
+    if (da.some((x) => x) || db.some((x) => x)) out.diffuse = { albedo: da.map((x, i) => round(x * (1 - t) + db[i] * t, 4)) };
+    out.name = `blend ${Math.round((1 - t) * 100)}% ${a.name || 'a'} / ${Math.round(t * 100)}% ${b.name || 'b'}`;
+    return out;
+  }
+
+  // ---------------------------------------------------------------- the API
+  async function api(path, body, kind) {
+    const opts = { method: 'POST', body: typeof body === 'string' ? body : JSON.stringify(body),
+      headers: { 'content-type': typeof body === 'string' ? 'application/toml' : 'application/json' } };
+    if (kind && kind.signal) opts.signal = kind.signal;
+    const r = await fetch(path, opts);
+    if (!r.ok) {
+      let msg = `${r.status}`;
+      try { msg = (await r.json()).error || msg; } catch (e) { /* not JSON */ }
+      const err = new Error(msg); err.status = r.status; throw err;
+    }
+    return r;
+  }
+  function showError(msg) {
+    const e = $('error');
+    if (msg) { e.textContent = msg; e.hidden = false; } else { e.hidden = true; e.textContent = ''; }
+  }
+
+  // A request pipeline: at most one request in flight; a newer change replaces a queued one.
+  function pipeline(run, delay) {
+    let busy = false, pending = false, timer = null;
+    const go = async () => {
+      if (busy) { pending = true; return; }
+      busy = true; pending = false;
+      try { await run(); } catch (e) { if (e.name !== 'AbortError') console.warn(e); }
+      busy = false;
+      if (pending) go();
+    };
+    return () => {
+      if (delay) { clearTimeout(timer); timer = setTimeout(go, delay); } else go();
+    };
+  }
+
+  // ---------------------------------------------------------------- preview
+  let lastFullMs = 0;
+  let renderSeq = 0;
+  let shownSeq = 0;
+  let previewUrl = null;
+  const stats = { renders: 0, lastMs: 0, lastPath: '', lastSide: 0 };
+  function renderBody(side) {
+    return {
+      material: state.material,
+      view: { object: state.view.object, width: side, height: side, spp: state.view.spp,
+        exposure: state.view.exposure, tangent_deg: state.view.tangent_deg },
+      lights: state.lights.filter((l) => l.on).map((l) => ({ azimuth_deg: l.azimuth_deg,
+        elevation_deg: l.elevation_deg, intensity: l.intensity, color: l.color })),
+    };
+  }
+  async function renderOnce(side, seq) {
+    const t0 = performance.now();
+    const r = await api('/api/render', renderBody(side));
+    const blob = await r.blob();
+    if (seq < shownSeq) return 0;
+    shownSeq = seq;
+    const url = URL.createObjectURL(blob);
+    const img = $('preview');
+    await new Promise((res) => { img.onload = res; img.onerror = res; img.src = url; });
+    if (previewUrl) URL.revokeObjectURL(previewUrl);
+    previewUrl = url;
+    const ms = parseFloat(r.headers.get('x-render-ms') || '0');
+    stats.renders++; stats.lastMs = ms; stats.lastSide = side; stats.lastPath = r.headers.get('x-brdf-path') || '';
+    $('render-stats').textContent = `${side}×${side} · render ${ms.toFixed(1)} ms · round trip ${(performance.now() - t0).toFixed(0)} ms`;
+    $('render-path').textContent = stats.lastPath;
+    img.dataset.renders = String(stats.renders);
+    return ms;
+  }
+  const previewPipe = pipeline(async () => {
+    const seq = ++renderSeq;
+    const full = state.view.size;
+    $('preview-busy').hidden = false;
+    try {
+      // Progressive: a quarter-pixel pass first when a full pass is slower than ~60 ms.
+      if (lastFullMs > 60) await renderOnce(Math.max(64, Math.round(full / 2)), seq);
+      if (seq === renderSeq) lastFullMs = await renderOnce(full, seq);
+      showError('');
+    } catch (e) {
+      showError(e.message);
+    } finally {
+      $('preview-busy').hidden = true;
+    }
+  }, 0);
+
+  // ---------------------------------------------------------------- NDF and slice pictures
+  let discImage = null;
+  let ndfUrl = null, sliceUrl = null, discUrl = null;
+  const picturePipe = pipeline(async () => {
+    const m = state.material;
+    const dpr = Math.min(2, window.devicePixelRatio || 1);
+    const discSize = Math.round(2 * DISC.r * dpr);
+    const [disc, ndf, slices] = await Promise.all([
+      api('/api/ndf.png', { material: m, size: clamp(discSize, 64, 1024), style: 'disc', scale: state.ndfScale }).then((r) => r.blob()),
+      api('/api/ndf.png', { material: m, size: 360, style: 'plot', scale: state.ndfScale }).then((r) => r.blob()),
+      api('/api/slices.png', { material: m, width: 480, height: 320, theta_i_deg: [state.sliceTheta], planes_deg: [0, 90] }).then((r) => r.blob()),
+    ]);
+    const swap = (old, blob) => { if (old) URL.revokeObjectURL(old); return URL.createObjectURL(blob); };
+    discUrl = swap(discUrl, disc);
+    const im = new Image();
+    await new Promise((res) => { im.onload = res; im.onerror = res; im.src = discUrl; });
+    discImage = im;
+    drawDisc();
+    ndfUrl = swap(ndfUrl, ndf); $('ndf-img').src = ndfUrl;
+    sliceUrl = swap(sliceUrl, slices); $('slices-img').src = sliceUrl;
+  }, 40);
+
+  function changed() {
+    drawDisc();
+    previewPipe();
+    picturePipe();
+  }
+  function viewChanged() { previewPipe(); }
+
+  // ---------------------------------------------------------------- the hemisphere disc
+  const canvas = $('disc');
+  const ctx = canvas.getContext('2d');
+  const DISC = { cx: 160, cy: 160, r: 134 };
+  function setupCanvas() {
+    const dpr = Math.min(2, window.devicePixelRatio || 1);
+    canvas.width = 320 * dpr; canvas.height = 320 * dpr;
+    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+  }
+  // Lambert azimuthal equal-area: ρ = √2 sin(θ/2); φ from +x (right) towards +y (up).
+  function axisToXY(thetaDeg, phiDeg) {
+    const rho = Math.SQRT2 * Math.sin(rad(Math.min(thetaDeg, 90)) / 2);
+    return [DISC.cx + DISC.r * rho * Math.cos(rad(phiDeg)), DISC.cy - DISC.r * rho * Math.sin(rad(phiDeg))];
+  }
+  function xyToAxis(x, y) {
+    const u = (x - DISC.cx) / DISC.r, v = -(y - DISC.cy) / DISC.r;
+    const rho = Math.min(1, Math.hypot(u, v));
+    const theta = deg(2 * Math.asin(rho / Math.SQRT2));
+    let phi = deg(Math.atan2(v, u));
+    if (phi < 0) phi += 360;
+    return [round(theta, 1), rho < 1e-6 ? 0 : round(phi, 1)];
+  }
+  function dirOf(thetaDeg, phiDeg) {
+    const t = rad(thetaDeg), p = rad(phiDeg);
+    return [Math.sin(t) * Math.cos(p), Math.sin(t) * Math.sin(p), Math.cos(t)];
+  }
+  function xyOfDir(d) {
+    const k = Math.sqrt(1 / (1 + Math.abs(d[2])));
+    return [DISC.cx + DISC.r * d[0] * k, DISC.cy - DISC.r * d[1] * k];
+  }
+  // Angular half width (degrees) where a Phong peak falls to half: cos^η(α/2) = 1/2.
+  const halfWidth = (eta) => (eta > 0 ? deg(2 * Math.acos(Math.pow(0.5, 1 / eta))) : 180);
+  function handleRadius(l) {
+    const total = lobes().reduce((a, x) => a + (x.weight || 0), 0) || 1;
+    return clamp(5 + 9 * Math.sqrt((l.weight || 0) / total), 5, 14);
+  }
+  function drawDisc() {
+    const W = 320;
+    ctx.clearRect(0, 0, W, W);
+    const { cx, cy, r } = DISC;
+    ctx.save();
+    ctx.beginPath(); ctx.arc(cx, cy, r, 0, 2 * Math.PI); ctx.clip();
+    if (discImage && discImage.naturalWidth) ctx.drawImage(discImage, cx - r, cy - r, 2 * r, 2 * r);
+    else { ctx.fillStyle = '#101114'; ctx.fillRect(cx - r, cy - r, 2 * r, 2 * r); }
+    ctx.restore();
+    // Guides: θ = 30°, 60° circles, φ spokes every 45°.
+    ctx.strokeStyle = 'rgba(255,255,255,0.16)'; ctx.lineWidth = 1;
+    for (const t of [30, 60]) {
+      ctx.beginPath(); ctx.arc(cx, cy, r * Math.SQRT2 * Math.sin(rad(t) / 2), 0, 2 * Math.PI); ctx.stroke();
+    }
+    for (let p = 0; p < 360; p += 45) {
+      ctx.beginPath(); ctx.moveTo(cx, cy);
+      ctx.lineTo(cx + r * Math.cos(rad(p)), cy - r * Math.sin(rad(p))); ctx.stroke();
+    }
+    ctx.strokeStyle = '#5a5e67'; ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(cx, cy, r, 0, 2 * Math.PI); ctx.stroke();
+    // Labels.
+    ctx.fillStyle = '#8a8d94'; ctx.font = '11px system-ui, sans-serif';
+    ctx.textAlign = 'left'; ctx.textBaseline = 'middle'; ctx.fillText('0°', cx + r + 5, cy);
+    ctx.textAlign = 'right'; ctx.fillText('180°', cx - r - 5, cy);
+    ctx.textAlign = 'center'; ctx.textBaseline = 'bottom'; ctx.fillText('90°', cx, cy - r - 4);
+    ctx.textBaseline = 'top'; ctx.fillText('270°', cx, cy + r + 4);
+    ctx.fillStyle = 'rgba(255,255,255,0.38)'; ctx.font = '10px system-ui, sans-serif';
+    ctx.textAlign = 'left'; ctx.textBaseline = 'bottom';
+    ctx.fillText('θ 30°', cx + 3, cy - r * Math.SQRT2 * Math.sin(rad(15)) - 1);
+    ctx.fillText('θ 60°', cx + 3, cy - r * Math.SQRT2 * Math.sin(rad(30)) - 1);
+    // Lobe extents (half-maximum rings) for Phong peaks.
+    const ls = lobes();
+    if (isPeaks()) {
+      ls.forEach((l, i) => {
+        const a = halfWidth(l.exponent || 0);
+        if (a >= 170) return;
+        const n = dirOf(l.axis[0], l.axis[1]);
+        const t1 = Math.abs(n[2]) < 0.9 ? [0, 0, 1] : [1, 0, 0];
+        // Orthonormal basis around the axis.
+        let u = [n[1] * t1[2] - n[2] * t1[1], n[2] * t1[0] - n[0] * t1[2], n[0] * t1[1] - n[1] * t1[0]];
+        const ul = Math.hypot(...u); u = u.map((x) => x / ul);
+        const v = [n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0]];
+        ctx.strokeStyle = lobeColor(i); ctx.globalAlpha = i === state.selected ? 0.9 : 0.45;
+        ctx.setLineDash([3, 3]); ctx.lineWidth = 1.2; ctx.beginPath();
+        let first = true;
+        const ca = Math.cos(rad(a)), sa = Math.sin(rad(a));
+        for (let k = 0; k <= 96; k++) {
+          const b = 2 * Math.PI * k / 96;
+          const d = [0, 1, 2].map((j) => n[j] * ca + sa * (Math.cos(b) * u[j] + Math.sin(b) * v[j]));
+          if (d[2] < 0) { first = true; continue; }
+          const [x, y] = xyOfDir(d);
+          if (first) ctx.moveTo(x, y); else ctx.lineTo(x, y);
+          first = false;
+        }
+        ctx.stroke(); ctx.setLineDash([]); ctx.globalAlpha = 1;
+      });
+    }
+    // Handles.
+    ls.forEach((l, i) => {
+      const [x, y] = axisToXY(l.axis[0], l.axis[1]);
+      const hr = handleRadius(l);
+      const below = l.axis[0] > 90;
+      ctx.beginPath(); ctx.arc(x, y, hr + 2, 0, 2 * Math.PI);
+      ctx.fillStyle = 'rgba(0,0,0,0.55)'; ctx.fill();
+      ctx.beginPath(); ctx.arc(x, y, hr, 0, 2 * Math.PI);
+      ctx.fillStyle = below ? 'transparent' : lobeColor(i); ctx.fill();
+      ctx.lineWidth = i === state.selected ? 2.5 : 1.5;
+      ctx.strokeStyle = i === state.selected ? '#ffffff' : 'rgba(0,0,0,0.8)';
+      if (below) ctx.strokeStyle = lobeColor(i);
+      ctx.stroke();
+      ctx.fillStyle = '#111'; ctx.font = 'bold 10px system-ui, sans-serif';
+      ctx.textAlign = 'center'; ctx.textBaseline = 'middle';
+      if (!below) ctx.fillText(String(i + 1), x, y + 0.5);
+    });
+  }
+  function hitHandle(x, y) {
+    const ls = lobes();
+    for (let i = ls.length - 1; i >= 0; i--) {
+      const [hx, hy] = axisToXY(ls[i].axis[0], ls[i].axis[1]);
+      if (Math.hypot(x - hx, y - hy) <= handleRadius(ls[i]) + 4) return i;
+    }
+    return -1;
+  }
+  let drag = null;
+  function canvasXY(e) {
+    const b = canvas.getBoundingClientRect();
+    return [(e.clientX - b.left) * 320 / b.width, (e.clientY - b.top) * 320 / b.height];
+  }
+  canvas.addEventListener('pointerdown', (e) => {
+    const [x, y] = canvasXY(e);
+    const i = hitHandle(x, y);
+    if (i < 0) return;
+    state.selected = i;
+    drag = { i, id: e.pointerId };
+    canvas.setPointerCapture(e.pointerId);
+    highlightSelected();
+    drawDisc();
+    e.preventDefault();
+  });
+  canvas.addEventListener('pointermove', (e) => {
+    const [x, y] = canvasXY(e);
+    const inside = Math.hypot(x - DISC.cx, y - DISC.cy) <= DISC.r;
+    if (inside) {
+      const [t, p] = xyToAxis(x, y);
+      $('disc-readout').textContent = `θ ${t.toFixed(1)}°  φ ${p.toFixed(1)}°`;
+    } else if (!drag) $('disc-readout').textContent = '';
+    canvas.style.cursor = drag ? 'grabbing' : (hitHandle(x, y) >= 0 ? 'grab' : 'crosshair');
+    if (!drag) return;
+    const l = lobes()[drag.i];
+    l.axis = xyToAxis(x, y);
+    syncLobeRow(drag.i);
+    changed();
+  });
+  const endDrag = () => { if (drag) { drag = null; commit(); } };
+  canvas.addEventListener('pointerup', endDrag);
+  canvas.addEventListener('pointercancel', endDrag);
+  canvas.addEventListener('dblclick', (e) => {
+    const [x, y] = canvasXY(e);
+    if (Math.hypot(x - DISC.cx, y - DISC.cy) > DISC.r || hitHandle(x, y) >= 0) return;
+    addLobe(xyToAxis(x, y));
+  });
+  canvas.addEventListener('wheel', (e) => {
+    const [x, y] = canvasXY(e);
+    const i = hitHandle(x, y);
+    if (i < 0 || !isPeaks()) return;
+    e.preventDefault();
+    const l = lobes()[i];
+    l.exponent = round(clamp((l.exponent || 1) * Math.pow(1.15, e.deltaY < 0 ? 1 : -1), 0.5, 1e5), 2);
+    state.selected = i;
+    syncLobeRow(i); highlightSelected(); changed();
+    clearTimeout(canvas._wheelCommit); canvas._wheelCommit = setTimeout(commit, 300);
+  }, { passive: false });
+
+  // ---------------------------------------------------------------- controls
+  // A slider with a number field: spec {label, unit, min, max, step, log, get(), set(v), digits}.
+  function control(spec) {
+    const row = document.createElement('div');
+    row.className = 'ctl';
+    const lbl = document.createElement('span'); lbl.className = 'lbl'; lbl.textContent = spec.label;
+    const range = document.createElement('input'); range.type = 'range';
+    const num = document.createElement('input'); num.type = 'number';
+    const unit = document.createElement('span'); unit.className = 'unit'; unit.textContent = spec.unit || '';
+    const log = !!spec.log;
+    const toSlider = (v) => (log ? Math.log10(Math.max(v, spec.min)) : v);
+    const fromSlider = (s) => (log ? Math.pow(10, s) : s);
+    range.min = toSlider(spec.min); range.max = toSlider(spec.max);
+    range.step = log ? 0.001 : (spec.step || 0.01);
+    num.step = spec.step || 'any'; num.min = spec.min; num.max = spec.max;
+    const digits = spec.digits === undefined ? 2 : spec.digits;
+    const show = (v) => { range.value = toSlider(v); num.value = round(v, digits); };
+    show(spec.get());
+    range.addEventListener('input', () => {
+      const v = round(fromSlider(parseFloat(range.value)), digits);
+      num.value = v; spec.set(v);
+    });
+    range.addEventListener('change', () => spec.commit && spec.commit());
+    num.addEventListener('change', () => {
+      let v = parseFloat(num.value);
+      if (!isFinite(v)) { show(spec.get()); return; }
+      v = clamp(v, spec.hardMin === undefined ? spec.min : spec.hardMin, spec.hardMax === undefined ? spec.max : spec.hardMax);
+      show(v); spec.set(v); if (spec.commit) spec.commit();
+    });
+    if (spec.field) { range.dataset.field = spec.field; num.dataset.field = spec.field; }
+    if (spec.lobe !== undefined) { range.dataset.lobe = spec.lobe; num.dataset.lobe = spec.lobe; }
+    row.append(lbl, range, num, unit);
+    row.update = () => show(spec.get());
+    return row;
+  }
+  const materialSet = (f) => (v) => { f(v); changed(); };
+
+  // Lobe list.
+  const lobeRows = [];
+  function buildLobes() {
+    const box = $('lobes');
+    box.textContent = '';
+    lobeRows.length = 0;
+    const ls = lobes();
+    $('lobe-count').textContent = `(${ls.length})`;
+    ls.forEach((l, i) => {
+      const el = document.createElement('div');
+      el.className = 'lobe'; el.dataset.lobe = i;
+      const top = document.createElement('div'); top.className = 'lobe-top';
+      const sw = document.createElement('span'); sw.className = 'swatch'; sw.style.background = lobeColor(i);
+      const title = document.createElement('span'); title.className = 'lobe-title'; title.textContent = `#${i + 1}`;
+      const angles = document.createElement('span'); angles.className = 'angles';
+      const th = document.createElement('input'); th.type = 'number'; th.min = 0; th.max = 180; th.step = 0.5; th.title = 'θ: degrees from the normal';
+      const ph = document.createElement('input'); ph.type = 'number'; ph.min = -360; ph.max = 720; ph.step = 1; ph.title = 'φ: degrees from the tangent towards the bitangent';
+      th.dataset.field = 'theta'; ph.dataset.field = 'phi'; th.dataset.lobe = ph.dataset.lobe = i;
+      th.value = l.axis[0]; ph.value = l.axis[1];
+      th.addEventListener('change', () => { const v = parseFloat(th.value); if (isFinite(v)) { l.axis[0] = clamp(v, 0, 180); th.value = l.axis[0]; changed(); commit(); } });
+      ph.addEventListener('change', () => { const v = parseFloat(ph.value); if (isFinite(v)) { l.axis[1] = ((v % 360) + 360) % 360; ph.value = l.axis[1]; changed(); commit(); } });
+      angles.append('θ', th, '° φ', ph, '°');
+      const del = document.createElement('button'); del.className = 'icon'; del.textContent = '✕'; del.title = 'Remove this lobe';
+      del.disabled = ls.length <= 1;
+      del.addEventListener('click', (e) => { e.stopPropagation(); removeLobe(i); });
+      top.append(sw, title, angles, del);
+      el.append(top);
+      const w = control({ label: 'weight', unit: '', min: 0, max: 1, step: 0.001, digits: 3, hardMax: 1e6, field: 'weight', lobe: i,
+        get: () => l.weight, set: materialSet((v) => { l.weight = v; }), commit });
+      el.append(w);
+      let ex = null;
+      if (isPeaks()) {
+        ex = control({ label: 'exponent η', unit: '', min: 0.5, max: 1e5, log: true, digits: 1, hardMin: 0, hardMax: 1e7, field: 'exponent', lobe: i,
+          get: () => l.exponent, set: materialSet((v) => { l.exponent = v; }), commit });
+        el.append(ex);
+      }
+      el.addEventListener('pointerdown', () => { if (state.selected !== i) { state.selected = i; highlightSelected(); drawDisc(); } });
+      box.append(el);
+      lobeRows.push({ el, th, ph, w, ex });
+    });
+    highlightSelected();
+  }
+  function syncLobeRow(i) {
+    const r = lobeRows[i]; const l = lobes()[i];
+    if (!r || !l) return;
+    r.th.value = l.axis[0]; r.ph.value = l.axis[1];
+    r.w.update(); if (r.ex) r.ex.update();
+  }
+  function highlightSelected() {
+    lobeRows.forEach((r, i) => r.el.classList.toggle('selected', i === state.selected));
+  }
+  function addLobe(axis) {
+    const ls = lobes();
+    if (ls.length >= 64) { showError('at most 64 lobes in the editor'); return; }
+    const l = { axis: axis || [0, 0], weight: ls.length ? round(ls.reduce((a, x) => a + x.weight, 0) / ls.length, 4) : 1 };
+    if (isPeaks()) l.exponent = 100;
+    ls.push(l);
+    state.selected = ls.length - 1;
+    buildLobes(); changed(); commit();
+  }
+  function removeLobe(i) {
+    const ls = lobes();
+    if (ls.length <= 1) return;
+    ls.splice(i, 1);
+    state.selected = clamp(state.selected, 0, ls.length - 1);
+    buildLobes(); changed(); commit();
+  }
+
+  // Transfer function.
+  const CONDUCTORS = {
+    aluminium: { eta: [1.657, 0.88, 0.521], k: [9.224, 6.27, 4.837] },
+    gold: { eta: [0.143, 0.374, 1.442], k: [3.983, 2.385, 1.603] },
+    copper: { eta: [0.2, 0.924, 1.102], k: [3.912, 2.452, 2.142] },
+    silver: { eta: [0.155, 0.117, 0.138], k: [4.827, 3.122, 2.147] },
+  };
+  function colorRow(label, get, set) {
+    const row = document.createElement('div'); row.className = 'row';
+    const l = document.createElement('span'); l.className = 'lbl'; l.textContent = label;
+    const c = document.createElement('input'); c.type = 'color';
+    const lin = document.createElement('span'); lin.className = 'mono muted';
+    const show = () => { const v = get(); c.value = linToHex(v); lin.textContent = `linear ${v.map((x) => x.toFixed(3)).join(' ')}`; };
+    show();
+    c.addEventListener('input', () => { set(hexToLin(c.value)); show(); changed(); });
+    c.addEventListener('change', commit);
+    row.append(l, c, lin);
+    return row;
+  }
+  function selectRow(label, options, get, set) {
+    const row = document.createElement('div'); row.className = 'row';
+    const l = document.createElement('span'); l.className = 'lbl'; l.textContent = label;
+    const s = document.createElement('select');
+    for (const [v, t] of options) { const o = document.createElement('option'); o.value = v; o.textContent = t; s.append(o); }
+    s.value = get();
+    s.addEventListener('change', () => { set(s.value); changed(); commit(); });
+    row.append(l, s);
+    return row;
+  }
+  function buildTransfer() {
+    const box = $('transfer-controls'); box.textContent = '';
+    const t = state.material.transfer;
+    $('transfer-kind').value = t.kind;
+    if (t.kind === 'phong') {
+      if (!t.specular) t.specular = [1, 1, 1];
+      box.append(control({ label: 'exponent η', min: 1, max: 2000, log: true, digits: 1, hardMin: 0, hardMax: 1e7, field: 'transfer-exponent',
+        get: () => t.exponent, set: materialSet((v) => { t.exponent = v; }), commit }));
+      box.append(colorRow('specular', () => t.specular, (v) => { t.specular = v; }));
+      box.append(control({ label: 'spec. scale', min: 0, max: 4, step: 0.01, digits: 3, hardMax: 1e6, field: 'specular-scale',
+        get: () => Math.max(...t.specular), set: materialSet((v) => { const m = Math.max(...t.specular) || 1; t.specular = t.specular.map((c) => round(c / m * v, 4)); }), commit }));
+      box.append(selectRow('variant', [['half', 'N·H (half vector)'], ['reflect', 'R·o (mirror direction)']],
+        () => t.variant || 'half', (v) => { if (v === 'half') delete t.variant; else t.variant = v; }));
+    } else if (t.kind === 'lambert') {
+      if (!t.albedo) t.albedo = [0.8, 0.8, 0.8];
+      box.append(colorRow('albedo', () => t.albedo, (v) => { t.albedo = v; }));
+    } else if (t.kind === 'microfacet') {
+      if (t.alpha === undefined && t.alpha_x === undefined) t.alpha = 0.2;
+      box.append(selectRow('distribution', [['ggx', 'GGX'], ['beckmann', 'Beckmann']], () => t.distribution || 'ggx', (v) => { t.distribution = v; }));
+      box.append(control({ label: 'alpha α', min: 0.005, max: 1, log: true, digits: 4, hardMin: 1e-4, hardMax: 10, field: 'alpha',
+        get: () => (t.alpha !== undefined ? t.alpha : t.alpha_x), set: materialSet((v) => { delete t.alpha_x; delete t.alpha_y; t.alpha = v; }), commit }));
+      box.append(selectRow('fresnel', [['none', 'none (R = 1)'], ['schlick', 'Schlick f0'], ['dielectric', 'dielectric η'], ['conductor', 'conductor η, k']],
+        () => t.fresnel || 'none', (v) => {
+          delete t.eta; delete t.k; delete t.f0;
+          t.fresnel = v;
+          if (v === 'schlick') t.f0 = [0.04, 0.04, 0.04];
+          if (v === 'dielectric') t.eta = 1.5;
+          if (v === 'conductor') Object.assign(t, clone(CONDUCTORS.aluminium));
+          if (v === 'none') delete t.fresnel;
+          buildTransfer();
+        }));
+      if (t.fresnel === 'schlick') box.append(colorRow('f0', () => t.f0, (v) => { t.f0 = v; }));
+      if (t.fresnel === 'dielectric') {
+        box.append(control({ label: 'IOR η', min: 1, max: 3, step: 0.01, digits: 3, hardMin: 0.001, hardMax: 100, field: 'eta',
+          get: () => t.eta, set: materialSet((v) => { t.eta = v; }), commit }));
+      }
+      if (t.fresnel === 'conductor') {
+        const cur = Object.keys(CONDUCTORS).find((k) => JSON.stringify(CONDUCTORS[k].eta) === JSON.stringify(t.eta)) || 'custom';
+        const opts = Object.keys(CONDUCTORS).map((k) => [k, k]);
+        if (cur === 'custom') opts.push(['custom', `custom η ${t.eta} k ${t.k}`]);
+        box.append(selectRow('metal', opts, () => cur, (v) => { if (CONDUCTORS[v]) Object.assign(t, clone(CONDUCTORS[v])); buildTransfer(); }));
+      }
+    }
+  }
+  $('transfer-kind').addEventListener('change', (e) => {
+    const k = e.target.value;
+    const old = state.material.transfer;
+    if (k === 'phong') state.material.transfer = { kind: 'phong', exponent: 50, specular: (old.specular || [1, 1, 1]) };
+    if (k === 'lambert') state.material.transfer = { kind: 'lambert', albedo: old.albedo || [0.8, 0.8, 0.8] };
+    if (k === 'microfacet') state.material.transfer = { kind: 'microfacet', distribution: 'ggx', alpha: 0.2 };
+    buildTransfer(); changed(); commit();
+  });
+
+  function buildMaterialMisc() {
+    const m = state.material;
+    $('mat-name').value = m.name || '';
+    $('ndf-kind').value = m.ndf.kind;
+    $('form').value = m.form || 'multiple-surface';
+    const d = m.diffuse && m.diffuse.albedo;
+    $('diffuse-on').checked = !!d;
+    $('diffuse-color').disabled = !d;
+    $('diffuse-color').value = linToHex(d || [0.05, 0.05, 0.05]);
+    $('diffuse-lin').textContent = d ? `linear ${d.map((x) => x.toFixed(3)).join(' ')}` : '';
+  }
+  $('mat-name').addEventListener('change', (e) => { state.material.name = e.target.value; commit(); });
+  $('ndf-kind').addEventListener('change', (e) => {
+    const k = e.target.value;
+    state.material.ndf.kind = k;
+    for (const l of lobes()) {
+      if (k === 'deltas') delete l.exponent; else if (l.exponent === undefined) l.exponent = 400;
+    }
+    if (k === 'deltas' && state.material.transfer.kind === 'mirror') state.material.transfer = { kind: 'phong', exponent: 50 };
+    buildLobes(); changed(); commit();
+  });
+  $('form').addEventListener('change', (e) => {
+    if (e.target.value === 'multiple-surface') delete state.material.form; else state.material.form = e.target.value;
+    changed(); commit();
+  });
+  $('diffuse-on').addEventListener('change', (e) => {
+    if (e.target.checked) state.material.diffuse = { albedo: hexToLin($('diffuse-color').value) };
+    else delete state.material.diffuse;
+    buildMaterialMisc(); changed(); commit();
+  });
+  $('diffuse-color').addEventListener('input', (e) => {
+    state.material.diffuse = { albedo: hexToLin(e.target.value) };
+    $('diffuse-lin').textContent = `linear ${state.material.diffuse.albedo.map((x) => x.toFixed(3)).join(' ')}`;
+    changed();
+  });
+  $('diffuse-color').addEventListener('change', commit);
+
+  // Lights and view.
+  function buildLights() {
+    const box = $('lights'); box.textContent = '';
+    state.lights.forEach((l, i) => {
+      const el = document.createElement('div'); el.className = 'light';
+      const head = document.createElement('label'); head.className = 'light-head';
+      const on = document.createElement('input'); on.type = 'checkbox'; on.checked = l.on; on.dataset.light = i;
+      on.addEventListener('change', () => { l.on = on.checked; viewChanged(); });
+      const dot = document.createElement('span'); dot.className = 'dot'; dot.style.background = l.dot;
+      head.append(on, dot, l.name);
+      el.append(head);
+      const set = (f) => (v) => { f(v); viewChanged(); };
+      el.append(control({ label: 'azimuth', unit: '°', min: -180, max: 180, step: 1, digits: 0, field: `light${i}-azimuth`, get: () => l.azimuth_deg, set: set((v) => { l.azimuth_deg = v; }) }));
+      el.append(control({ label: 'elevation', unit: '°', min: -10, max: 90, step: 0.5, digits: 1, field: `light${i}-elevation`, get: () => l.elevation_deg, set: set((v) => { l.elevation_deg = v; }) }));
+      el.append(control({ label: 'irradiance', unit: 'W/m²', min: 0, max: 12, step: 0.05, digits: 2, field: `light${i}-intensity`, get: () => l.intensity, set: set((v) => { l.intensity = v; }) }));
+      box.append(el);
+    });
+  }
+  function buildView() {
+    const box = $('view-controls'); box.textContent = '';
+    const v = state.view;
+    const set = (f) => (x) => { f(x); viewChanged(); };
+    box.append(control({ label: 'exposure', unit: 'EV', min: -6, max: 6, step: 0.1, digits: 1, field: 'exposure', get: () => v.exposure, set: set((x) => { v.exposure = x; }) }));
+    box.append(control({ label: 'tangent', unit: '°', min: 0, max: 180, step: 1, digits: 0, field: 'tangent', get: () => v.tangent_deg, set: set((x) => { v.tangent_deg = x; }) }));
+    const res = document.createElement('div'); res.className = 'row';
+    res.innerHTML = '<span class="lbl">resolution</span>';
+    const rs = document.createElement('select'); rs.id = 'resolution';
+    for (const s of [256, 384, 512, 768]) { const o = document.createElement('option'); o.value = s; o.textContent = `${s} × ${s}`; rs.append(o); }
+    rs.value = v.size;
+    rs.addEventListener('change', () => { v.size = parseInt(rs.value, 10); lastFullMs = 0; viewChanged(); });
+    const sp = document.createElement('select'); sp.id = 'spp';
+    for (const s of [1, 4, 16]) { const o = document.createElement('option'); o.value = s; o.textContent = `${s} spp`; sp.append(o); }
+    sp.value = v.spp;
+    sp.addEventListener('change', () => { v.spp = parseInt(sp.value, 10); lastFullMs = 0; viewChanged(); });
+    res.append(rs, sp);
+    box.append(res);
+    const note = document.createElement('p'); note.className = 'hint';
+    note.textContent = 'Azimuth from the camera towards the right; elevation above the ground (the surface of the plane and cloth). 5–10° is grazing.';
+    box.append(note);
+  }
+  document.querySelectorAll('#object-seg button').forEach((b) => b.addEventListener('click', () => {
+    state.view.object = b.dataset.object;
+    document.querySelectorAll('#object-seg button').forEach((x) => x.classList.toggle('on', x === b));
+    lastFullMs = 0;
+    viewChanged();
+  }));
+
+  // Pictures.
+  $('ndf-scale').addEventListener('change', (e) => { state.ndfScale = e.target.value; picturePipe(); });
+  $('slice-theta').addEventListener('input', (e) => {
+    state.sliceTheta = parseInt(e.target.value, 10);
+    $('slice-theta-val').textContent = `${state.sliceTheta}°`;
+    picturePipe();
+  });
+
+  // ---------------------------------------------------------------- presets, open, save
+  function loadMaterial(m, label) {
+    if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
+    if (m.ndf.kind !== 'phong-peaks' && m.ndf.kind !== 'deltas') {
+      showError(`the editor edits phong-peaks and deltas NDFs; ${label || 'this material'} has kind = "${m.ndf.kind}"`);
+      return false;
+    }
+    state.material = clone(m);
+    state.selected = 0;
+    buildAll(); changed(); commit();
+    return true;
+  }
+  $('preset').addEventListener('change', (e) => {
+    const p = presets.find((x) => x.id === e.target.value);
+    if (p) loadMaterial(p.material, p.label);
+  });
+  $('btn-open').addEventListener('click', () => $('file-input').click());
+  $('file-input').addEventListener('change', async (e) => {
+    const f = e.target.files[0];
+    if (!f) return;
+    try {
+      const text = await f.text();
+      const r = await api('/api/parse', text);
+      const m = await r.json();
+      if (!m.name) m.name = f.name.replace(/\.toml$/i, '');
+      if (loadMaterial(m, f.name)) { $('preset').value = ''; showError(''); }
+    } catch (err) {
+      showError(`${f.name}: ${err.message}`);
+    }
+    e.target.value = '';
+  });
+  async function tomlText() {
+    const r = await api('/api/toml', state.material);
+    return r.text();
+  }
+  $('btn-save').addEventListener('click', async () => {
+    try {
+      const text = await tomlText();
+      const blob = new Blob([text], { type: 'application/toml' });
+      const a = document.createElement('a');
+      a.href = URL.createObjectURL(blob);
+      a.download = `${(state.material.name || 'material').replace(/[^\w.-]+/g, '_')}.toml`;
+      document.body.append(a); a.click(); a.remove();
+      setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+    } catch (err) {
+      showError(`cannot save: ${err.message}`);
+    }
+  });
+  $('btn-undo').addEventListener('click', undo);
+  $('btn-redo').addEventListener('click', redo);
+  $('btn-add').addEventListener('click', () => addLobe([0, 0]));
+  $('btn-normalize').addEventListener('click', () => {
+    const ls = lobes(); const t = ls.reduce((a, l) => a + l.weight, 0);
+    if (t > 0) { ls.forEach((l) => { l.weight = round(l.weight / t, 4); }); buildLobes(); changed(); commit(); }
+  });
+  document.addEventListener('keydown', (e) => {
+    const tag = (e.target && e.target.tagName) || '';
+    if (tag === 'INPUT' && e.target.type !== 'range' && e.target.type !== 'checkbox') return;
+    if ((e.ctrlKey || e.metaKey) && e.key.toLowerCase() === 'z') { e.preventDefault(); if (e.shiftKey) redo(); else undo(); }
+    if ((e.ctrlKey || e.metaKey) && e.key.toLowerCase() === 'y') { e.preventDefault(); redo(); }
+  });
+
+  // Blend.
+  function buildBlendOptions() {
+    const s = $('blend-b'); s.textContent = '';
+    for (const p of presets) { const o = document.createElement('option'); o.value = p.id; o.textContent = p.label; s.append(o); }
+    s.value = 'velvet';
+  }
+  function blendB() { const p = presets.find((x) => x.id === $('blend-b').value); return p && p.material; }
+  $('blend-set-a').addEventListener('click', () => {
+    blend.a = clone(state.material);
+    $('blend-a').textContent = blend.a.name || 'current material';
+    $('blend-t').value = 0; $('blend-t-val').textContent = '0.00';
+  });
+  $('blend-t').addEventListener('input', (e) => {
+    const t = parseFloat(e.target.value);
+    $('blend-t-val').textContent = t.toFixed(2);
+    if (!blend.a) { blend.a = clone(state.material); $('blend-a').textContent = blend.a.name || 'current material'; }
+    const b = blendB();
+    if (!b) return;
+    const m = blendMaterials(blend.a, b, t);
+    state.material = m;
+    state.selected = Math.min(state.selected, m.ndf.lobes.length - 1);
+    buildAll(false);
+    changed();
+  });
+  $('blend-t').addEventListener('change', commit);
+  $('blend-b').addEventListener('change', () => { $('blend-t').dispatchEvent(new Event('input')); commit(); });
+
+  function buildAll() {
+    buildMaterialMisc();
+    buildLobes();
+    buildTransfer();
+    drawDisc();
+  }
+
+  // Test and scripting hooks.
+  window.mesoEditor = {
+    state,
+    handleClientPosition(i) {
+      const l = lobes()[i];
+      const [x, y] = axisToXY(l.axis[0], l.axis[1]);
+      const b = canvas.getBoundingClientRect();
+      return { x: b.left + x * b.width / 320, y: b.top + y * b.height / 320 };
+    },
+    discClientPosition(thetaDeg, phiDeg) {
+      const [x, y] = axisToXY(thetaDeg, phiDeg);
+      const b = canvas.getBoundingClientRect();
+      return { x: b.left + x * b.width / 320, y: b.top + y * b.height / 320 };
+    },
+    stats,
+    tomlText,
+    history,
+  };
+
+  // ---------------------------------------------------------------- start
+  async function start() {
+    setupCanvas();
+    buildLights(); buildView(); buildAll();
+    history.committed = snapshot();
+    updateHistoryButtons();
+    try {
+      presets = await (await fetch('/api/presets')).json();
+      const sel = $('preset');
+      for (const p of presets) { const o = document.createElement('option'); o.value = p.id; o.textContent = p.label; o.title = p.description; sel.append(o); }
+      buildBlendOptions();
+      const first = presets.find((p) => p.id === 'silk') || presets[0];
+      if (first) { sel.value = first.id; state.material = clone(first.material); buildAll(); history.committed = snapshot(); }
+    } catch (e) {
+      showError(`cannot load presets: ${e.message}`);
+    }
+    changed();
+    document.body.dataset.ready = '1';
+  }
+  start();
+})();

@@ -1,0 +1,440 @@
+//! The HTTP API end to end: a server on 127.0.0.1 port 0 in-process, a small HTTP/1.1 client
+//! over `TcpStream`. Every route, malformed JSON, out-of-range values, oversized bodies, unknown
+//! routes, wrong methods and several clients at once; every error is a 4xx with a JSON message.
+
+use meso_serve::{spawn, RunningServer};
+use serde_json::{json, Value};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+struct Resp {
+    status: u16,
+    headers: Vec<(String, String)>,
+    body: Vec<u8>,
+}
+
+impl Resp {
+    fn header(&self, name: &str) -> Option<&str> {
+        self.headers
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(name))
+            .map(|(_, v)| v.as_str())
+    }
+    fn json(&self) -> Value {
+        serde_json::from_slice(&self.body).unwrap_or_else(|e| {
+            panic!(
+                "not JSON ({e}): {}",
+                String::from_utf8_lossy(&self.body[..self.body.len().min(300)])
+            )
+        })
+    }
+    fn text(&self) -> String {
+        String::from_utf8(self.body.clone()).expect("UTF-8 body")
+    }
+    /// An error answer: the given status and a non-empty JSON message.
+    fn assert_error(&self, status: u16) -> String {
+        assert_eq!(self.status, status, "body: {}", String::from_utf8_lossy(&self.body));
+        let msg = self.json()["error"].as_str().expect("error message").to_owned();
+        assert!(!msg.is_empty());
+        msg
+    }
+}
+
+fn server() -> SocketAddr {
+    static S: OnceLock<RunningServer> = OnceLock::new();
+    S.get_or_init(|| spawn("127.0.0.1:0".parse().unwrap()).expect("server starts"))
+        .addr()
+}
+
+fn dechunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let pos = b.windows(2).position(|w| w == b"\r\n").expect("chunk size line");
+        let size = usize::from_str_radix(std::str::from_utf8(&b[..pos]).unwrap().trim(), 16)
+            .expect("hex chunk size");
+        b = &b[pos + 2..];
+        if size == 0 {
+            return out;
+        }
+        out.extend_from_slice(&b[..size]);
+        b = &b[size + 2..];
+    }
+}
+
+fn request(method: &str, path: &str, content_type: &str, body: &[u8]) -> Resp {
+    let mut s = TcpStream::connect(server()).expect("connect");
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    let head = format!(
+        "{method} {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\
+         Content-Type: {content_type}\r\nContent-Length: {}\r\n\r\n",
+        body.len()
+    );
+    s.write_all(head.as_bytes()).unwrap();
+    // The server may answer (413) before reading a large body and close: ignore write errors.
+    let _ = s.write_all(body);
+    let mut raw = Vec::new();
+    let _ = s.read_to_end(&mut raw);
+    let split = raw
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .unwrap_or_else(|| panic!("no HTTP head in {} bytes", raw.len()));
+    let head = String::from_utf8_lossy(&raw[..split]).into_owned();
+    let mut lines = head.lines();
+    let status: u16 = lines
+        .next()
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|c| c.parse().ok())
+        .expect("status line");
+    let headers: Vec<(String, String)> = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_owned(), v.trim().to_owned()))
+        .collect();
+    let mut body = raw[split + 4..].to_vec();
+    let chunked = headers
+        .iter()
+        .any(|(k, v)| k.eq_ignore_ascii_case("transfer-encoding") && v.contains("chunked"));
+    if chunked {
+        body = dechunk(&body);
+    }
+    Resp {
+        status,
+        headers,
+        body,
+    }
+}
+
+fn get(path: &str) -> Resp {
+    request("GET", path, "text/plain", b"")
+}
+
+fn post_json(path: &str, v: &Value) -> Resp {
+    request("POST", path, "application/json", v.to_string().as_bytes())
+}
+
+fn material() -> Value {
+    json!({
+        "name": "test",
+        "ndf": { "kind": "phong-peaks", "lobes": [
+            { "axis": [0, 0], "weight": 0.6, "exponent": 40 },
+            { "axis": [30, 90], "weight": 0.4, "exponent": 100 } ] },
+        "transfer": { "kind": "phong", "exponent": 50, "specular": [1.0, 0.8, 0.6] }
+    })
+}
+
+/// Width, height of a PNG (and checks the signature).
+fn png_size(b: &[u8]) -> (u32, u32) {
+    assert!(b.len() > 33, "PNG too short");
+    assert_eq!(&b[..8], b"\x89PNG\r\n\x1a\n", "PNG signature");
+    assert_eq!(&b[12..16], b"IHDR");
+    let w = u32::from_be_bytes(b[16..20].try_into().unwrap());
+    let h = u32::from_be_bytes(b[20..24].try_into().unwrap());
+    (w, h)
+}
+
+fn render(m: &Value, view: Value) -> Resp {
+    post_json("/api/render", &json!({ "material": m, "view": view }))
+}
+
+#[test]
+fn page_and_health() {
+    let r = get("/");
+    assert_eq!(r.status, 200);
+    assert!(r.header("content-type").unwrap().starts_with("text/html"));
+    let t = r.text();
+    assert!(t.contains("<canvas id=\"disc\""));
+    assert!(t.contains("mesoEditor"), "script inlined");
+    assert!(!t.contains("/*SCRIPT*/") && !t.contains("/*STYLE*/"));
+    assert!(!t.contains("http://") && !t.contains("https://"), "no external resources");
+    let h = get("/api/health");
+    assert_eq!(h.status, 200);
+    assert_eq!(h.json()["status"], "ok");
+}
+
+#[test]
+fn presets_are_listed_and_render() {
+    let r = get("/api/presets");
+    assert_eq!(r.status, 200);
+    let p = r.json();
+    let ids: Vec<&str> = p
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["id"].as_str().unwrap())
+        .collect();
+    for want in [
+        "paper-2",
+        "paper-3",
+        "paper-7",
+        "velvet",
+        "silk",
+        "satin",
+        "brushed-metal",
+    ] {
+        assert!(ids.contains(&want), "{want} missing from {ids:?}");
+    }
+    for x in p.as_array().unwrap() {
+        let r = render(&x["material"], json!({ "width": 48, "height": 48 }));
+        assert_eq!(r.status, 200, "{}: {}", x["id"], String::from_utf8_lossy(&r.body));
+        assert_eq!(png_size(&r.body), (48, 48));
+    }
+}
+
+#[test]
+fn render_returns_a_png_that_follows_the_material() {
+    let m = material();
+    let a = render(&m, json!({ "width": 96, "height": 80 }));
+    assert_eq!(a.status, 200);
+    assert_eq!(a.header("content-type"), Some("image/png"));
+    assert_eq!(png_size(&a.body), (96, 80));
+    let ms: f64 = a.header("x-render-ms").unwrap().parse().unwrap();
+    assert!(ms >= 0.0);
+    assert!(a.header("x-brdf-path").is_some());
+    // Same request, same picture (deterministic sampling).
+    let a2 = render(&m, json!({ "width": 96, "height": 80 }));
+    assert_eq!(a.body, a2.body);
+    // Move a lobe: the picture changes.
+    let mut m2 = m.clone();
+    m2["ndf"]["lobes"][1]["axis"] = json!([60, 0]);
+    let b = render(&m2, json!({ "width": 96, "height": 80 }));
+    assert_eq!(b.status, 200);
+    assert_ne!(a.body, b.body);
+    // Every object and explicit lights.
+    for object in ["sphere", "plane", "cloth"] {
+        let r = post_json(
+            "/api/render",
+            &json!({ "material": m, "view": { "object": object, "width": 64, "height": 64,
+                     "exposure": 1.0, "tangent_deg": 30, "spp": 2 },
+                     "lights": [ { "azimuth_deg": 80, "elevation_deg": 5, "intensity": 4,
+                                   "color": [1, 0.9, 0.8] } ] }),
+        );
+        assert_eq!(r.status, 200, "{object}: {}", String::from_utf8_lossy(&r.body));
+        assert_eq!(png_size(&r.body), (64, 64));
+    }
+}
+
+#[test]
+fn ndf_and_slices_pictures() {
+    for (style, scale) in [("plot", "linear"), ("disc", "log")] {
+        let r = post_json(
+            "/api/ndf.png",
+            &json!({ "material": material(), "size": 128, "style": style, "scale": scale }),
+        );
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        let (w, h) = png_size(&r.body);
+        assert_eq!(h, 128);
+        assert!(w >= 128);
+    }
+    let deltas = json!({ "ndf": { "kind": "deltas", "lobes": [ { "axis": [20, 0], "weight": 1 } ] },
+                         "transfer": { "kind": "lambert" } });
+    let r = post_json("/api/ndf.png", &json!({ "material": deltas }));
+    assert_eq!(r.status, 200);
+    png_size(&r.body);
+    let r = post_json(
+        "/api/slices.png",
+        &json!({ "material": material(), "width": 320, "height": 200,
+                 "theta_i_deg": [30, 60], "planes_deg": [0, 90] }),
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(png_size(&r.body), (320, 200));
+}
+
+#[test]
+fn toml_and_parse_round_trip() {
+    let r = post_json("/api/toml", &material());
+    assert_eq!(r.status, 200);
+    let text = r.text();
+    assert!(text.contains("[ndf]") && text.contains("kind = \"phong-peaks\""), "{text}");
+    assert!(text.contains("exponent = 100"), "{text}");
+    let p = request("POST", "/api/parse", "application/toml", text.as_bytes());
+    assert_eq!(p.status, 200);
+    let back = p.json();
+    assert_eq!(back["ndf"]["lobes"][1]["axis"], json!([30, 90]));
+    assert_eq!(back["transfer"]["specular"], json!([1.0, 0.8, 0.6]));
+}
+
+#[test]
+fn validation_errors_are_400_with_the_key() {
+    let msg = request(
+        "POST",
+        "/api/parse",
+        "application/toml",
+        b"[transfer]\nkind = \"phong\"\nexponent = -3\n",
+    )
+    .assert_error(400);
+    assert!(msg.contains("exponent"), "{msg}");
+    let msg = request("POST", "/api/parse", "application/toml", b"[ndf\n").assert_error(400);
+    assert!(msg.contains("TOML"), "{msg}");
+    let msg = request("POST", "/api/parse", "text/plain", &[0xff, 0xfe, 0x00]).assert_error(400);
+    assert!(msg.contains("UTF-8"), "{msg}");
+    let msg = request(
+        "POST",
+        "/api/parse",
+        "application/toml",
+        b"[ndf]\nkind = \"heightmap\"\nfile = \"/etc/passwd\"\n[transfer]\nkind = \"lambert\"\n",
+    )
+    .assert_error(400);
+    assert!(msg.contains("heightmap"), "{msg}");
+    let mut bad = material();
+    bad["ndf"]["lobes"][0]["weight"] = json!(-1);
+    let msg = post_json("/api/toml", &bad).assert_error(400);
+    assert!(msg.contains("weight"), "{msg}");
+    let mut bad = material();
+    bad["transfer"]["kind"] = json!("glass");
+    let msg = post_json("/api/render", &json!({ "material": bad })).assert_error(400);
+    assert!(msg.contains("glass"), "{msg}");
+    let msg = post_json("/api/toml", &json!([1, 2, 3])).assert_error(400);
+    assert!(msg.contains("object"), "{msg}");
+    let msg = post_json("/api/ndf.png", &json!({ "size": 100 })).assert_error(400);
+    assert!(msg.contains("material"), "{msg}");
+}
+
+#[test]
+fn malformed_json_is_400() {
+    for path in [
+        "/api/render",
+        "/api/ndf.png",
+        "/api/slices.png",
+        "/api/toml",
+        "/api/blend",
+    ] {
+        for body in [&b"{"[..], b"", b"not json", b"{\"material\": }"] {
+            let msg = request("POST", path, "application/json", body).assert_error(400);
+            assert!(msg.contains("JSON"), "{path}: {msg}");
+        }
+    }
+}
+
+#[test]
+fn out_of_range_values_are_400() {
+    let m = material();
+    let cases = [
+        (json!({ "material": m, "view": { "width": 5000 } }), "view.width"),
+        (json!({ "material": m, "view": { "height": 0 } }), "view.height"),
+        (json!({ "material": m, "view": { "spp": 1000 } }), "view.spp"),
+        (json!({ "material": m, "view": { "exposure": 99 } }), "view.exposure"),
+        (json!({ "material": m, "view": { "object": "teapot" } }), "teapot"),
+        (json!({ "material": m, "view": { "zoom": 2 } }), "zoom"),
+        (
+            json!({ "material": m, "lights": [ { "elevation_deg": 120 } ] }),
+            "elevation_deg",
+        ),
+        (
+            json!({ "material": m, "lights": [ { "intensity": -1 } ] }),
+            "intensity",
+        ),
+        (
+            json!({ "material": m, "lights": [ { "color": [2, 0, 0] } ] }),
+            "color",
+        ),
+        (
+            json!({ "material": m, "lights": vec![json!({}); 9] }),
+            "lights",
+        ),
+        (json!({ "material": m, "extra": 1 }), "extra"),
+    ];
+    for (body, needle) in cases {
+        let msg = post_json("/api/render", &body).assert_error(400);
+        assert!(msg.contains(needle), "{needle}: {msg}");
+    }
+    let msg = post_json("/api/ndf.png", &json!({ "material": m, "size": 10 })).assert_error(400);
+    assert!(msg.contains("size"), "{msg}");
+    let msg = post_json(
+        "/api/slices.png",
+        &json!({ "material": m, "theta_i_deg": [95] }),
+    )
+    .assert_error(400);
+    assert!(msg.contains("theta_i_deg"), "{msg}");
+    let msg = post_json(
+        "/api/slices.png",
+        &json!({ "material": m, "width": 100000 }),
+    )
+    .assert_error(400);
+    assert!(msg.contains("width"), "{msg}");
+    let many: Vec<Value> = (0..300)
+        .map(|k| json!({ "axis": [10, k], "weight": 1 }))
+        .collect();
+    let msg = post_json(
+        "/api/toml",
+        &json!({ "ndf": { "kind": "deltas", "lobes": many }, "transfer": { "kind": "lambert" } }),
+    )
+    .assert_error(400);
+    assert!(msg.contains("limit"), "{msg}");
+    let msg = post_json(
+        "/api/blend",
+        &json!({ "a": m, "b": m, "t": 2 }),
+    )
+    .assert_error(400);
+    assert!(msg.contains("t:"), "{msg}");
+}
+
+#[test]
+fn blend_route() {
+    let a = material();
+    let b = json!({ "name": "b", "ndf": { "kind": "deltas", "lobes": [ { "axis": [40, 180], "weight": 1 } ] },
+                    "transfer": { "kind": "lambert" } });
+    let r = post_json("/api/blend", &json!({ "a": a, "b": b, "t": 0.5 }));
+    assert_eq!(r.status, 200);
+    let m = r.json();
+    assert_eq!(m["ndf"]["kind"], "phong-peaks");
+    assert_eq!(m["ndf"]["lobes"].as_array().unwrap().len(), 3);
+    let w: f64 = m["ndf"]["lobes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["weight"].as_f64().unwrap())
+        .sum();
+    assert!((w - 1.0).abs() < 1e-9);
+    let msg = post_json("/api/blend", &json!({ "a": a })).assert_error(400);
+    assert!(msg.contains("\"b\""), "{msg}");
+}
+
+#[test]
+fn oversized_bodies_are_413() {
+    let big = vec![b' '; (1 << 20) + 10];
+    for path in ["/api/render", "/api/parse", "/api/toml"] {
+        let msg = request("POST", path, "application/json", &big).assert_error(413);
+        assert!(msg.contains("limit"), "{path}: {msg}");
+    }
+}
+
+#[test]
+fn unknown_routes_are_404_and_wrong_methods_405() {
+    for path in ["/nope", "/api/renders", "/api/render/extra", "/../etc/passwd"] {
+        let msg = get(path).assert_error(404);
+        assert!(msg.contains("no route"), "{msg}");
+    }
+    let msg = post_json("/nope", &json!({})).assert_error(404);
+    assert!(msg.contains("/nope"));
+    let msg = get("/api/render").assert_error(405);
+    assert!(msg.contains("GET"), "{msg}");
+    request("DELETE", "/api/presets", "text/plain", b"").assert_error(405);
+}
+
+#[test]
+fn several_clients_at_once() {
+    let threads: Vec<_> = (0..8)
+        .map(|k| {
+            std::thread::spawn(move || {
+                let mut m = material();
+                m["ndf"]["lobes"][1]["axis"] = json!([10 * k, 45 * k]);
+                for _ in 0..3 {
+                    let r = render(&m, json!({ "width": 64, "height": 64, "seed": k }));
+                    assert_eq!(r.status, 200);
+                    assert_eq!(png_size(&r.body), (64, 64));
+                    let r = post_json("/api/toml", &m);
+                    assert_eq!(r.status, 200);
+                    let bad = request("POST", "/api/render", "application/json", b"{{");
+                    bad.assert_error(400);
+                    assert_eq!(get("/api/health").status, 200);
+                }
+            })
+        })
+        .collect();
+    for t in threads {
+        t.join().expect("client thread");
+    }
+    // The server is still healthy afterwards.
+    assert_eq!(get("/api/health").status, 200);
+}
