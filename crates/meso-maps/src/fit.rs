@@ -95,21 +95,31 @@ pub struct FitParams {
     /// Largest number of lobes per texel, 1..=[`MAX_LOBES`] (default 4).
     pub max_lobes: usize,
     /// Smallest gain in mean log-likelihood (nats per unit weight) that justifies one more
-    /// lobe (default 0.01).
+    /// lobe (default 0.001).
     pub min_gain: f64,
     /// EM iterations per K (default 30; stops earlier when the likelihood settles).
     pub em_iterations: usize,
     /// Entries used by EM; larger footprints are fitted on a strided subset (default 512).
     pub max_em_points: usize,
+    /// EM entries per pyramid level: a level of T texels fits each on at most
+    /// `clamp(level_em_points / T, 64, max_em_points)` entries (default 2¹⁸), so that the big
+    /// fine levels cost no more than the coarse ones; levels of ≤ 512 texels get the full
+    /// `max_em_points`.
+    pub level_em_points: usize,
+    /// Levels with at most this many texels (the coarse ones) are fitted thoroughly: full
+    /// `em_iterations` for every start (default 64; see `fit_lobes_with`).
+    pub thorough_texels: usize,
 }
 
 impl Default for FitParams {
     fn default() -> Self {
         FitParams {
             max_lobes: 4,
-            min_gain: 0.01,
+            min_gain: 0.001,
             em_iterations: 30,
             max_em_points: 512,
+            level_em_points: 1 << 18,
+            thorough_texels: 64,
         }
     }
 }
@@ -135,36 +145,27 @@ struct L {
     eta: f64,
 }
 
-impl L {
-    #[inline]
-    fn log_density(&self, m: DVec3) -> f64 {
-        self.w.max(1e-300).ln()
-            + ((self.eta + 2.0) / (8.0 * PI)).ln()
-            + 0.5 * self.eta * log_t(self.a, m)
-    }
-}
-
 /// Spherical k-means with a greedy weighted k-means++ start (first centre: the heaviest entry;
 /// then the entry maximising weight × squared chord distance to the nearest centre), 5 Lloyd
 /// steps, then lobes with the cluster shares and the closed-form exponent of each cluster.
-fn kmeans_init(pts: &[Entry], k: usize) -> Vec<L> {
+fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
     let mut centres: Vec<DVec3> = Vec::with_capacity(k);
     let first = pts
         .iter()
-        .max_by(|a, b| a.w.total_cmp(&b.w))
-        .map(|e| e.mean().normalize())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|e| e.0.normalize())
         .unwrap_or(DVec3::Z);
     centres.push(first);
     while centres.len() < k {
         let mut best = (-1.0, DVec3::Z);
         for e in pts {
-            let d = e.mean().normalize();
+            let d = e.0.normalize();
             let dist = centres
                 .iter()
                 .map(|c| 2.0 - 2.0 * c.dot(d))
                 .fold(f64::INFINITY, f64::min);
-            if e.w * dist > best.0 {
-                best = (e.w * dist, d);
+            if e.1 * dist > best.0 {
+                best = (e.1 * dist, d);
             }
         }
         centres.push(best.1);
@@ -172,13 +173,12 @@ fn kmeans_init(pts: &[Entry], k: usize) -> Vec<L> {
     let mut sums = vec![(DVec3::ZERO, 0.0f64, 0.0f64); k];
     for _ in 0..5 {
         sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
-        for e in pts {
-            let d = e.mean();
+        for &(d, w) in pts {
             let j = (0..k)
                 .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
                 .unwrap_or(0);
-            sums[j].0 += e.m;
-            sums[j].1 += e.w;
+            sums[j].0 += d * w;
+            sums[j].1 += w;
         }
         for j in 0..k {
             if sums[j].0.length_squared() > 0.0 {
@@ -186,12 +186,11 @@ fn kmeans_init(pts: &[Entry], k: usize) -> Vec<L> {
             }
         }
     }
-    for e in pts {
-        let d = e.mean();
+    for &(d, w) in pts {
         let j = (0..k)
             .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
             .unwrap_or(0);
-        sums[j].2 += e.w * log_t(centres[j], d);
+        sums[j].2 += w * log_t(centres[j], d);
     }
     let total: f64 = sums.iter().map(|s| s.1).sum();
     (0..k)
@@ -204,61 +203,123 @@ fn kmeans_init(pts: &[Entry], k: usize) -> Vec<L> {
         .collect()
 }
 
-/// Mean log-likelihood per unit weight of the mixture, and the worst-explained entry.
-fn loglik(pts: &[Entry], lobes: &[L], total: f64) -> (f64, usize) {
-    let mut ll = 0.0;
-    let mut worst = (f64::INFINITY, 0);
-    for (n, e) in pts.iter().enumerate() {
-        let m = e.mean();
-        let l = lse(lobes.iter().map(|l| l.log_density(m)));
-        ll += e.w * l;
-        if l < worst.0 {
-            worst = (l, n);
-        }
-    }
-    (ll / total, worst.1)
-}
-
+/// `ln x` for finite `x > 0` to ~1e-9 absolute: exponent split, mantissa folded into
+/// `[√½, √2)`, then the atanh series `2(s + s³/3 + … + s⁹/9)` with `s = (m−1)/(m+1)`. EM's inner
+/// loop spends most of its time in `ln` and `exp`; libm's full-precision versions are not needed.
 #[inline]
-fn lse(it: impl Iterator<Item = f64> + Clone) -> f64 {
-    let mx = it.clone().fold(f64::NEG_INFINITY, f64::max);
-    if !mx.is_finite() {
-        return mx;
+fn fast_ln(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let mut e = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let mut m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    if e == -1023 {
+        // Subnormal: rare (x < 2.2e-308); fall back.
+        return x.ln();
     }
-    mx + it.map(|v| (v - mx).exp()).sum::<f64>().ln()
+    if m > std::f64::consts::SQRT_2 {
+        m *= 0.5;
+        e += 1;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let p = s * (2.0 + s2 * (2.0 / 3.0 + s2 * (0.4 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0)))));
+    e as f64 * std::f64::consts::LN_2 + p
 }
 
-fn em(pts: &[Entry], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
+/// `exp y` for `y ≤ 0` to ~1e-9 relative (0 below −700): `2^k · e^r`, `|r| ≤ ln2/2`, degree-8
+/// Taylor polynomial for `e^r`.
+#[inline]
+fn fast_exp_neg(y: f64) -> f64 {
+    if y < -700.0 {
+        return 0.0;
+    }
+    let k = (y * std::f64::consts::LOG2_E).round();
+    let r = y - k * std::f64::consts::LN_2;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0
+                            + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
+    p * f64::from_bits(((k as i64 + 1023) as u64) << 52)
+}
+
+/// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
+type Pt = (DVec3, f64);
+
+/// Mean log-likelihood per unit weight of the mixture.
+fn loglik(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
     let k = lobes.len();
+    let mut c = [0.0f64; MAX_LOBES];
+    for (j, l) in lobes.iter().enumerate() {
+        c[j] = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+    }
+    let mut logd = [0.0f64; MAX_LOBES];
+    let mut ll = 0.0;
+    for &(m, w) in pts {
+        let mut mx = f64::NEG_INFINITY;
+        for j in 0..k {
+            let x = (0.5 * (1.0 + lobes[j].a.dot(m))).max(1e-300);
+            logd[j] = c[j] + 0.5 * lobes[j].eta * fast_ln(x);
+            mx = mx.max(logd[j]);
+        }
+        let s: f64 = logd[..k].iter().map(|v| fast_exp_neg(v - mx)).sum();
+        ll += w * (mx + fast_ln(s));
+    }
+    ll / total
+}
+
+/// EM on the mixture (module docs), at most `iters` iterations; returns the mean
+/// log-likelihood per unit weight of the last E-step. One `ln` and one `exp` per point and lobe.
+fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
     let mut prev = f64::NEG_INFINITY;
     let mut acc_w = [0.0f64; MAX_LOBES];
     let mut acc_a = [DVec3::ZERO; MAX_LOBES];
     let mut acc_t = [0.0f64; MAX_LOBES];
     let mut logd = [0.0f64; MAX_LOBES];
-    for _ in 0..iters {
+    let mut lt = [0.0f64; MAX_LOBES];
+    let mut inv = [0.0f64; MAX_LOBES];
+    let mut c = [0.0f64; MAX_LOBES];
+    for _ in 0..iters.max(1) {
+        let k = lobes.len();
+        if k == 0 {
+            break;
+        }
+        for j in 0..k {
+            c[j] = lobes[j].w.max(1e-300).ln() + ((lobes[j].eta + 2.0) / (8.0 * PI)).ln();
+        }
         acc_w[..k].fill(0.0);
         acc_a[..k].fill(DVec3::ZERO);
         acc_t[..k].fill(0.0);
         let mut ll = 0.0;
-        for e in pts {
-            let m = e.mean();
+        for &(m, w) in pts {
             let mut mx = f64::NEG_INFINITY;
             for j in 0..k {
-                logd[j] = lobes[j].log_density(m);
+                let x = (0.5 * (1.0 + lobes[j].a.dot(m))).max(1e-300);
+                lt[j] = fast_ln(x);
+                inv[j] = 0.5 / x.max(0.5e-6);
+                logd[j] = c[j] + 0.5 * lobes[j].eta * lt[j];
                 mx = mx.max(logd[j]);
+            }
+            if k == 1 {
+                ll += w * logd[0];
+                acc_w[0] += w;
+                acc_a[0] += m * (w * inv[0]);
+                acc_t[0] += w * lt[0];
+                continue;
             }
             let mut s = 0.0;
             for v in logd.iter_mut().take(k) {
-                *v = (*v - mx).exp();
+                *v = fast_exp_neg(*v - mx);
                 s += *v;
             }
-            ll += e.w * (mx + s.ln());
+            ll += w * (mx + fast_ln(s));
+            let ws = w / s;
             for j in 0..k {
-                let r = e.w * logd[j] / s;
-                let c = lobes[j].a.dot(m);
+                let r = ws * logd[j];
                 acc_w[j] += r;
-                acc_a[j] += m * (r / (1.0 + c).max(1e-6));
-                acc_t[j] += r * (0.5 * (1.0 + c)).max(1e-300).ln();
+                acc_a[j] += m * (r * inv[j]);
+                acc_t[j] += r * lt[j];
             }
         }
         for j in 0..k {
@@ -274,13 +335,13 @@ fn em(pts: &[Entry], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
         }
         lobes.retain(|l| l.w > 0.0);
         let ll = ll / total;
-        if (ll - prev).abs() < 1e-7 * (1.0 + ll.abs()) || lobes.len() < k {
-            prev = ll;
+        let converged = (ll - prev).abs() < 1e-6 * (1.0 + ll.abs());
+        prev = ll;
+        if converged || lobes.len() < k {
             break;
         }
-        prev = ll;
     }
-    loglik(pts, lobes, total).0.max(prev.min(f64::MAX))
+    prev
 }
 
 fn to_phong(lobes: &[L]) -> Vec<PhongLobe> {
@@ -295,9 +356,46 @@ fn to_phong(lobes: &[L]) -> Vec<PhongLobe> {
         .collect()
 }
 
+/// Split the heaviest lobe of `lobes` into a concentric pair (same axis, exponents ×2.5 and
+/// ÷2.5): the start that lets EM model a peak sharper and tails heavier than one Phong peak
+/// (e.g. the Gaussian slopes of a random surface), which k-means starts cannot.
+fn split_heaviest(lobes: &[L]) -> Vec<L> {
+    let mut out = lobes.to_vec();
+    if let Some(j) = (0..out.len()).max_by(|&a, &b| out[a].w.total_cmp(&out[b].w)) {
+        let l = out[j];
+        out[j] = L {
+            a: l.a,
+            w: 0.5 * l.w,
+            eta: (l.eta * 2.5).min(ETA_MAX),
+        };
+        out.push(L {
+            a: l.a,
+            w: 0.5 * l.w,
+            eta: l.eta / 2.5,
+        });
+    }
+    out
+}
+
 /// Fit up to `params.max_lobes` Phong peaks to the merged normals `entries` (see module docs).
 /// Writes the lobes into `out` (cleared first); weights sum to 1.
 pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>) {
+    let mut pts = Vec::new();
+    fit_lobes_with(entries, params, params.max_em_points, true, &mut pts, out);
+}
+
+/// [`fit_lobes`] with the EM subset capped at `max_points` entries (≤ `params.max_em_points`)
+/// and a caller-owned buffer (no allocation per call once it has grown). `thorough` runs every
+/// EM for `em_iterations`; otherwise K is chosen after 5 EM iterations per start and the chosen
+/// K polished with at most 10 more (the cheap path of the big, fine pyramid levels).
+pub fn fit_lobes_with(
+    entries: &[Entry],
+    params: &FitParams,
+    max_points: usize,
+    thorough: bool,
+    pts: &mut Vec<(DVec3, f64)>,
+    out: &mut Vec<PhongLobe>,
+) {
     out.clear();
     let total: f64 = entries.iter().map(|e| e.w).sum();
     if entries.is_empty() || total <= 0.0 {
@@ -317,18 +415,20 @@ pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>
         return;
     }
     // Strided subset for EM.
-    let stride = entries.len().div_ceil(params.max_em_points.max(8));
-    let sub: Vec<Entry>;
-    let pts: &[Entry] = if stride > 1 {
-        sub = entries.iter().step_by(stride).copied().collect();
-        &sub
-    } else {
-        entries
-    };
-    let ptotal: f64 = pts.iter().map(|e| e.w).sum();
+    let cap = max_points.min(params.max_em_points).max(8);
+    let stride = entries.len().div_ceil(cap);
+    pts.clear();
+    pts.extend(entries.iter().step_by(stride).map(|e| (e.mean(), e.w)));
+    let pts: &[Pt] = pts;
+    let ptotal: f64 = pts.iter().map(|p| p.1).sum();
+    let iters = params.em_iterations.max(3);
+    // With the full point budget (small levels) every EM runs `em_iterations`; on budget-capped
+    // levels, selection runs short EM (5 iterations) and the chosen K is polished with ≤ 10 more.
+    let full = thorough;
+    let sel_iters = if full { iters } else { iters.min(5) };
     // K = 1: mean direction, then the fixed point and the closed-form η.
-    let mut a = pts.iter().map(|e| e.m).sum::<DVec3>();
-    a = if a.length_squared() > 0.0 {
+    let a = pts.iter().map(|p| p.0 * p.1).sum::<DVec3>();
+    let a = if a.length_squared() > 0.0 {
         a.normalize()
     } else {
         DVec3::Z
@@ -338,21 +438,57 @@ pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>
         w: 1.0,
         eta: 0.0,
     }];
-    let mut ll = em(pts, &mut lobes, ptotal, params.em_iterations.max(3));
+    let mut ll = em(
+        pts,
+        &mut lobes,
+        ptotal,
+        if full { iters } else { iters.min(10) },
+    );
+    // Nearly identical normals: one delta-like lobe, nothing to gain from more.
+    if lobes.len() == 1 && lobes[0].eta >= ETA_MAX {
+        out.extend(to_phong(&lobes));
+        return;
+    }
+    let small = pts.len() <= 4 * kmax;
+    let mut improved = false;
     for k in 2..=kmax {
-        let mut trial = kmeans_init(pts, k);
-        // Small footprints (≤ 4 entries per lobe): the k-means clusters are used as they are.
-        let ll2 = if pts.len() <= 4 * kmax {
-            loglik(pts, &trial, ptotal).0
+        let mut best: Option<(f64, Vec<L>)> = None;
+        // Thorough fits try both starts; the cheap path one (the concentric split for K = 2,
+        // k-means after).
+        let starts: &[usize] = if full {
+            &[0, 1]
+        } else if k == 2 {
+            &[1]
         } else {
-            em(pts, &mut trial, ptotal, params.em_iterations)
+            &[0]
         };
-        if ll2 - ll > params.min_gain && trial.len() == k {
-            lobes = trial;
-            ll = ll2;
-        } else {
-            break;
+        for &start in starts {
+            let mut trial = if start == 0 {
+                kmeans_init(pts, k)
+            } else {
+                split_heaviest(&lobes)
+            };
+            // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
+            let l2 = if small {
+                loglik(pts, &trial, ptotal)
+            } else {
+                em(pts, &mut trial, ptotal, sel_iters)
+            };
+            if trial.len() == k && best.as_ref().is_none_or(|b| l2 > b.0) {
+                best = Some((l2, trial));
+            }
         }
+        match best {
+            Some((l2, trial)) if l2 - ll > params.min_gain => {
+                lobes = trial;
+                ll = l2;
+                improved = true;
+            }
+            _ => break,
+        }
+    }
+    if improved && !small && iters > sel_iters {
+        em(pts, &mut lobes, ptotal, (iters - sel_iters).min(10));
     }
     out.extend(to_phong(&lobes));
 }
@@ -370,7 +506,15 @@ pub fn lobe_bin_mass(lobes: &[PhongLobe], grid: SphereGrid, out: &mut [f64]) {
             out[grid.bin(l.axis)] += l.weight;
             continue;
         }
+        // Bins whose nearest point (centre minus a bin diagonal) is where the lobe has fallen
+        // below e⁻³⁰ of its peak get nothing.
+        let margin = 1.5 * bin_angle;
         for (k, o) in out.iter_mut().enumerate() {
+            let c = grid.point(k, 0.5, 0.5);
+            let alpha = (l.axis.dot(c).clamp(-1.0, 1.0).acos() - margin).max(0.0);
+            if 0.5 * l.exponent * (0.5 * (1.0 + alpha.cos())).ln() < -30.0 {
+                continue;
+            }
             let mut s = 0.0;
             for a in 0..3 {
                 for b in 0..3 {
@@ -410,4 +554,27 @@ pub fn ndf_l2_error(
     let num: f64 = hist.iter().zip(&fit).map(|(h, f)| (h - f) * (h - f)).sum();
     let den: f64 = hist.iter().map(|h| h * h).sum();
     (num / den).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_ln_and_exp_match_libm() {
+        let mut x: f64 = 1e-300;
+        while x < 1e3 {
+            assert!(
+                (fast_ln(x) - x.ln()).abs() < 1e-9 * (1.0 + x.ln().abs()),
+                "ln {x}"
+            );
+            x *= 1.37;
+        }
+        let mut y: f64 = 0.0;
+        while y > -745.0 {
+            let e = y.exp();
+            assert!((fast_exp_neg(y) - e).abs() <= 1e-9 * e + 1e-300, "exp {y}");
+            y -= 0.173;
+        }
+    }
 }

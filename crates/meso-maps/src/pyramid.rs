@@ -13,7 +13,7 @@
 
 use crate::error::{MapError, Result};
 use crate::facets::{FacetNormals, NormalMode};
-use crate::fit::{fit_lobes, merge_entries, ndf_l2_error, Entry, FitParams, MAX_LOBES};
+use crate::fit::{fit_lobes_with, merge_entries, ndf_l2_error, Entry, FitParams, MAX_LOBES};
 use crate::heightmap::{Border, HeightMap, NormalMap};
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
@@ -362,6 +362,9 @@ pub fn extract(
             lcount: Vec<u32>,
             horizon: Vec<HorizonStats>,
         }
+        let em_cap = (params.fit.level_em_points / (cols * rows).max(1))
+            .clamp(64, params.fit.max_em_points.max(64));
+        let thorough = cols * rows <= params.fit.thorough_texels;
         let rows_out: Vec<RowOut> = (0..rows)
             .into_par_iter()
             .map(|r| {
@@ -374,6 +377,7 @@ pub fn extract(
                 };
                 let mut merged = Vec::new();
                 let mut singles = Vec::new();
+                let mut scratch = Vec::new();
                 let mut lobes = Vec::new();
                 for c in 0..cols {
                     if k == 0 {
@@ -406,7 +410,14 @@ pub fn extract(
                         }
                     }
                     match params.method {
-                        Method::Lobes => fit_lobes(&merged, &params.fit, &mut lobes),
+                        Method::Lobes => fit_lobes_with(
+                            &merged,
+                            &params.fit,
+                            em_cap,
+                            thorough,
+                            &mut scratch,
+                            &mut lobes,
+                        ),
                         Method::Baseline(b) => {
                             let pts: Vec<(glam::DVec3, f64)> =
                                 merged.iter().map(|e| (e.mean(), e.w)).collect();

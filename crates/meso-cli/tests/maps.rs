@@ -1,0 +1,227 @@
+//! End-to-end tests of the height-map commands: `meso extract`, `meso map info`, `meso brdf` on
+//! height-map and map-file materials, `meso gonio`, and bad inputs.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn meso(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_meso"))
+        .args(args)
+        .output()
+        .expect("run meso")
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meso-maps-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A periodic Gaussian-like random surface (a sum of random waves with a Gaussian spectrum) as a
+/// 16-bit grey PNG, codes within the middle of the range ("gravel").
+fn gravel_png(path: &Path, n: u32, seed: u64) {
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut rnd = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64) / ((1u64 << 53) as f64)
+    };
+    let mut waves = Vec::new();
+    for kx in -8i32..=8 {
+        for ky in -8i32..=8 {
+            let k2 = (kx * kx + ky * ky) as f64;
+            if k2 == 0.0 {
+                continue;
+            }
+            let amp = (-k2 / 18.0).exp();
+            waves.push((kx as f64, ky as f64, amp, rnd() * std::f64::consts::TAU));
+        }
+    }
+    let mut h = vec![0.0; (n * n) as usize];
+    for i in 0..n {
+        for j in 0..n {
+            let (x, y) = (j as f64 / n as f64, i as f64 / n as f64);
+            h[(i * n + j) as usize] = waves
+                .iter()
+                .map(|(kx, ky, a, p)| a * (std::f64::consts::TAU * (kx * x + ky * y) + p).cos())
+                .sum::<f64>();
+        }
+    }
+    let rms = (h.iter().map(|v| v * v).sum::<f64>() / h.len() as f64).sqrt();
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |j, i| {
+        let v = 32768.0 + 4000.0 * h[(i * n + j) as usize] / rms;
+        image::Luma([v.round().clamp(0.0, 65535.0) as u16])
+    });
+    img.save(path).unwrap();
+}
+
+fn material(ndf: &str, shadowing: &str) -> String {
+    format!(
+        "{ndf}\n[transfer]\nkind = \"microfacet\"\ndistribution = \"beckmann\"\nalpha = 0.1\nfresnel = \"none\"\n[shadowing]\nkind = \"{shadowing}\"        # or \"smith\" or \"none\"\n"
+    )
+}
+
+const HEIGHTMAP_NDF: &str = "[ndf]\nkind = \"heightmap\"\nfile = \"gravel.png\"\ntexel_size = 0.00390625\nheight_scale = 0.0625\nmax_lobes = 4";
+
+fn read_csv(path: &Path) -> Vec<[f64; 7]> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("theta_i,phi_i,theta_o,phi_o,r,g,b"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3], v[4], v[5], v[6]]
+        })
+        .collect()
+}
+
+fn ok(o: &Output) {
+    assert!(
+        o.status.success(),
+        "meso failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// A failed command: non-zero exit, exactly one error line, no output file.
+fn fails(o: &Output, out: &Path, what: &str) {
+    assert!(!o.status.success(), "{what}: should fail");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{what}: stderr {err:?}");
+    assert!(err.starts_with("meso: error:"), "{what}: {err}");
+    assert!(!out.exists(), "{what}: left {}", out.display());
+}
+
+const PAIRS: &str = "theta_i,phi_i,theta_o,phi_o\n0,0,0,0\n30,0,30,180\n30,0,20,90\n45,0,45,180\n60,0,60,180\n60,0,30,180\n45,30,50,200\n";
+
+#[test]
+fn extract_info_brdf_and_gonio() {
+    let d = tmpdir("e2e");
+    gravel_png(&d.join("gravel.png"), 64, 7);
+    std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
+    // Extract + info.
+    let map = d.join("gravel.map");
+    ok(&meso(&[
+        "extract",
+        s(&d.join("gravel.png")),
+        "--texel-size",
+        "0.00390625",
+        "--height-scale",
+        "0.0625",
+        "--max-lobes",
+        "4",
+        "--out",
+        s(&map),
+    ]));
+    let info = meso(&["map", "info", s(&map)]);
+    ok(&info);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("map 64x64 samples"), "{text}");
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.starts_with(char::is_numeric))
+            .count(),
+        7
+    );
+    // The two example materials of the issue.
+    let mut results = Vec::new();
+    for (name, ndf) in [
+        ("hm", HEIGHTMAP_NDF.to_owned()),
+        (
+            "map",
+            "[ndf]\nkind = \"map\"\nfile = \"gravel.map\"\nlevel = \"top\"".to_owned(),
+        ),
+    ] {
+        let m = d.join(format!("{name}.toml"));
+        std::fs::write(&m, material(&ndf, "horizon")).unwrap();
+        let out = d.join(format!("{name}.csv"));
+        ok(&meso(&[
+            "brdf",
+            s(&m),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+            "--out",
+            s(&out),
+        ]));
+        results.push(read_csv(&out));
+    }
+    // Same pyramid: the two materials agree (the map file stores f32).
+    for (a, b) in results[0].iter().zip(&results[1]) {
+        assert!(
+            (a[4] - b[4]).abs() <= 1e-5 * a[4].abs().max(1e-12),
+            "{a:?} vs {b:?}"
+        );
+    }
+    // A numbered level and texel.
+    let m = d.join("texel.toml");
+    std::fs::write(
+        &m,
+        material(
+            "[ndf]\nkind = \"map\"\nfile = \"gravel.map\"\nlevel = 2\ntexel = [3, 5]",
+            "smith",
+        ),
+    )
+    .unwrap();
+    ok(&meso(&[
+        "brdf",
+        s(&m),
+        "--pairs",
+        s(&d.join("pairs.csv")),
+        "--out",
+        s(&d.join("texel.csv")),
+    ]));
+    assert_eq!(read_csv(&d.join("texel.csv")).len(), 7);
+    // Gonio vs the fitted-lobe BRDF with shadowing, θ ≤ 60°.
+    let hm = d.join("hm.toml");
+    let gout = d.join("gonio.csv");
+    ok(&meso(&[
+        "gonio",
+        s(&hm),
+        "--pairs",
+        s(&d.join("pairs.csv")),
+        "--out",
+        s(&gout),
+        "--rays",
+        "192",
+    ]));
+    let g = read_csv(&gout);
+    let peak = g.iter().map(|r| r[4]).fold(0.0, f64::max);
+    for (shadow, tol) in [("horizon", 0.05), ("smith", 0.05)] {
+        let m = d.join(format!("{shadow}.toml"));
+        std::fs::write(&m, material(HEIGHTMAP_NDF, shadow)).unwrap();
+        let out = d.join(format!("{shadow}.csv"));
+        ok(&meso(&[
+            "brdf",
+            s(&m),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+            "--out",
+            s(&out),
+        ]));
+        let b = read_csv(&out);
+        for (x, y) in b.iter().zip(&g) {
+            let err = (x[4] - y[4]).abs() / peak;
+            eprintln!(
+                "{shadow}: {:?} brdf {:.4} gonio {:.4} err {err:.4}",
+                &x[..4],
+                x[4],
+                y[4]
+            );
+            assert!(
+                err < tol,
+                "{shadow} at {:?}: brdf {} gonio {}",
+                &x[..4],
+                x[4],
+                y[4]
+            );
+        }
+    }
+}
