@@ -54,7 +54,7 @@ const AXIS_BOUND: f64 = 2.75;
 /// `ln η` bounds: η ∈ [10, 10⁶]. Broader peaks put much of their mass near or below the horizon,
 /// where the fast `D` and `Λ` are poor (measured: 17–35 % from the exact material with η = 1
 /// lobes); the Lambert term takes the broad reflection instead.
-const LN_ETA: (f64, f64) = (2.302_585_092_994_046, 13.815_510_557_964_274);
+const LN_ETA: (f64, f64) = (std::f64::consts::LN_10, 6.0 * std::f64::consts::LN_10);
 const LOGIT: (f64, f64) = (-10.0, 10.0);
 
 /// `∫_{z>0} (η+2)/(8π) cos^η(α/2) (m·z) dω` for a Phong peak on the normal (α = θ), closed form
