@@ -408,16 +408,23 @@ pub(crate) struct SurfaceGeom {
     pub dpdu: DVec3,
     pub dpdv: DVec3,
     pub material: MaterialId,
+    /// The shading frame when the shape already has it orthonormal (`t = tangent`,
+    /// `n = ns`); otherwise it is built from `ns` and `tangent` by Gram–Schmidt.
+    pub frame: Option<Frame>,
 }
 
 /// Orient the frame towards the viewer and add the ray-differential footprint.
+#[inline]
 pub(crate) fn finish_shading_point(
     g: SurfaceGeom,
     rd: Option<&RayDifferential>,
     ray: &Ray,
 ) -> ShadingPoint {
     let mut ng = g.ng;
-    let mut frame = Frame::from_normal_tangent(g.ns, g.tangent);
+    let mut frame = match g.frame {
+        Some(f) => f,
+        None => Frame::from_normal_tangent(g.ns, g.tangent),
+    };
     if ng.dot(ray.d) > 0.0 {
         ng = -ng;
         frame.n = -frame.n;
@@ -461,29 +468,38 @@ pub(crate) fn finish_shading_point(
 }
 
 impl Sphere {
-    /// The surface at `p`; `pf` is [`Sphere::pole_frame`] (cached by the scene).
-    pub(crate) fn surface(&self, pf: &Frame, p: DVec3) -> SurfaceGeom {
-        let n = ((p - self.center) / self.radius).normalize();
-        let l = pf.to_local(n);
-        let theta = l.z.clamp(-1.0, 1.0).acos();
-        let mut phi = l.y.atan2(l.x);
-        if phi < 0.0 {
-            phi += 2.0 * PI;
-        }
+    /// The surface at `p`; `pf` is [`Sphere::pole_frame`] (cached by the scene). With
+    /// `with_uv == false` the texture coordinates (an `acos` and an `atan2`) are not computed
+    /// and `uv` is left zero (for shaders that do not read them).
+    #[inline]
+    pub(crate) fn surface(&self, pf: &Frame, p: DVec3, with_uv: bool) -> SurfaceGeom {
+        let n = (p - self.center).normalize();
+        let uv = if with_uv {
+            let l = pf.to_local(n);
+            let theta = l.z.clamp(-1.0, 1.0).acos();
+            let mut phi = l.y.atan2(l.x);
+            if phi < 0.0 {
+                phi += 2.0 * PI;
+            }
+            DVec2::new(phi / (2.0 * PI), 1.0 - theta / PI)
+        } else {
+            DVec2::ZERO
+        };
         let along = self.pole.cross(n); // ∂p/∂φ direction, length sin θ
         let sin_t = along.length();
         let t = if sin_t > 1e-12 {
-            along / sin_t
+            along * (1.0 / sin_t)
         } else {
             Frame::from_normal(n).t
         };
         let b = n.cross(t);
         SurfaceGeom {
+            frame: Some(Frame { t, b, n }),
             position: self.center + n * self.radius,
             ng: n,
             ns: n,
             tangent: t,
-            uv: DVec2::new(phi / (2.0 * PI), 1.0 - theta / PI),
+            uv,
             dpdu: t * (2.0 * PI * self.radius * sin_t),
             dpdv: b * (PI * self.radius),
             material: self.material,
@@ -503,6 +519,8 @@ impl Quad {
             dpdu: self.edge_u,
             dpdv: self.edge_v,
             material: self.material,
+
+            frame: None,
         }
     }
 }
@@ -529,6 +547,8 @@ impl Plane {
             dpdu: f.t * self.uv_scale,
             dpdv: f.b * self.uv_scale,
             material: self.material,
+
+            frame: None,
         }
     }
 }
@@ -585,6 +605,8 @@ impl Mesh {
             dpdu,
             dpdv,
             material,
+
+            frame: None,
         }
     }
 }

@@ -104,10 +104,12 @@ impl Light {
                     return None;
                 }
                 let r = r2.sqrt();
+                // One division instead of six (this runs per light and pixel).
+                let inv = 1.0 / r;
                 Some(LightSample {
-                    wi: d / r,
+                    wi: d * inv,
                     dist: r,
-                    weight: intensity / r2,
+                    weight: intensity * (inv * inv),
                 })
             }
             Light::Directional {

@@ -15,15 +15,25 @@
 //! silhouettes. No interreflection (the paper's shading is local).
 //!
 //! Sampling: a per-pixel Owen-scrambled Sobol sequence; dimensions 0–1 jitter the pixel, then
-//! two per light in scene order, then two for the environment. Tiles of `tile_size²` pixels
-//! are rendered in parallel with rayon; the per-sample loop does not allocate.
+//! two per light in scene order, then two for the environment. At one sample per pixel the
+//! camera ray goes through the pixel centre and the sequence is only evaluated for lights that
+//! need random numbers. Tiles of `tile_size²` pixels are rendered in parallel with rayon; the
+//! per-sample loop does not allocate.
+//!
+//! Fast paths (see `crates/meso-render/README.md` for measurements): ray differentials and
+//! sphere texture coordinates are computed only when some material reads them
+//! ([`Shader::needs_surface_parameters`]); shadow rays skip lights below the geometric normal
+//! and do not test the surface they leave (it cannot be hit again: a planar primitive, or a
+//! sphere seen from outside); the BRDF is evaluated for all light samples of a point in one
+//! [`Shader::eval_many`] call before any shadow ray is traced, and shadow rays are traced only
+//! where it is non-zero.
 
-use crate::camera::Ray;
+use crate::camera::{Ray, RayGen};
 use crate::geometry::ShadingPoint;
 use crate::image::Image;
 use crate::light::LightSample;
 use crate::sampling::{PixelSampler, MAX_SAMPLES_PER_PIXEL};
-use crate::scene::Scene;
+use crate::scene::{Scene, Skip};
 use crate::shader::Shader;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -70,6 +80,7 @@ pub fn render(
         .spp
         .unwrap_or(scene.image.spp)
         .clamp(1, MAX_SAMPLES_PER_PIXEL);
+    let ctx = PixelContext::new(scene, w, h, spp, opts.seed);
     let ts = opts.tile_size.max(1);
     let (tx, ty) = (w.div_ceil(ts), h.div_ceil(ts));
     let total = (tx * ty) as usize;
@@ -83,16 +94,7 @@ pub fn render(
             let mut scratch = ShadeScratch::default();
             for y in y0..y1 {
                 for x in x0..x1 {
-                    buf.push(render_pixel(
-                        scene,
-                        x,
-                        y,
-                        w,
-                        h,
-                        spp,
-                        opts.seed,
-                        &mut scratch,
-                    ));
+                    buf.push(trace_pixel(scene, &ctx, x, y, &mut scratch));
                 }
             }
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
@@ -103,17 +105,84 @@ pub fn render(
         })
         .collect();
     let mut img = Image::new(w, h);
+    let pixels = img.pixels_mut();
     for (k, tw, buf) in tiles {
         let (x0, y0) = ((k % tx) * ts, (k / tx) * ts);
-        for (i, px) in buf.into_iter().enumerate() {
-            let i = i as u32;
-            img.set(x0 + i % tw, y0 + i / tw, px);
+        for (r, row) in buf.chunks_exact(tw as usize).enumerate() {
+            let at = (y0 as usize + r) * w as usize + x0 as usize;
+            pixels[at..at + row.len()].copy_from_slice(row);
         }
     }
     img
 }
 
-/// The average radiance of pixel `(x, y)` of a `w × h` image over `spp` samples.
+/// Per-render constants, hoisted out of the pixel loop.
+struct PixelContext {
+    w: u32,
+    h: u32,
+    spp: u32,
+    seed: u32,
+    /// Some material reads `uv` or the footprint: trace ray differentials.
+    params: bool,
+    /// Primary rays without differentials.
+    rays: RayGen,
+}
+
+impl PixelContext {
+    fn new(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> PixelContext {
+        PixelContext {
+            w,
+            h,
+            spp,
+            seed,
+            params: scene
+                .materials()
+                .iter()
+                .any(|m| m.needs_surface_parameters()),
+            rays: RayGen::new(&scene.camera, w, h),
+        }
+    }
+}
+
+/// One pixel: with one sample, the ray through the pixel centre and a deferred sampler (no
+/// Sobol evaluation unless an area or environment light asks for one); with more, jittered
+/// Sobol samples. Differentials only when a material needs them.
+#[inline]
+fn trace_pixel(
+    scene: &Scene,
+    c: &PixelContext,
+    x: u32,
+    y: u32,
+    scratch: &mut ShadeScratch,
+) -> [f32; 3] {
+    let mut acc = DVec3::ZERO;
+    for s in 0..c.spp {
+        let (sampler, j) = if c.spp == 1 {
+            (PixelSampler::deferred(x, y, c.seed, 0), [0.5, 0.5])
+        } else {
+            let smp = PixelSampler::new(x, y, c.seed, s);
+            (smp, smp.get2(0))
+        };
+        let (px, py) = (f64::from(x) + j[0], f64::from(y) + j[1]);
+        let (hit, d) = if c.params {
+            let rd = scene.camera.generate_ray(px, py, c.w, c.h);
+            (scene.primary_hit(&rd.ray, Some(&rd), true), rd.ray.d)
+        } else {
+            let ray = c.rays.ray(px, py);
+            (scene.primary_hit(&ray, None, false), ray.d)
+        };
+        acc += match hit {
+            Some((sp, skip)) => shade_impl(scene, &sp, -d, &sampler, scratch, skip),
+            None => background(scene, d),
+        };
+    }
+    let a = acc / f64::from(c.spp);
+    [a.x as f32, a.y as f32, a.z as f32]
+}
+
+/// The average radiance of pixel `(x, y)` of a `w × h` image over `spp` samples (what
+/// [`render()`] computes for that pixel). With `spp == 1` the sample is the pixel centre;
+/// otherwise the pixel is jittered with the sampler's dimensions 0–1.
 #[inline]
 #[must_use]
 #[allow(clippy::too_many_arguments)]
@@ -127,20 +196,14 @@ pub fn render_pixel(
     seed: u32,
     scratch: &mut ShadeScratch,
 ) -> [f32; 3] {
-    let mut acc = DVec3::ZERO;
-    for s in 0..spp {
-        let sampler = PixelSampler::new(x, y, seed, s);
-        let j = sampler.get2(0);
-        let rd = scene
-            .camera
-            .generate_ray(f64::from(x) + j[0], f64::from(y) + j[1], w, h);
-        acc += match scene.intersect(&rd) {
-            Some(sp) => shade_with(scene, &sp, -rd.ray.d, &sampler, scratch),
-            None => background(scene, rd.ray.d),
-        };
-    }
-    let a = acc / f64::from(spp);
-    [a.x as f32, a.y as f32, a.z as f32]
+    let spp = spp.clamp(1, MAX_SAMPLES_PER_PIXEL);
+    trace_pixel(
+        scene,
+        &PixelContext::new(scene, w, h, spp, seed),
+        x,
+        y,
+        scratch,
+    )
 }
 
 fn background(scene: &Scene, d: DVec3) -> DVec3 {
@@ -185,6 +248,8 @@ struct Batch<'a> {
     wo_l: DVec3,
     origin: DVec3,
     eps: f64,
+    /// The surface the shadow rays start on, when they cannot hit it again.
+    skip: Skip,
     sum: DVec3,
     n: usize,
     s: &'a mut ShadeScratch,
@@ -192,7 +257,7 @@ struct Batch<'a> {
 
 impl Batch<'_> {
     /// Queue one light sample (after the geometric-normal and cosine tests).
-    #[inline]
+    #[inline(always)]
     fn push(&mut self, ls: LightSample) {
         if self.sp.geometric_normal.dot(ls.wi) <= 0.0 {
             return;
@@ -237,7 +302,7 @@ impl Batch<'_> {
             } else {
                 f64::INFINITY
             };
-            if scene.occluded(&ray, tmax) {
+            if scene.occluded_skip(&ray, tmax, self.skip) {
                 continue;
             }
             self.sum +=
@@ -266,6 +331,19 @@ pub fn shade_with(
     sampler: &PixelSampler,
     scratch: &mut ShadeScratch,
 ) -> DVec3 {
+    shade_impl(scene, sp, wo, sampler, scratch, Skip::None)
+}
+
+/// [`shade_with`], with shadow rays that leave out the surface `skip`.
+#[inline]
+fn shade_impl(
+    scene: &Scene,
+    sp: &ShadingPoint,
+    wo: DVec3,
+    sampler: &PixelSampler,
+    scratch: &mut ShadeScratch,
+    skip: Skip,
+) -> DVec3 {
     let Some(shader) = scene.shader(sp.material) else {
         return DVec3::ZERO;
     };
@@ -278,6 +356,7 @@ pub fn shade_with(
         wo_l: sp.frame.to_local(wo),
         origin: p + sp.geometric_normal * eps,
         eps,
+        skip,
         sum: DVec3::ZERO,
         n: 0,
         s: scratch,

@@ -21,8 +21,11 @@ pub const MAX_SAMPLES_PER_PIXEL: u32 = 1 << 16;
 pub struct PixelSampler {
     seed: u32,
     index: u32,
-    /// Dimensions 0–3 (pixel jitter and the first light), computed at once.
+    /// Dimensions 0–3 (pixel jitter and the first light), computed at once (see `eager`).
     first: [f32; 4],
+    /// Whether `first` holds dimensions 0–3; a deferred sampler computes every dimension on
+    /// demand (the same values), so pixels that need no random number pay nothing.
+    eager: bool,
 }
 
 /// A 32-bit integer hash (Wellons' "lowbias32"), used to decorrelate pixels and dimensions.
@@ -48,6 +51,23 @@ impl PixelSampler {
             seed: s,
             index,
             first: sobol_burley::sample_4d(index, 0, s),
+            eager: true,
+        }
+    }
+
+    /// Like [`PixelSampler::new`] but nothing is evaluated until asked for: the renderer's
+    /// choice for one sample per pixel, where the pixel centre is used and point and
+    /// directional lights need no random numbers. [`PixelSampler::get`] returns the same
+    /// values as for [`PixelSampler::new`].
+    #[inline]
+    #[must_use]
+    pub fn deferred(x: u32, y: u32, seed: u32, index: u32) -> PixelSampler {
+        let s = hash_u32(x.wrapping_mul(0x9e37_79b9) ^ hash_u32(y ^ hash_u32(seed)));
+        PixelSampler {
+            seed: s,
+            index,
+            first: [0.0; 4],
+            eager: false,
         }
     }
 
@@ -55,7 +75,7 @@ impl PixelSampler {
     #[inline]
     #[must_use]
     pub fn get(&self, dim: u32) -> f64 {
-        if dim < 4 {
+        if dim < 4 && self.eager {
             f64::from(self.first[dim as usize])
         } else if dim < SOBOL_DIMENSIONS {
             f64::from(sobol_burley::sample(self.index, dim, self.seed))
@@ -275,6 +295,10 @@ mod tests {
             counts[iv * nu + iu] += 1;
         }
         let _ = s.get(300); // the hashed fallback is in range
+        let lazy = PixelSampler::deferred(3, 4, 5, 0);
+        for dim in [0, 1, 2, 3, 4, 9, 300] {
+            assert_eq!(lazy.get(dim), s.get(dim), "dimension {dim}");
+        }
         assert!((0.0..1.0).contains(&s.get(300)));
         for (c, fv) in counts.iter().zip(&f) {
             let expect = n as f64 * fv / total / (nu * nv) as f64;

@@ -444,6 +444,18 @@ impl std::fmt::Debug for Scene {
     }
 }
 
+/// The surface a shadow ray starts on, when the ray provably cannot hit it again (so the
+/// any-hit test can leave it out): a BVH primitive (leaf order) or an infinite plane.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Skip {
+    /// Test everything.
+    None,
+    /// Leave out this BVH primitive.
+    Prim(u32),
+    /// Leave out this plane.
+    Plane(usize),
+}
+
 /// Closest-hit bookkeeping.
 enum HitWhat {
     Prim(u32),
@@ -518,21 +530,56 @@ impl Scene {
         rd: Option<&RayDifferential>,
     ) -> Option<(f64, ShadingPoint)> {
         let (t, a, b, what) = self.closest(ray)?;
-        let g = match what {
-            HitWhat::Plane(i) => self.planes[i].surface(ray.at(t)),
+        Some((t, self.surface_at(ray, t, a, b, what, rd, true).0))
+    }
+
+    /// The renderer's primary-ray path: the first hit along `ray` as a shading point (with
+    /// the footprint when `rd` is given; `uv` left zero on spheres unless `with_uv`), and
+    /// which surface its shadow rays may skip.
+    #[inline]
+    pub(crate) fn primary_hit(
+        &self,
+        ray: &Ray,
+        rd: Option<&RayDifferential>,
+        with_uv: bool,
+    ) -> Option<(ShadingPoint, Skip)> {
+        let (t, a, b, what) = self.closest(ray)?;
+        Some(self.surface_at(ray, t, a, b, what, rd, with_uv))
+    }
+
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn surface_at(
+        &self,
+        ray: &Ray,
+        t: f64,
+        a: f64,
+        b: f64,
+        what: HitWhat,
+        rd: Option<&RayDifferential>,
+        with_uv: bool,
+    ) -> (ShadingPoint, Skip) {
+        // Shadow rays leave on the geometric normal's side (`n_g · wi > 0`): they cannot hit
+        // the planar primitive they start on again, nor a sphere seen from outside (convex).
+        let (g, skip) = match what {
+            HitWhat::Plane(i) => (self.planes[i].surface(ray.at(t)), Skip::Plane(i)),
             HitWhat::Prim(k) => match *self.bvh.prim(k) {
                 Prim::Sphere { index, .. } => {
                     let i = index as usize;
-                    self.spheres[i].surface(&self.sphere_frames[i], ray.at(t))
+                    let g = self.spheres[i].surface(&self.sphere_frames[i], ray.at(t), with_uv);
+                    let outside = g.ng.dot(ray.d) < 0.0;
+                    (g, if outside { Skip::Prim(k) } else { Skip::None })
                 }
-                Prim::Quad { index, .. } => self.quads[index as usize].surface(a, b),
+                Prim::Quad { index, .. } => {
+                    (self.quads[index as usize].surface(a, b), Skip::Prim(k))
+                }
                 Prim::Tri { mesh, tri, .. } => {
                     let (m, mat) = &self.meshes[mesh as usize];
-                    m.surface(tri as usize, a, b, *mat)
+                    (m.surface(tri as usize, a, b, *mat), Skip::Prim(k))
                 }
             },
         };
-        Some((t, finish_shading_point(g, rd, ray)))
+        (finish_shading_point(g, rd, ray), skip)
     }
 
     /// The first surface along a camera ray, with the pixel footprint from its differentials.
@@ -552,10 +599,23 @@ impl Scene {
     #[inline]
     #[must_use]
     pub fn occluded(&self, ray: &Ray, tmax: f64) -> bool {
-        if self.bvh.occluded(ray, 0.0, tmax) {
+        self.occluded_skip(ray, tmax, Skip::None)
+    }
+
+    /// [`Scene::occluded`] without testing the surface `skip` (see [`Skip`]).
+    #[inline]
+    pub(crate) fn occluded_skip(&self, ray: &Ray, tmax: f64, skip: Skip) -> bool {
+        let prim = match skip {
+            Skip::Prim(k) => k,
+            _ => u32::MAX,
+        };
+        if self.bvh.occluded(ray, 0.0, tmax, prim) {
             return true;
         }
-        self.planes.iter().any(|p| p.intersect(ray, tmax).is_some())
+        self.planes
+            .iter()
+            .enumerate()
+            .any(|(i, p)| skip != Skip::Plane(i) && p.intersect(ray, tmax).is_some())
     }
 
     /// Load a scene file (format: `docs/scene-format.md`). Material paths and mesh /
