@@ -155,29 +155,51 @@ fn trace_pixel(
     y: u32,
     scratch: &mut ShadeScratch,
 ) -> [f32; 3] {
-    let mut acc = DVec3::ZERO;
-    for s in 0..c.spp {
-        let (sampler, j) = if c.spp == 1 {
-            (PixelSampler::deferred(x, y, c.seed, 0), [0.5, 0.5])
-        } else {
-            let smp = PixelSampler::new(x, y, c.seed, s);
-            (smp, smp.get2(0))
-        };
-        let (px, py) = (f64::from(x) + j[0], f64::from(y) + j[1]);
-        let (hit, d) = if c.params {
-            let rd = scene.camera.generate_ray(px, py, c.w, c.h);
-            (scene.primary_hit(&rd.ray, Some(&rd), true), rd.ray.d)
-        } else {
-            let ray = c.rays.ray(px, py);
-            (scene.primary_hit(&ray, None, false), ray.d)
-        };
-        acc += match hit {
-            Some((sp, skip)) => shade_impl(scene, &sp, -d, &sampler, scratch, skip),
-            None => background(scene, d),
-        };
-    }
-    let a = acc / f64::from(c.spp);
+    let a = if c.spp == 1 {
+        let sampler = PixelSampler::deferred(x, y, c.seed, 0);
+        trace_sample(scene, c, x, y, &sampler, [0.5, 0.5], scratch)
+    } else {
+        let mut acc = DVec3::ZERO;
+        for s in 0..c.spp {
+            let (sampler, j) = jittered(x, y, c.seed, s);
+            acc += trace_sample(scene, c, x, y, &sampler, j, scratch);
+        }
+        acc / f64::from(c.spp)
+    };
     [a.x as f32, a.y as f32, a.z as f32]
+}
+
+/// The eager sampler of sample `s` and its pixel jitter. Kept out of line so that the
+/// one-sample path never evaluates the Sobol sequence speculatively.
+#[inline(never)]
+fn jittered(x: u32, y: u32, seed: u32, s: u32) -> (PixelSampler, [f64; 2]) {
+    let smp = PixelSampler::new(x, y, seed, s);
+    (smp, smp.get2(0))
+}
+
+/// The radiance along the camera ray through `(x + j[0], y + j[1])`.
+#[inline(always)]
+fn trace_sample(
+    scene: &Scene,
+    c: &PixelContext,
+    x: u32,
+    y: u32,
+    sampler: &PixelSampler,
+    j: [f64; 2],
+    scratch: &mut ShadeScratch,
+) -> DVec3 {
+    let (px, py) = (f64::from(x) + j[0], f64::from(y) + j[1]);
+    let (hit, d) = if c.params {
+        let rd = scene.camera.generate_ray(px, py, c.w, c.h);
+        (scene.primary_hit(&rd.ray, Some(&rd), true), rd.ray.d)
+    } else {
+        let ray = c.rays.ray(px, py);
+        (scene.primary_hit(&ray, None, false), ray.d)
+    };
+    match hit {
+        Some((sp, skip)) => shade_impl(scene, &sp, -d, sampler, scratch, skip),
+        None => background(scene, d),
+    }
 }
 
 /// The average radiance of pixel `(x, y)` of a `w × h` image over `spp` samples (what
