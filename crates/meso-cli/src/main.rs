@@ -43,6 +43,12 @@ enum Command {
     Map(cmd::map::MapCommand),
     /// Measure a height-map material's BRDF by ray tracing (virtual gonioreflectometer).
     Gonio(cmd::gonio::Args),
+    /// Render a scene file (TOML) to an EXR or PNG image.
+    Render(cmd::render::Args),
+    /// Serve the interactive NDF editor in the browser (127.0.0.1:7878 by default).
+    Serve(cmd::serve::Args),
+    /// Render the paper's figures from built-in data (docs/figures.md).
+    Figures(cmd::figures::Args),
 }
 
 fn main() -> ExitCode {
@@ -54,6 +60,9 @@ fn main() -> ExitCode {
         Command::Extract(a) => cmd::extract::run(a),
         Command::Map(a) => cmd::map::run(a),
         Command::Gonio(a) => cmd::gonio::run(a),
+        Command::Render(a) => cmd::render::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
+        Command::Figures(a) => cmd::figures::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

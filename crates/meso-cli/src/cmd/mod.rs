@@ -1,8 +1,11 @@
 //! One module per subcommand.
 pub mod brdf;
 pub mod extract;
+pub mod figures;
 pub mod fit;
 pub mod gonio;
 pub mod map;
 pub mod ndf;
 pub mod ndf_plot;
+pub mod render;
+pub mod serve;

@@ -1,0 +1,133 @@
+//! `meso render SCENE.toml -o IMAGE [--spp N] [--width W --height H] [--exposure STOPS]` —
+//! render a scene file (docs/scene-format.md) with meso-core materials.
+
+use anyhow::{bail, Context, Result};
+use meso_render::{render, MaterialShader, RenderOptions, ResolveError, Scene, Shader};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Render a scene file.
+///
+/// Materials referenced by the scene (`material = "x.toml"`, relative to the scene file) are
+/// meso material files (docs/material-format.md), including height-map NDFs. The output format
+/// follows the extension: `.exr` holds linear radiance (W/(m²·sr), f32 RGB), `.png` tone-mapped
+/// sRGB (exposure, clamp, sRGB transfer). Nothing is written when anything fails.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Output image, `.exr` or `.png`.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// A second output image (e.g. the PNG next to the EXR).
+    #[arg(long)]
+    pub also: Option<PathBuf>,
+    /// Samples per pixel (overrides the scene's `image.spp`; 1..=65536).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Image width in pixels (overrides the scene).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels (overrides the scene).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// PNG exposure in stops (radiance × 2^STOPS before the sRGB transfer).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Seed of the sample scrambling.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Format {
+    Exr,
+    Png,
+}
+
+fn format_of(path: &Path) -> Result<Format> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("exr") => Ok(Format::Exr),
+        Some("png") => Ok(Format::Png),
+        _ => bail!(
+            "{}: unknown image format (use a .exr or .png extension)",
+            path.display()
+        ),
+    }
+}
+
+/// The scene's material resolver: meso material files as [`MaterialShader`]s.
+pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, ResolveError> {
+    let m = crate::load_material(path).map_err(|e| -> ResolveError { format!("{e:#}").into() })?;
+    Ok(Arc::new(MaterialShader::new(&m)))
+}
+
+/// Run the command.
+pub fn run(a: Args) -> Result<()> {
+    let mut outputs = vec![(a.out.clone(), format_of(&a.out)?)];
+    if let Some(p) = &a.also {
+        outputs.push((p.clone(), format_of(p)?));
+    }
+    for (name, v) in [("--width", a.width), ("--height", a.height)] {
+        if let Some(v) = v {
+            if !(1..=16384).contains(&v) {
+                bail!("{name} must be in 1..=16384 pixels, got {v}");
+            }
+        }
+    }
+    if let Some(s) = a.spp {
+        if !(1..=65536).contains(&s) {
+            bail!("--spp must be in 1..=65536, got {s}");
+        }
+    }
+    if !a.exposure.is_finite() {
+        bail!("--exposure must be a finite number of stops");
+    }
+    let scene = Scene::from_toml_file(&a.scene, &resolve_material)
+        .with_context(|| format!("cannot load the scene {}", a.scene.display()))?;
+    let opts = RenderOptions {
+        width: a.width,
+        height: a.height,
+        spp: a.spp,
+        seed: a.seed,
+        ..RenderOptions::default()
+    };
+    let w = a.width.unwrap_or(scene.image.width);
+    let h = a.height.unwrap_or(scene.image.height);
+    let ts = opts.tile_size.max(1);
+    let tiles = u64::from(w.div_ceil(ts) * h.div_ceil(ts));
+    let spp = u64::from(a.spp.unwrap_or(scene.image.spp));
+    // The bar's threshold is in work units: show it for renders of more than ~2000 tile·spp.
+    let bar = crate::progress(tiles * spp.max(1), "render");
+    let step = spp.max(1);
+    let tick = |_: usize, _: usize| bar.inc(step);
+    let t = std::time::Instant::now();
+    let img = render(&scene, &opts, Some(&tick));
+    bar.finish_and_clear();
+    let secs = t.elapsed().as_secs_f64();
+    for (path, f) in &outputs {
+        match f {
+            Format::Exr => img.write_exr(path),
+            Format::Png => img.write_png(path, a.exposure),
+        }
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    eprintln!(
+        "rendered {}x{} at {} spp in {:.2} s -> {}",
+        img.width(),
+        img.height(),
+        spp,
+        secs,
+        outputs
+            .iter()
+            .map(|(p, _)| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}

@@ -1,0 +1,727 @@
+//! # meso-figures
+//!
+//! The pictures of Fournier 1992 (§4) rendered with `meso-render` from data generated in code
+//! (no input files), for `meso figures [--out DIR]`; `docs/figures.md` describes each one.
+//!
+//! * **Figure 2** — a sphere with an anisotropic surface (Phong peaks along the great circle ⊥
+//!   the bitangent: the NDF of a cylinder bump), and multiple surfaces of 2, 3 and 7 normals;
+//!   the 7 are the lobe axes of the top level of the NDF pyramid of a half-cylinder bump map.
+//! * **Figures 3 and 4** — the same sphere as velvet (normals near the horizon: grazing sheen)
+//!   and as silk (normals spread across the thread direction), under the same light.
+//! * **Zoom** — a bump-mapped plane, NDF-mapped through the pyramid, zooming out from visible
+//!   bumps to the averaged surface, with the mean luminance of every frame in a CSV.
+//! * **Blend** — a strip of spheres whose NDF goes from one lobe set to another, weights
+//!   `(1 − t)` and `t`.
+//! * **Contact sheet** — every picture, labelled (`meso_plot::Sheet`).
+//!
+//! Every material is written as a TOML file next to its PNG, with a scene file that `meso
+//! render` accepts, so each picture can be re-rendered and edited. All files are written with
+//! `meso_core::io::write_atomic`.
+//!
+//! Conventions: spheres have their pole on world `+y`, so their tangent (local `+x`) runs
+//! along the parallels (horizontally in the pictures) and their bitangent (local `+y`) along
+//! the meridians towards the pole; lobe axes in the material files are `[θ, φ]` in degrees in
+//! that frame.
+#![warn(missing_docs)]
+
+use glam::DVec3;
+use meso_core::material::Material;
+use meso_maps::{extract, fixtures, ExtractParams, HeightMap, Pyramid, Source};
+use meso_plot::{Canvas, Sheet};
+use meso_render::{
+    render, Camera, Image, ImageSettings, Light, MaterialShader, NdfMapped, Projection,
+    RenderOptions, Scene, SceneBuilder, Shader,
+};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// An error while making the figures: what failed, naming the file when there is one.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct FigureError(pub String);
+
+fn ferr(msg: impl Into<String>) -> FigureError {
+    FigureError(msg.into())
+}
+
+/// One lobe of a built-in material: axis `[θ, φ]` in degrees in the local frame, weight, and
+/// exponent (Phong peaks only).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lobe {
+    /// Polar angle from the normal, degrees.
+    pub theta_deg: f64,
+    /// Azimuth from the tangent towards the bitangent, degrees.
+    pub phi_deg: f64,
+    /// Weight (normalised by the material).
+    pub weight: f64,
+    /// Exponent η of a Phong peak; `None` for a delta (a normal of a multiple surface).
+    pub exponent: Option<f64>,
+}
+
+impl Lobe {
+    /// A delta lobe (one normal of a multiple surface).
+    #[must_use]
+    pub fn delta(theta_deg: f64, phi_deg: f64, weight: f64) -> Lobe {
+        Lobe {
+            theta_deg,
+            phi_deg,
+            weight,
+            exponent: None,
+        }
+    }
+
+    /// A lobe from a unit local axis.
+    #[must_use]
+    pub fn from_axis(axis: DVec3, weight: f64, exponent: Option<f64>) -> Lobe {
+        let (t, p) = meso_core::frame::spherical_angles(axis);
+        let phi = p.to_degrees().rem_euclid(360.0);
+        Lobe {
+            theta_deg: t.to_degrees(),
+            phi_deg: phi,
+            weight,
+            exponent,
+        }
+    }
+}
+
+/// A built-in material: an NDF of lobes (deltas or Phong peaks), a Phong (N·H) transfer and a
+/// Lambert term, written as a meso material file by [`MaterialDef::toml`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialDef {
+    /// Display name.
+    pub name: String,
+    /// The lobes; all deltas or all Phong peaks.
+    pub lobes: Vec<Lobe>,
+    /// Phong transfer exponent η.
+    pub exponent: f64,
+    /// Phong transfer specular colour (1/sr).
+    pub specular: [f64; 3],
+    /// Lambert albedo.
+    pub diffuse: [f64; 3],
+}
+
+impl MaterialDef {
+    /// The material file text (`docs/material-format.md`).
+    #[must_use]
+    pub fn toml(&self) -> String {
+        let peaks = self.lobes.iter().any(|l| l.exponent.is_some());
+        let mut s = String::new();
+        let _ = writeln!(s, "name = {:?}", self.name);
+        let _ = writeln!(s, "[ndf]");
+        let _ = writeln!(
+            s,
+            "kind = \"{}\"",
+            if peaks { "phong-peaks" } else { "deltas" }
+        );
+        let _ = writeln!(s, "lobes = [");
+        for l in &self.lobes {
+            let _ = write!(
+                s,
+                "  {{ axis = [{:.4}, {:.4}], weight = {:.6}",
+                l.theta_deg, l.phi_deg, l.weight
+            );
+            if let Some(e) = l.exponent {
+                let _ = write!(s, ", exponent = {e:.3}");
+            }
+            let _ = writeln!(s, " }},");
+        }
+        let _ = writeln!(s, "]");
+        let _ = writeln!(s, "[transfer]\nkind = \"phong\"");
+        let _ = writeln!(s, "exponent = {:.3}", self.exponent);
+        let _ = writeln!(
+            s,
+            "specular = [{}, {}, {}]",
+            self.specular[0], self.specular[1], self.specular[2]
+        );
+        let _ = writeln!(
+            s,
+            "[diffuse]\nalbedo = [{}, {}, {}]",
+            self.diffuse[0], self.diffuse[1], self.diffuse[2]
+        );
+        s
+    }
+
+    /// The material, parsed from [`MaterialDef::toml`] (so the file and the picture agree).
+    ///
+    /// # Errors
+    /// The material parser's message (a bug in the definition).
+    pub fn material(&self) -> Result<Material, FigureError> {
+        Material::from_toml_str(&self.toml())
+            .map_err(|e| ferr(format!("built-in material {:?}: {e}", self.name)))
+    }
+
+    /// The NDF blend `(1 − t)·self + t·other` (lobe weights scaled, lobe lists joined); the
+    /// transfer and diffuse term are `self`'s.
+    #[must_use]
+    pub fn blend(&self, other: &MaterialDef, t: f64) -> MaterialDef {
+        let sum = |m: &MaterialDef| m.lobes.iter().map(|l| l.weight).sum::<f64>();
+        let (sa, sb) = (sum(self), sum(other));
+        let mut lobes: Vec<Lobe> = Vec::new();
+        for (m, k, s) in [(self, 1.0 - t, sa), (other, t, sb)] {
+            if k > 0.0 {
+                lobes.extend(m.lobes.iter().map(|l| Lobe {
+                    weight: l.weight / s * k,
+                    ..*l
+                }));
+            }
+        }
+        MaterialDef {
+            name: format!("blend t = {t:.2}"),
+            lobes,
+            ..self.clone()
+        }
+    }
+}
+
+/// Specular colour of the Figure 2 spheres.
+const FIG2_SPECULAR: [f64; 3] = [0.95, 0.9, 0.8];
+/// Diffuse albedo of the Figure 2 spheres (enough to show the shape).
+const FIG2_DIFFUSE: [f64; 3] = [0.06, 0.07, 0.09];
+
+/// Figure 2, anisotropic: 17 Phong peaks (η = 200) every 10° along the half great circle in
+/// the tangent–normal plane — the NDF of a cylinder bump whose axis is the bitangent — with
+/// equal weights (a cylinder's normals are uniform in angle).
+#[must_use]
+pub fn anisotropic() -> MaterialDef {
+    let lobes = (-8..=8)
+        .map(|k| {
+            let a = 10.0 * f64::from(k);
+            Lobe {
+                theta_deg: a.abs(),
+                phi_deg: if a < 0.0 { 180.0 } else { 0.0 },
+                weight: 1.0,
+                exponent: Some(200.0),
+            }
+        })
+        .collect();
+    MaterialDef {
+        name: "anisotropic (cylinder NDF)".into(),
+        lobes,
+        exponent: 60.0,
+        specular: FIG2_SPECULAR,
+        diffuse: FIG2_DIFFUSE,
+    }
+}
+
+/// Figure 2, two normals tilted ±20° along the tangent.
+#[must_use]
+pub fn two_normals() -> MaterialDef {
+    MaterialDef {
+        name: "2 normals".into(),
+        lobes: vec![Lobe::delta(20.0, 0.0, 1.0), Lobe::delta(20.0, 180.0, 1.0)],
+        exponent: 80.0,
+        specular: FIG2_SPECULAR,
+        diffuse: FIG2_DIFFUSE,
+    }
+}
+
+/// Figure 2, three normals 25° from the surface normal, 120° apart.
+#[must_use]
+pub fn three_normals() -> MaterialDef {
+    MaterialDef {
+        name: "3 normals".into(),
+        lobes: vec![
+            Lobe::delta(25.0, 90.0, 1.0),
+            Lobe::delta(25.0, 210.0, 1.0),
+            Lobe::delta(25.0, 330.0, 1.0),
+        ],
+        exponent: 80.0,
+        specular: FIG2_SPECULAR,
+        diffuse: FIG2_DIFFUSE,
+    }
+}
+
+/// The half-cylinder bump map of Figure 2: 64×64 samples, texel 1/64, cylinders of period 16
+/// texels along the map's y (rows), so their normals spread in the x–z plane.
+///
+/// # Errors
+/// Never for these constants; the height-map constructor's message otherwise.
+pub fn cylinder_map() -> Result<HeightMap, FigureError> {
+    fixtures::half_cylinders(64, 16, 1.0 / 64.0, 1.0).map_err(|e| ferr(e.to_string()))
+}
+
+/// Extract the NDF pyramid of `map` with up to `max_lobes` lobes per texel.
+///
+/// # Errors
+/// The extractor's message.
+pub fn pyramid(map: &HeightMap, max_lobes: usize) -> Result<Pyramid, FigureError> {
+    let mut p = ExtractParams::default();
+    p.fit.max_lobes = max_lobes;
+    extract(Source::Heights(map), &p, &mut |_| {}).map_err(|e| ferr(e.to_string()))
+}
+
+/// Figure 2, seven normals: the lobe axes and weights of the top level (the whole map) of the
+/// pyramid of [`cylinder_map`], fitted with up to 7 lobes.
+///
+/// # Errors
+/// Extraction failures.
+pub fn seven_normals() -> Result<MaterialDef, FigureError> {
+    let pyr = pyramid(&cylinder_map()?, 7)?;
+    let lobes = pyr
+        .top()
+        .lobes
+        .iter()
+        .map(|l| Lobe::from_axis(l.axis, l.weight, None))
+        .collect();
+    Ok(MaterialDef {
+        name: format!("{} normals (filtered cylinder bumps)", pyr.top().lobes.len()),
+        lobes,
+        exponent: 80.0,
+        specular: FIG2_SPECULAR,
+        diffuse: FIG2_DIFFUSE,
+    })
+}
+
+/// Figure 3, velvet: 12 normals 78° from the surface normal (fibres standing up, their sides
+/// facing every azimuth) with broad red Phong facets over a dark red base: the highlight
+/// sits at grazing angles, near the silhouette.
+#[must_use]
+pub fn velvet() -> MaterialDef {
+    MaterialDef {
+        name: "velvet".into(),
+        lobes: (0..12)
+            .map(|k| Lobe::delta(78.0, 30.0 * f64::from(k), 1.0))
+            .collect(),
+        exponent: 6.0,
+        specular: [0.9, 0.18, 0.3],
+        diffuse: [0.1, 0.008, 0.02],
+    }
+}
+
+/// Figure 4, silk: threads along the tangent; 9 normals spread ±60° across them (in the
+/// bitangent–normal plane, weight 0.72) and 5 spread ±20° along them (weft, 0.28); sharp
+/// golden facets.
+#[must_use]
+pub fn silk() -> MaterialDef {
+    let mut lobes: Vec<Lobe> = (-4..=4)
+        .map(|k| {
+            let a = 15.0 * f64::from(k);
+            Lobe::delta(a.abs(), if a < 0.0 { 270.0 } else { 90.0 }, 0.08)
+        })
+        .collect();
+    lobes.extend((-2..=2).map(|k| {
+        let a = 10.0 * f64::from(k);
+        Lobe::delta(a.abs(), if a < 0.0 { 180.0 } else { 0.0 }, 0.056)
+    }));
+    MaterialDef {
+        name: "silk".into(),
+        lobes,
+        exponent: 50.0,
+        specular: [1.0, 0.8, 0.45],
+        diffuse: [0.1, 0.05, 0.012],
+    }
+}
+
+/// The light shared by all sphere figures: directional, from the upper left front.
+#[must_use]
+pub fn key_light() -> Light {
+    Light::Directional {
+        direction: DVec3::new(-0.5, 0.55, 0.67).normalize(),
+        irradiance: DVec3::splat(2.5),
+    }
+}
+
+/// Background radiance of the figures (dark blue-grey).
+pub const BACKGROUND: [f32; 3] = [0.012, 0.013, 0.018];
+
+fn sphere_camera(width: f64) -> Result<Camera, FigureError> {
+    Camera::new(
+        Projection::Orthographic { width },
+        DVec3::new(0.0, 0.0, 5.0),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .map_err(|e| ferr(e.to_string()))
+}
+
+/// A unit sphere (pole `+y`) with `shader` under [`key_light`], seen head-on through an
+/// orthographic camera 2.4 units wide, `size × size` pixels at `spp` samples per pixel.
+///
+/// # Errors
+/// Invalid sizes.
+pub fn sphere_scene(shader: Arc<dyn Shader>, size: u32, spp: u32) -> Result<Scene, FigureError> {
+    let mut b = SceneBuilder::new(
+        sphere_camera(2.4)?,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp,
+            background: BACKGROUND,
+        },
+    );
+    let m = b.material(shader);
+    b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m)
+        .map_err(|e| ferr(e.to_string()))?;
+    b.light(key_light()).map_err(|e| ferr(e.to_string()))?;
+    b.build().map_err(|e| ferr(e.to_string()))
+}
+
+/// The scene file of [`sphere_scene`] for `meso render`, with `material` as the material path.
+#[must_use]
+pub fn sphere_scene_toml(material: &str, size: u32, spp: u32) -> String {
+    let Light::Directional {
+        direction,
+        irradiance,
+    } = key_light()
+    else {
+        unreachable!("the key light is directional")
+    };
+    format!(
+        "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+         up = [0.0, 1.0, 0.0]\nwidth = 2.4\n[image]\nwidth = {size}\nheight = {size}\nspp = {spp}\n\
+         background = [{}, {}, {}]\n[[object]]\nkind = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\n\
+         radius = 1.0\npole = [0.0, 1.0, 0.0]\nmaterial = \"{material}\"\n[[light]]\n\
+         kind = \"directional\"\ndirection = [{:.6}, {:.6}, {:.6}]\nirradiance = [{}, {}, {}]\n",
+        BACKGROUND[0],
+        BACKGROUND[1],
+        BACKGROUND[2],
+        direction.x,
+        direction.y,
+        direction.z,
+        irradiance.x,
+        irradiance.y,
+        irradiance.z
+    )
+}
+
+/// The bump map of the zoom sequence: 64×64 samples of texel 1/64 (one tile per world unit),
+/// a 4×4 egg-crate of bumps `h = 0.03·sin(2πx/P)·sin(2πy/P)`, `P = 1/4`, slopes up to 37°.
+///
+/// # Errors
+/// Never for these constants.
+pub fn bump_map() -> Result<HeightMap, FigureError> {
+    let p = 0.25;
+    let tau = std::f64::consts::TAU;
+    HeightMap::from_fn(64, 64, 1.0 / 64.0, meso_maps::Border::Wrap, |x, y| {
+        0.03 * (tau * x / p).sin() * (tau * y / p).sin()
+    })
+    .map_err(|e| ferr(e.to_string()))
+}
+
+/// The surface of the zoom sequence (its NDF is replaced by the bump map's): Phong facets
+/// (η = 40) over a warm diffuse base.
+#[must_use]
+pub fn bump_surface() -> MaterialDef {
+    MaterialDef {
+        name: "bump-mapped plane".into(),
+        lobes: vec![Lobe::delta(0.0, 0.0, 1.0)],
+        exponent: 40.0,
+        specular: [0.5, 0.5, 0.5],
+        diffuse: [0.5, 0.36, 0.22],
+    }
+}
+
+/// The light of the zoom sequence: directional, 55° from the plane's normal, from the left.
+#[must_use]
+pub fn plane_light() -> Light {
+    Light::Directional {
+        direction: DVec3::new(-0.75, 0.35, 0.57).normalize(),
+        irradiance: DVec3::splat(2.0),
+    }
+}
+
+/// A plane `z = 0` (tangent `+x`, one texture unit per world unit) with `shader`, seen through
+/// an orthographic camera tilted 30° from the normal, `width` world units across, under
+/// [`plane_light`].
+///
+/// # Errors
+/// Invalid sizes.
+pub fn plane_scene(
+    shader: Arc<dyn Shader>,
+    width: f64,
+    pixels: u32,
+    spp: u32,
+) -> Result<Scene, FigureError> {
+    let dir = DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6);
+    let cam = Camera::new(
+        Projection::Orthographic { width },
+        dir * 10.0 * width.max(1.0),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .map_err(|e| ferr(e.to_string()))?;
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: pixels,
+            height: pixels,
+            spp,
+            background: BACKGROUND,
+        },
+    );
+    let m = b.material(shader);
+    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m)
+        .map_err(|e| ferr(e.to_string()))?;
+    b.light(plane_light()).map_err(|e| ferr(e.to_string()))?;
+    b.build().map_err(|e| ferr(e.to_string()))
+}
+
+/// Camera widths of the zoom sequence (world units, one map tile per unit): 0.9·2.2^k.
+#[must_use]
+pub fn zoom_widths(frames: usize) -> Vec<f64> {
+    (0..frames).map(|k| 0.9 * 2.2f64.powi(k as i32)).collect()
+}
+
+/// Mean Rec. 709 luminance of an image.
+#[must_use]
+pub fn mean_luminance(img: &Image) -> f64 {
+    let px = img.pixels();
+    px.iter()
+        .map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2]))
+        .sum::<f64>()
+        / px.len().max(1) as f64
+}
+
+/// Settings of [`run`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Options {
+    /// Output directory (created if missing).
+    pub out: PathBuf,
+    /// Edge of the sphere pictures in pixels (default 320).
+    pub size: u32,
+    /// Samples per pixel (default 4).
+    pub spp: u32,
+    /// Frames of the zoom sequence (default 8, at least 6).
+    pub zoom_frames: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            out: PathBuf::from("out/figures"),
+            size: 320,
+            spp: 4,
+            zoom_frames: 8,
+        }
+    }
+}
+
+/// One frame of the zoom sequence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ZoomFrame {
+    /// Camera width in world units (map tiles).
+    pub width: f64,
+    /// Pyramid level of detail at the frame's pixels.
+    pub lod: f64,
+    /// Mean luminance of the frame (linear).
+    pub mean_luminance: f64,
+}
+
+/// What [`run`] produced.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Report {
+    /// Every file written.
+    pub files: Vec<PathBuf>,
+    /// The zoom sequence's frames.
+    pub zoom: Vec<ZoomFrame>,
+    /// Wall-clock seconds per step.
+    pub timings: Vec<(String, f64)>,
+}
+
+struct Writer<'a> {
+    dir: &'a Path,
+    report: Report,
+}
+
+impl Writer<'_> {
+    fn bytes(&mut self, name: &str, bytes: &[u8]) -> Result<(), FigureError> {
+        let p = self.dir.join(name);
+        meso_core::io::write_atomic(&p, bytes)
+            .map_err(|e| ferr(format!("{}: cannot write: {e}", p.display())))?;
+        self.report.files.push(p);
+        Ok(())
+    }
+    fn png(&mut self, name: &str, img: &Image, exposure: f32) -> Result<(), FigureError> {
+        let bytes = img
+            .encode_png(exposure)
+            .map_err(|e| ferr(format!("{name}: {e}")))?;
+        self.bytes(name, &bytes)
+    }
+}
+
+fn canvas(img: &Image, exposure: f32) -> Result<Canvas, FigureError> {
+    Canvas::from_rgb8(img.width(), img.height(), &img.to_srgb8(exposure))
+        .map_err(|e| ferr(e.to_string()))
+}
+
+/// A 16-bit grey PNG of a height map (`0` at its minimum, `65535` at its maximum) and the
+/// height scale `H` that reads it back (`h = code/65535 · H + min`).
+fn heightmap_png(map: &HeightMap) -> Result<(Vec<u8>, f64), FigureError> {
+    use image::ImageEncoder;
+    let (lo, hi) = map.range();
+    let scale = (hi - lo).max(1e-12);
+    let mut raw = Vec::with_capacity(map.heights().len() * 2);
+    for h in map.heights() {
+        let c = (((h - lo) / scale) * 65535.0).round().clamp(0.0, 65535.0) as u16;
+        raw.extend_from_slice(&c.to_be_bytes());
+    }
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            &raw,
+            map.width() as u32,
+            map.height() as u32,
+            image::ExtendedColorType::L16,
+        )
+        .map_err(|e| ferr(format!("height map PNG: {e}")))?;
+    Ok((out, scale))
+}
+
+/// Render every figure into `opts.out` (see the crate docs); `log` receives one line per step.
+///
+/// # Errors
+/// Unwritable output directory or files (the message names the path).
+pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureError> {
+    let dir = opts.out.as_path();
+    std::fs::create_dir_all(dir)
+        .map_err(|e| ferr(format!("{}: cannot create directory: {e}", dir.display())))?;
+    let mut w = Writer {
+        dir,
+        report: Report::default(),
+    };
+    let size = opts.size.clamp(32, 4096);
+    let spp = opts.spp.clamp(1, 4096);
+    let ropts = RenderOptions::default();
+    let mut sheet = Sheet::new("meso — Fournier 1992, multiple surfaces", 4, 256, 256);
+
+    // Figures 2–4: spheres.
+    let t0 = Instant::now();
+    let spheres: Vec<(&str, String, MaterialDef)> = vec![
+        ("fig2a_anisotropic", "Fig. 2a anisotropic".into(), anisotropic()),
+        ("fig2b_two_normals", "Fig. 2b 2 normals".into(), two_normals()),
+        ("fig2c_three_normals", "Fig. 2c 3 normals".into(), three_normals()),
+        ("fig2d_seven_normals", String::new(), seven_normals()?),
+        ("fig3_velvet", "Fig. 3 velvet".into(), velvet()),
+        ("fig4_silk", "Fig. 4 silk".into(), silk()),
+    ];
+    for (stem, caption, def) in &spheres {
+        let t = Instant::now();
+        let material = def.material()?;
+        let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&material));
+        let scene = sphere_scene(shader, size, spp)?;
+        let img = render(&scene, &ropts, None);
+        w.png(&format!("{stem}.png"), &img, 0.0)?;
+        w.bytes(&format!("{stem}.toml"), def.toml().as_bytes())?;
+        w.bytes(
+            &format!("{stem}.scene.toml"),
+            sphere_scene_toml(&format!("{stem}.toml"), size, spp).as_bytes(),
+        )?;
+        let caption = if caption.is_empty() {
+            format!("Fig. 2d {} normals", def.lobes.len())
+        } else {
+            caption.clone()
+        };
+        sheet.add(canvas(&img, 0.0)?, caption);
+        log(&format!(
+            "{stem}: {} lobes, {:.2} s",
+            def.lobes.len(),
+            t.elapsed().as_secs_f64()
+        ));
+    }
+    w.report
+        .timings
+        .push(("spheres".into(), t0.elapsed().as_secs_f64()));
+
+    // Zoom sequence.
+    let t0 = Instant::now();
+    let map = bump_map()?;
+    let pyr = pyramid(&map, 4)?;
+    let surface_def = bump_surface();
+    let surface = surface_def.material()?;
+    let texels_per_uv = map.cells_x() as f64;
+    let shader = Arc::new(
+        NdfMapped::new(&pyr, &surface, texels_per_uv, true).map_err(|e| ferr(e.to_string()))?,
+    );
+    let frames = opts.zoom_frames.max(6);
+    let zsize = (size * 3 / 5).max(32);
+    let mut csv = String::from("frame,camera_width,lod,mean_luminance\n");
+    for (k, &width) in zoom_widths(frames).iter().enumerate() {
+        let scene = plane_scene(shader.clone(), width, zsize, spp)?;
+        let img = render(&scene, &ropts, None);
+        let lum = mean_luminance(&img);
+        // The level at the image centre (the footprint is the same everywhere: orthographic).
+        let lod = scene
+            .intersect(&scene.camera.generate_ray(
+                f64::from(zsize) / 2.0,
+                f64::from(zsize) / 2.0,
+                zsize,
+                zsize,
+            ))
+            .map_or(f64::NAN, |sp| shader.lod(&sp));
+        let _ = writeln!(csv, "{k},{width:.4},{lod:.4},{lum:.6}");
+        w.report.zoom.push(ZoomFrame {
+            width,
+            lod,
+            mean_luminance: lum,
+        });
+        w.png(&format!("zoom_{k:02}.png"), &img, 0.0)?;
+        sheet.add(
+            canvas(&img, 0.0)?,
+            format!("zoom {k}: {width:.1} tiles, lod {lod:.1}"),
+        );
+    }
+    w.bytes("zoom_luminance.csv", csv.as_bytes())?;
+    let (png, hscale) = heightmap_png(&map)?;
+    w.bytes("zoom_heightmap.png", &png)?;
+    let mut mat = format!(
+        "name = \"zoom bump map, far-field (top-level) BRDF\"\n[ndf]\nkind = \"heightmap\"\n\
+         file = \"zoom_heightmap.png\"\ntexel_size = {}\nheight_scale = {hscale}\nmax_lobes = 4\n",
+        map.texel_size()
+    );
+    let full = surface_def.toml();
+    if let Some(pos) = full.find("[transfer]") {
+        mat.push_str(&full[pos..]);
+    }
+    w.bytes("zoom_material.toml", mat.as_bytes())?;
+    log(&format!(
+        "zoom: {frames} frames, {:.2} s",
+        t0.elapsed().as_secs_f64()
+    ));
+    w.report
+        .timings
+        .push(("zoom".into(), t0.elapsed().as_secs_f64()));
+
+    // NDF blend strip.
+    let t0 = Instant::now();
+    let (a, b) = (three_normals(), silk());
+    let steps = 7;
+    let cam = sphere_camera(2.2 * steps as f64)?;
+    let (sw, sh) = (size * 3, (size * 3 / steps as u32).max(16));
+    let mut builder = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: sw,
+            height: sh,
+            spp,
+            background: BACKGROUND,
+        },
+    );
+    for k in 0..steps {
+        let t = k as f64 / (steps - 1) as f64;
+        let def = a.blend(&b, t);
+        let m = builder.material(Arc::new(MaterialShader::new(&def.material()?)));
+        let x = (k as f64 - (steps - 1) as f64 / 2.0) * 2.2;
+        builder
+            .sphere(DVec3::new(x, 0.0, 0.0), 1.0, DVec3::Y, m)
+            .map_err(|e| ferr(e.to_string()))?;
+        w.bytes(&format!("blend_t{t:.2}.toml"), def.toml().as_bytes())?;
+    }
+    builder.light(key_light()).map_err(|e| ferr(e.to_string()))?;
+    let scene = builder.build().map_err(|e| ferr(e.to_string()))?;
+    let img = render(&scene, &ropts, None);
+    w.png("blend_strip.png", &img, 0.0)?;
+    sheet.add(canvas(&img, 0.0)?, "NDF blend: 3 normals → silk");
+    log(&format!("blend strip: {:.2} s", t0.elapsed().as_secs_f64()));
+    w.report
+        .timings
+        .push(("blend".into(), t0.elapsed().as_secs_f64()));
+
+    let sheet_png = sheet
+        .render()
+        .and_then(|c| c.to_png_bytes())
+        .map_err(|e| ferr(format!("contact sheet: {e}")))?;
+    w.bytes("contact_sheet.png", &sheet_png)?;
+    Ok(w.report)
+}
