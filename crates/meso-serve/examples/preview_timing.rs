@@ -17,7 +17,10 @@ fn main() {
         "preview {side}×{side}, 1 spp, {} rayon threads; median of 7 (ms)",
         rayon::current_num_threads()
     );
-    println!("{:<16} {:>8} {:>8} {:>8}  path", "preset", "sphere", "plane", "cloth");
+    println!(
+        "{:<16} {:>8} {:>8} {:>8}  path",
+        "preset", "sphere", "plane", "cloth"
+    );
     for p in presets() {
         let m = validate(&p.material).expect("presets are valid");
         let mut cols = Vec::new();

@@ -171,8 +171,7 @@ fn material_and<T: serde::de::DeserializeOwned>(
     let m = o
         .remove("material")
         .ok_or_else(|| ApiError::bad_request("missing `material`"))?;
-    let params: T =
-        serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
+    let params: T = serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
     Ok((material_json::validate(&m)?, params))
 }
 
@@ -379,11 +378,7 @@ pub fn spawn(addr: SocketAddr) -> Result<RunningServer, ServeError> {
 ///
 /// # Errors
 /// [`ServeError::Bind`] when the address cannot be bound, I/O errors of the server.
-pub fn run(
-    host: &str,
-    port: u16,
-    on_listening: impl FnOnce(SocketAddr),
-) -> Result<(), ServeError> {
+pub fn run(host: &str, port: u16, on_listening: impl FnOnce(SocketAddr)) -> Result<(), ServeError> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;

@@ -77,8 +77,7 @@ pub fn toml_to_json(v: &toml::Value) -> Value {
 
 fn key(k: &str) -> String {
     if !k.is_empty()
-        && k
-            .chars()
+        && k.chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
     {
         k.to_owned()
@@ -90,13 +89,43 @@ fn key(k: &str) -> String {
 /// The order in which keys are written: the order of `docs/material-format.md`, then the rest
 /// alphabetically (`toml::Table` and `serde_json::Map` iterate alphabetically).
 const KEY_ORDER: &[&str] = &[
-    "name", "form", "kind", "axis", "weight", "exponent", "lobes", "distribution", "variant",
-    "alpha", "alpha_x", "alpha_y", "kappa", "half", "band", "specular", "albedo", "fresnel", "eta",
-    "k", "f0", "ndf", "transfer", "diffuse", "shadowing", "quadrature", "radial", "azimuth",
+    "name",
+    "form",
+    "kind",
+    "axis",
+    "weight",
+    "exponent",
+    "lobes",
+    "distribution",
+    "variant",
+    "alpha",
+    "alpha_x",
+    "alpha_y",
+    "kappa",
+    "half",
+    "band",
+    "specular",
+    "albedo",
+    "fresnel",
+    "eta",
+    "k",
+    "f0",
+    "ndf",
+    "transfer",
+    "diffuse",
+    "shadowing",
+    "quadrature",
+    "radial",
+    "azimuth",
 ];
 
 fn ordered(t: &toml::Table) -> Vec<(&String, &toml::Value)> {
-    let rank = |k: &str| KEY_ORDER.iter().position(|x| *x == k).unwrap_or(KEY_ORDER.len());
+    let rank = |k: &str| {
+        KEY_ORDER
+            .iter()
+            .position(|x| *x == k)
+            .unwrap_or(KEY_ORDER.len())
+    };
     let mut v: Vec<_> = t.iter().collect();
     v.sort_by(|a, b| rank(a.0).cmp(&rank(b.0)).then_with(|| a.0.cmp(b.0)));
     v
@@ -271,7 +300,11 @@ pub fn blend(a: &Value, b: &Value, t: f64) -> Result<Value, ApiError> {
             })
     };
     let (ka, kb) = (kind(a, "a")?, kind(b, "b")?);
-    let out_kind = if ka == kb { ka.clone() } else { "phong-peaks".into() };
+    let out_kind = if ka == kb {
+        ka.clone()
+    } else {
+        "phong-peaks".into()
+    };
     let lobes = |m: &Value, k: &str, scale: f64, which: &str| -> Result<Vec<Value>, ApiError> {
         let arr = m
             .pointer("/ndf/lobes")
@@ -330,7 +363,11 @@ pub fn blend(a: &Value, b: &Value, t: f64) -> Result<Value, ApiError> {
         let nb = b.get("name").and_then(Value::as_str).unwrap_or("b");
         o.insert(
             "name".into(),
-            Value::from(format!("blend {:.0}% {na} / {:.0}% {nb}", (1.0 - t) * 100.0, t * 100.0)),
+            Value::from(format!(
+                "blend {:.0}% {na} / {:.0}% {nb}",
+                (1.0 - t) * 100.0,
+                t * 100.0
+            )),
         );
     }
     Ok(out)
@@ -356,7 +393,9 @@ mod tests {
         });
         let v = validate(&m).unwrap();
         assert!(v.toml.contains("[ndf]"), "{}", v.toml);
-        assert!(v.toml.contains("  { axis = [30.5, 90], weight = 0.4, exponent = 100.0 },"));
+        assert!(v
+            .toml
+            .contains("  { axis = [30.5, 90], weight = 0.4, exponent = 100.0 },"));
         let back = parse_toml(&v.toml).unwrap();
         assert_eq!(back["name"], m["name"]);
         assert_eq!(back["ndf"]["lobes"][1]["axis"][0], json!(30.5));

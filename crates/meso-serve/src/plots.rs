@@ -237,7 +237,7 @@ pub fn slices_png(m: &Material, p: &SliceParams) -> Result<Vec<u8>, ApiError> {
             "planes_deg: {t} is not a finite angle"
         )));
     }
-    let fast = crate::preview::preview_brdf(m).0;
+    let fast = meso_core::shading::FastBrdf::new(m);
     let lum = |f: [f64; 3]| 0.2126 * f[0] + 0.7152 * f[1] + 0.0722 * f[2];
     let ti0 = p.theta_i_deg[0];
     let mut plot = PolarPlot::new(if p.theta_i_deg.len() == 1 {

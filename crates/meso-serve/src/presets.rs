@@ -19,8 +19,9 @@
 //!   weft circle along φ = 0°/180°; anisotropic highlights stretched across the threads.
 //! * **satin** — long warp floats: tight peaks along the circle across the warp (to ±45°), a
 //!   broad peak at the normal for the soft sheen, a dark saturated base.
-//! * **brushed metal** — grooves along the tangent: eleven normals across the brushing
-//!   direction (±30°, Gaussian weights, σ ≈ 11°), each a rough GGX conductor facet (aluminium).
+//! * **brushed metal** — grooves along the tangent: fifteen normals across the brushing
+//!   direction (every 4° to ±28°, Gaussian weights, σ ≈ 11°), each a rough GGX conductor facet
+//!   (aluminium, α = 0.1, enough to blend neighbouring normals).
 
 use serde_json::{json, Value};
 
@@ -93,9 +94,9 @@ pub fn presets() -> Vec<Preset> {
         })
         .collect();
     satin.push(lobe(0.0, 0.0, 0.8, 12.0));
-    let brushed: Vec<Value> = (-5..=5)
+    let brushed: Vec<Value> = (-7..=7)
         .map(|k| {
-            let t = f64::from(k) * 6.0;
+            let t = f64::from(k) * 4.0;
             let (th, ph) = on_circle(t, 90.0);
             normal(th, ph, (-0.5 * (t / 11.0).powi(2)).exp())
         })
@@ -181,7 +182,7 @@ pub fn presets() -> Vec<Preset> {
             material: json!({
                 "name": "brushed aluminium",
                 "ndf": { "kind": "deltas", "lobes": brushed },
-                "transfer": { "kind": "microfacet", "distribution": "ggx", "alpha": 0.07,
+                "transfer": { "kind": "microfacet", "distribution": "ggx", "alpha": 0.1,
                               "fresnel": "conductor",
                               "eta": [1.657, 0.88, 0.521], "k": [9.224, 6.27, 4.837] }
             }),

@@ -35,8 +35,16 @@ impl Resp {
     }
     /// An error answer: the given status and a non-empty JSON message.
     fn assert_error(&self, status: u16) -> String {
-        assert_eq!(self.status, status, "body: {}", String::from_utf8_lossy(&self.body));
-        let msg = self.json()["error"].as_str().expect("error message").to_owned();
+        assert_eq!(
+            self.status,
+            status,
+            "body: {}",
+            String::from_utf8_lossy(&self.body)
+        );
+        let msg = self.json()["error"]
+            .as_str()
+            .expect("error message")
+            .to_owned();
         assert!(!msg.is_empty());
         msg
     }
@@ -51,7 +59,10 @@ fn server() -> SocketAddr {
 fn dechunk(mut b: &[u8]) -> Vec<u8> {
     let mut out = Vec::new();
     loop {
-        let pos = b.windows(2).position(|w| w == b"\r\n").expect("chunk size line");
+        let pos = b
+            .windows(2)
+            .position(|w| w == b"\r\n")
+            .expect("chunk size line");
         let size = usize::from_str_radix(std::str::from_utf8(&b[..pos]).unwrap().trim(), 16)
             .expect("hex chunk size");
         b = &b[pos + 2..];
@@ -146,7 +157,10 @@ fn page_and_health() {
     assert!(t.contains("<canvas id=\"disc\""));
     assert!(t.contains("mesoEditor"), "script inlined");
     assert!(!t.contains("/*SCRIPT*/") && !t.contains("/*STYLE*/"));
-    assert!(!t.contains("http://") && !t.contains("https://"), "no external resources");
+    assert!(
+        !t.contains("http://") && !t.contains("https://"),
+        "no external resources"
+    );
     let h = get("/api/health");
     assert_eq!(h.status, 200);
     assert_eq!(h.json()["status"], "ok");
@@ -176,7 +190,13 @@ fn presets_are_listed_and_render() {
     }
     for x in p.as_array().unwrap() {
         let r = render(&x["material"], json!({ "width": 48, "height": 48 }));
-        assert_eq!(r.status, 200, "{}: {}", x["id"], String::from_utf8_lossy(&r.body));
+        assert_eq!(
+            r.status,
+            200,
+            "{}: {}",
+            x["id"],
+            String::from_utf8_lossy(&r.body)
+        );
         assert_eq!(png_size(&r.body), (48, 48));
     }
 }
@@ -209,7 +229,12 @@ fn render_returns_a_png_that_follows_the_material() {
                      "lights": [ { "azimuth_deg": 80, "elevation_deg": 5, "intensity": 4,
                                    "color": [1, 0.9, 0.8] } ] }),
         );
-        assert_eq!(r.status, 200, "{object}: {}", String::from_utf8_lossy(&r.body));
+        assert_eq!(
+            r.status,
+            200,
+            "{object}: {}",
+            String::from_utf8_lossy(&r.body)
+        );
         assert_eq!(png_size(&r.body), (64, 64));
     }
 }
@@ -245,7 +270,10 @@ fn toml_and_parse_round_trip() {
     let r = post_json("/api/toml", &material());
     assert_eq!(r.status, 200);
     let text = r.text();
-    assert!(text.contains("[ndf]") && text.contains("kind = \"phong-peaks\""), "{text}");
+    assert!(
+        text.contains("[ndf]") && text.contains("kind = \"phong-peaks\""),
+        "{text}"
+    );
     assert!(text.contains("exponent = 100"), "{text}");
     let p = request("POST", "/api/parse", "application/toml", text.as_bytes());
     assert_eq!(p.status, 200);
@@ -310,11 +338,26 @@ fn malformed_json_is_400() {
 fn out_of_range_values_are_400() {
     let m = material();
     let cases = [
-        (json!({ "material": m, "view": { "width": 5000 } }), "view.width"),
-        (json!({ "material": m, "view": { "height": 0 } }), "view.height"),
-        (json!({ "material": m, "view": { "spp": 1000 } }), "view.spp"),
-        (json!({ "material": m, "view": { "exposure": 99 } }), "view.exposure"),
-        (json!({ "material": m, "view": { "object": "teapot" } }), "teapot"),
+        (
+            json!({ "material": m, "view": { "width": 5000 } }),
+            "view.width",
+        ),
+        (
+            json!({ "material": m, "view": { "height": 0 } }),
+            "view.height",
+        ),
+        (
+            json!({ "material": m, "view": { "spp": 1000 } }),
+            "view.spp",
+        ),
+        (
+            json!({ "material": m, "view": { "exposure": 99 } }),
+            "view.exposure",
+        ),
+        (
+            json!({ "material": m, "view": { "object": "teapot" } }),
+            "teapot",
+        ),
         (json!({ "material": m, "view": { "zoom": 2 } }), "zoom"),
         (
             json!({ "material": m, "lights": [ { "elevation_deg": 120 } ] }),
@@ -361,11 +404,7 @@ fn out_of_range_values_are_400() {
     )
     .assert_error(400);
     assert!(msg.contains("limit"), "{msg}");
-    let msg = post_json(
-        "/api/blend",
-        &json!({ "a": m, "b": m, "t": 2 }),
-    )
-    .assert_error(400);
+    let msg = post_json("/api/blend", &json!({ "a": m, "b": m, "t": 2 })).assert_error(400);
     assert!(msg.contains("t:"), "{msg}");
 }
 
@@ -401,7 +440,12 @@ fn oversized_bodies_are_413() {
 
 #[test]
 fn unknown_routes_are_404_and_wrong_methods_405() {
-    for path in ["/nope", "/api/renders", "/api/render/extra", "/../etc/passwd"] {
+    for path in [
+        "/nope",
+        "/api/renders",
+        "/api/render/extra",
+        "/../etc/passwd",
+    ] {
         let msg = get(path).assert_error(404);
         assert!(msg.contains("no route"), "{msg}");
     }

@@ -214,7 +214,7 @@
   // ---------------------------------------------------------------- the hemisphere disc
   const canvas = $('disc');
   const ctx = canvas.getContext('2d');
-  const DISC = { cx: 160, cy: 160, r: 134 };
+  const DISC = { cx: 160, cy: 160, r: 126 };
   function setupCanvas() {
     const dpr = Math.min(2, window.devicePixelRatio || 1);
     canvas.width = 320 * dpr; canvas.height = 320 * dpr;
@@ -274,9 +274,11 @@
     ctx.textAlign = 'center'; ctx.textBaseline = 'bottom'; ctx.fillText('90°', cx, cy - r - 4);
     ctx.textBaseline = 'top'; ctx.fillText('270°', cx, cy + r + 4);
     ctx.fillStyle = 'rgba(255,255,255,0.38)'; ctx.font = '10px system-ui, sans-serif';
-    ctx.textAlign = 'left'; ctx.textBaseline = 'bottom';
-    ctx.fillText('θ 30°', cx + 3, cy - r * Math.SQRT2 * Math.sin(rad(15)) - 1);
-    ctx.fillText('θ 60°', cx + 3, cy - r * Math.SQRT2 * Math.sin(rad(30)) - 1);
+    ctx.textAlign = 'left'; ctx.textBaseline = 'top';
+    for (const t of [30, 60]) {
+      const rr = r * Math.SQRT2 * Math.sin(rad(t) / 2) * Math.SQRT1_2;
+      ctx.fillText(`θ ${t}°`, cx + rr + 2, cy + rr + 1);
+    }
     // Lobe extents (half-maximum rings) for Phong peaks.
     const ls = lobes();
     if (isPeaks()) {

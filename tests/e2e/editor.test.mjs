@@ -1,0 +1,265 @@
+// End-to-end tests of the `meso serve` editor in a real browser: Debian's chromium, headless,
+// driven by playwright-core. Run by tests/e2e/run.sh (which builds the binary), or directly:
+//   MESO_BIN=target/debug/meso node --test tests/e2e/editor.test.mjs
+// Screenshots and the saved TOML go to tests/e2e/artifacts/.
+
+import { test, before, after } from 'node:test';
+import assert from 'node:assert/strict';
+import { spawn } from 'node:child_process';
+import { createHash } from 'node:crypto';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const root = path.resolve(here, '../..');
+const artifacts = path.join(here, 'artifacts');
+fs.mkdirSync(artifacts, { recursive: true });
+
+function mesoBinary() {
+  if (process.env.MESO_BIN) return path.resolve(process.env.MESO_BIN);
+  const target = process.env.CARGO_TARGET_DIR || path.join(root, 'target');
+  return path.join(target, 'debug', 'meso');
+}
+
+let server; let baseUrl; let context; let page; let userDir;
+
+// Start `meso serve --port 0` and read the bound address from its first line of output.
+function startServer() {
+  return new Promise((resolve, reject) => {
+    const bin = mesoBinary();
+    if (!fs.existsSync(bin)) { reject(new Error(`no meso binary at ${bin} (cargo build -p meso-cli)`)); return; }
+    const p = spawn(bin, ['serve', '--port', '0'], { stdio: ['ignore', 'pipe', 'pipe'] });
+    let out = '';
+    const timer = setTimeout(() => reject(new Error(`meso serve printed no address: ${out}`)), 30000);
+    p.stdout.on('data', (d) => {
+      out += d;
+      const m = out.match(/listening on (http:\/\/[^\s]+)/);
+      if (m) { clearTimeout(timer); resolve({ proc: p, url: m[1].replace(/\/$/, '') }); }
+    });
+    p.stderr.on('data', (d) => process.stderr.write(`[meso serve] ${d}`));
+    p.on('exit', (code) => { clearTimeout(timer); reject(new Error(`meso serve exited with ${code}: ${out}`)); });
+  });
+}
+
+// Wait until the preview has been replaced at least once after `count` renders and is idle.
+async function waitForRender(count) {
+  await page.waitForFunction((n) => {
+    const img = document.getElementById('preview');
+    return Number(img.dataset.renders || 0) > n && document.getElementById('preview-busy').hidden
+      && img.complete && img.naturalWidth > 0;
+  }, count, { timeout: 60000 });
+}
+const renders = () => page.evaluate(() => Number(document.getElementById('preview').dataset.renders || 0));
+// A hash of the preview's pixels as decoded by the browser.
+const previewHash = async () => {
+  const pixels = await page.evaluate(() => {
+    const img = document.getElementById('preview');
+    const c = document.createElement('canvas');
+    c.width = img.naturalWidth; c.height = img.naturalHeight;
+    const g = c.getContext('2d');
+    g.drawImage(img, 0, 0);
+    return Array.from(g.getImageData(0, 0, c.width, c.height).data);
+  });
+  return createHash('sha1').update(Buffer.from(pixels)).digest('hex');
+};
+const material = () => page.evaluate(() => JSON.parse(JSON.stringify(window.mesoEditor.state.material)));
+const shot = (name) => page.screenshot({ path: path.join(artifacts, `${name}.png`), fullPage: true });
+
+before(async () => {
+  const s = await startServer();
+  server = s.proc; baseUrl = s.url;
+  userDir = fs.mkdtempSync(path.join(os.tmpdir(), 'meso-e2e-chromium-'));
+  context = await chromium.launchPersistentContext(userDir, {
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    headless: true,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+    viewport: { width: 1500, height: 1000 },
+    acceptDownloads: true,
+  });
+  page = context.pages()[0] || await context.newPage();
+  page.on('pageerror', (e) => { console.error('page error:', e); });
+});
+
+after(async () => {
+  if (context) await context.close();
+  if (server) server.kill('SIGINT');
+  if (userDir) fs.rmSync(userDir, { recursive: true, force: true });
+});
+
+test('the page loads, renders a preview and the pictures', async () => {
+  const errors = [];
+  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
+  await page.goto(`${baseUrl}/`);
+  assert.equal(await page.title(), 'meso · NDF editor');
+  await page.waitForSelector('body[data-ready="1"]');
+  await waitForRender(0);
+  const size = await page.evaluate(() => document.getElementById('preview').naturalWidth);
+  assert.equal(size, 384);
+  await page.waitForFunction(() => document.getElementById('ndf-img').naturalWidth > 0
+    && document.getElementById('slices-img').naturalWidth > 0, null, { timeout: 60000 });
+  const rows = await page.locator('#lobes .lobe').count();
+  const m = await material();
+  assert.equal(rows, m.ndf.lobes.length);
+  assert.ok(rows > 1);
+  await shot('01-loaded');
+  assert.deepEqual(errors, []);
+});
+
+test('dragging a lobe handle moves the lobe and changes the preview', async () => {
+  const before = await material();
+  const h0 = await previewHash();
+  const n = await renders();
+  const start = await page.evaluate(() => window.mesoEditor.handleClientPosition(0));
+  const target = await page.evaluate(() => window.mesoEditor.discClientPosition(50, 30));
+  await page.mouse.move(start.x, start.y);
+  await page.mouse.down();
+  for (let k = 1; k <= 8; k++) {
+    await page.mouse.move(start.x + (target.x - start.x) * k / 8, start.y + (target.y - start.y) * k / 8);
+  }
+  await page.mouse.up();
+  await waitForRender(n);
+  // Let the last coalesced request land.
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const after = await material();
+  const [t, p] = after.ndf.lobes[0].axis;
+  assert.ok(Math.abs(t - 50) < 2 && Math.abs(p - 30) < 3, `lobe 1 axis is ${t}, ${p}`);
+  assert.notDeepEqual(after.ndf.lobes[0].axis, before.ndf.lobes[0].axis);
+  assert.equal(await page.inputValue('#lobes .lobe[data-lobe="0"] input[data-field="theta"]'), String(t));
+  assert.notEqual(await previewHash(), h0, 'the preview changed');
+  await shot('02-dragged');
+});
+
+test('moving a weight slider changes the material and the preview', async () => {
+  const h0 = await previewHash();
+  const n = await renders();
+  const slider = page.locator('#lobes input[type=range][data-field="weight"][data-lobe="1"]');
+  await slider.scrollIntoViewIfNeeded();
+  const box = await slider.boundingBox();
+  await page.mouse.click(box.x + box.width * 0.9, box.y + box.height / 2);
+  await waitForRender(n);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const w = (await material()).ndf.lobes[1].weight;
+  assert.ok(w > 0.8 && w <= 1, `weight ${w}`);
+  const shown = Number(await page.inputValue('#lobes input[type=number][data-field="weight"][data-lobe="1"]'));
+  assert.equal(shown, w);
+  assert.notEqual(await previewHash(), h0, 'the preview changed');
+});
+
+test('the saved TOML holds the new values', async () => {
+  const m = await material();
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#btn-save')]);
+  const file = path.join(artifacts, 'saved.toml');
+  await download.saveAs(file);
+  const text = fs.readFileSync(file, 'utf8');
+  assert.match(text, /\[ndf\]/);
+  assert.match(text, /kind = "phong-peaks"/);
+  const [t, p] = m.ndf.lobes[0].axis;
+  assert.ok(text.includes(`axis = [${t}, ${p}]`), `axis [${t}, ${p}] in\n${text}`);
+  assert.ok(text.includes(`weight = ${m.ndf.lobes[1].weight}`), `weight ${m.ndf.lobes[1].weight} in\n${text}`);
+  // The file is a valid material for meso itself.
+  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', body: text });
+  assert.equal(r.status, 200);
+  const back = await r.json();
+  assert.deepEqual(back.ndf.lobes[0].axis, [t, p]);
+});
+
+test('undo and redo restore the edits', async () => {
+  const edited = await material();
+  await page.click('#btn-undo');
+  const undone = await material();
+  assert.notDeepEqual(undone, edited);
+  await page.click('#btn-redo');
+  assert.deepEqual(await material(), edited);
+});
+
+test('loading presets replaces the material; cloth under a grazing light', async () => {
+  const n = await renders();
+  await page.selectOption('#preset', 'velvet');
+  await waitForRender(n);
+  const m = await material();
+  assert.equal(m.name, 'velvet');
+  assert.equal(await page.locator('#lobes .lobe').count(), m.ndf.lobes.length);
+  assert.ok(m.ndf.lobes.filter((l) => l.axis[0] >= 75).length >= 8, 'velvet lobes near the horizon');
+  await page.waitForTimeout(400);
+  await shot('03-velvet-sphere');
+  const n2 = await renders();
+  await page.click('#object-seg button[data-object="cloth"]');
+  await waitForRender(n2);
+  await page.waitForTimeout(300);
+  await shot('04-velvet-cloth');
+  for (const id of ['satin', 'brushed-metal', 'paper-7']) {
+    const k = await renders();
+    await page.selectOption('#preset', id);
+    await waitForRender(k);
+    await page.waitForTimeout(300);
+    await shot(`05-${id}`);
+  }
+  await page.click('#object-seg button[data-object="sphere"]');
+});
+
+test('blending two materials mixes the lobe sets', async () => {
+  await page.selectOption('#preset', 'silk');
+  await page.waitForTimeout(200);
+  const silk = await material();
+  await page.click('#blend-set-a');
+  await page.selectOption('#blend-b', 'velvet');
+  const n = await renders();
+  const slider = page.locator('#blend-t');
+  await slider.scrollIntoViewIfNeeded();
+  const box = await slider.boundingBox();
+  await page.mouse.click(box.x + box.width * 0.5, box.y + box.height / 2);
+  await waitForRender(n);
+  const m = await material();
+  assert.equal(m.ndf.kind, 'phong-peaks');
+  assert.equal(m.ndf.lobes.length, silk.ndf.lobes.length + 9);
+  const sum = m.ndf.lobes.reduce((a, l) => a + l.weight, 0);
+  assert.ok(Math.abs(sum - 1) < 1e-3, `weights sum to ${sum}`);
+  await page.waitForTimeout(300);
+  await shot('06-blend');
+});
+
+test('opening a TOML file loads it; invalid files show the error', async () => {
+  const file = path.join(artifacts, 'open-me.toml');
+  fs.writeFileSync(file, '[ndf]\nkind = "deltas"\nlobes = [\n  { axis = [20, 0], weight = 1 },\n  { axis = [20, 180], weight = 1 },\n]\n[transfer]\nkind = "phong"\nexponent = 30\n');
+  await page.setInputFiles('#file-input', file);
+  await page.waitForFunction(() => window.mesoEditor.state.material.name === 'open-me');
+  const m = await material();
+  assert.equal(m.ndf.kind, 'deltas');
+  assert.equal(m.ndf.lobes.length, 2);
+  const bad = path.join(artifacts, 'bad.toml');
+  fs.writeFileSync(bad, '[transfer]\nkind = "phong"\nexponent = -1\n');
+  await page.setInputFiles('#file-input', bad);
+  await page.waitForSelector('#error:not([hidden])');
+  assert.match(await page.textContent('#error'), /exponent/);
+  await shot('07-error');
+});
+
+test('preview latency at 384×384 (recorded in artifacts/timings.json)', async () => {
+  await page.selectOption('#preset', 'silk');
+  await page.waitForTimeout(500);
+  const timings = await page.evaluate(async () => {
+    const body = (axis) => ({ material: Object.assign({}, window.mesoEditor.state.material, {
+      ndf: { kind: 'phong-peaks', lobes: [{ axis, weight: 1, exponent: 300 }, { axis: [40, 90], weight: 1, exponent: 300 }] } }),
+    view: { width: 384, height: 384 } });
+    const out = [];
+    for (let k = 0; k < 12; k++) {
+      const t0 = performance.now();
+      const r = await fetch('/api/render', { method: 'POST', body: JSON.stringify(body([k * 5, k * 30])) });
+      await r.arrayBuffer();
+      out.push({ roundTripMs: performance.now() - t0, renderMs: Number(r.headers.get('x-render-ms')) });
+    }
+    return out;
+  });
+  const med = (xs) => xs.slice().sort((a, b) => a - b)[Math.floor(xs.length / 2)];
+  const summary = { side: 384, requests: timings.length,
+    medianRenderMs: med(timings.map((t) => t.renderMs)), medianRoundTripMs: med(timings.map((t) => t.roundTripMs)), timings };
+  fs.writeFileSync(path.join(artifacts, 'timings.json'), JSON.stringify(summary, null, 2));
+  console.log(`preview 384×384: median render ${summary.medianRenderMs.toFixed(1)} ms, round trip ${summary.medianRoundTripMs.toFixed(1)} ms`);
+  assert.ok(summary.medianRenderMs > 0);
+});
