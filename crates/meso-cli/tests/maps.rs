@@ -225,3 +225,138 @@ fn extract_info_brdf_and_gonio() {
         }
     }
 }
+
+#[test]
+fn bad_inputs_fail_cleanly() {
+    let d = tmpdir("bad");
+    gravel_png(&d.join("gravel.png"), 16, 3);
+    let out = d.join("out.map");
+    let extract = |input: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "extract",
+            s(input),
+            "--texel-size",
+            "0.01",
+            "--height-scale",
+            "0.1",
+            "--out",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        meso(&args)
+    };
+    // Corrupt PNG: a valid signature followed by garbage.
+    let corrupt = d.join("corrupt.png");
+    let mut bytes = b"\x89PNG\r\n\x1a\n".to_vec();
+    bytes.extend((0..200u32).map(|i| (i * 37 % 251) as u8));
+    std::fs::write(&corrupt, &bytes).unwrap();
+    fails(&extract(&corrupt, &[]), &out, "corrupt png");
+    // Truncated PNG.
+    let good = std::fs::read(d.join("gravel.png")).unwrap();
+    let trunc = d.join("trunc.png");
+    std::fs::write(&trunc, &good[..good.len() / 2]).unwrap();
+    fails(&extract(&trunc, &[]), &out, "truncated png");
+    // NaN heights in an EXR.
+    let mut vals = vec![0.25f32; 64];
+    vals[9] = f32::NAN;
+    let nan = d.join("nan.exr");
+    std::fs::write(&nan, meso_maps::fixtures::exr_bytes(8, 8, &vals).unwrap()).unwrap();
+    let o = extract(&nan, &[]);
+    fails(&o, &out, "NaN exr");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not finite"));
+    // Zero and negative scales.
+    let png = d.join("gravel.png");
+    let o = meso(&[
+        "extract",
+        s(&png),
+        "--texel-size",
+        "0",
+        "--height-scale",
+        "0.1",
+        "--out",
+        s(&out),
+    ]);
+    fails(&o, &out, "zero texel size");
+    let o = meso(&[
+        "extract",
+        s(&png),
+        "--texel-size",
+        "0.1",
+        "--height-scale=-1",
+        "--out",
+        s(&out),
+    ]);
+    fails(&o, &out, "negative height scale");
+    fails(&extract(&png, &["--max-lobes", "9"]), &out, "max lobes 9");
+    // Truncated map file: info, brdf and a material pointing at it all fail.
+    ok(&extract(&png, &[]));
+    let full = std::fs::read(&out).unwrap();
+    let tmap = d.join("trunc.map");
+    std::fs::write(&tmap, &full[..full.len() - 7]).unwrap();
+    let info_out = d.join("never.txt");
+    fails(
+        &meso(&["map", "info", s(&tmap)]),
+        &info_out,
+        "truncated map",
+    );
+    std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
+    let m = d.join("m.toml");
+    std::fs::write(
+        &m,
+        material(
+            "[ndf]\nkind = \"map\"\nfile = \"trunc.map\"\nlevel = \"top\"",
+            "horizon",
+        ),
+    )
+    .unwrap();
+    let bout = d.join("b.csv");
+    fails(
+        &meso(&[
+            "brdf",
+            s(&m),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+            "--out",
+            s(&bout),
+        ]),
+        &bout,
+        "brdf on truncated map",
+    );
+    // Material errors: unknown key, numbered level without texel, gonio on a map material.
+    for (ndf, what) in [
+        (format!("{HEIGHTMAP_NDF}\ncolour = 3"), "colour"),
+        (
+            "[ndf]\nkind = \"map\"\nfile = \"out.map\"\nlevel = 1".to_owned(),
+            "texel",
+        ),
+    ] {
+        std::fs::write(&m, material(&ndf, "smith")).unwrap();
+        let o = meso(&[
+            "brdf",
+            s(&m),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+            "--out",
+            s(&bout),
+        ]);
+        fails(&o, &bout, what);
+        assert!(String::from_utf8_lossy(&o.stderr).contains(what), "{what}");
+    }
+    std::fs::write(
+        &m,
+        material("[ndf]\nkind = \"map\"\nfile = \"out.map\"", "smith"),
+    )
+    .unwrap();
+    fails(
+        &meso(&[
+            "gonio",
+            s(&m),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+            "--out",
+            s(&bout),
+        ]),
+        &bout,
+        "gonio needs heights",
+    );
+}

@@ -107,7 +107,7 @@ pub struct FitParams {
     /// `max_em_points`.
     pub level_em_points: usize,
     /// Levels with at most this many texels (the coarse ones) are fitted thoroughly: full
-    /// `em_iterations` for every start (default 64; see `fit_lobes_with`).
+    /// `em_iterations` for every start (default 256; see `fit_lobes_with`).
     pub thorough_texels: usize,
 }
 
@@ -119,7 +119,7 @@ impl Default for FitParams {
             em_iterations: 30,
             max_em_points: 512,
             level_em_points: 1 << 18,
-            thorough_texels: 64,
+            thorough_texels: 256,
         }
     }
 }
@@ -453,12 +453,12 @@ pub fn fit_lobes_with(
     let mut improved = false;
     for k in 2..=kmax {
         let mut best: Option<(f64, Vec<L>)> = None;
-        // Thorough fits try both starts; the cheap path one (the concentric split for K = 2,
-        // k-means after).
-        let starts: &[usize] = if full {
+        // Thorough fits try both starts at every K, the cheap path both at K = 2 and k-means
+        // after; small footprints (no EM) only k-means (a split start needs EM to move).
+        let starts: &[usize] = if small {
+            &[0]
+        } else if full || k == 2 {
             &[0, 1]
-        } else if k == 2 {
-            &[1]
         } else {
             &[0]
         };

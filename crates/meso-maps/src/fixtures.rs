@@ -91,3 +91,38 @@ pub fn woven(n: usize, period: usize, amp: f64, s: f64) -> Result<HeightMap> {
         warp.max(weft)
     })
 }
+
+/// Encode `values` (row-major, `width × height`, copied to R, G and B) as an OpenEXR float image
+/// — for tests and examples that need EXR height maps, including deliberately bad ones (NaN).
+///
+/// # Errors
+/// An encoder failure, as [`crate::MapError::InvalidParameter`].
+pub fn exr_bytes(width: u32, height: u32, values: &[f32]) -> Result<Vec<u8>> {
+    if values.len() != (width as usize) * (height as usize) {
+        return Err(crate::MapError::InvalidParameter {
+            name: "values",
+            value: format!("{} values", values.len()),
+            reason: "must hold width × height values",
+        });
+    }
+    let img = image::Rgb32FImage::from_fn(width, height, |x, y| {
+        let v = values[(y * width + x) as usize];
+        image::Rgb([v, v, v])
+    });
+    let mut out = Vec::new();
+    image::DynamicImage::ImageRgb32F(img)
+        .write_to(
+            &mut std::io::Cursor::new(&mut out),
+            image::ImageFormat::OpenExr,
+        )
+        .map_err(|e| crate::MapError::InvalidParameter {
+            name: "values",
+            value: "EXR".into(),
+            reason: if e.to_string().is_empty() {
+                "cannot be encoded"
+            } else {
+                "cannot be encoded as EXR"
+            },
+        })?;
+    Ok(out)
+}
