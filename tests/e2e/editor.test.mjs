@@ -66,6 +66,14 @@ const previewHash = async () => {
   return createHash('sha1').update(Buffer.from(pixels)).digest('hex');
 };
 const material = () => page.evaluate(() => JSON.parse(JSON.stringify(window.mesoEditor.state.material)));
+// Load the page unless it is already there (so that single tests can run with --test-name-pattern).
+async function ensureLoaded() {
+  if (!page.url().startsWith(baseUrl)) {
+    await page.goto(`${baseUrl}/`);
+    await page.waitForSelector('body[data-ready="1"]');
+    await waitForRender(0);
+  }
+}
 const shot = (name) => page.screenshot({ path: path.join(artifacts, `${name}.png`), fullPage: true });
 
 before(async () => {
@@ -110,6 +118,7 @@ test('the page loads, renders a preview and the pictures', async () => {
 });
 
 test('dragging a lobe handle moves the lobe and changes the preview', async () => {
+  await ensureLoaded();
   const before = await material();
   const h0 = await previewHash();
   const n = await renders();
@@ -135,6 +144,7 @@ test('dragging a lobe handle moves the lobe and changes the preview', async () =
 });
 
 test('moving a weight slider changes the material and the preview', async () => {
+  await ensureLoaded();
   const h0 = await previewHash();
   const n = await renders();
   const slider = page.locator('#lobes input[type=range][data-field="weight"][data-lobe="1"]');
@@ -152,6 +162,7 @@ test('moving a weight slider changes the material and the preview', async () => 
 });
 
 test('the saved TOML holds the new values', async () => {
+  await ensureLoaded();
   const m = await material();
   const [download] = await Promise.all([page.waitForEvent('download'), page.click('#btn-save')]);
   const file = path.join(artifacts, 'saved.toml');
@@ -170,6 +181,7 @@ test('the saved TOML holds the new values', async () => {
 });
 
 test('undo and redo restore the edits', async () => {
+  await ensureLoaded();
   const edited = await material();
   await page.click('#btn-undo');
   const undone = await material();
@@ -179,6 +191,7 @@ test('undo and redo restore the edits', async () => {
 });
 
 test('loading presets replaces the material; cloth under a grazing light', async () => {
+  await ensureLoaded();
   const n = await renders();
   await page.selectOption('#preset', 'velvet');
   await waitForRender(n);
@@ -204,6 +217,7 @@ test('loading presets replaces the material; cloth under a grazing light', async
 });
 
 test('blending two materials mixes the lobe sets', async () => {
+  await ensureLoaded();
   await page.selectOption('#preset', 'silk');
   await page.waitForTimeout(200);
   const silk = await material();
@@ -225,6 +239,7 @@ test('blending two materials mixes the lobe sets', async () => {
 });
 
 test('opening a TOML file loads it; invalid files show the error', async () => {
+  await ensureLoaded();
   const file = path.join(artifacts, 'open-me.toml');
   fs.writeFileSync(file, '[ndf]\nkind = "deltas"\nlobes = [\n  { axis = [20, 0], weight = 1 },\n  { axis = [20, 180], weight = 1 },\n]\n[transfer]\nkind = "phong"\nexponent = 30\n');
   await page.setInputFiles('#file-input', file);
@@ -235,12 +250,14 @@ test('opening a TOML file loads it; invalid files show the error', async () => {
   const bad = path.join(artifacts, 'bad.toml');
   fs.writeFileSync(bad, '[transfer]\nkind = "phong"\nexponent = -1\n');
   await page.setInputFiles('#file-input', bad);
-  await page.waitForSelector('#error:not([hidden])');
-  assert.match(await page.textContent('#error'), /exponent/);
+  await page.waitForFunction(() => /exponent/.test(document.getElementById('error').textContent));
+  assert.equal(await page.isVisible('#error'), true);
+  assert.match(await page.textContent('#error'), /bad\.toml: .*exponent/);
   await shot('07-error');
 });
 
 test('preview latency at 384×384 (recorded in artifacts/timings.json)', async () => {
+  await ensureLoaded();
   await page.selectOption('#preset', 'silk');
   await page.waitForTimeout(500);
   const timings = await page.evaluate(async () => {

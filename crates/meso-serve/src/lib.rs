@@ -77,7 +77,6 @@ struct AppState {
 }
 
 /// The application's router (all routes, limits and fallbacks).
-#[must_use]
 pub fn router() -> Router {
     let state = AppState {
         renders: Arc::new(Semaphore::new(MAX_CONCURRENT_RENDERS)),

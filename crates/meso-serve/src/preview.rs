@@ -198,7 +198,7 @@ impl RenderRequest {
 #[derive(Clone, Debug)]
 pub enum PreviewBrdf {
     /// meso-core's compiled evaluation.
-    Fast(FastBrdf),
+    Fast(Box<FastBrdf>),
     /// Phong peaks under a Phong (N·H) facet in the multiple-surface form: the von Mises–Fisher
     /// closed form of [`phong_closed_form`] (a few per cent from the quadrature; a cost per
     /// lobe, not per quadrature node).
@@ -308,7 +308,7 @@ pub fn preview_brdf(material: &Material) -> (PreviewBrdf, String) {
     let fast = FastBrdf::new(material);
     if !fast.path().starts_with("quadrature") || material.ndf.is_singular() {
         let p = fast.path().to_owned();
-        return (PreviewBrdf::Fast(fast), p);
+        return (PreviewBrdf::Fast(Box::new(fast)), p);
     }
     let n = PREVIEW_NORMALS;
     let normals: Vec<WeightedNormal> = (0..n)
@@ -326,11 +326,11 @@ pub fn preview_brdf(material: &Material) -> (PreviewBrdf, String) {
             m.ndf = Ndf::Deltas(d);
             let f = FastBrdf::new(&m);
             let p = format!("{n} normals sampled from the NDF, {}", f.path());
-            (PreviewBrdf::Fast(f), p)
+            (PreviewBrdf::Fast(Box::new(f)), p)
         }
         Err(_) => {
             let p = fast.path().to_owned();
-            (PreviewBrdf::Fast(fast), p)
+            (PreviewBrdf::Fast(Box::new(fast)), p)
         }
     }
 }
@@ -517,7 +517,7 @@ mod tests {
     #[test]
     fn rotation_moves_the_tangent() {
         let m = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
-        let s = BrdfShader::new(PreviewBrdf::Fast(FastBrdf::new(&m)), 90.0);
+        let s = BrdfShader::new(PreviewBrdf::Fast(Box::new(FastBrdf::new(&m))), 90.0);
         // A frame rotated by 90°: the world tangent +x is the rotated frame's −y.
         assert!((s.rotate(DVec3::X) - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
     }

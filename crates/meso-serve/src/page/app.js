@@ -113,9 +113,14 @@
     }
     return r;
   }
-  function showError(msg) {
+  // Messages by source ('render', 'file', …): a successful render clears only its own.
+  const errors = {};
+  function showError(msg, source) {
+    errors[source || 'edit'] = msg || '';
+    const text = Object.values(errors).filter((m) => m).join('\n');
     const e = $('error');
-    if (msg) { e.textContent = msg; e.hidden = false; } else { e.hidden = true; e.textContent = ''; }
+    e.textContent = text;
+    e.hidden = !text;
   }
 
   // A request pipeline: at most one request in flight; a newer change replaces a queued one.
@@ -174,9 +179,9 @@
       // Progressive: a quarter-pixel pass first when a full pass is slower than ~60 ms.
       if (lastFullMs > 60) await renderOnce(Math.max(64, Math.round(full / 2)), seq);
       if (seq === renderSeq) lastFullMs = await renderOnce(full, seq);
-      showError('');
+      showError('', 'render');
     } catch (e) {
-      showError(e.message);
+      showError(e.message, 'render');
     } finally {
       $('preview-busy').hidden = true;
     }
@@ -665,7 +670,7 @@
   function loadMaterial(m, label) {
     if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
     if (m.ndf.kind !== 'phong-peaks' && m.ndf.kind !== 'deltas') {
-      showError(`the editor edits phong-peaks and deltas NDFs; ${label || 'this material'} has kind = "${m.ndf.kind}"`);
+      showError(`the editor edits phong-peaks and deltas NDFs; ${label || 'this material'} has kind = "${m.ndf.kind}"`, 'file');
       return false;
     }
     state.material = clone(m);
@@ -675,7 +680,7 @@
   }
   $('preset').addEventListener('change', (e) => {
     const p = presets.find((x) => x.id === e.target.value);
-    if (p) loadMaterial(p.material, p.label);
+    if (p && loadMaterial(p.material, p.label)) showError('', 'file');
   });
   $('btn-open').addEventListener('click', () => $('file-input').click());
   $('file-input').addEventListener('change', async (e) => {
@@ -686,9 +691,9 @@
       const r = await api('/api/parse', text);
       const m = await r.json();
       if (!m.name) m.name = f.name.replace(/\.toml$/i, '');
-      if (loadMaterial(m, f.name)) { $('preset').value = ''; showError(''); }
+      if (loadMaterial(m, f.name)) { $('preset').value = ''; showError('', 'file'); }
     } catch (err) {
-      showError(`${f.name}: ${err.message}`);
+      showError(`${f.name}: ${err.message}`, 'file');
     }
     e.target.value = '';
   });
