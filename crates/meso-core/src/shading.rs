@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | delta sum (multiple surface), Phong (N·H) facets | Eq. 4/11, flat f32 arrays of ≤ 8 lanes per chunk | f32 rounding |
 //! | delta sum, any other facet | Eq. 4, f64 | exact |
-//! | Phong peaks × Phong (N·H) facets, multiple-surface form | each lobe replaced by a fixed quadrature of weighted nodes (a dense multiple surface), then the f32 kernel | < 1% (tested) |
+//! | Phong peaks × Phong (N·H) facets, multiple-surface form | each lobe replaced by a fixed quadrature of weighted nodes (a dense multiple surface), then the f32 kernel; beyond [`MAX_NODES`] nodes the vMF closed form | < 1% (tested) / closed form: docs/benchmarks.md |
 //! | mirror facets (either form) | collapses onto `m = H`; Smith `Λ` tabulated once | table interpolation, < 1e-3 |
 //! | anything else | the Eq. 2/8 quadrature at [`Accuracy::fast`] | ~1e-3 |
 //!
@@ -134,6 +134,10 @@ fn lobe_nodes(lobes: &[PhongLobe], transfer_exponent: f64) -> Vec<(DVec3, f64)> 
     out
 }
 
+/// Most weighted normals the node quadrature of Phong peaks may use before [`FastBrdf`] falls back
+/// to the vMF closed form (broad lobes under a sharp transfer need many nodes).
+pub const MAX_NODES: usize = 512;
+
 /// How a [`FastBrdf`] evaluates.
 #[derive(Clone, Debug)]
 enum Kind {
@@ -143,6 +147,11 @@ enum Kind {
         specular: [f32; 3],
     },
     Deltas,
+    PhongClosed {
+        lobes: Vec<PhongLobe>,
+        exponent: f64,
+        specular: [f64; 3],
+    },
     Mirror {
         lambda: Option<LambdaTable>,
         projected_area: f64,
@@ -191,11 +200,22 @@ impl FastBrdf {
                     variant: PhongVariant::Half,
                 },
                 Form::MultipleSurface,
-            ) => Kind::DeltaPhong {
-                chunks: chunk(&lobe_nodes(p.lobes(), *exponent)),
-                exponent: *exponent as f32,
-                specular: specular.map(|s| s as f32),
-            },
+            ) => {
+                let nodes = lobe_nodes(p.lobes(), *exponent);
+                if nodes.len() <= MAX_NODES {
+                    Kind::DeltaPhong {
+                        chunks: chunk(&nodes),
+                        exponent: *exponent as f32,
+                        specular: specular.map(|s| s as f32),
+                    }
+                } else {
+                    Kind::PhongClosed {
+                        lobes: p.lobes().to_vec(),
+                        exponent: *exponent,
+                        specular: *specular,
+                    }
+                }
+            }
             (ndf, Transfer::Mirror { .. }, form) => {
                 let sm = SmithMasking::new(ndf, Accuracy::default());
                 let lambda = (form == Form::Microfacet
@@ -230,6 +250,7 @@ impl FastBrdf {
         match self.kind {
             Kind::DeltaPhong { .. } => "weighted normals, f32 Phong kernel (Eq. 4/11)",
             Kind::Deltas => "delta-sum (Eq. 4)",
+            Kind::PhongClosed { .. } => "Phong peaks, vMF closed form",
             Kind::Mirror { .. } => "mirror facets, collapsed at H",
             Kind::Quadrature => "quadrature (fast)",
         }
@@ -282,6 +303,11 @@ impl FastBrdf {
                 };
                 effective_brdf_with(&m.ndf, &m.transfer, m.form, vis, i, o, m.accuracy)
             }
+            Kind::PhongClosed {
+                lobes,
+                exponent,
+                specular,
+            } => crate::convolution::phong_closed_form(lobes, *exponent, *specular, i, o),
             Kind::Mirror {
                 lambda,
                 projected_area,
