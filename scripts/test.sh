@@ -13,11 +13,15 @@ cargo clippy --workspace --all-targets -- -D warnings
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
 
+e2e_status=0
+: > target/e2e-output.txt
 if [ -f tests/e2e/package.json ]; then
   echo "== browser end-to-end tests"
-  bash tests/e2e/run.sh
+  bash tests/e2e/run.sh 2>&1 | tee target/e2e-output.txt || e2e_status=1
 fi
 
-# One closing line for humans and CI: the sum of cargo's per-binary results.
+# One closing line for humans and CI: cargo's per-binary results plus the browser tests.
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed;?$/) p += $(i-1); if ($i ~ /^failed;?$/) f += $(i-1) } }
-     END { printf "cargo tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt
+     /^e2e: [0-9]+ passed, [0-9]+ failed/ { p += $2; f += $4 }
+     END { printf "all tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt
+exit $e2e_status
