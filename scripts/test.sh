@@ -23,5 +23,5 @@ fi
 # One closing line for humans and CI: cargo's per-binary results plus the browser tests.
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed;?$/) p += $(i-1); if ($i ~ /^failed;?$/) f += $(i-1) } }
      /^e2e: [0-9]+ passed, [0-9]+ failed/ { p += $2; f += $4 }
-     END { printf "all tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt
+     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt
 exit $e2e_status
