@@ -117,12 +117,8 @@ pub fn exr_bytes(width: u32, height: u32, values: &[f32]) -> Result<Vec<u8>> {
         )
         .map_err(|e| crate::MapError::InvalidParameter {
             name: "values",
-            value: "EXR".into(),
-            reason: if e.to_string().is_empty() {
-                "cannot be encoded"
-            } else {
-                "cannot be encoded as EXR"
-            },
+            value: format!("EXR ({e})"),
+            reason: "cannot be encoded as EXR",
         })?;
     Ok(out)
 }

@@ -15,8 +15,9 @@ use std::path::{Path, PathBuf};
 
 /// The 8 magic bytes opening every map file.
 pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
-/// The format version written and read by this build.
-pub const VERSION: u32 = 1;
+/// The format version written and read by this build (2: lobe weights are Eq. 1 area shares;
+/// version 1 stored projected-area shares).
+pub const VERSION: u32 = 2;
 const LOBE_BYTES: u64 = 20;
 const HORIZON_BYTES: u64 = 36;
 

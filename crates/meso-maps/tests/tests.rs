@@ -252,14 +252,14 @@ mod pyramid {
             );
         }
         let mut v2 = bytes.clone();
-        v2[8] = 2;
+        v2[8] = 1; // version 1 (projected-area lobe weights) is no longer read
         let e = Pyramid::from_bytes(&path, &v2).unwrap_err();
         assert!(
             matches!(
                 e,
                 MapError::MapVersion {
-                    found: 2,
-                    expected: 1,
+                    found: 1,
+                    expected: 2,
                     ..
                 }
             ),
@@ -547,6 +547,39 @@ mod gonio {
             worst_none > worst_smith,
             "shadowing matters: none {worst_none}, Smith {worst_smith}"
         );
+    }
+
+    #[test]
+    fn interreflection_conserves_energy_under_a_white_furnace() {
+        // White Lambert facets (albedo 1) on steep V-grooves (walls at 56°): with enough
+        // bounces every photon eventually leaves, so the directional albedo
+        // ∫ f cos θ_o dω_o is 1; a single bounce loses what hits the other wall.
+        let map = fixtures::v_grooves(16, 8, 0.3, 0.05).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let i = dir(30.0, 0.0);
+        let albedo = |bounces: usize| {
+            let gp = GonioParams {
+                rays_per_side: 24,
+                bounces,
+                ..Default::default()
+            };
+            // Cosine-weighted stratified directions: albedo = π · mean of f.
+            let n = 12;
+            let mut s = 0.0;
+            for a in 0..n {
+                for b in 0..n {
+                    let u = (a as f64 + 0.5) / n as f64;
+                    let v = (b as f64 + 0.5) / n as f64;
+                    let t = u.sqrt().asin().to_degrees();
+                    s += g.measure(&LAMBERT, i, dir(t, 360.0 * v), &gp)[0];
+                }
+            }
+            std::f64::consts::PI * s / (n * n) as f64
+        };
+        let one = albedo(1);
+        let many = albedo(24);
+        assert!(one < 0.9, "single bounce albedo {one}");
+        assert!((many - 1.0).abs() < 0.04, "24 bounces albedo {many}");
     }
 
     #[test]
