@@ -107,7 +107,7 @@ pub struct FitParams {
     /// `max_em_points`.
     pub level_em_points: usize,
     /// Levels with at most this many texels (the coarse ones) are fitted thoroughly: full
-    /// `em_iterations` for every start (default 256; see `fit_lobes_with`).
+    /// `em_iterations` for every start (default 64; see `fit_lobes_with`).
     pub thorough_texels: usize,
 }
 
@@ -119,7 +119,7 @@ impl Default for FitParams {
             em_iterations: 30,
             max_em_points: 512,
             level_em_points: 1 << 18,
-            thorough_texels: 256,
+            thorough_texels: 64,
         }
     }
 }
@@ -232,7 +232,9 @@ fn fast_exp_neg(y: f64) -> f64 {
     if y < -700.0 {
         return 0.0;
     }
-    let k = (y * std::f64::consts::LOG2_E).round();
+    // Nearest integer to y·log₂e (≤ 0) by truncation, one instruction (`round` is a libm call).
+    let ki = (y * std::f64::consts::LOG2_E - 0.5) as i64;
+    let k = ki as f64;
     let r = y - k * std::f64::consts::LN_2;
     let p = 1.0
         + r * (1.0
@@ -241,7 +243,7 @@ fn fast_exp_neg(y: f64) -> f64 {
                     + r * (1.0 / 24.0
                         + r * (1.0 / 120.0
                             + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
-    p * f64::from_bits(((k as i64 + 1023) as u64) << 52)
+    p * f64::from_bits(((ki + 1023) as u64) << 52)
 }
 
 /// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
