@@ -341,10 +341,19 @@ impl NdfMapped {
         })
     }
 
-    /// Number of pyramid levels.
+    /// Number of pyramid levels in use.
     #[must_use]
     pub fn levels(&self) -> usize {
         self.levels.len()
+    }
+
+    /// Use only levels `0..=max_level` (coarser footprints read `max_level`). For a tileable
+    /// map any level whose texels cover whole periods describes the far field; capping skips
+    /// coarse levels whose lobe fit is worse (compare their residuals in `meso map info`).
+    #[must_use]
+    pub fn with_max_level(mut self, max_level: usize) -> NdfMapped {
+        self.levels.truncate(max_level.saturating_add(1).max(1));
+        self
     }
 
     /// The continuous level of detail used at `sp`: `log2(footprint in cells) − ½`, clamped to

@@ -1,0 +1,126 @@
+//! `meso render` through the binary: the issue's Lambert sphere against the analytic image,
+//! PNG output, and bad input giving an error naming the file, a non-zero exit and no image.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn meso() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_meso"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meso-cli-render-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+const SCENE: &str = r#"[camera]
+kind = "orthographic"
+position = [0.0, 0.0, 5.0]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+width = 2.5                      # world units across the image
+[image]
+width = 256
+height = 256
+spp = 16
+[[object]]
+kind = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "white.toml"          # e.g. [transfer] kind = "lambert", albedo = [1, 1, 1], delta NDF
+[[light]]
+kind = "directional"
+direction = [0.3, 0.4, 0.866]
+irradiance = [1.0, 1.0, 1.0]
+"#;
+
+const WHITE: &str = "[ndf]\nkind = \"deltas\"\nlobes = [ { axis = [0.0, 0.0], weight = 1.0 } ]\n\
+[transfer]\nkind = \"lambert\"\nalbedo = [1.0, 1.0, 1.0]\n";
+
+/// The issue's scene: radiance = (1/π)·max(0, n·l) at every pixel fully inside the sphere.
+#[test]
+fn lambert_sphere_matches_analytic_image() {
+    let d = tmp("lambert");
+    std::fs::write(d.join("scene.toml"), SCENE).unwrap();
+    std::fs::write(d.join("white.toml"), WHITE).unwrap();
+    let exr = d.join("out.exr");
+    let png = d.join("out.png");
+    let st = meso()
+        .arg("render")
+        .arg(d.join("scene.toml"))
+        .arg("-o")
+        .arg(&exr)
+        .arg("--also")
+        .arg(&png)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let img = image::open(&exr).unwrap().into_rgb32f();
+    assert_eq!((img.width(), img.height()), (256, 256));
+    let l = glam::DVec3::new(0.3, 0.4, 0.866).normalize();
+    let px = 2.5 / 256.0;
+    let (mut checked, mut worst) = (0, 0.0f64);
+    for j in 0..256u32 {
+        for i in 0..256u32 {
+            let x = -1.25 + (f64::from(i) + 0.5) * px;
+            let y = 1.25 - (f64::from(j) + 0.5) * px;
+            let r = (x * x + y * y).sqrt();
+            if r > 1.0 - 3.0 * px {
+                continue;
+            }
+            let n = glam::DVec3::new(x, y, (1.0 - r * r).sqrt());
+            let want = n.dot(l).max(0.0) / std::f64::consts::PI;
+            let got = img.get_pixel(i, j);
+            for c in 0..3 {
+                worst = worst.max((f64::from(got[c]) - want).abs());
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 40_000, "{checked} pixels checked");
+    assert!(worst < 2e-3, "worst absolute error {worst} (radiance up to 0.318)");
+    // The background is black and the PNG decodes at the same size.
+    assert_eq!(img.get_pixel(0, 0)[0], 0.0);
+    let p = image::open(&png).unwrap();
+    assert_eq!((p.width(), p.height()), (256, 256));
+}
+
+/// Bad scenes and materials: an error naming the file, non-zero exit, no image written.
+#[test]
+fn bad_inputs_fail_cleanly() {
+    let d = tmp("bad");
+    std::fs::write(d.join("white.toml"), WHITE).unwrap();
+    let cases = [
+        ("missing_material.toml", SCENE.replace("white.toml", "nope.toml"), "nope.toml"),
+        ("bad_radius.toml", SCENE.replace("radius = 1.0", "radius = -1.0"), "radius"),
+        ("unknown_key.toml", SCENE.replace("spp = 16", "spp = 16\nfoo = 1"), "foo"),
+    ];
+    for (name, text, needle) in cases {
+        std::fs::write(d.join(name), text).unwrap();
+        let out = d.join(format!("{name}.exr"));
+        let o = meso()
+            .arg("render")
+            .arg(d.join(name))
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{name} should fail");
+        assert!(err.contains(name), "{name}: error does not name the file: {err}");
+        assert!(err.contains(needle), "{name}: error does not name {needle}: {err}");
+        assert!(!out.exists(), "{name}: partial image written");
+    }
+    // Unknown output format.
+    std::fs::write(d.join("ok.toml"), SCENE).unwrap();
+    let o = meso()
+        .arg("render")
+        .arg(d.join("ok.toml"))
+        .arg("-o")
+        .arg(d.join("x.jpg"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("x.jpg"));
+}

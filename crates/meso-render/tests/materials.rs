@@ -1,0 +1,341 @@
+//! Materials in the renderer against independent truth: the core's effective BRDF, Eq. 4,
+//! Monte Carlo convergence, and the NDF-mapped material against the supersampled bump map.
+
+use glam::DVec3;
+use meso_core::material::Material;
+use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
+use meso_render::sampling::PixelSampler;
+use meso_render::*;
+use std::sync::Arc;
+
+fn ortho_sphere_scene(shader: Arc<dyn Shader>, size: u32, spp: u32, light: Light) -> Scene {
+    let cam = Camera::new(
+        Projection::Orthographic { width: 2.5 },
+        DVec3::new(0.0, 0.0, 5.0),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .unwrap();
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp,
+            background: [0.0; 3],
+        },
+    );
+    let m = b.material(shader);
+    b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m).unwrap();
+    b.light(light).unwrap();
+    b.build().unwrap()
+}
+
+const SINGLE_LOBE: &str = r#"
+[ndf]
+kind = "phong-peaks"
+lobes = [ { axis = [25.0, 40.0], weight = 1.0, exponent = 80.0 } ]
+[transfer]
+kind = "phong"
+exponent = 30.0
+specular = [1.0, 0.7, 0.4]
+[diffuse]
+albedo = [0.1, 0.2, 0.3]
+"#;
+
+/// The radiance the renderer computes at pixel centres equals `Material::brdf` (the core's
+/// Eq. 2 quadrature) × irradiance × cos θi at the same local directions, within 2% (FastBrdf's
+/// Phong-peak node kernel is documented < 1% on the BRDF, plus f32 rounding).
+#[test]
+fn single_lobe_matches_core_brdf() {
+    let mat = Material::from_toml_str(SINGLE_LOBE).unwrap();
+    let l = DVec3::new(0.3, 0.4, 0.866).normalize();
+    let e = 1.5;
+    let scene = ortho_sphere_scene(
+        Arc::new(MaterialShader::new(&mat)),
+        24,
+        1,
+        Light::Directional {
+            direction: l,
+            irradiance: DVec3::splat(e),
+        },
+    );
+    let mut checked = 0;
+    let mut worst = 0.0f64;
+    for y in 0..24 {
+        for x in 0..24 {
+            let rd = scene
+                .camera
+                .generate_ray(f64::from(x) + 0.5, f64::from(y) + 0.5, 24, 24);
+            let Some(sp) = scene.intersect(&rd) else {
+                continue;
+            };
+            let wo = -rd.ray.d;
+            let got = shade(&scene, &sp, wo, &PixelSampler::new(x, y, 0, 0));
+            let (il, ol) = (sp.frame.to_local(l), sp.frame.to_local(wo));
+            let f = mat.brdf(il, ol);
+            let c = il.z.max(0.0) * e;
+            let want = DVec3::new(f[0] * c, f[1] * c, f[2] * c);
+            for k in 0..3 {
+                let err = (got[k] - want[k]).abs() / (want[k].abs() + 0.02);
+                worst = worst.max(err);
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 200, "{checked} pixels on the sphere");
+    assert!(worst < 0.02, "worst relative error {worst}");
+}
+
+fn deltas(lobes: &[(f64, f64, f64)]) -> Material {
+    let mut s = String::from("[ndf]\nkind = \"deltas\"\nlobes = [\n");
+    for (t, p, w) in lobes {
+        s.push_str(&format!("  {{ axis = [{t}, {p}], weight = {w} }},\n"));
+    }
+    s.push_str("]\n[transfer]\nkind = \"phong\"\nexponent = 40.0\nspecular = [1.0, 0.9, 0.8]\n");
+    Material::from_toml_str(&s).unwrap()
+}
+
+/// Eq. 4: the render of a multiple surface is the weighted sum of the renders of its
+/// single-normal surfaces (same samples).
+#[test]
+fn multiple_surface_is_weighted_sum_of_single_normals() {
+    let lobes = [(0.0, 0.0, 0.5), (30.0, 90.0, 0.3), (20.0, 200.0, 0.2)];
+    let light = Light::Point {
+        position: DVec3::new(2.0, 3.0, 4.0),
+        intensity: DVec3::splat(20.0),
+    };
+    let opts = RenderOptions::default();
+    let multi = render(
+        &ortho_sphere_scene(Arc::new(MaterialShader::new(&deltas(&lobes))), 32, 2, light),
+        &opts,
+        None,
+    );
+    let mut sum = vec![[0.0f64; 3]; 32 * 32];
+    for &(t, p, w) in &lobes {
+        let img = render(
+            &ortho_sphere_scene(
+                Arc::new(MaterialShader::new(&deltas(&[(t, p, 1.0)]))),
+                32,
+                2,
+                light,
+            ),
+            &opts,
+            None,
+        );
+        for (s, px) in sum.iter_mut().zip(img.pixels()) {
+            for c in 0..3 {
+                s[c] += w * f64::from(px[c]);
+            }
+        }
+    }
+    let mut max_err = 0.0f64;
+    let mut peak = 0.0f64;
+    for (a, b) in multi.pixels().iter().zip(&sum) {
+        for c in 0..3 {
+            max_err = max_err.max((f64::from(a[c]) - b[c]).abs());
+            peak = peak.max(b[c]);
+        }
+    }
+    assert!(peak > 0.1, "the test image is lit (peak {peak})");
+    assert!(max_err < 1e-4 * peak.max(1.0), "max error {max_err}");
+}
+
+fn rms(a: &Image, b: &Image) -> f64 {
+    let n = a.pixels().len() as f64;
+    (a.pixels()
+        .iter()
+        .zip(b.pixels())
+        .map(|(p, q)| (0..3).map(|c| f64::from(p[c] - q[c]).powi(2)).sum::<f64>())
+        .sum::<f64>()
+        / (3.0 * n))
+        .sqrt()
+}
+
+/// Under a spherical area light the error against a high-spp reference falls at least like
+/// 1/√spp (rendered with a different scrambling seed than the reference).
+#[test]
+fn area_light_converges() {
+    let mat = deltas(&[(0.0, 0.0, 0.6), (35.0, 0.0, 0.4)]);
+    let light = Light::Sphere {
+        center: DVec3::new(1.5, 2.0, 2.5),
+        radius: 1.0,
+        radiance: DVec3::splat(3.0),
+    };
+    let scene = ortho_sphere_scene(Arc::new(MaterialShader::new(&mat)), 20, 1, light);
+    let reference = render(
+        &scene,
+        &RenderOptions {
+            spp: Some(4096),
+            seed: 99,
+            ..RenderOptions::default()
+        },
+        None,
+    );
+    let errs: Vec<f64> = [4u32, 16, 64, 256]
+        .iter()
+        .map(|&spp| {
+            rms(
+                &render(
+                    &scene,
+                    &RenderOptions {
+                        spp: Some(spp),
+                        seed: 1,
+                        ..RenderOptions::default()
+                    },
+                    None,
+                ),
+                &reference,
+            )
+        })
+        .collect();
+    assert!(errs[0] > 1e-4, "the light is soft enough to leave noise: {errs:?}");
+    for w in errs.windows(2) {
+        // 4× the samples: 1/√spp predicts a factor 2.
+        assert!(w[1] < w[0] / 1.7, "errors {errs:?}");
+    }
+}
+
+/// An egg-crate bump map (period 8 texels, slopes up to ~40°), tileable, texel 1/32.
+fn egg_crate() -> HeightMap {
+    let tau = std::f64::consts::TAU;
+    let p = 8.0 / 32.0;
+    HeightMap::from_fn(32, 32, 1.0 / 32.0, Border::Wrap, |x, y| {
+        0.035 * (tau * x / p).sin() * (tau * y / p).sin()
+    })
+    .unwrap()
+}
+
+fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32) -> Scene {
+    let cam = Camera::new(
+        Projection::Orthographic { width },
+        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .unwrap();
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp: 1,
+            background: [0.0; 3],
+        },
+    );
+    let m = b.material(shader);
+    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
+    b.light(Light::Directional {
+        direction: DVec3::new(-0.5, 0.3, 0.8),
+        irradiance: DVec3::splat(2.0),
+    })
+    .unwrap();
+    b.build().unwrap()
+}
+
+/// Mean relative error `Σ|a − b| / Σ b` over all pixels and channels.
+fn mean_rel(a: &Image, b: &Image) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (p, q) in a.pixels().iter().zip(b.pixels()) {
+        for c in 0..3 {
+            num += f64::from((p[c] - q[c]).abs());
+            den += f64::from(q[c]);
+        }
+    }
+    num / den
+}
+
+const SURFACE: &str = r#"
+[transfer]
+kind = "phong"
+exponent = 20.0
+specular = [0.6, 0.6, 0.6]
+[diffuse]
+albedo = [0.5, 0.4, 0.3]
+"#;
+
+/// The NDF-mapped render (4 spp) of a bump map against the bump-mapped render supersampled
+/// at 1024 spp, at footprints of 4, 16, 64 and 256 cells per pixel (one map tile per world
+/// unit, 32 cells): mean relative image error below 6% at every zoom level (measured 4.4%,
+/// 4.9%, 1.2% and ~1%; at 1 cell per pixel, where the bump map is magnified rather than
+/// filtered, it is 11.6%: see docs/figures.md).
+#[test]
+fn ndf_mapped_matches_supersampled_bump_map() {
+    let map = egg_crate();
+    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |_| {}).unwrap();
+    let surface = Material::from_toml_str(SURFACE).unwrap();
+    let tpu = 32.0;
+    let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, false).unwrap());
+    let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, false).unwrap());
+    let size = 24u32;
+    let mut errors = Vec::new();
+    for cells_per_pixel in [4.0, 16.0, 64.0, 256.0] {
+        let width = cells_per_pixel * f64::from(size) / tpu;
+        let truth = render(
+            &plane_scene(bump.clone(), width, size),
+            &RenderOptions {
+                spp: Some(1024),
+                ..RenderOptions::default()
+            },
+            None,
+        );
+        let filtered = render(
+            &plane_scene(ndf.clone(), width, size),
+            &RenderOptions {
+                spp: Some(4),
+                ..RenderOptions::default()
+            },
+            None,
+        );
+        errors.push(mean_rel(&filtered, &truth));
+    }
+    eprintln!("mean relative errors at 4, 16, 64, 256 cells/pixel: {errors:?}");
+    for e in &errors {
+        assert!(*e < 0.06, "errors {errors:?}");
+    }
+}
+
+/// Zooming is smooth: the mean radiance of the NDF-mapped plane changes by less than 1.5%
+/// between camera widths 10% apart, over four octaves of footprint.
+#[test]
+fn ndf_mapped_zoom_is_smooth() {
+    let map = egg_crate();
+    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |_| {}).unwrap();
+    let surface = Material::from_toml_str(SURFACE).unwrap();
+    let ndf = Arc::new(NdfMapped::new(&pyr, &surface, 32.0, true).unwrap());
+    let mut prev: Option<f64> = None;
+    let mut width = 1.0;
+    while width < 40.0 {
+        let img = render(
+            &plane_scene(ndf.clone(), width, 32),
+            &RenderOptions {
+                spp: Some(4),
+                ..RenderOptions::default()
+            },
+            None,
+        );
+        let mean: f64 = img
+            .pixels()
+            .iter()
+            .map(|p| f64::from(p[0] + p[1] + p[2]))
+            .sum::<f64>()
+            / img.pixels().len() as f64;
+        if let Some(p) = prev {
+            assert!(
+                ((mean - p) / p).abs() < 0.015,
+                "jump at width {width}: {p} -> {mean}"
+            );
+        }
+        prev = Some(mean);
+        width *= 1.1;
+    }
+}
+
+/// Bad placements are refused with a message, not a panic.
+#[test]
+fn mapped_materials_reject_bad_scale() {
+    let map = egg_crate();
+    let surface = Material::from_toml_str(SURFACE).unwrap();
+    let e = BumpMapped::new(&map, &surface, 0.0, false).unwrap_err();
+    assert!(e.contains("texels_per_uv"), "{e}");
+}
