@@ -224,6 +224,7 @@ fn extract_info_brdf_and_gonio() {
             );
         }
     }
+    std::fs::remove_dir_all(&d).ok();
 }
 
 #[test]
@@ -359,4 +360,5 @@ fn bad_inputs_fail_cleanly() {
         &bout,
         "gonio needs heights",
     );
+    std::fs::remove_dir_all(&d).ok();
 }
