@@ -265,7 +265,10 @@ pub fn seven_normals() -> Result<MaterialDef, FigureError> {
         .map(|l| Lobe::from_axis(l.axis, l.weight, None))
         .collect();
     Ok(MaterialDef {
-        name: format!("{} normals (filtered cylinder bumps)", pyr.top().lobes.len()),
+        name: format!(
+            "{} normals (filtered cylinder bumps)",
+            pyr.top().lobes.len()
+        ),
         lobes,
         exponent: 80.0,
         specular: FIG2_SPECULAR,
@@ -588,9 +591,21 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
     // Figures 2–4: spheres.
     let t0 = Instant::now();
     let spheres: Vec<(&str, String, MaterialDef)> = vec![
-        ("fig2a_anisotropic", "Fig. 2a anisotropic".into(), anisotropic()),
-        ("fig2b_two_normals", "Fig. 2b 2 normals".into(), two_normals()),
-        ("fig2c_three_normals", "Fig. 2c 3 normals".into(), three_normals()),
+        (
+            "fig2a_anisotropic",
+            "Fig. 2a anisotropic".into(),
+            anisotropic(),
+        ),
+        (
+            "fig2b_two_normals",
+            "Fig. 2b 2 normals".into(),
+            two_normals(),
+        ),
+        (
+            "fig2c_three_normals",
+            "Fig. 2c 3 normals".into(),
+            three_normals(),
+        ),
         ("fig2d_seven_normals", String::new(), seven_normals()?),
         ("fig3_velvet", "Fig. 3 velvet".into(), velvet()),
         ("fig4_silk", "Fig. 4 silk".into(), silk()),
@@ -712,7 +727,9 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
             .map_err(|e| ferr(e.to_string()))?;
         w.bytes(&format!("blend_t{t:.2}.toml"), def.toml().as_bytes())?;
     }
-    builder.light(key_light()).map_err(|e| ferr(e.to_string()))?;
+    builder
+        .light(key_light())
+        .map_err(|e| ferr(e.to_string()))?;
     let scene = builder.build().map_err(|e| ferr(e.to_string()))?;
     let img = render(&scene, &ropts, None);
     w.png("blend_strip.png", &img, 0.0)?;

@@ -89,16 +89,16 @@ impl Facet {
                 if m.dot(o) <= 0.0 {
                     return [0.0; 3];
                 }
-                [albedo_pi[0] * mi32, albedo_pi[1] * mi32, albedo_pi[2] * mi32]
+                [
+                    albedo_pi[0] * mi32,
+                    albedo_pi[1] * mi32,
+                    albedo_pi[2] * mi32,
+                ]
             }
             Facet::General(t) => {
                 let f = Frame::from_normal_tangent(m, DVec3::X);
                 let v = t.eval(f.to_local(i), f.to_local(o));
-                [
-                    (v[0] * mi) as f32,
-                    (v[1] * mi) as f32,
-                    (v[2] * mi) as f32,
-                ]
+                [(v[0] * mi) as f32, (v[1] * mi) as f32, (v[2] * mi) as f32]
             }
         }
     }
@@ -249,7 +249,8 @@ fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
     for k in 0..RING {
         let a = std::f64::consts::TAU * k as f64 / RING as f64;
         out.push(Node {
-            n: f.to_world(DVec3::new(s * a.cos(), s * a.sin(), c)).normalize(),
+            n: f.to_world(DVec3::new(s * a.cos(), s * a.sin(), c))
+                .normalize(),
             w: weight * (1.0 - AXIS_WEIGHT) / RING as f64,
         });
     }

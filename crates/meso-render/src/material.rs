@@ -29,8 +29,8 @@
 use crate::geometry::{MaterialId, ShadingPoint};
 use crate::shader::{fast_pow, Shader};
 use glam::{DVec2, DVec3};
-use meso_core::frame::Frame;
 use meso_core::convolution::Form;
+use meso_core::frame::Frame;
 use meso_core::material::Material;
 use meso_core::ndf::Ndf;
 use meso_core::shading::FastBrdf;

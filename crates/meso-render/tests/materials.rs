@@ -189,7 +189,10 @@ fn area_light_converges() {
             )
         })
         .collect();
-    assert!(errs[0] > 1e-4, "the light is soft enough to leave noise: {errs:?}");
+    assert!(
+        errs[0] > 1e-4,
+        "the light is soft enough to leave noise: {errs:?}"
+    );
     for w in errs.windows(2) {
         // 4× the samples: 1/√spp predicts a factor 2.
         assert!(w[1] < w[0] / 1.7, "errors {errs:?}");
@@ -262,7 +265,12 @@ albedo = [0.5, 0.4, 0.3]
 #[test]
 fn ndf_mapped_matches_supersampled_bump_map() {
     let map = egg_crate();
-    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |_| {}).unwrap();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
     let surface = Material::from_toml_str(SURFACE).unwrap();
     let tpu = 32.0;
     let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, false).unwrap());
@@ -300,7 +308,12 @@ fn ndf_mapped_matches_supersampled_bump_map() {
 #[test]
 fn ndf_mapped_zoom_is_smooth() {
     let map = egg_crate();
-    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |_| {}).unwrap();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
     let surface = Material::from_toml_str(SURFACE).unwrap();
     let ndf = Arc::new(NdfMapped::new(&pyr, &surface, 32.0, true).unwrap());
     let mut prev: Option<f64> = None;
