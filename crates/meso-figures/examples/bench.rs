@@ -1,0 +1,174 @@
+//! Benchmarks of the figures' renderer paths (wall-clock, best of N frames):
+//!
+//! 1. the target scene — a 1024×1024 sphere, a 7-normal multiple surface (Phong
+//!    facets), 4 point lights, 1 spp — through `MaterialShader`, next to the renderer's own
+//!    `PhongLobes` shader on the same scene;
+//! 2. the equal-quality comparison: the NDF-mapped plane at 1–4 spp against the bump map
+//!    supersampled, errors against a 1024-spp bump-mapped reference, time for time.
+//!
+//! `cargo run --release -p meso-figures --example bench`
+
+use glam::DVec3;
+use meso_core::material::Material;
+use meso_render::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+fn best_ms(frames: u32, f: &mut dyn FnMut() -> Image) -> (f64, Image) {
+    let mut img = f();
+    let mut best = f64::INFINITY;
+    for _ in 0..frames {
+        let t = Instant::now();
+        img = f();
+        best = best.min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    (best, img)
+}
+
+fn seven_normals() -> Material {
+    let mut s =
+        String::from("[ndf]\nkind = \"deltas\"\nlobes = [ { axis = [0, 0], weight = 0.4 },\n");
+    for k in 0..6 {
+        s.push_str(&format!(
+            "  {{ axis = [19.3, {}], weight = 0.1 }},\n",
+            60 * k
+        ));
+    }
+    s.push_str("]\n[transfer]\nkind = \"phong\"\nexponent = 40.0\nspecular = [1.0, 0.9, 0.8]\n");
+    Material::from_toml_str(&s).expect("valid material")
+}
+
+fn sphere(shader: Arc<dyn Shader>, size: u32) -> Scene {
+    let cam = Camera::new(
+        Projection::Perspective { fov_deg: 40.0 },
+        DVec3::new(0.0, 0.0, 3.2),
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .expect("camera");
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp: 1,
+            background: [0.0; 3],
+        },
+    );
+    let m = b.material(shader);
+    b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m).expect("sphere");
+    for p in [
+        DVec3::new(3.0, 3.0, 4.0),
+        DVec3::new(-3.0, 2.0, 4.0),
+        DVec3::new(0.0, -3.0, 3.0),
+        DVec3::new(2.0, 0.5, -1.0),
+    ] {
+        b.light(Light::Point {
+            position: p,
+            intensity: DVec3::splat(10.0),
+        })
+        .expect("light");
+    }
+    b.build().expect("scene")
+}
+
+fn mean_rel(a: &Image, b: &Image) -> f64 {
+    let (mut n, mut d) = (0.0, 0.0);
+    for (p, q) in a.pixels().iter().zip(b.pixels()) {
+        for c in 0..3 {
+            n += f64::from((p[c] - q[c]).abs());
+            d += f64::from(q[c]);
+        }
+    }
+    n / d
+}
+
+fn main() {
+    let opts = RenderOptions::default();
+    let mat = seven_normals();
+    let ms = MaterialShader::new(&mat);
+    println!("MaterialShader path: {}", ms.path());
+    let s1 = sphere(Arc::new(ms), 1024);
+    let (t1, _) = best_ms(10, &mut || render(&s1, &opts, None));
+    let lobes: Vec<(DVec3, f64, f64)> = match &mat.ndf {
+        meso_core::ndf::Ndf::Deltas(d) => d
+            .normals()
+            .iter()
+            .map(|n| (n.normal, n.weight, 40.0))
+            .collect(),
+        _ => unreachable!("deltas"),
+    };
+    // PhongLobes has no max(0, N·i)/cos θi factor: a different BRDF, the same loop size.
+    let s2 = sphere(
+        Arc::new(PhongLobes::new(&lobes, [1.0, 0.9, 0.8]).expect("lobes")),
+        1024,
+    );
+    let (t2, _) = best_ms(10, &mut || render(&s2, &opts, None));
+    println!(
+        "1024x1024 sphere, 7 normals, 4 point lights, 1 spp ({} threads): MaterialShader {t1:.1} ms, renderer's PhongLobes {t2:.1} ms",
+        rayon::current_num_threads()
+    );
+
+    // Equal quality.
+    let map = meso_figures::bump_map().expect("map");
+    let pyr = meso_figures::pyramid(&map, 4).expect("pyramid");
+    let surface = meso_figures::bump_surface().material().expect("surface");
+    let tpu = map.cells_x() as f64;
+    let bump: Arc<dyn Shader> =
+        Arc::new(BumpMapped::new(&map, &surface, tpu, false).expect("bump"));
+    let ndf: Arc<dyn Shader> = Arc::new(
+        NdfMapped::new(&pyr, &surface, tpu, false)
+            .expect("ndf")
+            .with_max_level(pyr.levels.len() - 2),
+    );
+    for width in [4.0, 16.0] {
+        let size = 128;
+        println!(
+            "plane {width} tiles across {size} px ({:.0} cells/pixel):",
+            width * tpu / f64::from(size)
+        );
+        let sb = meso_figures::plane_scene(bump.clone(), width, size, 1).expect("scene");
+        let sn = meso_figures::plane_scene(ndf.clone(), width, size, 1).expect("scene");
+        let reference = render(
+            &sb,
+            &RenderOptions {
+                spp: Some(1024),
+                seed: 7,
+                ..opts
+            },
+            None,
+        );
+        for spp in [1u32, 2, 4] {
+            let (t, img) = best_ms(3, &mut || {
+                render(
+                    &sn,
+                    &RenderOptions {
+                        spp: Some(spp),
+                        ..opts
+                    },
+                    None,
+                )
+            });
+            println!(
+                "  NDF-mapped  {spp:>4} spp: error {:.4}, {t:.1} ms",
+                mean_rel(&img, &reference)
+            );
+        }
+        for spp in [1u32, 4, 16, 64, 256] {
+            let (t, img) = best_ms(1, &mut || {
+                render(
+                    &sb,
+                    &RenderOptions {
+                        spp: Some(spp),
+                        ..opts
+                    },
+                    None,
+                )
+            });
+            println!(
+                "  bump-mapped {spp:>4} spp: error {:.4}, {t:.1} ms",
+                mean_rel(&img, &reference)
+            );
+        }
+    }
+}
