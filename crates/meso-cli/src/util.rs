@@ -51,3 +51,36 @@ pub fn par_map_progress<T: Sync, R: Send>(
         })
         .collect()
 }
+
+/// Write BRDF values as the CSV of `meso brdf` and `meso gonio`: the pair's four angles as read
+/// (degrees) and `r,g,b` in 1/sr. To `out` atomically, or to standard output.
+pub fn write_brdf_table(
+    out: Option<&Path>,
+    pairs: &[meso_core::pairs::DirectionPair],
+    values: &[[f64; 3]],
+) -> Result<()> {
+    use std::io::Write;
+    let write = |w: &mut dyn Write| -> std::io::Result<()> {
+        writeln!(w, "theta_i,phi_i,theta_o,phi_o,r,g,b")?;
+        for (p, v) in pairs.iter().zip(values) {
+            let d = p.degrees;
+            writeln!(
+                w,
+                "{},{},{},{},{:.9e},{:.9e},{:.9e}",
+                d[0], d[1], d[2], d[3], v[0], v[1], v[2]
+            )?;
+        }
+        Ok(())
+    };
+    match out {
+        Some(path) => meso_core::io::write_atomic_with(path, write)
+            .with_context(|| format!("{}: cannot write", path.display()))?,
+        None => {
+            let stdout = std::io::stdout();
+            let mut lock = std::io::BufWriter::new(stdout.lock());
+            write(&mut lock)?;
+            lock.flush()?;
+        }
+    }
+    Ok(())
+}

@@ -2,7 +2,6 @@
 
 use anyhow::{Context, Result};
 use meso_core::pairs::parse_pairs;
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Evaluate the effective BRDF of a material at direction pairs.
@@ -30,27 +29,5 @@ pub fn run(a: Args) -> Result<()> {
     let bar = crate::progress(pairs.len() as u64, "brdf");
     let values = crate::par_map_progress(&pairs, &bar, |p| material.brdf(p.i, p.o));
     bar.finish_and_clear();
-    let write = |w: &mut dyn Write| -> std::io::Result<()> {
-        writeln!(w, "theta_i,phi_i,theta_o,phi_o,r,g,b")?;
-        for (p, v) in pairs.iter().zip(&values) {
-            let d = p.degrees;
-            writeln!(
-                w,
-                "{},{},{},{},{:.9e},{:.9e},{:.9e}",
-                d[0], d[1], d[2], d[3], v[0], v[1], v[2]
-            )?;
-        }
-        Ok(())
-    };
-    match &a.out {
-        Some(path) => meso_core::io::write_atomic_with(path, write)
-            .with_context(|| format!("{}: cannot write", path.display()))?,
-        None => {
-            let stdout = std::io::stdout();
-            let mut lock = std::io::BufWriter::new(stdout.lock());
-            write(&mut lock)?;
-            lock.flush()?;
-        }
-    }
-    Ok(())
+    crate::util::write_brdf_table(a.out.as_deref(), &pairs, &values)
 }

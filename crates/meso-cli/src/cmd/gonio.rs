@@ -6,7 +6,6 @@ use anyhow::{bail, Context, Result};
 use meso_core::material::{MaterialSpec, NdfSpec};
 use meso_core::pairs::parse_pairs;
 use meso_maps::{Gonio, GonioParams, MapsResolver};
-use std::io::Write;
 use std::path::PathBuf;
 
 /// Measure a height-map material's BRDF by ray tracing its height map (tiled, directional light,
@@ -83,27 +82,5 @@ pub fn run(a: Args) -> Result<()> {
         bar.inc(2000);
     }
     bar.finish_and_clear();
-    let write = |w: &mut dyn Write| -> std::io::Result<()> {
-        writeln!(w, "theta_i,phi_i,theta_o,phi_o,r,g,b")?;
-        for (p, v) in pairs.iter().zip(&values) {
-            let d = p.degrees;
-            writeln!(
-                w,
-                "{},{},{},{},{:.9e},{:.9e},{:.9e}",
-                d[0], d[1], d[2], d[3], v[0], v[1], v[2]
-            )?;
-        }
-        Ok(())
-    };
-    match &a.out {
-        Some(path) => meso_core::io::write_atomic_with(path, write)
-            .with_context(|| format!("{}: cannot write", path.display()))?,
-        None => {
-            let stdout = std::io::stdout();
-            let mut lock = std::io::BufWriter::new(stdout.lock());
-            write(&mut lock)?;
-            lock.flush()?;
-        }
-    }
-    Ok(())
+    crate::util::write_brdf_table(a.out.as_deref(), &pairs, &values)
 }
