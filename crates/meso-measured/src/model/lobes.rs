@@ -294,41 +294,7 @@ impl BrdfModel for LobeModel {
     fn initial_guesses(&self) -> Vec<Vec<f64>> {
         // Starts described by the Blinn-equivalent sharpness e_j of each lobe convolved with the
         // transfer: κ_eff = κ_j κ_t/(κ_j + κ_t). Lobes on the normal, equal weights.
-        let grid: &[&[f64]] = match self.k {
-            1 => &[
-                &[3.0],
-                &[10.0],
-                &[30.0],
-                &[100.0],
-                &[300.0],
-                &[1e3],
-                &[3e3],
-                &[1e4],
-                &[3e4],
-            ],
-            2 => &[
-                &[3.0, 30.0],
-                &[3.0, 300.0],
-                &[10.0, 100.0],
-                &[10.0, 1e3],
-                &[30.0, 300.0],
-                &[30.0, 3e3],
-                &[100.0, 1e3],
-                &[100.0, 1e4],
-                &[300.0, 3e3],
-                &[1e3, 1e4],
-            ],
-            _ => &[
-                &[3.0, 30.0, 300.0],
-                &[3.0, 100.0, 3e3],
-                &[10.0, 100.0, 1e3],
-                &[10.0, 300.0, 1e4],
-                &[30.0, 300.0, 3e3],
-                &[30.0, 1e3, 3e4],
-                &[100.0, 1e3, 1e4],
-                &[3.0, 10.0, 30.0],
-            ],
-        };
+        let grid = start_sharpness_grid(self.k);
         grid.iter()
             .map(|es| {
                 let emax = es.iter().copied().fold(0.0, f64::max);
@@ -453,6 +419,46 @@ pub fn fit_lobes_progressive(
         out.push((m, r));
     }
     Ok(out)
+}
+
+/// The multi-start grid of both lobe models: for K = 1, 2, ≥ 3 lobes, sets of Blinn-equivalent
+/// sharpnesses (one per lobe, repeated when K exceeds the set) from which the fits start.
+pub(crate) fn start_sharpness_grid(k: usize) -> &'static [&'static [f64]] {
+    match k {
+        1 => &[
+            &[3.0],
+            &[10.0],
+            &[30.0],
+            &[100.0],
+            &[300.0],
+            &[1e3],
+            &[3e3],
+            &[1e4],
+            &[3e4],
+        ],
+        2 => &[
+            &[3.0, 30.0],
+            &[3.0, 300.0],
+            &[10.0, 100.0],
+            &[10.0, 1e3],
+            &[30.0, 300.0],
+            &[30.0, 3e3],
+            &[100.0, 1e3],
+            &[100.0, 1e4],
+            &[300.0, 3e3],
+            &[1e3, 1e4],
+        ],
+        _ => &[
+            &[3.0, 30.0, 300.0],
+            &[3.0, 100.0, 3e3],
+            &[10.0, 100.0, 1e3],
+            &[10.0, 300.0, 1e4],
+            &[30.0, 300.0, 3e3],
+            &[30.0, 1e3, 3e4],
+            &[100.0, 1e3, 1e4],
+            &[3.0, 10.0, 30.0],
+        ],
+    }
 }
 
 #[cfg(test)]

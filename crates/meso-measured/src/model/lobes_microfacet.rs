@@ -237,41 +237,7 @@ impl BrdfModel for LobeMicrofacetModel {
 
     fn initial_guesses(&self) -> Vec<Vec<f64>> {
         // Blinn-equivalent sharpness e (D ≈ exp(−e θh²/2)) ↔ η = 4e; lobes on the normal.
-        let grid: &[&[f64]] = match self.k {
-            1 => &[
-                &[3.0],
-                &[10.0],
-                &[30.0],
-                &[100.0],
-                &[300.0],
-                &[1e3],
-                &[3e3],
-                &[1e4],
-                &[3e4],
-            ],
-            2 => &[
-                &[3.0, 30.0],
-                &[3.0, 300.0],
-                &[10.0, 100.0],
-                &[10.0, 1e3],
-                &[30.0, 300.0],
-                &[30.0, 3e3],
-                &[100.0, 1e3],
-                &[100.0, 1e4],
-                &[300.0, 3e3],
-                &[1e3, 1e4],
-            ],
-            _ => &[
-                &[3.0, 30.0, 300.0],
-                &[3.0, 100.0, 3e3],
-                &[10.0, 100.0, 1e3],
-                &[10.0, 300.0, 1e4],
-                &[30.0, 300.0, 3e3],
-                &[30.0, 1e3, 3e4],
-                &[100.0, 1e3, 1e4],
-                &[3.0, 10.0, 30.0],
-            ],
-        };
+        let grid = super::lobes::start_sharpness_grid(self.k);
         grid.iter()
             .map(|es| {
                 let mut t = Vec::new();
