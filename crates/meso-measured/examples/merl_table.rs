@@ -1,4 +1,4 @@
-//! Benchmark table: fit lobe sums (K = 1, 2, 3) and every baseline to MERL binaries and print
+//! Benchmark table: fit lobe sums (K = 1, 2, 3; Phong and microfacet transfer) and every baseline to MERL binaries and print
 //! per-channel errors in both metrics and fit times as a Markdown table.
 //!
 //! ```text
@@ -86,6 +86,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         eprintln!("{name}: {stats:?}");
         let fits = model::fit_lobes_progressive(3, TransferExponent::Free, &data, &opts)?;
+        for (m, r) in &fits {
+            row(&name, m, r, &all);
+            eprintln!(
+                "{}",
+                m.params(r).to_material_toml(&format!("{name} {}", r.model))
+            );
+        }
+        let fits = model::fit_microfacet_lobes_progressive(3, &data, &opts)?;
         for (m, r) in &fits {
             row(&name, m, r, &all);
             eprintln!(

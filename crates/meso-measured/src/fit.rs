@@ -47,6 +47,22 @@ pub trait BrdfModel: Sync {
     /// (`out.len()` = number of basis lobes). `wi`, `wo` are unit, local frame, upper hemisphere.
     fn basis(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]);
 
+    /// The basis lobes (as [`BrdfModel::basis`], into `out`) and their derivatives with respect to
+    /// the non-linear parameters, `grad[k · n_basis + j] = ∂b_j/∂θ_k` (`grad.len()` =
+    /// `n_nonlinear · n_basis`). Returns `false`, leaving the buffers unspecified, when the model
+    /// has no analytic derivative (the default): the fit then takes forward differences of
+    /// [`BrdfModel::basis`].
+    fn basis_gradient(
+        &self,
+        _theta: &[f64],
+        _wi: DVec3,
+        _wo: DVec3,
+        _out: &mut [f64],
+        _grad: &mut [f64],
+    ) -> bool {
+        false
+    }
+
     /// Bounds `(lo, hi)` of each basis amplitude, the same for the three channels; `lo == hi`
     /// holds the amplitude fixed (e.g. the Fresnel grazing term of a Schlick microfacet model,
     /// whose amplitude is 1). Default: `[0, ∞)` for every basis lobe.
@@ -271,6 +287,17 @@ impl LeastSquares for Problem<'_> {
         let (theta, amps) = self.split(p);
         let (nt, nb) = (self.nt, self.nb);
         let n = nt + 3 * nb;
+        // One residual depends on θ and on the amplitudes of its own channel only: a compact row
+        // of `nt + nb` entries, scattered through `index[c]`.
+        let m = nt + nb;
+        let index: Vec<Vec<usize>> = (0..3)
+            .map(|c| {
+                (0..m)
+                    .map(|x| if x < nt { x } else { nt + c * nb + (x - nt) })
+                    .collect()
+            })
+            .collect();
+        // Forward-difference steps, for models without an analytic derivative.
         let bounds = self.model.bounds();
         let steps: Vec<f64> = (0..nt)
             .map(|k| {
@@ -297,39 +324,46 @@ impl LeastSquares for Problem<'_> {
                 let mut g = vec![0.0; n];
                 let mut cost = 0.0;
                 let mut b0 = vec![0.0; nb];
-                let mut bk = vec![0.0; nt * nb];
-                let mut row = vec![0.0; n];
+                let mut db = vec![0.0; nt * nb];
+                let mut bk = vec![0.0; nb];
+                let mut row = vec![0.0; m];
                 for s in chunk {
-                    self.model.basis(theta, s.wi, s.wo, &mut b0);
-                    for k in 0..nt {
-                        self.model
-                            .basis(&thetas[k], s.wi, s.wo, &mut bk[k * nb..(k + 1) * nb]);
+                    if !self
+                        .model
+                        .basis_gradient(theta, s.wi, s.wo, &mut b0, &mut db)
+                    {
+                        self.model.basis(theta, s.wi, s.wo, &mut b0);
+                        for k in 0..nt {
+                            self.model.basis(&thetas[k], s.wi, s.wo, &mut bk);
+                            for j in 0..nb {
+                                db[k * nb + j] = (bk[j] - b0[j]) / steps[k];
+                            }
+                        }
                     }
                     let sw = s.weight.sqrt();
-                    for c in 0..3 {
+                    for (c, idx) in index.iter().enumerate() {
                         let f: f64 = (0..nb).map(|j| amps[j][c] * b0[j]).sum();
                         let r = sw * self.metric.residual(f, s.rgb[c], s.wi.z);
                         let dr = sw * self.metric.d_residual(f, s.wi.z);
                         cost += r * r;
-                        row.iter_mut().for_each(|x| *x = 0.0);
                         for k in 0..nt {
-                            let mut df = 0.0;
-                            for j in 0..nb {
-                                df += amps[j][c] * (bk[k * nb + j] - b0[j]);
-                            }
-                            row[k] = dr * df / steps[k];
+                            let d = &db[k * nb..(k + 1) * nb];
+                            let df: f64 = (0..nb).map(|j| amps[j][c] * d[j]).sum();
+                            row[k] = dr * df;
                         }
                         for j in 0..nb {
-                            row[nt + c * nb + j] = dr * b0[j];
+                            row[nt + j] = dr * b0[j];
                         }
-                        for x in 0..n {
+                        for x in 0..m {
                             let rx = row[x];
                             if rx == 0.0 {
                                 continue;
                             }
-                            g[x] += rx * r;
-                            for y in x..n {
-                                a[x * n + y] += rx * row[y];
+                            let ix = idx[x];
+                            g[ix] += rx * r;
+                            let ax = &mut a[ix * n..(ix + 1) * n];
+                            for y in x..m {
+                                ax[idx[y]] += rx * row[y];
                             }
                         }
                     }

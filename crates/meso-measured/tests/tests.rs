@@ -570,3 +570,107 @@ fn written_materials_evaluate_like_the_fitted_closed_forms() {
         );
     }
 }
+
+/// The analytic derivatives of the lobe models (used for the LM Jacobian) against central
+/// differences of their basis, at several parameter sets (tilted, anisotropic, unequal weights)
+/// and direction pairs.
+#[test]
+fn lobe_model_gradients_match_finite_differences() {
+    use meso_measured::model::LobeMicrofacetModel;
+    let models: Vec<(Box<dyn BrdfModel>, Vec<f64>)> = vec![
+        (
+            Box::new(LobeModel::new(1)),
+            vec![0.1, -0.05, 200f64.ln(), 150f64.ln()],
+        ),
+        (
+            Box::new(LobeModel::new(3)),
+            vec![
+                0.05,
+                0.02,
+                40f64.ln(),
+                -0.3,
+                0.4,
+                500f64.ln(),
+                0.2,
+                -0.1,
+                3000f64.ln(),
+                0.4,
+                -0.7,
+                300f64.ln(),
+            ],
+        ),
+        (
+            Box::new(LobeModel::new(2).with_fixed_transfer(80.0)),
+            vec![0.0, 0.0, 30f64.ln(), 0.3, 0.1, 900f64.ln(), -0.5],
+        ),
+        (
+            Box::new(LobeMicrofacetModel::new(1)),
+            vec![0.08, -0.04, 300f64.ln()],
+        ),
+        (
+            Box::new(LobeMicrofacetModel::new(3)),
+            vec![
+                0.02,
+                0.01,
+                15f64.ln(),
+                -0.2,
+                0.3,
+                400f64.ln(),
+                0.1,
+                0.05,
+                5000f64.ln(),
+                0.6,
+                -0.8,
+            ],
+        ),
+    ];
+    let dirs = pairs(40);
+    for (m, theta) in &models {
+        assert_eq!(theta.len(), m.n_nonlinear(), "{}", m.name());
+        let (nt, nb) = (m.n_nonlinear(), m.n_basis());
+        let mut worst = 0.0f64;
+        for &(wi, wo) in &dirs {
+            let mut b = vec![0.0; nb];
+            let mut g = vec![0.0; nt * nb];
+            assert!(
+                m.basis_gradient(theta, wi, wo, &mut b, &mut g),
+                "{}",
+                m.name()
+            );
+            let mut b_ref = vec![0.0; nb];
+            m.basis(theta, wi, wo, &mut b_ref);
+            for j in 0..nb {
+                assert!(
+                    (b[j] - b_ref[j]).abs() <= 1e-10 * b_ref[j].abs().max(1e-12),
+                    "{}: basis {j} {} vs {}",
+                    m.name(),
+                    b[j],
+                    b_ref[j]
+                );
+            }
+            for k in 0..nt {
+                let e = 1e-6;
+                let (mut tp, mut tm) = (theta.clone(), theta.clone());
+                tp[k] += e;
+                tm[k] -= e;
+                let (mut bp, mut bm) = (vec![0.0; nb], vec![0.0; nb]);
+                m.basis(&tp, wi, wo, &mut bp);
+                m.basis(&tm, wi, wo, &mut bm);
+                for j in 0..nb {
+                    let fd = (bp[j] - bm[j]) / (2.0 * e);
+                    let an = g[k * nb + j];
+                    // Relative to the basis value (derivatives of tiny values are irrelevant).
+                    let err = (fd - an).abs() / (b_ref[j].abs() + fd.abs()).max(1e-9);
+                    worst = worst.max(err);
+                    assert!(
+                        err < 1e-4,
+                        "{}: ∂b{j}/∂{} analytic {an} vs differences {fd} at {wi:?} {wo:?}",
+                        m.name(),
+                        m.nonlinear_names()[k]
+                    );
+                }
+            }
+        }
+        eprintln!("{}: worst relative gradient error {worst:.2e}", m.name());
+    }
+}

@@ -328,6 +328,62 @@ impl BrdfModel for LobeModel {
         out[0] = 1.0 / PI;
         out[1] = lobe_sum_closed_form(&lobes[..self.k], eta_t, wi, wo);
     }
+
+    /// Analytic derivatives of the closed form (see [`super::vmf`]).
+    fn basis_gradient(
+        &self,
+        theta: &[f64],
+        wi: DVec3,
+        wo: DVec3,
+        out: &mut [f64],
+        grad: &mut [f64],
+    ) -> bool {
+        let k = self.k;
+        let nt = match self.transfer {
+            TransferExponent::Free => 4 * k,
+            TransferExponent::Fixed(_) => 4 * k - 1,
+        };
+        grad[..2 * nt].fill(0.0);
+        out[0] = 1.0 / PI;
+        out[1] = 0.0;
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return true;
+        }
+        let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+            return true;
+        };
+        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
+        let eta_t = self.decode(theta, &mut lobes);
+        let k2 = eta_t + 1.0;
+        let inv = 1.0 / wi.z;
+        let mut terms = [0.0; MAX_LOBES];
+        let mut s = 0.0;
+        let mut d_k2 = 0.0;
+        for (j, l) in lobes.iter().enumerate().take(k) {
+            let k1 = 0.25 * (l.exponent + 2.0);
+            let (t, dk1, dk2, dv) = super::vmf::lobe_term_grad(l.axis, k1, k2, h, wi);
+            terms[j] = t;
+            s += l.weight * t;
+            d_k2 += l.weight * (dk2 + dv.dot(h));
+            let w = l.weight * inv;
+            // ln η: dκ₁ = η/4 and v moves along the axis.
+            grad[2 * (3 * j + 2) + 1] = w * 0.25 * l.exponent * (dk1 + dv.dot(l.axis));
+            // Axis (ax, ay, 1)/r: ∂a/∂ax = (e_x − a a_x)/r, v moves by κ₁ ∂a.
+            let r = DVec3::new(theta[3 * j], theta[3 * j + 1], 1.0).length();
+            let da = dv.dot(l.axis);
+            grad[2 * (3 * j) + 1] = w * k1 / r * (dv.x - da * l.axis.x);
+            grad[2 * (3 * j + 1) + 1] = w * k1 / r * (dv.y - da * l.axis.y);
+        }
+        out[1] = s * inv;
+        // Softmax weights: ∂w_j/∂logit_m = w_j (δ_jm − w_m).
+        for m in 1..k {
+            grad[2 * (3 * k + m - 1) + 1] = lobes[m].weight * (terms[m] - s) * inv;
+        }
+        if self.transfer == TransferExponent::Free {
+            grad[2 * (4 * k - 1) + 1] = eta_t * d_k2 * inv;
+        }
+        true
+    }
 }
 
 /// Half vectors of the samples where the data most exceed the current model (log residual,

@@ -68,6 +68,38 @@ pub fn projected_area_on_normal(eta: f64) -> f64 {
     0.5 * (eta + 2.0) * (2.0 * (1.0 - t2) / (a + 2.0) - (1.0 - t1) / (a + 1.0))
 }
 
+/// [`projected_area_on_normal`] and its derivative with respect to η.
+fn projected_area_on_normal_grad(eta: f64) -> (f64, f64) {
+    let a = 0.5 * eta;
+    let ln2 = std::f64::consts::LN_2;
+    let t2 = (-(a + 2.0) * ln2).exp();
+    let t1 = (-(a + 1.0) * ln2).exp();
+    let b = 2.0 * (1.0 - t2) / (a + 2.0) - (1.0 - t1) / (a + 1.0);
+    let db = 2.0 * ln2 * t2 / (a + 2.0)
+        - 2.0 * (1.0 - t2) / ((a + 2.0) * (a + 2.0))
+        - ln2 * t1 / (a + 1.0)
+        + (1.0 - t1) / ((a + 1.0) * (a + 1.0));
+    // P↑ = (a + 1)·b(a), dη = 2 da.
+    ((a + 1.0) * b, 0.5 * (b + (a + 1.0) * db))
+}
+
+/// Beckmann's `Λ` (as [`Microfacet::lambda`]) and `∂Λ/∂α` for `cos θ = c`: with
+/// `ν = 1/(α tan θ)`, `Λ = ½(−erfc ν + e^(−ν²)/(ν√π))` and `∂Λ/∂α = ½ e^(−ν²)/(√π ν α)`.
+fn beckmann_lambda_grad(alpha: f64, c: f64) -> (f64, f64) {
+    let s2 = (1.0 - c * c).max(0.0);
+    if s2 <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let tan = s2.sqrt() / c;
+    let nu = 1.0 / (alpha * tan);
+    let e = (-nu * nu).exp();
+    let sp = PI.sqrt();
+    (
+        0.5 * (-libm::erfc(nu) + e / (nu * sp)),
+        0.5 * e / (sp * nu * alpha),
+    )
+}
+
 /// The fast microfacet evaluation of the module docs for normalised lobes: returns
 /// `D(h) G₂(i, o) / (4 cos θi cos θo)` (1/sr) and `c = i·h`; `None` below the horizon.
 #[must_use]
@@ -265,6 +297,147 @@ impl BrdfModel for LobeMicrofacetModel {
                 out[1] = 0.0;
                 out[2] = 0.0;
             }
+        }
+    }
+
+    fn basis_gradient(
+        &self,
+        theta: &[f64],
+        wi: DVec3,
+        wo: DVec3,
+        out: &mut [f64],
+        grad: &mut [f64],
+    ) -> bool {
+        self.gradient(theta, wi, wo, out, grad);
+        true
+    }
+}
+
+impl LobeMicrofacetModel {
+    /// Analytic derivatives of [`microfacet_lobes_fast`] (module docs) with respect to `θ`
+    /// (per lobe `ax, ay, ln η`, then the logits), into `grad[q·3 + j]` for the basis lobes
+    /// `j = 1, 2` (`j = 0`, the Lambert term, has none).
+    fn gradient(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64], grad: &mut [f64]) {
+        let k = self.k;
+        let nt = 4 * k - 1;
+        grad[..3 * nt].fill(0.0);
+        out[0] = 1.0 / PI;
+        out[1] = 0.0;
+        out[2] = 0.0;
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return;
+        }
+        let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+            return;
+        };
+        if h.z <= 0.0 {
+            return;
+        }
+        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
+        decode_lobes(k, theta, &mut lobes);
+        // Per lobe: unit density ρ at h and ∂ρ/∂ln η, ρ η/(4q) (∂ρ/∂a = that · h), the
+        // projected area P↑ with ∂P↑/∂ln η, the slope-moment contribution.
+        let mut rho = [0.0; MAX_LOBES];
+        let mut rho_eta = [0.0; MAX_LOBES];
+        let mut rho_a = [0.0; MAX_LOBES];
+        let mut pa = [0.0; MAX_LOBES];
+        let mut pa_eta = [0.0; MAX_LOBES];
+        let mut pk = [0.0; MAX_LOBES];
+        let mut mom = [[0.0; 3]; MAX_LOBES];
+        let (mut n, mut p) = (0.0, 0.0);
+        let mut m = [0.0f64; 3];
+        for (j, l) in lobes.iter().enumerate().take(k) {
+            let eta = l.exponent;
+            let q = (0.5 * (1.0 + l.axis.dot(h))).max(0.0);
+            let peak = q.powf(0.5 * eta);
+            rho[j] = PhongLobe::normalization(eta) * peak;
+            if q > 0.0 {
+                rho_eta[j] = eta * rho[j] * (1.0 / (eta + 2.0) + 0.5 * q.ln());
+                rho_a[j] = rho[j] * eta / (4.0 * q);
+            }
+            n += l.weight * rho[j];
+            let (a0, da0) = projected_area_on_normal_grad(eta);
+            pa[j] = a0;
+            pa_eta[j] = da0 * eta;
+            pk[j] = l.weight * a0 * l.axis.z;
+            p += pk[j];
+            let (tx, ty) = (theta[3 * j], theta[3 * j + 1]);
+            let v = 4.0 / eta;
+            mom[j] = [tx * tx + v, tx * ty, ty * ty + v];
+            for (mq, x) in m.iter_mut().zip(mom[j]) {
+                *mq += pk[j] * x;
+            }
+        }
+        if p <= 0.0 {
+            return;
+        }
+        // Λ of each direction: α² = 2 uᵀMu / P along the azimuth u.
+        let dirs = [wi, wo].map(|w| {
+            let r = (w.x * w.x + w.y * w.y).sqrt();
+            if r < 1e-12 {
+                return None;
+            }
+            let (ux, uy) = (w.x / r, w.y / r);
+            let uu = [ux * ux, 2.0 * ux * uy, uy * uy];
+            let q: f64 = (0..3).map(|t| m[t] * uu[t]).sum();
+            let a2 = 2.0 * q / p;
+            let alpha = a2.sqrt();
+            let clamped = !(1e-4..=4.0).contains(&alpha);
+            let (lam, dlam) = beckmann_lambda_grad(alpha.clamp(1e-4, 4.0), w.z);
+            Some((uu, a2, alpha, clamped, lam, dlam))
+        });
+        let lam_sum: f64 = dirs.iter().flatten().map(|d| d.4).sum();
+        let g2 = 1.0 / (1.0 + lam_sum);
+        let kk = 1.0 / (4.0 * wi.z * wo.z);
+        let x = n / p * g2 * kk;
+        let m5 = (1.0 - wi.dot(h)).clamp(0.0, 1.0).powi(5);
+        out[1] = x * (1.0 - m5);
+        out[2] = x * m5;
+        // dX from (dn, dP, dM) of one parameter.
+        let dx = |dn: f64, dp: f64, dm: [f64; 3]| -> f64 {
+            let mut dlam = 0.0;
+            for (uu, a2, alpha, clamped, _, dl) in dirs.iter().flatten() {
+                if *clamped {
+                    continue;
+                }
+                let dq: f64 = (0..3).map(|t| dm[t] * uu[t]).sum();
+                let da2 = (2.0 * dq - a2 * dp) / p;
+                dlam += dl * da2 / (2.0 * alpha);
+            }
+            let dg2 = -g2 * g2 * dlam;
+            kk * (g2 * (dn - n * dp / p) / p + n / p * dg2)
+        };
+        let mut put = |q: usize, d: f64| {
+            grad[3 * q + 1] = d * (1.0 - m5);
+            grad[3 * q + 2] = d * m5;
+        };
+        for (j, l) in lobes.iter().enumerate().take(k) {
+            let w = l.weight;
+            let a = l.axis;
+            // ln η.
+            let dp = w * a.z * pa_eta[j];
+            let v = 4.0 / l.exponent;
+            let dm = [0, 1, 2].map(|t| dp * mom[j][t] + pk[j] * [-v, 0.0, -v][t]);
+            put(3 * j + 2, dx(w * rho_eta[j], dp, dm));
+            // Axis: ∂a/∂ax = (e_x − a a_x)/r; slopes t = (ax, ay).
+            let (tx, ty) = (theta[3 * j], theta[3 * j + 1]);
+            let r = DVec3::new(tx, ty, 1.0).length();
+            let ah = a.dot(h);
+            for (comp, dmom) in [(0usize, [2.0 * tx, ty, 0.0]), (1, [0.0, tx, 2.0 * ty])] {
+                let (ac, hc) = if comp == 0 { (a.x, h.x) } else { (a.y, h.y) };
+                let dn = w * rho_a[j] * (hc - ah * ac) / r;
+                let dp = w * pa[j] * (-a.z * ac / r);
+                let dm = [0, 1, 2].map(|t| dp * mom[j][t] + pk[j] * dmom[t]);
+                put(3 * j + comp, dx(dn, dp, dm));
+            }
+        }
+        // Softmax weights: ∂w_j/∂logit_i = w_j (δ_ji − w_i).
+        for i in 1..k {
+            let wi_ = lobes[i].weight;
+            let dn = wi_ * (rho[i] - n);
+            let dp = pk[i] - wi_ * p;
+            let dm = [0, 1, 2].map(|t| pk[i] * mom[i][t] - wi_ * m[t]);
+            put(3 * k + i - 1, dx(dn, dp, dm));
         }
     }
 }

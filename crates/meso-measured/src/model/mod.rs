@@ -3,6 +3,7 @@
 pub mod baselines;
 pub mod lobes;
 pub mod lobes_microfacet;
+pub mod vmf;
 
 pub use baselines::{AshikhminShirley, BlinnPhong, Lafortune, Microfacet, MicrofacetKind};
 pub use lobes::{
