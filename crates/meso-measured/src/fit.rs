@@ -13,16 +13,21 @@
 //! and `A ≥ 0` the linear amplitudes (diffuse albedo, specular colour, ...). This is the "shared
 //! lobe geometry, per-channel amplitudes" structure: the amplitudes are initialised by
 //! non-negative linear least squares for every start (variable projection) and then refined
-//! together with `θ` by LM; the Jacobian in `A` is exact (`b_j`), in `θ` by forward differences
-//! of the basis.
+//! together with `θ` by LM; the Jacobian in `A` is exact (`b_j`), in `θ` analytic when the model
+//! provides [`BrdfModel::basis_gradient`] (both lobe models do) and by forward differences of the
+//! basis otherwise.
 //!
 //! # Schedule ([`fit`])
 //! 1. coarse subsample (`coarse_samples`, stratified);
 //! 2. every start of [`BrdfModel::initial_guesses`]: amplitudes by NNLS, cost in the metric;
-//! 3. the best `refine_starts` starts: LM on the coarse subsample;
-//! 4. the best of them: LM on all samples given.
+//! 3. the best `refine_starts` starts: a short LM run each (`coarse_iterations / 4`, at least 5)
+//!    on the coarse subsample;
+//! 4. the best of them: LM continued on the coarse subsample (up to `coarse_iterations` in all);
+//! 5. then LM on all samples given (`fine_iterations`).
 //!
-//! Residual and normal-equation evaluation is parallel (rayon), allocation-free per sample.
+//! Residual and normal-equation evaluation is parallel (rayon, chunks of samples), with
+//! allocation only per chunk; each residual's Jacobian row is compact (`θ` and its own
+//! channel's amplitudes).
 
 use crate::lm::{self, LeastSquares, LmOptions};
 use crate::metric::Metric;
@@ -174,9 +179,10 @@ pub struct FitOptions {
     pub metric: Metric,
     /// Size of the coarse subsample used to rank starts and for the first LM run.
     pub coarse_samples: usize,
-    /// How many of the best starts are refined by LM on the coarse subsample.
+    /// How many of the best starts get a short LM run on the coarse subsample (the best of them
+    /// is continued).
     pub refine_starts: usize,
-    /// LM iterations on the coarse subsample.
+    /// LM iterations on the coarse subsample (short runs: a quarter of this, at least 5).
     pub coarse_iterations: usize,
     /// LM iterations on the full sample set.
     pub fine_iterations: usize,
@@ -610,20 +616,37 @@ pub fn fit_from(
         .collect();
     ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut iterations = 0;
-    let coarse_opts = LmOptions {
-        max_iterations: opts.coarse_iterations,
+    // Racing: the best `refine_starts` starts get a short LM run each; the best of them is
+    // continued to convergence on the coarse subsample.
+    let n_short = (opts.coarse_iterations / 4)
+        .max(5)
+        .min(opts.coarse_iterations);
+    let short_opts = LmOptions {
+        max_iterations: n_short,
         rel_tolerance: 1e-7,
         ..LmOptions::default()
     };
     let mut best: Option<lm::LmResult> = None;
     for (_, p) in ranked.iter().take(opts.refine_starts.max(1)) {
-        let r = lm::minimize(&pc, p, &bounds, &coarse_opts);
+        let r = lm::minimize(&pc, p, &bounds, &short_opts);
         iterations += r.iterations;
         if best.as_ref().is_none_or(|b| r.cost < b.cost) {
             best = Some(r);
         }
     }
-    let best = best.expect("at least one start");
+    let mut best = best.expect("at least one start");
+    if best.iterations >= n_short && opts.coarse_iterations > n_short {
+        let coarse_opts = LmOptions {
+            max_iterations: opts.coarse_iterations - n_short,
+            rel_tolerance: 1e-7,
+            ..LmOptions::default()
+        };
+        let r = lm::minimize(&pc, &best.params, &bounds, &coarse_opts);
+        iterations += r.iterations;
+        if r.cost <= best.cost {
+            best = r;
+        }
+    }
     let pf = Problem {
         model,
         data: &data.samples,

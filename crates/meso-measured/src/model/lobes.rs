@@ -445,7 +445,17 @@ pub fn fit_lobes_progressive(
         let m = LobeModel { k: j, transfer };
         let mut starts = m.initial_guesses();
         let prev = out.last().map(|(pm, r)| (pm, r));
-        for h in peak_seeds(data, prev.map(|(pm, r)| (pm as &dyn BrdfModel, r)), 3) {
+        let seeds = peak_seeds(data, prev.map(|(pm, r)| (pm as &dyn BrdfModel, r)), 3);
+        // The previous fit with a negligible new lobe: a start as good as the previous fit, so
+        // that adding a lobe does not make the fit worse.
+        if let (Some((pm, r)), Some(&h)) = (prev, seeds.first()) {
+            let mut p = pm.params(r);
+            let eta = eta_for(100.0, p.transfer_exponent);
+            p.lobes.iter_mut().for_each(|l| l.weight *= 0.99);
+            p.lobes.push(PhongLobe::new(h, 0.01, eta));
+            starts.push(m.theta_of(&p));
+        }
+        for h in seeds {
             for e in [10.0, 100.0, 1000.0, 10000.0] {
                 let p = match prev {
                     Some((pm, r)) => {

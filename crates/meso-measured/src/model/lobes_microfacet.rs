@@ -456,6 +456,14 @@ pub fn fit_microfacet_lobes_progressive(
         let mut starts = m.initial_guesses();
         let prev = out.last();
         let seeds = peak_seeds(data, prev.map(|(pm, r)| (pm as &dyn BrdfModel, r)), 3);
+        // The previous fit with a negligible new lobe: a start as good as the previous fit, so
+        // that adding a lobe does not make the fit worse.
+        if let (Some((pm, r)), Some(&h)) = (prev, seeds.first()) {
+            let mut p = pm.params(r);
+            p.lobes.iter_mut().for_each(|l| l.weight *= 0.99);
+            p.lobes.push(PhongLobe::new(h, 0.01, 400.0));
+            starts.push(m.theta_of(&p));
+        }
         for h in seeds {
             for e in [10.0_f64, 100.0, 1000.0, 10000.0] {
                 let eta = (4.0 * e).clamp(10.0_f64, 1e6);
