@@ -128,6 +128,27 @@ impl ShadingPoint {
 }
 
 impl Sphere {
+    /// The shading frame at the unit outward normal `n` (tangent along the parallels, see
+    /// the module docs) and `sin θ` from the pole.
+    #[inline(always)]
+    pub(crate) fn frame_at(&self, n: DVec3) -> (Frame, f64) {
+        let along = self.pole.cross(n); // ∂p/∂φ direction, length sin θ
+        let sin_t = along.length();
+        let t = if sin_t > 1e-12 {
+            along * (1.0 / sin_t)
+        } else {
+            Frame::from_normal(n).t
+        };
+        (
+            Frame {
+                t,
+                b: n.cross(t),
+                n,
+            },
+            sin_t,
+        )
+    }
+
     /// The local frame of the parameterisation: its `n` is the pole; φ = 0 along its `t`.
     #[must_use]
     pub fn pole_frame(&self) -> Frame {
@@ -485,16 +506,10 @@ impl Sphere {
         } else {
             DVec2::ZERO
         };
-        let along = self.pole.cross(n); // ∂p/∂φ direction, length sin θ
-        let sin_t = along.length();
-        let t = if sin_t > 1e-12 {
-            along * (1.0 / sin_t)
-        } else {
-            Frame::from_normal(n).t
-        };
-        let b = n.cross(t);
+        let (frame, sin_t) = self.frame_at(n);
+        let (t, b) = (frame.t, frame.b);
         SurfaceGeom {
-            frame: Some(Frame { t, b, n }),
+            frame: Some(frame),
             position: self.center + n * self.radius,
             ng: n,
             ns: n,

@@ -27,7 +27,7 @@
 //! ```
 
 use crate::geometry::{MaterialId, ShadingPoint};
-use crate::shader::{fast_pow, Shader};
+use crate::shader::{colour_pairs, fast_pow, lobe_pairs, LobeSlices, Shader};
 use glam::{DVec2, DVec3};
 use meso_core::convolution::Form;
 use meso_core::frame::Frame;
@@ -74,6 +74,8 @@ enum Kind {
     /// Delta sum × Phong (half vector), multiple-surface form.
     DeltaPhong {
         chunks: Vec<Chunk>,
+        /// The same normals as flat arrays `[nx, ny, nz, w, η]` for the stream kernel.
+        flat: [Vec<f32>; 5],
         exponent: f32,
         specular: [f32; 3],
         diffuse: [f32; 3],
@@ -121,8 +123,17 @@ impl MaterialShader {
                     chunks.push(c);
                 }
                 let inv_pi = std::f64::consts::FRAC_1_PI;
+                let ns = d.normals();
+                let flat = [
+                    ns.iter().map(|n| n.normal.x as f32).collect(),
+                    ns.iter().map(|n| n.normal.y as f32).collect(),
+                    ns.iter().map(|n| n.normal.z as f32).collect(),
+                    ns.iter().map(|n| n.weight as f32).collect(),
+                    vec![*exponent as f32; ns.len()],
+                ];
                 Kind::DeltaPhong {
                     chunks,
+                    flat,
                     exponent: *exponent as f32,
                     specular: specular.map(|s| s as f32),
                     diffuse: material.diffuse.map(|a| (a * inv_pi) as f32),
@@ -167,6 +178,7 @@ impl Shader for MaterialShader {
                 exponent,
                 specular,
                 diffuse,
+                ..
             } => {
                 let h = wi + wo;
                 let l = h.length();
@@ -197,6 +209,56 @@ impl Shader for MaterialShader {
                 ]
             }
             Kind::General => self.brdf.eval(wi, wo).map(|v| v as f32),
+        }
+    }
+
+    #[inline]
+    fn needs_surface_parameters(&self) -> bool {
+        false
+    }
+
+    #[inline]
+    fn direction_only(&self) -> bool {
+        true
+    }
+
+    /// Weighted normals: the stream kernel ([`lobe_pairs`] in the multiple-surface form) across
+    /// pairs; anything else: [`FastBrdf::eval`] pair by pair.
+    fn eval_pairs(&self, wi: [&[f32]; 3], wo: [&[f32]; 3], out: [&mut [f32]; 3]) {
+        let [o0, o1, o2] = out;
+        match &self.kind {
+            Kind::DeltaPhong {
+                flat,
+                specular,
+                diffuse,
+                ..
+            } => {
+                let lobes = LobeSlices {
+                    nx: &flat[0],
+                    ny: &flat[1],
+                    nz: &flat[2],
+                    weight: &flat[3],
+                    exponent: &flat[4],
+                };
+                lobe_pairs(&lobes, true, wi, wo, o0);
+                colour_pairs(o0, o1, o2, *specular, *diffuse);
+            }
+            Kind::General => {
+                for k in 0..o0.len() {
+                    let d = |v: [&[f32]; 3]| {
+                        DVec3::new(f64::from(v[0][k]), f64::from(v[1][k]), f64::from(v[2][k]))
+                    };
+                    let (i, o) = (d(wi), d(wo));
+                    let f = if i.z <= 0.0 || o.z <= 0.0 {
+                        [0.0; 3]
+                    } else {
+                        self.brdf.eval(i, o).map(|v| v as f32)
+                    };
+                    o0[k] = f[0];
+                    o1[k] = f[1];
+                    o2[k] = f[2];
+                }
+            }
         }
     }
 }

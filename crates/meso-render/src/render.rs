@@ -17,8 +17,17 @@
 //! Sampling: a per-pixel Owen-scrambled Sobol sequence; dimensions 0–1 jitter the pixel, then
 //! two per light in scene order, then two for the environment. At one sample per pixel the
 //! camera ray goes through the pixel centre and the sequence is only evaluated for lights that
-//! need random numbers. Tiles of `tile_size²` pixels are rendered in parallel with rayon; the
-//! per-sample loop does not allocate.
+//! need random numbers. Tiles of `tile_size²` pixels are rendered in parallel with rayon (one
+//! row of tiles per job, written straight into the image); the per-sample loop does not
+//! allocate.
+//!
+//! Two shading paths give the same image to rounding:
+//! * **stream** (used when every material is [`Shader::direction_only`] and none needs surface
+//!   parameters, e.g. every meso-core material, Phong lobes, Lambert): a tile's camera hits
+//!   are gathered into arrays and shaded light by light, the BRDF through
+//!   [`Shader::eval_pairs`] across many points at once (see `render/stream.rs`);
+//! * **per hit** (everything else, e.g. the bump- and NDF-mapped materials, or
+//!   [`RenderOptions::per_hit`]): each hit is shaded on its own, as described below.
 //!
 //! Fast paths (see `crates/meso-render/README.md` for measurements): ray differentials and
 //! sphere texture coordinates are computed only when some material reads them
@@ -39,6 +48,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+mod stream;
+
 /// Per-call overrides of the scene's image settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
@@ -52,6 +63,9 @@ pub struct RenderOptions {
     pub seed: u32,
     /// Tile edge in pixels (tiles are the unit of parallel work and of progress).
     pub tile_size: u32,
+    /// Shade every hit on its own (the per-hit path) even where the stream path applies
+    /// (see the module docs). Both give the same image to rounding; for tests and timing.
+    pub per_hit: bool,
 }
 
 impl Default for RenderOptions {
@@ -62,6 +76,7 @@ impl Default for RenderOptions {
             spp: None,
             seed: 0,
             tile_size: 32,
+            per_hit: false,
         }
     }
 }
@@ -80,40 +95,56 @@ pub fn render(
         .spp
         .unwrap_or(scene.image.spp)
         .clamp(1, MAX_SAMPLES_PER_PIXEL);
-    let ctx = PixelContext::new(scene, w, h, spp, opts.seed);
+    let mut ctx = PixelContext::new(scene, w, h, spp, opts.seed);
+    ctx.stream &= !opts.per_hit;
     let ts = opts.tile_size.max(1);
-    let (tx, ty) = (w.div_ceil(ts), h.div_ceil(ts));
+    let th = ts;
+    let (tx, ty) = (w.div_ceil(ts), h.div_ceil(th));
     let total = (tx * ty) as usize;
     let done = AtomicUsize::new(0);
-    let tiles: Vec<(u32, u32, Vec<[f32; 3]>)> = (0..total as u32)
-        .into_par_iter()
-        .map(|k| {
-            let (x0, y0) = ((k % tx) * ts, (k / tx) * ts);
-            let (x1, y1) = ((x0 + ts).min(w), (y0 + ts).min(h));
-            let mut buf = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+    let mut img = Image::new(w, h);
+    // One band (a row of tiles) per job, written straight into the image (no per-tile
+    // buffers kept alive until the end: at 1024² those were 12 MB of fresh pages per frame).
+    img.pixels_mut()
+        .par_chunks_mut((w * th) as usize)
+        .enumerate()
+        .for_each(|(band, pixels)| {
+            let y0 = band as u32 * th;
+            let y1 = (y0 + th).min(h);
+            let mut buf = Vec::with_capacity((ts * ts) as usize);
             let mut scratch = ShadeScratch::default();
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    buf.push(trace_pixel(scene, &ctx, x, y, &mut scratch));
+            for t in 0..tx {
+                let (x0, x1) = (t * ts, (t * ts + ts).min(w));
+                buf.clear();
+                if ctx.stream {
+                    STREAM_SCRATCH.with_borrow_mut(|s| {
+                        stream::render_tile(scene, &ctx, (x0, x1), (y0, y1), s, &mut buf);
+                    });
+                } else {
+                    for y in y0..y1 {
+                        for x in x0..x1 {
+                            buf.push(trace_pixel(scene, &ctx, x, y, &mut scratch));
+                        }
+                    }
+                }
+                let tw = (x1 - x0) as usize;
+                for (r, row) in buf.chunks_exact(tw).enumerate() {
+                    let at = r * w as usize + x0 as usize;
+                    pixels[at..at + tw].copy_from_slice(row);
+                }
+                let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+                if let Some(p) = progress {
+                    p(d, total);
                 }
             }
-            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if let Some(p) = progress {
-                p(d, total);
-            }
-            (k, x1 - x0, buf)
-        })
-        .collect();
-    let mut img = Image::new(w, h);
-    let pixels = img.pixels_mut();
-    for (k, tw, buf) in tiles {
-        let (x0, y0) = ((k % tx) * ts, (k / tx) * ts);
-        for (r, row) in buf.chunks_exact(tw as usize).enumerate() {
-            let at = (y0 as usize + r) * w as usize + x0 as usize;
-            pixels[at..at + row.len()].copy_from_slice(row);
-        }
-    }
+        });
     img
+}
+
+thread_local! {
+    /// The stream path's storage, one per worker thread (allocated on first use).
+    static STREAM_SCRATCH: std::cell::RefCell<stream::StreamScratch> =
+        std::cell::RefCell::new(stream::StreamScratch::default());
 }
 
 /// Per-render constants, hoisted out of the pixel loop.
@@ -126,20 +157,25 @@ struct PixelContext {
     params: bool,
     /// Primary rays without differentials.
     rays: RayGen,
+    /// Every material is direction-only and none needs surface parameters: shade tiles by
+    /// streams ([`stream`]).
+    stream: bool,
 }
 
 impl PixelContext {
     fn new(scene: &Scene, w: u32, h: u32, spp: u32, seed: u32) -> PixelContext {
+        let params = scene
+            .materials()
+            .iter()
+            .any(|m| m.needs_surface_parameters());
         PixelContext {
             w,
             h,
             spp,
             seed,
-            params: scene
-                .materials()
-                .iter()
-                .any(|m| m.needs_surface_parameters()),
+            params,
             rays: RayGen::new(&scene.camera, w, h),
+            stream: !params && scene.materials().iter().all(|m| m.direction_only()),
         }
     }
 }

@@ -13,6 +13,7 @@ use crate::light::{EnvironmentMap, Light};
 use crate::sampling::MAX_SAMPLES_PER_PIXEL;
 use crate::shader::Shader;
 use glam::DVec3;
+use meso_core::frame::Frame;
 use serde::Deserialize;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -456,7 +457,28 @@ pub(crate) enum Skip {
     Plane(usize),
 }
 
+/// A camera hit as the stream path needs it ([`Scene::primary_frame`]); the fields mean
+/// what the [`ShadingPoint`] fields of the same names mean.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HitFrame {
+    pub position: DVec3,
+    pub geometric_normal: DVec3,
+    pub frame: Frame,
+    pub material: MaterialId,
+    pub skip: Skip,
+}
+
+/// A closest hit: distance, the primitive's hit parameters and which surface.
+#[derive(Clone, Copy)]
+pub(crate) struct ClosestHit {
+    t: f64,
+    a: f64,
+    b: f64,
+    what: HitWhat,
+}
+
 /// Closest-hit bookkeeping.
+#[derive(Clone, Copy)]
 enum HitWhat {
     Prim(u32),
     Plane(usize),
@@ -547,6 +569,52 @@ impl Scene {
         Some(self.surface_at(ray, t, a, b, what, rd, with_uv))
     }
 
+    /// The closest hit along `ray` (stage one of the stream path's primary rays; finish it
+    /// with [`Scene::hit_frame`]).
+    #[inline]
+    pub(crate) fn closest_hit(&self, ray: &Ray) -> Option<ClosestHit> {
+        self.closest(ray)
+            .map(|(t, a, b, what)| ClosestHit { t, a, b, what })
+    }
+
+    /// The renderer's stream path: a closest hit reduced to what a direction-only shader and
+    /// the shadow rays need (no texture coordinates, no footprint). Spheres take a short
+    /// path; other shapes go through the full shading point.
+    #[inline]
+    pub(crate) fn hit_frame(&self, ray: &Ray, h: &ClosestHit) -> HitFrame {
+        if let HitWhat::Prim(k) = h.what {
+            if let Prim::Sphere { index, .. } = *self.bvh.prim(k) {
+                let sph = &self.spheres[index as usize];
+                let n = (ray.at(h.t) - sph.center).normalize();
+                let (mut frame, _) = sph.frame_at(n);
+                let mut ng = n;
+                let cos = ng.dot(ray.d);
+                let outside = cos < 0.0;
+                // As `finish_shading_point`: face the viewer, keep the tangent.
+                if cos > 0.0 {
+                    ng = -ng;
+                    frame.n = -frame.n;
+                    frame.b = -frame.b;
+                }
+                return HitFrame {
+                    position: sph.center + n * sph.radius,
+                    geometric_normal: ng,
+                    frame,
+                    material: sph.material,
+                    skip: if outside { Skip::Prim(k) } else { Skip::None },
+                };
+            }
+        }
+        let (sp, skip) = self.surface_at(ray, h.t, h.a, h.b, h.what, None, false);
+        HitFrame {
+            position: sp.position,
+            geometric_normal: sp.geometric_normal,
+            frame: sp.frame,
+            material: sp.material,
+            skip,
+        }
+    }
+
     #[inline]
     #[allow(clippy::too_many_arguments)]
     fn surface_at(
@@ -600,6 +668,13 @@ impl Scene {
     #[must_use]
     pub fn occluded(&self, ray: &Ray, tmax: f64) -> bool {
         self.occluded_skip(ray, tmax, Skip::None)
+    }
+
+    /// True when the scene holds exactly one surface (one BVH primitive or one plane): a
+    /// shadow ray leaving it with a [`Skip`] other than `None` cannot be blocked.
+    #[inline]
+    pub(crate) fn single_convex_prim(&self) -> bool {
+        self.bvh.len() + self.planes.len() == 1
     }
 
     /// [`Scene::occluded`] without testing the surface `skip` (see [`Skip`]).

@@ -42,6 +42,35 @@ pub trait Shader: Send + Sync {
     fn needs_surface_parameters(&self) -> bool {
         true
     }
+
+    /// Whether the BRDF depends on the local directions `wi`, `wo` only (not on the
+    /// [`ShadingPoint`]: no position, frame, texture coordinates or footprint). The renderer
+    /// then shades whole tiles light by light through [`Shader::eval_pairs`] (its fast path).
+    /// The default, `false`, is always correct.
+    #[inline]
+    fn direction_only(&self) -> bool {
+        false
+    }
+
+    /// The BRDF (1/sr, no cosine) for `n` pairs of unit local directions in structure-of-arrays
+    /// form: `out[c][k] = eval(wi_k, wo_k)[c]` with `wi_k = (wi[0][k], wi[1][k], wi[2][k])`
+    /// (towards the light) and `wo_k` likewise (towards the viewer); every slice has length
+    /// `n`. Called by the renderer only for shaders that are [`Shader::direction_only`]. The
+    /// default evaluates [`Shader::eval`] pair by pair at a dummy shading point; lobe shaders
+    /// override it with a kernel that runs across pairs, eight at a time.
+    fn eval_pairs(&self, wi: [&[f32]; 3], wo: [&[f32]; 3], out: [&mut [f32]; 3]) {
+        let sp = crate::material::local_point(glam::DVec2::ZERO, 0.0);
+        let [o0, o1, o2] = out;
+        for k in 0..o0.len() {
+            let d = |v: [&[f32]; 3]| {
+                DVec3::new(f64::from(v[0][k]), f64::from(v[1][k]), f64::from(v[2][k]))
+            };
+            let f = self.eval(&sp, d(wi), d(wo));
+            o0[k] = f[0];
+            o1[k] = f[1];
+            o2[k] = f[2];
+        }
+    }
 }
 
 /// A Lambertian (perfectly diffuse) reflector: `f = albedo / π`.
@@ -64,6 +93,11 @@ impl Shader for Lambert {
     #[inline]
     fn needs_surface_parameters(&self) -> bool {
         false
+    }
+
+    #[inline]
+    fn direction_only(&self) -> bool {
+        true
     }
 }
 
@@ -224,6 +258,26 @@ impl Shader for PhongLobes {
     fn needs_surface_parameters(&self) -> bool {
         false
     }
+
+    #[inline]
+    fn direction_only(&self) -> bool {
+        true
+    }
+
+    /// The lobe kernel across pairs ([`lobe_pairs`]), then the colour.
+    fn eval_pairs(&self, wi: [&[f32]; 3], wo: [&[f32]; 3], out: [&mut [f32]; 3]) {
+        let n = self.count;
+        let lobes = LobeSlices {
+            nx: &self.nx[..n],
+            ny: &self.ny[..n],
+            nz: &self.nz[..n],
+            weight: &self.weight[..n],
+            exponent: &self.exponent[..n],
+        };
+        let [o0, o1, o2] = out;
+        lobe_pairs(&lobes, false, wi, wo, o0);
+        colour_pairs(o0, o1, o2, self.color, [0.0; 3]);
+    }
 }
 
 impl PhongLobes {
@@ -251,6 +305,194 @@ impl PhongLobes {
             };
             *o = [self.color[0] * s, self.color[1] * s, self.color[2] * s];
         }
+    }
+}
+
+/// Phong lobes `(n_k, w_k, η_k)` as parallel slices (local frame; weight in 1/sr), the input
+/// of [`lobe_pairs`].
+#[derive(Clone, Copy, Debug)]
+pub struct LobeSlices<'a> {
+    /// x components of the unit lobe normals.
+    pub nx: &'a [f32],
+    /// y components.
+    pub ny: &'a [f32],
+    /// z components.
+    pub nz: &'a [f32],
+    /// Weights `w_k`.
+    pub weight: &'a [f32],
+    /// Exponents `η_k ≥ 0`.
+    pub exponent: &'a [f32],
+}
+
+/// Pairs processed together by [`lobe_pairs`] (one AVX register of f32).
+const PAIR_LANES: usize = 8;
+
+/// The lobe sum for many direction pairs at once (the renderer's stream-shading kernel):
+/// `sum[k] = Σ_j w_j max(0, n_j·H_k)^{η_j}` with `H_k` the unit half vector of `wi_k`, `wo_k`
+/// (local frame), or, with `cosine`, the multiple-surface form of Eq. 4/11,
+/// `Σ_j w_j max(0, n_j·H_k)^{η_j} max(0, n_j·wi_k) / wi_k.z`. Pairs with either direction
+/// below the horizon (or `wi = −wo`) get `−1` as a marker (see [`colour_pairs`]). Pairs run
+/// across [`PAIR_LANES`] f32 lanes, lobes in the inner loop; AVX2 + FMA when the CPU has it.
+/// The power is [`fast_pow`]. `sum.len()` is the number of pairs.
+pub fn lobe_pairs(
+    lobes: &LobeSlices<'_>,
+    cosine: bool,
+    wi: [&[f32]; 3],
+    wo: [&[f32]; 3],
+    sum: &mut [f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
+        unsafe { lobe_pairs_avx2(lobes, cosine, wi, wo, sum) };
+        return;
+    }
+    lobe_pairs_impl::<false>(lobes, cosine, wi, wo, sum);
+}
+
+/// [`lobe_pairs`] compiled for AVX2 + FMA.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn lobe_pairs_avx2(
+    lobes: &LobeSlices<'_>,
+    cosine: bool,
+    wi: [&[f32]; 3],
+    wo: [&[f32]; 3],
+    sum: &mut [f32],
+) {
+    lobe_pairs_impl::<true>(lobes, cosine, wi, wo, sum);
+}
+
+#[inline(always)]
+fn lobe_pairs_impl<const FMA: bool>(
+    lobes: &LobeSlices<'_>,
+    cosine: bool,
+    wi: [&[f32]; 3],
+    wo: [&[f32]; 3],
+    sum: &mut [f32],
+) {
+    if cosine {
+        lobe_pairs_form::<FMA, true>(lobes, wi, wo, sum);
+    } else {
+        lobe_pairs_form::<FMA, false>(lobes, wi, wo, sum);
+    }
+}
+
+/// One octet of direction pairs: `[x, y, z]` lanes.
+type Octet = [[f32; PAIR_LANES]; 3];
+
+/// Copy pairs `base..base + m` into octets; lanes past the end get a below-horizon pair.
+#[inline(always)]
+fn load_octet(v: [&[f32]; 3], base: usize, m: usize, out: &mut Octet) {
+    if m == PAIR_LANES {
+        for c in 0..3 {
+            out[c].copy_from_slice(&v[c][base..base + PAIR_LANES]);
+        }
+    } else {
+        *out = [[0.0; PAIR_LANES], [0.0; PAIR_LANES], [-1.0; PAIR_LANES]];
+        for c in 0..3 {
+            out[c][..m].copy_from_slice(&v[c][base..base + m]);
+        }
+    }
+}
+
+#[inline(always)]
+fn lobe_pairs_form<const FMA: bool, const COS: bool>(
+    lobes: &LobeSlices<'_>,
+    wi: [&[f32]; 3],
+    wo: [&[f32]; 3],
+    sum: &mut [f32],
+) {
+    const L: usize = PAIR_LANES;
+    let n = sum.len();
+    let count = lobes
+        .weight
+        .len()
+        .min(lobes.nx.len())
+        .min(lobes.ny.len())
+        .min(lobes.nz.len())
+        .min(lobes.exponent.len());
+    let (nx, ny, nz) = (&lobes.nx[..count], &lobes.ny[..count], &lobes.nz[..count]);
+    let (lw, le) = (&lobes.weight[..count], &lobes.exponent[..count]);
+    let mut base = 0;
+    let mut i: Octet = [[0.0; L]; 3];
+    let mut o: Octet = [[0.0; L]; 3];
+    while base < n {
+        let m = (n - base).min(L);
+        load_octet(wi, base, m, &mut i);
+        load_octet(wo, base, m, &mut o);
+        let mut h: Octet = [[0.0; L]; 3];
+        let mut valid = [0.0f32; L];
+        for j in 0..L {
+            let hx = i[0][j] + o[0][j];
+            let hy = i[1][j] + o[1][j];
+            let hz = i[2][j] + o[2][j];
+            let l2 = hx * hx + hy * hy + hz * hz;
+            let ok = i[2][j] > 0.0 && o[2][j] > 0.0 && l2 >= 1e-24;
+            valid[j] = if ok { 1.0 } else { 0.0 };
+            let r = 1.0 / l2.max(1e-24).sqrt();
+            h[0][j] = hx * r;
+            h[1][j] = hy * r;
+            h[2][j] = hz * r;
+        }
+        let mut acc = [0.0f32; L];
+        for q in 0..count {
+            let (ax, ay, az, w, e) = (nx[q], ny[q], nz[q], lw[q], le[q]);
+            for j in 0..L {
+                let c = madd::<FMA>(ax, h[0][j], madd::<FMA>(ay, h[1][j], az * h[2][j])).max(0.0);
+                let mut t = w * fast_pow_impl::<FMA>(c, e);
+                if COS {
+                    t *= madd::<FMA>(ax, i[0][j], madd::<FMA>(ay, i[1][j], az * i[2][j])).max(0.0);
+                }
+                acc[j] += t;
+            }
+        }
+        let mut res = [0.0f32; L];
+        for j in 0..L {
+            let s = if COS {
+                acc[j] / i[2][j].max(1e-30)
+            } else {
+                acc[j]
+            };
+            // The marker −1 where the pair is invalid (a select, not a branch).
+            res[j] = if valid[j] > 0.5 { s } else { -1.0 };
+        }
+        sum[base..base + m].copy_from_slice(&res[..m]);
+        base += L;
+    }
+}
+
+/// Turn lobe sums from [`lobe_pairs`] into RGB in place: `out_c = specular_c · s + diffuse_c`
+/// where `s ≥ 0`, and 0 on every channel where `s` is the below-horizon marker (`< 0`).
+/// `s` is read from (and channel 0 written to) `s_r`.
+pub fn colour_pairs(
+    s_r: &mut [f32],
+    g: &mut [f32],
+    b: &mut [f32],
+    specular: [f32; 3],
+    diffuse: [f32; 3],
+) {
+    for ((r, g), b) in s_r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()) {
+        let s = *r;
+        let ok = s >= 0.0;
+        *r = if ok {
+            specular[0] * s + diffuse[0]
+        } else {
+            0.0
+        };
+        *g = if ok {
+            specular[1] * s + diffuse[1]
+        } else {
+            0.0
+        };
+        *b = if ok {
+            specular[2] * s + diffuse[2]
+        } else {
+            0.0
+        };
     }
 }
 

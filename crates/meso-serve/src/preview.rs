@@ -490,6 +490,7 @@ pub fn render_preview(req: &RenderRequest, material: &Material) -> Result<Render
         spp: Some(v.spp),
         seed: v.seed,
         tile_size: 16,
+        ..RenderOptions::default()
     };
     let img = render(&scene, &opts, None);
     let render_ms = t0.elapsed().as_secs_f64() * 1e3;
