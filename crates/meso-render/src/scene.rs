@@ -530,6 +530,7 @@ impl Scene {
                 .sum::<usize>()
     }
 
+    #[inline(always)]
     fn closest(&self, ray: &Ray) -> Option<(f64, f64, f64, HitWhat)> {
         let mut tmax = f64::INFINITY;
         let mut best = None;

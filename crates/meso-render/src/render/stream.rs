@@ -31,11 +31,12 @@ use glam::DVec3;
 pub(crate) const STREAM_CHUNK: usize = 256;
 const _: () = assert!(STREAM_CHUNK.is_multiple_of(BLOCK));
 
-/// `STREAM_CHUNK` values of one quantity (allocated once per thread).
-type Lane<T> = Vec<T>;
+/// `STREAM_CHUNK` values of one quantity (allocated once per thread). A fixed size, so that
+/// indices reduced modulo `STREAM_CHUNK` need no bounds checks.
+type Lane<T> = Box<[T; STREAM_CHUNK]>;
 
 fn lane<T: Copy>(v: T) -> Lane<T> {
-    vec![v; STREAM_CHUNK]
+    Box::new([v; STREAM_CHUNK])
 }
 
 fn lanes3<T: Copy>(v: T) -> [Lane<T>; 3] {
@@ -182,7 +183,7 @@ fn push_hit(
     slot: u32,
     (x, y, k): (u32, u32, u32),
 ) {
-    let i = s.n;
+    let i = s.n % STREAM_CHUNK;
     let p = sp.position;
     let eps = 1e-9 * (1.0 + p.abs().max_element());
     let origin = p + sp.geometric_normal * eps;
@@ -459,12 +460,12 @@ fn light_pass(scene: &Scene, s: &mut StreamScratch) {
         a = b;
     }
     let single = scene.single_convex_prim();
-    for k in 0..m {
+    for k in 0..m.min(STREAM_CHUNK) {
         let f = [s.f[0][k], s.f[1][k], s.f[2][k]];
         if f[0] <= 0.0 && f[1] <= 0.0 && f[2] <= 0.0 {
             continue;
         }
-        let i = s.lit[k] as usize;
+        let i = s.lit[k] as usize % STREAM_CHUNK;
         // A lone convex primitive left on the lit side cannot shadow itself.
         if !(single && s.skip[i] != Skip::None) {
             let ray = Ray {
