@@ -130,7 +130,6 @@ pub(crate) fn render_tile(
     let mut acc = vec![DVec3::ZERO; tw * (y1 - y0) as usize];
     let mut rays = Vec::with_capacity(tw);
     let mut hits = Vec::with_capacity(tw);
-    let mut frames = Vec::with_capacity(tw);
     for y in y0..y1 {
         for k in 0..c.spp {
             rays.clear();
@@ -144,19 +143,13 @@ pub(crate) fn render_tile(
             }));
             hits.clear();
             hits.extend(rays.iter().map(|r| scene.closest_hit(r)));
-            frames.clear();
-            frames.extend(
-                rays.iter()
-                    .zip(&hits)
-                    .map(|(r, h)| h.as_ref().map(|h| scene.hit_frame(r, h))),
-            );
             let row = (y - y0) as usize * tw;
-            for (dx, (ray, hit)) in rays.iter().zip(&frames).enumerate() {
+            for (dx, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
                 let slot = row + dx;
                 match hit {
-                    Some(hit) => {
+                    Some(h) => {
                         let x = x0 + dx as u32;
-                        push_hit(s, hit, -ray.d, slot as u32, (x, y, k));
+                        push_hit(s, &scene.hit_frame(ray, h), -ray.d, slot as u32, (x, y, k));
                         if s.n == STREAM_CHUNK {
                             shade_chunk(scene, c, s, &mut acc);
                         }
