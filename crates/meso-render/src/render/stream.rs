@@ -116,8 +116,8 @@ impl Default for StreamScratch {
 
 /// Render the pixels `x0..x1 × y0..y1` into `buf` (row-major, cleared by the caller) by
 /// stream shading. Primary rays go in stages over a row of the tile (all rays, then all
-/// closest hits, then all the hits' frames, then the chunk), so that the long-latency square roots and divisions
-/// of neighbouring pixels overlap instead of forming one chain per pixel.
+/// closest hits, then the hits' frames into the chunk), so that the long-latency square roots
+/// and divisions of neighbouring pixels overlap instead of forming one chain per pixel.
 pub(crate) fn render_tile(
     scene: &Scene,
     c: &PixelContext,
