@@ -4,7 +4,8 @@
 //!    facets), 4 point lights, 1 spp — through `MaterialShader`, next to the renderer's own
 //!    `PhongLobes` shader on the same scene;
 //! 2. the equal-quality comparison: the NDF-mapped plane at 1–4 spp against the bump map
-//!    supersampled, errors against a 1024-spp bump-mapped reference, time for time.
+//!    supersampled, errors against a 1024-spp bump-mapped reference, time for time (best
+//!    wall time and mean CPU time per frame over ≥ 3 frames and ≥ 1 s).
 //!
 //! `cargo run --release -p meso-figures --example bench`
 
@@ -23,6 +24,39 @@ fn best_ms(frames: u32, f: &mut dyn FnMut() -> Image) -> (f64, Image) {
         best = best.min(t.elapsed().as_secs_f64() * 1e3);
     }
     (best, img)
+}
+
+/// CPU time (user + system) of this process so far, in ms, from `/proc/self/stat` (clock
+/// ticks of 10 ms; `NaN` where it is not available).
+fn cpu_ms() -> f64 {
+    let Ok(s) = std::fs::read_to_string("/proc/self/stat") else {
+        return f64::NAN;
+    };
+    // Fields after the command name (which is in parentheses): state is field 3; utime and
+    // stime are fields 14 and 15.
+    let rest = s.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |k: usize| f.get(k - 3).and_then(|v| v.parse::<f64>().ok());
+    match (tick(14), tick(15)) {
+        (Some(u), Some(st)) => (u + st) * 10.0,
+        _ => f64::NAN,
+    }
+}
+
+/// Best wall time (ms) and mean CPU time per frame (ms) over at least 3 frames and at least
+/// one second, after a warm-up frame.
+fn timed(f: &mut dyn FnMut() -> Image) -> (f64, f64, Image) {
+    let mut img = f();
+    let mut best = f64::INFINITY;
+    let (c0, t0) = (cpu_ms(), Instant::now());
+    let mut n = 0u32;
+    while n < 3 || t0.elapsed().as_secs_f64() < 1.0 {
+        let t = Instant::now();
+        img = f();
+        best = best.min(t.elapsed().as_secs_f64() * 1e3);
+        n += 1;
+    }
+    (best, (cpu_ms() - c0) / f64::from(n), img)
 }
 
 fn seven_normals() -> Material {
@@ -116,11 +150,16 @@ fn main() {
     let tpu = map.cells_x() as f64;
     let bump: Arc<dyn Shader> =
         Arc::new(BumpMapped::new(&map, &surface, tpu, false).expect("bump"));
-    let ndf: Arc<dyn Shader> = Arc::new(
-        NdfMapped::new(&pyr, &surface, tpu, false)
-            .expect("ndf")
-            .with_max_level(pyr.levels.len() - 2),
-    );
+    // One NDF-mapped shader per sample count: each jittered sample filters its share of the
+    // pixel (footprint / √spp, `NdfMapped::with_samples_per_pixel`).
+    let ndf_base = NdfMapped::new(&pyr, &surface, tpu, false)
+        .expect("ndf")
+        .with_max_level(pyr.levels.len() - 2);
+    let ndf_spp = [1u32, 2, 4];
+    let ndf: Vec<Arc<dyn Shader>> = ndf_spp
+        .iter()
+        .map(|&spp| Arc::new(ndf_base.clone().with_samples_per_pixel(spp)) as Arc<dyn Shader>)
+        .collect();
     for width in [4.0, 16.0] {
         let size = 128;
         println!(
@@ -128,7 +167,6 @@ fn main() {
             width * tpu / f64::from(size)
         );
         let sb = meso_figures::plane_scene(bump.clone(), width, size, 1).expect("scene");
-        let sn = meso_figures::plane_scene(ndf.clone(), width, size, 1).expect("scene");
         let reference = render(
             &sb,
             &RenderOptions {
@@ -138,8 +176,9 @@ fn main() {
             },
             None,
         );
-        for spp in [1u32, 2, 4] {
-            let (t, img) = best_ms(3, &mut || {
+        for (&spp, shader) in ndf_spp.iter().zip(&ndf) {
+            let sn = meso_figures::plane_scene(shader.clone(), width, size, 1).expect("scene");
+            let (t, cpu, img) = timed(&mut || {
                 render(
                     &sn,
                     &RenderOptions {
@@ -150,12 +189,12 @@ fn main() {
                 )
             });
             println!(
-                "  NDF-mapped  {spp:>4} spp: error {:.4}, {t:.1} ms",
+                "  NDF-mapped  {spp:>4} spp: error {:.4}, wall {t:.1} ms, CPU {cpu:.1} ms",
                 mean_rel(&img, &reference)
             );
         }
-        for spp in [1u32, 4, 16, 64, 256] {
-            let (t, img) = best_ms(1, &mut || {
+        for spp in [1u32, 4, 16, 32, 64, 128, 256] {
+            let (t, cpu, img) = timed(&mut || {
                 render(
                     &sb,
                     &RenderOptions {
@@ -166,7 +205,7 @@ fn main() {
                 )
             });
             println!(
-                "  bump-mapped {spp:>4} spp: error {:.4}, {t:.1} ms",
+                "  bump-mapped {spp:>4} spp: error {:.4}, wall {t:.1} ms, CPU {cpu:.1} ms",
                 mean_rel(&img, &reference)
             );
         }

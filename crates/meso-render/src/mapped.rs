@@ -23,21 +23,31 @@
 //!   azimuths interpolated as `HorizonStats::visibility`). Supersample it to get the ground
 //!   truth of a pixel.
 //! * [`NdfMapped`]: the pyramid of fitted Phong lobes. The level comes from the pixel footprint
-//!   (`ShadingPoint::uv_footprint` from ray differentials): `lod = log2(footprint in cells) −
+//!   (`ShadingPoint::uv_footprint` from ray differentials, times an optional scale, e.g.
+//!   `1/√spp` from [`NdfMapped::with_samples_per_pixel`]): `lod = log2(footprint in cells) −
 //!   ½` (the −½ matches the bilinear tent's spread to the pixel's box), clamped to the pyramid;
 //!   the two nearest levels are blended linearly, and within each level the four nearest texels
-//!   bilinearly (trilinear filtering), so zooming is continuous. Each fitted lobe (Eq. 1, area
-//!   weights) is replaced at construction by 7 weighted nodes (its axis and a ring of 6 matched
-//!   to the lobe's mean cosine through the von Mises–Fisher correspondence `κ = η/4`), and the
-//!   node weights are converted to projected-area weights (`× max(0, m_z)`, renormalised per
-//!   texel) so that the filtered shading is the average of the bump-mapped shading. Optional
-//!   shadowing multiplies by the blended `HorizonStats::visibility(i)` of the texels (the
-//!   filtered horizon angles of the map).
+//!   bilinearly (trilinear filtering), so zooming is continuous. Footprints under √2 cells
+//!   (magnification) read level 0 through a box narrower than the bilinear tent, down to the
+//!   single cell under the point, so that supersampling converges to the bump map's cells.
+//!   Each texel's response is computed **in closed form** from its fitted lobes (Eq. 12, area
+//!   weights `w`, exponents `η_n`): with projected-area weighting (`× m_z`, normalised by the
+//!   texel's projected area `Σ w·η_n/(η_n + 4)·a_z`, exact for a Phong peak) the filtered
+//!   shading is the average of the bump-mapped shading. Each peak is replaced by the spherical
+//!   Gaussian `exp(κ(a·m − 1))` of the same mean cosine `η_n/(η_n + 4)`, the Phong facet term
+//!   `(m·h)^η` by `exp(λ(m·h − 1))` with `λ = η + 1` (same integral), their product integrated
+//!   exactly (a Gaussian of axis `m* ∝ κa + λh`), the facet cosines `(m·i)(m·z)` by the
+//!   product's second moment, and the shapes corrected by the ratios of the Phong forms to their
+//!   Gaussians at `m*` (exact for sharp lobes; within 1% of a quadrature of the lobes for broad
+//!   ones, tested). Lambert facets use the texels' second moments `E[m (m·z)]` (the `m·o > 0`
+//!   test of a single facet is dropped); other transfers replace each lobe by 7 weighted nodes
+//!   (the axis and a ring of 6 with the lobe's mean cosine). Optional shadowing multiplies by
+//!   the blended `HorizonStats::visibility(i)` of the texels (the filtered horizon angles of
+//!   the map).
 //!
 //! Nothing allocates per shading call.
 
 use crate::geometry::ShadingPoint;
-use crate::render::LIGHT_BATCH;
 use crate::shader::{fast_pow, Shader};
 use glam::DVec3;
 use meso_core::frame::Frame;
@@ -201,11 +211,52 @@ impl Shader for BumpMapped {
     }
 }
 
-/// One node of a texel's filtered NDF: a unit normal with its projected-area weight.
+/// One node of a texel's filtered NDF (general facet transfers only): a unit normal with its
+/// projected-area weight.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Node {
     n: DVec3,
     w: f64,
+}
+
+/// One fitted lobe of a texel, as the spherical Gaussian `c·exp(κ(a·m − 1))` of the same mean
+/// cosine (see [`NdfMapped`]'s docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SgLobe {
+    /// Unit axis.
+    axis: DVec3,
+    /// `κ · axis`.
+    ka: DVec3,
+    /// Concentration κ.
+    kappa: f64,
+    /// `η/2` of the Phong peak.
+    half_eta: f64,
+    /// `ln` of the Phong peak's normalisation over the Gaussian's.
+    ln_ratio: f64,
+    /// Area weight ÷ the texel's projected area × the Gaussian's normalisation `κ/(1 − e^{−2κ})`
+    /// (without its `1/2π`, which the product integral's `2π` cancels).
+    w: f64,
+}
+
+impl SgLobe {
+    /// The lobe of the Phong peak `(axis, η)` with Gaussian concentration `kappa` and weight
+    /// `w` (normalisation included).
+    fn new(axis: DVec3, eta: f64, kappa: f64, w: f64) -> SgLobe {
+        // Phong: (η + 2)/(8π); Gaussian: κ/(2π(1 − e^{−2κ})).
+        let ratio = if kappa < 1e-9 {
+            (eta + 2.0) / 8.0
+        } else {
+            (eta + 2.0) * -(-2.0 * kappa).exp_m1() / (4.0 * kappa)
+        };
+        SgLobe {
+            axis,
+            ka: axis * kappa,
+            kappa,
+            half_eta: 0.5 * eta,
+            ln_ratio: ratio.ln(),
+            w,
+        }
+    }
 }
 
 /// One level of the filtered pyramid.
@@ -214,27 +265,64 @@ struct NodeLevel {
     cols: usize,
     rows: usize,
     span: f64,
-    start: Vec<u32>,
+    /// Per texel, its lobes `lobes[lobe_start[t]..lobe_start[t + 1]]`.
+    lobe_start: Vec<u32>,
+    lobes: Vec<SgLobe>,
+    /// Per texel, `E[m (m·z)] / E[m·z]` over its projected area: the Lambert facets' response
+    /// is `albedo/π · (this · i) / cos θi`.
+    second_z: Vec<DVec3>,
+    /// Nodes for a general facet transfer (empty otherwise).
+    node_start: Vec<u32>,
     nodes: Vec<Node>,
     horizon: Option<Vec<HorizonStats>>,
 }
 
-/// Nodes per fitted lobe: the axis and a ring of 6.
+/// Nodes per fitted lobe (general transfers only): the axis and a ring of 6.
 const RING: usize = 6;
 /// Weight of the axis node.
 const AXIS_WEIGHT: f64 = 0.25;
 
-/// Replace a Phong peak by 7 weighted nodes (area weights) with the lobe's mean cosine.
-fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
-    let kappa = exponent / 4.0;
-    // Mean cosine to the axis of a vMF with concentration κ: coth κ − 1/κ.
-    let mean = if kappa > 1e3 {
+/// Mean cosine to the axis of a von Mises–Fisher distribution on the sphere: `coth κ − 1/κ`.
+fn vmf_mean_cos(kappa: f64) -> f64 {
+    if kappa < 1e-3 {
+        kappa / 3.0
+    } else if kappa > 20.0 {
         1.0 - 1.0 / kappa
-    } else if kappa < 1e-6 {
-        0.0
     } else {
         1.0 / kappa.tanh() - 1.0 / kappa
-    };
+    }
+}
+
+/// The concentration κ of the von Mises–Fisher distribution whose mean cosine is `mu`.
+fn vmf_kappa(mu: f64) -> f64 {
+    let mu = mu.clamp(0.0, 1.0 - 1e-12);
+    if mu < 1e-9 {
+        return 3.0 * mu;
+    }
+    // Banerjee et al.'s approximation, then Newton on A(κ) = μ (A' = 1/κ² − 1/sinh²κ).
+    let mut k = mu * (3.0 - mu * mu) / (1.0 - mu * mu);
+    for _ in 0..4 {
+        let d = if k > 20.0 {
+            1.0 / (k * k)
+        } else {
+            1.0 / (k * k) - 1.0 / k.sinh().powi(2)
+        };
+        if d <= 0.0 {
+            break;
+        }
+        k = (k - (vmf_mean_cos(k) - mu) / d).max(0.5 * k);
+    }
+    k
+}
+
+/// The Gaussian of the Phong peak `cos^η(α/2)` (Eq. 12): same mean cosine, `η/(η + 4)`.
+fn peak_kappa(exponent: f64) -> f64 {
+    vmf_kappa(exponent / (exponent + 4.0))
+}
+
+/// Replace a Phong peak by 7 weighted nodes (area weights) with the lobe's mean cosine.
+fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
+    let mean = exponent / (exponent + 4.0);
     let c = ((mean - AXIS_WEIGHT) / (1.0 - AXIS_WEIGHT)).clamp(-1.0, 1.0);
     if c > 1.0 - 1e-9 {
         out.push(Node { n: axis, w: weight });
@@ -256,6 +344,55 @@ fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
     }
 }
 
+/// The Phong facets' response of one texel, `E[(m·h)^η (m·i)⁺]` over its projected area
+/// (`m_z`-weighted, normalised), in closed form from its lobes (see [`NdfMapped`]).
+/// `lambda = η + 1` is the Gaussian of the transfer (same integral over the sphere).
+#[inline]
+fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambda: f64) -> f64 {
+    let mut sum = 0.0;
+    for l in lobes {
+        let kah = l.ka.dot(h);
+        let r = (l.kappa * l.kappa + lambda * (2.0 * kah + lambda))
+            .max(1e-24)
+            .sqrt();
+        let inv_r = 1.0 / r;
+        // Axis of the product Gaussian (unnormalised: × r).
+        let m = l.ka + lambda * h;
+        let mh = (kah + lambda) * inv_r;
+        if mh <= 0.0 {
+            continue;
+        }
+        // r − κ without cancellation.
+        let r_minus_k = lambda * (2.0 * kah + lambda) / (r + l.kappa);
+        // exp(r − κ − λ) × (the Phong transfer / its Gaussian) × (the Phong peak / its
+        // Gaussian)^β, both ratios taken at the product's axis m*: a sharp lobe gives exactly
+        // (a·h)^η, a lobe much broader than the transfer its exact density at h. In between
+        // the peak's ratio varies over the product's spread; β = (λ/(λ + κ))² (calibrated
+        // against a quadrature, see the tests) keeps the error under 1% of the peak.
+        let am = (l.kappa + lambda * l.axis.dot(h)) * inv_r;
+        let am_minus_1 = -(r_minus_k - lambda * l.axis.dot(h)) * inv_r;
+        let beta = lambda / (lambda + l.kappa);
+        let beta = beta * beta;
+        let e = (r_minus_k - lambda * mh
+            + eta * mh.ln()
+            + beta
+                * (l.half_eta * (0.5 * (1.0 + am)).max(1e-300).ln() - l.kappa * am_minus_1
+                    + l.ln_ratio))
+            .exp();
+        // (1 − e^{−2r}) / r, and E[(m·i)(m·z)] = (A/r) i_z + (1 − 3A/r)(m*·i)(m*·z).
+        let (mass, a_r) = if r > 20.0 {
+            (inv_r, (1.0 - inv_r) * inv_r)
+        } else {
+            (-(-2.0 * r).exp_m1() * inv_r, vmf_mean_cos(r) * inv_r)
+        };
+        let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
+        if q > 0.0 {
+            sum += l.w * mass * q * e;
+        }
+    }
+    sum
+}
+
 /// A material reading an NDF pyramid (see the module docs): the filtered bump map.
 #[derive(Clone, Debug)]
 pub struct NdfMapped {
@@ -264,6 +401,7 @@ pub struct NdfMapped {
     diffuse: [f32; 3],
     texels_per_uv: f64,
     shadowing: bool,
+    footprint_scale: f64,
 }
 
 /// Up to 8 `(level, texel, weight)` taps of the trilinear filter.
@@ -285,6 +423,8 @@ impl NdfMapped {
         shadowing: bool,
     ) -> Result<NdfMapped, String> {
         check_scale(texels_per_uv)?;
+        let facet = Facet::new(&surface.transfer);
+        let general = matches!(facet, Facet::General(_));
         let mut levels = Vec::with_capacity(pyramid.levels.len());
         for (k, l) in pyramid.levels.iter().enumerate() {
             if shadowing && l.horizon.is_none() {
@@ -293,39 +433,86 @@ impl NdfMapped {
                      shadowing needs a height map"
                 ));
             }
-            let mut start = Vec::with_capacity(l.texels() + 1);
+            let mut lobe_start = Vec::with_capacity(l.texels() + 1);
+            let mut lobes = Vec::with_capacity(l.lobes.len());
+            let mut second_z = Vec::with_capacity(l.texels());
+            let mut node_start = Vec::new();
             let mut nodes = Vec::new();
             let mut tmp = Vec::new();
-            start.push(0u32);
+            lobe_start.push(0u32);
+            if general {
+                node_start.push(0u32);
+            }
             for t in 0..l.texels() {
-                tmp.clear();
-                let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
-                for lobe in &l.lobes[a..b] {
-                    lobe_nodes(lobe.axis, lobe.weight, lobe.exponent, &mut tmp);
-                }
-                for n in &mut tmp {
-                    n.w *= n.n.z.max(0.0);
-                }
-                let total: f64 = tmp.iter().map(|n| n.w).sum();
-                if total > 0.0 {
-                    nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
-                        n: n.n,
-                        w: n.w / total,
-                    }));
+                let src = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+                // Projected area of the texel's microsurface: Σ w E[m_z] = Σ w μ a_z.
+                let area: f64 = src
+                    .iter()
+                    .map(|p| p.weight * p.exponent / (p.exponent + 4.0) * p.axis.z)
+                    .sum();
+                let mut sz = DVec3::ZERO;
+                if area > 0.0 {
+                    for p in src {
+                        let kappa = peak_kappa(p.exponent);
+                        let w = p.weight / area;
+                        let norm = if kappa < 1e-9 {
+                            0.5
+                        } else {
+                            kappa / -(-2.0 * kappa).exp_m1()
+                        };
+                        lobes.push(SgLobe::new(p.axis, p.exponent, kappa, w * norm));
+                        // E[m (m·z)] = (A/κ) z + (1 − 3A/κ) a_z a.
+                        let a_k = if kappa < 1e-3 {
+                            1.0 / 3.0
+                        } else {
+                            vmf_mean_cos(kappa) / kappa
+                        };
+                        sz += w * (a_k * DVec3::Z + (1.0 - 3.0 * a_k) * p.axis.z * p.axis);
+                    }
                 } else {
                     // No lobe faces up: shade as the flat surface.
-                    nodes.push(Node {
-                        n: DVec3::Z,
-                        w: 1.0,
-                    });
+                    let kappa = peak_kappa(meso_maps::fit::ETA_MAX);
+                    lobes.push(SgLobe::new(
+                        DVec3::Z,
+                        meso_maps::fit::ETA_MAX,
+                        kappa,
+                        kappa / (meso_maps::fit::ETA_MAX / (meso_maps::fit::ETA_MAX + 4.0)),
+                    ));
+                    sz = DVec3::Z;
                 }
-                start.push(nodes.len() as u32);
+                lobe_start.push(lobes.len() as u32);
+                second_z.push(sz);
+                if general {
+                    tmp.clear();
+                    for p in src {
+                        lobe_nodes(p.axis, p.weight, p.exponent, &mut tmp);
+                    }
+                    for n in &mut tmp {
+                        n.w *= n.n.z.max(0.0);
+                    }
+                    let total: f64 = tmp.iter().map(|n| n.w).sum();
+                    if total > 0.0 {
+                        nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
+                            n: n.n,
+                            w: n.w / total,
+                        }));
+                    } else {
+                        nodes.push(Node {
+                            n: DVec3::Z,
+                            w: 1.0,
+                        });
+                    }
+                    node_start.push(nodes.len() as u32);
+                }
             }
             levels.push(NodeLevel {
                 cols: l.cols,
                 rows: l.rows,
                 span: l.span as f64,
-                start,
+                lobe_start,
+                lobes,
+                second_z,
+                node_start,
                 nodes,
                 horizon: if shadowing { l.horizon.clone() } else { None },
             });
@@ -335,10 +522,11 @@ impl NdfMapped {
         }
         Ok(NdfMapped {
             levels,
-            facet: Facet::new(&surface.transfer),
+            facet,
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
             shadowing,
+            footprint_scale: 1.0,
         })
     }
 
@@ -357,11 +545,39 @@ impl NdfMapped {
         self
     }
 
+    /// Filter for renders of `spp` samples per pixel: the ray-differential footprint (which
+    /// spans a whole pixel) is divided by `√spp`, the spacing of the samples, so that each
+    /// sample filters its share of the pixel and the pixel's average converges to the box
+    /// filter of the pixel as `spp` grows. Without it every jittered sample filters a whole
+    /// pixel around itself, and the pixel is blurred by about twice its size whatever `spp`.
+    /// `spp = 1` (the default) uses the footprint as given.
+    #[must_use]
+    pub fn with_samples_per_pixel(mut self, spp: u32) -> NdfMapped {
+        self.footprint_scale = 1.0 / f64::from(spp.max(1)).sqrt();
+        self
+    }
+
+    /// The pixel footprint at `sp` in level-0 cells (scaled by
+    /// [`NdfMapped::with_samples_per_pixel`]).
+    fn footprint_cells(&self, sp: &ShadingPoint) -> f64 {
+        sp.uv_footprint() * self.texels_per_uv * self.footprint_scale
+    }
+
+    /// Multiply the ray-differential footprint by `scale` (> 0; default 1) before choosing the
+    /// level of detail; [`NdfMapped::with_samples_per_pixel`] sets it from the sample count.
+    #[must_use]
+    pub fn with_footprint_scale(mut self, scale: f64) -> NdfMapped {
+        if scale.is_finite() && scale > 0.0 {
+            self.footprint_scale = scale;
+        }
+        self
+    }
+
     /// The continuous level of detail used at `sp`: `log2(footprint in cells) − ½`, clamped to
-    /// `[0, levels − 1]`.
+    /// `[0, levels − 1]` (the footprint is scaled by [`NdfMapped::with_samples_per_pixel`]).
     #[must_use]
     pub fn lod(&self, sp: &ShadingPoint) -> f64 {
-        let fp = sp.uv_footprint() * self.texels_per_uv;
+        let fp = self.footprint_cells(sp);
         let top = (self.levels.len() - 1) as f64;
         if fp > 0.0 && fp.is_finite() {
             (fp.log2() - 0.5).clamp(0.0, top)
@@ -372,15 +588,46 @@ impl NdfMapped {
         }
     }
 
-    /// The trilinear taps at `sp`.
+    /// The taps at `sp`: trilinear, or below level 0 (footprints under √2 cells) the cells
+    /// overlapping a box of width `c = √(fp² − 1)` around the point (`c = 1` is the bilinear
+    /// filter; the cell's own box plus this one have the footprint's variance), down to the
+    /// single cell under the point.
     fn taps(&self, sp: &ShadingPoint) -> Taps {
+        let fp = self.footprint_cells(sp);
+        let (x, y) = (sp.uv.x * self.texels_per_uv, sp.uv.y * self.texels_per_uv);
+        let mut taps = [(0usize, 0usize, 0.0f64); 8];
+        let mut n = 0;
+        if fp.is_finite() && fp < std::f64::consts::SQRT_2 {
+            let c = (fp * fp - 1.0).max(0.0).sqrt();
+            let l = &self.levels[0];
+            // Overlaps of [p − c/2, p + c/2] with the cells (at most two; weights sum to 1).
+            let axis = |p: f64| -> [(i64, f64); 2] {
+                if c < 1e-9 {
+                    return [(p.floor() as i64, 1.0), (0, 0.0)];
+                }
+                let (lo, hi) = (p - 0.5 * c, p + 0.5 * c);
+                let j = lo.floor();
+                let w0 = ((j + 1.0).min(hi) - lo) / c;
+                [(j as i64, w0), (j as i64 + 1, 1.0 - w0)]
+            };
+            for (r, wy) in axis(y) {
+                for (cc, wx) in axis(x) {
+                    let w = wx * wy;
+                    if w <= 0.0 {
+                        continue;
+                    }
+                    let col = cc.rem_euclid(l.cols as i64) as usize;
+                    let row = r.rem_euclid(l.rows as i64) as usize;
+                    taps[n] = (0, row * l.cols + col, w);
+                    n += 1;
+                }
+            }
+            return (taps, n);
+        }
         let lod = self.lod(sp);
         let l0 = lod.floor() as usize;
         let l1 = (l0 + 1).min(self.levels.len() - 1);
         let t = lod - l0 as f64;
-        let (x, y) = (sp.uv.x * self.texels_per_uv, sp.uv.y * self.texels_per_uv);
-        let mut taps = [(0usize, 0usize, 0.0f64); 8];
-        let mut n = 0;
         for (lev, lw) in [(l0, 1.0 - t), (l1, t)] {
             if lw <= 0.0 {
                 continue;
@@ -405,6 +652,31 @@ impl NdfMapped {
         }
         (taps, n)
     }
+
+    /// The facets' response `E[f_μ(i, o; m) (m·i)⁺]` of texel `t` of level `l` (scalar for
+    /// Phong and Lambert facets, whose colour is applied by the caller).
+    #[inline]
+    fn texel(&self, l: &NodeLevel, t: usize, wi: DVec3, wo: DVec3, h: DVec3) -> [f64; 3] {
+        match self.facet {
+            Facet::Phong { exponent, .. } => {
+                let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+                let eta = f64::from(exponent);
+                [phong_texel(lobes, wi, h, eta, eta + 1.0), 0.0, 0.0]
+            }
+            Facet::Lambert { .. } => [l.second_z[t].dot(wi).max(0.0), 0.0, 0.0],
+            Facet::General(_) => {
+                let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
+                let mut a = [0.0f64; 3];
+                for nd in nodes {
+                    let v = self.facet.lit(nd.n, wi, wo, h);
+                    for c in 0..3 {
+                        a[c] += nd.w * f64::from(v[c]);
+                    }
+                }
+                a
+            }
+        }
+    }
 }
 
 impl Shader for NdfMapped {
@@ -421,57 +693,122 @@ impl Shader for NdfMapped {
         if wo.z <= 0.0 {
             return;
         }
+        let colour: [f64; 3] = match self.facet {
+            Facet::Phong { specular, .. } => specular.map(f64::from),
+            Facet::Lambert { albedo_pi } => albedo_pi.map(f64::from),
+            Facet::General(_) => [1.0; 3],
+        };
+        let scalar = !matches!(self.facet, Facet::General(_));
         let (taps, ntaps) = self.taps(sp);
-        for chunk in 0..wi.len().div_ceil(LIGHT_BATCH) {
-            let lo = chunk * LIGHT_BATCH;
-            let hi = (lo + LIGHT_BATCH).min(wi.len());
-            let mut h = [DVec3::ZERO; LIGHT_BATCH];
-            let mut acc = [[0.0f64; 3]; LIGHT_BATCH];
-            let mut vis = [0.0f64; LIGHT_BATCH];
-            let mut ok = [false; LIGHT_BATCH];
-            for k in lo..hi {
-                let s = wi[k] + wo;
-                let l = s.length();
-                if wi[k].z > 0.0 && l > 1e-12 {
-                    ok[k - lo] = true;
-                    h[k - lo] = s / l;
-                }
+        for (k, &i) in wi.iter().enumerate() {
+            let s = i + wo;
+            let len = s.length();
+            if i.z <= 0.0 || len <= 1e-12 {
+                continue;
             }
+            let h = s / len;
+            let mut acc = [0.0f64; 3];
+            let mut vis = 0.0f64;
             for &(lev, t, w) in &taps[..ntaps] {
                 let l = &self.levels[lev];
-                let nodes = &l.nodes[l.start[t] as usize..l.start[t + 1] as usize];
-                for k in lo..hi {
-                    if !ok[k - lo] {
-                        continue;
-                    }
-                    let mut a = [0.0f32; 3];
-                    for nd in nodes {
-                        let v = self.facet.lit(nd.n, wi[k], wo, h[k - lo]);
-                        let nw = nd.w as f32;
-                        a[0] += nw * v[0];
-                        a[1] += nw * v[1];
-                        a[2] += nw * v[2];
-                    }
+                let v = self.texel(l, t, i, wo, h);
+                if scalar {
+                    acc[0] += w * v[0];
+                } else {
                     for c in 0..3 {
-                        acc[k - lo][c] += w * f64::from(a[c]);
-                    }
-                    if self.shadowing {
-                        if let Some(hz) = &l.horizon {
-                            vis[k - lo] += w * hz[t].visibility(wi[k]);
-                        }
+                        acc[c] += w * v[c];
                     }
                 }
-            }
-            for k in lo..hi {
-                if !ok[k - lo] {
-                    continue;
-                }
-                let v = if self.shadowing { vis[k - lo] } else { 1.0 };
-                let s = v / wi[k].z;
-                for c in 0..3 {
-                    out[k][c] = (acc[k - lo][c] * s) as f32 + self.diffuse[c];
+                if let Some(hz) = &l.horizon {
+                    vis += w * hz[t].visibility(i);
                 }
             }
+            let v = if self.shadowing { vis } else { 1.0 };
+            let s = v / i.z;
+            for c in 0..3 {
+                let a = if scalar { acc[0] * colour[c] } else { acc[c] };
+                out[k][c] = (a * s) as f32 + self.diffuse[c];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `E[(m·h)^η (m·i)⁺ m_z⁺] / E[m_z⁺]` over one Phong peak `cos^η_n(α/2)` by a fine
+    /// quadrature in the lobe's frame (independent of the Gaussian forms).
+    fn quadrature(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
+        let f = Frame::from_normal_tangent(axis, DVec3::X);
+        let amax = (12.0 * 2.0 / eta_n.sqrt()).min(std::f64::consts::PI);
+        let (na, np) = (600, 240);
+        let (mut num, mut den) = (0.0, 0.0);
+        for ia in 0..na {
+            let a = (ia as f64 + 0.5) / na as f64 * amax;
+            let d = (0.5 * (1.0 + a.cos())).powf(0.5 * eta_n) * a.sin();
+            for ip in 0..np {
+                let p = (ip as f64 + 0.5) / np as f64 * std::f64::consts::TAU;
+                let m = f.to_world(DVec3::new(a.sin() * p.cos(), a.sin() * p.sin(), a.cos()));
+                let w = d * m.z.max(0.0);
+                num += w * m.dot(h).max(0.0).powf(eta) * m.dot(wi).max(0.0);
+                den += w;
+            }
+        }
+        num / den
+    }
+
+    fn closed(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
+        let kappa = peak_kappa(eta_n);
+        let area = eta_n / (eta_n + 4.0) * axis.z;
+        let lobe = SgLobe::new(axis, eta_n, kappa, kappa / -(-2.0 * kappa).exp_m1() / area);
+        phong_texel(&[lobe], wi, h, eta, eta + 1.0)
+    }
+
+    /// The closed form of one lobe under Phong facets agrees with the quadrature, from a
+    /// delta-like lobe to one broader than the facets' highlight, near and away from the peak.
+    #[test]
+    fn phong_lobe_closed_form_matches_quadrature() {
+        let wo = DVec3::new(0.0, -0.5, 0.866).normalize();
+        let mut worst = 0.0f64;
+        for (eta_n, eta) in [
+            (1e5, 40.0),
+            (400.0, 40.0),
+            (60.0, 40.0),
+            (15.0, 20.0),
+            (60.0, 200.0),
+        ] {
+            for (tilt, wi) in [
+                (10.0f64, DVec3::new(-0.75, 0.35, 0.57)),
+                (25.0, DVec3::new(-0.5, 0.3, 0.8)),
+                (5.0, DVec3::new(0.2, 0.6, 0.77)),
+            ] {
+                let wi = wi.normalize();
+                let h = (wi + wo).normalize();
+                let t = tilt.to_radians();
+                let axis = DVec3::new(-t.sin() * 0.8, -t.sin() * 0.6, t.cos()).normalize();
+                let q = quadrature(axis, eta_n, wi, h, eta);
+                let c = closed(axis, eta_n, wi, h, eta);
+                // Relative to the lobe's value at its peak (h on the axis), so that the far
+                // tails, where both are tiny, do not dominate.
+                let peak = quadrature(axis, eta_n, wi, axis, eta).max(q);
+                worst = worst.max((c - q).abs() / peak);
+            }
+        }
+        // Measured: at most 0.94% (η_n = 15 under η = 20).
+        assert!(worst < 0.015, "worst error {worst} of the peak");
+    }
+
+    /// The Gaussian of a Phong peak keeps its mean cosine `η/(η + 4)`.
+    #[test]
+    fn peak_kappa_keeps_the_mean_cosine() {
+        for eta in [0.5, 4.0, 40.0, 1e3, 1e6] {
+            let mu = eta / (eta + 4.0);
+            let k = peak_kappa(eta);
+            assert!(
+                (vmf_mean_cos(k) - mu).abs() < 1e-9 * (1.0 + 1.0 / (1.0 - mu)),
+                "{eta}: {k}"
+            );
         }
     }
 }

@@ -259,9 +259,9 @@ albedo = [0.5, 0.4, 0.3]
 
 /// The NDF-mapped render (4 spp) of a bump map against the bump-mapped render supersampled
 /// at 1024 spp, at footprints of 4, 16, 64 and 256 cells per pixel (one map tile per world
-/// unit, 32 cells): mean relative image error below 6% at every zoom level (measured 4.4%,
-/// 4.9%, 1.2% and ~1%; at 1 cell per pixel, where the bump map is magnified rather than
-/// filtered, it is 11.6%: see docs/figures.md).
+/// unit, 32 cells): mean relative image error below 5% at every zoom level (measured 4.3%,
+/// 4.4%, 2.4% and 2.5%, almost all of it the pyramid's lobe fit: the closed-form evaluation
+/// agrees with a fine quadrature of the fitted lobes within about 1%; see docs/figures.md).
 #[test]
 fn ndf_mapped_matches_supersampled_bump_map() {
     let map = egg_crate();
@@ -274,6 +274,8 @@ fn ndf_mapped_matches_supersampled_bump_map() {
     let surface = Material::from_toml_str(SURFACE).unwrap();
     let tpu = 32.0;
     let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, false).unwrap());
+    // The whole pixel's footprint at every sample: with 4 jittered samples this is more
+    // accurate here than `with_samples_per_pixel(4)` (8.5% at 4 cells per pixel).
     let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, false).unwrap());
     let size = 24u32;
     let mut errors = Vec::new();
@@ -299,12 +301,17 @@ fn ndf_mapped_matches_supersampled_bump_map() {
     }
     eprintln!("mean relative errors at 4, 16, 64, 256 cells/pixel: {errors:?}");
     for e in &errors {
-        assert!(*e < 0.06, "errors {errors:?}");
+        assert!(*e < 0.05, "errors {errors:?}");
     }
 }
 
-/// Zooming is smooth: the mean radiance of the NDF-mapped plane changes by less than 1.5%
-/// between camera widths 10% apart, over four octaves of footprint.
+/// Zooming is smooth: over four octaves of footprint (1 to 40 cells per pixel, widths 10%
+/// apart), the mean radiance of the NDF-mapped plane (4 spp, shadowed) follows that of the
+/// bump-mapped plane (64 spp): their ratio moves by less than 2% between neighbouring widths
+/// (no pop between levels; measured at most 1.6%) and stays within 7% of 1 (measured
+/// 0.978–1.056: the lobe fits of the middle levels). The mean itself is not a constant: at
+/// the first widths the view holds about one tile, and the true mean changes by up to 2%
+/// between widths.
 #[test]
 fn ndf_mapped_zoom_is_smooth() {
     let map = egg_crate();
@@ -316,32 +323,39 @@ fn ndf_mapped_zoom_is_smooth() {
     .unwrap();
     let surface = Material::from_toml_str(SURFACE).unwrap();
     let ndf = Arc::new(NdfMapped::new(&pyr, &surface, 32.0, true).unwrap());
-    let mut prev: Option<f64> = None;
-    let mut width = 1.0;
-    while width < 40.0 {
+    let bump = Arc::new(BumpMapped::new(&map, &surface, 32.0, true).unwrap());
+    let mean = |shader: Arc<dyn Shader>, width: f64, spp: u32| -> f64 {
         let img = render(
-            &plane_scene(ndf.clone(), width, 32),
+            &plane_scene(shader, width, 32),
             &RenderOptions {
-                spp: Some(4),
+                spp: Some(spp),
                 ..RenderOptions::default()
             },
             None,
         );
-        let mean: f64 = img
-            .pixels()
+        img.pixels()
             .iter()
             .map(|p| f64::from(p[0] + p[1] + p[2]))
             .sum::<f64>()
-            / img.pixels().len() as f64;
+            / img.pixels().len() as f64
+    };
+    let mut prev: Option<f64> = None;
+    let mut ratios = Vec::new();
+    let mut width = 1.0;
+    while width < 40.0 {
+        let ratio = mean(ndf.clone(), width, 4) / mean(bump.clone(), width, 64);
+        ratios.push(ratio);
         if let Some(p) = prev {
             assert!(
-                ((mean - p) / p).abs() < 0.015,
-                "jump at width {width}: {p} -> {mean}"
+                (ratio - p).abs() < 0.02,
+                "jump at width {width}: ratios {ratios:?}"
             );
         }
-        prev = Some(mean);
+        assert!((ratio - 1.0).abs() < 0.07, "ratios {ratios:?}");
+        prev = Some(ratio);
         width *= 1.1;
     }
+    eprintln!("NDF-mapped / bump-mapped mean radiance: {ratios:?}");
 }
 
 /// Bad placements are refused with a message, not a panic.
