@@ -66,6 +66,26 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
     );
     assert!(stdout.contains("written material, exact"), "{stdout}");
     assert!(stdout.contains("lobe  theta(deg)"), "{stdout}");
+    // MERL data: axes on the normal by default; there MERL's θh cells are far finer than the
+    // lobe model's own bound (the cap is that bound); held-out cells reported.
+    assert!(stdout.contains("axes: normal"), "{stdout}");
+    assert!(
+        stdout.contains("lobe sharpness cap: none below the model's bound"),
+        "{stdout}"
+    );
+    let held = stdout
+        .lines()
+        .find(|l| l.contains("held out, not fitted ("))
+        .unwrap_or_else(|| panic!("no held-out row in\n{stdout}"));
+    let n_held: usize = held[held.find('(').unwrap() + 1..held.find(" samples").unwrap()]
+        .parse()
+        .unwrap();
+    assert!(n_held > 100_000, "{held}");
+    let v: Vec<f64> = held[held.find(')').unwrap() + 1..]
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(v.len() == 6 && v[3..].iter().all(|e| *e < 0.01), "{held}");
 
     // The written material, read by meso-core and evaluated exactly, against the generating
     // closed form (tolerance: the closed form is within a few % of the exact quadrature for
@@ -73,6 +93,8 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
     let text = std::fs::read_to_string(&out).unwrap();
     let m = Material::from_toml_str(&text).expect("the output is a valid material");
     let t = truth();
+    assert!(text.contains("--axes normal"), "{text}");
+    assert!(text.contains("held-out samples"), "{text}");
     let mut worst: f64 = 0.0;
     for (ti, pi, to, po) in [
         (0.0, 0.0, 5.0, 0.0),
@@ -332,8 +354,10 @@ fn per_channel_lobes_recover_each_channels_geometry() {
     }
 
     // One geometry for three different lobes cannot fit all channels.
-    let (per_l2, per_log) = fitted_errors(&per, n);
-    let (sh_l2, sh_log) = fitted_errors(&shared, n);
+    // Every 10th CSV sample is held out (and reported), the others are fitted.
+    assert!(per.contains("held out, not fitted (600 samples)"), "{per}");
+    let (per_l2, per_log) = fitted_errors(&per, n - n / 10);
+    let (sh_l2, sh_log) = fitted_errors(&shared, n - n / 10);
     eprintln!("per-channel: {per_l2:?} {per_log:?}; shared: {sh_l2:?} {sh_log:?}");
     for c in 0..3 {
         assert!(per_log[c] < 2e-3, "per-channel log error {per_log:?}");

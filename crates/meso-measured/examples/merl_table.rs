@@ -3,27 +3,51 @@
 //!
 //! ```text
 //! cargo run --release -p meso-measured --example merl_table -- [--metric low-log|ngan-l2] \
-//!     [--target N] A.binary [B.binary ...]
+//!     [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,baselines] \
+//!     A.binary [B.binary ...]
 //! ```
 //!
 //! Fits use a stratified subsample of `N` cells (default 30 000, θi, θo < 80°); the errors are
-//! reported on *all* valid cells with θi, θo < 80°.
+//! reported on *all* valid cells with θi, θo < 80°, and (last column, Löw log) on the 30 000
+//! held-out cells (valid cells not fitted). `--axes` and `--no-cap` set
+//! [`FitOptions::axes`] and [`FitOptions::resolution_cap`] (defaults: the library's).
+//! Each lobe fit's sharpest lobe (η, tilt) is printed too.
 
-use meso_measured::fit::{evaluate, fit, BrdfModel, FitOptions, FitResult};
+use meso_measured::fit::{evaluate, fit, BrdfModel, FitOptions, FitResult, LobeAxes};
 use meso_measured::merl::MerlTable;
 use meso_measured::metric::Metric;
 use meso_measured::model::{self, TransferExponent};
 use meso_measured::samples::{MerlSampling, SampleSet};
 use std::path::Path;
 
-fn row(material: &str, m: &dyn BrdfModel, r: &FitResult, all: &SampleSet) {
+fn row(
+    material: &str,
+    m: &dyn BrdfModel,
+    r: &FitResult,
+    all: &SampleSet,
+    lobes: &[meso_core::ndf::PhongLobe],
+) {
     let e = evaluate(m, &r.theta, &r.amps, all);
     let f = |v: [f64; 3]| format!("{:.4} {:.4} {:.4}", v[0], v[1], v[2]);
+    let sharpest = lobes
+        .iter()
+        .max_by(|a, b| a.exponent.total_cmp(&b.exponent))
+        .map(|l| {
+            format!(
+                "{:.0} at {:.1}° (w {:.2})",
+                l.exponent,
+                l.axis.z.clamp(-1.0, 1.0).acos().to_degrees(),
+                l.weight
+            )
+        })
+        .unwrap_or_default();
     println!(
-        "| {material} | {} | {} | {} | {:.2} | {} |",
+        "| {material} | {} | {} | {} | {} | {} | {:.2} | {} |",
         r.model,
         f(e.ngan_l2),
         f(e.low_log),
+        r.held_out.map(|h| f(h.low_log)).unwrap_or_default(),
+        sharpest,
         r.seconds,
         r.iterations
     );
@@ -33,6 +57,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut metric = Metric::LowLog;
     let mut target = 30_000;
     let mut paths = Vec::new();
+    let mut opts = FitOptions::default();
+    let mut models = "phong,microfacet,baselines".to_string();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -41,9 +67,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 metric = Metric::from_name(&v).ok_or(format!("unknown metric {v}"))?;
             }
             "--target" => target = args.next().ok_or("--target needs a value")?.parse()?,
+            "--axes" => {
+                let v = args.next().ok_or("--axes needs a value")?;
+                opts.axes = LobeAxes::from_name(&v).ok_or(format!("unknown axes {v}"))?;
+            }
+            "--no-cap" => opts.resolution_cap = false,
+            "--models" => models = args.next().ok_or("--models needs a value")?,
             "-h" | "--help" => {
                 println!(
-                    "usage: merl_table [--metric low-log|ngan-l2] [--target N] FILE.binary..."
+                    "usage: merl_table [--metric low-log|ngan-l2] [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,baselines] FILE.binary..."
                 );
                 return Ok(());
             }
@@ -53,17 +85,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if paths.is_empty() {
         return Err("no MERL files given (see --help)".into());
     }
-    let opts = FitOptions {
-        metric,
-        ..FitOptions::default()
-    };
+    opts.metric = metric;
     println!(
-        "fitted in metric {}; errors on all valid cells with θ < 80°",
-        metric.name()
+        "fitted in metric {}, lobe axes {}, resolution cap {}; errors on all valid cells with θ < 80° and on the held-out cells",
+        metric.name(),
+        opts.axes.name(),
+        if opts.resolution_cap { "on" } else { "off" }
     );
     println!();
-    println!("| material | model | Ngan L2 (r g b, 1/sr) | Löw log (r g b) | fit time (s) | LM iterations |");
-    println!("|---|---|---|---|---|---|");
+    println!("| material | model | Ngan L2 (r g b, 1/sr) | Löw log (r g b) | held-out Löw log (r g b) | sharpest lobe η | fit time (s) | LM iterations |");
+    println!("|---|---|---|---|---|---|---|---|");
     for p in &paths {
         let name = Path::new(p)
             .file_stem()
@@ -84,27 +115,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ..MerlSampling::default()
             },
         );
-        eprintln!("{name}: {stats:?}");
-        let fits = model::fit_lobes_progressive(3, TransferExponent::Free, &data, &opts)?;
-        for (m, r) in &fits {
-            row(&name, m, r, &all);
-            eprintln!(
-                "{}",
-                m.params(r).to_material_toml(&format!("{name} {}", r.model))
-            );
+        eprintln!(
+            "{name}: {stats:?}, angular resolution {:.3}°",
+            data.angular_resolution().to_degrees()
+        );
+        if models.contains("phong") {
+            let fits = model::fit_lobes_progressive(3, TransferExponent::Free, &data, &opts)?;
+            for (m, r) in &fits {
+                let p = m.params(r);
+                row(&name, m, r, &all, &p.lobes);
+                eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
+            }
         }
-        let fits = model::fit_microfacet_lobes_progressive(3, &data, &opts)?;
-        for (m, r) in &fits {
-            row(&name, m, r, &all);
-            eprintln!(
-                "{}",
-                m.params(r).to_material_toml(&format!("{name} {}", r.model))
-            );
+        if models.contains("microfacet") {
+            let fits = model::fit_microfacet_lobes_progressive(3, &data, &opts)?;
+            for (m, r) in &fits {
+                let p = m.params(r);
+                row(&name, m, r, &all, &p.lobes);
+                eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
+            }
         }
-        for m in model::baselines() {
-            let r = fit(m.as_ref(), &data, &opts)?;
-            row(&name, m.as_ref(), &r, &all);
-            eprintln!("{}: θ = {:?}, amplitudes = {:?}", r.model, r.theta, r.amps);
+        if models.contains("baselines") {
+            for m in model::baselines() {
+                let r = fit(m.as_ref(), &data, &opts)?;
+                row(&name, m.as_ref(), &r, &all, &[]);
+                eprintln!("{}: θ = {:?}, amplitudes = {:?}", r.model, r.theta, r.amps);
+            }
         }
     }
     Ok(())

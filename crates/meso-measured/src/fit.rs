@@ -75,6 +75,22 @@ pub trait BrdfModel: Sync {
         vec![(0.0, f64::INFINITY); self.n_basis()]
     }
 
+    /// Indices into `θ` of lobe-axis coordinates whose value 0 puts the lobe axis on the surface
+    /// normal (the tangent-plane point `(ax, ay, 1)` of the lobe models). [`LobeAxes::Normal`]
+    /// holds them at 0. Default: none.
+    fn axis_parameters(&self) -> Vec<usize> {
+        Vec::new()
+    }
+
+    /// Sharpness parameters: `(index into θ, c)` for each parameter `θ_i = ln η` whose lobe has
+    /// the von Mises–Fisher concentration `κ = c·η` (Phong peaks `cos^η(α/2)`: `c = ¼`). With
+    /// [`FitOptions::resolution_cap`] their upper bound becomes `ln(κ_max/c)`,
+    /// `κ_max = 1/δ²` for the data's angular resolution δ ([`SampleSet::angular_resolution`]):
+    /// no lobe narrower than δ (per-axis angular standard deviation `1/√κ`). Default: none.
+    fn sharpness_parameters(&self) -> Vec<(usize, f64)> {
+        Vec::new()
+    }
+
     /// Number of non-linear parameters.
     fn n_nonlinear(&self) -> usize {
         self.nonlinear_names().len()
@@ -124,7 +140,18 @@ pub fn evaluate(
     amps: &[[f64; 3]],
     data: &SampleSet,
 ) -> FitErrors {
-    evaluate_fn(data, |wi, wo| {
+    evaluate_samples(model, theta, amps, &data.samples)
+}
+
+/// [`evaluate`] on a slice of samples (e.g. [`SampleSet::held_out`]).
+#[must_use]
+pub fn evaluate_samples(
+    model: &dyn BrdfModel,
+    theta: &[f64],
+    amps: &[[f64; 3]],
+    samples: &[Sample],
+) -> FitErrors {
+    evaluate_samples_fn(samples, |wi, wo| {
         let mut scratch = [0.0; 16];
         if amps.len() <= 16 {
             eval_model(model, theta, amps, wi, wo, &mut scratch)
@@ -138,8 +165,16 @@ pub fn evaluate(
 /// channel); `f` is evaluated once per sample, in parallel.
 #[must_use]
 pub fn evaluate_fn(data: &SampleSet, f: impl Fn(DVec3, DVec3) -> [f64; 3] + Sync) -> FitErrors {
-    let sums = data
-        .samples
+    evaluate_samples_fn(&data.samples, f)
+}
+
+/// [`evaluate_fn`] on a slice of samples (e.g. [`SampleSet::held_out`]).
+#[must_use]
+pub fn evaluate_samples_fn(
+    samples: &[Sample],
+    f: impl Fn(DVec3, DVec3) -> [f64; 3] + Sync,
+) -> FitErrors {
+    let sums = samples
         .par_chunks(256)
         .map(|chunk| {
             let mut acc = [0.0f64; 7];
@@ -172,6 +207,37 @@ pub fn evaluate_fn(data: &SampleSet, f: impl Fn(DVec3, DVec3) -> [f64; 3] + Sync
     }
 }
 
+/// Where the lobe axes of a lobe model may go ([`BrdfModel::axis_parameters`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LobeAxes {
+    /// Every lobe axis on the surface normal: an isotropic NDF without off-specular peaks
+    /// (the right model for isotropic data such as MERL tables).
+    Normal,
+    /// Axes anywhere within the model's bounds (off-specular and anisotropic placements).
+    Free,
+}
+
+impl LobeAxes {
+    /// Parse `"normal"` or `"free"`.
+    #[must_use]
+    pub fn from_name(s: &str) -> Option<LobeAxes> {
+        match s {
+            "normal" => Some(LobeAxes::Normal),
+            "free" => Some(LobeAxes::Free),
+            _ => None,
+        }
+    }
+
+    /// `"normal"` or `"free"`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            LobeAxes::Normal => "normal",
+            LobeAxes::Free => "free",
+        }
+    }
+}
+
 /// Options of [`fit`].
 #[derive(Clone, Copy, Debug)]
 pub struct FitOptions {
@@ -186,6 +252,18 @@ pub struct FitOptions {
     pub coarse_iterations: usize,
     /// LM iterations on the full sample set.
     pub fine_iterations: usize,
+    /// Where lobe axes may go (models with [`BrdfModel::axis_parameters`]; others ignore it).
+    /// Default [`LobeAxes::Normal`]: on the six MERL materials of docs/benchmarks.md free axes
+    /// gave no better K = 3 fit on any cell set, and "sink" lobes (false glints) on red-fabric
+    /// and beige-fabric; use [`LobeAxes::Free`] for anisotropic or off-specular data.
+    pub axes: LobeAxes,
+    /// Cap the lobe sharpness by the data's angular resolution
+    /// ([`BrdfModel::sharpness_parameters`]): a lobe narrower than the spacing of the samples can
+    /// hide between them and be fitted as a "sink" of facet area that shows as a false glint
+    /// elsewhere. The resolution is [`SampleSet::angular_resolution`] with free axes and
+    /// [`SampleSet::angular_resolution_at_normal`] with the axes on the normal (where MERL
+    /// tables are much finer than 1°). On by default.
+    pub resolution_cap: bool,
 }
 
 impl Default for FitOptions {
@@ -196,6 +274,8 @@ impl Default for FitOptions {
             refine_starts: 3,
             coarse_iterations: 60,
             fine_iterations: 40,
+            axes: LobeAxes::Normal,
+            resolution_cap: true,
         }
     }
 }
@@ -237,6 +317,17 @@ pub struct FitResult {
     pub amps: Vec<[f64; 3]>,
     /// Errors on the fitted samples, both metrics, per channel.
     pub errors: FitErrors,
+    /// Errors on the held-out samples ([`SampleSet::held_out`]; never fitted), `None` when the
+    /// data have none. Much larger than `errors` means an over-fit (e.g. a lobe between samples).
+    pub held_out: Option<FitErrors>,
+    /// Number of held-out samples scored.
+    pub held_out_count: usize,
+    /// The angular resolution δ (radians) that capped the lobe sharpness (`κ ≤ 1/δ²`; the
+    /// model's own bound applies when that is tighter, e.g. δ = 0), `None`
+    /// when [`FitOptions::resolution_cap`] is off or the model has no sharpness parameters.
+    pub resolution: Option<f64>,
+    /// Where the lobe axes were allowed to go.
+    pub axes: LobeAxes,
     /// Total LM iterations (all starts, both stages).
     pub iterations: usize,
     /// Number of starts tried.
@@ -578,6 +669,30 @@ pub fn fit_from(
     if starts.is_empty() || starts.iter().any(|s| s.len() != nt) {
         return Err(bad("starting points missing or of the wrong length".into()));
     }
+    let mut tb = tb;
+    if opts.axes == LobeAxes::Normal {
+        for i in model.axis_parameters() {
+            if i < nt {
+                tb[i] = (0.0, 0.0);
+            }
+        }
+    }
+    let sharp = model.sharpness_parameters();
+    // Lobes anywhere: the resolution of the whole set; lobes on the normal: the resolution there.
+    let resolution = (opts.resolution_cap && !sharp.is_empty()).then(|| match opts.axes {
+        LobeAxes::Free => data.angular_resolution(),
+        LobeAxes::Normal => data.angular_resolution_at_normal(),
+    });
+    if let Some(delta) = resolution {
+        let kappa_max = 1.0 / (delta * delta);
+        for (i, c) in sharp {
+            if i < nt && c > 0.0 {
+                let hi = (kappa_max / c).ln();
+                // Data too sparse for the model's broadest lobe: the cap stops at the lower bound.
+                tb[i].1 = tb[i].1.min(hi).max(tb[i].0);
+            }
+        }
+    }
     let ab = model.amplitude_bounds();
     if ab.len() != nb
         || ab
@@ -664,12 +779,18 @@ pub fn fit_from(
     let (theta, amps) = pf.split(&r.params);
     let theta = theta.to_vec();
     let errors = evaluate(model, &theta, &amps, data);
+    let held_out =
+        (!data.held_out.is_empty()).then(|| evaluate_samples(model, &theta, &amps, &data.held_out));
     Ok(FitResult {
         model: model.name(),
         metric: opts.metric,
         theta,
         amps,
         errors,
+        held_out,
+        held_out_count: data.held_out.len(),
+        resolution,
+        axes: opts.axes,
         iterations,
         starts: starts.len(),
         seconds: t0.elapsed().as_secs_f64(),

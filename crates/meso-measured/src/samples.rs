@@ -34,6 +34,12 @@ pub struct MerlSampling {
     /// equally valid; spreading them lets models with anisotropic freedom (tilted lobe axes) see
     /// the isotropy instead of one azimuthal slice.
     pub spread_phi_h: bool,
+    /// At most this many valid cells *not* among the fitted ones are kept as a held-out set
+    /// ([`SampleSet::held_out`], a jittered stride through the remaining cells); 0 = none,
+    /// `usize::MAX` (default) = all of them (about a million cells for a full table, 80 bytes
+    /// each: a lobe narrower than the fitted cells' spacing is hit by few cells, so a small
+    /// held-out set can miss it too). Empty when `target` keeps every valid cell.
+    pub held_out: usize,
 }
 
 impl Default for MerlSampling {
@@ -43,6 +49,7 @@ impl Default for MerlSampling {
             target: 30_000,
             position: CellPosition::Edge,
             spread_phi_h: true,
+            held_out: usize::MAX,
         }
     }
 }
@@ -62,11 +69,23 @@ pub struct MerlSamplingStats {
     pub kept: usize,
 }
 
+/// Angular size of a MERL cell used as the data's resolution, radians: 1°, the θd and φd bins
+/// (the θh bins are 0.85–1.8° wide for θh between 16° and 71°, finer only near the normal).
+pub const MERL_CELL_SIZE: f64 = std::f64::consts::PI / 180.0;
+
 /// A set of samples to fit or to score a model on.
 #[derive(Clone, Debug, Default)]
 pub struct SampleSet {
     /// The samples.
     pub samples: Vec<Sample>,
+    /// Angular size of one sample's cell in the source data, radians ([`MERL_CELL_SIZE`] for MERL
+    /// tables); 0 when unknown (scattered samples such as CSV files). Enters
+    /// [`SampleSet::angular_resolution`].
+    pub cell_size: f64,
+    /// Samples of the same data kept out of `samples` for validation: never fitted, scored in
+    /// [`crate::fit::FitResult::held_out`] (a narrow lobe hiding between the fitted samples shows
+    /// there). May be empty.
+    pub held_out: Vec<Sample>,
 }
 
 /// Indices `⌊(j + jitter_j)·n/m⌋`, j < m: a deterministic jittered stride through `0..n`.
@@ -113,12 +132,63 @@ impl SampleSet {
             });
         }
         stats.valid = valid.len();
-        let set = SampleSet { samples: valid };
-        let set = if opts.target == 0 || opts.target >= set.len() {
-            set
+        let n = valid.len();
+        let mut set = if opts.target == 0 || opts.target >= n {
+            SampleSet {
+                samples: valid,
+                cell_size: MERL_CELL_SIZE,
+                held_out: Vec::new(),
+            }
         } else {
-            set.stratified(opts.target)
+            let mut chosen = vec![false; n];
+            for k in jittered_stride(n, opts.target) {
+                chosen[k] = true;
+            }
+            let (mut kept, mut rest) = (Vec::new(), Vec::new());
+            for (k, s) in valid.into_iter().enumerate() {
+                if chosen[k] {
+                    kept.push(s);
+                } else {
+                    rest.push(s);
+                }
+            }
+            let strip = |samples: Vec<Sample>| SampleSet {
+                samples,
+                cell_size: MERL_CELL_SIZE,
+                held_out: Vec::new(),
+            };
+            // Weights scaled so that each set's total is that of all valid cells.
+            let (kept, rest) = (strip(kept), strip(rest));
+            let scale = n as f64 / kept.len().max(1) as f64;
+            let mut set = SampleSet {
+                samples: kept
+                    .samples
+                    .into_iter()
+                    .map(|mut s| {
+                        s.weight *= scale;
+                        s
+                    })
+                    .collect(),
+                ..kept
+            };
+            if opts.held_out > 0 && !rest.is_empty() {
+                let scale = n as f64 / rest.len() as f64;
+                let rest = if opts.held_out >= rest.len() {
+                    rest.samples
+                } else {
+                    rest.stratified(opts.held_out).samples
+                };
+                set.held_out = rest
+                    .into_iter()
+                    .map(|mut s| {
+                        s.weight *= scale;
+                        s
+                    })
+                    .collect();
+            }
+            set
         };
+        set.cell_size = MERL_CELL_SIZE;
         stats.kept = set.len();
         (set, stats)
     }
@@ -136,16 +206,82 @@ impl SampleSet {
                     weight: 1.0,
                 })
                 .collect(),
+            cell_size: 0.0,
+            held_out: Vec::new(),
         }
     }
 
+    /// Move every `every`-th sample (indices `every − 1`, `2·every − 1`, …) to
+    /// [`SampleSet::held_out`] (appended); `every < 2` changes nothing. For scattered data
+    /// (CSV), where no unfitted cells exist.
+    #[must_use]
+    pub fn hold_out_every(self, every: usize) -> SampleSet {
+        if every < 2 {
+            return self;
+        }
+        let mut held_out = self.held_out;
+        let mut samples = Vec::with_capacity(self.samples.len());
+        for (k, s) in self.samples.into_iter().enumerate() {
+            if k % every == every - 1 {
+                held_out.push(s);
+            } else {
+                samples.push(s);
+            }
+        }
+        SampleSet {
+            samples,
+            cell_size: self.cell_size,
+            held_out,
+        }
+    }
+
+    /// The data's angular resolution δ (radians): the larger of [`SampleSet::cell_size`] and the
+    /// mean spacing `sqrt(2π/N)` of `N` samples' half vectors spread over the hemisphere (2π sr).
+    /// A lobe narrower than δ can sit between the samples unseen; [`crate::fit::fit`] caps the
+    /// lobe sharpness by it (`κ ≤ 1/δ²`). Examples: 30 000 MERL cells, δ = 1° (the cell size;
+    /// `sqrt(2π/N)` = 0.83°); 6 000 CSV samples, δ = 1.86°; 1 000 CSV samples, δ = 4.5°.
+    #[must_use]
+    pub fn angular_resolution(&self) -> f64 {
+        let n = self.samples.len().max(1) as f64;
+        self.cell_size.max((2.0 * std::f64::consts::PI / n).sqrt())
+    }
+
+    /// The data's angular resolution at the surface normal (radians): the spacing of the
+    /// samples' half vectors around the normal, `r_n·sqrt(π/n)` for the `n = clamp(N/100, 10,
+    /// 300)` half vectors nearest to the normal, `r_n` the angle of the n-th (n points in a cap of
+    /// area `πr²`). What caps lobes held on the normal ([`crate::fit::LobeAxes::Normal`]); MERL
+    /// tables sample θh finely there (the first bins are 0.01° wide), so it is far below
+    /// [`SampleSet::angular_resolution`] for them. 0 for an empty set.
+    #[must_use]
+    pub fn angular_resolution_at_normal(&self) -> f64 {
+        let mut angles: Vec<f64> = self
+            .samples
+            .iter()
+            .filter_map(|s| {
+                let h = (s.wi + s.wo).try_normalize()?;
+                Some(h.z.clamp(-1.0, 1.0).acos())
+            })
+            .collect();
+        if angles.is_empty() {
+            return 0.0;
+        }
+        let n = (angles.len() / 100).clamp(10, 300).min(angles.len());
+        let (_, r, _) = angles.select_nth_unstable_by(n - 1, f64::total_cmp);
+        *r * (std::f64::consts::PI / n as f64).sqrt()
+    }
+
     /// A subsample of about `m` samples by a jittered stride (weights scaled by the stride so
-    /// totals are preserved). Returns a clone if `m ≥ len`.
+    /// totals are preserved), with the same `cell_size` and no held-out samples. Returns a copy
+    /// (without held-out samples) if `m ≥ len`.
     #[must_use]
     pub fn stratified(&self, m: usize) -> SampleSet {
         let n = self.samples.len();
         if m == 0 || m >= n {
-            return self.clone();
+            return SampleSet {
+                samples: self.samples.clone(),
+                cell_size: self.cell_size,
+                held_out: Vec::new(),
+            };
         }
         let scale = n as f64 / m as f64;
         SampleSet {
@@ -156,6 +292,18 @@ impl SampleSet {
                     s
                 })
                 .collect(),
+            cell_size: self.cell_size,
+            held_out: Vec::new(),
+        }
+    }
+
+    /// The held-out samples as a set of their own (same `cell_size`), for scoring.
+    #[must_use]
+    pub fn held_out_set(&self) -> SampleSet {
+        SampleSet {
+            samples: self.held_out.clone(),
+            cell_size: self.cell_size,
+            held_out: Vec::new(),
         }
     }
 

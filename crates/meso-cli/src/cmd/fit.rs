@@ -1,4 +1,4 @@
-//! `meso fit DATA --lobes K [--metric ngan|log] [--transfer phong|microfacet]
+//! `meso fit DATA --lobes K [--metric ngan|log] [--transfer phong|microfacet] [--axes auto|normal|free]
 //! [--per-channel-lobes] [--baselines] [--plot DIR] --out MATERIAL.toml` — fit a measured BRDF with
 //! a sum of Phong peaks (Fournier 1992, §3.3) and write it as a meso material.
 
@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use meso_core::material::Material;
-use meso_measured::fit::{self, FitErrors, FitOptions, FitResult};
+use meso_measured::fit::{self, FitErrors, FitOptions, FitResult, LobeAxes};
 use meso_measured::merl::{MerlTable, MERL_FILE_BYTES};
 use meso_measured::metric::Metric;
 use meso_measured::model::{self, LobeMicrofacetParams, LobeParams, TransferExponent};
@@ -38,6 +38,25 @@ pub enum TransferArg {
     Microfacet,
 }
 
+/// Where the lobe axes may go.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxesArg {
+    /// `normal` for MERL tables (isotropic by construction), `free` for sample CSVs.
+    Auto,
+    /// Every lobe on the surface normal (isotropic, no off-specular peaks).
+    Normal,
+    /// Axes free (off-specular and anisotropic lobes allowed).
+    Free,
+}
+
+/// CSV data with at least this many samples above the horizon keep every
+/// [`CSV_HOLD_OUT_EVERY`]-th sample out of the fit, to report the held-out residual.
+const CSV_HOLD_OUT_MIN: usize = 200;
+/// See [`CSV_HOLD_OUT_MIN`].
+const CSV_HOLD_OUT_EVERY: usize = 10;
+/// A held-out Löw-log error above this multiple of the fitted one is reported as an over-fit.
+const OVERFIT_RATIO: f64 = 2.0;
+
 /// Fit a measured BRDF with K Phong peaks and write a meso material.
 ///
 /// DATA is a MERL binary (detected by its header or size) or a CSV of samples with the header
@@ -57,6 +76,10 @@ pub struct Args {
     /// Facet transfer function.
     #[arg(long, value_enum, default_value = "phong")]
     pub transfer: TransferArg,
+    /// Where the lobe axes may go: on the surface normal (isotropic) or free (off-specular,
+    /// anisotropic); `auto`: on the normal for MERL tables, free for sample CSVs.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub axes: AxesArg,
     /// Fit each channel with its own lobes: writes OUT's stem + `.red.toml`, `.green.toml`,
     /// `.blue.toml` (channel c of the BRDF is channel c of file c; the files are grey).
     #[arg(long)]
@@ -124,12 +147,12 @@ fn load(path: &Path, target: usize) -> Result<Data> {
             );
         }
         return Ok(Data {
+            description: format!(
+                "MERL binary, {} of {} valid cells fitted, {} other cells held out (θi, θo < 80°; {} cells not measured)",
+                stats.kept, stats.valid, samples.held_out.len(), stats.missing
+            ),
             samples,
             merl: Some(table),
-            description: format!(
-                "MERL binary, {} of {} valid cells (θi, θo < 80°; {} cells not measured)",
-                stats.kept, stats.valid, stats.missing
-            ),
         });
     }
     if meta.len() > 1 << 30 {
@@ -166,9 +189,20 @@ fn load(path: &Path, target: usize) -> Result<Data> {
             .into_iter()
             .filter(|s| s.wi.z > 1e-9 && s.wo.z > 1e-9)
             .collect(),
+        ..samples
+    };
+    let n = samples.len();
+    let samples = if n >= CSV_HOLD_OUT_MIN {
+        samples.hold_out_every(CSV_HOLD_OUT_EVERY)
+    } else {
+        samples
     };
     Ok(Data {
-        description: format!("sample CSV, {} samples above the horizon", samples.len()),
+        description: format!(
+            "sample CSV, {n} samples above the horizon, {} fitted, {} held out",
+            samples.len(),
+            samples.held_out.len()
+        ),
         samples,
         merl: None,
     })
@@ -319,6 +353,10 @@ pub fn run(a: Args) -> Result<()> {
     };
     let opts = FitOptions {
         metric,
+        axes: match (a.axes, data.merl.is_some()) {
+            (AxesArg::Normal, _) | (AxesArg::Auto, true) => LobeAxes::Normal,
+            (AxesArg::Free, _) | (AxesArg::Auto, false) => LobeAxes::Free,
+        },
         ..FitOptions::default()
     };
     let baselines = if a.baselines {
@@ -334,16 +372,18 @@ pub fn run(a: Args) -> Result<()> {
     if a.per_channel_lobes {
         for (c, name) in ["red", "green", "blue"].iter().enumerate() {
             progress.set_message(format!("lobes, {name} channel"));
-            let mono = SampleSet {
-                samples: data
-                    .samples
-                    .samples
-                    .iter()
+            let grey = |v: &[meso_measured::samples::Sample]| {
+                v.iter()
                     .map(|s| meso_measured::samples::Sample {
                         rgb: [s.rgb[c]; 3],
                         ..*s
                     })
-                    .collect(),
+                    .collect()
+            };
+            let mono = SampleSet {
+                samples: grey(&data.samples.samples),
+                held_out: grey(&data.samples.held_out),
+                cell_size: data.samples.cell_size,
             };
             channel_fits.push(fit_lobes(k, a.transfer, &mono, &opts)?);
             progress.inc(1);
@@ -366,6 +406,9 @@ pub fn run(a: Args) -> Result<()> {
     };
     let model_eval = |wi: DVec3, wo: DVec3| pick(wi, wo, &|j, wi, wo| finals[j].0.eval(wi, wo));
     let fitted_errors = fit::evaluate_fn(&data.samples, model_eval);
+    let held_out = &data.samples.held_out;
+    let held_out_errors =
+        (!held_out.is_empty()).then(|| fit::evaluate_samples_fn(held_out, model_eval));
 
     // The written material(s), parsed back by meso-core before anything is written.
     let paths = out_paths(&a.out, a.per_channel_lobes);
@@ -373,10 +416,11 @@ pub fn run(a: Args) -> Result<()> {
     let mut materials = Vec::new();
     for (j, (lobes, r)) in finals.iter().enumerate() {
         let mut comment = format!(
-            "meso fit {} --lobes {k} --metric {} --transfer {:?}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
+            "meso fit {} --lobes {k} --metric {} --transfer {:?} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
             a.data.display(),
             metric.name(),
             a.transfer,
+            opts.axes.name(),
             if a.per_channel_lobes { " --per-channel-lobes" } else { "" },
             r.model,
             data.description,
@@ -396,6 +440,15 @@ pub fn run(a: Args) -> Result<()> {
             fmt3(r.errors.ngan_l2, 5),
             fmt3(r.errors.low_log, 5)
         );
+        if let Some(h) = &r.held_out {
+            let _ = writeln!(
+                comment,
+                "errors on {} held-out samples: ngan-l2 [{}], low-log [{}]",
+                r.held_out_count,
+                fmt3(h.ngan_l2, 5),
+                fmt3(h.low_log, 5)
+            );
+        }
         let lobes = match (lobes, a.per_channel_lobes) {
             (Lobes::Phong(p), true) => Lobes::Phong(LobeParams {
                 specular: [p.specular[j]; 3],
@@ -476,15 +529,32 @@ pub fn run(a: Args) -> Result<()> {
     let _ = writeln!(rep, "data: {} — {}", a.data.display(), data.description);
     let _ = writeln!(
         rep,
-        "metric minimised: {}; transfer: {:?}; lobes: {k}{}",
+        "metric minimised: {}; transfer: {:?}; lobes: {k}{}; axes: {}",
         metric.name(),
         a.transfer,
         if a.per_channel_lobes {
             " per channel"
         } else {
             " shared by r, g, b"
-        }
+        },
+        opts.axes.name()
     );
+    if let Some(delta) = finals[0].1.resolution {
+        let cap = 4.0 / (delta * delta);
+        if cap < 1e6 {
+            let _ = writeln!(
+                rep,
+                "lobe sharpness cap: exponent <= {cap:.0} (lobes no narrower than the data's angular resolution {:.2} deg)",
+                delta.to_degrees()
+            );
+        } else {
+            let _ = writeln!(
+                rep,
+                "lobe sharpness cap: none below the model's bound (angular resolution {:.4} deg)",
+                delta.to_degrees()
+            );
+        }
+    }
     for (j, (lobes, r)) in finals.iter().enumerate() {
         if a.per_channel_lobes {
             let _ = writeln!(rep, "\n{} channel:", ["red", "green", "blue"][j]);
@@ -515,6 +585,21 @@ pub fn run(a: Args) -> Result<()> {
             &fitted_errors
         )
     );
+    match &held_out_errors {
+        Some(h) => {
+            let _ = writeln!(
+                rep,
+                "{}",
+                error_row(
+                    &format!("held out, not fitted ({} samples)", held_out.len()),
+                    h
+                )
+            );
+        }
+        None => {
+            let _ = writeln!(rep, "  held out, not fitted: none (too few samples)");
+        }
+    }
     let _ = writeln!(
         rep,
         "{}",
@@ -536,11 +621,22 @@ pub fn run(a: Args) -> Result<()> {
         "  written material vs fitted closed form: relative cos-weighted RMS difference {:.2} %",
         100.0 * rel_diff
     );
+    if let Some(h) = &held_out_errors {
+        let ratio = (0..3)
+            .map(|c| h.low_log[c] / fitted_errors.low_log[c].max(1e-12))
+            .fold(0.0, f64::max);
+        if ratio > OVERFIT_RATIO {
+            let _ = writeln!(
+                rep,
+                "  warning: the held-out low-log error is {ratio:.1} times the fitted one: over-fit (a lobe between the samples?)"
+            );
+        }
+    }
     if a.baselines {
         let _ = writeln!(
             rep,
-            "\n{:<26} {:>8} {:>6}   {:<26} low-log r g b",
-            "model (same machinery)", "time(s)", "iters", "ngan-l2 r g b"
+            "\n{:<26} {:>8} {:>6}   {:<26} {:<26} held-out low-log r g b",
+            "model (same machinery)", "time(s)", "iters", "ngan-l2 r g b", "low-log r g b"
         );
         let mut rows: Vec<&FitResult> = Vec::new();
         if !a.per_channel_lobes {
@@ -550,12 +646,14 @@ pub fn run(a: Args) -> Result<()> {
         for r in rows {
             let _ = writeln!(
                 rep,
-                "{:<26} {:>8.2} {:>6}   {:<26} {}",
+                "{:<26} {:>8.2} {:>6}   {:<26} {:<26} {}",
                 r.model,
                 r.seconds,
                 r.iterations,
                 fmt3(r.errors.ngan_l2, 5),
-                fmt3(r.errors.low_log, 5)
+                fmt3(r.errors.low_log, 5),
+                r.held_out
+                    .map_or_else(|| "-".to_string(), |h| fmt3(h.low_log, 5))
             );
         }
     }

@@ -274,6 +274,17 @@ impl BrdfModel for LobeModel {
         vec!["diffuse".into(), "specular".into()]
     }
 
+    /// `ax_k, ay_k` of every lobe.
+    fn axis_parameters(&self) -> Vec<usize> {
+        (0..self.k).flat_map(|j| [3 * j, 3 * j + 1]).collect()
+    }
+
+    /// `ln η_k` of every lobe, `κ = η/4`. (The BRDF lobe is never sharper than its NDF peak,
+    /// so capping the peaks caps every lobe of the fitted BRDF.)
+    fn sharpness_parameters(&self) -> Vec<(usize, f64)> {
+        (0..self.k).map(|j| (3 * j + 2, 0.25)).collect()
+    }
+
     fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
         // The material format's ranges: albedo in [0, 1], specular in [0, 1e6].
         vec![(0.0, 1.0), (0.0, 1e6)]

@@ -254,6 +254,17 @@ impl BrdfModel for LobeMicrofacetModel {
         vec!["diffuse".into(), "f0".into(), "fresnel-grazing".into()]
     }
 
+    /// `ax_k, ay_k` of every lobe.
+    fn axis_parameters(&self) -> Vec<usize> {
+        (0..self.k).flat_map(|j| [3 * j, 3 * j + 1]).collect()
+    }
+
+    /// `ln η_k` of every lobe, `κ = η/4`. (The BRDF lobe is never sharper than its NDF peak,
+    /// so capping the peaks caps every lobe of the fitted BRDF.)
+    fn sharpness_parameters(&self) -> Vec<(usize, f64)> {
+        (0..self.k).map(|j| (3 * j + 2, 0.25)).collect()
+    }
+
     fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
         vec![(0.0, 1.0), (0.0, 1.0), (1.0, 1.0)]
     }
