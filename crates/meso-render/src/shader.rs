@@ -324,7 +324,7 @@ pub struct LobeSlices<'a> {
     pub exponent: &'a [f32],
 }
 
-/// Pairs processed together by [`lobe_pairs`] (one AVX register of f32).
+/// Pairs processed together by [`lobe_pairs`] (one AVX register of f32; two with AVX-512).
 const PAIR_LANES: usize = 8;
 
 /// The lobe sum for many direction pairs at once (the renderer's stream-shading kernel):
@@ -342,15 +342,26 @@ pub fn lobe_pairs(
     sum: &mut [f32],
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
-        unsafe { lobe_pairs_avx2(lobes, cosine, wi, wo, sum) };
-        return;
+    {
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the running CPU supports AVX-512F/VL and FMA (checked just above).
+            unsafe { lobe_pairs_avx512(lobes, cosine, wi, wo, sum) };
+            return;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
+            unsafe { lobe_pairs_avx2(lobes, cosine, wi, wo, sum) };
+            return;
+        }
     }
-    lobe_pairs_impl::<false>(lobes, cosine, wi, wo, sum);
+    lobe_pairs_impl::<false, PAIR_LANES>(lobes, cosine, wi, wo, sum);
 }
 
-/// [`lobe_pairs`] compiled for AVX2 + FMA.
+/// [`lobe_pairs`] compiled for AVX2 + FMA (8 pairs per step).
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -363,11 +374,27 @@ unsafe fn lobe_pairs_avx2(
     wo: [&[f32]; 3],
     sum: &mut [f32],
 ) {
-    lobe_pairs_impl::<true>(lobes, cosine, wi, wo, sum);
+    lobe_pairs_impl::<true, PAIR_LANES>(lobes, cosine, wi, wo, sum);
+}
+
+/// [`lobe_pairs`] compiled for AVX-512 (16 pairs per step, one zmm register).
+///
+/// # Safety
+/// The CPU must support AVX-512F, AVX-512VL, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+unsafe fn lobe_pairs_avx512(
+    lobes: &LobeSlices<'_>,
+    cosine: bool,
+    wi: [&[f32]; 3],
+    wo: [&[f32]; 3],
+    sum: &mut [f32],
+) {
+    lobe_pairs_impl::<true, { 2 * PAIR_LANES }>(lobes, cosine, wi, wo, sum);
 }
 
 #[inline(always)]
-fn lobe_pairs_impl<const FMA: bool>(
+fn lobe_pairs_impl<const FMA: bool, const L: usize>(
     lobes: &LobeSlices<'_>,
     cosine: bool,
     wi: [&[f32]; 3],
@@ -375,24 +402,24 @@ fn lobe_pairs_impl<const FMA: bool>(
     sum: &mut [f32],
 ) {
     if cosine {
-        lobe_pairs_form::<FMA, true>(lobes, wi, wo, sum);
+        lobe_pairs_form::<FMA, true, L>(lobes, wi, wo, sum);
     } else {
-        lobe_pairs_form::<FMA, false>(lobes, wi, wo, sum);
+        lobe_pairs_form::<FMA, false, L>(lobes, wi, wo, sum);
     }
 }
 
-/// One octet of direction pairs: `[x, y, z]` lanes.
-type Octet = [[f32; PAIR_LANES]; 3];
+/// One step's direction pairs: `[x, y, z]` × `L` lanes.
+type Octet<const L: usize> = [[f32; L]; 3];
 
-/// Copy pairs `base..base + m` into octets; lanes past the end get a below-horizon pair.
+/// Copy pairs `base..base + m` into a step; lanes past the end get a below-horizon pair.
 #[inline(always)]
-fn load_octet(v: [&[f32]; 3], base: usize, m: usize, out: &mut Octet) {
-    if m == PAIR_LANES {
+fn load_octet<const L: usize>(v: [&[f32]; 3], base: usize, m: usize, out: &mut Octet<L>) {
+    if m == L {
         for c in 0..3 {
-            out[c].copy_from_slice(&v[c][base..base + PAIR_LANES]);
+            out[c].copy_from_slice(&v[c][base..base + L]);
         }
     } else {
-        *out = [[0.0; PAIR_LANES], [0.0; PAIR_LANES], [-1.0; PAIR_LANES]];
+        *out = [[0.0; L], [0.0; L], [-1.0; L]];
         for c in 0..3 {
             out[c][..m].copy_from_slice(&v[c][base..base + m]);
         }
@@ -400,13 +427,12 @@ fn load_octet(v: [&[f32]; 3], base: usize, m: usize, out: &mut Octet) {
 }
 
 #[inline(always)]
-fn lobe_pairs_form<const FMA: bool, const COS: bool>(
+fn lobe_pairs_form<const FMA: bool, const COS: bool, const L: usize>(
     lobes: &LobeSlices<'_>,
     wi: [&[f32]; 3],
     wo: [&[f32]; 3],
     sum: &mut [f32],
 ) {
-    const L: usize = PAIR_LANES;
     let n = sum.len();
     let count = lobes
         .weight
@@ -418,13 +444,13 @@ fn lobe_pairs_form<const FMA: bool, const COS: bool>(
     let (nx, ny, nz) = (&lobes.nx[..count], &lobes.ny[..count], &lobes.nz[..count]);
     let (lw, le) = (&lobes.weight[..count], &lobes.exponent[..count]);
     let mut base = 0;
-    let mut i: Octet = [[0.0; L]; 3];
-    let mut o: Octet = [[0.0; L]; 3];
+    let mut i: Octet<L> = [[0.0; L]; 3];
+    let mut o: Octet<L> = [[0.0; L]; 3];
     while base < n {
         let m = (n - base).min(L);
         load_octet(wi, base, m, &mut i);
         load_octet(wo, base, m, &mut o);
-        let mut h: Octet = [[0.0; L]; 3];
+        let mut h: Octet<L> = [[0.0; L]; 3];
         let mut valid = [0.0f32; L];
         for j in 0..L {
             let hx = i[0][j] + o[0][j];
