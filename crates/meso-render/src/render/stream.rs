@@ -29,7 +29,7 @@ use glam::DVec3;
 
 /// Camera hits shaded together (a multiple of the kernels' block sizes).
 pub(crate) const STREAM_CHUNK: usize = 256;
-const _: () = assert!(STREAM_CHUNK.is_multiple_of(BLOCK));
+const _: () = assert!(STREAM_CHUNK.is_multiple_of(2 * BLOCK));
 
 /// `STREAM_CHUNK` values of one quantity (allocated once per thread). A fixed size, so that
 /// indices reduced modulo `STREAM_CHUNK` need no bounds checks.
@@ -247,15 +247,26 @@ fn shade_chunk(scene: &Scene, c: &PixelContext, s: &mut StreamScratch, acc: &mut
 /// path's tests, in one flat loop over the chunk's arrays that the compiler vectorises.
 fn delta_samples(s: &mut StreamScratch, position: Option<DVec3>, direction: DVec3, power: DVec3) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
-        unsafe { delta_samples_avx2(s, position, direction, power) };
-        return;
+    {
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the running CPU supports AVX-512F/VL and FMA (checked just above).
+            unsafe { delta_samples_avx512(s, position, direction, power) };
+            return;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
+            unsafe { delta_samples_avx2(s, position, direction, power) };
+            return;
+        }
     }
-    delta_samples_impl(s, position, direction, power);
+    delta_samples_impl::<BLOCK>(s, position, direction, power);
 }
 
-/// [`delta_samples`] compiled for AVX2 + FMA.
+/// [`delta_samples`] compiled for AVX2 + FMA (4 hits per block).
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -267,25 +278,40 @@ unsafe fn delta_samples_avx2(
     direction: DVec3,
     power: DVec3,
 ) {
-    delta_samples_impl(s, position, direction, power);
+    delta_samples_impl::<BLOCK>(s, position, direction, power);
 }
 
-/// Hits per block of [`delta_samples_impl`] (one AVX register of f64).
+/// [`delta_samples`] compiled for AVX-512 (8 hits per block).
+///
+/// # Safety
+/// The CPU must support AVX-512F, AVX-512VL, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+unsafe fn delta_samples_avx512(
+    s: &mut StreamScratch,
+    position: Option<DVec3>,
+    direction: DVec3,
+    power: DVec3,
+) {
+    delta_samples_impl::<{ 2 * BLOCK }>(s, position, direction, power);
+}
+
+/// Hits per block of [`delta_samples_impl`] (one AVX register of f64; twice that with AVX-512).
 const BLOCK: usize = 4;
 
-/// `BLOCK` values of each of three components.
-type Block3 = [[f64; BLOCK]; 3];
+/// `B` values of each of three components.
+type Block3<const B: usize> = [[f64; B]; 3];
 
-/// Copy lanes `base..base + BLOCK` of three arrays into a block.
+/// Copy lanes `base..base + B` of three arrays into a block.
 #[inline(always)]
-fn load3(v: &[Lane<f64>; 3], base: usize, out: &mut Block3) {
+fn load3<const B: usize>(v: &[Lane<f64>; 3], base: usize, out: &mut Block3<B>) {
     for c in 0..3 {
-        out[c] = v[c][base..base + BLOCK].try_into().expect("block in range");
+        out[c] = v[c][base..base + B].try_into().expect("block in range");
     }
 }
 
 #[inline(always)]
-fn delta_samples_impl(
+fn delta_samples_impl<const B: usize>(
     s: &mut StreamScratch,
     position: Option<DVec3>,
     direction: DVec3,
@@ -299,13 +325,13 @@ fn delta_samples_impl(
     let mut base = 0;
     // Blocks of local arrays: the compiler keeps them in vector registers.
     let (mut p, mut g, mut t, mut b, mut nn) = (
-        [[1.0; BLOCK]; 3],
-        [[0.0; BLOCK]; 3],
-        [[0.0; BLOCK]; 3],
-        [[0.0; BLOCK]; 3],
-        [[0.0; BLOCK]; 3],
+        [[1.0; B]; 3],
+        [[0.0; B]; 3],
+        [[0.0; B]; 3],
+        [[0.0; B]; 3],
+        [[0.0; B]; 3],
     );
-    // Whole blocks: lanes past `n` (up to the chunk's capacity, a multiple of BLOCK) hold
+    // Whole blocks: lanes past `n` (up to the chunk's capacity, a multiple of B) hold
     // stale but finite values and their results are never read.
     while base < n {
         load3(&s.p, base, &mut p);
@@ -313,11 +339,11 @@ fn delta_samples_impl(
         load3(&s.t, base, &mut t);
         load3(&s.b, base, &mut b);
         load3(&s.nrm, base, &mut nn);
-        let mut u: Block3 = [[0.0; BLOCK]; 3];
-        let mut l: [[f32; BLOCK]; 3] = [[0.0; BLOCK]; 3];
-        let mut w: Block3 = [[0.0; BLOCK]; 3];
-        let mut r = [f64::INFINITY; BLOCK];
-        for j in 0..BLOCK {
+        let mut u: Block3<B> = [[0.0; B]; 3];
+        let mut l: [[f32; B]; 3] = [[0.0; B]; 3];
+        let mut w: Block3<B> = [[0.0; B]; 3];
+        let mut r = [f64::INFINITY; B];
+        for j in 0..B {
             // As `Light::sample`: d = position − p, r = |d|, wi = d/r, weight = I/r².
             let (ux, uy, uz, a, ok_r) = if point {
                 let (dx, dy, dz) = (lp[0] - p[0][j], lp[1] - p[1][j], lp[2] - p[2][j]);
@@ -345,12 +371,12 @@ fn delta_samples_impl(
             l[2][j] = if ok { l2 as f32 } else { -1.0 };
         }
         for c in 0..3 {
-            s.wi[c][base..base + BLOCK].copy_from_slice(&u[c]);
-            s.weight[c][base..base + BLOCK].copy_from_slice(&w[c]);
-            s.wi_local[c][base..base + BLOCK].copy_from_slice(&l[c]);
+            s.wi[c][base..base + B].copy_from_slice(&u[c]);
+            s.weight[c][base..base + B].copy_from_slice(&w[c]);
+            s.wi_local[c][base..base + B].copy_from_slice(&l[c]);
         }
-        s.dist[base..base + BLOCK].copy_from_slice(&r);
-        base += BLOCK;
+        s.dist[base..base + B].copy_from_slice(&r);
+        base += B;
     }
 }
 
