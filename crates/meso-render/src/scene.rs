@@ -586,7 +586,9 @@ impl Scene {
         if let HitWhat::Prim(k) = h.what {
             if let Prim::Sphere { index, .. } = *self.bvh.prim(k) {
                 let sph = &self.spheres[index as usize];
-                let n = (ray.at(h.t) - sph.center).normalize();
+                // The hit lies on the sphere to rounding: scaling by 1/r normalises without
+                // the square root and division that `normalize` would add to the chain.
+                let n = (ray.at(h.t) - sph.center) * (1.0 / sph.radius);
                 let (mut frame, _) = sph.frame_at(n);
                 let mut ng = n;
                 let cos = ng.dot(ray.d);
