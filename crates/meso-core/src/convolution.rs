@@ -427,16 +427,24 @@ impl<'a> SmithMasking<'a> {
     }
 }
 
-/// `E[max(0, m·i)]` for `m` drawn from a vMF of concentration κ whose mean direction makes cosine
-/// `c` with `i`: a table over (ln κ, c) filled once by 1-D quadrature (the azimuthal average of the
-/// clamped cosine is closed), interpolated bilinearly (error < 1e-3).
-fn clamped_cosine_mean(kappa: f64, c: f64) -> f64 {
-    const NK: usize = 64;
-    const NC: usize = 129;
-    const LN_K0: f64 = -4.0; // κ from e⁻⁴ …
-    const LN_K1: f64 = 12.0; // … to e¹² (beyond: the vMF is a delta, E = max(0, c))
+/// Rows (ln κ) of the clamped-cosine table.
+const CC_NK: usize = 64;
+/// Columns (c) of the clamped-cosine table.
+const CC_NC: usize = 129;
+/// ln κ of the first row: κ from e⁻⁴ …
+const CC_LN_K0: f64 = -4.0;
+/// … to e¹² (beyond: the vMF is a delta, E = max(0, c)).
+const CC_LN_K1: f64 = 12.0;
+
+/// The table of `E[max(0, m·i)]` over (ln κ, c) (`CC_NK × CC_NC`, row-major), filled once by
+/// 1-D quadrature (the azimuthal average of the clamped cosine is closed).
+fn clamped_cosine_table() -> &'static [f64] {
+    const NK: usize = CC_NK;
+    const NC: usize = CC_NC;
+    const LN_K0: f64 = CC_LN_K0;
+    const LN_K1: f64 = CC_LN_K1;
     static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
-    let table = TABLE.get_or_init(|| {
+    TABLE.get_or_init(|| {
         let (xs, ws) = gauss_legendre(96);
         let mut t = Vec::with_capacity(NK * NC);
         for a in 0..NK {
@@ -467,19 +475,55 @@ fn clamped_cosine_mean(kappa: f64, c: f64) -> f64 {
             }
         }
         t
-    });
-    let c = c.clamp(-1.0, 1.0);
+    })
+}
+
+/// `E[max(0, m·i)]` for `m` drawn from a vMF of concentration κ whose mean direction makes cosine
+/// `c` with `i`: the table of [`clamped_cosine_table`] interpolated bilinearly (error < 1e-3).
+fn clamped_cosine_mean(kappa: f64, c: f64) -> f64 {
+    clamped_cosine_mean_grad(kappa, c).0
+}
+
+/// `E[max(0, m·i)]` for `m ~ vMF(κ)` whose mean makes cosine `c` with `i` (the bilinear
+/// interpolant of the table behind [`phong_closed_form`]), with `∂E/∂κ` and `∂E/∂c` (the
+/// derivatives of the interpolant; zero across a clamped edge). For analytic Jacobians of fits
+/// to the closed form.
+#[inline]
+#[must_use]
+pub fn clamped_cosine_mean_grad(kappa: f64, c: f64) -> (f64, f64, f64) {
+    const NK: usize = CC_NK;
+    const NC: usize = CC_NC;
+    let t = clamped_cosine_table();
+    let cc = c.clamp(-1.0, 1.0);
     let lk = kappa.max(1e-12).ln();
-    if lk >= LN_K1 {
-        return c.max(0.0);
+    if lk >= CC_LN_K1 {
+        return (cc.max(0.0), 0.0, if c > 0.0 && c < 1.0 { 1.0 } else { 0.0 });
     }
-    let fa = ((lk - LN_K0) / (LN_K1 - LN_K0) * (NK - 1) as f64).clamp(0.0, (NK - 1) as f64);
-    let fb = (c + 1.0) * 0.5 * (NC - 1) as f64;
+    let sa = (NK - 1) as f64 / (CC_LN_K1 - CC_LN_K0);
+    let sb = 0.5 * (NC - 1) as f64;
+    let fa_raw = (lk - CC_LN_K0) * sa;
+    let fa = fa_raw.clamp(0.0, (NK - 1) as f64);
+    let fb = (cc + 1.0) * sb;
     let (a0, b0) = ((fa as usize).min(NK - 2), (fb as usize).min(NC - 2));
     let (ta, tb) = (fa - a0 as f64, fb - b0 as f64);
-    let v = |a: usize, b: usize| table[a * NC + b];
-    (v(a0, b0) * (1.0 - tb) + v(a0, b0 + 1) * tb) * (1.0 - ta)
-        + (v(a0 + 1, b0) * (1.0 - tb) + v(a0 + 1, b0 + 1) * tb) * ta
+    let v00 = t[a0 * NC + b0];
+    let v01 = t[a0 * NC + b0 + 1];
+    let v10 = t[(a0 + 1) * NC + b0];
+    let v11 = t[(a0 + 1) * NC + b0 + 1];
+    let lo = v00 * (1.0 - tb) + v01 * tb;
+    let hi = v10 * (1.0 - tb) + v11 * tb;
+    let e = lo * (1.0 - ta) + hi * ta;
+    let de_dk = if fa_raw > 0.0 && fa_raw < (NK - 1) as f64 {
+        (hi - lo) * sa / kappa
+    } else {
+        0.0
+    };
+    let de_dc = if c > -1.0 && c < 1.0 {
+        ((v01 - v00) * (1.0 - ta) + (v11 - v10) * ta) * sb
+    } else {
+        0.0
+    };
+    (e, de_dk, de_dc)
 }
 
 /// Closed-form approximation of Phong peaks convolved with a Phong (N·H) transfer in the

@@ -27,7 +27,7 @@
 //! ```
 
 use crate::geometry::{MaterialId, ShadingPoint};
-use crate::shader::{colour_pairs, fast_pow, lobe_pairs, LobeSlices, Shader};
+use crate::shader::{colour_pairs, fast_pow, lobe_pairs, pairs_one_by_one, LobeSlices, Shader};
 use glam::{DVec2, DVec3};
 use meso_core::convolution::Form;
 use meso_core::frame::Frame;
@@ -243,22 +243,13 @@ impl Shader for MaterialShader {
                 lobe_pairs(&lobes, true, wi, wo, o0);
                 colour_pairs(o0, o1, o2, *specular, *diffuse);
             }
-            Kind::General => {
-                for k in 0..o0.len() {
-                    let d = |v: [&[f32]; 3]| {
-                        DVec3::new(f64::from(v[0][k]), f64::from(v[1][k]), f64::from(v[2][k]))
-                    };
-                    let (i, o) = (d(wi), d(wo));
-                    let f = if i.z <= 0.0 || o.z <= 0.0 {
-                        [0.0; 3]
-                    } else {
-                        self.brdf.eval(i, o).map(|v| v as f32)
-                    };
-                    o0[k] = f[0];
-                    o1[k] = f[1];
-                    o2[k] = f[2];
+            Kind::General => pairs_one_by_one(wi, wo, [o0, o1, o2], |i, o| {
+                if i.z <= 0.0 || o.z <= 0.0 {
+                    [0.0; 3]
+                } else {
+                    self.brdf.eval(i, o).map(|v| v as f32)
                 }
-            }
+            }),
         }
     }
 }

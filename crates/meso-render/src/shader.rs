@@ -60,16 +60,7 @@ pub trait Shader: Send + Sync {
     /// override it with a kernel that runs across pairs, eight at a time.
     fn eval_pairs(&self, wi: [&[f32]; 3], wo: [&[f32]; 3], out: [&mut [f32]; 3]) {
         let sp = crate::material::local_point(glam::DVec2::ZERO, 0.0);
-        let [o0, o1, o2] = out;
-        for k in 0..o0.len() {
-            let d = |v: [&[f32]; 3]| {
-                DVec3::new(f64::from(v[0][k]), f64::from(v[1][k]), f64::from(v[2][k]))
-            };
-            let f = self.eval(&sp, d(wi), d(wo));
-            o0[k] = f[0];
-            o1[k] = f[1];
-            o2[k] = f[2];
-        }
+        pairs_one_by_one(wi, wo, out, |i, o| self.eval(&sp, i, o));
     }
 }
 
@@ -305,6 +296,25 @@ impl PhongLobes {
             };
             *o = [self.color[0] * s, self.color[1] * s, self.color[2] * s];
         }
+    }
+}
+
+/// Fill `out` (structure of arrays, as [`Shader::eval_pairs`]) by calling `f(wi, wo)` for each
+/// pair of directions, widened to f64.
+pub(crate) fn pairs_one_by_one(
+    wi: [&[f32]; 3],
+    wo: [&[f32]; 3],
+    out: [&mut [f32]; 3],
+    mut f: impl FnMut(DVec3, DVec3) -> [f32; 3],
+) {
+    let [o0, o1, o2] = out;
+    for k in 0..o0.len() {
+        let d =
+            |v: [&[f32]; 3]| DVec3::new(f64::from(v[0][k]), f64::from(v[1][k]), f64::from(v[2][k]));
+        let v = f(d(wi), d(wo));
+        o0[k] = v[0];
+        o1[k] = v[1];
+        o2[k] = v[2];
     }
 }
 

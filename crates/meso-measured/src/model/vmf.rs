@@ -12,91 +12,15 @@
 //! ```
 //!
 //! `E(κ, c) = E[max(0, m·i)]` for `m ~ vMF(κ)` is meso-core's table over `(ln κ, c)` (64 × 129,
-//! bilinear); it is rebuilt here by the same code so that values agree to rounding (tested) and
-//! its bilinear cell gives `∂E/∂ln κ` and `∂E/∂c`. The derivatives follow by the chain rule:
+//! bilinear), read through [`meso_core::convolution::clamped_cosine_mean_grad`], whose bilinear
+//! cell also gives `∂E/∂ln κ` and `∂E/∂c`. The derivatives follow by the chain rule:
 //! `∂ln C/∂κ₁ = 1/κ₁ − 2/(e^(2κ₁) − 1)`, `∂ln M/∂κ₃ = 1 + 2/(e^(2κ₃) − 1) − 1/κ₃`,
 //! `∂ln M/∂κ₁ = ∂ln M/∂κ₂ = −1`, `dκ₃ = v·dv/κ₃`, `dc = (i·dv)/κ₃ − c dκ₃/κ₃`.
 
 use glam::DVec3;
 use std::f64::consts::PI;
-use std::sync::OnceLock;
 
-const NK: usize = 64;
-const NC: usize = 129;
-const LN_K0: f64 = -4.0;
-const LN_K1: f64 = 12.0;
-
-/// The table of `E[max(0, m·i)]` over (ln κ, c), built exactly as meso-core's.
-fn table() -> &'static [f64] {
-    static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        let (xs, ws) = meso_core::quadrature::gauss_legendre(96);
-        let mut t = Vec::with_capacity(NK * NC);
-        for a in 0..NK {
-            let kappa = (LN_K0 + (LN_K1 - LN_K0) * a as f64 / (NK - 1) as f64).exp();
-            for b in 0..NC {
-                let c = -1.0 + 2.0 * b as f64 / (NC - 1) as f64;
-                let sn = (1.0 - c * c).max(0.0).sqrt();
-                let mut e = 0.0;
-                for (x, wt) in xs.iter().zip(&ws) {
-                    let u = 0.5 * (x + 1.0);
-                    let w = (1.0 + (u + (1.0 - u) * (-2.0 * kappa).exp()).ln() / kappa)
-                        .clamp(-1.0, 1.0);
-                    let sw = (1.0 - w * w).max(0.0).sqrt();
-                    let (a0, b0) = (w * c, sw * sn);
-                    let avg = if a0 >= b0 {
-                        a0
-                    } else if a0 <= -b0 {
-                        0.0
-                    } else {
-                        (a0 * (-a0 / b0).acos() + (b0 * b0 - a0 * a0).sqrt()) / PI
-                    };
-                    e += 0.5 * wt * avg;
-                }
-                t.push(e);
-            }
-        }
-        t
-    })
-}
-
-/// `E[max(0, m·i)]` for `m ~ vMF(κ)` whose mean makes cosine `c` with `i`, with `∂E/∂κ` and
-/// `∂E/∂c` (the derivatives of the bilinear interpolant; zero across a clamped edge).
-#[inline]
-#[must_use]
-pub fn clamped_cosine_mean_grad(kappa: f64, c: f64) -> (f64, f64, f64) {
-    let t = table();
-    let cc = c.clamp(-1.0, 1.0);
-    let lk = kappa.max(1e-12).ln();
-    if lk >= LN_K1 {
-        return (cc.max(0.0), 0.0, if c > 0.0 && c < 1.0 { 1.0 } else { 0.0 });
-    }
-    let sa = (NK - 1) as f64 / (LN_K1 - LN_K0);
-    let sb = 0.5 * (NC - 1) as f64;
-    let fa_raw = (lk - LN_K0) * sa;
-    let fa = fa_raw.clamp(0.0, (NK - 1) as f64);
-    let fb = (cc + 1.0) * sb;
-    let (a0, b0) = ((fa as usize).min(NK - 2), (fb as usize).min(NC - 2));
-    let (ta, tb) = (fa - a0 as f64, fb - b0 as f64);
-    let v00 = t[a0 * NC + b0];
-    let v01 = t[a0 * NC + b0 + 1];
-    let v10 = t[(a0 + 1) * NC + b0];
-    let v11 = t[(a0 + 1) * NC + b0 + 1];
-    let lo = v00 * (1.0 - tb) + v01 * tb;
-    let hi = v10 * (1.0 - tb) + v11 * tb;
-    let e = lo * (1.0 - ta) + hi * ta;
-    let de_dk = if fa_raw > 0.0 && fa_raw < (NK - 1) as f64 {
-        (hi - lo) * sa / kappa
-    } else {
-        0.0
-    };
-    let de_dc = if c > -1.0 && c < 1.0 {
-        ((v01 - v00) * (1.0 - ta) + (v11 - v10) * ta) * sb
-    } else {
-        0.0
-    };
-    (e, de_dk, de_dc)
-}
+pub use meso_core::convolution::clamped_cosine_mean_grad;
 
 /// One lobe's term `T` (module docs) and its derivatives: `(T, ∂T/∂κ₁ (explicit), ∂T/∂κ₂
 /// (explicit), ∂T/∂v)`; the total derivative along `dv` is `∂T/∂v · dv`.
