@@ -150,15 +150,24 @@ fn main() {
     let tpu = map.cells_x() as f64;
     let bump: Arc<dyn Shader> =
         Arc::new(BumpMapped::new(&map, &surface, tpu, false).expect("bump"));
-    // One NDF-mapped shader per sample count: each jittered sample filters its share of the
-    // pixel (footprint / √spp, `NdfMapped::with_samples_per_pixel`).
+    // One NDF-mapped shader per sample count: either each jittered sample filters its share
+    // of the pixel (footprint / √spp, `NdfMapped::with_samples_per_pixel`) or every sample
+    // filters the whole pixel's footprint.
     let ndf_base = NdfMapped::new(&pyr, &surface, tpu, false)
         .expect("ndf")
         .with_max_level(pyr.levels.len() - 2);
-    let ndf_spp = [1u32, 2, 4];
-    let ndf: Vec<Arc<dyn Shader>> = ndf_spp
+    let ndf_cfg = [(1u32, true), (2, true), (4, true), (2, false), (4, false)];
+    let ndf: Vec<Arc<dyn Shader>> = ndf_cfg
         .iter()
-        .map(|&spp| Arc::new(ndf_base.clone().with_samples_per_pixel(spp)) as Arc<dyn Shader>)
+        .map(|&(spp, scaled)| {
+            let s = if scaled { spp } else { 1 };
+            Arc::new(
+                ndf_base
+                    .clone()
+                    .with_samples_per_pixel(s)
+                    .with_sharp_magnification(scaled),
+            ) as Arc<dyn Shader>
+        })
         .collect();
     for width in [4.0, 16.0] {
         let size = 128;
@@ -176,7 +185,7 @@ fn main() {
             },
             None,
         );
-        for (&spp, shader) in ndf_spp.iter().zip(&ndf) {
+        for (&(spp, scaled), shader) in ndf_cfg.iter().zip(&ndf) {
             let sn = meso_figures::plane_scene(shader.clone(), width, size, 1).expect("scene");
             let (t, cpu, img) = timed(&mut || {
                 render(
@@ -189,7 +198,8 @@ fn main() {
                 )
             });
             println!(
-                "  NDF-mapped  {spp:>4} spp: error {:.4}, wall {t:.1} ms, CPU {cpu:.1} ms",
+                "  NDF-mapped  {spp:>4} spp, footprint {}: error {:.4}, wall {t:.1} ms, CPU {cpu:.1} ms",
+                if scaled { "/ sqrt(spp)" } else { "whole pixel" },
                 mean_rel(&img, &reference)
             );
         }

@@ -226,7 +226,8 @@ fn main() {
             for scaled in [0.0, 0.25, 0.375, 0.5] {
                 let sh = ndf_capped
                     .clone()
-                    .with_footprint_scale(f64::from(spp).powf(-scaled));
+                    .with_footprint_scale(f64::from(spp).powf(-scaled))
+                    .with_sharp_magnification(true);
                 let sn = meso_figures::plane_scene(Arc::new(sh), width, size, 1).expect("scene");
                 let img = render(
                     &sn,

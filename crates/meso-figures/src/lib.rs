@@ -7,7 +7,8 @@
 //!   the bitangent: the NDF of a cylinder bump), and multiple surfaces of 2, 3 and 7 normals;
 //!   the 7 are the lobe axes of the top level of the NDF pyramid of a half-cylinder bump map.
 //! * **Figures 3 and 4** — the same sphere as velvet (normals near the horizon: grazing sheen)
-//!   and as silk (normals spread across the thread direction), under the same light.
+//!   and as silk (normals spread across the thread direction), under the same lights (the key
+//!   light and a dim fill light from the viewer, which shows the velvet's bright rim).
 //! * **Zoom** — a bump-mapped plane, NDF-mapped through the pyramid, zooming out from visible
 //!   bumps to the averaged surface, with the mean luminance of every frame in a CSV.
 //! * **Blend** — a strip of spheres whose NDF goes from one lobe set to another, weights
@@ -316,13 +317,34 @@ pub fn silk() -> MaterialDef {
     }
 }
 
-/// The light shared by all sphere figures: directional, from the upper left front.
+/// The key light of the sphere figures: directional, from the upper left front, irradiance
+/// 2.5 (perpendicular to the light's direction).
 #[must_use]
 pub fn key_light() -> Light {
     Light::Directional {
         direction: DVec3::new(-0.5, 0.55, 0.67).normalize(),
         irradiance: DVec3::splat(2.5),
     }
+}
+
+/// The dim fill light of Figures 3 and 4: directional, along the camera's axis (from the
+/// viewer), irradiance 0.8. Its terminator is the silhouette, so it adds no edge inside the
+/// disc; it reaches the limb beyond the key light's terminator, where the velvet's fibres,
+/// seen and lit at grazing angles, shine most: the velvet's bright rim all around.
+#[must_use]
+pub fn fill_light() -> Light {
+    Light::Directional {
+        direction: DVec3::Z,
+        irradiance: DVec3::splat(0.8),
+    }
+}
+
+/// The lights of the velvet and silk figures (Figs. 3 and 4, "under the same light"):
+/// [`key_light`] and [`fill_light`]. Figure 2 and the blend strip use the key light alone, so
+/// that every normal shows as one highlight.
+#[must_use]
+pub fn cloth_lights() -> [Light; 2] {
+    [key_light(), fill_light()]
 }
 
 /// Background radiance of the figures (dark blue-grey).
@@ -338,12 +360,18 @@ fn sphere_camera(width: f64) -> Result<Camera, FigureError> {
     .map_err(|e| ferr(e.to_string()))
 }
 
-/// A unit sphere (pole `+y`) with `shader` under [`key_light`], seen head-on through an
-/// orthographic camera 2.4 units wide, `size × size` pixels at `spp` samples per pixel.
+/// A unit sphere (pole `+y`) with `shader` under `lights` (e.g. `&[key_light()]` or
+/// [`cloth_lights`]), seen head-on through an orthographic camera 2.4 units wide,
+/// `size × size` pixels at `spp` samples per pixel.
 ///
 /// # Errors
-/// Invalid sizes.
-pub fn sphere_scene(shader: Arc<dyn Shader>, size: u32, spp: u32) -> Result<Scene, FigureError> {
+/// Invalid sizes or lights.
+pub fn sphere_scene(
+    shader: Arc<dyn Shader>,
+    size: u32,
+    spp: u32,
+    lights: &[Light],
+) -> Result<Scene, FigureError> {
     let mut b = SceneBuilder::new(
         sphere_camera(2.4)?,
         ImageSettings {
@@ -356,36 +384,39 @@ pub fn sphere_scene(shader: Arc<dyn Shader>, size: u32, spp: u32) -> Result<Scen
     let m = b.material(shader);
     b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m)
         .map_err(|e| ferr(e.to_string()))?;
-    b.light(key_light()).map_err(|e| ferr(e.to_string()))?;
+    for &l in lights {
+        b.light(l).map_err(|e| ferr(e.to_string()))?;
+    }
     b.build().map_err(|e| ferr(e.to_string()))
 }
 
-/// The scene file of [`sphere_scene`] for `meso render`, with `material` as the material path.
+/// The scene file of [`sphere_scene`] for `meso render`, with `material` as the material path
+/// and the directional `lights` (others are left out).
 #[must_use]
-pub fn sphere_scene_toml(material: &str, size: u32, spp: u32) -> String {
-    let Light::Directional {
-        direction,
-        irradiance,
-    } = key_light()
-    else {
-        unreachable!("the key light is directional")
-    };
-    format!(
+pub fn sphere_scene_toml(material: &str, size: u32, spp: u32, lights: &[Light]) -> String {
+    let mut s = format!(
         "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
          up = [0.0, 1.0, 0.0]\nwidth = 2.4\n[image]\nwidth = {size}\nheight = {size}\nspp = {spp}\n\
          background = [{}, {}, {}]\n[[object]]\nkind = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\n\
-         radius = 1.0\npole = [0.0, 1.0, 0.0]\nmaterial = \"{material}\"\n[[light]]\n\
-         kind = \"directional\"\ndirection = [{:.6}, {:.6}, {:.6}]\nirradiance = [{}, {}, {}]\n",
-        BACKGROUND[0],
-        BACKGROUND[1],
-        BACKGROUND[2],
-        direction.x,
-        direction.y,
-        direction.z,
-        irradiance.x,
-        irradiance.y,
-        irradiance.z
-    )
+         radius = 1.0\npole = [0.0, 1.0, 0.0]\nmaterial = \"{material}\"\n",
+        BACKGROUND[0], BACKGROUND[1], BACKGROUND[2],
+    );
+    for light in lights {
+        let Light::Directional {
+            direction,
+            irradiance,
+        } = *light
+        else {
+            continue;
+        };
+        let _ = write!(
+            s,
+            "[[light]]\nkind = \"directional\"\ndirection = [{:.6}, {:.6}, {:.6}]\n\
+             irradiance = [{}, {}, {}]\n",
+            direction.x, direction.y, direction.z, irradiance.x, irradiance.y, irradiance.z
+        );
+    }
+    s
 }
 
 /// The bump map of the zoom sequence: 64×64 samples of texel 1/64 (one tile per world unit),
@@ -614,13 +645,18 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
         let t = Instant::now();
         let material = def.material()?;
         let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&material));
-        let scene = sphere_scene(shader, size, spp)?;
+        let lights: Vec<Light> = if stem.starts_with("fig2") {
+            vec![key_light()]
+        } else {
+            cloth_lights().to_vec()
+        };
+        let scene = sphere_scene(shader, size, spp, &lights)?;
         let img = render(&scene, &ropts, None);
         w.png(&format!("{stem}.png"), &img, 0.0)?;
         w.bytes(&format!("{stem}.toml"), def.toml().as_bytes())?;
         w.bytes(
             &format!("{stem}.scene.toml"),
-            sphere_scene_toml(&format!("{stem}.toml"), size, spp).as_bytes(),
+            sphere_scene_toml(&format!("{stem}.toml"), size, spp, &lights).as_bytes(),
         )?;
         let caption = if caption.is_empty() {
             format!("Fig. 2d {} normals", def.lobes.len())

@@ -28,8 +28,9 @@
 //!   ½` (the −½ matches the bilinear tent's spread to the pixel's box), clamped to the pyramid;
 //!   the two nearest levels are blended linearly, and within each level the four nearest texels
 //!   bilinearly (trilinear filtering), so zooming is continuous. Footprints under √2 cells
-//!   (magnification) read level 0 through a box narrower than the bilinear tent, down to the
-//!   single cell under the point, so that supersampling converges to the bump map's cells.
+//!   (magnification) read level 0 bilinearly, or with [`NdfMapped::with_sharp_magnification`]
+//!   through a box narrower than the bilinear tent, down to the single cell under the point,
+//!   so that supersampling converges to the bump map's cells.
 //!   Each texel's response is computed **in closed form** from its fitted lobes (Eq. 12, area
 //!   weights `w`, exponents `η_n`): with projected-area weighting (`× m_z`, normalised by the
 //!   texel's projected area `Σ w·η_n/(η_n + 4)·a_z`, exact for a Phong peak) the filtered
@@ -402,6 +403,7 @@ pub struct NdfMapped {
     texels_per_uv: f64,
     shadowing: bool,
     footprint_scale: f64,
+    sharp_magnification: bool,
 }
 
 /// Up to 8 `(level, texel, weight)` taps of the trilinear filter.
@@ -527,6 +529,7 @@ impl NdfMapped {
             texels_per_uv,
             shadowing,
             footprint_scale: 1.0,
+            sharp_magnification: false,
         })
     }
 
@@ -563,6 +566,16 @@ impl NdfMapped {
         sp.uv_footprint() * self.texels_per_uv * self.footprint_scale
     }
 
+    /// Below level 0 (footprints under √2 cells) read the cells overlapping a box narrower than
+    /// the bilinear tent, down to the single cell under the point (see the module docs), so
+    /// that supersampling converges to the bump map's cell averages; the default keeps the
+    /// bilinear filter there, which shows magnified cells smoothly instead of as squares.
+    #[must_use]
+    pub fn with_sharp_magnification(mut self, sharp: bool) -> NdfMapped {
+        self.sharp_magnification = sharp;
+        self
+    }
+
     /// Multiply the ray-differential footprint by `scale` (> 0; default 1) before choosing the
     /// level of detail; [`NdfMapped::with_samples_per_pixel`] sets it from the sample count.
     #[must_use]
@@ -588,7 +601,8 @@ impl NdfMapped {
         }
     }
 
-    /// The taps at `sp`: trilinear, or below level 0 (footprints under √2 cells) the cells
+    /// The taps at `sp`: trilinear, or with sharp magnification below level 0 (footprints
+    /// under √2 cells) the cells
     /// overlapping a box of width `c = √(fp² − 1)` around the point (`c = 1` is the bilinear
     /// filter; the cell's own box plus this one have the footprint's variance), down to the
     /// single cell under the point.
@@ -597,7 +611,7 @@ impl NdfMapped {
         let (x, y) = (sp.uv.x * self.texels_per_uv, sp.uv.y * self.texels_per_uv);
         let mut taps = [(0usize, 0usize, 0.0f64); 8];
         let mut n = 0;
-        if fp.is_finite() && fp < std::f64::consts::SQRT_2 {
+        if self.sharp_magnification && fp.is_finite() && fp < std::f64::consts::SQRT_2 {
             let c = (fp * fp - 1.0).max(0.0).sqrt();
             let l = &self.levels[0];
             // Overlaps of [p − c/2, p + c/2] with the cells (at most two; weights sum to 1).

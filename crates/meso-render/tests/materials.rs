@@ -1,7 +1,7 @@
 //! Materials in the renderer against independent truth: the core's effective BRDF, Eq. 4,
 //! Monte Carlo convergence, and the NDF-mapped material against the supersampled bump map.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
 use meso_render::sampling::PixelSampler;
@@ -356,6 +356,68 @@ fn ndf_mapped_zoom_is_smooth() {
         width *= 1.1;
     }
     eprintln!("NDF-mapped / bump-mapped mean radiance: {ratios:?}");
+}
+
+/// Magnified with `with_sharp_magnification`, a point of the NDF-mapped material shades as
+/// the mean of the bump map's two triangles of the cell under it (level 0 holds their normals
+/// as sharp lobes, each with half the cell's projected area), within 0.5%.
+#[test]
+fn ndf_mapped_sharp_magnification_reads_the_cell() {
+    let map = egg_crate();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let surface = Material::from_toml_str(SURFACE).unwrap();
+    let tpu = 32.0;
+    let bump = BumpMapped::new(&map, &surface, tpu, false).unwrap();
+    let ndf = NdfMapped::new(&pyr, &surface, tpu, false)
+        .unwrap()
+        .with_sharp_magnification(true);
+    let wo = DVec3::new(0.1, -0.4, 0.9).normalize();
+    let wi = DVec3::new(-0.5, 0.3, 0.8).normalize();
+    let mut worst = 0.0f64;
+    for k in 0..40 {
+        // Cell (i, j) and a point inside it.
+        let (j, i) = ((k * 7) % 32, (k * 13) % 32);
+        let (fx, fy) = (0.3 + 0.01 * f64::from(k % 5), 0.6);
+        let at = |x: f64, y: f64| {
+            let mut sp = materials_point(DVec2::new(x / tpu, y / tpu));
+            // A footprint of a tenth of a cell: the single cell.
+            sp.duvdx = DVec2::new(0.1 / tpu, 0.0);
+            sp.duvdy = DVec2::new(0.0, 0.1 / tpu);
+            sp
+        };
+        let p = at(f64::from(j) + fx, f64::from(i) + fy);
+        let got = ndf.eval(&p, wi, wo);
+        // Triangle A (y − y_i < x − x_j) and triangle B of the same cell.
+        let a = bump.eval(&at(f64::from(j) + 0.7, f64::from(i) + 0.2), wi, wo);
+        let b = bump.eval(&at(f64::from(j) + 0.2, f64::from(i) + 0.7), wi, wo);
+        for c in 0..3 {
+            let want = 0.5 * (a[c] + b[c]);
+            worst = worst.max(f64::from((got[c] - want).abs() / want));
+        }
+    }
+    assert!(worst < 0.005, "worst relative error {worst}");
+}
+
+/// A shading point on the plane `z = 0` at texture coordinates `uv` (local frame = world).
+fn materials_point(uv: DVec2) -> ShadingPoint {
+    ShadingPoint {
+        position: DVec3::new(uv.x, uv.y, 0.0),
+        geometric_normal: DVec3::Z,
+        frame: meso_core::frame::Frame::from_normal_tangent(DVec3::Z, DVec3::X),
+        uv,
+        dpdu: DVec3::X,
+        dpdv: DVec3::Y,
+        dpdx: DVec3::ZERO,
+        dpdy: DVec3::ZERO,
+        duvdx: DVec2::ZERO,
+        duvdy: DVec2::ZERO,
+        material: MaterialId(0),
+    }
 }
 
 /// Bad placements are refused with a message, not a panic.
