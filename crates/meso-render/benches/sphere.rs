@@ -39,7 +39,14 @@ fn bench(c: &mut Criterion) {
                 (i[0] * i[0] + i[1] * i[1] + i[2] * i[2]).sqrt(),
                 (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]).sqrt(),
             );
-            [i[0] / li, i[1] / li, i[2] / li, o[0] / lo, o[1] / lo, o[2] / lo]
+            [
+                i[0] / li,
+                i[1] / li,
+                i[2] / li,
+                o[0] / lo,
+                o[1] / lo,
+                o[2] / lo,
+            ]
         })
         .collect();
     let col = |c: usize| -> Vec<f32> { dirs.iter().map(|d| d[c]).collect() };
