@@ -1,4 +1,5 @@
-//! Benchmarks of the figures' renderer paths (wall-clock, best of N frames):
+//! Benchmarks of the figures' renderer paths (wall-clock best of N frames; CPU time too for the
+//! equal-quality comparison):
 //!
 //! 1. the target scene — a 1024×1024 sphere, a 7-normal multiple surface (Phong
 //!    facets), 4 point lights, 1 spp — through `MaterialShader`, next to the renderer's own
