@@ -360,7 +360,9 @@ fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambda: f64) -> 
         // Axis of the product Gaussian (unnormalised: × r).
         let m = l.ka + lambda * h;
         let mh = (kah + lambda) * inv_r;
-        if mh <= 0.0 {
+        // Nothing to reflect when the product's axis faces away from the half vector or lies
+        // below the macro surface (it has no projected area there).
+        if mh <= 0.0 || m.z <= 0.0 {
             continue;
         }
         // r − κ without cancellation.
@@ -447,10 +449,11 @@ impl NdfMapped {
             }
             for t in 0..l.texels() {
                 let src = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
-                // Projected area of the texel's microsurface: Σ w E[m_z] = Σ w μ a_z.
+                // Projected area of the texel's microsurface: Σ w E[m_z] = Σ w μ a_z (exact for
+                // lobes above the horizon; lobes facing down count for nothing).
                 let area: f64 = src
                     .iter()
-                    .map(|p| p.weight * p.exponent / (p.exponent + 4.0) * p.axis.z)
+                    .map(|p| p.weight * p.exponent / (p.exponent + 4.0) * p.axis.z.max(0.0))
                     .sum();
                 let mut sz = DVec3::ZERO;
                 if area > 0.0 {
