@@ -1,0 +1,31 @@
+//! The velvet figure's lighting: the limb beyond the key light's terminator is black under the
+//! key light alone and shows the velvet's sheen once the fill light is added.
+
+use meso_figures::{cloth_lights, key_light, sphere_scene, velvet};
+use meso_render::{render, MaterialShader, RenderOptions, Shader};
+use std::sync::Arc;
+
+/// Red radiance at the lower-right limb (image direction −45°, 0.95 of the radius), where the
+/// key light's `N·L` is about −0.5, and at the centre of the disc.
+fn limb_and_centre(lights: &[meso_render::Light]) -> (f32, f32) {
+    let size = 64u32;
+    let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&velvet().material().unwrap()));
+    let scene = sphere_scene(shader, size, 1, lights).unwrap();
+    let img = render(&scene, &RenderOptions::default(), None);
+    // Orthographic, 2.4 world units across: world (0.672, −0.672) is pixel (49.9, 49.9).
+    let px = |x: u32, y: u32| img.pixels()[(y * size + x) as usize][0];
+    (px(49, 49), px(32, 32))
+}
+
+#[test]
+fn fill_light_gives_velvet_its_rim() {
+    let (limb_key, _) = limb_and_centre(&[key_light()]);
+    let (limb, centre) = limb_and_centre(&cloth_lights());
+    eprintln!("limb: key alone {limb_key}, key + fill {limb}; centre {centre}");
+    assert!(
+        limb_key < 1e-3,
+        "the key light alone does not reach the limb: {limb_key}"
+    );
+    // The sheen: the limb is brighter than the centre of the disc, which faces both lights.
+    assert!(limb > 0.05 && limb > centre, "limb {limb}, centre {centre}");
+}
