@@ -7,8 +7,8 @@
 //!   the bitangent: the NDF of a cylinder bump), and multiple surfaces of 2, 3 and 7 normals;
 //!   the 7 are the lobe axes of the top level of the NDF pyramid of a half-cylinder bump map.
 //! * **Figures 3 and 4** — the same sphere as velvet (normals near the horizon: grazing sheen)
-//!   and as silk (normals spread across the thread direction), under the same lights (the key
-//!   light and a dim fill light from the viewer, which shows the velvet's bright rim).
+//!   and as silk (normals spread across the thread direction), under the same light, from
+//!   near the viewer ([`cloth_light`]), which shows the velvet's bright rim.
 //! * **Zoom** — a bump-mapped plane, NDF-mapped through the pyramid, zooming out from visible
 //!   bumps to the averaged surface, with the mean luminance of every frame in a CSV.
 //! * **Blend** — a strip of spheres whose NDF goes from one lobe set to another, weights
@@ -327,24 +327,19 @@ pub fn key_light() -> Light {
     }
 }
 
-/// The dim fill light of Figures 3 and 4: directional, along the camera's axis (from the
-/// viewer), irradiance 0.8. Its terminator is the silhouette, so it adds no edge inside the
-/// disc; it reaches the limb beyond the key light's terminator, where the velvet's fibres,
-/// seen and lit at grazing angles, shine most: the velvet's bright rim all around.
+/// The light of Figures 3 and 4 ("under the same light"): directional, from just above
+/// and left of the viewer, irradiance 2.5. Lit from near the view direction, the velvet's
+/// fibres, seen and lit at grazing angles, shine at the limb all the way round (its
+/// characteristic bright rim) while the centre stays dark, and the light's terminator lies
+/// within a few pixels of the silhouette. (With the key light from the upper left, the
+/// multiple-surface form's sheen ends in a sharp arc at the terminator: each facet keeps its
+/// own cosine up to the macro horizon, where the renderer drops the light.)
 #[must_use]
-pub fn fill_light() -> Light {
+pub fn cloth_light() -> Light {
     Light::Directional {
-        direction: DVec3::Z,
-        irradiance: DVec3::splat(0.8),
+        direction: DVec3::new(-0.2, 0.25, 0.947).normalize(),
+        irradiance: DVec3::splat(2.5),
     }
-}
-
-/// The lights of the velvet and silk figures (Figs. 3 and 4, "under the same light"):
-/// [`key_light`] and [`fill_light`]. Figure 2 and the blend strip use the key light alone, so
-/// that every normal shows as one highlight.
-#[must_use]
-pub fn cloth_lights() -> [Light; 2] {
-    [key_light(), fill_light()]
 }
 
 /// Background radiance of the figures (dark blue-grey).
@@ -361,7 +356,7 @@ fn sphere_camera(width: f64) -> Result<Camera, FigureError> {
 }
 
 /// A unit sphere (pole `+y`) with `shader` under `lights` (e.g. `&[key_light()]` or
-/// [`cloth_lights`]), seen head-on through an orthographic camera 2.4 units wide,
+/// `&[cloth_light()]`), seen head-on through an orthographic camera 2.4 units wide,
 /// `size × size` pixels at `spp` samples per pixel.
 ///
 /// # Errors
@@ -648,7 +643,7 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
         let lights: Vec<Light> = if stem.starts_with("fig2") {
             vec![key_light()]
         } else {
-            cloth_lights().to_vec()
+            vec![cloth_light()]
         };
         let scene = sphere_scene(shader, size, spp, &lights)?;
         let img = render(&scene, &ropts, None);
