@@ -18,8 +18,9 @@
 //! D(m) = n(m) / ∫_{z>0} n (m·z) dω,   Λ(ω) = ∫ D(m) (ω·m)⁺ dω_m / cos θ_ω − 1,
 //! G₂ = 1 / (1 + Λ(i) + Λ(o))   (height-correlated Smith, computed numerically for any NDF).
 //! ```
-//! With a mirror facet the integral collapses to the classic `D(h) F G₂ / (4 cos θ_i cos θ_o)`;
-//! it is reciprocal, and under a white furnace it never gains energy.
+//! With a mirror facet the integral collapses to the classic `D(h) F G₂ / (4 cos θ_i cos θ_o)`,
+//! times the mirror's per-channel `specular` scale; it is reciprocal, and under a white furnace
+//! it never gains energy (the scale is at most 1).
 //!
 //! # Quadrature
 //! [`integrate`] computes `∫ n(m) g(m) dω` by a deterministic form of multiple importance
@@ -323,12 +324,12 @@ pub fn effective_brdf_with(
     }
     match form {
         Form::MultipleSurface => {
-            if let Transfer::Mirror { fresnel } = transfer {
+            if let Transfer::Mirror { .. } = transfer {
                 let Some(h) = half_vector(i, o) else {
                     return [0.0; 3];
                 };
                 let n = ndf.eval(h);
-                let f = fresnel.eval(i.dot(h));
+                let f = transfer.mirror_reflectance(i.dot(h)).unwrap_or([0.0; 3]);
                 let c = n / (4.0 * o.dot(h) * i.z);
                 return [f[0] * c, f[1] * c, f[2] * c];
             }
@@ -351,7 +352,7 @@ pub fn effective_brdf_with(
                 Visibility::None => 1.0,
                 Visibility::Custom(g) => g(i, o).clamp(0.0, 1.0),
             };
-            if let Transfer::Mirror { fresnel } = transfer {
+            if let Transfer::Mirror { .. } = transfer {
                 let Some(h) = half_vector(i, o) else {
                     return [0.0; 3];
                 };
@@ -359,7 +360,7 @@ pub fn effective_brdf_with(
                     return [0.0; 3];
                 }
                 let d = ndf.eval(h) / masking.projected_area;
-                let f = fresnel.eval(i.dot(h));
+                let f = transfer.mirror_reflectance(i.dot(h)).unwrap_or([0.0; 3]);
                 let c = d * g2 / (4.0 * i.z * o.z);
                 return [f[0] * c, f[1] * c, f[2] * c];
             }

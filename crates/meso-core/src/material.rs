@@ -692,6 +692,7 @@ fn parse_transfer(t: &toml::Table) -> Result<Transfer, MaterialError> {
         },
         "mirror" => Transfer::Mirror {
             fresnel: parse_fresnel(&mut f)?,
+            specular: f.rgb("specular", 1.0)?.unwrap_or([1.0; 3]),
         },
         "microfacet" => {
             let dist = match f.string("distribution")?.unwrap_or("ggx") {

@@ -312,14 +312,13 @@ impl FastBrdf {
                 lambda,
                 projected_area,
             } => {
-                let Transfer::Mirror { fresnel } = self.material.transfer else {
-                    unreachable!("Mirror kind is built from mirror transfers only")
-                };
                 let Some(h) = half_vector(i, o) else {
                     return [0.0; 3];
                 };
+                let Some(fr) = self.material.transfer.mirror_reflectance(i.dot(h)) else {
+                    unreachable!("Mirror kind is built from mirror transfers only")
+                };
                 let n = self.material.ndf.eval(h);
-                let fr = fresnel.eval(i.dot(h));
                 let c = match self.material.form {
                     Form::MultipleSurface => n / (4.0 * o.dot(h) * i.z),
                     Form::Microfacet => {

@@ -198,6 +198,7 @@ fn continuous_ndfs() -> Vec<(&'static str, Ndf)> {
 fn microfacet_form_with_mirror_facets_is_reciprocal() {
     let t = Transfer::Mirror {
         fresnel: Fresnel::None,
+        specular: [1.0; 3],
     };
     for (name, ndf) in continuous_ndfs() {
         for (i, o) in pairs() {
@@ -220,6 +221,7 @@ fn microfacet_form_matches_closed_form_beckmann_ggx() {
         let ndf = Ndf::Microfacet(mf);
         let t = Transfer::Mirror {
             fresnel: Fresnel::None,
+            specular: [1.0; 3],
         };
         for (i, o) in pairs() {
             let h = half_vector(i, o).unwrap();
@@ -240,6 +242,7 @@ fn microfacet_form_gains_no_energy_under_a_white_furnace() {
     // affordable. The value is checked against effective_brdf at a few directions first.
     let t = Transfer::Mirror {
         fresnel: Fresnel::None,
+        specular: [1.0; 3],
     };
     for (name, ndf) in continuous_ndfs() {
         let acc = Accuracy::fast();

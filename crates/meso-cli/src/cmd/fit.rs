@@ -266,8 +266,9 @@ impl Lobes {
             Lobes::Microfacet(p) => {
                 let _ = writeln!(
                     s,
-                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], Smith masking-shadowing",
-                    p.f0[0], p.f0[1], p.f0[2]
+                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], specular [{:.4}, {:.4}, {:.4}], \
+                     Smith masking-shadowing",
+                    p.f0[0], p.f0[1], p.f0[2], p.specular[0], p.specular[1], p.specular[2]
                 );
                 let _ = write!(
                     s,
@@ -457,6 +458,7 @@ pub fn run(a: Args) -> Result<()> {
             }),
             (Lobes::Microfacet(p), true) => Lobes::Microfacet(LobeMicrofacetParams {
                 f0: [p.f0[j]; 3],
+                specular: [p.specular[j]; 3],
                 albedo: [p.albedo[j]; 3],
                 ..p.clone()
             }),

@@ -40,12 +40,17 @@ pub enum Transfer {
         /// RGB albedo in `[0, 1]`.
         albedo: [f64; 3],
     },
-    /// A perfect mirror facet with Fresnel: a Dirac BRDF, `F(i·m) δ(o − reflect(i, m))/(o·m)`. It is
-    /// only meaningful convolved with a continuous NDF, where the integral collapses onto `m = H`
-    /// (the classic microfacet BRDF; see [`crate::convolution`]).
+    /// A perfect mirror facet with Fresnel: a Dirac BRDF,
+    /// `specular · F(i·m) δ(o − reflect(i, m))/(o·m)`. It is only meaningful convolved with a
+    /// continuous NDF, where the integral collapses onto `m = H` (the classic microfacet BRDF; see
+    /// [`crate::convolution`]).
     Mirror {
         /// Fresnel of the facet.
         fresnel: Fresnel,
+        /// Per-channel scale of the facet BRDF, dimensionless, each in `[0, 1]` (`[1, 1, 1]`: the
+        /// plain Fresnel mirror). With every component ≤ 1 the facet reflects at most what the
+        /// Fresnel mirror does, so the white-furnace bound of the unscaled mirror still holds.
+        specular: [f64; 3],
     },
     /// A rough microfacet facet (Cook–Torrance/Walter): `F(i·h) D(h) G₂(i,o) / (4 cos θᵢ cos θₒ)`
     /// with Beckmann or GGX `D`, height-correlated Smith `G₂ = 1/(1 + Λ(i) + Λ(o))`.
@@ -104,6 +109,21 @@ impl Transfer {
                 let f = fresnel.eval(i.dot(h));
                 [f[0] * common, f[1] * common, f[2] * common]
             }
+        }
+    }
+
+    /// The reflectance of a [`Transfer::Mirror`] facet for the cosine `cos_d = i·m` between the
+    /// light and the facet normal: `specular · F(cos_d)` per channel (dimensionless, in `[0, 1]`
+    /// for the validated inputs). Every evaluation of the collapsed mirror integral multiplies
+    /// the NDF term by this. `None` for the other transfers.
+    #[must_use]
+    pub fn mirror_reflectance(&self, cos_d: f64) -> Option<[f64; 3]> {
+        match *self {
+            Transfer::Mirror { fresnel, specular } => {
+                let f = fresnel.eval(cos_d);
+                Some([0, 1, 2].map(|c| specular[c] * f[c]))
+            }
+            _ => None,
         }
     }
 

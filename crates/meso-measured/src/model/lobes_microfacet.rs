@@ -11,13 +11,14 @@
 //! kind = "mirror"
 //! fresnel = "schlick"
 //! f0 = [r, g, b]
+//! specular = [r, g, b]
 //! [shadowing]
 //! kind = "smith"
 //! [diffuse]
 //! albedo = [r, g, b]
 //! ```
 //!
-//! which meso-core evaluates as `f = albedo/π + D(h) F(i·h) G₂(i, o) / (4 cos θi cos θo)` with
+//! which meso-core evaluates as `f = albedo/π + specular · D(h) F(i·h) G₂(i, o) / (4 cos θi cos θo)` with
 //! `D = n / ∫_{z>0} n (m·z) dω` and `G₂ = 1/(1 + Λ(i) + Λ(o))`, `Λ` integrated numerically from
 //! the NDF.
 //!
@@ -34,9 +35,15 @@
 //!   variance `4/η_k` (the von Mises–Fisher κ = η/4 of `cos^η(α/2)`), so
 //!   `M = Σ_k w'_k (t_k t_kᵀ + 4/η_k I)` with `w'_k = w_k P_k / P` and `α_φ² = 2 uᵀ M u`,
 //!   `u = (cos φ, sin φ)` (clamped to `α ≤ 4`).
-//! * `F` is Schlick's: `F = f0 + (1 − f0)(1 − i·h)⁵`, i.e. the basis lobes
-//!   `D G₂ (1 − (1 − c)⁵) / (4 cos θi cos θo)` (amplitude `f0 ∈ [0, 1]` per channel) and
-//!   `D G₂ (1 − c)⁵ / (4 cos θi cos θo)` (amplitude held at 1).
+//! * `F` is Schlick's, `F = f0 + (1 − f0)(1 − i·h)⁵`, scaled per channel by the mirror's
+//!   `specular = s ∈ [0, 1]` (without it the specular lobe could not be dimmer than Fresnel
+//!   allows: `F` rises to 1 at grazing and `D` is normalised). So `s F = s f0 + s (1 − f0)(1 − c)⁵`
+//!   and the linear basis lobes are `X = D G₂ / (4 cos θi cos θo)` with amplitude
+//!   `u = s f0` and `X (1 − c)⁵` with amplitude `g = s (1 − f0)`, both in `[0, 1]` per channel.
+//!   Every `(u, g)` with `u + g ≤ 1` is exactly one `(s, f0) = (u + g, u/(u + g))`; the fit
+//!   bounds `u` and `g` separately, and the rare `u + g > 1` (a specular part brighter than any
+//!   mirror facet gives) is written with both scaled by `1/(u + g)` ([`LobeMicrofacetModel::params`]).
+//!   The model without the scale (`g = 1 − u`, `s = 1`) is a special case.
 //!
 //! The approximation is exact for `D` when the lobes are sharp or on the normal and close for
 //! `Λ` when the mixture is near Beckmann; `meso fit` reports the exact error of the written
@@ -154,6 +161,9 @@ pub struct LobeMicrofacetParams {
     pub lobes: Vec<PhongLobe>,
     /// Schlick's reflectance at normal incidence per channel, in [0, 1].
     pub f0: [f64; 3],
+    /// The mirror's per-channel specular scale `s` in [0, 1] (dimensionless; 1: the plain
+    /// Fresnel mirror).
+    pub specular: [f64; 3],
     /// Lambertian albedo per channel, in [0, 1].
     pub albedo: [f64; 3],
 }
@@ -166,7 +176,7 @@ impl LobeMicrofacetParams {
         [0, 1, 2].map(|c| {
             let spec = s.map_or(0.0, |(d, cos)| {
                 let m5 = (1.0 - cos).clamp(0.0, 1.0).powi(5);
-                d * (self.f0[c] + (1.0 - self.f0[c]) * m5)
+                d * self.specular[c] * (self.f0[c] + (1.0 - self.f0[c]) * m5)
             });
             if wi.z > 0.0 && wo.z > 0.0 {
                 self.albedo[c] / PI + spec
@@ -189,6 +199,8 @@ impl LobeMicrofacetParams {
         s.push_str("\n[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\n");
         let f = self.f0.map(|x| x.clamp(0.0, 1.0));
         let _ = writeln!(s, "f0 = [{:?}, {:?}, {:?}]", f[0], f[1], f[2]);
+        let k = self.specular.map(|x| x.clamp(0.0, 1.0));
+        let _ = writeln!(s, "specular = [{:?}, {:?}, {:?}]", k[0], k[1], k[2]);
         s.push_str("\n[shadowing]\nkind = \"smith\"\n");
         let a = self.albedo.map(|x| x.clamp(0.0, 1.0));
         let _ = writeln!(
@@ -209,20 +221,32 @@ impl LobeMicrofacetModel {
         }
     }
 
-    /// Physical parameters from a fit of this model.
+    /// Physical parameters from a fit of this model: `specular = u + g`, `f0 = u/(u + g)` from
+    /// the amplitudes `u`, `g` of the two specular basis lobes (module docs); where `u + g > 1`
+    /// both are first scaled by `1/(u + g)`, so that `specular ≤ 1` (the written material is then
+    /// dimmer than the fitted form); `f0 = 0` where `u + g = 0` (no specular).
     #[must_use]
     pub fn params(&self, fit: &FitResult) -> LobeMicrofacetParams {
         self.params_from(&fit.theta, &fit.amps)
     }
 
-    /// Physical parameters from `θ` and amplitudes (`[albedo, f0, grazing]`).
+    /// Physical parameters from `θ` and amplitudes (`[albedo, u, g]`, as
+    /// [`LobeMicrofacetModel::params`]).
     #[must_use]
     pub fn params_from(&self, theta: &[f64], amps: &[[f64; 3]]) -> LobeMicrofacetParams {
         let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
         decode_lobes(self.k, theta, &mut lobes);
+        let (mut f0, mut specular) = ([0.0; 3], [0.0; 3]);
+        for c in 0..3 {
+            let (u, g) = (amps[1][c].max(0.0), amps[2][c].max(0.0));
+            let s = u + g;
+            specular[c] = s.min(1.0);
+            f0[c] = if s > 0.0 { (u / s).min(1.0) } else { 0.0 };
+        }
         LobeMicrofacetParams {
             lobes: lobes[..self.k].to_vec(),
-            f0: amps[1],
+            f0,
+            specular,
             albedo: amps[0],
         }
     }
@@ -251,7 +275,11 @@ impl BrdfModel for LobeMicrofacetModel {
     }
 
     fn basis_names(&self) -> Vec<String> {
-        vec!["diffuse".into(), "f0".into(), "fresnel-grazing".into()]
+        vec![
+            "diffuse".into(),
+            "specular-f0".into(),
+            "specular-grazing".into(),
+        ]
     }
 
     /// `ax_k, ay_k` of every lobe.
@@ -266,7 +294,7 @@ impl BrdfModel for LobeMicrofacetModel {
     }
 
     fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
-        vec![(0.0, 1.0), (0.0, 1.0), (1.0, 1.0)]
+        vec![(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
     }
 
     fn bounds(&self) -> Vec<(f64, f64)> {
@@ -301,7 +329,7 @@ impl BrdfModel for LobeMicrofacetModel {
         match microfacet_lobes_fast(&lobes[..self.k], wi, wo) {
             Some((d, c)) => {
                 let m5 = (1.0 - c).clamp(0.0, 1.0).powi(5);
-                out[1] = d * (1.0 - m5);
+                out[1] = d;
                 out[2] = d * m5;
             }
             None => {
@@ -402,7 +430,7 @@ impl LobeMicrofacetModel {
         let kk = 1.0 / (4.0 * wi.z * wo.z);
         let x = n / p * g2 * kk;
         let m5 = (1.0 - wi.dot(h)).clamp(0.0, 1.0).powi(5);
-        out[1] = x * (1.0 - m5);
+        out[1] = x;
         out[2] = x * m5;
         // dX from (dn, dP, dM) of one parameter.
         let dx = |dn: f64, dp: f64, dm: [f64; 3]| -> f64 {
@@ -419,7 +447,7 @@ impl LobeMicrofacetModel {
             kk * (g2 * (dn - n * dp / p) / p + n / p * dg2)
         };
         let mut put = |q: usize, d: f64| {
-            grad[3 * q + 1] = d * (1.0 - m5);
+            grad[3 * q + 1] = d;
             grad[3 * q + 2] = d * m5;
         };
         for (j, l) in lobes.iter().enumerate().take(k) {
@@ -488,6 +516,7 @@ pub fn fit_microfacet_lobes_progressive(
                     None => LobeMicrofacetParams {
                         lobes: vec![PhongLobe::new(h, 1.0, eta)],
                         f0: [0.0; 3],
+                        specular: [1.0; 3],
                         albedo: [0.0; 3],
                     },
                 };
@@ -532,6 +561,7 @@ mod tests {
         let p = LobeMicrofacetParams {
             lobes: vec![PhongLobe::new(DVec3::Z, 1.0, 400.0)],
             f0: [0.9, 0.5, 0.1],
+            specular: [0.8, 0.3, 1.0],
             albedo: [0.1, 0.2, 0.3],
         };
         let m = Material::from_toml_str(&p.to_material_toml("test")).expect("valid material");
