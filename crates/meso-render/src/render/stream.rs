@@ -11,7 +11,7 @@
 //!    path);
 //! 2. the local incident direction, masked by the geometric-normal and cosine tests;
 //! 3. one [`Shader::eval_pairs`] call per run of points with the same material, so the lobe
-//!    kernel runs across points, eight at a time;
+//!    kernel runs across points, 8 (AVX2) or 16 (AVX-512) at a time;
 //! 4. shadow rays where the BRDF is non-zero.
 //!
 //! Each hit sums its lights in the same order as the per-hit path (lights in scene order, then
