@@ -549,11 +549,17 @@ pub fn run(a: Args) -> Result<()> {
                 "lobe sharpness cap: exponent <= {cap:.0} (lobes no narrower than the data's angular resolution {:.2} deg)",
                 delta.to_degrees()
             );
-        } else {
+        } else if delta.to_degrees() >= 1e-3 {
             let _ = writeln!(
                 rep,
                 "lobe sharpness cap: none below the model's bound (angular resolution {:.4} deg)",
                 delta.to_degrees()
+            );
+        } else {
+            // MERL's θh cells reach the normal exactly: no resolution limit to print.
+            let _ = writeln!(
+                rep,
+                "lobe sharpness cap: none below the model's bound (the samples reach the lobe axes)"
             );
         }
     }
