@@ -434,6 +434,18 @@ pub(crate) struct SurfaceGeom {
     pub frame: Option<Frame>,
 }
 
+/// Turn the geometric normal and the shading frame towards the viewer looking along `d`:
+/// when `ng · d > 0`, `ng`, `n` and `b` are negated and the tangent kept (the frame stays
+/// right-handed).
+#[inline(always)]
+pub(crate) fn face_viewer(ng: &mut DVec3, frame: &mut Frame, d: DVec3) {
+    if ng.dot(d) > 0.0 {
+        *ng = -*ng;
+        frame.n = -frame.n;
+        frame.b = -frame.b;
+    }
+}
+
 /// Orient the frame towards the viewer and add the ray-differential footprint.
 #[inline]
 pub(crate) fn finish_shading_point(
@@ -446,11 +458,7 @@ pub(crate) fn finish_shading_point(
         Some(f) => f,
         None => Frame::from_normal_tangent(g.ns, g.tangent),
     };
-    if ng.dot(ray.d) > 0.0 {
-        ng = -ng;
-        frame.n = -frame.n;
-        frame.b = -frame.b;
-    }
+    face_viewer(&mut ng, &mut frame, ray.d);
     let (mut dpdx, mut dpdy) = (DVec3::ZERO, DVec3::ZERO);
     let (mut duvdx, mut duvdy) = (DVec2::ZERO, DVec2::ZERO);
     if let Some(rd) = rd {

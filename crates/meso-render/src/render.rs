@@ -98,19 +98,18 @@ pub fn render(
     let mut ctx = PixelContext::new(scene, w, h, spp, opts.seed);
     ctx.stream &= !opts.per_hit;
     let ts = opts.tile_size.max(1);
-    let th = ts;
-    let (tx, ty) = (w.div_ceil(ts), h.div_ceil(th));
+    let (tx, ty) = (w.div_ceil(ts), h.div_ceil(ts));
     let total = (tx * ty) as usize;
     let done = AtomicUsize::new(0);
     let mut img = Image::new(w, h);
     // One band (a row of tiles) per job, written straight into the image (no per-tile
     // buffers kept alive until the end: at 1024² those were 12 MB of fresh pages per frame).
     img.pixels_mut()
-        .par_chunks_mut((w * th) as usize)
+        .par_chunks_mut((w * ts) as usize)
         .enumerate()
         .for_each(|(band, pixels)| {
-            let y0 = band as u32 * th;
-            let y1 = (y0 + th).min(h);
+            let y0 = band as u32 * ts;
+            let y1 = (y0 + ts).min(h);
             let mut buf = Vec::with_capacity((ts * ts) as usize);
             let mut scratch = ShadeScratch::default();
             for t in 0..tx {

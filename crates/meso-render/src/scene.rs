@@ -8,7 +8,9 @@
 use crate::bvh::{Bvh, Prim};
 use crate::camera::{Camera, Projection, Ray, RayDifferential};
 use crate::error::SceneError;
-use crate::geometry::{finish_shading_point, MaterialId, Mesh, Plane, Quad, ShadingPoint, Sphere};
+use crate::geometry::{
+    face_viewer, finish_shading_point, MaterialId, Mesh, Plane, Quad, ShadingPoint, Sphere,
+};
 use crate::light::{EnvironmentMap, Light};
 use crate::sampling::MAX_SAMPLES_PER_PIXEL;
 use crate::shader::Shader;
@@ -591,14 +593,8 @@ impl Scene {
                 let n = (ray.at(h.t) - sph.center) * (1.0 / sph.radius);
                 let (mut frame, _) = sph.frame_at(n);
                 let mut ng = n;
-                let cos = ng.dot(ray.d);
-                let outside = cos < 0.0;
-                // As `finish_shading_point`: face the viewer, keep the tangent.
-                if cos > 0.0 {
-                    ng = -ng;
-                    frame.n = -frame.n;
-                    frame.b = -frame.b;
-                }
+                let outside = ng.dot(ray.d) < 0.0;
+                face_viewer(&mut ng, &mut frame, ray.d);
                 return HitFrame {
                     position: sph.center + n * sph.radius,
                     geometric_normal: ng,

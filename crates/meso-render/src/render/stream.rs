@@ -54,8 +54,7 @@ pub(crate) struct StreamScratch {
     sample: Lane<u32>,
     material: Lane<u32>,
     skip: Lane<Skip>,
-    /// Shadow-ray origin (world) and the offset used for it.
-    origin: [Lane<f64>; 3],
+    /// The offset of the shadow-ray origin along the geometric normal.
     eps: Lane<f64>,
     p: [Lane<f64>; 3],
     ng: [Lane<f64>; 3],
@@ -92,7 +91,6 @@ impl Default for StreamScratch {
             sample: lane(0),
             material: lane(0),
             skip: lane(Skip::None),
-            origin: lanes3(0.0),
             eps: lane(0.0),
             p: lanes3(0.0),
             ng: lanes3(0.0),
@@ -179,7 +177,6 @@ fn push_hit(
     let i = s.n % STREAM_CHUNK;
     let p = sp.position;
     let eps = 1e-9 * (1.0 + p.abs().max_element());
-    let origin = p + sp.geometric_normal * eps;
     let wo_l = sp.frame.to_local(wo);
     s.slot[i] = slot;
     s.px[i] = x;
@@ -189,7 +186,6 @@ fn push_hit(
     s.skip[i] = sp.skip;
     s.eps[i] = eps;
     for c in 0..3 {
-        s.origin[c][i] = origin[c];
         s.p[c][i] = p[c];
         s.ng[c][i] = sp.geometric_normal[c];
         s.t[c][i] = sp.frame.t[c];
@@ -488,7 +484,9 @@ fn light_pass(scene: &Scene, s: &mut StreamScratch) {
         // A lone convex primitive left on the lit side cannot shadow itself.
         if !(single && s.skip[i] != Skip::None) {
             let ray = Ray {
-                o: DVec3::new(s.origin[0][i], s.origin[1][i], s.origin[2][i]),
+                // As the per-hit path: leave on the geometric normal's side.
+                o: DVec3::new(s.p[0][i], s.p[1][i], s.p[2][i])
+                    + DVec3::new(s.ng[0][i], s.ng[1][i], s.ng[2][i]) * s.eps[i],
                 d: DVec3::new(s.wi[0][i], s.wi[1][i], s.wi[2][i]),
             };
             let d = s.dist[i];
