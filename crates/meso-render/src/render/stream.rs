@@ -71,6 +71,8 @@ pub(crate) struct StreamScratch {
     /// The current light: local direction (below the horizon when masked) and the BRDF.
     wi_local: [Lane<f32>; 3],
     f: [Lane<f32>; 3],
+    /// The BRDF scattered back to the hits (0 where unlit or shadowed).
+    fs: [Lane<f32>; 3],
     /// Radiance of each hit so far.
     sum: [Lane<f64>; 3],
     /// The current light's lit hits (indices) and their gathered local directions and
@@ -103,6 +105,7 @@ impl Default for StreamScratch {
             weight: lanes3(0.0),
             wi_local: lanes3(0.0),
             f: lanes3(0.0),
+            fs: lanes3(0.0),
             sum: lanes3(0.0),
             lit: lane(0),
             gi: lanes3(0.0),
@@ -199,7 +202,70 @@ fn push_hit(
 
 /// Shade every hit of the chunk (all lights, then the environment), add the radiance to the
 /// hits' pixels in `acc` and empty the chunk.
+///
+/// The chunk's loops are compiled three times (AVX-512, AVX2 + FMA, baseline x86-64 or other
+/// architectures) and the running CPU picks one, so that the flat loops over the chunk's
+/// arrays (light samples, masks, the accumulation) use the widest vectors it has.
 fn shade_chunk(scene: &Scene, c: &PixelContext, s: &mut StreamScratch, acc: &mut [DVec3]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the running CPU supports AVX-512F/VL, AVX2 and FMA (checked just above).
+            unsafe { shade_chunk_avx512(scene, c, s, acc) };
+            return;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
+            unsafe { shade_chunk_avx2(scene, c, s, acc) };
+            return;
+        }
+    }
+    shade_chunk_impl::<BLOCK>(scene, c, s, acc);
+}
+
+/// [`shade_chunk`] compiled for AVX2 + FMA (light samples 4 hits per block).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn shade_chunk_avx2(
+    scene: &Scene,
+    c: &PixelContext,
+    s: &mut StreamScratch,
+    acc: &mut [DVec3],
+) {
+    shade_chunk_impl::<BLOCK>(scene, c, s, acc);
+}
+
+/// [`shade_chunk`] compiled for AVX-512 (light samples 8 hits per block).
+///
+/// # Safety
+/// The CPU must support AVX-512F, AVX-512VL, AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+unsafe fn shade_chunk_avx512(
+    scene: &Scene,
+    c: &PixelContext,
+    s: &mut StreamScratch,
+    acc: &mut [DVec3],
+) {
+    shade_chunk_impl::<{ 2 * BLOCK }>(scene, c, s, acc);
+}
+
+/// The body of [`shade_chunk`]; `B` is the light-sample block size.
+#[inline(always)]
+fn shade_chunk_impl<const B: usize>(
+    scene: &Scene,
+    c: &PixelContext,
+    s: &mut StreamScratch,
+    acc: &mut [DVec3],
+) {
     let n = s.n;
     if n == 0 {
         return;
@@ -209,11 +275,11 @@ fn shade_chunk(scene: &Scene, c: &PixelContext, s: &mut StreamScratch, acc: &mut
             crate::Light::Point {
                 position,
                 intensity,
-            } => delta_samples(s, Some(position), DVec3::ZERO, intensity),
+            } => delta_samples::<B>(s, Some(position), DVec3::ZERO, intensity),
             crate::Light::Directional {
                 direction,
                 irradiance,
-            } => delta_samples(s, None, direction, irradiance),
+            } => delta_samples::<B>(s, None, direction, irradiance),
             _ => {
                 for i in 0..n {
                     let sm = PixelSampler::deferred(s.px[i], s.py[i], c.seed, s.sample[i]);
@@ -238,61 +304,7 @@ fn shade_chunk(scene: &Scene, c: &PixelContext, s: &mut StreamScratch, acc: &mut
     s.n = 0;
 }
 
-/// Point-light (`Some(position)`) or directional (`None`, `wi = direction`) samples and the
-/// masks for the whole chunk: the arithmetic of [`crate::Light::sample`] and of the per-hit
-/// path's tests, in one flat loop over the chunk's arrays that the compiler vectorises.
-fn delta_samples(s: &mut StreamScratch, position: Option<DVec3>, direction: DVec3, power: DVec3) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-            && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the running CPU supports AVX-512F/VL and FMA (checked just above).
-            unsafe { delta_samples_avx512(s, position, direction, power) };
-            return;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
-            // SAFETY: the running CPU supports AVX2 and FMA (checked just above).
-            unsafe { delta_samples_avx2(s, position, direction, power) };
-            return;
-        }
-    }
-    delta_samples_impl::<BLOCK>(s, position, direction, power);
-}
-
-/// [`delta_samples`] compiled for AVX2 + FMA (4 hits per block).
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn delta_samples_avx2(
-    s: &mut StreamScratch,
-    position: Option<DVec3>,
-    direction: DVec3,
-    power: DVec3,
-) {
-    delta_samples_impl::<BLOCK>(s, position, direction, power);
-}
-
-/// [`delta_samples`] compiled for AVX-512 (8 hits per block).
-///
-/// # Safety
-/// The CPU must support AVX-512F, AVX-512VL, AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-unsafe fn delta_samples_avx512(
-    s: &mut StreamScratch,
-    position: Option<DVec3>,
-    direction: DVec3,
-    power: DVec3,
-) {
-    delta_samples_impl::<{ 2 * BLOCK }>(s, position, direction, power);
-}
-
-/// Hits per block of [`delta_samples_impl`] (one AVX register of f64; twice that with AVX-512).
+/// Hits per block of [`delta_samples`] (one AVX register of f64; twice that with AVX-512).
 const BLOCK: usize = 4;
 
 /// `B` values of each of three components.
@@ -306,8 +318,12 @@ fn load3<const B: usize>(v: &[Lane<f64>; 3], base: usize, out: &mut Block3<B>) {
     }
 }
 
+/// Point-light (`Some(position)`) or directional (`None`, `wi = direction`) samples and the
+/// masks for the whole chunk, `B` hits per block: the arithmetic of [`crate::Light::sample`]
+/// and of the per-hit path's tests, in one flat loop over the chunk's arrays that the compiler
+/// vectorises.
 #[inline(always)]
-fn delta_samples_impl<const B: usize>(
+fn delta_samples<const B: usize>(
     s: &mut StreamScratch,
     position: Option<DVec3>,
     direction: DVec3,
@@ -420,6 +436,7 @@ fn set_sample(s: &mut StreamScratch, i: usize, ls: Option<LightSample>) {
 /// Evaluate the BRDF for the current light at the lit hits of the chunk (gathered first, then
 /// one [`crate::Shader::eval_pairs`] call per run of equal materials), trace their shadow rays
 /// where the BRDF is non-zero and add their radiance.
+#[inline(always)]
 fn light_pass(scene: &Scene, s: &mut StreamScratch) {
     let n = s.n;
     // Gather the lit hits (masked ones have a below-horizon local direction).
@@ -474,15 +491,18 @@ fn light_pass(scene: &Scene, s: &mut StreamScratch) {
         }
         a = b;
     }
+    // Scatter the BRDF back to the hits (unlit and shadowed hits keep 0), then add
+    // `f · weight` over the whole chunk in one flat loop that the compiler vectorises.
+    for fc in &mut s.fs {
+        fc[..n].fill(0.0);
+    }
     let single = scene.single_convex_prim();
     for k in 0..m.min(STREAM_CHUNK) {
         let f = [s.f[0][k], s.f[1][k], s.f[2][k]];
-        if f[0] <= 0.0 && f[1] <= 0.0 && f[2] <= 0.0 {
-            continue;
-        }
         let i = s.lit[k] as usize % STREAM_CHUNK;
         // A lone convex primitive left on the lit side cannot shadow itself.
-        if !(single && s.skip[i] != Skip::None) {
+        let may_shadow = !(single && s.skip[i] != Skip::None);
+        if may_shadow && (f[0] > 0.0 || f[1] > 0.0 || f[2] > 0.0) {
             let ray = Ray {
                 // As the per-hit path: leave on the geometric normal's side.
                 o: DVec3::new(s.p[0][i], s.p[1][i], s.p[2][i])
@@ -500,7 +520,13 @@ fn light_pass(scene: &Scene, s: &mut StreamScratch) {
             }
         }
         for (c, fc) in f.iter().enumerate() {
-            s.sum[c][i] += f64::from(*fc) * s.weight[c][i];
+            s.fs[c][i] = *fc;
+        }
+    }
+    for c in 0..3 {
+        let (sum, fs, w) = (&mut s.sum[c][..n], &s.fs[c][..n], &s.weight[c][..n]);
+        for ((a, f), w) in sum.iter_mut().zip(fs).zip(w) {
+            *a += f64::from(*f) * *w;
         }
     }
 }
