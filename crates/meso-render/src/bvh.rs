@@ -237,6 +237,11 @@ impl Bvh {
         &self.prims[i as usize]
     }
 
+    /// The primitives, when the root is a leaf (a few primitives, tested without a box).
+    pub(crate) fn root_leaf(&self) -> Option<&[Prim]> {
+        (self.nodes.first()?.count > 0).then_some(&self.prims[..])
+    }
+
     /// Closest hit with `tmin < t < tmax`.
     #[inline]
     pub(crate) fn intersect(&self, ray: &Ray, tmin: f64, mut tmax: f64) -> Option<PrimHit> {

@@ -48,6 +48,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+mod primary;
 mod stream;
 
 /// Per-call overrides of the scene's image settings.
@@ -405,7 +406,7 @@ fn shade_impl(
         return DVec3::ZERO;
     };
     let p = sp.position;
-    let eps = 1e-9 * (1.0 + p.abs().max_element());
+    let eps = shadow_eps(p);
     let mut batch = Batch {
         scene,
         shader,
@@ -436,4 +437,11 @@ fn shade_impl(
     }
     batch.flush();
     batch.sum
+}
+
+/// The offset of a shadow ray's origin along the geometric normal at `p` (world units; both
+/// shading paths), relative to the point's magnitude so that it survives f64 rounding.
+#[inline]
+fn shadow_eps(p: DVec3) -> f64 {
+    1e-9 * (1.0 + p.abs().max_element())
 }

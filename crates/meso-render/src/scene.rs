@@ -90,6 +90,8 @@ pub struct Scene {
     planes: Vec<Plane>,
     meshes: Vec<(Arc<Mesh>, MaterialId)>,
     bvh: Bvh,
+    /// See [`Scene::sphere_only`] (empty when the scene has other geometry).
+    sphere_only: Vec<LeafSphere>,
 }
 
 /// Collects geometry, materials and lights, then builds a [`Scene`].
@@ -414,6 +416,29 @@ impl SceneBuilder {
                 }
             }
         }
+        let bvh = Bvh::build(prims);
+        let sphere_only = match bvh.root_leaf() {
+            Some(leaf) if self.planes.is_empty() => leaf
+                .iter()
+                .enumerate()
+                .map(|(k, p)| match *p {
+                    Prim::Sphere { index, .. } => {
+                        let s = &self.spheres[index as usize];
+                        Some(LeafSphere {
+                            prim: k as u32,
+                            index,
+                            center: s.center,
+                            radius: s.radius,
+                            pole: s.pole,
+                            material: s.material,
+                        })
+                    }
+                    _ => None,
+                })
+                .collect::<Option<Vec<_>>>()
+                .unwrap_or_default(),
+            _ => Vec::new(),
+        };
         Ok(Scene {
             camera: self.camera,
             image: self.image,
@@ -426,7 +451,8 @@ impl SceneBuilder {
             quads: self.quads,
             planes: self.planes,
             meshes: self.meshes,
-            bvh: Bvh::build(prims),
+            bvh,
+            sphere_only,
         })
     }
 }
@@ -468,6 +494,24 @@ pub(crate) struct HitFrame {
     pub frame: Frame,
     pub material: MaterialId,
     pub skip: Skip,
+}
+
+/// A sphere of a sphere-only scene ([`Scene::sphere_only`]) with what the stream path's
+/// vectorised camera rays need.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LeafSphere {
+    /// Its position in the BVH's leaf order (for [`Skip::Prim`]).
+    pub prim: u32,
+    /// Its index among the scene's spheres.
+    pub index: u32,
+    /// Centre (world).
+    pub center: DVec3,
+    /// Radius, > 0.
+    pub radius: f64,
+    /// Unit polar axis of the tangent field.
+    pub pole: DVec3,
+    /// Material.
+    pub material: MaterialId,
 }
 
 /// A closest hit: distance, the primitive's hit parameters and which surface.
@@ -587,21 +631,7 @@ impl Scene {
     pub(crate) fn hit_frame(&self, ray: &Ray, h: &ClosestHit) -> HitFrame {
         if let HitWhat::Prim(k) = h.what {
             if let Prim::Sphere { index, .. } = *self.bvh.prim(k) {
-                let sph = &self.spheres[index as usize];
-                // The hit lies on the sphere to rounding: scaling by 1/r normalises without
-                // the square root and division that `normalize` would add to the chain.
-                let n = (ray.at(h.t) - sph.center) * (1.0 / sph.radius);
-                let (mut frame, _) = sph.frame_at(n);
-                let mut ng = n;
-                let outside = ng.dot(ray.d) < 0.0;
-                face_viewer(&mut ng, &mut frame, ray.d);
-                return HitFrame {
-                    position: sph.center + n * sph.radius,
-                    geometric_normal: ng,
-                    frame,
-                    material: sph.material,
-                    skip: if outside { Skip::Prim(k) } else { Skip::None },
-                };
+                return self.sphere_frame(ray, h.t, index as usize, k);
             }
         }
         let (sp, skip) = self.surface_at(ray, h.t, h.a, h.b, h.what, None, false);
@@ -612,6 +642,41 @@ impl Scene {
             material: sp.material,
             skip,
         }
+    }
+
+    /// The hit frame at distance `t` along `ray` on sphere `index`, BVH primitive `k`.
+    #[inline]
+    fn sphere_frame(&self, ray: &Ray, t: f64, index: usize, k: u32) -> HitFrame {
+        let sph = &self.spheres[index];
+        // The hit lies on the sphere to rounding: scaling by 1/r normalises without
+        // the square root and division that `normalize` would add to the chain.
+        let n = (ray.at(t) - sph.center) * (1.0 / sph.radius);
+        let (mut frame, _) = sph.frame_at(n);
+        let mut ng = n;
+        let outside = ng.dot(ray.d) < 0.0;
+        face_viewer(&mut ng, &mut frame, ray.d);
+        HitFrame {
+            position: sph.center + n * sph.radius,
+            geometric_normal: ng,
+            frame,
+            material: sph.material,
+            skip: if outside { Skip::Prim(k) } else { Skip::None },
+        }
+    }
+
+    /// [`Scene::hit_frame`] for a hit at distance `t` on sphere `which` of
+    /// [`Scene::sphere_only`].
+    pub(crate) fn sphere_hit_frame(&self, ray: &Ray, t: f64, which: usize) -> HitFrame {
+        let s = &self.sphere_only[which];
+        self.sphere_frame(ray, t, s.index as usize, s.prim)
+    }
+
+    /// When the scene is nothing but the spheres of one BVH leaf (no planes, quads or
+    /// meshes; at most a leaf's worth of spheres), those spheres in leaf order: the stream
+    /// path then intersects camera rays with them in flat vectorised loops.
+    #[inline]
+    pub(crate) fn sphere_only(&self) -> Option<&[LeafSphere]> {
+        (!self.sphere_only.is_empty()).then_some(&self.sphere_only[..])
     }
 
     #[inline]

@@ -242,3 +242,85 @@ fn direction_only_shaders_evaluate_pairs_like_eval() {
         assert!(nonzero > 30, "too few lit pairs: {nonzero}");
     }
 }
+
+/// Spheres only (the vectorised camera-ray path of sphere-only scenes): overlapping spheres,
+/// one seen from inside (the camera sits in it), one with its pole straight at the camera
+/// (the tangent frame's fallback at the pixel through the pole), shadows between them.
+fn spheres_only(spp: u32, projection: Projection) -> Scene {
+    let cam =
+        Camera::new(projection, DVec3::new(0.0, 0.0, 5.0), DVec3::ZERO, DVec3::Y).expect("camera");
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            // Odd sizes: the middle pixel's ray runs through the centre of the image.
+            width: 71,
+            height: 65,
+            spp,
+            background: [0.05, 0.1, 0.2],
+        },
+    );
+    let m_seven = b.material(Arc::new(MaterialShader::new(&seven_normals())));
+    let m_lobes = b.material(Arc::new(lobes()));
+    let m_white = b.material(Arc::new(Lambert {
+        albedo: [0.8, 0.7, 0.6],
+    }));
+    b.sphere(DVec3::ZERO, 0.8, DVec3::Z, m_seven)
+        .expect("sphere");
+    b.sphere(DVec3::new(0.9, 0.5, -0.3), 0.6, DVec3::X, m_lobes)
+        .expect("sphere");
+    b.sphere(DVec3::new(-0.8, -0.6, 0.9), 0.35, DVec3::Y, m_lobes)
+        .expect("sphere");
+    b.sphere(DVec3::new(0.0, 0.0, 1.0), 8.0, DVec3::Y, m_white)
+        .expect("sphere");
+    for l in [
+        Light::Point {
+            position: DVec3::new(1.0, 2.0, 3.0),
+            intensity: DVec3::splat(12.0),
+        },
+        Light::Directional {
+            direction: DVec3::new(-0.3, 0.8, 0.5).normalize(),
+            irradiance: DVec3::new(0.8, 0.7, 0.6),
+        },
+        Light::Sphere {
+            center: DVec3::new(-2.0, 2.0, 2.0),
+            radius: 0.4,
+            radiance: DVec3::splat(3.0),
+        },
+    ] {
+        b.light(l).expect("light");
+    }
+    b.build().expect("scene")
+}
+
+#[test]
+fn stream_matches_per_hit_path_on_sphere_only_scenes() {
+    for projection in [
+        Projection::Orthographic { width: 3.0 },
+        Projection::Perspective { fov_deg: 45.0 },
+    ] {
+        for spp in [1, 3] {
+            let s = spheres_only(spp, projection);
+            // Wider tiles than a row segment of the sphere path (64 pixels) and narrow ones.
+            for tile_size in [7, 70] {
+                let opts = RenderOptions {
+                    tile_size,
+                    ..RenderOptions::default()
+                };
+                let stream = render(&s, &opts, None);
+                let per_hit = render(
+                    &s,
+                    &RenderOptions {
+                        per_hit: true,
+                        ..opts
+                    },
+                    None,
+                );
+                assert_same(
+                    &stream,
+                    &per_hit,
+                    &format!("{projection:?}, spp {spp}, tiles of {tile_size}"),
+                );
+            }
+        }
+    }
+}

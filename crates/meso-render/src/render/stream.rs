@@ -20,11 +20,12 @@
 //! the sums and the f32 rounding of the BRDF kernels (`stream_matches_per_hit_path` in
 //! `crates/meso-render/tests/stream.rs`).
 
+use super::primary::{RowHits, ROW};
 use super::{background, PixelContext};
 use crate::camera::Ray;
 use crate::light::LightSample;
 use crate::sampling::PixelSampler;
-use crate::scene::{HitFrame, Scene, Skip};
+use crate::scene::{Scene, Skip};
 use glam::DVec3;
 
 /// Camera hits shaded together (a multiple of the kernels' block sizes).
@@ -45,6 +46,8 @@ fn lanes3<T: Copy>(v: T) -> [Lane<T>; 3] {
 
 /// Per-thread storage of the stream path (about 60 KB, allocated once per tile batch).
 pub(crate) struct StreamScratch {
+    /// The current row segment's camera rays and hits.
+    row: Box<RowHits>,
     n: usize,
     /// Index of the hit's pixel in the tile buffer.
     slot: Lane<u32>,
@@ -86,6 +89,7 @@ pub(crate) struct StreamScratch {
 impl Default for StreamScratch {
     fn default() -> Self {
         StreamScratch {
+            row: Box::default(),
             n: 0,
             slot: lane(0),
             px: lane(0),
@@ -129,34 +133,27 @@ pub(crate) fn render_tile(
 ) {
     let tw = (x1 - x0) as usize;
     let mut acc = vec![DVec3::ZERO; tw * (y1 - y0) as usize];
-    let mut rays = Vec::with_capacity(tw);
-    let mut hits = Vec::with_capacity(tw);
     for y in y0..y1 {
         for k in 0..c.spp {
-            rays.clear();
-            rays.extend((x0..x1).map(|x| {
-                let j = if c.spp == 1 {
-                    [0.5, 0.5]
-                } else {
-                    PixelSampler::deferred(x, y, c.seed, k).get2(0)
-                };
-                c.rays.ray(f64::from(x) + j[0], f64::from(y) + j[1])
-            }));
-            hits.clear();
-            hits.extend(rays.iter().map(|r| scene.closest_hit(r)));
-            let row = (y - y0) as usize * tw;
-            for (dx, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
-                let slot = row + dx;
-                match hit {
-                    Some(h) => {
-                        let x = x0 + dx as u32;
-                        push_hit(s, &scene.hit_frame(ray, h), -ray.d, slot as u32, (x, y, k));
+            let mut xa = x0;
+            while xa < x1 {
+                let xb = (xa + ROW as u32).min(x1);
+                let row_hits = &mut *s.row;
+                row_hits.trace(scene, c, (xa, xb), y, k);
+                let base = (y - y0) as usize * tw + (xa - x0) as usize;
+                for j in 0..s.row.n {
+                    if s.row.hit[j] {
+                        push_hit(s, j, (base + j) as u32, (xa + j as u32, y, k));
                         if s.n == STREAM_CHUNK {
                             shade_chunk(scene, c, s, &mut acc);
                         }
+                    } else {
+                        let r = &s.row;
+                        let d = DVec3::new(r.d[0][j], r.d[1][j], r.d[2][j]);
+                        acc[base + j] += background(scene, d);
                     }
-                    None => acc[slot] += background(scene, ray.d),
                 }
+                xa = xb;
             }
         }
     }
@@ -168,33 +165,26 @@ pub(crate) fn render_tile(
     }));
 }
 
-/// Append one camera hit to the chunk.
+/// Append hit `j` of the current row segment to the chunk.
 #[inline]
-fn push_hit(
-    s: &mut StreamScratch,
-    sp: &HitFrame,
-    wo: DVec3,
-    slot: u32,
-    (x, y, k): (u32, u32, u32),
-) {
+fn push_hit(s: &mut StreamScratch, j: usize, slot: u32, (x, y, k): (u32, u32, u32)) {
     let i = s.n % STREAM_CHUNK;
-    let p = sp.position;
-    let eps = 1e-9 * (1.0 + p.abs().max_element());
-    let wo_l = sp.frame.to_local(wo);
+    let r = &*s.row;
+    let j = j % ROW;
     s.slot[i] = slot;
     s.px[i] = x;
     s.py[i] = y;
     s.sample[i] = k;
-    s.material[i] = sp.material.0;
-    s.skip[i] = sp.skip;
-    s.eps[i] = eps;
+    s.material[i] = r.material[j];
+    s.skip[i] = r.skip[j];
+    s.eps[i] = r.eps[j];
     for c in 0..3 {
-        s.p[c][i] = p[c];
-        s.ng[c][i] = sp.geometric_normal[c];
-        s.t[c][i] = sp.frame.t[c];
-        s.b[c][i] = sp.frame.b[c];
-        s.nrm[c][i] = sp.frame.n[c];
-        s.wo[c][i] = wo_l[c] as f32;
+        s.p[c][i] = r.p[c][j];
+        s.ng[c][i] = r.ng[c][j];
+        s.t[c][i] = r.ft[c][j];
+        s.b[c][i] = r.fb[c][j];
+        s.nrm[c][i] = r.fnrm[c][j];
+        s.wo[c][i] = r.wo[c][j];
         s.sum[c][i] = 0.0;
     }
     s.n += 1;
