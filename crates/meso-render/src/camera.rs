@@ -287,6 +287,38 @@ impl RayGen {
         }
     }
 
+    /// The rays through image points `(xs[j], ys[j])`, `j < n` (pixels, `y` down), as a
+    /// structure of arrays: the arithmetic of [`RayGen::ray`] in flat loops that vectorise.
+    #[inline(always)]
+    pub(crate) fn rays<const N: usize>(
+        &self,
+        n: usize,
+        (xs, ys): (&[f64; N], &[f64; N]),
+        o: &mut [[f64; N]; 3],
+        d: &mut [[f64; N]; 3],
+    ) {
+        let n = n.min(N);
+        let (b, dx, dy) = (self.base, self.dx, self.dy);
+        let (vs, fixed_to) = if self.perspective { (d, o) } else { (o, d) };
+        for j in 0..n {
+            vs[0][j] = (b.x + dx.x * xs[j]) + dy.x * ys[j];
+            vs[1][j] = (b.y + dx.y * xs[j]) + dy.y * ys[j];
+            vs[2][j] = (b.z + dx.z * xs[j]) + dy.z * ys[j];
+        }
+        if self.perspective {
+            for j in 0..n {
+                let (x, y, z) = (vs[0][j], vs[1][j], vs[2][j]);
+                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+                vs[0][j] = x * inv;
+                vs[1][j] = y * inv;
+                vs[2][j] = z * inv;
+            }
+        }
+        for (a, f) in fixed_to.iter_mut().enumerate() {
+            f[..n].fill(self.fixed[a]);
+        }
+    }
+
     /// The ray through image point `(x, y)` (pixels, `y` down).
     #[inline(always)]
     pub(crate) fn ray(&self, x: f64, y: f64) -> Ray {

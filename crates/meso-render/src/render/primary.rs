@@ -29,6 +29,9 @@ type R<T> = [T; ROW];
 pub(crate) struct RowHits {
     /// Pixels in the segment.
     pub n: usize,
+    /// Image-plane position of each ray (pixels, `y` down).
+    px: R<f64>,
+    py: R<f64>,
     /// Ray origin and unit direction (world).
     pub o: [R<f64>; 3],
     pub d: [R<f64>; 3],
@@ -69,6 +72,8 @@ impl Default for RowHits {
         let z3 = [[0.0; ROW]; 3];
         RowHits {
             n: 0,
+            px: [0.0; ROW],
+            py: [0.0; ROW],
             o: z3,
             d: z3,
             t: [0.0; ROW],
@@ -107,6 +112,7 @@ impl RowHits {
         let n = (x1 - x0) as usize;
         debug_assert!(n <= ROW);
         self.n = n;
+        // Image-plane positions (jittered through the sampler with several samples).
         for j in 0..n {
             let x = x0 + j as u32;
             let jit = if c.spp == 1 {
@@ -114,20 +120,21 @@ impl RowHits {
             } else {
                 PixelSampler::deferred(x, y, c.seed, k).get2(0)
             };
-            let r = c.rays.ray(f64::from(x) + jit[0], f64::from(y) + jit[1]);
-            for a in 0..3 {
-                self.o[a][j] = r.o[a];
-                self.d[a][j] = r.d[a];
-            }
+            self.px[j] = f64::from(x) + jit[0];
+            self.py[j] = f64::from(y) + jit[1];
         }
         match scene.sphere_only() {
-            Some(spheres) => self.spheres(scene, spheres),
-            None => self.trace_one_by_one(scene),
+            Some(spheres) => self.spheres(scene, c, spheres),
+            None => {
+                c.rays
+                    .rays(n, (&self.px, &self.py), &mut self.o, &mut self.d);
+                self.trace_one_by_one(scene);
+            }
         }
     }
 
     /// The sphere-only path, compiled for the widest vectors the CPU has.
-    fn spheres(&mut self, scene: &Scene, spheres: &[LeafSphere]) {
+    fn spheres(&mut self, scene: &Scene, c: &PixelContext, spheres: &[LeafSphere]) {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f")
@@ -136,38 +143,41 @@ impl RowHits {
                 && std::arch::is_x86_feature_detected!("fma")
             {
                 // SAFETY: the CPU supports AVX-512F/VL, AVX2 and FMA (checked just above).
-                unsafe { self.spheres_avx512(scene, spheres) };
+                unsafe { self.spheres_avx512(scene, c, spheres) };
                 return;
             }
             if std::arch::is_x86_feature_detected!("avx2")
                 && std::arch::is_x86_feature_detected!("fma")
             {
                 // SAFETY: the CPU supports AVX2 and FMA (checked just above).
-                unsafe { self.spheres_avx2(scene, spheres) };
+                unsafe { self.spheres_avx2(scene, c, spheres) };
                 return;
             }
         }
-        self.spheres_impl(scene, spheres);
+        self.spheres_impl(scene, c, spheres);
     }
 
     /// # Safety
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn spheres_avx2(&mut self, scene: &Scene, spheres: &[LeafSphere]) {
-        self.spheres_impl(scene, spheres);
+    unsafe fn spheres_avx2(&mut self, scene: &Scene, c: &PixelContext, spheres: &[LeafSphere]) {
+        self.spheres_impl(scene, c, spheres);
     }
 
     /// # Safety
     /// The CPU must support AVX-512F/VL, AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-    unsafe fn spheres_avx512(&mut self, scene: &Scene, spheres: &[LeafSphere]) {
-        self.spheres_impl(scene, spheres);
+    unsafe fn spheres_avx512(&mut self, scene: &Scene, c: &PixelContext, spheres: &[LeafSphere]) {
+        self.spheres_impl(scene, c, spheres);
     }
 
+    /// Camera rays, intersections and frames of a sphere-only scene.
     #[inline(always)]
-    fn spheres_impl(&mut self, scene: &Scene, spheres: &[LeafSphere]) {
+    fn spheres_impl(&mut self, scene: &Scene, c: &PixelContext, spheres: &[LeafSphere]) {
+        c.rays
+            .rays(self.n, (&self.px, &self.py), &mut self.o, &mut self.d);
         self.intersect_spheres(spheres);
         self.sphere_frames(scene, spheres);
     }
