@@ -306,12 +306,12 @@ impl RayGen {
             vs[2][j] = (b.z + dx.z * xs[j]) + dy.z * ys[j];
         }
         if self.perspective {
-            for j in 0..n {
-                let (x, y, z) = (vs[0][j], vs[1][j], vs[2][j]);
-                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-                vs[0][j] = x * inv;
-                vs[1][j] = y * inv;
-                vs[2][j] = z * inv;
+            let [vx, vy, vz] = vs;
+            for ((x, y), z) in vx[..n].iter_mut().zip(&mut vy[..n]).zip(&mut vz[..n]) {
+                let inv = 1.0 / (*x * *x + *y * *y + *z * *z).sqrt();
+                *x *= inv;
+                *y *= inv;
+                *z *= inv;
             }
         }
         for (a, f) in fixed_to.iter_mut().enumerate() {
