@@ -160,6 +160,20 @@ fn assert_same(a: &Image, b: &Image, what: &str) {
     assert!(worst < 2e-5, "{what}: worst relative difference {worst}");
 }
 
+/// Render `scene` by the stream path (the default) and by the per-hit path; same image.
+fn assert_paths_agree(scene: &Scene, opts: RenderOptions, what: &str) {
+    let stream = render(scene, &opts, None);
+    let per_hit = render(
+        scene,
+        &RenderOptions {
+            per_hit: true,
+            ..opts
+        },
+        None,
+    );
+    assert_same(&stream, &per_hit, what);
+}
+
 #[test]
 fn stream_matches_per_hit_path() {
     for (spp, env) in [(1, false), (4, true), (3, false)] {
@@ -170,18 +184,9 @@ fn stream_matches_per_hit_path() {
                 tile_size: 16,
                 ..RenderOptions::default()
             };
-            let stream = render(&s, &opts, None);
-            let per_hit = render(
+            assert_paths_agree(
                 &s,
-                &RenderOptions {
-                    per_hit: true,
-                    ..opts
-                },
-                None,
-            );
-            assert_same(
-                &stream,
-                &per_hit,
+                opts,
                 &format!("spp {spp}, environment {env}, seed {seed}"),
             );
         }
@@ -306,18 +311,9 @@ fn stream_matches_per_hit_path_on_sphere_only_scenes() {
                     tile_size,
                     ..RenderOptions::default()
                 };
-                let stream = render(&s, &opts, None);
-                let per_hit = render(
+                assert_paths_agree(
                     &s,
-                    &RenderOptions {
-                        per_hit: true,
-                        ..opts
-                    },
-                    None,
-                );
-                assert_same(
-                    &stream,
-                    &per_hit,
+                    opts,
                     &format!("{projection:?}, spp {spp}, tiles of {tile_size}"),
                 );
             }
