@@ -46,6 +46,8 @@ fn lanes3<T: Copy>(v: T) -> [Lane<T>; 3] {
 
 /// Per-thread storage of the stream path (about 60 KB, allocated once per tile batch).
 pub(crate) struct StreamScratch {
+    /// The current tile's radiance sums per pixel (taken out while the tile renders).
+    acc: Vec<DVec3>,
     /// The current row segment's camera rays and hits.
     row: Box<RowHits>,
     n: usize,
@@ -89,6 +91,7 @@ pub(crate) struct StreamScratch {
 impl Default for StreamScratch {
     fn default() -> Self {
         StreamScratch {
+            acc: Vec::new(),
             row: Box::default(),
             n: 0,
             slot: lane(0),
@@ -132,7 +135,10 @@ pub(crate) fn render_tile(
     buf: &mut Vec<[f32; 3]>,
 ) {
     let tw = (x1 - x0) as usize;
-    let mut acc = vec![DVec3::ZERO; tw * (y1 - y0) as usize];
+    // The tile's radiance sums, kept in the scratch between tiles (no allocation per tile).
+    let mut acc = std::mem::take(&mut s.acc);
+    acc.clear();
+    acc.resize(tw * (y1 - y0) as usize, DVec3::ZERO);
     for y in y0..y1 {
         for k in 0..c.spp {
             let mut xa = x0;
@@ -163,6 +169,7 @@ pub(crate) fn render_tile(
         let a = if c.spp == 1 { *a } else { *a * inv };
         [a.x as f32, a.y as f32, a.z as f32]
     }));
+    s.acc = acc;
 }
 
 /// Append hit `j` of the current row segment to the chunk.
