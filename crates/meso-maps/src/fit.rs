@@ -109,6 +109,13 @@ pub struct FitParams {
     /// Levels with at most this many texels (the coarse ones) are fitted thoroughly: full
     /// `em_iterations` for every start (default 64; see `fit_lobes_with`).
     pub thorough_texels: usize,
+    /// Exponent λ of the smoothing kernel `exp(λ(h·m − 1))` of the smoothed refinement (module
+    /// docs; the kernel is about as wide as a Phong facet `(h·m)^(λ−1)`, ≈ `1/√λ` rad); 0 turns
+    /// the refinement off (maximum-likelihood EM only). Default 40.
+    pub smooth_exponent: f64,
+    /// Levels with at most this many texels get the smoothed refinement (default 1024; it
+    /// costs ≈ 1 ms per texel, so the big fine levels keep the EM fit).
+    pub smooth_texels: usize,
 }
 
 impl Default for FitParams {
@@ -120,6 +127,8 @@ impl Default for FitParams {
             max_em_points: 512,
             level_em_points: 1 << 18,
             thorough_texels: 64,
+            smooth_exponent: 40.0,
+            smooth_texels: 1024,
         }
     }
 }
@@ -346,6 +355,504 @@ fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
     prev
 }
 
+/// Mean cosine to the axis of a von Mises–Fisher distribution (spherical Gaussian `e^{κ(a·m−1)}`):
+/// `coth κ − 1/κ`.
+fn vmf_mean_cos(kappa: f64) -> f64 {
+    if kappa < 1e-3 {
+        kappa / 3.0
+    } else if kappa > 20.0 {
+        1.0 - 1.0 / kappa
+    } else {
+        1.0 / kappa.tanh() - 1.0 / kappa
+    }
+}
+
+/// The concentration κ whose von Mises–Fisher mean cosine is `mu` (Banerjee et al.'s start, then
+/// Newton on `A(κ) = μ`).
+fn vmf_kappa(mu: f64) -> f64 {
+    let mu = mu.clamp(0.0, 1.0 - 1e-12);
+    if mu < 1e-9 {
+        return 3.0 * mu;
+    }
+    let mut k = mu * (3.0 - mu * mu) / (1.0 - mu * mu);
+    for _ in 0..6 {
+        let d = if k > 20.0 {
+            1.0 / (k * k)
+        } else {
+            1.0 / (k * k) - 1.0 / k.sinh().powi(2)
+        };
+        if d <= 0.0 {
+            break;
+        }
+        k = (k - (vmf_mean_cos(k) - mu) / d).max(0.5 * k);
+    }
+    k
+}
+
+/// The spherical Gaussian concentration of a Phong peak of exponent η: the same mean cosine,
+/// `η/(η + 4)` (the renderer's `NdfMapped` makes the same substitution).
+fn peak_kappa(eta: f64) -> f64 {
+    vmf_kappa(eta / (eta + 4.0)).clamp(KAPPA_MIN, KAPPA_MAX)
+}
+
+/// The Phong exponent of a spherical Gaussian of concentration κ (inverse of [`peak_kappa`]).
+fn kappa_eta(kappa: f64) -> f64 {
+    let mc = vmf_mean_cos(kappa);
+    (4.0 * mc / (1.0 - mc).max(1e-12)).clamp(0.0, ETA_MAX)
+}
+
+const KAPPA_MIN: f64 = 1e-3;
+const KAPPA_MAX: f64 = 2.5e5;
+
+/// `coth r − 1/r` (the Langevin function; `d/dr ln(sinh r / r)`).
+#[inline]
+fn langevin(r: f64) -> f64 {
+    if r < 1e-3 {
+        r / 3.0
+    } else if r > 20.0 {
+        1.0 - 1.0 / r
+    } else {
+        1.0 / r.tanh() - 1.0 / r
+    }
+}
+
+/// Per-lobe constants of [`sg_response`].
+#[derive(Clone, Copy)]
+struct SgLobe {
+    a: DVec3,
+    t1: DVec3,
+    t2: DVec3,
+    kappa: f64,
+    /// `κ / (1 − e^{−2κ})`.
+    norm: f64,
+    /// `coth κ − 1/κ`.
+    lang: f64,
+}
+
+impl SgLobe {
+    fn new(a: DVec3, kappa: f64) -> SgLobe {
+        let (t1, t2) = tangents(a);
+        SgLobe {
+            a,
+            t1,
+            t2,
+            kappa,
+            norm: kappa / -(-2.0 * kappa).exp_m1(),
+            lang: langevin(kappa),
+        }
+    }
+}
+
+/// Response `G(h) = ∫ sg(m) exp(λ(h·m − 1)) dm` of the unit-weight spherical Gaussian
+/// `sg(m) = κ/(2π(1 − e^{−2κ})) e^{κ(a·m − 1)}` (normalised on the sphere) to the kernel, exactly:
+/// `G = κ/(1 − e^{−2κ}) · e^{r−κ−λ} (1 − e^{−2r})/r` with `r = |κa + λh|`; and its derivatives
+/// with respect to `ln κ` and to the axis' offsets along its two tangents. With `grad == false`
+/// only `G` is computed.
+#[inline]
+fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
+    let ah = l.a.dot(h);
+    let kappa = l.kappa;
+    let r = (kappa * kappa + lambda * (lambda + 2.0 * kappa * ah))
+        .max(0.0)
+        .sqrt();
+    // r − κ − λ without cancellation.
+    let expo = 2.0 * kappa * lambda * (ah - 1.0) / (r + kappa + lambda);
+    let sr = if r < 1e-6 {
+        2.0
+    } else if r > 18.0 {
+        1.0 / r
+    } else {
+        -(-2.0 * r).exp_m1() / r
+    };
+    let g = l.norm * sr * fast_exp_neg(expo.min(0.0));
+    if !grad {
+        return [g, 0.0, 0.0, 0.0];
+    }
+    let lr = langevin(r) / r.max(1e-12);
+    // ∂ln G/∂κ = 1/κ − coth κ + L(r)(u·a)/r, u = κa + λh; ∂ln G/∂a = L(r) κ u / r.
+    let dk = g * kappa * (lr * (kappa + lambda * ah) - l.lang);
+    let c = g * lr * kappa * lambda;
+    [g, dk, c * h.dot(l.t1), c * h.dot(l.t2)]
+}
+
+/// Solve the symmetric positive definite `n × n` system `a x = b` by Cholesky (in place, `x`
+/// in `b`); false when `a` is not positive definite.
+fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= a[j * n + k] * a[j * n + k];
+        }
+        if d <= 0.0 || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                s -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = s / d;
+        }
+    }
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[i * n + k] * b[k];
+        }
+        b[i] = s / a[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[k * n + i] * b[k];
+        }
+        b[i] = s / a[i * n + i];
+    }
+    true
+}
+
+/// Two unit tangents orthogonal to `a` and to each other.
+fn tangents(a: DVec3) -> (DVec3, DVec3) {
+    let t = if a.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let t1 = (t - a * a.dot(t)).normalize();
+    (t1, a.cross(t1))
+}
+
+/// Lobe parameters of the smoothed fit: axes, `ln κ`, softmax logits of the weights (so the
+/// weights always sum to 1).
+#[derive(Clone)]
+struct SgState {
+    k: usize,
+    axes: [DVec3; MAX_LOBES],
+    lk: [f64; MAX_LOBES],
+    sl: [f64; MAX_LOBES],
+}
+
+impl SgState {
+    fn from_lobes(lobes: &[L]) -> SgState {
+        let mut st = SgState {
+            k: lobes.len(),
+            axes: [DVec3::Z; MAX_LOBES],
+            lk: [0.0; MAX_LOBES],
+            sl: [0.0; MAX_LOBES],
+        };
+        for (j, l) in lobes.iter().enumerate() {
+            st.axes[j] = l.a;
+            st.lk[j] = peak_kappa(l.eta).ln();
+            st.sl[j] = l.w.max(1e-12).ln();
+        }
+        st
+    }
+    fn weights(&self) -> [f64; MAX_LOBES] {
+        let k = self.k;
+        let mx = self.sl[..k]
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        let mut w = [0.0; MAX_LOBES];
+        for (wj, sl) in w.iter_mut().zip(&self.sl[..k]) {
+            *wj = (sl - mx).exp();
+        }
+        let s: f64 = w[..k].iter().sum();
+        w[..k].iter_mut().for_each(|v| *v /= s);
+        w
+    }
+    fn lobes(&self) -> [SgLobe; MAX_LOBES] {
+        let mut out = [SgLobe::new(DVec3::Z, 1.0); MAX_LOBES];
+        for ((o, &a), &lk) in out.iter_mut().zip(&self.axes).zip(&self.lk).take(self.k) {
+            *o = SgLobe::new(a, lk.exp());
+        }
+        out
+    }
+    fn to_lobes(&self) -> Vec<L> {
+        let w = self.weights();
+        (0..self.k)
+            .map(|j| L {
+                a: self.axes[j],
+                w: w[j],
+                eta: kappa_eta(self.lk[j].exp()),
+            })
+            .collect()
+    }
+    fn remove(&mut self, j: usize) {
+        let k = self.k;
+        self.axes.copy_within(j + 1..k, j);
+        self.lk.copy_within(j + 1..k, j);
+        self.sl.copy_within(j + 1..k, j);
+        self.k -= 1;
+    }
+}
+
+thread_local! {
+    /// Upper-hemisphere centres of the sample grid, per grid resolution.
+    static SAMPLE_GRID: std::cell::RefCell<(usize, Vec<DVec3>)> =
+        const { std::cell::RefCell::new((0, Vec::new())) };
+}
+
+/// The smoothed objective of one footprint (module docs): the sample half vectors `hs` (centres
+/// of an equal-area grid with spacing ≈ the kernel's width, upper hemisphere, within reach of the
+/// data) and the data smoothed by the kernel at them.
+struct Smoothed<'a> {
+    lambda: f64,
+    pts: &'a [Pt],
+    total: f64,
+    hs: Vec<DVec3>,
+    target: Vec<f64>,
+}
+
+impl<'a> Smoothed<'a> {
+    fn new(pts: &'a [Pt], lambda: f64) -> Smoothed<'a> {
+        let total: f64 = pts.iter().map(|p| p.1).sum();
+        // Kernel width ≈ 1/√λ rad; grid spacing √(4π)/res ≈ that width.
+        let sigma = 1.0 / lambda.sqrt();
+        let res = ((3.55 / sigma).ceil() as usize).clamp(8, 512);
+        let c = pts.iter().map(|p| p.0 * p.1).sum::<DVec3>();
+        let c = c.try_normalize().unwrap_or(DVec3::Z);
+        let cmin = pts
+            .iter()
+            .map(|p| p.0.normalize_or_zero().dot(c))
+            .fold(1.0f64, f64::min)
+            .clamp(-1.0, 1.0);
+        let cap = (cmin.acos() + 3.5 * sigma).min(PI).cos();
+        let hs: Vec<DVec3> = SAMPLE_GRID.with(|g| {
+            let mut g = g.borrow_mut();
+            if g.0 != res {
+                let grid = SphereGrid { res };
+                g.1 = (0..grid.bins())
+                    .map(|b| grid.point(b, 0.5, 0.5))
+                    .filter(|h| h.z > 0.0)
+                    .collect();
+                g.0 = res;
+            }
+            g.1.iter().copied().filter(|h| h.dot(c) >= cap).collect()
+        });
+        let target = hs
+            .iter()
+            .map(|&h| {
+                let mut s = 0.0;
+                for &(m, w) in pts {
+                    let e = lambda * (h.dot(m.normalize_or_zero()) - 1.0);
+                    if e > -30.0 {
+                        s += w * fast_exp_neg(e);
+                    }
+                }
+                s / total
+            })
+            .collect();
+        Smoothed {
+            lambda,
+            pts,
+            total,
+            hs,
+            target,
+        }
+    }
+
+    /// Sum of squared residuals; with `jac`, also `JᵀJ` (lower triangle) and `Jᵀr` added in.
+    fn eval(&self, st: &SgState, mut jac: Option<(&mut [f64], &mut [f64])>) -> f64 {
+        let k = st.k;
+        let np = 4 * k;
+        let ws = st.weights();
+        let ls = st.lobes();
+        let grad = jac.is_some();
+        let mut obj = 0.0;
+        let mut row = [0.0; 4 * MAX_LOBES];
+        let mut gs = [[0.0; 4]; MAX_LOBES];
+        for (&h, &t) in self.hs.iter().zip(&self.target) {
+            let mut m = 0.0;
+            for j in 0..k {
+                gs[j] = sg_response(&ls[j], self.lambda, h, grad);
+                m += ws[j] * gs[j][0];
+            }
+            let r = m - t;
+            obj += r * r;
+            if let Some((jtj, jtr)) = jac.as_mut() {
+                for j in 0..k {
+                    row[4 * j] = ws[j] * (gs[j][0] - m);
+                    row[4 * j + 1] = ws[j] * gs[j][1];
+                    row[4 * j + 2] = ws[j] * gs[j][2];
+                    row[4 * j + 3] = ws[j] * gs[j][3];
+                }
+                for a in 0..np {
+                    let ra = row[a];
+                    jtr[a] += ra * r;
+                    for (b, v) in jtj[a * np..=a * np + a].iter_mut().enumerate() {
+                        *v += ra * row[b];
+                    }
+                }
+            }
+        }
+        obj
+    }
+
+    /// Levenberg–Marquardt from `st`, at most `iters` steps, until a step lowers the objective
+    /// by less than the fraction `tol`; returns the objective.
+    fn lm(&self, st: &mut SgState, iters: usize, tol: f64) -> f64 {
+        let k = st.k;
+        let np = 4 * k;
+        let mut jtj = [0.0; 16 * MAX_LOBES * MAX_LOBES];
+        let mut a = [0.0; 16 * MAX_LOBES * MAX_LOBES];
+        let mut jtr = [0.0; 4 * MAX_LOBES];
+        let mut d = [0.0; 4 * MAX_LOBES];
+        let mut mu = 1e-3;
+        let mut obj = self.eval(st, None);
+        for _ in 0..iters {
+            jtj[..np * np].fill(0.0);
+            jtr[..np].fill(0.0);
+            self.eval(st, Some((&mut jtj[..np * np], &mut jtr[..np])));
+            for i in 0..np {
+                for j in 0..i {
+                    jtj[j * np + i] = jtj[i * np + j];
+                }
+            }
+            let mut accepted = false;
+            for _ in 0..10 {
+                a[..np * np].copy_from_slice(&jtj[..np * np]);
+                for i in 0..np {
+                    d[i] = -jtr[i];
+                    a[i * np + i] += mu * jtj[i * np + i] + 1e-18;
+                }
+                if !cholesky_solve(&mut a[..np * np], &mut d[..np], np) {
+                    mu *= 4.0;
+                    continue;
+                }
+                let mut nst = st.clone();
+                for j in 0..k {
+                    let (t1, t2) = tangents(st.axes[j]);
+                    nst.sl[j] += d[4 * j].clamp(-3.0, 3.0);
+                    nst.lk[j] = (st.lk[j] + d[4 * j + 1].clamp(-1.5, 1.5))
+                        .clamp(KAPPA_MIN.ln(), KAPPA_MAX.ln());
+                    // Axis steps of at most 0.3 rad.
+                    let (s1, s2) = (d[4 * j + 2], d[4 * j + 3]);
+                    let step = (s1 * s1 + s2 * s2).sqrt();
+                    let scale = if step > 0.3 { 0.3 / step } else { 1.0 };
+                    nst.axes[j] = (st.axes[j] + (t1 * s1 + t2 * s2) * scale).normalize();
+                }
+                let o = self.eval(&nst, None);
+                if o < obj {
+                    let drop = (obj - o) / obj.max(1e-300);
+                    *st = nst;
+                    obj = o;
+                    mu = (mu / 3.0).max(1e-9);
+                    accepted = drop > tol;
+                    break;
+                }
+                mu *= 4.0;
+            }
+            if !accepted {
+                break;
+            }
+        }
+        obj
+    }
+
+    /// Add a lobe of weight `share` (the others scaled by `1 − share`) where the data most
+    /// exceed the lobes: at the kernel-weighted mean of the data around the sample of largest
+    /// excess (so that it lies in the span of the data), concentration λ.
+    fn add_lobe(&self, st: &mut SgState, share: f64) {
+        let ws = st.weights();
+        let ls = st.lobes();
+        let mut best = (DVec3::Z, f64::NEG_INFINITY);
+        for (&h, &t) in self.hs.iter().zip(&self.target) {
+            let m: f64 = (0..st.k)
+                .map(|j| ws[j] * sg_response(&ls[j], self.lambda, h, false)[0])
+                .sum();
+            if t - m > best.1 {
+                best = (h, t - m);
+            }
+        }
+        let h = best.0;
+        let mean: DVec3 = self
+            .pts
+            .iter()
+            .map(|&(m, w)| {
+                let e = self.lambda * (h.dot(m.normalize_or_zero()) - 1.0);
+                m * (w * fast_exp_neg(e.max(-700.0)))
+            })
+            .sum();
+        let j = st.k;
+        for (sl, w) in st.sl.iter_mut().zip(&ws).take(j) {
+            *sl = (w * (1.0 - share)).max(1e-12).ln();
+        }
+        st.sl[j] = share.ln();
+        st.lk[j] = self.lambda.ln();
+        st.axes[j] = mean.try_normalize().unwrap_or(h);
+        st.k += 1;
+    }
+
+    /// Greedy fit: one lobe with the data's mean axis and mean cosine, then lobes added by
+    /// [`Self::add_lobe`] while each lowers the objective by more than `min_drop` (relative),
+    /// up to `kmax`.
+    fn greedy(&self, kmax: usize, iters: usize, min_drop: f64) -> (SgState, f64) {
+        let c = self.pts.iter().map(|p| p.0 * p.1).sum::<DVec3>() / self.total;
+        let mc = c.length().clamp(0.0, 1.0 - 1e-9);
+        let mut st = SgState {
+            k: 1,
+            axes: [c.try_normalize().unwrap_or(DVec3::Z); MAX_LOBES],
+            lk: [vmf_kappa(mc).clamp(KAPPA_MIN, KAPPA_MAX).ln(); MAX_LOBES],
+            sl: [0.0; MAX_LOBES],
+        };
+        let mut obj = self.lm(&mut st, iters, SMOOTH_TOL_START);
+        while st.k < kmax {
+            let mut next = st.clone();
+            self.add_lobe(&mut next, 1.0 / (st.k + 1) as f64);
+            let o = self.lm(&mut next, iters, SMOOTH_TOL_START);
+            if o > obj * (1.0 - min_drop) {
+                break;
+            }
+            st = next;
+            obj = o;
+        }
+        (st, obj)
+    }
+
+    /// LM from `st`; a lobe whose weight dies (< 10⁻³) or whose axis sinks below the horizon is
+    /// re-seeded by [`Self::add_lobe`] (at most `k` times).
+    fn polish(&self, st: &mut SgState, iters: usize) -> f64 {
+        let mut obj = self.lm(st, iters, SMOOTH_TOL_START);
+        for _ in 0..st.k {
+            let w = st.weights();
+            let Some(dead) = (0..st.k).find(|&j| w[j] < 1e-3 || st.axes[j].z < 0.0) else {
+                break;
+            };
+            let k = st.k;
+            st.remove(dead);
+            self.add_lobe(st, 1.0 / k as f64);
+            obj = self.lm(st, iters, SMOOTH_TOL_START);
+        }
+        obj
+    }
+}
+
+/// Refine the EM fit `lobes` on the smoothed L2 objective (module docs): LM from the EM lobes
+/// and from a greedy start (up to `kmax` lobes); the lobes of the lower objective are kept.
+fn refine_smoothed(pts: &[Pt], lobes: &mut Vec<L>, lambda: f64, kmax: usize) {
+    let sm = Smoothed::new(pts, lambda);
+    if lobes.is_empty() || sm.hs.len() < 4 * kmax {
+        return;
+    }
+    let mut a = SgState::from_lobes(lobes);
+    let oa = sm.polish(&mut a, SMOOTH_START_ITERATIONS);
+    let (b, ob) = sm.greedy(kmax, SMOOTH_START_ITERATIONS, SMOOTH_MIN_DROP);
+    let mut best = if ob < oa { b } else { a };
+    sm.lm(&mut best, SMOOTH_ITERATIONS, SMOOTH_TOL);
+    *lobes = best.to_lobes();
+}
+
+/// Most LM steps per start (and per greedy stage) of the smoothed refinement; the starts stop
+/// when a step gains less than [`SMOOTH_TOL_START`] (relative).
+const SMOOTH_START_ITERATIONS: usize = 10;
+const SMOOTH_TOL_START: f64 = 1e-3;
+/// Most LM steps of the final polish of the better start; it stops when a step gains less than
+/// [`SMOOTH_TOL`].
+const SMOOTH_ITERATIONS: usize = 30;
+const SMOOTH_TOL: f64 = 1e-5;
+/// The greedy start adds a lobe only when it lowers the smoothed objective by more than this
+/// fraction.
+const SMOOTH_MIN_DROP: f64 = 0.02;
+
 fn to_phong(lobes: &[L]) -> Vec<PhongLobe> {
     let s: f64 = lobes.iter().map(|l| l.w).sum();
     lobes
@@ -383,18 +890,28 @@ fn split_heaviest(lobes: &[L]) -> Vec<L> {
 /// Writes the lobes into `out` (cleared first); weights sum to 1.
 pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>) {
     let mut pts = Vec::new();
-    fit_lobes_with(entries, params, params.max_em_points, true, &mut pts, out);
+    fit_lobes_with(
+        entries,
+        params,
+        params.max_em_points,
+        true,
+        true,
+        &mut pts,
+        out,
+    );
 }
 
 /// [`fit_lobes`] with the EM subset capped at `max_points` entries (≤ `params.max_em_points`)
 /// and a caller-owned buffer (no allocation per call once it has grown). `thorough` runs every
 /// EM for `em_iterations`; otherwise K is chosen after 5 EM iterations per start and the chosen
-/// K polished with at most 10 more (the cheap path of the big, fine pyramid levels).
+/// K polished with at most 10 more (the cheap path of the big, fine pyramid levels). `smooth`
+/// adds the smoothed refinement (module docs) when `params.smooth_exponent > 0`.
 pub fn fit_lobes_with(
     entries: &[Entry],
     params: &FitParams,
     max_points: usize,
     thorough: bool,
+    smooth: bool,
     pts: &mut Vec<(DVec3, f64)>,
     out: &mut Vec<PhongLobe>,
 ) {
@@ -491,6 +1008,9 @@ pub fn fit_lobes_with(
     }
     if improved && !small && iters > sel_iters {
         em(pts, &mut lobes, ptotal, (iters - sel_iters).min(10));
+    }
+    if smooth && params.smooth_exponent > 0.0 {
+        refine_smoothed(pts, &mut lobes, params.smooth_exponent, kmax);
     }
     out.extend(to_phong(&lobes));
 }

@@ -365,6 +365,7 @@ pub fn extract(
         let em_cap = (params.fit.level_em_points / (cols * rows).max(1))
             .clamp(64, params.fit.max_em_points.max(64));
         let thorough = cols * rows <= params.fit.thorough_texels;
+        let smooth = cols * rows <= params.fit.smooth_texels;
         let rows_out: Vec<RowOut> = (0..rows)
             .into_par_iter()
             .map(|r| {
@@ -415,6 +416,7 @@ pub fn extract(
                             &params.fit,
                             em_cap,
                             thorough,
+                            smooth,
                             &mut scratch,
                             &mut lobes,
                         ),
