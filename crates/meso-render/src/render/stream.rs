@@ -147,16 +147,29 @@ pub(crate) fn render_tile(
                 let row_hits = &mut *s.row;
                 row_hits.trace(scene, c, (xa, xb), y, k);
                 let base = (y - y0) as usize * tw + (xa - x0) as usize;
-                for j in 0..s.row.n {
-                    if s.row.hit[j] {
-                        push_hit(s, j, (base + j) as u32, (xa + j as u32, y, k));
-                        if s.n == STREAM_CHUNK {
-                            shade_chunk(scene, c, s, &mut acc);
-                        }
-                    } else {
+                // Runs of consecutive hits go into the chunk as slices; misses see the
+                // background.
+                let n = s.row.n.min(ROW);
+                let mut j = 0;
+                while j < n {
+                    if !s.row.hit[j] {
                         let r = &s.row;
                         let d = DVec3::new(r.d[0][j], r.d[1][j], r.d[2][j]);
                         acc[base + j] += background(scene, d);
+                        j += 1;
+                        continue;
+                    }
+                    let mut end = j + 1;
+                    while end < n && s.row.hit[end] {
+                        end += 1;
+                    }
+                    while j < end {
+                        let take = (end - j).min(STREAM_CHUNK - s.n);
+                        push_run(s, j..j + take, base, (xa, y, k));
+                        j += take;
+                        if s.n == STREAM_CHUNK {
+                            shade_chunk(scene, c, s, &mut acc);
+                        }
                     }
                 }
                 xa = xb;
@@ -172,29 +185,39 @@ pub(crate) fn render_tile(
     s.acc = acc;
 }
 
-/// Append hit `j` of the current row segment to the chunk.
+/// Append hits `js` of the current row segment (all hits, and room for them in the chunk)
+/// to the chunk; hit `j` is pixel `base + j` of the tile buffer, at image `(xa + j, y)`,
+/// sample `k`.
 #[inline]
-fn push_hit(s: &mut StreamScratch, j: usize, slot: u32, (x, y, k): (u32, u32, u32)) {
-    let i = s.n % STREAM_CHUNK;
+fn push_run(
+    s: &mut StreamScratch,
+    js: std::ops::Range<usize>,
+    base: usize,
+    (xa, y, k): (u32, u32, u32),
+) {
+    let (i0, m) = (s.n, js.len());
+    debug_assert!(i0 + m <= STREAM_CHUNK && js.end <= ROW);
+    let dst = i0..i0 + m;
     let r = &*s.row;
-    let j = j % ROW;
-    s.slot[i] = slot;
-    s.px[i] = x;
-    s.py[i] = y;
-    s.sample[i] = k;
-    s.material[i] = r.material[j];
-    s.skip[i] = r.skip[j];
-    s.eps[i] = r.eps[j];
-    for c in 0..3 {
-        s.p[c][i] = r.p[c][j];
-        s.ng[c][i] = r.ng[c][j];
-        s.t[c][i] = r.ft[c][j];
-        s.b[c][i] = r.fb[c][j];
-        s.nrm[c][i] = r.fnrm[c][j];
-        s.wo[c][i] = r.wo[c][j];
-        s.sum[c][i] = 0.0;
+    for (q, j) in js.clone().enumerate() {
+        s.slot[i0 + q] = (base + j) as u32;
+        s.px[i0 + q] = xa + j as u32;
     }
-    s.n += 1;
+    s.py[dst.clone()].fill(y);
+    s.sample[dst.clone()].fill(k);
+    s.material[dst.clone()].copy_from_slice(&r.material[js.clone()]);
+    s.skip[dst.clone()].copy_from_slice(&r.skip[js.clone()]);
+    s.eps[dst.clone()].copy_from_slice(&r.eps[js.clone()]);
+    for c in 0..3 {
+        s.p[c][dst.clone()].copy_from_slice(&r.p[c][js.clone()]);
+        s.ng[c][dst.clone()].copy_from_slice(&r.ng[c][js.clone()]);
+        s.t[c][dst.clone()].copy_from_slice(&r.ft[c][js.clone()]);
+        s.b[c][dst.clone()].copy_from_slice(&r.fb[c][js.clone()]);
+        s.nrm[c][dst.clone()].copy_from_slice(&r.fnrm[c][js.clone()]);
+        s.wo[c][dst.clone()].copy_from_slice(&r.wo[c][js.clone()]);
+        s.sum[c][dst.clone()].fill(0.0);
+    }
+    s.n += m;
 }
 
 /// Shade every hit of the chunk (all lights, then the environment), add the radiance to the
