@@ -482,3 +482,100 @@ fn several_clients_at_once() {
     // The server is still healthy afterwards.
     assert_eq!(get("/api/health").status, 200);
 }
+
+/// A microfacet material with a mirror facet on a GGX NDF and a per-channel `specular`.
+fn mirror_material(specular: [f64; 3]) -> Value {
+    json!({
+        "name": "mirror",
+        "form": "microfacet",
+        "ndf": { "kind": "ggx", "alpha": 0.25 },
+        "transfer": { "kind": "mirror", "fresnel": "schlick", "f0": [0.9, 0.9, 0.9],
+                      "specular": specular }
+    })
+}
+
+/// The sums over the linear preview image of the pixels brighter than the background, and the
+/// brightest such pixel.
+fn lit_pixels(m: &Value) -> ([f64; 3], [f32; 3]) {
+    let req: meso_serve::preview::RenderRequest =
+        serde_json::from_value(json!({ "material": m, "view": { "width": 64, "height": 64 } }))
+            .unwrap();
+    let v = meso_serve::material_json::validate(m).expect("valid material");
+    let (img, _, path) = meso_serve::preview::render_image(&req, &v.material).expect("renders");
+    assert!(path.starts_with("mirror facets"), "{path}");
+    let bg = meso_serve::preview::BACKGROUND;
+    let (mut sum, mut peak) = ([0.0f64; 3], [0.0f32; 3]);
+    for p in img.pixels() {
+        if p.iter().zip(bg).any(|(x, b)| *x > 2.0 * b) {
+            for c in 0..3 {
+                sum[c] += f64::from(p[c]);
+            }
+            if p.iter().sum::<f32>() > peak.iter().sum::<f32>() {
+                peak = *p;
+            }
+        }
+    }
+    (sum, peak)
+}
+
+#[test]
+fn mirror_transfer_round_trips_and_its_preview_follows_specular() {
+    // JSON → TOML → JSON keeps the mirror facet and its specular colour.
+    let m = mirror_material([1.0, 0.0, 0.0]);
+    let t = post_json("/api/toml", &m);
+    assert_eq!(t.status, 200, "{}", String::from_utf8_lossy(&t.body));
+    let text = t.text();
+    assert!(text.contains("kind = \"mirror\""), "{text}");
+    assert!(text.contains("specular = [1.0, 0.0, 0.0]"), "{text}");
+    let back = request("POST", "/api/parse", "application/toml", text.as_bytes());
+    assert_eq!(back.status, 200, "{}", String::from_utf8_lossy(&back.body));
+    let back = back.json();
+    assert_eq!(back["form"], "microfacet");
+    assert_eq!(back["transfer"]["kind"], "mirror");
+    assert_eq!(back["transfer"]["specular"], json!([1.0, 0.0, 0.0]));
+    assert_eq!(back["transfer"]["f0"], json!([0.9, 0.9, 0.9]));
+    // Through the API: a PNG, on the collapsed mirror path.
+    let r = render(&m, json!({ "width": 64, "height": 64 }));
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(png_size(&r.body), (64, 64));
+    assert_eq!(
+        r.header("x-brdf-path"),
+        Some("mirror facets, collapsed at H")
+    );
+    let blue = render(
+        &mirror_material([0.0, 0.0, 1.0]),
+        json!({ "width": 64, "height": 64 }),
+    );
+    assert_eq!(blue.status, 200);
+    assert_ne!(r.body, blue.body, "the preview follows specular");
+    // The picture itself: a red highlight for [1, 0, 0], a blue one for [0, 0, 1], and a grey
+    // one for [0.5, 0.5, 0.5] at half the brightness of white.
+    let (sum, peak) = lit_pixels(&m);
+    assert!(peak[0] > 0.2, "highlight {peak:?}");
+    assert!(peak[1] < 1e-3 && peak[2] < 1e-3, "highlight {peak:?}");
+    assert!(sum[0] > 100.0 * (sum[1] + sum[2]), "{sum:?}");
+    let (sum_b, peak_b) = lit_pixels(&mirror_material([0.0, 0.0, 1.0]));
+    assert!(peak_b[2] > 0.2 && peak_b[0] < 1e-3 && peak_b[1] < 1e-3, "{peak_b:?}");
+    assert!(sum_b[2] > 100.0 * (sum_b[0] + sum_b[1]), "{sum_b:?}");
+    let (white, _) = lit_pixels(&mirror_material([1.0, 1.0, 1.0]));
+    let (grey, _) = lit_pixels(&mirror_material([0.5, 0.5, 0.5]));
+    for c in 0..3 {
+        let ratio = grey[c] / white[c];
+        assert!((ratio - 0.5).abs() < 0.02, "channel {c}: {ratio}");
+    }
+    // A component above 1 is refused, naming the key.
+    let msg = render(
+        &mirror_material([1.5, 0.0, 0.0]),
+        json!({ "width": 64, "height": 64 }),
+    )
+    .assert_error(400);
+    assert!(
+        msg.contains("specular") && msg.contains("[0, 1]"),
+        "message: {msg}"
+    );
+    // A mirror facet on a delta NDF is refused with the core's message.
+    let mut d = mirror_material([1.0, 1.0, 1.0]);
+    d["ndf"] = json!({ "kind": "deltas", "lobes": [{ "axis": [0, 0], "weight": 1 }] });
+    let msg = post_json("/api/toml", &d).assert_error(400);
+    assert!(msg.contains("mirror"), "message: {msg}");
+}
