@@ -841,6 +841,8 @@ fn refine_smoothed(pts: &[Pt], lobes: &mut Vec<L>, lambda: f64, kmax: usize) {
     *lobes = best.to_lobes();
 }
 
+/// Most entries the smoothed objective is computed from (a strided subset beyond).
+const SMOOTH_MAX_POINTS: usize = 2048;
 /// Most LM steps per start (and per greedy stage) of the smoothed refinement; the starts stop
 /// when a step gains less than [`SMOOTH_TOL_START`] (relative).
 const SMOOTH_START_ITERATIONS: usize = 10;
@@ -1010,7 +1012,21 @@ pub fn fit_lobes_with(
         em(pts, &mut lobes, ptotal, (iters - sel_iters).min(10));
     }
     if smooth && params.smooth_exponent > 0.0 {
-        refine_smoothed(pts, &mut lobes, params.smooth_exponent, kmax);
+        // The smoothed objective sees up to SMOOTH_MAX_POINTS entries (a strided subset of
+        // `max_em_points` aliases with periodic maps).
+        let data: Vec<Pt>;
+        let data = if entries.len() > pts.len() {
+            let stride = entries.len().div_ceil(SMOOTH_MAX_POINTS);
+            data = entries
+                .iter()
+                .step_by(stride)
+                .map(|e| (e.mean(), e.w))
+                .collect();
+            &data[..]
+        } else {
+            pts
+        };
+        refine_smoothed(data, &mut lobes, params.smooth_exponent, kmax);
     }
     out.extend(to_phong(&lobes));
 }
