@@ -1115,4 +1115,60 @@ mod tests {
             y -= 0.173;
         }
     }
+
+    #[test]
+    fn sg_response_matches_quadrature_and_its_gradient() {
+        let a = DVec3::new(0.3, -0.2, 0.9).normalize();
+        let lambda = 40.0;
+        for kappa in [0.5, 8.0, 150.0] {
+            let l = SgLobe::new(a, kappa);
+            let h = DVec3::new(-0.1, 0.25, 0.95).normalize();
+            let g = sg_response(&l, lambda, h, true);
+            // Midpoint quadrature of ∫ sg(m) exp(λ(h·m − 1)) dm on a fine equal-area grid.
+            let grid = SphereGrid { res: 512 };
+            let norm = kappa / (2.0 * PI * -(-2.0 * kappa).exp_m1());
+            let q: f64 = (0..grid.bins())
+                .map(|b| {
+                    let m = grid.point(b, 0.5, 0.5);
+                    norm * (kappa * (a.dot(m) - 1.0)).exp() * (lambda * (h.dot(m) - 1.0)).exp()
+                })
+                .sum::<f64>()
+                * grid.bin_solid_angle();
+            assert!((g[0] - q).abs() < 2e-3 * q, "κ {kappa}: {} vs {q}", g[0]);
+            // Derivatives against central differences.
+            let e = 1e-6;
+            let dk = (sg_response(&SgLobe::new(a, kappa * (1.0 + e)), lambda, h, false)[0]
+                - sg_response(&SgLobe::new(a, kappa * (1.0 - e)), lambda, h, false)[0])
+                / (2.0 * e);
+            assert!(
+                (g[1] - dk).abs() < 1e-5 * (1.0 + dk.abs()),
+                "∂κ {} vs {dk}",
+                g[1]
+            );
+            for (t, gi) in [(l.t1, g[2]), (l.t2, g[3])] {
+                let gp = sg_response(
+                    &SgLobe::new((a + t * e).normalize(), kappa),
+                    lambda,
+                    h,
+                    false,
+                );
+                let gm = sg_response(
+                    &SgLobe::new((a - t * e).normalize(), kappa),
+                    lambda,
+                    h,
+                    false,
+                );
+                let d = (gp[0] - gm[0]) / (2.0 * e);
+                assert!((gi - d).abs() < 1e-5 * (1.0 + d.abs()), "∂a {gi} vs {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn kappa_and_eta_round_trip() {
+        for eta in [0.5, 4.0, 20.0, 300.0, 1e5] {
+            let back = kappa_eta(peak_kappa(eta));
+            assert!((back - eta).abs() < 1e-6 * eta, "{eta} -> {back}");
+        }
+    }
 }
