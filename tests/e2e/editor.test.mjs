@@ -280,3 +280,115 @@ test('preview latency at 384×384 (recorded in artifacts/timings.json)', async (
   console.log(`preview 384×384: median render ${summary.medianRenderMs.toFixed(1)} ms, round trip ${summary.medianRoundTripMs.toFixed(1)} ms`);
   assert.ok(summary.medianRenderMs > 0);
 });
+
+// Sums over the preview of each channel's excess over the background (#232426), 0–255 per pixel.
+const previewExcess = () => page.evaluate(() => {
+  const img = document.getElementById('preview');
+  const c = document.createElement('canvas');
+  c.width = img.naturalWidth; c.height = img.naturalHeight;
+  const g = c.getContext('2d');
+  g.drawImage(img, 0, 0);
+  const d = g.getImageData(0, 0, c.width, c.height).data;
+  const bg = [0x23, 0x24, 0x26];
+  const s = [0, 0, 0];
+  for (let k = 0; k < d.length; k += 4) for (let j = 0; j < 3; j++) s[j] += Math.max(0, d[k + j] - bg[j]);
+  return s;
+});
+// The next /api/render request whose material satisfies `pred` (run in node on the parsed body).
+const nextRender = (pred) => page.waitForRequest((r) => {
+  if (!r.url().endsWith('/api/render')) return false;
+  try { return pred(r.postDataJSON().material); } catch (e) { return false; }
+}, { timeout: 60000 });
+
+test('a mirror facet: select it, set its specular colour, the request and the preview follow', async () => {
+  await ensureLoaded();
+  await page.selectOption('#preset', 'silk');
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  // No diffuse base: the picture is the specular lobe alone.
+  if (await page.isChecked('#diffuse-on')) {
+    const n0 = await renders();
+    await page.click('#diffuse-on');
+    await waitForRender(n0);
+  }
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const h0 = await previewHash();
+  assert.equal(await page.isDisabled('#transfer-kind option[value="mirror"]'), false);
+
+  // Select "mirror": the request carries a mirror transfer with specular in [0, 1].
+  let n = await renders();
+  let req = nextRender((m) => m.transfer.kind === 'mirror');
+  await page.selectOption('#transfer-kind', 'mirror');
+  let sent = await req;
+  await waitForRender(n);
+  let m = await material();
+  assert.equal(m.transfer.kind, 'mirror');
+  assert.deepEqual(sent.postDataJSON().material.transfer, m.transfer);
+  assert.ok(m.transfer.specular.every((c) => c >= 0 && c <= 1), `specular ${m.transfer.specular}`);
+  assert.equal(m.ndf.kind, 'phong-peaks');
+  assert.equal(await page.locator('#transfer-controls input[type=color]').count() >= 1, true);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+  assert.match(await page.textContent('#render-path'), /mirror facets/);
+  const h1 = await previewHash();
+  assert.notEqual(h1, h0, 'the preview changed');
+
+  // Set the specular colour to red: the request and a red-dominated highlight.
+  n = await renders();
+  req = nextRender((x) => x.transfer.kind === 'mirror' && x.transfer.specular[1] === 0);
+  await page.locator('#transfer-controls .row input[type=color]').first().fill('#ff0000');
+  sent = await req;
+  assert.deepEqual(sent.postDataJSON().material.transfer.specular, [1, 0, 0]);
+  await waitForRender(n);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.deepEqual((await material()).transfer.specular, [1, 0, 0]);
+  assert.match(await page.textContent('#transfer-controls'), /linear 1\.000 0\.000 0\.000/);
+  const red = await previewExcess();
+  assert.ok(red[0] > 1000, `red highlight ${red}`);
+  assert.ok(red[0] > 20 * (red[1] + red[2]), `red-dominated ${red}`);
+  assert.notEqual(await previewHash(), h1, 'the preview changed');
+  await shot('08-mirror-red');
+
+  // spec. scale is clamped to 1 for a mirror; 0.5 halves the colour.
+  const scale = page.locator('#transfer-controls input[type=number][data-field="specular-scale"]');
+  await scale.fill('3');
+  await scale.dispatchEvent('change');
+  assert.equal(await scale.inputValue(), '1');
+  assert.deepEqual((await material()).transfer.specular, [1, 0, 0]);
+  n = await renders();
+  req = nextRender((x) => x.transfer.specular[0] === 0.5);
+  await scale.fill('0.5');
+  await scale.dispatchEvent('change');
+  sent = await req;
+  assert.deepEqual(sent.postDataJSON().material.transfer.specular, [0.5, 0, 0]);
+  await waitForRender(n);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const half = await previewExcess();
+  assert.ok(half[0] > 0 && half[0] < red[0], `dimmer: ${half} vs ${red}`);
+
+  // The saved TOML is a mirror material meso accepts.
+  const text = await page.evaluate(() => window.mesoEditor.tomlText());
+  assert.match(text, /kind = "mirror"/);
+  assert.match(text, /specular = \[0\.5, 0(\.0)?, 0(\.0)?\]/);
+  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', body: text });
+  assert.equal(r.status, 200);
+
+  // A delta NDF cannot carry a mirror facet: switching to deltas falls back to Phong (same
+  // colour) with a note, and the mirror option is unavailable until the NDF is continuous.
+  await page.selectOption('#ndf-kind', 'deltas');
+  m = await material();
+  assert.equal(m.transfer.kind, 'phong');
+  assert.deepEqual(m.transfer.specular, [0.5, 0, 0]);
+  assert.equal(await page.inputValue('#transfer-kind'), 'phong');
+  assert.equal(await page.isDisabled('#transfer-kind option[value="mirror"]'), true);
+  assert.match(await page.textContent('#transfer-note'), /continuous NDF/);
+  await page.selectOption('#ndf-kind', 'phong-peaks');
+  assert.equal(await page.isDisabled('#transfer-kind option[value="mirror"]'), false);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+});
