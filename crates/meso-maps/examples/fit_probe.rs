@@ -1,7 +1,20 @@
-//! Probe of the lobe fit's shading bias: per level, the texel average of a Phong-facet BRDF over
-//! the footprint's facets (truth) against the texel's lobes integrated by quadrature.
+//! Probe of the lobe fit's shading error on four 64²/32² maps (the zoom egg crate, the materials
+//! test's egg crate, half-cylinders, a Gaussian surface): per pyramid level, the texel average of
+//! the Phong-facet shading `(m·h)^η (m·i)⁺ / i_z` over the footprint's triangles (truth) against
+//! the texel's lobes integrated by quadrature (projected-area weights on both sides).
 //!
-//! `CARGO_TARGET_DIR=/work/targets/maps cargo run --release -p meso-maps --example fit_probe [K]`
+//! Columns: level; at the diag's pair (`ndf_diag`'s view and light) `Σ|lobes − truth| / Σ truth`
+//! (and signed); over ten more pairs `Σ_pairs Σ_texels |lobes − truth| / Σ_pairs Σ_texels truth`
+//! and the worst pair's relative error (pairs with tiny truth, e.g. half vectors beyond the
+//! steepest slope, dominate it); lobes per texel; the level's binned NDF residual. At most 64
+//! texels per level (strided).
+//!
+//! ```text
+//! CARGO_TARGET_DIR=/work/targets/maps cargo run --release -p meso-maps --example fit_probe [K]
+//! ```
+//! Environment: `SMOOTH=λ` sets `FitParams::smooth_exponent` (0: EM only), `FETA=η` the facet
+//! exponent of every map (default 40 for the zoom map, 20 for the others), `SHOW=1` prints the
+//! coarse texels' lobes, `VIEWS=1` the top level's per-pair errors.
 use glam::DVec3;
 use meso_core::frame::Frame;
 use meso_core::ndf::PhongLobe;

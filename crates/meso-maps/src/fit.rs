@@ -17,6 +17,25 @@
 //!   lobes by more than `min_gain` nats.
 //!   Footprints with more than `max_em_points` entries are fitted on a strided subset; footprints
 //!   with at most 4 entries per lobe use the k-means clusters directly (no EM).
+//! * **Smoothed refinement** (levels of at most `smooth_texels` texels, when
+//!   `smooth_exponent` λ > 0). Maximum likelihood is the wrong objective for shading when K
+//!   peaks cannot follow the normals: it is dominated by where the normals pile up (an
+//!   egg crate's normals sit on the edges of a diamond, a ring 26–37° from the normal, densest
+//!   at its corners) and puts narrow peaks there, leaving the rest of the ring dark: the coarse
+//!   levels of the zoom bump map shaded 13–45% too dark at the bench's view
+//!   (`docs/figures.md`, diagnosis). A renderer only sees the NDF through the facet BRDF, a
+//!   kernel about 10° wide; so the lobes are refined to minimise
+//!   `Σ_h (∫ n_fit(m) K(h·m) dm − Σ_n w_n K(h·m_n))²` with `K = exp(λ(h·m − 1))`, over the
+//!   upper-hemisphere centres `h` of an equal-area grid of spacing ≈ the kernel's width `1/√λ`
+//!   near the data (the data term from up to 2048 entries, weights normalised to 1). Each peak
+//!   is treated as the spherical Gaussian of the same mean cosine `η/(η+4)` (as `NdfMapped`
+//!   does), so the smoothed lobe is exact in closed form (`sg_response`). Levenberg–Marquardt
+//!   over axes, `ln κ` and softmax weight logits (the weights stay a probability: Eq. 1) runs
+//!   from two starts: the EM lobes (a lobe whose weight dies is re-seeded) and a greedy start
+//!   (one lobe, then lobes added where the data most exceed the fit, while each lowers the
+//!   objective by > 2%, up to `max_lobes`); the lower objective wins. It never raises the
+//!   smoothed objective above the EM fit's; it can raise the binned L2 residual below (which
+//!   rewards detail finer than any facet BRDF sees).
 //!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
@@ -809,7 +828,8 @@ impl<'a> Smoothed<'a> {
     }
 
     /// LM from `st`; a lobe whose weight dies (< 10⁻³) or whose axis sinks below the horizon is
-    /// re-seeded by [`Self::add_lobe`] (at most `k` times).
+    /// re-seeded by [`Self::add_lobe`] (at most `k` times, kept only when that lowers the
+    /// objective).
     fn polish(&self, st: &mut SgState, iters: usize) -> f64 {
         let mut obj = self.lm(st, iters, SMOOTH_TOL_START);
         for _ in 0..st.k {
@@ -818,9 +838,15 @@ impl<'a> Smoothed<'a> {
                 break;
             };
             let k = st.k;
-            st.remove(dead);
-            self.add_lobe(st, 1.0 / k as f64);
-            obj = self.lm(st, iters, SMOOTH_TOL_START);
+            let mut next = st.clone();
+            next.remove(dead);
+            self.add_lobe(&mut next, 1.0 / k as f64);
+            let o = self.lm(&mut next, iters, SMOOTH_TOL_START);
+            if o >= obj {
+                break;
+            }
+            *st = next;
+            obj = o;
         }
         obj
     }
