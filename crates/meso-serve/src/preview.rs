@@ -13,7 +13,9 @@
 //! When that has no fast path (its `path()` is the quadrature: Phong peaks under a Lambert,
 //! microfacet or reflect-Phong facet), the preview replaces the continuous NDF by
 //! [`PREVIEW_NORMALS`] normals drawn from it by stratified sampling (a multiple surface with the
-//! same facet), evaluated exactly by the sum of Eq. 4. The response names the path in
+//! same facet), evaluated exactly by the sum of Eq. 4. Mirror facets (on a continuous NDF, in
+//! either form) always have `FastBrdf`'s collapsed path, so they never reach the sampled normals
+//! (a delta NDF under a mirror facet has no pointwise value). The response names the path in
 //! `x-brdf-path`.
 
 use crate::error::ApiError;

@@ -555,7 +555,10 @@ fn mirror_transfer_round_trips_and_its_preview_follows_specular() {
     assert!(peak[1] < 1e-3 && peak[2] < 1e-3, "highlight {peak:?}");
     assert!(sum[0] > 100.0 * (sum[1] + sum[2]), "{sum:?}");
     let (sum_b, peak_b) = lit_pixels(&mirror_material([0.0, 0.0, 1.0]));
-    assert!(peak_b[2] > 0.2 && peak_b[0] < 1e-3 && peak_b[1] < 1e-3, "{peak_b:?}");
+    assert!(
+        peak_b[2] > 0.2 && peak_b[0] < 1e-3 && peak_b[1] < 1e-3,
+        "{peak_b:?}"
+    );
     assert!(sum_b[2] > 100.0 * (sum_b[0] + sum_b[1]), "{sum_b:?}");
     let (white, _) = lit_pixels(&mirror_material([1.0, 1.0, 1.0]));
     let (grey, _) = lit_pixels(&mirror_material([0.5, 0.5, 0.5]));
