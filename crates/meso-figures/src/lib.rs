@@ -676,13 +676,8 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
     let surface_def = bump_surface();
     let surface = surface_def.material()?;
     let texels_per_uv = map.cells_x() as f64;
-    // Level 5 (2×2 texels of 2×2 bump periods each) already holds the far field; the single
-    // top texel's 4-lobe fit is a worse local optimum of EM (a broad tilted lobe), which would
-    // show as a 15% drop in the last frame, so the sequence stops at level 5.
     let shader = Arc::new(
-        NdfMapped::new(&pyr, &surface, texels_per_uv, true)
-            .map_err(|e| ferr(e.to_string()))?
-            .with_max_level(pyr.levels.len().saturating_sub(2)),
+        NdfMapped::new(&pyr, &surface, texels_per_uv, true).map_err(|e| ferr(e.to_string()))?,
     );
     let frames = opts.zoom_frames.max(6);
     let zsize = (size * 3 / 5).max(32);

@@ -300,8 +300,10 @@ fn ndf_mapped_matches_supersampled_bump_map() {
         errors.push(mean_rel(&filtered, &truth));
     }
     eprintln!("mean relative errors at 4, 16, 64, 256 cells/pixel: {errors:?}");
-    for e in &errors {
-        assert!(*e < 0.05, "errors {errors:?}");
+    // 4 cells per pixel reads the finest levels, where the 4-spp footprint filter's shape
+    // dominates (measured 4.0%); coarser views read the refined lobe fits (1.2–1.6%).
+    for (e, bound) in errors.iter().zip([0.05, 0.03, 0.03, 0.03]) {
+        assert!(*e < bound, "errors {errors:?}");
     }
 }
 
@@ -351,7 +353,8 @@ fn ndf_mapped_zoom_is_smooth() {
                 "jump at width {width}: ratios {ratios:?}"
             );
         }
-        assert!((ratio - 1.0).abs() < 0.07, "ratios {ratios:?}");
+        // Measured 0.995–1.013 (0.978–1.055 with EM-only lobe fits).
+        assert!((ratio - 1.0).abs() < 0.03, "ratios {ratios:?}");
         prev = Some(ratio);
         width *= 1.1;
     }
