@@ -48,7 +48,7 @@
 
 use crate::sphgrid::SphereGrid;
 use glam::DVec3;
-use meso_core::ndf::PhongLobe;
+use meso_core::ndf::{vmf, PhongLobe};
 use std::f64::consts::PI;
 
 /// Largest Phong exponent η on cos(α/2); footprints of identical normals get exactly this.
@@ -379,66 +379,20 @@ fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
     prev
 }
 
-/// Mean cosine to the axis of a von Mises–Fisher distribution (spherical Gaussian `e^{κ(a·m−1)}`):
-/// `coth κ − 1/κ`.
-fn vmf_mean_cos(kappa: f64) -> f64 {
-    if kappa < 1e-3 {
-        kappa / 3.0
-    } else if kappa > 20.0 {
-        1.0 - 1.0 / kappa
-    } else {
-        1.0 / kappa.tanh() - 1.0 / kappa
-    }
-}
-
-/// The concentration κ whose von Mises–Fisher mean cosine is `mu` (Banerjee et al.'s start, then
-/// Newton on `A(κ) = μ`).
-fn vmf_kappa(mu: f64) -> f64 {
-    let mu = mu.clamp(0.0, 1.0 - 1e-12);
-    if mu < 1e-9 {
-        return 3.0 * mu;
-    }
-    let mut k = mu * (3.0 - mu * mu) / (1.0 - mu * mu);
-    for _ in 0..6 {
-        let d = if k > 20.0 {
-            1.0 / (k * k)
-        } else {
-            1.0 / (k * k) - 1.0 / k.sinh().powi(2)
-        };
-        if d <= 0.0 {
-            break;
-        }
-        k = (k - (vmf_mean_cos(k) - mu) / d).max(0.5 * k);
-    }
-    k
-}
-
 /// The spherical Gaussian concentration of a Phong peak of exponent η: the same mean cosine,
 /// `η/(η + 4)` (the renderer's `NdfMapped` makes the same substitution).
 fn peak_kappa(eta: f64) -> f64 {
-    vmf_kappa(eta / (eta + 4.0)).clamp(KAPPA_MIN, KAPPA_MAX)
+    vmf::phong_peak_kappa(eta).clamp(KAPPA_MIN, KAPPA_MAX)
 }
 
 /// The Phong exponent of a spherical Gaussian of concentration κ (inverse of [`peak_kappa`]).
 fn kappa_eta(kappa: f64) -> f64 {
-    let mc = vmf_mean_cos(kappa);
+    let mc = vmf::mean_cos(kappa);
     (4.0 * mc / (1.0 - mc).max(1e-12)).clamp(0.0, ETA_MAX)
 }
 
 const KAPPA_MIN: f64 = 1e-3;
 const KAPPA_MAX: f64 = 2.5e5;
-
-/// `coth r − 1/r` (the Langevin function; `d/dr ln(sinh r / r)`).
-#[inline]
-fn langevin(r: f64) -> f64 {
-    if r < 1e-3 {
-        r / 3.0
-    } else if r > 20.0 {
-        1.0 - 1.0 / r
-    } else {
-        1.0 / r.tanh() - 1.0 / r
-    }
-}
 
 /// Per-lobe constants of [`sg_response`].
 #[derive(Clone, Copy)]
@@ -462,7 +416,7 @@ impl SgLobe {
             t2,
             kappa,
             norm: kappa / -(-2.0 * kappa).exp_m1(),
-            lang: langevin(kappa),
+            lang: vmf::mean_cos(kappa),
         }
     }
 }
@@ -492,7 +446,7 @@ fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
     if !grad {
         return [g, 0.0, 0.0, 0.0];
     }
-    let lr = langevin(r) / r.max(1e-12);
+    let lr = vmf::mean_cos(r) / r.max(1e-12);
     // ∂ln G/∂κ = 1/κ − coth κ + L(r)(u·a)/r, u = κa + λh; ∂ln G/∂a = L(r) κ u / r.
     let dk = g * kappa * (lr * (kappa + lambda * ah) - l.lang);
     let c = g * lr * kappa * lambda;
@@ -821,7 +775,9 @@ impl<'a> Smoothed<'a> {
         let mut st = SgState {
             k: 1,
             axes: [c.try_normalize().unwrap_or(DVec3::Z); MAX_LOBES],
-            lk: [vmf_kappa(mc).clamp(KAPPA_MIN, KAPPA_MAX).ln(); MAX_LOBES],
+            lk: [vmf::kappa_from_mean_cos(mc)
+                .clamp(KAPPA_MIN, KAPPA_MAX)
+                .ln(); MAX_LOBES],
             sl: [0.0; MAX_LOBES],
         };
         let mut obj = self.lm(&mut st, iters, SMOOTH_TOL_START);

@@ -53,6 +53,7 @@ use crate::shader::{fast_pow, Shader};
 use glam::DVec3;
 use meso_core::frame::Frame;
 use meso_core::material::Material;
+use meso_core::ndf::vmf;
 use meso_core::transfer::{PhongVariant, Transfer};
 use meso_maps::{FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMode, Pyramid};
 use std::f64::consts::FRAC_1_PI;
@@ -283,47 +284,9 @@ const RING: usize = 6;
 /// Weight of the axis node.
 const AXIS_WEIGHT: f64 = 0.25;
 
-/// Mean cosine to the axis of a von Mises–Fisher distribution on the sphere: `coth κ − 1/κ`.
-fn vmf_mean_cos(kappa: f64) -> f64 {
-    if kappa < 1e-3 {
-        kappa / 3.0
-    } else if kappa > 20.0 {
-        1.0 - 1.0 / kappa
-    } else {
-        1.0 / kappa.tanh() - 1.0 / kappa
-    }
-}
-
-/// The concentration κ of the von Mises–Fisher distribution whose mean cosine is `mu`.
-fn vmf_kappa(mu: f64) -> f64 {
-    let mu = mu.clamp(0.0, 1.0 - 1e-12);
-    if mu < 1e-9 {
-        return 3.0 * mu;
-    }
-    // Banerjee et al.'s approximation, then Newton on A(κ) = μ (A' = 1/κ² − 1/sinh²κ).
-    let mut k = mu * (3.0 - mu * mu) / (1.0 - mu * mu);
-    for _ in 0..4 {
-        let d = if k > 20.0 {
-            1.0 / (k * k)
-        } else {
-            1.0 / (k * k) - 1.0 / k.sinh().powi(2)
-        };
-        if d <= 0.0 {
-            break;
-        }
-        k = (k - (vmf_mean_cos(k) - mu) / d).max(0.5 * k);
-    }
-    k
-}
-
-/// The Gaussian of the Phong peak `cos^η(α/2)` (Eq. 12): same mean cosine, `η/(η + 4)`.
-fn peak_kappa(exponent: f64) -> f64 {
-    vmf_kappa(exponent / (exponent + 4.0))
-}
-
 /// Replace a Phong peak by 7 weighted nodes (area weights) with the lobe's mean cosine.
 fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
-    let mean = exponent / (exponent + 4.0);
+    let mean = vmf::phong_peak_mean_cos(exponent);
     let c = ((mean - AXIS_WEIGHT) / (1.0 - AXIS_WEIGHT)).clamp(-1.0, 1.0);
     if c > 1.0 - 1e-9 {
         out.push(Node { n: axis, w: weight });
@@ -386,7 +349,7 @@ fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambda: f64) -> 
         let (mass, a_r) = if r > 20.0 {
             (inv_r, (1.0 - inv_r) * inv_r)
         } else {
-            (-(-2.0 * r).exp_m1() * inv_r, vmf_mean_cos(r) * inv_r)
+            (-(-2.0 * r).exp_m1() * inv_r, vmf::mean_cos(r) * inv_r)
         };
         let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
         if q > 0.0 {
@@ -453,12 +416,12 @@ impl NdfMapped {
                 // lobes above the horizon; lobes facing down count for nothing).
                 let area: f64 = src
                     .iter()
-                    .map(|p| p.weight * p.exponent / (p.exponent + 4.0) * p.axis.z.max(0.0))
+                    .map(|p| p.weight * vmf::phong_peak_mean_cos(p.exponent) * p.axis.z.max(0.0))
                     .sum();
                 let mut sz = DVec3::ZERO;
                 if area > 0.0 {
                     for p in src {
-                        let kappa = peak_kappa(p.exponent);
+                        let kappa = vmf::phong_peak_kappa(p.exponent);
                         let w = p.weight / area;
                         let norm = if kappa < 1e-9 {
                             0.5
@@ -470,13 +433,13 @@ impl NdfMapped {
                         let a_k = if kappa < 1e-3 {
                             1.0 / 3.0
                         } else {
-                            vmf_mean_cos(kappa) / kappa
+                            vmf::mean_cos(kappa) / kappa
                         };
                         sz += w * (a_k * DVec3::Z + (1.0 - 3.0 * a_k) * p.axis.z * p.axis);
                     }
                 } else {
                     // No lobe faces up: shade as the flat surface.
-                    let kappa = peak_kappa(meso_maps::fit::ETA_MAX);
+                    let kappa = vmf::phong_peak_kappa(meso_maps::fit::ETA_MAX);
                     lobes.push(SgLobe::new(
                         DVec3::Z,
                         meso_maps::fit::ETA_MAX,
@@ -776,7 +739,7 @@ mod tests {
     }
 
     fn closed(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
-        let kappa = peak_kappa(eta_n);
+        let kappa = vmf::phong_peak_kappa(eta_n);
         let area = eta_n / (eta_n + 4.0) * axis.z;
         let lobe = SgLobe::new(axis, eta_n, kappa, kappa / -(-2.0 * kappa).exp_m1() / area);
         phong_texel(&[lobe], wi, h, eta, eta + 1.0)
@@ -821,9 +784,9 @@ mod tests {
     fn peak_kappa_keeps_the_mean_cosine() {
         for eta in [0.5, 4.0, 40.0, 1e3, 1e6] {
             let mu = eta / (eta + 4.0);
-            let k = peak_kappa(eta);
+            let k = vmf::phong_peak_kappa(eta);
             assert!(
-                (vmf_mean_cos(k) - mu).abs() < 1e-9 * (1.0 + 1.0 / (1.0 - mu)),
+                (vmf::mean_cos(k) - mu).abs() < 1e-9 * (1.0 + 1.0 / (1.0 - mu)),
                 "{eta}: {k}"
             );
         }

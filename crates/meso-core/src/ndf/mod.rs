@@ -22,6 +22,7 @@ pub mod harmonics;
 pub mod microfacet;
 pub mod phong;
 pub mod tabulated;
+pub mod vmf;
 
 pub use analytic::{Cylinder, Sphere, VonMisesFisher};
 pub use delta::{DeltaSum, WeightedNormal};
