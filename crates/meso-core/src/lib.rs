@@ -32,6 +32,7 @@ pub mod convolution;
 pub mod frame;
 pub mod grid;
 pub mod io;
+pub mod linalg;
 pub mod material;
 pub mod ndf;
 pub mod pairs;

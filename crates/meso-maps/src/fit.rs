@@ -48,6 +48,7 @@
 
 use crate::sphgrid::SphereGrid;
 use glam::DVec3;
+use meso_core::linalg::cholesky_solve;
 use meso_core::ndf::{vmf, PhongLobe};
 use std::f64::consts::PI;
 
@@ -451,44 +452,6 @@ fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
     let dk = g * kappa * (lr * (kappa + lambda * ah) - l.lang);
     let c = g * lr * kappa * lambda;
     [g, dk, c * h.dot(l.t1), c * h.dot(l.t2)]
-}
-
-/// Solve the symmetric positive definite `n × n` system `a x = b` by Cholesky (in place, `x`
-/// in `b`); false when `a` is not positive definite.
-fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
-    for j in 0..n {
-        let mut d = a[j * n + j];
-        for k in 0..j {
-            d -= a[j * n + k] * a[j * n + k];
-        }
-        if d <= 0.0 || !d.is_finite() {
-            return false;
-        }
-        let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[i * n + j];
-            for k in 0..j {
-                s -= a[i * n + k] * a[j * n + k];
-            }
-            a[i * n + j] = s / d;
-        }
-    }
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= a[i * n + k] * b[k];
-        }
-        b[i] = s / a[i * n + i];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= a[k * n + i] * b[k];
-        }
-        b[i] = s / a[i * n + i];
-    }
-    true
 }
 
 /// Two unit tangents orthogonal to `a` and to each other.

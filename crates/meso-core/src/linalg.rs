@@ -1,0 +1,62 @@
+//! Small dense linear algebra for the fitters (normal equations of Levenberg–Marquardt steps,
+//! a few to a few dozen unknowns): no allocation, row-major slices.
+
+/// Solve the symmetric positive definite system `a x = b` by Cholesky, in place (`a` row-major
+/// `n × n`, destroyed; `b` becomes `x`). Returns `false` if `a` is not positive definite (or
+/// holds NaN or infinities).
+pub fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j * n + j];
+        for k in 0..j {
+            d -= a[j * n + k] * a[j * n + k];
+        }
+        if d.is_nan() || d <= 0.0 || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j * n + j] = d;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for k in 0..j {
+                s -= a[i * n + k] * a[j * n + k];
+            }
+            a[i * n + j] = s / d;
+        }
+    }
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[i * n + k] * b[k];
+        }
+        b[i] = s / a[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[k * n + i] * b[k];
+        }
+        b[i] = s / a[i * n + i];
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_solves() {
+        let mut a = vec![4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0];
+        let a0 = a.clone();
+        let x = [1.0, -2.0, 0.5];
+        let mut b: Vec<f64> = (0..3)
+            .map(|i| (0..3).map(|k| a0[i * 3 + k] * x[k]).sum())
+            .collect();
+        assert!(cholesky_solve(&mut a, &mut b, 3));
+        for i in 0..3 {
+            assert!((b[i] - x[i]).abs() < 1e-12);
+        }
+        let mut bad = vec![1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky_solve(&mut bad, &mut [1.0, 1.0], 2));
+    }
+}
