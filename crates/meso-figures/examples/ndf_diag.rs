@@ -15,6 +15,7 @@ use glam::{DVec2, DVec3};
 use meso_core::frame::Frame;
 use meso_maps::{FacetNormals, NormalMode, Pyramid};
 use meso_render::*;
+use meso_testkit::lobes::phong_peaks_average;
 use std::sync::Arc;
 
 /// Phong facet of the zoom surface.
@@ -33,33 +34,6 @@ impl Surf {
         }
         self.spec * m.dot(h).max(0.0).powf(self.eta) * mi / wi.z
     }
-}
-
-/// `∫ Σ w D(m) m_z⁺ g(m) dm / ∫ Σ w D(m) m_z⁺ dm` for the Phong peaks of one texel, by a fine
-/// quadrature in each lobe's own frame.
-fn lobe_average(lobes: &[meso_core::ndf::PhongLobe], g: &dyn Fn(DVec3) -> f64) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for l in lobes {
-        let sigma = 2.0 / l.exponent.max(1e-9).sqrt();
-        let amax = (10.0 * sigma).min(std::f64::consts::PI);
-        let f = Frame::from_normal_tangent(l.axis, DVec3::X);
-        let (na, np) = (400, 96);
-        let norm = (l.exponent + 2.0) / (8.0 * std::f64::consts::PI);
-        for ia in 0..na {
-            let a = (ia as f64 + 0.5) / na as f64 * amax;
-            let da = amax / na as f64;
-            let d = norm * (0.5 * (1.0 + a.cos())).powf(0.5 * l.exponent);
-            for ip in 0..np {
-                let p = (ip as f64 + 0.5) / np as f64 * std::f64::consts::TAU;
-                let m = f.to_world(DVec3::new(a.sin() * p.cos(), a.sin() * p.sin(), a.cos()));
-                let w =
-                    l.weight * d * a.sin() * da * std::f64::consts::TAU / np as f64 * m.z.max(0.0);
-                num += w * g(m);
-                den += w;
-            }
-        }
-    }
-    num / den
 }
 
 fn sp_at(uv: DVec2, fp: f64) -> ShadingPoint {
@@ -165,7 +139,7 @@ fn main() {
                 }
                 let truth = num / n;
                 let lobes = lev.texel_lobes(r, c).expect("texel");
-                let lq = lobe_average(lobes, &|m| s.spec(m, wi, h));
+                let lq = phong_peaks_average(lobes, &|m| s.spec(m, wi, h), (400, 96));
                 let uv = DVec2::new(
                     (c as f64 + 0.5) * span as f64 / tpu,
                     (r as f64 + 0.5) * span as f64 / tpu,

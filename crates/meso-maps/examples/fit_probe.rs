@@ -16,9 +16,8 @@
 //! exponent of every map (default 40 for the zoom map, 20 for the others), `SHOW=1` prints the
 //! coarse texels' lobes, `VIEWS=1` the top level's per-pair errors.
 use glam::DVec3;
-use meso_core::frame::Frame;
-use meso_core::ndf::PhongLobe;
 use meso_maps::*;
+use meso_testkit::lobes::phong_peaks_average;
 
 fn spec(eta: f64, m: DVec3, wi: DVec3, h: DVec3) -> f64 {
     let mi = m.dot(wi);
@@ -26,31 +25,6 @@ fn spec(eta: f64, m: DVec3, wi: DVec3, h: DVec3) -> f64 {
         return 0.0;
     }
     m.dot(h).max(0.0).powf(eta) * mi / wi.z
-}
-
-fn lobe_average(lobes: &[PhongLobe], g: &dyn Fn(DVec3) -> f64) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for l in lobes {
-        let sigma = 2.0 / l.exponent.max(1e-9).sqrt();
-        let amax = (10.0 * sigma).min(std::f64::consts::PI);
-        let f = Frame::from_normal_tangent(l.axis, DVec3::X);
-        let (na, np) = (200, 64);
-        let norm = (l.exponent + 2.0) / (8.0 * std::f64::consts::PI);
-        for ia in 0..na {
-            let a = (ia as f64 + 0.5) / na as f64 * amax;
-            let da = amax / na as f64;
-            let d = norm * (0.5 * (1.0 + a.cos())).powf(0.5 * l.exponent);
-            for ip in 0..np {
-                let p = (ip as f64 + 0.5) / np as f64 * std::f64::consts::TAU;
-                let m = f.to_world(DVec3::new(a.sin() * p.cos(), a.sin() * p.sin(), a.cos()));
-                let w =
-                    l.weight * d * a.sin() * da * std::f64::consts::TAU / np as f64 * m.z.max(0.0);
-                num += w * g(m);
-                den += w;
-            }
-        }
-    }
-    num / den
 }
 
 fn d(t: f64, p: f64) -> DVec3 {
@@ -139,7 +113,11 @@ fn main() {
                         cnt += 1.0;
                     }
                     let truth = num / cnt;
-                    let lq = lobe_average(lev.texel_lobes(r, c).unwrap(), &|m| spec(eta, m, wi, h));
+                    let lq = phong_peaks_average(
+                        lev.texel_lobes(r, c).unwrap(),
+                        &|m| spec(eta, m, wi, h),
+                        (200, 64),
+                    );
                     e += (lq - truth).abs();
                     b += lq - truth;
                     s += truth;

@@ -8,10 +8,9 @@
 //! This is what `NdfMapped` renders for a texel and what a renderer of the bump map averages.
 
 use glam::DVec3;
-use meso_core::frame::Frame;
-use meso_core::ndf::PhongLobe;
 use meso_maps::*;
-use std::f64::consts::{PI, TAU};
+use meso_testkit::lobes::phong_peaks_average;
+use std::f64::consts::TAU;
 
 /// Specular shading of facet `m` (Phong facet of exponent `eta`), as a BRDF.
 fn facet_shading(eta: f64, m: DVec3, wi: DVec3, h: DVec3) -> f64 {
@@ -20,30 +19,6 @@ fn facet_shading(eta: f64, m: DVec3, wi: DVec3, h: DVec3) -> f64 {
         return 0.0;
     }
     m.dot(h).max(0.0).powf(eta) * mi / wi.z
-}
-
-/// `∫ n(m) m_z⁺ g(m) dm / ∫ n(m) m_z⁺ dm` for a texel's Phong peaks, by a midpoint rule in each
-/// lobe's own frame (400 × 96 nodes out to 10 lobe widths).
-fn lobe_average(lobes: &[PhongLobe], g: &dyn Fn(DVec3) -> f64) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for l in lobes {
-        let amax = (20.0 / l.exponent.max(1e-9).sqrt()).min(PI);
-        let f = Frame::from_normal_tangent(l.axis, DVec3::X);
-        let (na, np) = (400, 96);
-        let da = amax / na as f64;
-        for ia in 0..na {
-            let a = (ia as f64 + 0.5) * da;
-            let d = l.density(f.to_world(DVec3::new(a.sin(), 0.0, a.cos())));
-            for ip in 0..np {
-                let p = (ip as f64 + 0.5) / np as f64 * TAU;
-                let m = f.to_world(DVec3::new(a.sin() * p.cos(), a.sin() * p.sin(), a.cos()));
-                let w = d * a.sin() * da * TAU / np as f64 * m.z.max(0.0);
-                num += w * g(m);
-                den += w;
-            }
-        }
-    }
-    num / den
 }
 
 /// Per level from `first_level` up: `Σ_texels |lobes − truth| / Σ_texels truth` at `(wi, wo)`.
@@ -71,7 +46,8 @@ fn level_errors(
                     }
                     let truth = t / n;
                     let lobes = lev.texel_lobes(r, c).unwrap();
-                    let fit = lobe_average(lobes, &|m| facet_shading(eta, m, wi, h));
+                    let fit =
+                        phong_peaks_average(lobes, &|m| facet_shading(eta, m, wi, h), (400, 96));
                     err += (fit - truth).abs();
                     sum += truth;
                 }

@@ -11,6 +11,7 @@
 //!   [`reciprocity_error`] — Helmholtz symmetry `f(i, o) = f(o, i)`.
 //! * [`reference`](mod@reference) — samplers with known densities (uniform sphere / hemisphere, cosine).
 //! * [`rng`] — the seeded generator handed to samplers.
+//! * [`lobes`] — fine reference quadratures over sums of Phong peaks.
 //!
 //! ```
 //! use meso_testkit::{reference, ChiSquareTest};
@@ -30,6 +31,7 @@
 pub mod chi2;
 pub mod furnace;
 pub mod gamma;
+pub mod lobes;
 pub mod reference;
 
 pub use chi2::{check_normalization, CellResidual, ChiSquareReport, ChiSquareTest};
