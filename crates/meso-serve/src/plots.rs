@@ -135,6 +135,11 @@ pub fn ndf_png(m: &Material, p: NdfParams) -> Result<Vec<u8>, ApiError> {
                 }
             }
         }
+        // GGX and Beckmann peak at the normal (for α ≤ 1), which the sample misses when α is
+        // below its spacing: the colour bar reads the true maximum, as for Phong peaks.
+        if let Ndf::Microfacet(_) = ndf {
+            hi = hi.max(ndf.eval(DVec3::Z));
+        }
     }
     let hi = hi.max(1e-12);
     let (vs, range) = match p.scale {
@@ -237,7 +242,7 @@ pub fn slices_png(m: &Material, p: &SliceParams) -> Result<Vec<u8>, ApiError> {
             "planes_deg: {t} is not a finite angle"
         )));
     }
-    let fast = meso_core::shading::FastBrdf::new(m);
+    let fast = crate::preview::plot_brdf(m);
     let lum = |f: [f64; 3]| 0.2126 * f[0] + 0.7152 * f[1] + 0.0722 * f[2];
     let ti0 = p.theta_i_deg[0];
     let mut plot = PolarPlot::new(if p.theta_i_deg.len() == 1 {

@@ -15,14 +15,19 @@
 //! [`PREVIEW_NORMALS`] normals drawn from it by stratified sampling (a multiple surface with the
 //! same facet), evaluated exactly by the sum of Eq. 4. Mirror facets (on a continuous NDF, in
 //! either form) always have `FastBrdf`'s collapsed path, so they never reach the sampled normals
-//! (a delta NDF under a mirror facet has no pointwise value). The response names the path in
-//! `x-brdf-path`.
+//! (a delta NDF under a mirror facet has no pointwise value). A GGX or Beckmann NDF under a mirror
+//! facet in the microfacet form with Smith shadowing is the classic microfacet BRDF, evaluated in
+//! closed form ([`PreviewBrdf::Analytic`]: meso-core's `D` and closed-form Smith `Λ`, where
+//! `FastBrdf` would first tabulate `Λ` by 1536 quadratures of the NDF). The response names the
+//! path in `x-brdf-path`.
 
 use crate::error::ApiError;
 use glam::{DVec2, DVec3};
 use meso_core::convolution::{phong_closed_form, Form};
+use meso_core::frame::half_vector;
 use meso_core::material::Material;
-use meso_core::ndf::{DeltaSum, Ndf, PhongLobe, WeightedNormal};
+use meso_core::material::ShadowingKind;
+use meso_core::ndf::{DeltaSum, Microfacet, Ndf, PhongLobe, WeightedNormal};
 use meso_core::shading::FastBrdf;
 use meso_core::transfer::{PhongVariant, Transfer};
 use meso_render::{
@@ -214,6 +219,18 @@ pub enum PreviewBrdf {
         /// The Lambert albedo of the material.
         diffuse: [f64; 3],
     },
+    /// A GGX or Beckmann NDF under a mirror facet, microfacet form, Smith shadowing: the classic
+    /// microfacet BRDF `R(i·h) D(h) / ((1 + Λ(i) + Λ(o)) 4 cos θᵢ cos θₒ)` in closed form (the
+    /// height-correlated Smith `G₂` that meso-core computes numerically), `R` the mirror's
+    /// `specular · F`.
+    Analytic {
+        /// The distribution (its `d` is the microfacet `D = n / ∫ n (m·z) dω`).
+        distribution: Microfacet,
+        /// The mirror transfer (for `mirror_reflectance`).
+        transfer: Transfer,
+        /// The Lambert albedo of the material.
+        diffuse: [f64; 3],
+    },
 }
 
 impl PreviewBrdf {
@@ -237,8 +254,59 @@ impl PreviewBrdf {
                 }
                 f
             }
+            PreviewBrdf::Analytic {
+                distribution,
+                transfer,
+                diffuse,
+            } => {
+                if i.z <= 0.0 || o.z <= 0.0 {
+                    return [0.0; 3];
+                }
+                let mut f = [0.0; 3];
+                if let Some(h) = half_vector(i, o) {
+                    let g2 = 1.0 / (1.0 + distribution.lambda(i) + distribution.lambda(o));
+                    let k = distribution.d(h) * g2 / (4.0 * i.z * o.z);
+                    if let Some(r) = transfer.mirror_reflectance(i.dot(h)) {
+                        f = r.map(|x| x * k);
+                    }
+                }
+                for (c, d) in f.iter_mut().zip(diffuse) {
+                    *c += d * std::f64::consts::FRAC_1_PI;
+                }
+                f
+            }
         }
     }
+}
+
+/// The closed-form evaluation of a GGX/Beckmann NDF under a mirror facet in the microfacet form
+/// with Smith shadowing ([`PreviewBrdf::Analytic`]); `None` for every other material.
+#[must_use]
+pub fn analytic_microfacet(material: &Material) -> Option<PreviewBrdf> {
+    match (&material.ndf, &material.transfer, material.form) {
+        (Ndf::Microfacet(d), Transfer::Mirror { .. }, Form::Microfacet)
+            if material.shadowing == ShadowingKind::Smith =>
+        {
+            Some(PreviewBrdf::Analytic {
+                distribution: *d,
+                transfer: material.transfer,
+                diffuse: material.diffuse,
+            })
+        }
+        _ => None,
+    }
+}
+
+/// The path name of [`PreviewBrdf::Analytic`] (in `x-brdf-path`).
+pub const ANALYTIC_PATH: &str =
+    "mirror facets, closed-form microfacet BRDF (analytic D, Smith Lambda)";
+
+/// The evaluation the plots use: [`analytic_microfacet`] when it applies, else meso-core's
+/// [`FastBrdf`] (never the preview's vMF closed form or sampled normals).
+#[must_use]
+pub fn plot_brdf(material: &Material) -> PreviewBrdf {
+    analytic_microfacet(material)
+        .unwrap_or_else(|| PreviewBrdf::Fast(Box::new(FastBrdf::new(material))))
 }
 
 /// A [`PreviewBrdf`] as a renderer shader, with the tangent rotated by a fixed angle.
@@ -306,6 +374,9 @@ pub fn preview_brdf(material: &Material) -> (PreviewBrdf, String) {
             },
             "Phong peaks x Phong facets, vMF closed form".to_owned(),
         );
+    }
+    if let Some(a) = analytic_microfacet(material) {
+        return (a, ANALYTIC_PATH.to_owned());
     }
     let fast = FastBrdf::new(material);
     if !fast.path().starts_with("quadrature") || material.ndf.is_singular() {
@@ -556,6 +627,12 @@ mod tests {
              specular = [1.0, 0.25, 0.0]\n",
             "[ndf]\nkind = \"phong-peaks\"\nlobes = [{ axis = [0, 0], weight = 1, exponent = 60 }]\n\
              [transfer]\nkind = \"mirror\"\nspecular = [0.2, 0.9, 0.5]\n",
+            // Anisotropic GGX and Beckmann (the editor's α_x, α_y), closed form.
+            "form = \"microfacet\"\n[ndf]\nkind = \"ggx\"\nalpha_x = 0.4\nalpha_y = 0.1\n\
+             [transfer]\nkind = \"mirror\"\nfresnel = \"dielectric\"\neta = 1.5\n\
+             specular = [0.3, 0.6, 0.9]\n",
+            "form = \"microfacet\"\n[ndf]\nkind = \"beckmann\"\nalpha_x = 0.15\nalpha_y = 0.45\n\
+             [transfer]\nkind = \"mirror\"\nspecular = [0.9, 0.6, 0.3]\n",
         ] {
             let m = Material::from_toml_str(text).unwrap();
             let (brdf, path) = preview_brdf(&m);
@@ -565,8 +642,14 @@ mod tests {
                 DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
             };
             let mut peak = [0.0f64; 3];
-            for (ti, to, po) in [(30.0, 30.0, 180.0), (45.0, 20.0, 150.0), (10.0, 60.0, 200.0)] {
-                let (i, o) = (dir(ti, 0.0), dir(to, po));
+            for (ti, pi, to, po) in [
+                (30.0, 0.0, 30.0, 180.0),
+                (45.0, 0.0, 20.0, 150.0),
+                (10.0, 0.0, 60.0, 200.0),
+                (40.0, 90.0, 35.0, 250.0),
+                (25.0, 45.0, 50.0, 200.0),
+            ] {
+                let (i, o) = (dir(ti, pi), dir(to, po));
                 let a = brdf.eval(i, o);
                 let b = m.brdf(i, o);
                 for c in 0..3 {
