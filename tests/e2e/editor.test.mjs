@@ -392,3 +392,146 @@ test('a mirror facet: select it, set its specular colour, the request and the pr
   await waitForRender(0);
   assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
 });
+
+test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the switch, open', async () => {
+  await ensureLoaded();
+  await page.selectOption('#preset', 'silk');
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const silk = await material();
+  assert.equal(silk.ndf.kind, 'phong-peaks');
+  assert.equal(await page.isVisible('#analytic-section'), false);
+  const h0 = await previewHash();
+
+  // Pick GGX: the request carries { kind: "ggx", alpha: 0.2 } and no lobes; the lobe list hides.
+  let n = await renders();
+  let req = nextRender((m) => m.ndf.kind === 'ggx');
+  await page.selectOption('#ndf-kind', 'ggx');
+  let sent = (await req).postDataJSON().material;
+  assert.deepEqual(sent.ndf, { kind: 'ggx', alpha: 0.2 });
+  assert.deepEqual(sent.transfer, silk.transfer, 'the facet BRDF is kept');
+  await waitForRender(n);
+  assert.equal(await page.isVisible('#lobe-section'), false);
+  assert.equal(await page.isVisible('#analytic-section'), true);
+  assert.equal(await page.isVisible('#classic-offer'), true);
+  assert.equal(await page.inputValue('input[type=number][data-field="ndf-alpha"]'), '0.2');
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+  const h1 = await previewHash();
+  assert.notEqual(h1, h0, 'the preview changed');
+
+  // Move α on its log slider (0.005–1): 90% of the way is ~0.59.
+  n = await renders();
+  req = nextRender((m) => m.ndf.kind === 'ggx' && m.ndf.alpha > 0.4);
+  const slider = page.locator('input[type=range][data-field="ndf-alpha"]');
+  const box = await slider.boundingBox();
+  await page.mouse.click(box.x + box.width * 0.9, box.y + box.height / 2);
+  sent = (await req).postDataJSON().material;
+  const alpha = (await material()).ndf.alpha;
+  assert.ok(alpha > 0.4 && alpha < 0.8, `alpha ${alpha}`);
+  assert.equal(sent.ndf.alpha, alpha);
+  await waitForRender(n);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const h2 = await previewHash();
+  assert.notEqual(h2, h1, 'the preview follows α');
+
+  // The classic microfacet BRDF in one click: mirror facet (specular colour kept, ≤ 1), microfacet form.
+  n = await renders();
+  req = nextRender((m) => m.transfer.kind === 'mirror' && m.form === 'microfacet');
+  await page.click('#btn-classic');
+  sent = (await req).postDataJSON().material;
+  assert.deepEqual(sent.transfer, { kind: 'mirror', specular: silk.transfer.specular });
+  await waitForRender(n);
+  assert.equal(await page.isVisible('#classic-offer'), false);
+  assert.equal(await page.inputValue('#transfer-kind'), 'mirror');
+  assert.equal(await page.inputValue('#form'), 'microfacet');
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.match(await page.textContent('#render-path'), /closed-form microfacet/);
+  const h3 = await previewHash();
+
+  // Anisotropic: α_x = α_y = α at first, then α_y = 0.05 (a highlight stretched along the bitangent).
+  await page.check('#ndf-aniso');
+  let m = await material();
+  assert.deepEqual(m.ndf, { kind: 'ggx', alpha_x: alpha, alpha_y: alpha });
+  n = await renders();
+  req = nextRender((x) => x.ndf.alpha_y === 0.05);
+  const ay = page.locator('input[type=number][data-field="alpha-y"]');
+  await ay.fill('0.05');
+  await ay.dispatchEvent('change');
+  sent = (await req).postDataJSON().material;
+  assert.deepEqual(sent.ndf, { kind: 'ggx', alpha_x: alpha, alpha_y: 0.05 });
+  await waitForRender(n);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.notEqual(await previewHash(), h3, 'the preview follows α_y');
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+  await shot('09-ggx-anisotropic');
+  // The NDF picture and the slices were redrawn without error.
+  await page.waitForFunction(() => document.getElementById('ndf-img').naturalWidth > 0
+    && document.getElementById('slices-img').naturalWidth > 0, null, { timeout: 60000 });
+
+  // Save TOML: the right keys, accepted by meso, and it reads back as the same material.
+  const edited = await material();
+  const [download] = await Promise.all([page.waitForEvent('download'), page.click('#btn-save')]);
+  const file = path.join(artifacts, 'saved-ggx.toml');
+  await download.saveAs(file);
+  const text = fs.readFileSync(file, 'utf8');
+  assert.match(text, /^form = "microfacet"$/m);
+  assert.match(text, /\[ndf\]\nkind = "ggx"\nalpha_x = [0-9.]+\nalpha_y = 0\.05\n/);
+  assert.doesNotMatch(text, /^alpha = /m);
+  assert.doesNotMatch(text, /lobes/);
+  assert.match(text, /\[transfer\]\nkind = "mirror"\n/);
+  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', body: text });
+  assert.equal(r.status, 200);
+  assert.deepEqual((await r.json()).ndf, edited.ndf);
+
+  // Undo back across the switch: silk's lobes come back; redo returns to the edited GGX.
+  let undos = 0;
+  while ((await material()).ndf.kind !== 'phong-peaks' && undos < 10) { await page.click('#btn-undo'); undos++; }
+  m = await material();
+  assert.deepEqual(m, silk, `after ${undos} undos`);
+  assert.equal(await page.isVisible('#lobe-section'), true);
+  assert.equal(await page.locator('#lobes .lobe').count(), silk.ndf.lobes.length);
+  for (let k = 0; k < undos; k++) await page.click('#btn-redo');
+  assert.deepEqual(await material(), edited);
+  assert.equal(await page.isVisible('#analytic-section'), true);
+  assert.equal(await page.isChecked('#ndf-aniso'), true);
+
+  // Switching the kind back and forth remembers both: the lobes, then the two alphas.
+  await page.selectOption('#ndf-kind', 'phong-peaks');
+  assert.deepEqual((await material()).ndf, silk.ndf);
+  await page.selectOption('#ndf-kind', 'beckmann');
+  assert.deepEqual((await material()).ndf, { kind: 'beckmann', alpha_x: alpha, alpha_y: 0.05 });
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+
+  // Open… a Beckmann material.
+  const beck = path.join(artifacts, 'open-beckmann.toml');
+  fs.writeFileSync(beck, 'form = "microfacet"\n[ndf]\nkind = "beckmann"\nalpha = 0.1\n[transfer]\nkind = "mirror"\nfresnel = "dielectric"\neta = 1.5\n[diffuse]\nalbedo = [0.2, 0.1, 0.05]\n');
+  n = await renders();
+  await page.setInputFiles('#file-input', beck);
+  await page.waitForFunction(() => window.mesoEditor.state.material.name === 'open-beckmann');
+  m = await material();
+  assert.deepEqual(m.ndf, { kind: 'beckmann', alpha: 0.1 });
+  assert.equal(await page.inputValue('#ndf-kind'), 'beckmann');
+  assert.equal(await page.isChecked('#ndf-aniso'), false);
+  assert.equal(await page.inputValue('input[type=number][data-field="ndf-alpha"]'), '0.1');
+  assert.equal(await page.isVisible('#classic-offer'), false);
+  await waitForRender(n);
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+  assert.match(await page.textContent('#render-path'), /closed-form microfacet/);
+  await shot('10-beckmann-opened');
+  // A kind the page does not edit is still refused, naming the ones it does.
+  const vmf = path.join(artifacts, 'open-vmf.toml');
+  fs.writeFileSync(vmf, '[ndf]\nkind = "vmf"\nkappa = 20\n[transfer]\nkind = "lambert"\n');
+  await page.setInputFiles('#file-input', vmf);
+  await page.waitForFunction(() => /vmf/.test(document.getElementById('error').textContent));
+  assert.match(await page.textContent('#error'), /ggx and beckmann/);
+  assert.equal((await material()).name, 'open-beckmann');
+});

@@ -33,6 +33,9 @@
   };
   let presets = [];
   const history = { undo: [], redo: [], committed: null };
+  // The NDF a kind switch left behind, per family (lobe lists, GGX/Beckmann roughness), so that
+  // switching back restores it. Page state, not part of the material; reset when a material loads.
+  const ndfMemory = { lobes: null, analytic: null };
   const blend = { a: null, b: null, t: 0 };
 
   // ---------------------------------------------------------------- colour helpers
@@ -57,7 +60,7 @@
   function restore(s) {
     state.material = JSON.parse(s);
     history.committed = s;
-    state.selected = Math.min(state.selected, lobes().length - 1);
+    state.selected = Math.max(0, Math.min(state.selected, lobes().length - 1));
     buildAll();
     changed();
   }
@@ -69,13 +72,30 @@
   }
 
   // ---------------------------------------------------------------- material helpers
+  // NDF kinds the page edits: lobe lists and the analytic microfacet distributions.
+  const LOBE_KINDS = ['phong-peaks', 'deltas'];
+  const ANALYTIC_KINDS = ['ggx', 'beckmann'];
+  const isAnalytic = (kind) => ANALYTIC_KINDS.includes(kind === undefined ? (state.material.ndf || {}).kind : kind);
+  // The lobes of a lobe NDF; an analytic NDF has none (an empty list not attached to it, so that
+  // no `lobes` key reaches the server).
   function lobes() {
     const m = state.material;
     if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
+    if (isAnalytic(m.ndf.kind)) return [];
     if (!Array.isArray(m.ndf.lobes)) m.ndf.lobes = [];
     return m.ndf.lobes;
   }
   const isPeaks = () => state.material.ndf && state.material.ndf.kind === 'phong-peaks';
+  // The roughness keys of an analytic NDF: `alpha`, or `alpha_x` and `alpha_y`.
+  function alphaFields(n) {
+    if (n && n.alpha !== undefined) return { alpha: n.alpha };
+    if (n && n.alpha_x !== undefined && n.alpha_y !== undefined) return { alpha_x: n.alpha_x, alpha_y: n.alpha_y };
+    return { alpha: 0.2 };
+  }
+  const meanAlpha = (n) => (n.alpha !== undefined ? n.alpha : Math.sqrt(n.alpha_x * n.alpha_y));
+  // A Phong peak about as wide as an analytic NDF of roughness α: cos^η(θ/2) ≈ exp(−ηθ²/8)
+  // against Beckmann's exp(−θ²/α²) gives η = 8/α².
+  const peakExponent = (alpha) => round(clamp(8 / (alpha * alpha), 0.5, 1e5), 1);
 
   // Client-side blend, the same rule as POST /api/blend.
   function blendMaterials(a, b, t) {
@@ -284,6 +304,8 @@
       const rr = r * Math.SQRT2 * Math.sin(rad(t) / 2) * Math.SQRT1_2;
       ctx.fillText(`θ ${t}°`, cx + rr + 2, cy + rr + 1);
     }
+    // GGX / Beckmann: the half-maximum contour of the NDF.
+    if (isAnalytic()) drawHalfMaxContour();
     // Lobe extents (half-maximum rings) for Phong peaks.
     const ls = lobes();
     if (isPeaks()) {
@@ -329,6 +351,46 @@
       if (!below) ctx.fillText(String(i + 1), x, y + 0.5);
     });
   }
+  // Where an analytic NDF falls to half its value at the normal, per azimuth φ: with t = tan θ and
+  // q = cos²φ/α_x² + sin²φ/α_y², D(θ)/D(0) is (1 + t²)² / (1 + q t²)² for GGX and
+  // e^(−q t²) (1 + t²)² for Beckmann. Marched in θ, then bisected; azimuths where D stays above
+  // half (α ≳ 1) leave a gap.
+  function halfMaxTheta(kind, ax, ay, phi) {
+    const q = Math.cos(phi) ** 2 / (ax * ax) + Math.sin(phi) ** 2 / (ay * ay);
+    const ratio = (th) => {
+      const t2 = Math.tan(th) ** 2;
+      return kind === 'ggx' ? ((1 + t2) / (1 + q * t2)) ** 2 : Math.exp(-q * t2) * (1 + t2) ** 2;
+    };
+    const step = rad(0.5);
+    let lo = 0;
+    for (let th = step; th < rad(89.5); th += step) {
+      if (ratio(th) < 0.5) {
+        let hi = th;
+        for (let k = 0; k < 30; k++) { const mid = 0.5 * (lo + hi); if (ratio(mid) < 0.5) hi = mid; else lo = mid; }
+        return 0.5 * (lo + hi);
+      }
+      lo = th;
+    }
+    return null;
+  }
+  function drawHalfMaxContour() {
+    const n = state.material.ndf;
+    const ax = n.alpha !== undefined ? n.alpha : n.alpha_x;
+    const ay = n.alpha !== undefined ? n.alpha : n.alpha_y;
+    if (!(ax > 0 && ay > 0)) return;
+    ctx.strokeStyle = PALETTE[0]; ctx.globalAlpha = 0.9; ctx.setLineDash([3, 3]); ctx.lineWidth = 1.2;
+    ctx.beginPath();
+    let first = true;
+    for (let k = 0; k <= 120; k++) {
+      const phi = 2 * Math.PI * k / 120;
+      const th = halfMaxTheta(n.kind, ax, ay, phi);
+      if (th === null) { first = true; continue; }
+      const [x, y] = axisToXY(deg(th), deg(phi));
+      if (first) ctx.moveTo(x, y); else ctx.lineTo(x, y);
+      first = false;
+    }
+    ctx.stroke(); ctx.setLineDash([]); ctx.globalAlpha = 1;
+  }
   function hitHandle(x, y) {
     const ls = lobes();
     for (let i = ls.length - 1; i >= 0; i--) {
@@ -372,11 +434,26 @@
   canvas.addEventListener('pointercancel', endDrag);
   canvas.addEventListener('dblclick', (e) => {
     const [x, y] = canvasXY(e);
+    if (isAnalytic()) return;
     if (Math.hypot(x - DISC.cx, y - DISC.cy) > DISC.r || hitHandle(x, y) >= 0) return;
     addLobe(xyToAxis(x, y));
   });
   canvas.addEventListener('wheel', (e) => {
     const [x, y] = canvasXY(e);
+    if (isAnalytic()) {
+      // Scroll over the disc: scale the roughness (up = smoother, as it sharpens a Phong peak).
+      if (Math.hypot(x - DISC.cx, y - DISC.cy) > DISC.r) return;
+      e.preventDefault();
+      const n = state.material.ndf;
+      const f = Math.pow(1.15, e.deltaY < 0 ? -1 : 1);
+      const scale = (a) => round(clamp(a * f, 1e-4, 10), 4);
+      if (n.alpha !== undefined) n.alpha = scale(n.alpha);
+      else { n.alpha_x = scale(n.alpha_x); n.alpha_y = scale(n.alpha_y); }
+      alphaRows.forEach((r) => r.update());
+      changed();
+      clearTimeout(canvas._wheelCommit); canvas._wheelCommit = setTimeout(commit, 300);
+      return;
+    }
     const i = hitHandle(x, y);
     if (i < 0 || !isPeaks()) return;
     e.preventDefault();
@@ -476,6 +553,7 @@
     lobeRows.forEach((r, i) => r.el.classList.toggle('selected', i === state.selected));
   }
   function addLobe(axis) {
+    if (isAnalytic()) return;
     const ls = lobes();
     if (ls.length >= 64) { showError('at most 64 lobes in the editor'); return; }
     const l = { axis: axis || [0, 0], weight: ls.length ? round(ls.reduce((a, x) => a + x.weight, 0) / ls.length, 4) : 1 };
@@ -629,7 +707,52 @@
     if (k === 'lambert') state.material.transfer = { kind: 'lambert', albedo: old.albedo || [0.8, 0.8, 0.8] };
     if (k === 'mirror') state.material.transfer = Object.assign({ kind: 'mirror' }, fresnelOf(old), { specular: mirrorSpecular(old.specular) });
     if (k === 'microfacet') state.material.transfer = Object.assign({ kind: 'microfacet', distribution: 'ggx', alpha: 0.2 }, fresnelOf(old));
-    buildTransfer(); changed(); commit();
+    buildTransfer(); syncClassicOffer(); changed(); commit();
+  });
+
+  // GGX / Beckmann: α (or α_x, α_y) instead of the lobe list, and the offer of the classic
+  // microfacet BRDF while the facet is not a mirror in the microfacet form.
+  const alphaRows = [];
+  function buildNdfControls() {
+    const analytic = isAnalytic();
+    $('lobe-section').hidden = analytic;
+    $('analytic-section').hidden = !analytic;
+    const box = $('alpha-controls'); box.textContent = '';
+    alphaRows.length = 0;
+    if (!analytic) return;
+    const n = state.material.ndf;
+    const aniso = n.alpha === undefined;
+    $('ndf-aniso').checked = aniso;
+    const row = (label, key, field) => {
+      const r = control({ label, min: 0.005, max: 1, log: true, digits: 4, hardMin: 1e-4, hardMax: 10, field,
+        get: () => n[key], set: materialSet((v) => { n[key] = v; }), commit });
+      alphaRows.push(r); box.append(r);
+    };
+    if (aniso) { row('α_x', 'alpha_x', 'alpha-x'); row('α_y', 'alpha_y', 'alpha-y'); } else row('α', 'alpha', 'ndf-alpha');
+    syncClassicOffer();
+  }
+  function syncClassicOffer() {
+    const m = state.material;
+    $('classic-offer').hidden = !isAnalytic() || (m.transfer.kind === 'mirror' && m.form === 'microfacet');
+  }
+  $('ndf-aniso').addEventListener('change', (e) => {
+    const n = state.material.ndf;
+    if (!isAnalytic(n.kind)) return;
+    if (e.target.checked) {
+      // The same surface to start with: α_x = α_y = α.
+      const a = meanAlpha(n); delete n.alpha; n.alpha_x = a; n.alpha_y = a;
+    } else {
+      // Back to one α: the geometric mean keeps the area of the highlight.
+      const a = round(meanAlpha(n), 4); delete n.alpha_x; delete n.alpha_y; n.alpha = a;
+    }
+    buildNdfControls(); changed(); commit();
+  });
+  $('btn-classic').addEventListener('click', () => {
+    const m = state.material;
+    const t = m.transfer;
+    if (t.kind !== 'mirror') m.transfer = Object.assign({ kind: 'mirror' }, fresnelOf(t), { specular: mirrorSpecular(t.specular) });
+    m.form = 'microfacet';
+    buildAll(); changed(); commit();
   });
 
   function buildMaterialMisc() {
@@ -646,21 +769,36 @@
   $('mat-name').addEventListener('change', (e) => { state.material.name = e.target.value; commit(); });
   $('ndf-kind').addEventListener('change', (e) => {
     const k = e.target.value;
-    state.material.ndf.kind = k;
-    for (const l of lobes()) {
-      if (k === 'deltas') delete l.exponent; else if (l.exponent === undefined) l.exponent = 400;
+    const old = state.material.ndf;
+    // Remember what is left behind, for the way back (undo has it too: it is in the history).
+    if (isAnalytic(old.kind)) ndfMemory.analytic = clone(old); else ndfMemory.lobes = clone(old);
+    if (isAnalytic(k)) {
+      // GGX ↔ Beckmann keeps α; from lobes, the roughness last used (α = 0.2 the first time).
+      const from = isAnalytic(old.kind) ? old : ndfMemory.analytic;
+      state.material.ndf = Object.assign({ kind: k }, alphaFields(from));
+    } else {
+      // Between lobe kinds the lobes stay; from GGX/Beckmann, the lobes last used, or one peak
+      // at the normal about as wide as the analytic NDF.
+      const from = !isAnalytic(old.kind) ? old.lobes
+        : (ndfMemory.lobes && ndfMemory.lobes.lobes) || [{ axis: [0, 0], weight: 1, exponent: peakExponent(meanAlpha(old)) }];
+      const ls = clone(from);
+      for (const l of ls) {
+        if (k === 'deltas') delete l.exponent; else if (l.exponent === undefined) l.exponent = 400;
+      }
+      state.material.ndf = { kind: k, lobes: ls };
+      state.selected = clamp(state.selected, 0, ls.length - 1);
     }
     // A delta NDF under a mirror facet is degenerate (meso-core refuses it): fall back to Phong,
     // keeping the specular colour, and say so.
     const toPhong = k === 'deltas' && state.material.transfer.kind === 'mirror';
     if (toPhong) state.material.transfer = { kind: 'phong', exponent: 50, specular: mirrorSpecular(state.material.transfer.specular) };
-    buildLobes(); buildTransfer();
+    buildLobes(); buildNdfControls(); buildTransfer();
     if (toPhong) transferNote('A mirror facet needs a continuous NDF: the facet BRDF is now Phong (same specular colour).');
     changed(); commit();
   });
   $('form').addEventListener('change', (e) => {
     if (e.target.value === 'multiple-surface') delete state.material.form; else state.material.form = e.target.value;
-    changed(); commit();
+    syncClassicOffer(); changed(); commit();
   });
   $('diffuse-on').addEventListener('change', (e) => {
     if (e.target.checked) state.material.diffuse = { albedo: hexToLin($('diffuse-color').value) };
@@ -732,12 +870,13 @@
   // ---------------------------------------------------------------- presets, open, save
   function loadMaterial(m, label) {
     if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
-    if (m.ndf.kind !== 'phong-peaks' && m.ndf.kind !== 'deltas') {
-      showError(`the editor edits phong-peaks and deltas NDFs; ${label || 'this material'} has kind = "${m.ndf.kind}"`, 'file');
+    if (!LOBE_KINDS.includes(m.ndf.kind) && !isAnalytic(m.ndf.kind)) {
+      showError(`the editor edits phong-peaks, deltas, ggx and beckmann NDFs; ${label || 'this material'} has kind = "${m.ndf.kind}"`, 'file');
       return false;
     }
     state.material = clone(m);
     state.selected = 0;
+    ndfMemory.lobes = null; ndfMemory.analytic = null;
     buildAll(); changed(); commit();
     return true;
   }
@@ -798,7 +937,16 @@
     s.value = 'velvet';
   }
   function blendB() { const p = presets.find((x) => x.id === $('blend-b').value); return p && p.material; }
+  // Blending mixes lobe lists: A must be Phong peaks or deltas.
+  function blendRefuses() {
+    const refuse = isAnalytic();
+    const note = $('blend-note');
+    note.hidden = !refuse;
+    if (refuse) note.textContent = `Blending mixes lobe lists: A must be Phong peaks or deltas (this NDF is ${state.material.ndf.kind}).`;
+    return refuse;
+  }
   $('blend-set-a').addEventListener('click', () => {
+    if (blendRefuses()) return;
     blend.a = clone(state.material);
     $('blend-a').textContent = blend.a.name || 'current material';
     $('blend-t').value = 0; $('blend-t-val').textContent = '0.00';
@@ -806,7 +954,11 @@
   $('blend-t').addEventListener('input', (e) => {
     const t = parseFloat(e.target.value);
     $('blend-t-val').textContent = t.toFixed(2);
-    if (!blend.a) { blend.a = clone(state.material); $('blend-a').textContent = blend.a.name || 'current material'; }
+    if (!blend.a) {
+      if (blendRefuses()) { e.target.value = 0; $('blend-t-val').textContent = '0.00'; return; }
+      blend.a = clone(state.material); $('blend-a').textContent = blend.a.name || 'current material';
+    }
+    $('blend-note').hidden = true;
     const b = blendB();
     if (!b) return;
     const m = blendMaterials(blend.a, b, t);
@@ -821,6 +973,7 @@
   function buildAll() {
     buildMaterialMisc();
     buildLobes();
+    buildNdfControls();
     buildTransfer();
     drawDisc();
   }
