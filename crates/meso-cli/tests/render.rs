@@ -145,3 +145,65 @@ fn bad_inputs_fail_cleanly() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("x.jpg"));
 }
+
+/// A scene whose plane wears an NDF-mapped material file (`[texture]`) over a height map: it
+/// renders; the same scene with the height map missing fails naming the map, writing nothing.
+#[test]
+fn textured_material_files_render() {
+    let d = tmp("textured");
+    let n = 16usize;
+    let values: Vec<f32> = (0..n * n)
+        .map(|k| {
+            let (x, y) = ((k % n) as f32 / n as f32, (k / n) as f32 / n as f32);
+            (std::f32::consts::TAU * 2.0 * x).sin() * (std::f32::consts::TAU * 2.0 * y).sin()
+        })
+        .collect();
+    std::fs::write(
+        d.join("bumps.exr"),
+        meso_maps::fixtures::exr_bytes(n as u32, n as u32, &values).unwrap(),
+    )
+    .unwrap();
+    let material = "[texture]\nkind = \"ndf-mapped\"\nfile = \"bumps.exr\"\ntexel_size = 0.0625\n\
+                    height_scale = 0.05\n[transfer]\nkind = \"phong\"\nexponent = 20.0\n";
+    std::fs::write(d.join("bumpy.toml"), material).unwrap();
+    std::fs::write(
+        d.join("broken.toml"),
+        material.replace("bumps.exr", "missing-map.exr"),
+    )
+    .unwrap();
+    let scene = "[camera]\nkind = \"orthographic\"\nposition = [0.0, -3.0, 5.0]\n\
+                 look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 8.0\n\
+                 [image]\nwidth = 48\nheight = 48\nspp = 1\n\
+                 [[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
+                 material = \"bumpy.toml\"\n\
+                 [[light]]\nkind = \"directional\"\ndirection = [0.3, 0.4, 0.866]\n\
+                 irradiance = [1.0, 1.0, 1.0]\n";
+    std::fs::write(d.join("ok.scene.toml"), scene).unwrap();
+    std::fs::write(
+        d.join("broken.scene.toml"),
+        scene.replace("bumpy.toml", "broken.toml"),
+    )
+    .unwrap();
+    let out = d.join("ok.png");
+    let o = meso()
+        .arg("render")
+        .arg(d.join("ok.scene.toml"))
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::metadata(&out).unwrap().len() > 0);
+    let bad_out = d.join("broken.png");
+    let o = meso()
+        .arg("render")
+        .arg(d.join("broken.scene.toml"))
+        .arg("-o")
+        .arg(&bad_out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("missing-map.exr"), "names the map: {err}");
+    assert!(!bad_out.exists(), "no image on error");
+}

@@ -211,8 +211,11 @@ impl Material {
     }
 }
 
-/// Read a text file of at most [`MAX_MATERIAL_BYTES`].
-fn read_limited(path: &Path) -> Result<String, MaterialError> {
+/// Read a material file's text: at most [`MAX_MATERIAL_BYTES`], UTF-8; errors name the file.
+///
+/// # Errors
+/// The file cannot be read, is too large, or is not UTF-8.
+pub fn read_limited(path: &Path) -> Result<String, MaterialError> {
     let meta = std::fs::metadata(path)
         .map_err(|e| MaterialError(format!("{}: cannot read: {e}", path.display())))?;
     if meta.len() > MAX_MATERIAL_BYTES {

@@ -58,6 +58,7 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shader;
+pub mod textured;
 
 pub use camera::{Camera, Projection, Ray, RayDifferential};
 pub use error::{ImageError, SceneError};
@@ -69,3 +70,4 @@ pub use material::MaterialShader;
 pub use render::{render, render_pixel, shade, shade_with, RenderOptions, ShadeScratch};
 pub use scene::{ImageSettings, MaterialResolver, ResolveError, Scene, SceneBuilder};
 pub use shader::{Lambert, PhongLobes, Shader};
+pub use textured::load_textured;

@@ -61,8 +61,13 @@ fn format_of(path: &Path) -> Result<Format> {
     }
 }
 
-/// The scene's material resolver: meso material files as [`MaterialShader`]s.
+/// The scene's material resolver: meso material files as [`MaterialShader`]s, and material
+/// files with a `[texture]` table as bump- or NDF-mapped materials
+/// ([`meso_render::load_textured`]).
 pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, ResolveError> {
+    if let Some(s) = meso_render::load_textured(path, &meso_maps::MapsResolver::new())? {
+        return Ok(s);
+    }
     let m = crate::load_material(path).map_err(|e| -> ResolveError { format!("{e:#}").into() })?;
     Ok(Arc::new(MaterialShader::new(&m)))
 }
