@@ -33,6 +33,22 @@ struct DeltaChunk {
     w: [f32; LANES],
 }
 
+/// Smith Λ of a mirror-facet material's NDF: closed form for Beckmann and GGX, else tabulated.
+#[derive(Clone, Debug, PartialEq)]
+enum Lambda {
+    Closed(crate::ndf::microfacet::Microfacet),
+    Table(LambdaTable),
+}
+
+impl Lambda {
+    fn lookup(&self, w: DVec3) -> f64 {
+        match self {
+            Lambda::Closed(mf) => mf.lambda(w),
+            Lambda::Table(t) => t.lookup(w),
+        }
+    }
+}
+
 /// Smith Λ tabulated over the upper hemisphere in (cos θ, φ), bilinear.
 #[derive(Clone, Debug, PartialEq)]
 struct LambdaTable {
@@ -153,7 +169,7 @@ enum Kind {
         specular: [f64; 3],
     },
     Mirror {
-        lambda: Option<LambdaTable>,
+        lambda: Option<Lambda>,
         projected_area: f64,
     },
     Quadrature,
@@ -216,11 +232,22 @@ impl FastBrdf {
                     }
                 }
             }
+            (Ndf::Microfacet(mf), Transfer::Mirror { .. }, form) => {
+                // Beckmann and GGX: Smith Λ in closed form, and `∫ n (m·z) dω = 1/A` exactly
+                // (`n = D/A` and `∫ D (m·z) dω = 1`), so nothing to tabulate or integrate.
+                let lambda = (form == Form::Microfacet
+                    && material.shadowing == ShadowingKind::Smith)
+                    .then_some(Lambda::Closed(*mf));
+                Kind::Mirror {
+                    projected_area: 1.0 / mf.area_ratio(),
+                    lambda,
+                }
+            }
             (ndf, Transfer::Mirror { .. }, form) => {
                 let sm = SmithMasking::new(ndf, Accuracy::default());
                 let lambda = (form == Form::Microfacet
                     && material.shadowing == ShadowingKind::Smith)
-                    .then(|| LambdaTable::new(&sm));
+                    .then(|| Lambda::Table(LambdaTable::new(&sm)));
                 Kind::Mirror {
                     projected_area: sm.projected_area,
                     lambda,
@@ -424,6 +451,19 @@ mod tests {
             kind = "mirror"
             fresnel = "dielectric"
             eta = 1.5
+            "#,
+            1e-2,
+        );
+        check(
+            r#"
+            form = "microfacet"
+            [ndf]
+            kind = "ggx"
+            alpha_x = 0.1
+            alpha_y = 0.4
+            [transfer]
+            kind = "mirror"
+            specular = [1.0, 0.7, 0.4]
             "#,
             1e-2,
         );
