@@ -33,6 +33,12 @@ struct DeltaChunk {
     w: [f32; LANES],
 }
 
+/// [`FastBrdf::path`] of a Beckmann or GGX NDF under mirror facets in the microfacet form with
+/// Smith shadowing: the classic microfacet BRDF `R(i·h) D(h) / ((1 + Λ(i) + Λ(o)) 4 cos θᵢ
+/// cos θₒ)`, everything in closed form.
+pub const CLOSED_MICROFACET_PATH: &str =
+    "mirror facets, closed-form microfacet BRDF (analytic D, Smith Lambda)";
+
 /// Smith Λ of a mirror-facet material's NDF: closed form for Beckmann and GGX, else tabulated.
 #[derive(Clone, Debug, PartialEq)]
 enum Lambda {
@@ -278,6 +284,10 @@ impl FastBrdf {
             Kind::DeltaPhong { .. } => "weighted normals, f32 Phong kernel (Eq. 4/11)",
             Kind::Deltas => "delta-sum (Eq. 4)",
             Kind::PhongClosed { .. } => "Phong peaks, vMF closed form",
+            Kind::Mirror {
+                lambda: Some(Lambda::Closed(_)),
+                ..
+            } => CLOSED_MICROFACET_PATH,
             Kind::Mirror { .. } => "mirror facets, collapsed at H",
             Kind::Quadrature => "quadrature (fast)",
         }

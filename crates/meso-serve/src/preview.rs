@@ -16,18 +16,15 @@
 //! same facet), evaluated exactly by the sum of Eq. 4. Mirror facets (on a continuous NDF, in
 //! either form) always have `FastBrdf`'s collapsed path, so they never reach the sampled normals
 //! (a delta NDF under a mirror facet has no pointwise value). A GGX or Beckmann NDF under a mirror
-//! facet in the microfacet form with Smith shadowing is the classic microfacet BRDF, evaluated in
-//! closed form ([`PreviewBrdf::Analytic`]: meso-core's `D` and closed-form Smith `Λ`, where
-//! `FastBrdf` would first tabulate `Λ` by 1536 quadratures of the NDF). The response names the
-//! path in `x-brdf-path`.
+//! facet in the microfacet form with Smith shadowing is the classic microfacet BRDF, which
+//! `FastBrdf` evaluates in closed form ([`ANALYTIC_PATH`]). The response names the path in
+//! `x-brdf-path`.
 
 use crate::error::ApiError;
 use glam::{DVec2, DVec3};
 use meso_core::convolution::{phong_closed_form, Form};
-use meso_core::frame::half_vector;
 use meso_core::material::Material;
-use meso_core::material::ShadowingKind;
-use meso_core::ndf::{DeltaSum, Microfacet, Ndf, PhongLobe, WeightedNormal};
+use meso_core::ndf::{DeltaSum, Ndf, PhongLobe, WeightedNormal};
 use meso_core::shading::FastBrdf;
 use meso_core::transfer::{PhongVariant, Transfer};
 use meso_render::{
@@ -219,18 +216,6 @@ pub enum PreviewBrdf {
         /// The Lambert albedo of the material.
         diffuse: [f64; 3],
     },
-    /// A GGX or Beckmann NDF under a mirror facet, microfacet form, Smith shadowing: the classic
-    /// microfacet BRDF `R(i·h) D(h) / ((1 + Λ(i) + Λ(o)) 4 cos θᵢ cos θₒ)` in closed form (the
-    /// height-correlated Smith `G₂` that meso-core computes numerically), `R` the mirror's
-    /// `specular · F`.
-    Analytic {
-        /// The distribution (its `d` is the microfacet `D = n / ∫ n (m·z) dω`).
-        distribution: Microfacet,
-        /// The mirror transfer (for `mirror_reflectance`).
-        transfer: Transfer,
-        /// The Lambert albedo of the material.
-        diffuse: [f64; 3],
-    },
 }
 
 impl PreviewBrdf {
@@ -254,59 +239,19 @@ impl PreviewBrdf {
                 }
                 f
             }
-            PreviewBrdf::Analytic {
-                distribution,
-                transfer,
-                diffuse,
-            } => {
-                if i.z <= 0.0 || o.z <= 0.0 {
-                    return [0.0; 3];
-                }
-                let mut f = [0.0; 3];
-                if let Some(h) = half_vector(i, o) {
-                    let g2 = 1.0 / (1.0 + distribution.lambda(i) + distribution.lambda(o));
-                    let k = distribution.d(h) * g2 / (4.0 * i.z * o.z);
-                    if let Some(r) = transfer.mirror_reflectance(i.dot(h)) {
-                        f = r.map(|x| x * k);
-                    }
-                }
-                for (c, d) in f.iter_mut().zip(diffuse) {
-                    *c += d * std::f64::consts::FRAC_1_PI;
-                }
-                f
-            }
         }
     }
 }
 
-/// The closed-form evaluation of a GGX/Beckmann NDF under a mirror facet in the microfacet form
-/// with Smith shadowing ([`PreviewBrdf::Analytic`]); `None` for every other material.
-#[must_use]
-pub fn analytic_microfacet(material: &Material) -> Option<PreviewBrdf> {
-    match (&material.ndf, &material.transfer, material.form) {
-        (Ndf::Microfacet(d), Transfer::Mirror { .. }, Form::Microfacet)
-            if material.shadowing == ShadowingKind::Smith =>
-        {
-            Some(PreviewBrdf::Analytic {
-                distribution: *d,
-                transfer: material.transfer,
-                diffuse: material.diffuse,
-            })
-        }
-        _ => None,
-    }
-}
+/// The path name of meso-core's closed-form microfacet evaluation (in `x-brdf-path`): a GGX or
+/// Beckmann NDF under mirror facets in the microfacet form with Smith shadowing.
+pub const ANALYTIC_PATH: &str = meso_core::shading::CLOSED_MICROFACET_PATH;
 
-/// The path name of [`PreviewBrdf::Analytic`] (in `x-brdf-path`).
-pub const ANALYTIC_PATH: &str =
-    "mirror facets, closed-form microfacet BRDF (analytic D, Smith Lambda)";
-
-/// The evaluation the plots use: [`analytic_microfacet`] when it applies, else meso-core's
-/// [`FastBrdf`] (never the preview's vMF closed form or sampled normals).
+/// The evaluation the plots use: meso-core's [`FastBrdf`] (never the preview's vMF closed
+/// form or sampled normals).
 #[must_use]
 pub fn plot_brdf(material: &Material) -> PreviewBrdf {
-    analytic_microfacet(material)
-        .unwrap_or_else(|| PreviewBrdf::Fast(Box::new(FastBrdf::new(material))))
+    PreviewBrdf::Fast(Box::new(FastBrdf::new(material)))
 }
 
 /// A [`PreviewBrdf`] as a renderer shader, with the tangent rotated by a fixed angle.
@@ -374,9 +319,6 @@ pub fn preview_brdf(material: &Material) -> (PreviewBrdf, String) {
             },
             "Phong peaks x Phong facets, vMF closed form".to_owned(),
         );
-    }
-    if let Some(a) = analytic_microfacet(material) {
-        return (a, ANALYTIC_PATH.to_owned());
     }
     let fast = FastBrdf::new(material);
     if !fast.path().starts_with("quadrature") || material.ndf.is_singular() {
