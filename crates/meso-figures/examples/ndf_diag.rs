@@ -48,6 +48,7 @@ fn sp_at(uv: DVec2, fp: f64) -> ShadingPoint {
         dpdy: DVec3::Y * fp,
         duvdx: DVec2::new(fp, 0.0),
         duvdy: DVec2::new(0.0, fp),
+        filter_uv: uv,
         material: MaterialId(0),
     }
 }

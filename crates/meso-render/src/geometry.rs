@@ -108,6 +108,11 @@ pub struct ShadingPoint {
     pub duvdx: DVec2,
     /// Change of `uv` per pixel step in y.
     pub duvdy: DVec2,
+    /// Where a filtering material centres its footprint, in `uv` (usually `uv`). With several
+    /// samples per pixel the renderer moves it to the centre of the sample's stratum of the
+    /// pixel and shrinks the differentials (`dpdx` … `duvdy`) to the stratum, so that the
+    /// samples' footprints tile the pixel (`meso_render::render` module docs).
+    pub filter_uv: DVec2,
     /// The material of the surface.
     pub material: MaterialId,
 }
@@ -492,6 +497,7 @@ pub(crate) fn finish_shading_point(
         dpdy,
         duvdx,
         duvdy,
+        filter_uv: g.uv,
         material: g.material,
     }
 }
@@ -650,6 +656,7 @@ pub(crate) mod tests_support {
             dpdy: DVec3::ZERO,
             duvdx: DVec2::ZERO,
             duvdy: DVec2::ZERO,
+            filter_uv: DVec2::ZERO,
             material: MaterialId(0),
         }
     }

@@ -22,9 +22,10 @@
 //!   when it is below the horizon of the nearest height sample (`meso_maps::HorizonMap`, four
 //!   azimuths interpolated as `HorizonStats::visibility`). Supersample it to get the ground
 //!   truth of a pixel.
-//! * [`NdfMapped`]: the pyramid of fitted Phong lobes. The level comes from the pixel footprint
-//!   (`ShadingPoint::uv_footprint` from ray differentials, times an optional scale, e.g.
-//!   `1/√spp` from [`NdfMapped::with_samples_per_pixel`]): `lod = log2(footprint in cells) −
+//! * [`NdfMapped`]: the pyramid of fitted Phong lobes. The level comes from the sample's
+//!   footprint (`ShadingPoint::uv_footprint` from ray differentials, which the renderer shrinks
+//!   to the sample's stratum of the pixel, centred at `ShadingPoint::filter_uv`, when it takes
+//!   several samples per pixel): `lod = log2(footprint in cells) −
 //!   ½` (the −½ matches the bilinear tent's spread to the pixel's box), clamped to the pyramid;
 //!   the two nearest levels are blended linearly, and within each level the four nearest texels
 //!   bilinearly (trilinear filtering), so zooming is continuous. Footprints under √2 cells
@@ -514,20 +515,9 @@ impl NdfMapped {
         self
     }
 
-    /// Filter for renders of `spp` samples per pixel: the ray-differential footprint (which
-    /// spans a whole pixel) is divided by `√spp`, the spacing of the samples, so that each
-    /// sample filters its share of the pixel and the pixel's average converges to the box
-    /// filter of the pixel as `spp` grows. Without it every jittered sample filters a whole
-    /// pixel around itself, and the pixel is blurred by about twice its size whatever `spp`.
-    /// `spp = 1` (the default) uses the footprint as given.
-    #[must_use]
-    pub fn with_samples_per_pixel(mut self, spp: u32) -> NdfMapped {
-        self.footprint_scale = 1.0 / f64::from(spp.max(1)).sqrt();
-        self
-    }
-
-    /// The pixel footprint at `sp` in level-0 cells (scaled by
-    /// [`NdfMapped::with_samples_per_pixel`]).
+    /// The sample's footprint at `sp` in level-0 cells (the ray differentials, which the
+    /// renderer shrinks to the sample's stratum with several samples per pixel, times
+    /// [`NdfMapped::with_footprint_scale`]).
     fn footprint_cells(&self, sp: &ShadingPoint) -> f64 {
         sp.uv_footprint() * self.texels_per_uv * self.footprint_scale
     }
@@ -543,7 +533,8 @@ impl NdfMapped {
     }
 
     /// Multiply the ray-differential footprint by `scale` (> 0; default 1) before choosing the
-    /// level of detail; [`NdfMapped::with_samples_per_pixel`] sets it from the sample count.
+    /// level of detail (for experiments; the renderer already fits the footprint to each
+    /// sample's share of the pixel).
     #[must_use]
     pub fn with_footprint_scale(mut self, scale: f64) -> NdfMapped {
         if scale.is_finite() && scale > 0.0 {
@@ -553,7 +544,7 @@ impl NdfMapped {
     }
 
     /// The continuous level of detail used at `sp`: `log2(footprint in cells) − ½`, clamped to
-    /// `[0, levels − 1]` (the footprint is scaled by [`NdfMapped::with_samples_per_pixel`]).
+    /// `[0, levels − 1]`.
     #[must_use]
     pub fn lod(&self, sp: &ShadingPoint) -> f64 {
         let fp = self.footprint_cells(sp);
@@ -574,7 +565,11 @@ impl NdfMapped {
     /// single cell under the point.
     fn taps(&self, sp: &ShadingPoint) -> Taps {
         let fp = self.footprint_cells(sp);
-        let (x, y) = (sp.uv.x * self.texels_per_uv, sp.uv.y * self.texels_per_uv);
+        // Centred where the renderer puts the sample's filter (its stratum's centre).
+        let (x, y) = (
+            sp.filter_uv.x * self.texels_per_uv,
+            sp.filter_uv.y * self.texels_per_uv,
+        );
         let mut taps = [(0usize, 0usize, 0.0f64); 8];
         let mut n = 0;
         if self.sharp_magnification && fp.is_finite() && fp < std::f64::consts::SQRT_2 {

@@ -52,6 +52,7 @@ pub fn local_point(uv: DVec2, uv_footprint: f64) -> ShadingPoint {
         dpdy: DVec3::Y * uv_footprint,
         duvdx: DVec2::new(uv_footprint, 0.0),
         duvdy: DVec2::new(0.0, uv_footprint),
+        filter_uv: uv,
         material: MaterialId(0),
     }
 }

@@ -14,6 +14,13 @@
 //! (`n_g · wi ≤ 0`) is discarded, so smooth-shaded meshes do not leak light through their
 //! silhouettes. No interreflection (the paper's shading is local).
 //!
+//! Footprints: with several samples per pixel, each sample's ray differentials are fitted to its
+//! stratum of the pixel (a `2^k × 2^k` grid that the first `spp` Sobol points fill evenly when
+//! `spp` is a power of two ≥ 4, else the whole pixel): the differentials shrink to the stratum
+//! and `ShadingPoint::filter_uv` moves to its centre, so that filtering materials (NDF-mapped)
+//! converge to the pixel's box filter as `spp` grows instead of blurring every sample over a
+//! whole pixel around a random point.
+//!
 //! Sampling: a per-pixel Owen-scrambled Sobol sequence; dimensions 0–1 jitter the pixel, then
 //! two per light in scene order, then two for the environment. At one sample per pixel the
 //! camera ray goes through the pixel centre and the sequence is only evaluated for lights that
@@ -160,6 +167,9 @@ struct PixelContext {
     /// Every material is direction-only and none needs surface parameters: shade tiles by
     /// streams ([`stream`]).
     stream: bool,
+    /// Side of the grid of pixel strata the samples' footprints are fitted to when `spp > 1`
+    /// ([`strata`], [`to_stratum`]).
+    strata: u32,
 }
 
 impl PixelContext {
@@ -176,6 +186,7 @@ impl PixelContext {
             params,
             rays: RayGen::new(&scene.camera, w, h),
             stream: !params && scene.materials().iter().all(|m| m.direction_only()),
+            strata: strata(spp),
         }
     }
 }
@@ -233,8 +244,42 @@ fn trace_sample(
         (scene.primary_hit(&ray, None, false), ray.d)
     };
     match hit {
-        Some((sp, skip)) => shade_impl(scene, &sp, -d, sampler, scratch, skip),
+        Some((mut sp, skip)) => {
+            if c.spp > 1 {
+                to_stratum(&mut sp, j, c.strata);
+            }
+            shade_impl(scene, &sp, -d, sampler, scratch, skip)
+        }
         None => background(scene, d),
+    }
+}
+
+/// Fit the footprint of a sample at pixel offset `j` to its stratum of an `n × n` grid of the
+/// pixel: the filter centre moves to the stratum's centre (`filter_uv`) and the differentials
+/// shrink by `n`. With the stratified jitter (one sample per stratum, or the same number in
+/// each) the samples' footprints tile the pixel, so a filtering material converges to the
+/// pixel's box filter as `spp` grows and no sample filters around a random point. With `n = 1`
+/// every sample filters the whole pixel around its centre (what one sample does).
+fn to_stratum(sp: &mut ShadingPoint, j: [f64; 2], n: u32) {
+    let n = f64::from(n);
+    let centre = |t: f64| ((t * n).floor().min(n - 1.0) + 0.5) / n;
+    let (ox, oy) = (centre(j[0]) - j[0], centre(j[1]) - j[1]);
+    sp.filter_uv = sp.uv + sp.duvdx * ox + sp.duvdy * oy;
+    let s = 1.0 / n;
+    sp.dpdx *= s;
+    sp.dpdy *= s;
+    sp.duvdx *= s;
+    sp.duvdy *= s;
+}
+
+/// The side of the grid of strata that the samples of a pixel fill evenly: `spp` a power of two
+/// ≥ 4 gives `2^⌊log₂(spp)/2⌋` (the first `2^k` points of the pixel's Owen-scrambled Sobol
+/// sequence put the same number of points in each stratum); otherwise 1 (the whole pixel).
+fn strata(spp: u32) -> u32 {
+    if spp >= 4 && spp.is_power_of_two() {
+        1 << (spp.trailing_zeros() / 2)
+    } else {
+        1
     }
 }
 
@@ -444,4 +489,46 @@ fn shade_impl(
 #[inline]
 fn shadow_eps(p: DVec3) -> f64 {
     1e-9 * (1.0 + p.abs().max_element())
+}
+
+#[cfg(test)]
+mod strata_tests {
+    use super::*;
+
+    /// The footprints fitted by [`to_stratum`] tile the pixel only if the jitter of the first
+    /// `spp` samples fills the `strata(spp)²` grid evenly: check it for several pixels and seeds.
+    #[test]
+    fn jitter_fills_the_strata_evenly() {
+        for spp in [4u32, 8, 16, 32, 64, 256] {
+            let n = strata(spp);
+            assert!(n >= 2 && n * n <= spp);
+            for (x, y, seed) in [(0, 0, 0), (17, 3, 0), (5, 900, 7), (1023, 1023, 42)] {
+                let mut count = vec![0u32; (n * n) as usize];
+                for s in 0..spp {
+                    let (_, j) = jittered(x, y, seed, s);
+                    let (a, b) = ((j[0] * f64::from(n)) as u32, (j[1] * f64::from(n)) as u32);
+                    count[(b * n + a) as usize] += 1;
+                }
+                assert!(
+                    count.iter().all(|&c| c == spp / (n * n)),
+                    "spp {spp}, pixel ({x}, {y}), seed {seed}: {count:?}"
+                );
+            }
+        }
+        assert_eq!(strata(1), 1);
+        assert_eq!(strata(2), 1);
+        assert_eq!(strata(12), 1);
+    }
+
+    #[test]
+    fn stratum_footprints_tile_the_pixel() {
+        let mut sp = crate::material::local_point(glam::DVec2::new(0.3, 0.7), 0.1);
+        sp.duvdy = glam::DVec2::new(0.0, 0.2);
+        let base = sp;
+        to_stratum(&mut sp, [0.9, 0.1], 2);
+        // Stratum (1, 0): centre (0.75, 0.25), offset (−0.15, 0.15) pixels.
+        assert!((sp.filter_uv - glam::DVec2::new(0.3 - 0.015, 0.7 + 0.03)).length() < 1e-12);
+        assert!((sp.duvdx - base.duvdx * 0.5).length() < 1e-15);
+        assert!((sp.duvdy - base.duvdy * 0.5).length() < 1e-15);
+    }
 }
