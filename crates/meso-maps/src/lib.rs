@@ -44,4 +44,4 @@ pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{Border, HeightMap, NormalConvention, NormalMap};
 pub use horizon::{HorizonMap, HorizonStats};
 pub use pyramid::{extract, ExtractParams, Level, Method, Progress, Pyramid, PyramidInfo, Source};
-pub use resolver::{HorizonVisibility, MapsResolver};
+pub use resolver::{ExtractProgress, HorizonVisibility, MapsResolver};

@@ -78,10 +78,15 @@ struct CacheKey {
 
 /// An `NdfResolver` for `[ndf] kind = "heightmap"` and `kind = "map"` (see the module docs).
 /// Extracted pyramids are cached per resolver.
-#[derive(Debug, Default)]
+#[derive(Default)]
 pub struct MapsResolver {
     cache: Mutex<HashMap<CacheKey, Arc<Pyramid>>>,
+    progress: Option<ExtractProgress>,
 }
+
+/// A progress hook for pyramid extractions: the height map's path and the extraction's
+/// [`crate::pyramid::Progress`] (called from the extracting thread).
+pub type ExtractProgress = Arc<dyn Fn(&Path, crate::pyramid::Progress) + Send + Sync>;
 
 fn merr<T>(msg: impl Into<String>) -> Result<T, MaterialError> {
     Err(MaterialError(msg.into()))
@@ -171,11 +176,28 @@ fn resolved(
     })
 }
 
+impl std::fmt::Debug for MapsResolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MapsResolver")
+            .field("cached_pyramids", &self.cache.lock().map_or(0, |c| c.len()))
+            .field("progress", &self.progress.is_some())
+            .finish()
+    }
+}
+
 impl MapsResolver {
     /// A resolver with an empty cache.
     #[must_use]
     pub fn new() -> MapsResolver {
         MapsResolver::default()
+    }
+
+    /// Report the progress of every pyramid extraction (a 1024² height map takes seconds) to
+    /// `progress`.
+    #[must_use]
+    pub fn with_progress(mut self, progress: ExtractProgress) -> MapsResolver {
+        self.progress = Some(progress);
+        self
     }
 
     /// Parse and check a `kind = "heightmap"` table (module docs).
@@ -276,8 +298,12 @@ impl MapsResolver {
         };
         params.fit.max_lobes = max_lobes;
         let pyr = Arc::new(
-            extract(Source::Heights(&map), &params, &mut |_| {})
-                .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))?,
+            extract(Source::Heights(&map), &params, &mut |p| {
+                if let Some(f) = &self.progress {
+                    f(file, p);
+                }
+            })
+            .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))?,
         );
         if let Ok(mut c) = self.cache.lock() {
             c.insert(key, pyr.clone());

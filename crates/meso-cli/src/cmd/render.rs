@@ -65,7 +65,17 @@ fn format_of(path: &Path) -> Result<Format> {
 /// files with a `[texture]` table as bump- or NDF-mapped materials
 /// ([`meso_render::load_textured`]).
 pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, ResolveError> {
-    if let Some(s) = meso_render::load_textured(path, &meso_maps::MapsResolver::new())? {
+    // NDF-mapped materials extract their height map's pyramid at load: a progress bar on a
+    // terminal for the big ones.
+    let bar = crate::progress(u64::MAX, "pyramid");
+    let shown = bar.clone();
+    let maps = meso_maps::MapsResolver::new().with_progress(Arc::new(move |_, p| {
+        shown.set_length(p.texels_total);
+        shown.set_position(p.texels_done);
+    }));
+    let textured = meso_render::load_textured(path, &maps);
+    bar.finish_and_clear();
+    if let Some(s) = textured? {
         return Ok(s);
     }
     let m = crate::load_material(path).map_err(|e| -> ResolveError { format!("{e:#}").into() })?;
