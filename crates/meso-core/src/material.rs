@@ -256,8 +256,14 @@ impl<'a> Fields<'a> {
         for k in self.table.keys() {
             if !self.used.contains(&k.as_str()) {
                 let known = self.used.join(", ");
+                // A textured material (height map over uv) only means something on an object.
+                let hint = if self.name == "material" && k == "texture" {
+                    "; a [texture] table makes a bump- or NDF-mapped material for scene files                      (`meso render`, docs/scene-format.md)"
+                } else {
+                    ""
+                };
                 return err(format!(
-                    "{}: unknown key `{k}` (known here: {known})",
+                    "{}: unknown key `{k}` (known here: {known}){hint}",
                     self.name
                 ));
             }
