@@ -75,6 +75,7 @@ fn bad_materials_are_refused_with_a_message_naming_the_problem() {
         ("[ndf]\nkind = \"harmonics\"\nband = 2\ncoefficients = [1, 2]\n", "coefficients"),
         ("[diffuse]\nalbedo = [2, 0, 0]\n", "albedo"),
         ("wibble = 3\n", "unknown key `wibble`"),
+        ("[texture]\nkind = \"ndf-mapped\"\n", "for scene files"),
         ("form = \"sideways\"\n", "form"),
         ("[shadowing]\nkind = \"horizon\"\n", "horizon"),
         ("[ndf\n", "not valid TOML"),
