@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The whole test suite, as CI runs it: formatting, lints, every crate's tests, and the browser
+# The whole test suite, as CI runs it: formatting, lints, the API docs, every crate's tests, and the browser
 # end-to-end tests of the editor (installs Debian's chromium and npm's playwright-core when missing).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -9,6 +9,9 @@ cargo fmt --all -- --check
 
 echo "== cargo clippy (all targets, -D warnings)"
 cargo clippy --workspace --all-targets -- -D warnings
+
+echo "== cargo doc (public docs build without warnings: no broken or private links)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt

@@ -38,7 +38,7 @@ pub mod ticks;
 
 pub use canvas::{Canvas, Filter, Rect};
 pub use color::Rgb;
-pub use colormap::{colorbar, colorbar_scaled, ColorMap, ValueScale};
+pub use colormap::{colorbar, colorbar_extent, colorbar_scaled, ColorMap, ValueScale};
 pub use font::{draw_text, text_width, Anchor};
 pub use plot::{LinePlot, LineStyle, Series};
 pub use polar::{PolarPlot, PolarSeries};

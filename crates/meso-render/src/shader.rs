@@ -97,7 +97,7 @@ pub const PHONG_LANES: usize = 8;
 // The lane reduction in `sum_at_portable` is written out for eight lanes.
 const _: () = assert!(PHONG_LANES == 8);
 
-/// A multiple surface in the paper's shading form (§4, after [Dret90]): a sum of Phong terms,
+/// A multiple surface in the paper's shading form (§4, after \[Dret90\]): a sum of Phong terms,
 /// one per normal,
 /// `f(wi, wo) = Σ_k w_k · max(0, n_k · H)^{η_k}` (1/sr), `H = (wi + wo)/|wi + wo|`,
 /// with the lobe normals `n_k` in the local frame. Stored as a structure of arrays of
@@ -342,7 +342,7 @@ const PAIR_LANES: usize = 8;
 /// (local frame), or, with `cosine`, the multiple-surface form of Eq. 4/11,
 /// `Σ_j w_j max(0, n_j·H_k)^{η_j} max(0, n_j·wi_k) / wi_k.z`. Pairs with either direction
 /// below the horizon (or `wi = −wo`) get `−1` as a marker (see [`colour_pairs`]). Pairs run
-/// across [`PAIR_LANES`] f32 lanes, lobes in the inner loop; AVX2 + FMA when the CPU has it.
+/// across 8 (AVX2) or 16 (AVX-512) f32 lanes, lobes in the inner loop; AVX2 + FMA when the CPU has it.
 /// The power is [`fast_pow`]. `sum.len()` is the number of pairs.
 pub fn lobe_pairs(
     lobes: &LobeSlices<'_>,

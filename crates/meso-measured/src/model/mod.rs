@@ -1,5 +1,5 @@
 //! Fittable BRDF models: the paper's lobe sums with the Phong transfer ([`lobes`]) and with the
-//! microfacet transfer ([`lobes_microfacet`]), and the baselines ([`baselines`]).
+//! microfacet transfer ([`lobes_microfacet`]), and the baselines ([`baselines`](mod@baselines)).
 pub mod baselines;
 pub mod lobes;
 pub mod lobes_microfacet;
