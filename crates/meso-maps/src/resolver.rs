@@ -10,6 +10,7 @@
 //! | `max_lobes` | lobes per texel, 1–8 (default 4) |
 //! | `border` | `"wrap"` (default) or `"clamp"` |
 //! | `normals` | `"triangles"` (default) or `"central"` (central differences) |
+//! | `represent` | `"lobes"` (default: the pyramid's top-level fitted Phong peaks) or `"facets"` (every facet normal of the map, binned to ≈ 0.8°, as a delta sum: exact up to the binning; see [`MapsResolver::heightmap_facets`]) |
 //!
 //! The pyramid is extracted once per (file, modification time, parameters) and cached in the
 //! resolver; the NDF is the top level's lobes (the whole map).
@@ -27,13 +28,14 @@
 //! `G(i, o) = V(i)·V(o)`, and the default form is the microfacet form.
 
 use crate::facets::NormalMode;
+use crate::fit::{merge_entries, Entry};
 use crate::heightmap::{Border, HeightMap};
 use crate::horizon::HorizonStats;
 use crate::pyramid::{extract, ExtractParams, Pyramid, Source};
 use glam::DVec3;
 use meso_core::convolution::Form;
 use meso_core::material::{MaterialError, NdfResolver, ResolvedNdf, VisibilityModel};
-use meso_core::ndf::{Ndf, PhongPeaks};
+use meso_core::ndf::{DeltaSum, Ndf, PhongPeaks, WeightedNormal};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -215,8 +217,10 @@ impl MapsResolver {
                 "max_lobes",
                 "border",
                 "normals",
+                "represent",
             ],
         )?;
+        choice(table, "represent", &["lobes", "facets"])?;
         let texel_size = positive_number(table, "texel_size")?;
         let height_scale = positive_number(table, "height_scale")?;
         let max_lobes = match table.get("max_lobes") {
@@ -311,6 +315,49 @@ impl MapsResolver {
         Ok(pyr)
     }
 
+    /// `represent = "facets"`: the whole map's facet normals as a delta sum (the multiple
+    /// surface of Eq. 3, evaluated exactly by Eq. 4), merged per ≈ 0.8° bin of the fit's entry
+    /// grid (each bin's area-weighted mean normal), with the map's horizon statistics as its
+    /// masking model. Exact up to the binning where the fitted lobes are an approximation; the
+    /// cost grows with the number of occupied bins (thousands for rough maps), and a mirror
+    /// facet has no pointwise BRDF on a delta sum (use the lobes there).
+    ///
+    /// # Errors
+    /// Bad keys or values, every height-map error.
+    pub fn heightmap_facets(
+        table: &toml::Table,
+        file: &Path,
+    ) -> Result<ResolvedNdf, MaterialError> {
+        let p = Self::heightmap_params(table)?;
+        let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
+            .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+        let facets = crate::facets::FacetNormals::from_heightmap(&map, p.normal_mode);
+        let entries: Vec<Entry> = facets
+            .normalized()
+            .into_iter()
+            .map(|(n, w)| Entry::new(n, w))
+            .collect();
+        let mut merged = Vec::new();
+        merge_entries(&[&entries], &mut merged);
+        let normals: Vec<WeightedNormal> = merged
+            .iter()
+            .filter(|e| e.w > 0.0)
+            .map(|e| WeightedNormal {
+                normal: e.m.normalize(),
+                weight: e.w,
+            })
+            .collect();
+        let what = format!("[ndf] {}", file.display());
+        let ndf =
+            Ndf::Deltas(DeltaSum::new(normals).map_err(|e| MaterialError(format!("{what}: {e}")))?);
+        let horizon = crate::horizon::HorizonMap::compute(&map).total_stats();
+        Ok(ResolvedNdf {
+            ndf,
+            horizon: Some(Arc::new(HorizonVisibility(horizon)) as Arc<dyn VisibilityModel>),
+            default_form: Form::Microfacet,
+        })
+    }
+
     fn cache_get(&self, key: &CacheKey) -> Option<Arc<Pyramid>> {
         self.cache.lock().ok()?.get(key).cloned()
     }
@@ -369,6 +416,9 @@ impl NdfResolver for MapsResolver {
         file: &Path,
     ) -> Result<ResolvedNdf, MaterialError> {
         match kind {
+            "heightmap" if choice(table, "represent", &["lobes", "facets"])? == Some("facets") => {
+                Self::heightmap_facets(table, file)
+            }
             "heightmap" => {
                 let pyr = self.heightmap_pyramid(table, file)?;
                 let top = pyr.top();
