@@ -486,6 +486,29 @@ pub fn plane_scene(
     b.build().map_err(|e| ferr(e.to_string()))
 }
 
+/// The scene file of [`plane_scene`] for `meso render`, with `material` as the material path.
+#[must_use]
+pub fn plane_scene_toml(material: &str, width: f64, pixels: u32, spp: u32) -> String {
+    let pos = DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6) * 10.0 * width.max(1.0);
+    let Light::Directional {
+        direction: l,
+        irradiance: e,
+    } = plane_light()
+    else {
+        unreachable!("plane_light is directional")
+    };
+    format!(
+        "[camera]\nkind = \"orthographic\"\nposition = [{:?}, {:?}, {:?}]\n\
+         look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = {width:?}\n\
+         [image]\nwidth = {pixels}\nheight = {pixels}\nspp = {spp}\nbackground = [{:?}, {:?}, {:?}]\n\
+         [[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
+         tangent = [1.0, 0.0, 0.0]\nuv_scale = 1.0\nmaterial = \"{material}\"\n\
+         [[light]]\nkind = \"directional\"\ndirection = [{:?}, {:?}, {:?}]\n\
+         irradiance = [{:?}, {:?}, {:?}]\n",
+        pos.x, pos.y, pos.z, BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], l.x, l.y, l.z, e.x, e.y, e.z
+    )
+}
+
 /// Camera widths of the zoom sequence (world units, one map tile per unit): 0.9·2.2^k.
 #[must_use]
 pub fn zoom_widths(frames: usize) -> Vec<f64> {
@@ -583,7 +606,9 @@ fn heightmap_png(map: &HeightMap) -> Result<(Vec<u8>, f64), FigureError> {
     let mut raw = Vec::with_capacity(map.heights().len() * 2);
     for h in map.heights() {
         let c = (((h - lo) / scale) * 65535.0).round().clamp(0.0, 65535.0) as u16;
-        raw.extend_from_slice(&c.to_be_bytes());
+        // `write_image` takes 16-bit samples in native byte order (the encoder writes PNG's big
+        // endian).
+        raw.extend_from_slice(&c.to_ne_bytes());
     }
     let mut out = Vec::new();
     image::codecs::png::PngEncoder::new(&mut out)
@@ -720,6 +745,24 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
         mat.push_str(&full[pos..]);
     }
     w.bytes("zoom_material.toml", mat.as_bytes())?;
+    // The same bump map as a textured material for scene files, and each frame's scene, so
+    // that `meso render zoom_KK.scene.toml` reproduces the frames (docs/scene-format.md).
+    let mut textured = format!(
+        "name = \"zoom bump map, NDF-mapped\"\n[texture]\nkind = \"ndf-mapped\"\n\
+         file = \"zoom_heightmap.png\"\ntexel_size = {}\nheight_scale = {hscale}\nmax_lobes = 4\n\
+         texels_per_uv = {texels_per_uv}\nshadowing = true\n",
+        map.texel_size()
+    );
+    if let Some(pos) = full.find("[transfer]") {
+        textured.push_str(&full[pos..]);
+    }
+    w.bytes("zoom_textured.toml", textured.as_bytes())?;
+    for (k, &width) in zoom_widths(frames).iter().enumerate() {
+        w.bytes(
+            &format!("zoom_{k:02}.scene.toml"),
+            plane_scene_toml("zoom_textured.toml", width, zsize, spp).as_bytes(),
+        )?;
+    }
     log(&format!(
         "zoom: {frames} frames, {:.2} s",
         t0.elapsed().as_secs_f64()
