@@ -56,7 +56,9 @@ use meso_core::frame::Frame;
 use meso_core::material::Material;
 use meso_core::ndf::vmf;
 use meso_core::transfer::{PhongVariant, Transfer};
-use meso_maps::{FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMode, Pyramid};
+use meso_maps::{
+    FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMap, NormalMode, Pyramid,
+};
 use std::f64::consts::FRAC_1_PI;
 
 /// The facet transfer function, with fast paths for Phong (half vector) and Lambert.
@@ -169,8 +171,33 @@ impl BumpMapped {
         })
     }
 
-    /// The facet normal (local frame) of the triangulated height map at texture coordinates
-    /// `(u, v)`.
+    /// A normal-mapped material shaded texel by texel: the normal of the texel under the
+    /// point (nearest texel, wrapped), with the facet transfer and diffuse term of `surface`
+    /// and `texels_per_uv` texels per unit of texture coordinate. A normal map has no heights,
+    /// hence no shadowing of the light by its bumps.
+    ///
+    /// # Errors
+    /// A message when `texels_per_uv` is not a finite positive number.
+    pub fn from_normal_map(
+        map: &NormalMap,
+        surface: &Material,
+        texels_per_uv: f64,
+    ) -> Result<BumpMapped, String> {
+        check_scale(texels_per_uv)?;
+        let f = FacetNormals::from_normal_map(map);
+        Ok(BumpMapped {
+            cols: f.cols,
+            rows: f.rows,
+            normals: f.normals.iter().map(|&n| [n, n]).collect(),
+            horizon: None,
+            facet: Facet::new(&surface.transfer),
+            diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
+            texels_per_uv,
+        })
+    }
+
+    /// The facet normal (local frame) at texture coordinates `(u, v)`: of the triangulated
+    /// height map, or of the normal map's texel.
     #[must_use]
     pub fn normal_at(&self, u: f64, v: f64) -> DVec3 {
         let (x, y) = (u * self.texels_per_uv, v * self.texels_per_uv);

@@ -8,7 +8,8 @@
 //! ```toml
 //! [texture]
 //! kind = "ndf-mapped"      # or "bump-mapped"
-//! file = "bumps.png"       # height map (PNG, TIFF, EXR), relative to this file
+//! file = "bumps.png"       # height map (PNG, TIFF, EXR), relative to this file; or
+//!                          # normal_map = "n.png" (tangent space, convention = "gl" | "dx")
 //! texel_size = 0.01        # distance between height samples (length units)
 //! height_scale = 0.02      # height of the full code range (same unit)
 //! texels_per_uv = 64       # height-map cells per unit of u and v (default: the map's width)
@@ -20,7 +21,7 @@
 use crate::mapped::{BumpMapped, NdfMapped};
 use crate::shader::Shader;
 use meso_core::material::{read_limited, MaterialSpec};
-use meso_maps::MapsResolver;
+use meso_maps::{extract, ExtractParams, MapsResolver, NormalConvention, NormalMap, Source};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -56,11 +57,18 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         .ok_or_else(|| named("[texture]: expected a table".into()))?;
     for k in tex.keys() {
         if !(MAP_KEYS.contains(&k.as_str())
-            || ["kind", "texels_per_uv", "shadowing"].contains(&k.as_str()))
+            || [
+                "kind",
+                "texels_per_uv",
+                "shadowing",
+                "normal_map",
+                "convention",
+            ]
+            .contains(&k.as_str()))
         {
             return Err(named(format!(
-                "[texture]: unknown key `{k}` (known: kind, file, texel_size, height_scale, \
-                 texels_per_uv, shadowing, max_lobes, border, normals)"
+                "[texture]: unknown key `{k}` (known: kind, file, normal_map, convention, \
+                 texel_size, height_scale, texels_per_uv, shadowing, max_lobes, border, normals)"
             )));
         }
     }
@@ -74,11 +82,56 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         Some(None) => return Err(named("[texture] kind: expected a string".into())),
         None => return Err(named("[texture]: missing `kind`".into())),
     };
-    let file = match tex.get("file").map(|f| f.as_str()) {
-        Some(Some(f)) => path.parent().unwrap_or(Path::new(".")).join(f),
-        Some(None) => return Err(named("[texture] file: expected a string".into())),
-        None => return Err(named("[texture]: missing `file = \"…\"`".into())),
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let string = |key: &str| match tex.get(key).map(|f| f.as_str()) {
+        Some(Some(f)) => Ok(Some(f)),
+        Some(None) => Err(named(format!("[texture] {key}: expected a string"))),
+        None => Ok(None),
     };
+    let file = match (string("file")?, string("normal_map")?) {
+        (Some(f), None) => dir.join(f),
+        (None, Some(n)) => {
+            for k in ["texel_size", "height_scale", "border", "normals"] {
+                if tex.contains_key(k) {
+                    return Err(named(format!(
+                        "[texture] {k}: applies to height maps (`file`), not to `normal_map`"
+                    )));
+                }
+            }
+            if tex.get("shadowing").and_then(toml::Value::as_bool) == Some(true) {
+                return Err(named(
+                    "[texture] shadowing: a normal map has no heights to shadow with".into(),
+                ));
+            }
+            let convention = match string("convention")? {
+                None | Some("gl") => NormalConvention::Gl,
+                Some("dx") => NormalConvention::Dx,
+                Some(o) => {
+                    return Err(named(format!(
+                        "[texture] convention: unknown \"{o}\" (known: gl, dx)"
+                    )))
+                }
+            };
+            return normal_mapped(kind, tex, &doc, path, &dir.join(n), convention, maps)
+                .map(Some)
+                .map_err(named);
+        }
+        (Some(_), Some(_)) => {
+            return Err(named(
+                "[texture]: `file` (a height map) and `normal_map` exclude each other".into(),
+            ))
+        }
+        (None, None) => {
+            return Err(named(
+                "[texture]: missing `file = \"…\"` (a height map) or `normal_map = \"…\"`".into(),
+            ))
+        }
+    };
+    if tex.contains_key("convention") {
+        return Err(named(
+            "[texture] convention: applies to `normal_map`, not to a height map".into(),
+        ));
+    }
     let shadowing = match tex.get("shadowing") {
         None => true,
         Some(v) => v
@@ -95,26 +148,8 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     let texture_err =
         |e: meso_core::material::MaterialError| named(e.0.replace("[ndf]", "[texture]"));
     let map = MapsResolver::heightmap(&map_table, &file).map_err(texture_err)?;
-    let texels_per_uv = match tex.get("texels_per_uv") {
-        None => map.cells_x() as f64,
-        Some(v) => {
-            let t = v
-                .as_float()
-                .or_else(|| v.as_integer().map(|i| i as f64))
-                .ok_or_else(|| named("[texture] texels_per_uv: expected a number".into()))?;
-            if !(t.is_finite() && t > 0.0) {
-                return Err(named(format!(
-                    "[texture] texels_per_uv: must be a finite number > 0, got {t}"
-                )));
-            }
-            t
-        }
-    };
-    // The facet material: the file without its `[texture]` table.
-    let rest = toml::to_string(&doc).map_err(|e| named(format!("cannot re-read: {e}")))?;
-    let surface = MaterialSpec::parse(&rest, path.parent().unwrap_or(Path::new(".")))
-        .and_then(|s| s.build(maps))
-        .map_err(|e| named(e.0))?;
+    let texels_per_uv = texels_per_uv(tex, map.cells_x()).map_err(named)?;
+    let surface = facet_material(&doc, dir, maps).map_err(named)?;
     let shader: Arc<dyn Shader> = match kind {
         "bump-mapped" => {
             Arc::new(BumpMapped::new(&map, &surface, texels_per_uv, shadowing).map_err(named)?)
@@ -127,4 +162,75 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         }
     };
     Ok(Some(shader))
+}
+
+/// `texels_per_uv` of a `[texture]` table (default: the map's width, one copy per unit of uv).
+fn texels_per_uv(tex: &toml::Table, width: usize) -> Result<f64, String> {
+    match tex.get("texels_per_uv") {
+        None => Ok(width as f64),
+        Some(v) => {
+            let t = v
+                .as_float()
+                .or_else(|| v.as_integer().map(|i| i as f64))
+                .ok_or_else(|| "[texture] texels_per_uv: expected a number".to_string())?;
+            if t.is_finite() && t > 0.0 {
+                Ok(t)
+            } else {
+                Err(format!(
+                    "[texture] texels_per_uv: must be a finite number > 0, got {t}"
+                ))
+            }
+        }
+    }
+}
+
+/// The facet material: the file without its `[texture]` table.
+fn facet_material(
+    doc: &toml::Table,
+    dir: &Path,
+    maps: &MapsResolver,
+) -> Result<meso_core::material::Material, String> {
+    let rest = toml::to_string(doc).map_err(|e| format!("cannot re-read: {e}"))?;
+    MaterialSpec::parse(&rest, dir)
+        .and_then(|s| s.build(maps))
+        .map_err(|e| e.0)
+}
+
+/// A `[texture]` over a tangent-space normal map: texel by texel, or through the pyramid of
+/// its normals (no heights: no shadowing).
+fn normal_mapped(
+    kind: &str,
+    tex: &toml::Table,
+    doc: &toml::Table,
+    path: &Path,
+    file: &Path,
+    convention: NormalConvention,
+    maps: &MapsResolver,
+) -> Result<Arc<dyn Shader>, String> {
+    let map = NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"))?;
+    let texels_per_uv = texels_per_uv(tex, map.width())?;
+    let surface = facet_material(doc, path.parent().unwrap_or(Path::new(".")), maps)?;
+    if kind == "bump-mapped" {
+        return Ok(Arc::new(BumpMapped::from_normal_map(
+            &map,
+            &surface,
+            texels_per_uv,
+        )?));
+    }
+    let mut params = ExtractParams::default();
+    if let Some(v) = tex.get("max_lobes") {
+        let k = v
+            .as_integer()
+            .filter(|k| (1..=8).contains(k))
+            .ok_or_else(|| format!("[texture] max_lobes: must be an integer 1–8, got {v}"))?;
+        params.fit.max_lobes = k as usize;
+    }
+    let pyramid = extract(Source::Normals(&map), &params, &mut |_| {})
+        .map_err(|e| format!("[texture] {}: {e}", file.display()))?;
+    Ok(Arc::new(NdfMapped::new(
+        &pyramid,
+        &surface,
+        texels_per_uv,
+        false,
+    )?))
 }

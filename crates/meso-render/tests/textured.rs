@@ -149,3 +149,88 @@ fn bad_texture_tables_are_errors_naming_the_problem() {
         assert!(e.contains(want), "`{want}` in: {e}");
     }
 }
+
+/// The egg crate's normals as an 8-bit tangent-space normal map (OpenGL convention).
+fn write_normal_map(dir: &Path) {
+    let n = 32u32;
+    let tau = std::f64::consts::TAU;
+    let (a, k) = (0.035, tau * 4.0);
+    let mut img = ::image::RgbImage::new(n, n);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        let (u, v) = (f64::from(x) / f64::from(n), f64::from(y) / f64::from(n));
+        // h = a·sin(ku)·sin(kv) over one world unit.
+        let (gx, gy) = (
+            a * k * (k * u).cos() * (k * v).sin(),
+            a * k * (k * u).sin() * (k * v).cos(),
+        );
+        let m = glam::DVec3::new(-gx, -gy, 1.0).normalize();
+        let enc = |c: f64| ((c * 0.5 + 0.5) * 255.0).round() as u8;
+        *p = ::image::Rgb([enc(m.x), enc(m.y), enc(m.z)]);
+    }
+    img.save(dir.join("normals.png")).unwrap();
+    let surface = "[transfer]\nkind = \"phong\"\nexponent = 20.0\nspecular = [0.6, 0.6, 0.6]\n\
+                   [diffuse]\nalbedo = [0.5, 0.4, 0.3]\n";
+    for kind in ["ndf-mapped", "bump-mapped"] {
+        std::fs::write(
+            dir.join(format!("normals-{kind}.toml")),
+            format!("[texture]\nkind = \"{kind}\"\nnormal_map = \"normals.png\"\n{surface}"),
+        )
+        .unwrap();
+    }
+}
+
+#[test]
+fn normal_maps_texel_by_texel_and_filtered() {
+    let d = dir("textured_normals");
+    write_normal_map(&d);
+    let ndf = render_file(&d, "normals-ndf-mapped", 20.0, 1);
+    let bump = render_file(&d, "normals-bump-mapped", 20.0, 256);
+    let plain = render_file(&d, "plain", 20.0, 1);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (p, q) in ndf.pixels().iter().zip(bump.pixels()) {
+        for c in 0..3 {
+            num += f64::from((p[c] - q[c]).abs());
+            den += f64::from(q[c]);
+        }
+    }
+    let err = num / den;
+    let ratio = mean(&ndf) / mean(&bump);
+    eprintln!("normal map: NDF-mapped 1 spp vs texel by texel 256 spp: error {err:.4}, mean ratio {ratio:.4}");
+    assert!(err < 0.05, "image error {err}");
+    assert!((ratio - 1.0).abs() < 0.03, "mean ratio {ratio}");
+    let flat = mean(&plain) / mean(&bump);
+    assert!((flat - 1.0).abs() > 0.1, "flat/bumpy {flat}");
+    // Mistakes name the problem.
+    let maps = meso_maps::MapsResolver::new();
+    let transfer = "[transfer]\nkind = \"phong\"\nexponent = 20.0\n";
+    for (body, want) in [
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nnormal_map = \"normals.png\"\nshadowing = true\n{transfer}"),
+            "no heights",
+        ),
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nnormal_map = \"normals.png\"\nfile = \"bumps.exr\"\n{transfer}"),
+            "exclude each other",
+        ),
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nnormal_map = \"normals.png\"\ntexel_size = 0.1\n{transfer}"),
+            "applies to height maps",
+        ),
+        (
+            format!("[texture]\nkind = \"bump-mapped\"\nnormal_map = \"normals.png\"\nconvention = \"up\"\n{transfer}"),
+            "unknown \"up\"",
+        ),
+        (
+            format!("[texture]\nkind = \"bump-mapped\"\nnormal_map = \"none.png\"\n{transfer}"),
+            "none.png",
+        ),
+    ] {
+        let p = d.join("bad-normals.toml");
+        std::fs::write(&p, &body).unwrap();
+        let e = match load_textured(&p, &maps) {
+            Ok(_) => panic!("accepted:\n{body}"),
+            Err(e) => e,
+        };
+        assert!(e.contains("bad-normals.toml") && e.contains(want), "`{want}` in: {e}");
+    }
+}
