@@ -60,23 +60,15 @@ pub fn local_point(uv: DVec2, uv_footprint: f64) -> ShadingPoint {
 /// Lanes of one chunk of the delta-sum kernel.
 const LANES: usize = 8;
 
-/// Up to [`LANES`] normals of a multiple surface as a structure of arrays (unused lanes have
-/// weight 0).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Chunk {
-    nx: [f32; LANES],
-    ny: [f32; LANES],
-    nz: [f32; LANES],
-    w: [f32; LANES],
-}
-
 #[derive(Clone, Debug)]
 enum Kind {
     /// Delta sum × Phong (half vector), multiple-surface form.
     DeltaPhong {
-        chunks: Vec<Chunk>,
-        /// The same normals as flat arrays `[nx, ny, nz, w, η]` for the stream kernel.
+        /// The normals as flat arrays `[nx, ny, nz, w, η]`, padded to a multiple of [`LANES`]
+        /// (padding: `+z`, weight 0): the per-hit kernel reads them 8 lanes at a time, the
+        /// stream kernel the first `count`.
         flat: [Vec<f32>; 5],
+        count: usize,
         exponent: f32,
         specular: [f32; 3],
         diffuse: [f32; 3],
@@ -107,34 +99,24 @@ impl MaterialShader {
                 },
                 Form::MultipleSurface,
             ) => {
-                let mut chunks = Vec::new();
-                for group in d.normals().chunks(LANES) {
-                    let mut c = Chunk {
-                        nx: [0.0; LANES],
-                        ny: [0.0; LANES],
-                        nz: [1.0; LANES],
-                        w: [0.0; LANES],
-                    };
-                    for (k, n) in group.iter().enumerate() {
-                        c.nx[k] = n.normal.x as f32;
-                        c.ny[k] = n.normal.y as f32;
-                        c.nz[k] = n.normal.z as f32;
-                        c.w[k] = n.weight as f32;
-                    }
-                    chunks.push(c);
-                }
                 let inv_pi = std::f64::consts::FRAC_1_PI;
                 let ns = d.normals();
+                let padded = ns.len().div_ceil(LANES) * LANES;
+                let lane = |f: &dyn Fn(usize) -> f32, pad: f32| -> Vec<f32> {
+                    (0..padded)
+                        .map(|k| if k < ns.len() { f(k) } else { pad })
+                        .collect()
+                };
                 let flat = [
-                    ns.iter().map(|n| n.normal.x as f32).collect(),
-                    ns.iter().map(|n| n.normal.y as f32).collect(),
-                    ns.iter().map(|n| n.normal.z as f32).collect(),
-                    ns.iter().map(|n| n.weight as f32).collect(),
-                    vec![*exponent as f32; ns.len()],
+                    lane(&|k| ns[k].normal.x as f32, 0.0),
+                    lane(&|k| ns[k].normal.y as f32, 0.0),
+                    lane(&|k| ns[k].normal.z as f32, 1.0),
+                    lane(&|k| ns[k].weight as f32, 0.0),
+                    vec![*exponent as f32; padded],
                 ];
                 Kind::DeltaPhong {
-                    chunks,
                     flat,
+                    count: ns.len(),
                     exponent: *exponent as f32,
                     specular: specular.map(|s| s as f32),
                     diffuse: material.diffuse.map(|a| (a * inv_pi) as f32),
@@ -175,7 +157,7 @@ impl Shader for MaterialShader {
         }
         match &self.kind {
             Kind::DeltaPhong {
-                chunks,
+                flat,
                 exponent,
                 specular,
                 diffuse,
@@ -191,14 +173,20 @@ impl Shader for MaterialShader {
                 let (ix, iy, iz) = (wi.x as f32, wi.y as f32, wi.z as f32);
                 let e = *exponent;
                 let mut acc = 0.0f32;
-                for c in chunks {
+                let [nx, ny, nz, w, _] = flat;
+                for (((nx, ny), nz), w) in nx
+                    .chunks_exact(LANES)
+                    .zip(ny.chunks_exact(LANES))
+                    .zip(nz.chunks_exact(LANES))
+                    .zip(w.chunks_exact(LANES))
+                {
                     let mut lane = [0.0f32; LANES];
                     // Indexed over the SoA lanes: vectorised as written.
                     #[allow(clippy::needless_range_loop)]
                     for k in 0..LANES {
-                        let nh = (c.nx[k] * hx + c.ny[k] * hy + c.nz[k] * hz).max(0.0);
-                        let ni = (c.nx[k] * ix + c.ny[k] * iy + c.nz[k] * iz).max(0.0);
-                        lane[k] = c.w[k] * fast_pow(nh, e) * ni;
+                        let nh = (nx[k] * hx + ny[k] * hy + nz[k] * hz).max(0.0);
+                        let ni = (nx[k] * ix + ny[k] * iy + nz[k] * iz).max(0.0);
+                        lane[k] = w[k] * fast_pow(nh, e) * ni;
                     }
                     acc += lane.iter().sum::<f32>();
                 }
@@ -230,16 +218,18 @@ impl Shader for MaterialShader {
         match &self.kind {
             Kind::DeltaPhong {
                 flat,
+                count,
                 specular,
                 diffuse,
                 ..
             } => {
+                let n = *count;
                 let lobes = LobeSlices {
-                    nx: &flat[0],
-                    ny: &flat[1],
-                    nz: &flat[2],
-                    weight: &flat[3],
-                    exponent: &flat[4],
+                    nx: &flat[0][..n],
+                    ny: &flat[1][..n],
+                    nz: &flat[2][..n],
+                    weight: &flat[3][..n],
+                    exponent: &flat[4][..n],
                 };
                 lobe_pairs(&lobes, true, wi, wo, o0);
                 colour_pairs(o0, o1, o2, *specular, *diffuse);
