@@ -14,6 +14,7 @@ echo "== cargo doc (public docs build without warnings: no broken or private lin
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 
 echo "== cargo test (workspace)"
+mkdir -p target   # the logs below live here even when CARGO_TARGET_DIR points elsewhere
 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
 
 e2e_status=0

@@ -51,6 +51,17 @@ impl VisibilityModel for HorizonVisibility {
     }
 }
 
+/// The keys that describe a height map and its pyramid in a `kind = "heightmap"` table (besides
+/// `kind` and `represent`); `[texture]` tables of scene files take the same ones.
+pub const HEIGHTMAP_KEYS: [&str; 6] = [
+    "file",
+    "texel_size",
+    "height_scale",
+    "max_lobes",
+    "border",
+    "normals",
+];
+
 /// The parameters of a `kind = "heightmap"` table.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HeightmapParams {
@@ -207,19 +218,11 @@ impl MapsResolver {
     /// # Errors
     /// Unknown keys and missing or bad values, as a message naming them.
     pub fn heightmap_params(table: &toml::Table) -> Result<HeightmapParams, MaterialError> {
-        check_keys(
-            table,
-            &[
-                "kind",
-                "file",
-                "texel_size",
-                "height_scale",
-                "max_lobes",
-                "border",
-                "normals",
-                "represent",
-            ],
-        )?;
+        let known: Vec<&str> = std::iter::once("kind")
+            .chain(HEIGHTMAP_KEYS)
+            .chain(["represent"])
+            .collect();
+        check_keys(table, &known)?;
         choice(table, "represent", &["lobes", "facets"])?;
         let texel_size = positive_number(table, "texel_size")?;
         let height_scale = positive_number(table, "height_scale")?;

@@ -37,6 +37,19 @@ fn material(dir: &Path, name: &str, represent: &str) -> Material {
     Material::from_file(&p, &MapsResolver::new()).unwrap()
 }
 
+/// Six view/light pairs, normal incidence to 60°, several azimuths.
+fn pairs() -> [(DVec3, DVec3); 6] {
+    let d = spherical_direction_deg;
+    [
+        (d(0.0, 0.0), d(0.0, 0.0)),
+        (d(30.0, 0.0), d(30.0, 180.0)),
+        (d(40.0, 0.0), d(10.0, 0.0)),
+        (d(45.0, 90.0), d(20.0, 270.0)),
+        (d(60.0, 30.0), d(30.0, 200.0)),
+        (d(20.0, 0.0), d(50.0, 150.0)),
+    ]
+}
+
 /// Mean over the pairs of `|f − gonio| / max_pairs(gonio)`, red channel.
 fn error_vs_gonio(m: &Material, g: &Gonio, pairs: &[(DVec3, DVec3)]) -> f64 {
     let params = GonioParams {
@@ -88,15 +101,7 @@ fn facets_follow_the_ray_traced_surface_closer_than_lobes() {
             }),
         ),
     ];
-    let d = spherical_direction_deg;
-    let pairs = [
-        (d(0.0, 0.0), d(0.0, 0.0)),
-        (d(30.0, 0.0), d(30.0, 180.0)),
-        (d(40.0, 0.0), d(10.0, 0.0)),
-        (d(45.0, 90.0), d(20.0, 270.0)),
-        (d(60.0, 30.0), d(30.0, 200.0)),
-        (d(20.0, 0.0), d(50.0, 150.0)),
-    ];
+    let pairs = pairs();
     for (name, h) in &maps {
         let values = write_map(&dir, name, n, h);
         let map = HeightMap::from_fn(n, n, 1.0 / n as f64, Border::Wrap, |x, y| {
@@ -153,15 +158,7 @@ fn gaussian_surface_lobes_and_facets_against_the_gonioreflectometer() {
         .unwrap();
         Material::from_file(&p, &MapsResolver::new()).unwrap()
     };
-    let d = spherical_direction_deg;
-    let pairs = [
-        (d(0.0, 0.0), d(0.0, 0.0)),
-        (d(30.0, 0.0), d(30.0, 180.0)),
-        (d(40.0, 0.0), d(10.0, 0.0)),
-        (d(45.0, 90.0), d(20.0, 270.0)),
-        (d(60.0, 30.0), d(30.0, 200.0)),
-        (d(20.0, 0.0), d(50.0, 150.0)),
-    ];
+    let pairs = pairs();
     let g = Gonio::new(&map).unwrap();
     let lobes = error_vs_gonio(&material("lobes"), &g, &pairs);
     let facets = error_vs_gonio(&material("facets"), &g, &pairs);

@@ -488,7 +488,13 @@ fn shade_impl(
 /// shading paths), relative to the point's magnitude so that it survives f64 rounding.
 #[inline]
 fn shadow_eps(p: DVec3) -> f64 {
-    1e-9 * (1.0 + p.abs().max_element())
+    shadow_eps_xyz(p.x, p.y, p.z)
+}
+
+/// [`shadow_eps`] of the point `(x, y, z)` (for loops over coordinate arrays).
+#[inline(always)]
+fn shadow_eps_xyz(x: f64, y: f64, z: f64) -> f64 {
+    1e-9 * (1.0 + x.abs().max(y.abs()).max(z.abs()))
 }
 
 #[cfg(test)]

@@ -21,20 +21,11 @@
 use crate::mapped::{BumpMapped, NdfMapped};
 use crate::shader::Shader;
 use meso_core::material::{read_limited, MaterialSpec};
+use meso_maps::fit::MAX_LOBES;
+use meso_maps::resolver::HEIGHTMAP_KEYS;
 use meso_maps::{extract, ExtractParams, MapsResolver, NormalConvention, NormalMap, Source};
 use std::path::Path;
 use std::sync::Arc;
-
-/// Keys of the `[texture]` table passed on to the height-map loader (`kind = "heightmap"` of
-/// `meso_maps::resolver`).
-const MAP_KEYS: [&str; 6] = [
-    "file",
-    "texel_size",
-    "height_scale",
-    "max_lobes",
-    "border",
-    "normals",
-];
 
 /// The shader of the material file at `path` if it has a `[texture]` table (module docs);
 /// `Ok(None)` for an ordinary material file. Pyramids are extracted through `maps` (and cached
@@ -56,7 +47,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         .as_table()
         .ok_or_else(|| named("[texture]: expected a table".into()))?;
     for k in tex.keys() {
-        if !(MAP_KEYS.contains(&k.as_str())
+        if !(HEIGHTMAP_KEYS.contains(&k.as_str())
             || [
                 "kind",
                 "texels_per_uv",
@@ -141,7 +132,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     // The height-map keys as a `kind = "heightmap"` table, for meso-maps' loader.
     let mut map_table: toml::Table = tex
         .iter()
-        .filter(|(k, _)| MAP_KEYS.contains(&k.as_str()))
+        .filter(|(k, _)| HEIGHTMAP_KEYS.contains(&k.as_str()))
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect();
     map_table.insert("kind".into(), toml::Value::String("heightmap".into()));
@@ -221,8 +212,10 @@ fn normal_mapped(
     if let Some(v) = tex.get("max_lobes") {
         let k = v
             .as_integer()
-            .filter(|k| (1..=8).contains(k))
-            .ok_or_else(|| format!("[texture] max_lobes: must be an integer 1–8, got {v}"))?;
+            .filter(|k| (1..=MAX_LOBES as i64).contains(k))
+            .ok_or_else(|| {
+                format!("[texture] max_lobes: must be an integer 1–{MAX_LOBES}, got {v}")
+            })?;
         params.fit.max_lobes = k as usize;
     }
     let pyramid = extract(Source::Normals(&map), &params, &mut |_| {})

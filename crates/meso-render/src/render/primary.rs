@@ -13,7 +13,7 @@
 // The lanes' loops index several arrays in step, by design.
 #![allow(clippy::needless_range_loop)]
 
-use super::{shadow_eps, PixelContext};
+use super::{shadow_eps, shadow_eps_xyz, PixelContext};
 use crate::camera::Ray;
 use crate::sampling::PixelSampler;
 use crate::scene::{LeafSphere, Scene, Skip};
@@ -327,7 +327,7 @@ impl RowHits {
             self.wo64[1][j] = -(dx * bx + dy * by + dz * bz);
             self.wo64[2][j] = -(dx * nx + dy * ny + dz * nz);
             let (px, py, pz) = (self.p[0][j], self.p[1][j], self.p[2][j]);
-            self.eps[j] = 1e-9 * (1.0 + px.abs().max(py.abs()).max(pz.abs()));
+            self.eps[j] = shadow_eps_xyz(px, py, pz);
         }
         for a in 0..3 {
             for j in 0..n {

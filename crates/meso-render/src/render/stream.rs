@@ -144,8 +144,7 @@ pub(crate) fn render_tile(
             let mut xa = x0;
             while xa < x1 {
                 let xb = (xa + ROW as u32).min(x1);
-                let row_hits = &mut *s.row;
-                row_hits.trace(scene, c, (xa, xb), y, k);
+                s.row.trace(scene, c, (xa, xb), y, k);
                 let base = (y - y0) as usize * tw + (xa - x0) as usize;
                 // Runs of consecutive hits go into the chunk as slices; misses see the
                 // background.
