@@ -290,6 +290,11 @@ pub enum Visibility<'a> {
     None,
     /// A caller's model `G(i, o)` (e.g. filtered horizon angles of a height map), in `[0, 1]`.
     Custom(&'a (dyn Fn(DVec3, DVec3) -> f64 + Sync)),
+    /// A caller's model conditioned on the facet normal, `G(i, o | m)` in `[0, 1]` (the
+    /// fraction of the facets of normal `m` lit from `i` and seen from `o`, e.g. from a height
+    /// map's geometry): applied inside the integral, so that bumps and grooves with the same NDF
+    /// get different BRDFs.
+    GivenNormal(&'a (dyn Fn(DVec3, DVec3, DVec3) -> f64 + Sync)),
 }
 
 /// The effective BRDF `f(i, o)` (RGB, 1/sr, no cosine factor) of an NDF with a facet transfer
@@ -347,9 +352,13 @@ pub fn effective_brdf_with(
         }
         Form::Microfacet => {
             let masking = SmithMasking::new(ndf, accuracy);
+            let given = match visibility {
+                Visibility::GivenNormal(g) => Some(g),
+                _ => None,
+            };
             let g2 = match visibility {
                 Visibility::Smith => 1.0 / (1.0 + masking.lambda(i) + masking.lambda(o)),
-                Visibility::None => 1.0,
+                Visibility::None | Visibility::GivenNormal(_) => 1.0,
                 Visibility::Custom(g) => g(i, o).clamp(0.0, 1.0),
             };
             if let Transfer::Mirror { .. } = transfer {
@@ -361,6 +370,7 @@ pub fn effective_brdf_with(
                 }
                 let d = ndf.eval(h) / masking.projected_area;
                 let f = transfer.mirror_reflectance(i.dot(h)).unwrap_or([0.0; 3]);
+                let g2 = given.map_or(g2, |g| g(i, o, h).clamp(0.0, 1.0));
                 let c = d * g2 / (4.0 * i.z * o.z);
                 return [f[0] * c, f[1] * c, f[2] * c];
             }
@@ -375,7 +385,10 @@ pub fn effective_brdf_with(
                 }
                 let fr = Frame::from_normal_tangent(m, DVec3::X);
                 let v = transfer.eval(fr.to_local(i), fr.to_local(o));
-                let c = ci * co;
+                if v == [0.0; 3] {
+                    return v;
+                }
+                let c = ci * co * given.map_or(1.0, |g| g(i, o, m).clamp(0.0, 1.0));
                 [v[0] * c, v[1] * c, v[2] * c]
             });
             let s = g2 / (masking.projected_area * i.z * o.z);

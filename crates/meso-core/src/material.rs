@@ -43,12 +43,28 @@ pub enum ShadowingKind {
     Smith,
     /// Filtered horizon angles of the height map (needs an NDF from a height map or map file).
     Horizon,
+    /// The height map's own visibility of each facet normal, lit from `i` and seen from `o`
+    /// jointly (`G(i, o | m)`, from the heights; needs a resolver model that conditions on the
+    /// normal, e.g. `represent = "facets"`). The default wherever one is available.
+    Visibility,
 }
 
 /// A masking–shadowing model supplied by a resolver: `G(i, o) ∈ [0, 1]` in the local frame.
 pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
     /// The fraction of facets both lit from `i` and seen from `o`.
     fn g(&self, i: DVec3, o: DVec3) -> f64;
+    /// The fraction of the facets of normal `m` both lit from `i` and seen from `o` (local
+    /// frame, unit vectors); models that do not know which normals are hidden return
+    /// [`VisibilityModel::g`].
+    fn g_given_normal(&self, i: DVec3, o: DVec3, m: DVec3) -> f64 {
+        let _ = m;
+        self.g(i, o)
+    }
+    /// Whether [`VisibilityModel::g_given_normal`] depends on the normal (then
+    /// [`ShadowingKind::Visibility`] is available and the default).
+    fn conditions_on_normal(&self) -> bool {
+        false
+    }
 }
 
 /// The `[ndf]` table, parsed.
@@ -188,14 +204,29 @@ impl Material {
         if i.z <= 0.0 || o.z <= 0.0 {
             return [0.0; 3];
         }
-        let horizon = self.horizon.clone();
-        let custom = move |a: DVec3, b: DVec3| horizon.as_ref().map_or(1.0, |h| h.g(a, b));
+        let mut f = self.convolved(i, o);
+        for (c, d) in f.iter_mut().zip(self.diffuse) {
+            *c += d / std::f64::consts::PI;
+        }
+        f
+    }
+
+    /// The convolution part of [`Material::brdf`] (Eq. 2/8 with the material's form and
+    /// masking choice, no diffuse term), 1/sr: the one place a [`ShadowingKind`] becomes a
+    /// [`Visibility`].
+    #[must_use]
+    pub fn convolved(&self, i: DVec3, o: DVec3) -> [f64; 3] {
+        let horizon = self.horizon.as_ref();
+        let custom = |a: DVec3, b: DVec3| horizon.map_or(1.0, |h| h.g(a, b));
+        let given =
+            |a: DVec3, b: DVec3, m: DVec3| horizon.map_or(1.0, |h| h.g_given_normal(a, b, m));
         let vis = match self.shadowing {
             ShadowingKind::Smith => Visibility::Smith,
             ShadowingKind::None => Visibility::None,
             ShadowingKind::Horizon => Visibility::Custom(&custom),
+            ShadowingKind::Visibility => Visibility::GivenNormal(&given),
         };
-        let mut f = effective_brdf_with(
+        effective_brdf_with(
             &self.ndf,
             &self.transfer,
             self.form,
@@ -203,11 +234,7 @@ impl Material {
             i,
             o,
             self.accuracy,
-        );
-        for (c, d) in f.iter_mut().zip(self.diffuse) {
-            *c += d / std::f64::consts::PI;
-        }
-        f
+        )
     }
 }
 
@@ -804,9 +831,10 @@ impl MaterialSpec {
                     Some("none") => ShadowingKind::None,
                     Some("smith") => ShadowingKind::Smith,
                     Some("horizon") => ShadowingKind::Horizon,
+                    Some("visibility") => ShadowingKind::Visibility,
                     Some(o) => {
                         return err(format!(
-                            "[shadowing] kind: unknown \"{o}\" (known: horizon, smith, none)"
+                            "[shadowing] kind: unknown \"{o}\" (known: visibility, horizon, smith, none)"
                         ))
                     }
                     None => return err("[shadowing]: missing `kind`"),
@@ -869,14 +897,22 @@ impl MaterialSpec {
             }
         };
         let form = self.form.unwrap_or(default_form);
+        let conditioned = horizon.as_ref().is_some_and(|h| h.conditions_on_normal());
         let shadowing = match (self.shadowing, form) {
             (Some(s), _) => s,
+            (None, Form::Microfacet) if conditioned => ShadowingKind::Visibility,
             (None, Form::Microfacet) => ShadowingKind::Smith,
             (None, Form::MultipleSurface) => ShadowingKind::None,
         };
         if shadowing == ShadowingKind::Horizon && horizon.is_none() {
             return err(
                 "[shadowing] kind = \"horizon\" needs an NDF from a height map or map file",
+            );
+        }
+        if shadowing == ShadowingKind::Visibility && !conditioned {
+            return err(
+                "[shadowing] kind = \"visibility\" needs a height-map NDF that keeps its facets' \
+                 visibility ([ndf] kind = \"heightmap\" with represent = \"facets\")",
             );
         }
         if let Transfer::Mirror { .. } = self.transfer {

@@ -13,7 +13,7 @@
 //!
 //! The renderer calls it per shading point and light, so nothing here allocates per call.
 
-use crate::convolution::{effective_brdf_with, Accuracy, Form, SmithMasking, Visibility};
+use crate::convolution::{Accuracy, Form, SmithMasking};
 use crate::frame::{half_vector, Frame};
 use crate::material::{Material, ShadowingKind};
 use crate::ndf::{Ndf, PhongLobe};
@@ -329,17 +329,7 @@ impl FastBrdf {
                     f64::from(specular[2]) * s,
                 ]
             }
-            Kind::Deltas | Kind::Quadrature => {
-                let m = &self.material;
-                let horizon = m.horizon.clone();
-                let custom = move |a: DVec3, b: DVec3| horizon.as_ref().map_or(1.0, |h| h.g(a, b));
-                let vis = match m.shadowing {
-                    ShadowingKind::Smith => Visibility::Smith,
-                    ShadowingKind::None => Visibility::None,
-                    ShadowingKind::Horizon => Visibility::Custom(&custom),
-                };
-                effective_brdf_with(&m.ndf, &m.transfer, m.form, vis, i, o, m.accuracy)
-            }
+            Kind::Deltas | Kind::Quadrature => self.material.convolved(i, o),
             Kind::PhongClosed {
                 lobes,
                 exponent,
@@ -367,6 +357,11 @@ impl FastBrdf {
                             (None, ShadowingKind::Horizon) => {
                                 self.material.horizon.as_ref().map_or(1.0, |hz| hz.g(i, o))
                             }
+                            (None, ShadowingKind::Visibility) => self
+                                .material
+                                .horizon
+                                .as_ref()
+                                .map_or(1.0, |hz| hz.g_given_normal(i, o, h)),
                             (None, _) => 1.0,
                         };
                         n / projected_area * g2 / (4.0 * i.z * o.z)

@@ -600,26 +600,8 @@ fn canvas(img: &Image, exposure: f32) -> Result<Canvas, FigureError> {
 /// A 16-bit grey PNG of a height map (`0` at its minimum, `65535` at its maximum) and the
 /// height scale `H` that reads it back (`h = code/65535 · H + min`).
 fn heightmap_png(map: &HeightMap) -> Result<(Vec<u8>, f64), FigureError> {
-    use image::ImageEncoder;
-    let (lo, hi) = map.range();
-    let scale = (hi - lo).max(1e-12);
-    let mut raw = Vec::with_capacity(map.heights().len() * 2);
-    for h in map.heights() {
-        let c = (((h - lo) / scale) * 65535.0).round().clamp(0.0, 65535.0) as u16;
-        // `write_image` takes 16-bit samples in native byte order (the encoder writes PNG's big
-        // endian).
-        raw.extend_from_slice(&c.to_ne_bytes());
-    }
-    let mut out = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut out)
-        .write_image(
-            &raw,
-            map.width() as u32,
-            map.height() as u32,
-            image::ExtendedColorType::L16,
-        )
-        .map_err(|e| ferr(format!("height map PNG: {e}")))?;
-    Ok((out, scale))
+    map.encode_png16()
+        .map_err(|e| ferr(format!("height map PNG: {e}")))
 }
 
 /// Render every figure into `opts.out` (see the crate docs); `log` receives one line per step.

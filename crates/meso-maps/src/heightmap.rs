@@ -1,8 +1,18 @@
-//! Height maps and normal maps: loading (PNG, TIFF, EXR), validation and the physical scale.
+//! Height maps and normal maps: loading (PNG, JPEG, TGA, TIFF, EXR), validation and the physical
+//! scale.
 //!
 //! # Conventions
 //! * Sample (row `i`, column `j`) lies at `x = j·S`, `y = i·S` with `S` the texel size; heights
 //!   are along +z. φ is measured from +x towards +y (see `meso_core::frame`).
+//! * **Images:** +x is to the right in the image and +y **up** it, +z out of the image towards
+//!   the viewer (a right-handed frame; OpenGL / glTF tangent space, where a normal map's green
+//!   is +y). Map row 0 (y = 0) is therefore the image's **bottom** row: loading reverses the
+//!   image's rows, and [`HeightMap::encode_png16`] writes them back in image order. In texture
+//!   coordinates: OpenGL / OBJ `v` (up) is `y / (rows·S)`, glTF's `v` (down, uv (0, 0) at the
+//!   image's top-left) is `1 − y / (rows·S)`; meso's renderer takes OpenGL / OBJ `uv`, so a
+//!   texture shows the right way up.
+//! * 8-bit height images whose terraces make many cells exactly flat are dequantised on load
+//!   ([`HeightMap::dequantize`]) and say so in [`HeightMap::warnings`].
 //! * Integer images: `h = code / max_code · H` (`max_code` = 255 or 65535); float images (EXR):
 //!   `h = value · H`, with `H` the height scale. Colour images are converted to luminance first
 //!   (prefer grey images).
@@ -39,15 +49,23 @@ pub struct HeightMap {
     texel_size: f64,
     border: Border,
     heights: Vec<f64>,
+    warnings: Vec<String>,
 }
+
+/// Fraction of exactly flat grid cells above which an 8-bit height map is dequantised on load
+/// ([`HeightMap::dequantize`]).
+pub const TERRACE_FRACTION: f64 = 0.02;
+/// Smoothing-and-projection rounds of [`HeightMap::dequantize`].
+pub const DEQUANTIZE_ITERATIONS: usize = 24;
 
 /// Green-channel convention of a tangent-space normal map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum NormalConvention {
-    /// OpenGL: green is +y (the default).
+    /// OpenGL / glTF / Blender / ambientCG "NormalGL": green is +Y **up in the image** (towards
+    /// the image's top row), meso's +y (the default).
     #[default]
     Gl,
-    /// DirectX: green is −y.
+    /// DirectX: green points down the image, meso's −y.
     Dx,
 }
 
@@ -57,6 +75,19 @@ pub struct NormalMap {
     width: usize,
     height: usize,
     normals: Vec<DVec3>,
+    clamped: usize,
+}
+
+/// `n` (unit) tilted in its azimuthal plane so that `n_z = MIN_NORMAL_Z`; straight down becomes +x.
+fn clamp_above_horizon(n: DVec3) -> DVec3 {
+    let r = (n.x * n.x + n.y * n.y).sqrt();
+    let (cx, cy) = if r > 1e-12 {
+        (n.x / r, n.y / r)
+    } else {
+        (1.0, 0.0)
+    };
+    let s = (1.0 - MIN_NORMAL_Z * MIN_NORMAL_Z).sqrt();
+    DVec3::new(cx * s, cy * s, MIN_NORMAL_Z)
 }
 
 fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
@@ -174,6 +205,7 @@ impl HeightMap {
             texel_size,
             border,
             heights,
+            warnings: Vec::new(),
         })
     }
 
@@ -232,7 +264,39 @@ impl HeightMap {
     ) -> Result<HeightMap> {
         use image::DynamicImage as D;
         let (w, h) = (img.width() as usize, img.height() as usize);
-        let heights: Vec<f64> = match img {
+        let mut warnings = Vec::new();
+        if img.color().has_color() {
+            let rgb = img.to_rgb32f();
+            let n = (w * h) as f64;
+            let mean = rgb.pixels().fold([0.0f64; 3], |a, p| {
+                [
+                    a[0] + p.0[0] as f64,
+                    a[1] + p.0[1] as f64,
+                    a[2] + p.0[2] as f64,
+                ]
+            });
+            let mean = mean.map(|c| c / n);
+            if (mean[0] - 0.5).abs() < 0.1 && (mean[1] - 0.5).abs() < 0.1 && mean[2] > 0.7 {
+                warnings.push(format!(
+                    "this looks like a tangent-space normal map (mean colour {:.2}, {:.2}, {:.2}), \
+                     not a height map: give it as a normal map instead",
+                    mean[0], mean[1], mean[2]
+                ));
+            } else {
+                warnings.push(
+                    "colour image used as a height map: converted to luminance (prefer a grey image)"
+                        .into(),
+                );
+            }
+        }
+        let eight_bit = matches!(
+            img.color(),
+            image::ColorType::L8
+                | image::ColorType::La8
+                | image::ColorType::Rgb8
+                | image::ColorType::Rgba8
+        );
+        let codes: Vec<f64> = match img {
             D::ImageLuma8(b) => b.pixels().map(|p| p.0[0] as f64 / 255.0).collect(),
             D::ImageLumaA8(b) => b.pixels().map(|p| p.0[0] as f64 / 255.0).collect(),
             D::ImageLuma16(b) => b.pixels().map(|p| p.0[0] as f64 / 65535.0).collect(),
@@ -250,8 +314,127 @@ impl HeightMap {
                 .map(|p| p.0[0] as f64 / 255.0)
                 .collect(),
         };
-        let heights = heights.into_iter().map(|v| v * height_scale).collect();
-        HeightMap::from_heights(w, h, heights, texel_size, border)
+        // Image row 0 is the top; meso's +y is up in the image, so row 0 of the map (y = 0) is
+        // the image's bottom row.
+        let mut heights = Vec::with_capacity(codes.len());
+        for r in (0..h).rev() {
+            heights.extend(codes[r * w..(r + 1) * w].iter().map(|v| v * height_scale));
+        }
+        let mut map = HeightMap::from_heights(w, h, heights, texel_size, border)?;
+        if eight_bit {
+            let flat = map.flat_cell_fraction();
+            if flat > TERRACE_FRACTION {
+                let step = height_scale / 255.0;
+                map.dequantize(step);
+                warnings.push(format!(
+                    "8-bit heights: {:.1}% of the grid cells were exactly flat (quantisation \
+                     terraces); dequantised by smoothing within ±½ code ({:.0}% flat now)",
+                    100.0 * flat,
+                    100.0 * map.flat_cell_fraction()
+                ));
+            }
+        }
+        map.warnings = warnings;
+        Ok(map)
+    }
+
+    /// Fraction of grid cells whose four corner heights are exactly equal (a flat facet pair).
+    /// 8-bit height maps show many more than the surface has: the terraces of quantisation.
+    #[must_use]
+    pub fn flat_cell_fraction(&self) -> f64 {
+        let (cx, cy) = (self.cells_x(), self.cells_y());
+        let mut flat = 0usize;
+        for i in 0..cy as isize {
+            for j in 0..cx as isize {
+                let h = self.at(i, j);
+                if self.at(i, j + 1) == h && self.at(i + 1, j) == h && self.at(i + 1, j + 1) == h {
+                    flat += 1;
+                }
+            }
+        }
+        flat as f64 / (cx * cy).max(1) as f64
+    }
+
+    /// Remove quantisation terraces from heights known to lie within `±step/2` of their stored
+    /// values (an 8-bit image: `step = H/255`): alternate a 3×3 binomial smoothing with a
+    /// projection back into each sample's quantisation interval ([`DEQUANTIZE_ITERATIONS`]
+    /// rounds). The result is the smooth surface consistent with the codes: terraces become
+    /// slopes, real edges (more than a step high) stay, and no height moves by more than half a
+    /// step.
+    pub fn dequantize(&mut self, step: f64) {
+        let (w, h) = (self.width, self.height);
+        let lo: Vec<f64> = self.heights.iter().map(|v| v - 0.5 * step).collect();
+        let hi: Vec<f64> = self.heights.iter().map(|v| v + 0.5 * step).collect();
+        let mut cur = self.heights.clone();
+        let mut tmp = vec![0.0; cur.len()];
+        let (wi, hi_) = (w as isize, h as isize);
+        let border = self.border;
+        let idx = move |r: isize, c: isize| -> usize {
+            let (r, c) = match border {
+                Border::Wrap => (r.rem_euclid(hi_), c.rem_euclid(wi)),
+                Border::Clamp => (r.clamp(0, hi_ - 1), c.clamp(0, wi - 1)),
+            };
+            r as usize * w + c as usize
+        };
+        for _ in 0..DEQUANTIZE_ITERATIONS {
+            use rayon::prelude::*;
+            let src = &cur;
+            tmp.par_chunks_mut(w).enumerate().for_each(|(i, row)| {
+                let i = i as isize;
+                for (j, out) in row.iter_mut().enumerate() {
+                    let j = j as isize;
+                    let mut acc = 0.0;
+                    for (di, a) in [(-1isize, 1.0), (0, 2.0), (1, 1.0)] {
+                        for (dj, b) in [(-1isize, 1.0), (0, 2.0), (1, 1.0)] {
+                            acc += a * b * src[idx(i + di, j + dj)];
+                        }
+                    }
+                    let k = i as usize * w + j as usize;
+                    *out = (acc / 16.0).clamp(lo[k], hi[k]);
+                }
+            });
+            std::mem::swap(&mut cur, &mut tmp);
+        }
+        self.heights = cur;
+    }
+
+    /// What loading noticed about the input and did about it (a colour image converted to
+    /// luminance, an image that looks like a normal map, 8-bit terraces dequantised), one line
+    /// each, for the user to read. Empty for maps built in memory.
+    #[must_use]
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The map as a 16-bit grey PNG in image orientation (the last row of the map, largest y, is
+    /// the image's top row), heights mapped linearly from `[min, max]` onto `[0, 65535]`.
+    /// Returns the bytes and the height scale `max − min` to load it back with
+    /// ([`HeightMap::load`]; heights come back shifted by `−min`).
+    ///
+    /// # Errors
+    /// An encoder failure (none is expected for a valid map).
+    pub fn encode_png16(&self) -> Result<(Vec<u8>, f64)> {
+        use image::ImageEncoder;
+        let (lo, hi) = self.range();
+        let scale = (hi - lo).max(1e-12);
+        let mut raw = Vec::with_capacity(self.heights.len() * 2);
+        for r in (0..self.height).rev() {
+            for h in &self.heights[r * self.width..(r + 1) * self.width] {
+                let c = (((h - lo) / scale) * 65535.0).round().clamp(0.0, 65535.0) as u16;
+                // `write_image` takes 16-bit samples in native byte order.
+                raw.extend_from_slice(&c.to_ne_bytes());
+            }
+        }
+        let mut out = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(
+                &raw,
+                self.width as u32,
+                self.height as u32,
+                image::ExtendedColorType::L16,
+            )
+            .map_err(|e| decode_err(Path::new("<memory>"), e))?;
+        Ok((out, scale))
     }
 
     /// Number of columns (samples along x).
@@ -325,32 +508,68 @@ impl HeightMap {
     }
 }
 
+/// Smallest `n_z` a normal-map texel keeps: texels at or below the horizon are tilted up to
+/// this height (≈ 0.57° above the horizon) instead of refusing the map.
+pub const MIN_NORMAL_Z: f64 = 0.01;
+
 impl NormalMap {
-    /// Load a tangent-space RGB normal map (`n = 2·c/max − 1` per channel, green flipped for
-    /// [`NormalConvention::Dx`]); each normal is renormalised, and one of (near) zero length or
-    /// pointing below the surface (z ≤ 0) is an error.
+    /// Load a tangent-space normal map (PNG 8/16-bit, JPEG, TGA, TIFF, EXR).
+    ///
+    /// Each channel decodes as `2·c/max − 1`. Red is +x (the image's columns, the direction of
+    /// increasing `u`); green is the image's **up** for [`NormalConvention::Gl`] (OpenGL / glTF /
+    /// Blender: towards the image's row 0) and its **down** for [`NormalConvention::Dx`]. meso's +y
+    /// is up in the image (map row 0 is the image's bottom row, see the module docs), so a `gl`
+    /// map's green is +y and a `dx` map's −y. Two-channel maps (grey + alpha, or RGB whose blue channel is all zero:
+    /// BC5-style RG maps) get `z = √(1 − x² − y²)` rebuilt. Each normal is renormalised; texels at or
+    /// below the horizon (`n_z ≤ 0`, common in real maps) are tilted up to [`MIN_NORMAL_Z`] and
+    /// counted ([`NormalMap::clamped`]); NaN or zero-length texels are an error naming the file.
     pub fn load(path: &Path, convention: NormalConvention) -> Result<NormalMap> {
         let img = open_image(path)?;
         let (w, h) = (img.width() as usize, img.height() as usize);
-        let rgb = img.to_rgb32f();
+        let two_channel = matches!(img.color(), image::ColorType::La8 | image::ColorType::La16);
+        let rgb = if two_channel {
+            let la = img.to_luma_alpha32f();
+            image::Rgb32FImage::from_fn(w as u32, h as u32, |x, y| {
+                let p = la.get_pixel(x, y).0;
+                image::Rgb([p[0], p[1], 0.0])
+            })
+        } else {
+            img.to_rgb32f()
+        };
+        let rebuild_z = two_channel || rgb.pixels().all(|p| p.0[2] == 0.0);
+        // Green up in the image is meso's +y.
+        let gsign = match convention {
+            NormalConvention::Gl => 1.0,
+            NormalConvention::Dx => -1.0,
+        };
         let mut normals = Vec::with_capacity(w * h);
-        for p in rgb.pixels() {
-            let g = 2.0 * p.0[1] as f64 - 1.0;
-            let g = if convention == NormalConvention::Dx {
-                -g
+        // Map row 0 (y = 0) is the image's bottom row: meso's +y is up in the image.
+        for p in (0..h as u32)
+            .rev()
+            .flat_map(|r| (0..w as u32).map(move |c| (c, r)))
+        {
+            let p = rgb.get_pixel(p.0, p.1);
+            let x = 2.0 * p.0[0] as f64 - 1.0;
+            let y = gsign * (2.0 * p.0[1] as f64 - 1.0);
+            let z = if rebuild_z {
+                (1.0 - x * x - y * y).max(0.0).sqrt()
             } else {
-                g
+                2.0 * p.0[2] as f64 - 1.0
             };
-            normals.push(DVec3::new(
-                2.0 * p.0[0] as f64 - 1.0,
-                g,
-                2.0 * p.0[2] as f64 - 1.0,
-            ));
+            normals.push(DVec3::new(x, y, z));
         }
-        NormalMap::from_normals(w, h, normals)
+        NormalMap::from_normals(w, h, normals).map_err(|e| match e {
+            MapError::NonFinite { what, row, col } => MapError::Decode {
+                path: path.to_path_buf(),
+                message: format!("{what} at row {row}, column {col} is not a usable direction"),
+            },
+            other => other,
+        })
     }
 
     /// A normal map from (not necessarily unit) normals, row-major; validated and renormalised.
+    /// Normals at or below the horizon are tilted up to `n_z =` [`MIN_NORMAL_Z`] (keeping their
+    /// azimuth) and counted; a NaN, infinite or (near) zero-length normal is an error.
     pub fn from_normals(width: usize, height: usize, normals: Vec<DVec3>) -> Result<NormalMap> {
         check_dims(Path::new("<memory>"), width as u64, height as u64)?;
         if normals.len() != width * height {
@@ -361,21 +580,35 @@ impl NormalMap {
             });
         }
         let mut out = Vec::with_capacity(normals.len());
+        let mut clamped = 0usize;
         for (k, n) in normals.into_iter().enumerate() {
-            if !n.is_finite() || n.length() < 1e-6 || n.z <= 0.0 {
+            if !n.is_finite() || n.length() < 1e-6 {
                 return Err(MapError::NonFinite {
-                    what: "normal (NaN, zero length or z ≤ 0)",
+                    what: "normal (NaN, infinite or zero length)",
                     row: k / width,
                     col: k % width,
                 });
             }
-            out.push(n.normalize());
+            let n = n.normalize();
+            if n.z < MIN_NORMAL_Z {
+                clamped += 1;
+                out.push(clamp_above_horizon(n));
+            } else {
+                out.push(n);
+            }
         }
         Ok(NormalMap {
             width,
             height,
             normals: out,
+            clamped,
         })
+    }
+
+    /// How many texels pointed at or below the horizon and were tilted up to [`MIN_NORMAL_Z`].
+    #[must_use]
+    pub fn clamped(&self) -> usize {
+        self.clamped
     }
 
     /// Width in texels.

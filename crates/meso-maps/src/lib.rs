@@ -32,6 +32,7 @@ pub mod horizon;
 pub mod pyramid;
 pub mod resolver;
 pub mod sphgrid;
+pub mod visibility;
 
 pub use brdf::{
     fit_baseline, Baseline, EffectiveBrdf, FacetBrdf, Form, Lambert, PatchNdf, PhongFacet,
@@ -44,4 +45,7 @@ pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{Border, HeightMap, NormalConvention, NormalMap};
 pub use horizon::{HorizonMap, HorizonStats};
 pub use pyramid::{extract, ExtractParams, Level, Method, Progress, Pyramid, PyramidInfo, Source};
-pub use resolver::{ExtractProgress, HorizonVisibility, MapsResolver};
+pub use resolver::{
+    facets_with_visibility, ExtractProgress, FacetVisibility, HorizonVisibility, MapsResolver,
+};
+pub use visibility::BinnedVisibility;

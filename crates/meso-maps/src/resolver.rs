@@ -32,6 +32,7 @@ use crate::fit::{merge_entries, Entry};
 use crate::heightmap::{Border, HeightMap};
 use crate::horizon::HorizonStats;
 use crate::pyramid::{extract, ExtractParams, Pyramid, Source};
+use crate::visibility::BinnedVisibility;
 use glam::DVec3;
 use meso_core::convolution::Form;
 use meso_core::material::{MaterialError, NdfResolver, ResolvedNdf, VisibilityModel};
@@ -44,6 +45,74 @@ use std::sync::{Arc, Mutex};
 /// [`HorizonStats::visibility`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HorizonVisibility(pub HorizonStats);
+
+/// The visibility of a `represent = "facets"` NDF: [`BinnedVisibility`] (each normal bin's
+/// facets, lit and seen jointly, from the heights) as the normal-conditioned model, and the
+/// map's horizon statistics for `shadowing = "horizon"`.
+#[derive(Clone, Debug)]
+pub struct FacetVisibility {
+    /// Per-bin facet horizons.
+    pub bins: Arc<BinnedVisibility>,
+    /// The whole map's horizon statistics.
+    pub horizon: HorizonStats,
+}
+
+impl VisibilityModel for FacetVisibility {
+    fn g(&self, i: DVec3, o: DVec3) -> f64 {
+        self.horizon.visibility(i) * self.horizon.visibility(o)
+    }
+    fn g_given_normal(&self, i: DVec3, o: DVec3, m: DVec3) -> f64 {
+        self.bins.given_normal(i, o, m)
+    }
+    fn conditions_on_normal(&self) -> bool {
+        true
+    }
+}
+
+/// The facets of a height map as a delta-sum NDF (merged per ≈ 0.8° bin of the fit's entry
+/// grid, each bin's area-weighted mean normal) with each bin's visibility
+/// ([`crate::visibility`]).
+///
+/// # Errors
+/// A degenerate map (no facet with positive weight).
+pub fn facets_with_visibility(
+    map: &HeightMap,
+    mode: NormalMode,
+) -> Result<(Ndf, FacetVisibility), String> {
+    let facets = crate::facets::FacetNormals::from_heightmap(map, mode);
+    let entries: Vec<Entry> = facets
+        .normals
+        .iter()
+        .zip(&facets.weights)
+        .map(|(n, w)| Entry::new(*n, *w))
+        .collect();
+    let mut merged = Vec::new();
+    merge_entries(&[&entries], &mut merged);
+    merged.retain(|e| e.w > 0.0);
+    let normals: Vec<WeightedNormal> = merged
+        .iter()
+        .map(|e| WeightedNormal {
+            normal: e.m.normalize(),
+            weight: e.w,
+        })
+        .collect();
+    let deltas = DeltaSum::new(normals).map_err(|e| e.to_string())?;
+    let bins: Vec<u32> = entries
+        .iter()
+        .map(|e| merged.binary_search_by_key(&e.bin, |m| m.bin).unwrap_or(0) as u32)
+        .collect();
+    let horizons = crate::visibility::facet_horizons(map, mode);
+    let exact: Vec<DVec3> = deltas.normals().iter().map(|n| n.normal).collect();
+    let bins = BinnedVisibility::new(&facets, &horizons, &bins, &exact);
+    let horizon = crate::horizon::HorizonMap::compute(map).total_stats();
+    Ok((
+        Ndf::Deltas(deltas),
+        FacetVisibility {
+            bins: Arc::new(bins),
+            horizon,
+        },
+    ))
+}
 
 impl VisibilityModel for HorizonVisibility {
     fn g(&self, i: DVec3, o: DVec3) -> f64 {
@@ -334,29 +403,12 @@ impl MapsResolver {
         let p = Self::heightmap_params(table)?;
         let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
             .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
-        let facets = crate::facets::FacetNormals::from_heightmap(&map, p.normal_mode);
-        let entries: Vec<Entry> = facets
-            .normalized()
-            .into_iter()
-            .map(|(n, w)| Entry::new(n, w))
-            .collect();
-        let mut merged = Vec::new();
-        merge_entries(&[&entries], &mut merged);
-        let normals: Vec<WeightedNormal> = merged
-            .iter()
-            .filter(|e| e.w > 0.0)
-            .map(|e| WeightedNormal {
-                normal: e.m.normalize(),
-                weight: e.w,
-            })
-            .collect();
         let what = format!("[ndf] {}", file.display());
-        let ndf =
-            Ndf::Deltas(DeltaSum::new(normals).map_err(|e| MaterialError(format!("{what}: {e}")))?);
-        let horizon = crate::horizon::HorizonMap::compute(&map).total_stats();
+        let (ndf, vis) = facets_with_visibility(&map, p.normal_mode)
+            .map_err(|e| MaterialError(format!("{what}: {e}")))?;
         Ok(ResolvedNdf {
             ndf,
-            horizon: Some(Arc::new(HorizonVisibility(horizon)) as Arc<dyn VisibilityModel>),
+            horizon: Some(Arc::new(vis) as Arc<dyn VisibilityModel>),
             default_form: Form::Microfacet,
         })
     }

@@ -14,7 +14,7 @@ use std::path::Path;
 type HeightFn = Box<dyn Fn(f64, f64) -> f64>;
 
 /// Height samples `h(x, y)` on an `n × n` grid of one period, written as a float EXR.
-fn write_map(dir: &Path, name: &str, n: usize, h: impl Fn(f64, f64) -> f64) -> Vec<f32> {
+fn write_map(dir: &Path, name: &str, n: usize, h: impl Fn(f64, f64) -> f64) {
     let values: Vec<f32> = (0..n * n)
         .map(|k| h((k % n) as f64 / n as f64, (k / n) as f64 / n as f64) as f32)
         .collect();
@@ -23,7 +23,6 @@ fn write_map(dir: &Path, name: &str, n: usize, h: impl Fn(f64, f64) -> f64) -> V
         meso_maps::fixtures::exr_bytes(n as u32, n as u32, &values).unwrap(),
     )
     .unwrap();
-    values
 }
 
 fn material(dir: &Path, name: &str, represent: &str) -> Material {
@@ -103,15 +102,9 @@ fn facets_follow_the_ray_traced_surface_closer_than_lobes() {
     ];
     let pairs = pairs();
     for (name, h) in &maps {
-        let values = write_map(&dir, name, n, h);
-        let map = HeightMap::from_fn(n, n, 1.0 / n as f64, Border::Wrap, |x, y| {
-            let (i, j) = (
-                ((y * n as f64).round() as usize) % n,
-                ((x * n as f64).round() as usize) % n,
-            );
-            0.08 * f64::from(values[i * n + j])
-        })
-        .unwrap();
+        write_map(&dir, name, n, h);
+        // The surface the materials see: the file as loaded (rows up the image).
+        let map = HeightMap::load(&dir.join(name), 1.0 / n as f64, 0.08, Border::Wrap).unwrap();
         let g = Gonio::new(&map).unwrap();
         let lobes = error_vs_gonio(&material(&dir, name, "lobes"), &g, &pairs);
         let facets = error_vs_gonio(&material(&dir, name, "facets"), &g, &pairs);
@@ -159,6 +152,13 @@ fn gaussian_surface_lobes_and_facets_against_the_gonioreflectometer() {
         Material::from_file(&p, &MapsResolver::new()).unwrap()
     };
     let pairs = pairs();
+    let map = HeightMap::load(
+        &dir.join("gauss.exr"),
+        1.0 / n as f64,
+        hi - lo,
+        Border::Wrap,
+    )
+    .unwrap();
     let g = Gonio::new(&map).unwrap();
     let lobes = error_vs_gonio(&material("lobes"), &g, &pairs);
     let facets = error_vs_gonio(&material("facets"), &g, &pairs);

@@ -35,8 +35,9 @@ mod inputs {
         let b = png16(4, 3, |x, y| (x * 1000 + y * 7) as u16);
         let m = HeightMap::from_bytes(Path::new("a.png"), &b, 0.5, 2.0, Border::Wrap).unwrap();
         assert_eq!((m.width(), m.height()), (4, 3));
-        // Row i = y, column j = x.
-        assert!((m.at(2, 3) - (3000.0 + 14.0) / 65535.0 * 2.0).abs() < 1e-12);
+        // Column j = x; map row i = y is the image's row (rows − 1 − i): +y is up in the image.
+        assert!((m.at(0, 3) - (3000.0 + 14.0) / 65535.0 * 2.0).abs() < 1e-12);
+        assert!((m.at(2, 3) - 3000.0 / 65535.0 * 2.0).abs() < 1e-12);
         let img =
             image::GrayImage::from_fn(2, 2, |x, _| image::Luma([if x == 1 { 255 } else { 51 }]));
         let mut v = Vec::new();
@@ -59,7 +60,7 @@ mod inputs {
             )
             .unwrap();
         let m = HeightMap::from_bytes(Path::new("a.exr"), &v, 1.0, 2.0, Border::Wrap).unwrap();
-        assert!((m.at(1, 2) - (0.5 + 1.0) * 2.0).abs() < 1e-6);
+        assert!((m.at(0, 2) - (0.5 + 1.0) * 2.0).abs() < 1e-6);
         let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(3, 2, |x, _| {
             image::Luma([x as u16 * 30000])
         });
@@ -129,20 +130,277 @@ mod inputs {
         );
     }
 
+    /// A tileable surface with no symmetry in y (a sawtooth ramp up the image plus a diagonal
+    /// ripple), as an image: `img(c, r)` at image column `c`, image row `r` (row 0 at the top).
+    fn asymmetric_surface(n: usize) -> impl Fn(f64, f64) -> f64 {
+        move |c: f64, r: f64| {
+            let t = std::f64::consts::TAU / n as f64;
+            // Rises towards the top of the image over most of a period, drops steeply.
+            let saw = ((n as f64 - r) * 3.0 / n as f64).fract();
+            let saw = if saw < 0.8 {
+                saw / 0.8
+            } else {
+                (1.0 - saw) / 0.2
+            };
+            0.35 * saw + 0.02 * ((c + 2.0 * r) * t * 2.0).sin()
+        }
+    }
+
+    /// The standard formula: a tangent-space normal map from a height image, `n ∝ (−∂h/∂x,
+    /// −∂h/∂y_up, 1)` with `y_up` up the image (central differences), encoded as 16-bit RGB with
+    /// green = +y_up (OpenGL) or −y_up (DirectX).
+    fn normal_map_png(n: usize, f: &dyn Fn(f64, f64) -> f64, scale: f64, gl: bool) -> Vec<u8> {
+        let img = image::ImageBuffer::<image::Rgb<u16>, _>::from_fn(n as u32, n as u32, |c, r| {
+            let (c, r) = (c as f64, r as f64);
+            let dhdx = (f(c + 0.5, r) - f(c - 0.5, r)) * scale;
+            // y_up grows as the image row shrinks.
+            let dhdy_up = (f(c, r - 0.5) - f(c, r + 0.5)) * scale;
+            let v = DVec3::new(-dhdx, -dhdy_up, 1.0).normalize();
+            let g = if gl { v.y } else { -v.y };
+            let q = |x: f64| ((x * 0.5 + 0.5) * 65535.0).round() as u16;
+            image::Rgb([q(v.x), q(g), q(v.z)])
+        });
+        let mut v = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut v), image::ImageFormat::Png)
+            .unwrap();
+        v
+    }
+
+    /// Binned distribution of unit normals (projected weights, 12×12 bins over n_x, n_y).
+    fn histogram(normals: &[(DVec3, f64)]) -> Vec<f64> {
+        let mut h = vec![0.0; 144];
+        let mut total = 0.0;
+        for (n, w) in normals {
+            let bx = (((n.x + 0.6) / 1.2 * 12.0).floor()).clamp(0.0, 11.0) as usize;
+            let by = (((n.y + 0.6) / 1.2 * 12.0).floor()).clamp(0.0, 11.0) as usize;
+            h[by * 12 + bx] += w * n.z;
+            total += w * n.z;
+        }
+        h.iter().map(|v| v / total).collect()
+    }
+
+    fn l1(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum()
+    }
+
+    /// Issue #15 item 1: a normal map derived from a height map by the standard formula has the
+    /// height map's NDF in its own convention (`gl` for OpenGL maps, `dx` for DirectX ones), and
+    /// the other convention's NDF is visibly different (mirrored in y).
     #[test]
-    fn normal_map_conventions() {
-        let img = image::RgbImage::from_fn(1, 1, |_, _| image::Rgb([128, 200, 220]));
+    fn normal_map_from_height_map_has_its_ndf_in_both_conventions() {
+        let n = 64;
+        let f = asymmetric_surface(n);
+        let (s, hscale) = (1.0, 6.0);
+        // The height image, 16-bit, image rows top-down.
+        let img = image::ImageBuffer::<image::Luma<u16>, _>::from_fn(n as u32, n as u32, |c, r| {
+            image::Luma([((f(c as f64, r as f64) + 0.5) / 1.0 * 65535.0).round() as u16])
+        });
+        let mut hb = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut hb), image::ImageFormat::Png)
+            .unwrap();
+        let hm = HeightMap::from_bytes(Path::new("h.png"), &hb, s, hscale, Border::Wrap).unwrap();
+        let from_heights = histogram(
+            &FacetNormals::from_heightmap(&hm, NormalMode::CentralDifferences).normalized(),
+        );
+        // Projected share of the facets leaning towards −y.
+        let down = |v: &[(DVec3, f64)]| {
+            let all: f64 = v.iter().map(|(n, w)| n.z * w).sum();
+            v.iter()
+                .filter(|(n, _)| n.y < 0.0)
+                .map(|(n, w)| n.z * w)
+                .sum::<f64>()
+                / all
+        };
+        let hn = FacetNormals::from_heightmap(&hm, NormalMode::CentralDifferences).normalized();
+        // The sawtooth rises up the image over 80% of its period: most facets lean down the
+        // image, i.e. towards −y (meso's +y is up in the image).
+        assert!(down(&hn) > 0.7, "share leaning to −y {}", down(&hn));
+        for (gl, conv, other) in [
+            (true, NormalConvention::Gl, NormalConvention::Dx),
+            (false, NormalConvention::Dx, NormalConvention::Gl),
+        ] {
+            let bytes = normal_map_png(n, &f, hscale / s, gl);
+            let dir_ = std::env::temp_dir().join(format!("meso-nm-{}-{gl}", std::process::id()));
+            std::fs::create_dir_all(&dir_).unwrap();
+            let p = dir_.join("n.png");
+            std::fs::write(&p, &bytes).unwrap();
+            let right = NormalMap::load(&p, conv).unwrap();
+            let wrong = NormalMap::load(&p, other).unwrap();
+            std::fs::remove_dir_all(&dir_).unwrap();
+            let hr = histogram(&FacetNormals::from_normal_map(&right).normalized());
+            let hw = histogram(&FacetNormals::from_normal_map(&wrong).normalized());
+            let (dr, dw) = (l1(&hr, &from_heights), l1(&hw, &from_heights));
+            assert!(
+                dr < 0.3,
+                "{conv:?}: NDF L1 distance {dr} (wrong convention {dw})"
+            );
+            assert!(dw > 1.0, "{other:?} should differ: {dw} (right one {dr})");
+            // Texel by texel: the map's normal at sample (row i, col j) matches the height
+            // map's slope there (the map's rows are reversed like the height map's).
+            let nm = right.normals();
+            let mut dot = 0.0;
+            for i in 0..n {
+                for j in 0..n {
+                    let a = nm[i * n + j];
+                    let dhdx = (hm.at(i as isize, j as isize + 1)
+                        - hm.at(i as isize, j as isize - 1))
+                        / (2.0 * s);
+                    let dhdy = (hm.at(i as isize + 1, j as isize)
+                        - hm.at(i as isize - 1, j as isize))
+                        / (2.0 * s);
+                    dot += a.dot(DVec3::new(-dhdx, -dhdy, 1.0).normalize());
+                }
+            }
+            let mean_dot = dot / (n * n) as f64;
+            assert!(mean_dot > 0.98, "{conv:?}: mean n·n' {mean_dot}");
+        }
+    }
+
+    #[test]
+    fn normal_maps_jpeg_two_channel_and_below_horizon() {
         let dir_ = std::env::temp_dir().join(format!("meso-maps-nm-{}", std::process::id()));
         std::fs::create_dir_all(&dir_).unwrap();
-        let p = dir_.join("n.png");
+        // JPEG (8-bit, lossy): a uniform tilt comes back within the codec's error.
+        let img = image::RgbImage::from_fn(16, 16, |_, _| image::Rgb([128, 200, 220]));
+        let p = dir_.join("n.jpg");
         img.save(&p).unwrap();
         let gl = NormalMap::load(&p, NormalConvention::Gl).unwrap();
         let dx = NormalMap::load(&p, NormalConvention::Dx).unwrap();
         let (a, b) = (gl.normals()[0], dx.normals()[0]);
-        assert!(a.y > 0.3 && (a.y + b.y).abs() < 1e-12 && (a.x - b.x).abs() < 1e-12);
+        // Green above mid-grey: up in the image, +y for OpenGL maps.
+        assert!(a.y > 0.3 && (a.y + b.y).abs() < 1e-9 && (a.x - b.x).abs() < 1e-9);
+        // Two channels (grey + alpha as x, y): z rebuilt.
+        let la = image::GrayAlphaImage::from_fn(4, 4, |_, _| image::LumaA([200, 128]));
+        let p2 = dir_.join("rg.png");
+        la.save(&p2).unwrap();
+        let m = NormalMap::load(&p2, NormalConvention::Gl).unwrap();
+        let x = 2.0 * 200.0 / 255.0 - 1.0;
+        let v = m.normals()[0];
+        assert!((v.x - x).abs() < 1e-6 && (v.z - (1.0 - x * x - v.y * v.y).sqrt()).abs() < 1e-6);
+        // RGB with an all-zero blue channel (BC5-style RG): z rebuilt too.
+        let rg = image::RgbImage::from_fn(4, 4, |_, _| image::Rgb([128, 60, 0]));
+        let p3 = dir_.join("rg0.png");
+        rg.save(&p3).unwrap();
+        let m = NormalMap::load(&p3, NormalConvention::Gl).unwrap();
+        assert!(m.normals()[0].z > 0.8 && m.normals()[0].y < -0.4);
+        // Below the horizon: clamped and counted, not refused.
+        let low = image::RgbImage::from_fn(4, 4, |x, _| {
+            image::Rgb(if x == 0 {
+                [255, 128, 100]
+            } else {
+                [128, 128, 255]
+            })
+        });
+        let p4 = dir_.join("low.png");
+        low.save(&p4).unwrap();
+        let m = NormalMap::load(&p4, NormalConvention::Gl).unwrap();
+        assert_eq!(m.clamped(), 4);
+        assert!(
+            (m.normals()[0].z - meso_maps::heightmap::MIN_NORMAL_Z).abs() < 1e-12
+                && m.normals()[0].x > 0.99
+        );
         std::fs::remove_dir_all(&dir_).unwrap();
-        let e = NormalMap::from_normals(1, 1, vec![DVec3::new(0.0, 0.0, -1.0)]).unwrap_err();
-        assert!(e.to_string().contains("row 0, column 0"));
+        let e = NormalMap::from_normals(1, 1, vec![DVec3::ZERO]).unwrap_err();
+        assert!(e.to_string().contains("row 0, column 0"), "{e}");
+        assert!(e.to_string().contains("zero length"), "{e}");
+        let e = NormalMap::from_normals(1, 1, vec![DVec3::new(f64::NAN, 0.0, 1.0)]).unwrap_err();
+        assert!(e.to_string().contains("NaN"), "{e}");
+    }
+
+    /// Issue #11 item 5: an 8-bit height map's terraces (many exactly flat cells) are removed on
+    /// load, so its NDF has no false spike at +z and stays close to the float surface's.
+    #[test]
+    fn eight_bit_terraces_are_dequantised() {
+        let n = 128;
+        // Broad valleys with a few high ridges (the cube of a smooth random field), as a real
+        // displacement map has: the gentle low ground turns into terraces at 8 bits.
+        let field = fixtures::gaussian(n, 10.0, 1.0, 7, 1.0).unwrap();
+        let (flo, fhi) = field.range();
+        let truth = HeightMap::from_heights(
+            n,
+            n,
+            field
+                .heights()
+                .iter()
+                .map(|h| 4.0 * ((h - flo) / (fhi - flo)).powi(6))
+                .collect(),
+            1.0,
+            Border::Wrap,
+        )
+        .unwrap();
+        let (lo, hi) = truth.range();
+        let img = image::GrayImage::from_fn(n as u32, n as u32, |c, r| {
+            let h = truth.at((n - 1 - r as usize) as isize, c as isize);
+            image::Luma([((h - lo) / (hi - lo) * 255.0).round() as u8])
+        });
+        let mut b = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut b), image::ImageFormat::Png)
+            .unwrap();
+        let hscale = hi - lo;
+        let m =
+            HeightMap::from_bytes(Path::new("rock.png"), &b, 1.0, hscale, Border::Wrap).unwrap();
+        // The raw codes: many flat cells.
+        let mut raw = m.clone();
+        let raw_h: Vec<f64> = (0..n)
+            .flat_map(|i| (0..n).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                let r = n - 1 - i;
+                img.get_pixel(j as u32, r as u32).0[0] as f64 / 255.0 * hscale
+            })
+            .collect();
+        raw = HeightMap::from_heights(n, n, raw_h, 1.0, Border::Wrap).unwrap_or(raw);
+        assert!(
+            raw.flat_cell_fraction() > 0.05,
+            "fixture: {}",
+            raw.flat_cell_fraction()
+        );
+        assert!(
+            m.flat_cell_fraction() < 0.005,
+            "after: {}",
+            m.flat_cell_fraction()
+        );
+        assert!(
+            m.warnings().iter().any(|w| w.contains("dequantised")),
+            "{:?}",
+            m.warnings()
+        );
+        // No height moved by more than half a code.
+        for (a, b) in m.heights().iter().zip(raw.heights()) {
+            assert!((a - b).abs() <= 0.5 * hscale / 255.0 + 1e-12);
+        }
+        // The spike: share of projected area exactly at +z.
+        let spike = |map: &HeightMap| {
+            FacetNormals::from_heightmap(map, NormalMode::Triangles)
+                .normalized()
+                .iter()
+                .filter(|(v, _)| v.z > 1.0 - 1e-12)
+                .map(|(v, w)| w * v.z)
+                .sum::<f64>()
+        };
+        let (s_truth, s_raw, s_deq) = (spike(&truth), spike(&raw), spike(&m));
+        assert!(
+            s_truth < 0.01 && s_raw > 0.05,
+            "raw {s_raw} truth {s_truth}"
+        );
+        assert!(s_deq < 0.02, "dequantised {s_deq} truth {s_truth}");
+        // And the slopes: the dequantised facets are closer to the truth's, texel by texel.
+        let err = |map: &HeightMap| {
+            let a = FacetNormals::from_heightmap(map, NormalMode::Triangles);
+            let b = FacetNormals::from_heightmap(&truth, NormalMode::Triangles);
+            a.normals
+                .iter()
+                .zip(&b.normals)
+                .map(|(x, y)| x.angle_between(*y))
+                .sum::<f64>()
+                / a.normals.len() as f64
+        };
+        let (e_raw, e_deq) = (err(&raw), err(&m));
+        eprintln!(
+            "mean facet angle error: raw {:.3}°, dequantised {:.3}°",
+            e_raw.to_degrees(),
+            e_deq.to_degrees()
+        );
+        assert!(e_deq < 0.8 * e_raw, "raw {e_raw} dequantised {e_deq}");
     }
 }
 

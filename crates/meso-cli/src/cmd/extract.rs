@@ -115,12 +115,24 @@ pub fn run(a: Args) -> Result<()> {
             Convention::Dx => NormalConvention::Dx,
         };
         normals = NormalMap::load(&a.heightmap, conv)?;
+        if normals.clamped() > 0 {
+            eprintln!(
+                "{}: warning: {} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
+                a.heightmap.display(),
+                normals.clamped(),
+                normals.width() * normals.height(),
+                meso_maps::heightmap::MIN_NORMAL_Z
+            );
+        }
         Source::Normals(&normals)
     } else {
         let (Some(s), Some(h)) = (a.texel_size, a.height_scale) else {
             bail!("a height map needs --texel-size S and --height-scale H");
         };
         heights = HeightMap::load(&a.heightmap, s, h, border)?;
+        for w in heights.warnings() {
+            eprintln!("{}: warning: {w}", a.heightmap.display());
+        }
         Source::Heights(&heights)
     };
     let bar = crate::progress(u64::MAX, "extract");

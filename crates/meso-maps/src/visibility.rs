@@ -1,0 +1,325 @@
+//! Visibility conditioned on the normal: which facets of a height map are lit from `i` *and*
+//! seen from `o`, per facet normal (the paper's §3.1 point: positive and negative cylinders share
+//! an NDF and differ in BRDF by self-blocking).
+//!
+//! # Model
+//! Every facet `f` of the triangulated surface (`crate::facets`) keeps its **horizon**: for
+//! [`AZIMUTHS`] azimuths `φ_a = 2π a / A`, the tangent of the highest elevation at which the
+//! surface, marched from the facet's centroid along `φ_a`, rises above it (`tan h_f(φ_a) ≥ 0`).
+//! A direction `ω` of elevation `e` and azimuth `φ` reaches the centroid when
+//! `tan e > h_f(φ)`, with `h_f` interpolated linearly between the two nearest azimuths. For a
+//! set of facets `F` (those of one normal bin of the NDF) the joint visibility is
+//!
+//! ```text
+//! G(i, o | F) = Σ_{f∈F} w_f · [i reaches f] · [o reaches f] / Σ_{f∈F} w_f,
+//! ```
+//!
+//! with `w_f` the facets' microsurface areas: shadowing and masking correlated exactly as far as
+//! the centroid stands for the facet, and nothing assumed about the heights' statistics (Smith
+//! assumes uncorrelated heights and normals, which creased and steep surfaces are not).
+//!
+//! # The march
+//! The surface between samples is the piecewise-linear one the gonioreflectometer traces
+//! (`crate::gonio`), evaluated exactly ([`surface_height`]) at every crossing of a cell edge
+//! along the azimuth (exact: the surface is linear between crossings), up to two periods of a
+//! wrapped map (or the border of a clamped one); the march stops early once even the map's
+//! highest point could no longer rise above the horizon found.
+
+use crate::facets::{FacetNormals, NormalMode};
+use crate::heightmap::{Border, HeightMap};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::f64::consts::TAU;
+
+/// Azimuths at which each facet keeps its horizon (every 11.25°).
+pub const AZIMUTHS: usize = 32;
+
+/// Height of the piecewise-linear surface of `map` at `(x, y)` in **texel units** (sample
+/// `(i, j)` at `(j, i)`), triangulated as `crate::facets` (diagonal `(i, j)–(i+1, j+1)`); wrapped
+/// or clamped by the map's border.
+#[must_use]
+pub fn surface_height(map: &HeightMap, x: f64, y: f64) -> f64 {
+    let (fj, fi) = (x.floor(), y.floor());
+    let (fx, fy) = (x - fj, y - fi);
+    let (i, j) = (fi as isize, fj as isize);
+    let h00 = map.at(i, j);
+    let h11 = map.at(i + 1, j + 1);
+    if fy < fx {
+        let h01 = map.at(i, j + 1);
+        h00 + fx * (h01 - h00) + fy * (h11 - h01)
+    } else {
+        let h10 = map.at(i + 1, j);
+        h00 + fy * (h10 - h00) + fx * (h11 - h10)
+    }
+}
+
+/// Successive parameters `t > 0` at which `c0 + t·dc` crosses an integer (∞ when `dc = 0`).
+struct Crossings {
+    next: f64,
+    step: f64,
+}
+
+impl Crossings {
+    fn new(c0: f64, dc: f64) -> Crossings {
+        if dc.abs() < 1e-12 {
+            return Crossings {
+                next: f64::INFINITY,
+                step: f64::INFINITY,
+            };
+        }
+        let target = if dc > 0.0 {
+            (c0 + 1e-9).floor() + 1.0
+        } else {
+            (c0 - 1e-9).ceil() - 1.0
+        };
+        Crossings {
+            next: (target - c0) / dc,
+            step: 1.0 / dc.abs(),
+        }
+    }
+}
+
+/// Tangent of the horizon elevation seen from `(x, y, h0)` (texel units, height in length
+/// units) along the unit direction `(dx, dy)`, ≥ 0. Along a straight line the piecewise-linear
+/// surface is linear between its crossings of the cell edges (rows, columns and the cells'
+/// diagonals), and so is the rise over distance between them monotonic: the largest slope is
+/// found exactly by evaluating the surface at every crossing.
+fn horizon_tan(map: &HeightMap, x: f64, y: f64, h0: f64, d: (f64, f64), hmax: f64) -> f64 {
+    let s = map.texel_size();
+    let (w, h) = (map.width() as f64, map.height() as f64);
+    let reach = match map.border() {
+        // Farther copies of the tile are seen under smaller angles.
+        Border::Wrap => 2.0 * w.max(h),
+        Border::Clamp => f64::INFINITY,
+    };
+    let mut cx = Crossings::new(x, d.0);
+    let mut cy = Crossings::new(y, d.1);
+    let mut cd = Crossings::new(x - y, d.0 - d.1);
+    let mut best = 0.0f64;
+    loop {
+        let t = cx.next.min(cy.next).min(cd.next);
+        if !(t <= reach) {
+            break;
+        }
+        for c in [&mut cx, &mut cy, &mut cd] {
+            if c.next <= t {
+                c.next += c.step;
+            }
+        }
+        if t < 1e-9 {
+            continue;
+        }
+        let (px, py) = (x + d.0 * t, y + d.1 * t);
+        if map.border() == Border::Clamp
+            && (px < -1e-9 || py < -1e-9 || px > w - 1.0 + 1e-9 || py > h - 1.0 + 1e-9)
+        {
+            break;
+        }
+        let dist = t * s;
+        if (hmax - h0) / dist <= best {
+            break;
+        }
+        let rise = (surface_height(map, px, py) - h0) / dist;
+        best = best.max(rise);
+    }
+    best
+}
+
+/// The horizons of every facet of a height map: `tan[f · AZIMUTHS + a]` for facet `f` (the order
+/// of [`FacetNormals::from_heightmap`] with the same mode) and azimuth `a`.
+#[must_use]
+pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
+    let (cols, rows) = (map.cells_x(), map.cells_y());
+    let hmax = map.range().1;
+    let dirs: Vec<(f64, f64)> = (0..AZIMUTHS)
+        .map(|a| {
+            let p = TAU * a as f64 / AZIMUTHS as f64;
+            (p.cos(), p.sin())
+        })
+        .collect();
+    let per_cell = match mode {
+        NormalMode::Triangles => 2,
+        NormalMode::CentralDifferences => 1,
+    };
+    let mut out = vec![0.0f32; cols * rows * per_cell * AZIMUTHS];
+    out.par_chunks_mut(cols * per_cell * AZIMUTHS)
+        .enumerate()
+        .for_each(|(i, row)| {
+            for j in 0..cols {
+                let (x, y) = (j as f64, i as f64);
+                // Centroids: triangle A (i,j),(i,j+1),(i+1,j+1); B (i,j),(i+1,j+1),(i+1,j).
+                let centres: [(f64, f64); 2] = match mode {
+                    NormalMode::Triangles => [
+                        (x + 2.0 / 3.0, y + 1.0 / 3.0),
+                        (x + 1.0 / 3.0, y + 2.0 / 3.0),
+                    ],
+                    NormalMode::CentralDifferences => [(x + 0.5, y + 0.5); 2],
+                };
+                for (k, &(cx, cy)) in centres.iter().take(per_cell).enumerate() {
+                    let h0 = match mode {
+                        NormalMode::Triangles => surface_height(map, cx, cy),
+                        NormalMode::CentralDifferences => {
+                            let (ii, jj) = (i as isize, j as isize);
+                            0.25 * (map.at(ii, jj)
+                                + map.at(ii, jj + 1)
+                                + map.at(ii + 1, jj)
+                                + map.at(ii + 1, jj + 1))
+                        }
+                    };
+                    let base = (j * per_cell + k) * AZIMUTHS;
+                    for (a, &d) in dirs.iter().enumerate() {
+                        row[base + a] = horizon_tan(map, cx, cy, h0, d, hmax) as f32;
+                    }
+                }
+            }
+        });
+    out
+}
+
+/// Where a direction falls among the stored azimuths: the two neighbours, the interpolation
+/// weight of the second, and the tangent of its elevation.
+#[derive(Clone, Copy, Debug)]
+struct Probe {
+    a0: usize,
+    a1: usize,
+    t: f32,
+    tan_e: f32,
+}
+
+impl Probe {
+    fn new(w: DVec3) -> Probe {
+        let r = (w.x * w.x + w.y * w.y).sqrt();
+        let tan_e = if r < 1e-12 { f64::INFINITY } else { w.z / r };
+        let phi = w.y.atan2(w.x).rem_euclid(TAU);
+        let u = phi / TAU * AZIMUTHS as f64;
+        let a0 = (u.floor() as usize) % AZIMUTHS;
+        Probe {
+            a0,
+            a1: (a0 + 1) % AZIMUTHS,
+            t: (u - u.floor()) as f32,
+            tan_e: tan_e as f32,
+        }
+    }
+
+    #[inline]
+    fn reaches(&self, h: &[f32]) -> bool {
+        let hz = h[self.a0] + self.t * (h[self.a1] - h[self.a0]);
+        self.tan_e > hz
+    }
+}
+
+/// The visibility of a delta-sum NDF's normals: for each delta (one normal bin of the map), the
+/// horizons and weights of the facets it stands for.
+#[derive(Clone, Debug, Default)]
+pub struct BinnedVisibility {
+    /// Facet horizons grouped by bin: bin `k` owns facets `start[k]..start[k+1]`.
+    horizons: Vec<f32>,
+    weights: Vec<f32>,
+    start: Vec<u32>,
+    /// Lookup from a delta's normal (its bits) to its bin.
+    index: std::collections::HashMap<[u64; 3], u32>,
+}
+
+/// The key of a unit normal in [`BinnedVisibility`]'s lookup.
+fn key(m: DVec3) -> [u64; 3] {
+    [m.x.to_bits(), m.y.to_bits(), m.z.to_bits()]
+}
+
+impl BinnedVisibility {
+    /// Group facets into bins. `bins[f]` is facet `f`'s bin (0..`normals.len()`), `normals[k]`
+    /// the exact normal the NDF's delta `k` carries, `facets` and `horizons` as produced by
+    /// [`FacetNormals::from_heightmap`] and [`facet_horizons`].
+    #[must_use]
+    pub fn new(
+        facets: &FacetNormals,
+        horizons: &[f32],
+        bins: &[u32],
+        normals: &[DVec3],
+    ) -> BinnedVisibility {
+        let nb = normals.len();
+        let mut count = vec![0u32; nb + 1];
+        for &b in bins {
+            count[b as usize + 1] += 1;
+        }
+        for k in 0..nb {
+            count[k + 1] += count[k];
+        }
+        let start = count.clone();
+        let mut fill = count;
+        let n = bins.len();
+        let mut hz = vec![0.0f32; n * AZIMUTHS];
+        let mut ws = vec![0.0f32; n];
+        for (f, &b) in bins.iter().enumerate() {
+            let slot = fill[b as usize] as usize;
+            fill[b as usize] += 1;
+            hz[slot * AZIMUTHS..(slot + 1) * AZIMUTHS]
+                .copy_from_slice(&horizons[f * AZIMUTHS..(f + 1) * AZIMUTHS]);
+            ws[slot] = facets.weights[f] as f32;
+        }
+        let index = normals
+            .iter()
+            .enumerate()
+            .map(|(k, m)| (key(*m), k as u32))
+            .collect();
+        BinnedVisibility {
+            horizons: hz,
+            weights: ws,
+            start,
+            index,
+        }
+    }
+
+    /// Number of bins.
+    #[must_use]
+    pub fn bins(&self) -> usize {
+        self.start.len().saturating_sub(1)
+    }
+
+    /// `G(i, o | bin k)`: the weighted fraction of bin `k`'s facets that both `i` and `o` reach.
+    #[must_use]
+    pub fn joint(&self, k: usize, i: DVec3, o: DVec3) -> f64 {
+        let (a, b) = (self.start[k] as usize, self.start[k + 1] as usize);
+        let (pi, po) = (Probe::new(i), Probe::new(o));
+        let (mut vis, mut all) = (0.0f32, 0.0f32);
+        for f in a..b {
+            let h = &self.horizons[f * AZIMUTHS..(f + 1) * AZIMUTHS];
+            let w = self.weights[f];
+            all += w;
+            if pi.reaches(h) && po.reaches(h) {
+                vis += w;
+            }
+        }
+        if all > 0.0 {
+            f64::from(vis / all)
+        } else {
+            1.0
+        }
+    }
+
+    /// `G(i, o | m)` for a normal `m` that is one of the deltas' normals; 1 for any other.
+    #[must_use]
+    pub fn given_normal(&self, i: DVec3, o: DVec3, m: DVec3) -> f64 {
+        match self.index.get(&key(m)) {
+            Some(&k) => self.joint(k as usize, i, o),
+            None => 1.0,
+        }
+    }
+
+    /// `G(i, o)` over all facets (the visibility not conditioned on the normal).
+    #[must_use]
+    pub fn total(&self, i: DVec3, o: DVec3) -> f64 {
+        let (pi, po) = (Probe::new(i), Probe::new(o));
+        let (mut vis, mut all) = (0.0f32, 0.0f32);
+        for (h, &w) in self.horizons.chunks_exact(AZIMUTHS).zip(&self.weights) {
+            all += w;
+            if pi.reaches(h) && po.reaches(h) {
+                vis += w;
+            }
+        }
+        if all > 0.0 {
+            f64::from(vis / all)
+        } else {
+            1.0
+        }
+    }
+}
