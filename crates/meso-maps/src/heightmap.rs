@@ -52,8 +52,8 @@ pub struct HeightMap {
     warnings: Vec<String>,
 }
 
-/// Fraction of exactly flat grid cells above which an 8-bit height map is dequantised on load
-/// ([`HeightMap::dequantize`]).
+/// Fraction of exactly flat grid cells, and of cells one code high, above which an 8-bit height
+/// map is dequantised on load ([`HeightMap::dequantize`], [`HeightMap::terrace_stats`]).
 pub const TERRACE_FRACTION: f64 = 0.02;
 /// Smoothing-and-projection rounds of [`HeightMap::dequantize`].
 pub const DEQUANTIZE_ITERATIONS: usize = 24;
@@ -322,14 +322,18 @@ impl HeightMap {
         }
         let mut map = HeightMap::from_heights(w, h, heights, texel_size, border)?;
         if eight_bit {
-            let flat = map.flat_cell_fraction();
-            if flat > TERRACE_FRACTION {
-                let step = height_scale / 255.0;
+            let step = height_scale / 255.0;
+            let (flat, one_code) = map.terrace_stats(step);
+            // Terraces: plateaus joined by one-code steps. Genuinely flat ground (tiles, a
+            // plinth) has plateaus without the steps and is left alone.
+            if flat > TERRACE_FRACTION && one_code > TERRACE_FRACTION {
                 map.dequantize(step);
                 warnings.push(format!(
-                    "8-bit heights: {:.1}% of the grid cells were exactly flat (quantisation \
-                     terraces); dequantised by smoothing within ±½ code ({:.0}% flat now)",
+                    "8-bit heights: {:.1}% of the grid cells were exactly flat and {:.1}% one code \
+                     high (quantisation terraces); dequantised by smoothing within ±½ code \
+                     ({:.1}% flat now)",
                     100.0 * flat,
+                    100.0 * one_code,
                     100.0 * map.flat_cell_fraction()
                 ));
             }
@@ -353,6 +357,33 @@ impl HeightMap {
             }
         }
         flat as f64 / (cx * cy).max(1) as f64
+    }
+
+    /// The fractions of grid cells whose four corners are exactly equal and whose corners span
+    /// exactly one quantisation `step` (within 1%): together, the signature of terraces.
+    #[must_use]
+    pub fn terrace_stats(&self, step: f64) -> (f64, f64) {
+        let (cx, cy) = (self.cells_x(), self.cells_y());
+        let (mut flat, mut one) = (0usize, 0usize);
+        for i in 0..cy as isize {
+            for j in 0..cx as isize {
+                let c = [
+                    self.at(i, j),
+                    self.at(i, j + 1),
+                    self.at(i + 1, j),
+                    self.at(i + 1, j + 1),
+                ];
+                let lo = c.iter().cloned().fold(f64::INFINITY, f64::min);
+                let hi = c.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+                if hi == lo {
+                    flat += 1;
+                } else if ((hi - lo) - step).abs() < 0.01 * step {
+                    one += 1;
+                }
+            }
+        }
+        let n = (cx * cy).max(1) as f64;
+        (flat as f64 / n, one as f64 / n)
     }
 
     /// Remove quantisation terraces from heights known to lie within `±step/2` of their stored

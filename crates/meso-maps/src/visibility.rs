@@ -200,22 +200,24 @@ impl Probe {
             tan_e: tan_e as f32,
         }
     }
-
-    #[inline]
-    fn reaches(&self, h: &[f32]) -> bool {
-        let hz = h[self.a0] + self.t * (h[self.a1] - h[self.a0]);
-        self.tan_e > hz
-    }
 }
 
 /// The visibility of a delta-sum NDF's normals: for each delta (one normal bin of the map), the
-/// horizons and weights of the facets it stands for.
+/// horizons and weights of the facets it stands for. Bin `k`'s horizons are stored azimuth by
+/// azimuth (`AZIMUTHS` runs of its facets' tangents), so that a query streams through flat
+/// arrays; each bin also keeps its largest horizon per azimuth, so that directions above all of
+/// them are answered without visiting the facets.
 #[derive(Clone, Debug, Default)]
 pub struct BinnedVisibility {
-    /// Facet horizons grouped by bin: bin `k` owns facets `start[k]..start[k+1]`.
+    /// Bin `k` owns facets `start[k]..start[k+1]`; its horizons are
+    /// `horizons[start[k]·A + a·len + f]` for azimuth `a` and its `f`-th facet.
     horizons: Vec<f32>,
     weights: Vec<f32>,
     start: Vec<u32>,
+    /// Per bin and azimuth, the largest horizon of the bin's facets.
+    max_horizon: Vec<f32>,
+    /// Per bin, the total weight of its facets.
+    total: Vec<f32>,
     /// Lookup from a delta's normal (its bits) to its bin.
     index: std::collections::HashMap<[u64; 3], u32>,
 }
@@ -249,12 +251,21 @@ impl BinnedVisibility {
         let n = bins.len();
         let mut hz = vec![0.0f32; n * AZIMUTHS];
         let mut ws = vec![0.0f32; n];
+        let mut max_horizon = vec![0.0f32; nb * AZIMUTHS];
+        let mut total = vec![0.0f32; nb];
         for (f, &b) in bins.iter().enumerate() {
-            let slot = fill[b as usize] as usize;
-            fill[b as usize] += 1;
-            hz[slot * AZIMUTHS..(slot + 1) * AZIMUTHS]
-                .copy_from_slice(&horizons[f * AZIMUTHS..(f + 1) * AZIMUTHS]);
-            ws[slot] = facets.weights[f] as f32;
+            let b = b as usize;
+            let (s0, len) = (start[b] as usize, (start[b + 1] - start[b]) as usize);
+            let local = fill[b] as usize - s0;
+            fill[b] += 1;
+            for a in 0..AZIMUTHS {
+                let v = horizons[f * AZIMUTHS + a];
+                hz[s0 * AZIMUTHS + a * len + local] = v;
+                let mh = &mut max_horizon[b * AZIMUTHS + a];
+                *mh = mh.max(v);
+            }
+            ws[s0 + local] = facets.weights[f] as f32;
+            total[b] += facets.weights[f] as f32;
         }
         let index = normals
             .iter()
@@ -265,6 +276,8 @@ impl BinnedVisibility {
             horizons: hz,
             weights: ws,
             start,
+            max_horizon,
+            total,
             index,
         }
     }
@@ -278,22 +291,30 @@ impl BinnedVisibility {
     /// `G(i, o | bin k)`: the weighted fraction of bin `k`'s facets that both `i` and `o` reach.
     #[must_use]
     pub fn joint(&self, k: usize, i: DVec3, o: DVec3) -> f64 {
-        let (a, b) = (self.start[k] as usize, self.start[k + 1] as usize);
         let (pi, po) = (Probe::new(i), Probe::new(o));
-        let (mut vis, mut all) = (0.0f32, 0.0f32);
-        for f in a..b {
-            let h = &self.horizons[f * AZIMUTHS..(f + 1) * AZIMUTHS];
-            let w = self.weights[f];
-            all += w;
-            if pi.reaches(h) && po.reaches(h) {
-                vis += w;
-            }
+        let mh = &self.max_horizon[k * AZIMUTHS..(k + 1) * AZIMUTHS];
+        // Above every facet's horizon on both sides: all visible.
+        if pi.tan_e > mh[pi.a0].max(mh[pi.a1]) && po.tan_e > mh[po.a0].max(mh[po.a1]) {
+            return 1.0;
         }
-        if all > 0.0 {
-            f64::from(vis / all)
-        } else {
-            1.0
+        let (a, b) = (self.start[k] as usize, self.start[k + 1] as usize);
+        let len = b - a;
+        let all = self.total[k];
+        if len == 0 || all <= 0.0 {
+            return 1.0;
         }
+        let base = a * AZIMUTHS;
+        let run = |az: usize| &self.horizons[base + az * len..base + (az + 1) * len];
+        let (i0, i1, o0, o1) = (run(pi.a0), run(pi.a1), run(po.a0), run(po.a1));
+        let w = &self.weights[a..b];
+        let mut vis = 0.0f32;
+        for f in 0..len {
+            let hi = i0[f] + pi.t * (i1[f] - i0[f]);
+            let ho = o0[f] + po.t * (o1[f] - o0[f]);
+            let ok = (pi.tan_e > hi) & (po.tan_e > ho);
+            vis += if ok { w[f] } else { 0.0 };
+        }
+        f64::from(vis / all).min(1.0)
     }
 
     /// `G(i, o | m)` for a normal `m` that is one of the deltas' normals; 1 for any other.
@@ -305,19 +326,18 @@ impl BinnedVisibility {
         }
     }
 
-    /// `G(i, o)` over all facets (the visibility not conditioned on the normal).
+    /// `G(i, o)` over all facets (the visibility not conditioned on the normal): the
+    /// weight-averaged [`BinnedVisibility::joint`].
     #[must_use]
     pub fn total(&self, i: DVec3, o: DVec3) -> f64 {
-        let (pi, po) = (Probe::new(i), Probe::new(o));
-        let (mut vis, mut all) = (0.0f32, 0.0f32);
-        for (h, &w) in self.horizons.chunks_exact(AZIMUTHS).zip(&self.weights) {
+        let (mut vis, mut all) = (0.0f64, 0.0f64);
+        for k in 0..self.bins() {
+            let w = f64::from(self.total[k]);
+            vis += w * self.joint(k, i, o);
             all += w;
-            if pi.reaches(h) && po.reaches(h) {
-                vis += w;
-            }
         }
         if all > 0.0 {
-            f64::from(vis / all)
+            vis / all
         } else {
             1.0
         }

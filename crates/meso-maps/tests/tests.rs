@@ -307,6 +307,43 @@ mod inputs {
         assert!(e.to_string().contains("NaN"), "{e}");
     }
 
+    /// A real texture set (ambientCG Facade005, CC0, tests/data/README.md): the normals derived
+    /// from its height map point the same way as its OpenGL normal map read as `gl` (and the
+    /// opposite way in y read as `dx`). Its flat tiles are real, not terraces: not dequantised.
+    #[test]
+    fn real_texture_set_height_and_gl_normal_map_agree() {
+        let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+        let hm =
+            HeightMap::load(&data.join("facade_disp_256.png"), 1.0, 8.0, Border::Wrap).unwrap();
+        assert!(hm.warnings().is_empty(), "{:?}", hm.warnings());
+        let from_h = FacetNormals::from_heightmap(&hm, NormalMode::CentralDifferences);
+        let corr = |conv| {
+            let nm = NormalMap::load(&data.join("facade_normal_256.png"), conv).unwrap();
+            let (n, w) = (nm.width(), hm.width());
+            assert_eq!(n, w);
+            // Cell (i, j) of the height map is centred half a texel from sample (i, j).
+            let (mut sx, mut sy, mut xx, mut yy, mut hx, mut hy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for i in 0..n {
+                for j in 0..n {
+                    let a = nm.normals()[i * n + j];
+                    let b = from_h.normals[i * n + j];
+                    sx += a.x * b.x;
+                    sy += a.y * b.y;
+                    xx += a.x * a.x;
+                    yy += a.y * a.y;
+                    hx += b.x * b.x;
+                    hy += b.y * b.y;
+                }
+            }
+            (sx / (xx * hx).sqrt(), sy / (yy * hy).sqrt())
+        };
+        let (gx, gy) = corr(NormalConvention::Gl);
+        let (dx, dy) = corr(NormalConvention::Dx);
+        eprintln!("facade: gl corr x {gx:.3} y {gy:.3}; dx corr x {dx:.3} y {dy:.3}");
+        assert!(gx > 0.3 && gy > 0.3, "gl {gx} {gy}");
+        assert!(dy < -0.3 && (dx - gx).abs() < 1e-12, "dx {dx} {dy}");
+    }
+
     /// Issue #11 item 5: an 8-bit height map's terraces (many exactly flat cells) are removed on
     /// load, so its NDF has no false spike at +z and stays close to the float surface's.
     #[test]
