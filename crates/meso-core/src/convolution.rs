@@ -374,6 +374,11 @@ pub fn effective_brdf_with(
                 let c = d * g2 / (4.0 * i.z * o.z);
                 return [f[0] * c, f[1] * c, f[2] * c];
             }
+            if let (Ndf::Deltas(d), Some(g)) = (ndf, given) {
+                let r = deltas_given_normal(d, transfer, g, i, o);
+                let s = 1.0 / (masking.projected_area * i.z * o.z);
+                return [r[0] * s, r[1] * s, r[2] * s];
+            }
             let hint = transfer.peak(i, o);
             let r = integrate(ndf, accuracy, hint, |m| {
                 if m.z <= 0.0 {
@@ -395,6 +400,84 @@ pub fn effective_brdf_with(
             [r[0] * s, r[1] * s, r[2] * s]
         }
     }
+}
+
+/// Relative size below which a delta's contribution is summed without its own visibility
+/// (`G(i, o | m)` is replaced by the visibility of the deltas that matter): at most this
+/// fraction of the largest contribution per delta, so at most `n · VISIBILITY_CUTOFF` of the
+/// result for `n` such deltas, in practice far less (they lie in the transfer lobe's tails).
+pub const VISIBILITY_CUTOFF: f64 = 1e-4;
+
+/// `Σ_k w_k f_μ(i, o; m_k)(i·m_k)(o·m_k) G(i, o | m_k)` over the deltas above the horizon (the
+/// microfacet integrand of a delta sum with a normal-conditioned visibility). Two passes: the
+/// contributions without `G`, then `G` for those above [`VISIBILITY_CUTOFF`] of the largest;
+/// the others take the contribution-weighted mean `G` of those evaluated.
+fn deltas_given_normal(
+    d: &crate::ndf::DeltaSum,
+    transfer: &Transfer,
+    g: &(dyn Fn(DVec3, DVec3, DVec3) -> f64 + Sync),
+    i: DVec3,
+    o: DVec3,
+) -> [f64; 3] {
+    thread_local! {
+        static CONTRIB: std::cell::RefCell<Vec<(usize, [f64; 3])>> =
+            const { std::cell::RefCell::new(Vec::new()) };
+    }
+    CONTRIB.with(|c| deltas_given_normal_in(&mut c.borrow_mut(), d, transfer, g, i, o))
+}
+
+fn deltas_given_normal_in(
+    contrib: &mut Vec<(usize, [f64; 3])>,
+    d: &crate::ndf::DeltaSum,
+    transfer: &Transfer,
+    g: &(dyn Fn(DVec3, DVec3, DVec3) -> f64 + Sync),
+    i: DVec3,
+    o: DVec3,
+) -> [f64; 3] {
+    contrib.clear();
+    let mut peak = 0.0f64;
+    for (k, wn) in d.normals().iter().enumerate() {
+        let m = wn.normal;
+        if m.z <= 0.0 {
+            continue;
+        }
+        let (ci, co) = (m.dot(i), m.dot(o));
+        if ci <= 0.0 || co <= 0.0 {
+            continue;
+        }
+        let fr = Frame::from_normal_tangent(m, DVec3::X);
+        let v = transfer.eval(fr.to_local(i), fr.to_local(o));
+        let c = wn.weight * ci * co;
+        let v = [v[0] * c, v[1] * c, v[2] * c];
+        let mx = v[0].max(v[1]).max(v[2]);
+        if mx > 0.0 {
+            peak = peak.max(mx);
+            contrib.push((k, v));
+        }
+    }
+    let (mut acc, mut rest) = ([0.0; 3], [0.0; 3]);
+    let (mut gsum, mut wsum) = (0.0, 0.0);
+    for (k, v) in contrib.iter() {
+        let mx = v[0].max(v[1]).max(v[2]);
+        if mx >= VISIBILITY_CUTOFF * peak {
+            let gk = g(i, o, d.normals()[*k].normal).clamp(0.0, 1.0);
+            gsum += gk * mx;
+            wsum += mx;
+            for c in 0..3 {
+                acc[c] += v[c] * gk;
+            }
+        } else {
+            for c in 0..3 {
+                rest[c] += v[c];
+            }
+        }
+    }
+    let gmean = if wsum > 0.0 { gsum / wsum } else { 1.0 };
+    [
+        acc[0] + rest[0] * gmean,
+        acc[1] + rest[1] * gmean,
+        acc[2] + rest[2] * gmean,
+    ]
 }
 
 /// Smith masking computed numerically for an arbitrary NDF restricted to the upper hemisphere.

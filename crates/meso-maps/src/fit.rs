@@ -56,6 +56,28 @@ use std::f64::consts::PI;
 pub const ETA_MAX: f64 = 1.0e6;
 /// Largest number of lobes per texel.
 pub const MAX_LOBES: usize = 8;
+/// Smallest Phong exponent η of a fitted lobe: a peak `((1 + a·m)/2)^(η/2)` puts
+/// `2^−(η/2 + 1)` of its mass beyond 90° from its axis — at most 1/8 with this bound, where a
+/// flat lobe (η → 0) would put half of it below the horizon.
+pub const ETA_MIN: f64 = 4.0;
+/// Smallest `z` of a fitted lobe's axis: lobes whose axis the fit left at or below the horizon
+/// (steep normal maps) are tilted up to it, keeping their azimuth.
+pub const AXIS_MIN_Z: f64 = 0.05;
+
+/// The bounds every fitted lobe satisfies: axis at `z ≥` [`AXIS_MIN_Z`], exponent in
+/// `[`[`ETA_MIN`]`, `[`ETA_MAX`]`]`.
+fn bounded(axis: DVec3, eta: f64) -> (DVec3, f64) {
+    let a = if axis.z < AXIS_MIN_Z {
+        let r = (axis.x * axis.x + axis.y * axis.y).sqrt();
+        let (cx, cy) = if r > 1e-12 { (axis.x / r, axis.y / r) } else { (1.0, 0.0) };
+        let s = (1.0 - AXIS_MIN_Z * AXIS_MIN_Z).sqrt();
+        DVec3::new(cx * s, cy * s, AXIS_MIN_Z)
+    } else {
+        axis
+    };
+    let eta = if eta.is_finite() { eta.clamp(ETA_MIN, ETA_MAX) } else { ETA_MIN };
+    (a, eta)
+}
 /// Resolution of the equal-area grid used to merge normals into [`Entry`]s (≈ 0.8° bins).
 pub const ENTRY_GRID_RES: usize = 256;
 /// Resolution of the equal-area grid of the NDF residual (1024 bins of ≈ 6.3°).
@@ -837,10 +859,13 @@ fn to_phong(lobes: &[L]) -> Vec<PhongLobe> {
     let s: f64 = lobes.iter().map(|l| l.w).sum();
     lobes
         .iter()
-        .map(|l| PhongLobe {
-            axis: l.a,
-            weight: l.w / s,
-            exponent: l.eta,
+        .map(|l| {
+            let (axis, exponent) = bounded(l.a, l.eta);
+            PhongLobe {
+                axis,
+                weight: l.w / s,
+                exponent,
+            }
         })
         .collect()
 }
@@ -905,10 +930,11 @@ pub fn fit_lobes_with(
         for e in entries {
             let mean = e.mean();
             let a = mean.normalize();
+            let (axis, exponent) = bounded(a, eta_from_mean_t(log_t(a, mean)));
             out.push(PhongLobe {
-                axis: a,
+                axis,
                 weight: e.w / total,
-                exponent: eta_from_mean_t(log_t(a, mean)),
+                exponent,
             });
         }
         return;

@@ -3,20 +3,22 @@
 //! an NDF and differ in BRDF by self-blocking).
 //!
 //! # Model
-//! Every facet `f` of the triangulated surface (`crate::facets`) keeps its **horizon**: for
+//! Every facet `f` of the triangulated surface (`crate::facets`) keeps its **horizon** at
+//! [`POINTS_PER_FACET`] points `p` (the centroids of its midpoint subdivision): for
 //! [`AZIMUTHS`] azimuths `φ_a = 2π a / A`, the tangent of the highest elevation at which the
-//! surface, marched from the facet's centroid along `φ_a`, rises above it (`tan h_f(φ_a) ≥ 0`).
-//! A direction `ω` of elevation `e` and azimuth `φ` reaches the centroid when
-//! `tan e > h_f(φ)`, with `h_f` interpolated linearly between the two nearest azimuths. For a
-//! set of facets `F` (those of one normal bin of the NDF) the joint visibility is
+//! surface, marched from the point along `φ_a`, rises above it (`tan h_p(φ_a) ≥ 0`).
+//! A direction `ω` of elevation `e` and azimuth `φ` reaches the point when `tan e > h_p(φ)`,
+//! with `h_p` interpolated linearly between the two nearest azimuths. For a set of facets `F`
+//! (those of one normal bin of the NDF) the joint visibility is
 //!
 //! ```text
-//! G(i, o | F) = Σ_{f∈F} w_f · [i reaches f] · [o reaches f] / Σ_{f∈F} w_f,
+//! G(i, o | F) = Σ_{f∈F} Σ_p w_f/P · [i reaches p] · [o reaches p] / Σ_{f∈F} w_f,
 //! ```
 //!
 //! with `w_f` the facets' microsurface areas: shadowing and masking correlated exactly as far as
-//! the centroid stands for the facet, and nothing assumed about the heights' statistics (Smith
-//! assumes uncorrelated heights and normals, which creased and steep surfaces are not).
+//! the points stand for the facet (a shadow edge across a facet is resolved to a quarter of
+//! it), and nothing assumed about the heights' statistics (Smith assumes uncorrelated heights
+//! and normals, which creased and steep surfaces are not).
 //!
 //! # The march
 //! The surface between samples is the piecewise-linear one the gonioreflectometer traces
@@ -33,6 +35,10 @@ use std::f64::consts::TAU;
 
 /// Azimuths at which each facet keeps its horizon (every 11.25°).
 pub const AZIMUTHS: usize = 32;
+/// The lowest horizon kept, `tan 1°`: directions within 1° of the macro surface's horizon
+/// (θ > 89°) count as hidden everywhere, which lets the march stop after
+/// `(h_max − h)/tan 1°` instead of crossing the whole map on gentle surfaces.
+pub const HORIZON_FLOOR: f64 = 0.017_455_064_928_217_585;
 
 /// Height of the piecewise-linear surface of `map` at `(x, y)` in **texel units** (sample
 /// `(i, j)` at `(j, i)`), triangulated as `crate::facets` (diagonal `(i, j)–(i+1, j+1)`); wrapped
@@ -95,7 +101,9 @@ fn horizon_tan(map: &HeightMap, x: f64, y: f64, h0: f64, d: (f64, f64), hmax: f6
     let mut cx = Crossings::new(x, d.0);
     let mut cy = Crossings::new(y, d.1);
     let mut cd = Crossings::new(x - y, d.0 - d.1);
-    let mut best = 0.0f64;
+    // Horizons below HORIZON_FLOOR are not searched for: the march ends once nothing can rise
+    // above it, and the facet keeps the floor (directions lower than that are hidden).
+    let mut best = HORIZON_FLOOR;
     loop {
         let t = cx.next.min(cy.next).min(cd.next);
         if !(t <= reach) {
@@ -125,8 +133,46 @@ fn horizon_tan(map: &HeightMap, x: f64, y: f64, h0: f64, d: (f64, f64), hmax: f6
     best
 }
 
-/// The horizons of every facet of a height map: `tan[f · AZIMUTHS + a]` for facet `f` (the order
-/// of [`FacetNormals::from_heightmap`] with the same mode) and azimuth `a`.
+/// Points at which each facet of a small map keeps its horizon: the centroids of the four
+/// triangles of its midpoint subdivision (a rule exact for a visibility linear over the facet),
+/// or a 2×2 grid of a cell with one central-difference normal. Maps with at least
+/// [`FINE_FACETS`] facets use one point (the centroid): their facets are small against the
+/// shadows, and there are enough of them to average.
+pub const POINTS_PER_FACET: usize = 4;
+/// Facet count from which one point per facet is kept (see [`POINTS_PER_FACET`]).
+pub const FINE_FACETS: usize = 32_768;
+
+/// The number of points per facet [`facet_horizons`] uses for `facets` facets.
+#[must_use]
+pub fn points_per_facet(facets: usize) -> usize {
+    if facets >= FINE_FACETS {
+        1
+    } else {
+        POINTS_PER_FACET
+    }
+}
+
+/// The sample points of triangle `(v0, v1, v2)` (texel units): the centroids of its midpoint
+/// subdivision.
+fn triangle_points(v: [(f64, f64); 3]) -> [(f64, f64); POINTS_PER_FACET] {
+    let comb = |a: f64, b: f64, c: f64| {
+        (
+            a * v[0].0 + b * v[1].0 + c * v[2].0,
+            a * v[0].1 + b * v[1].1 + c * v[2].1,
+        )
+    };
+    let (f, s) = (4.0 / 6.0, 1.0 / 6.0);
+    [
+        comb(f, s, s),
+        comb(s, f, s),
+        comb(s, s, f),
+        comb(1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0),
+    ]
+}
+
+/// The horizons of every facet of a height map at its `P` = [`points_per_facet`] points:
+/// `tan[(f · P + p) · AZIMUTHS + a]` for facet `f` (the order of
+/// [`FacetNormals::from_heightmap`] with the same mode), point `p` and azimuth `a`.
 #[must_use]
 pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
     let (cols, rows) = (map.cells_x(), map.cells_y());
@@ -141,34 +187,40 @@ pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
         NormalMode::Triangles => 2,
         NormalMode::CentralDifferences => 1,
     };
-    let mut out = vec![0.0f32; cols * rows * per_cell * AZIMUTHS];
-    out.par_chunks_mut(cols * per_cell * AZIMUTHS)
+    let np = points_per_facet(cols * rows * per_cell);
+    let stride = np * AZIMUTHS;
+    let mut out = vec![0.0f32; cols * rows * per_cell * stride];
+    out.par_chunks_mut(cols * per_cell * stride)
         .enumerate()
         .for_each(|(i, row)| {
             for j in 0..cols {
                 let (x, y) = (j as f64, i as f64);
-                // Centroids: triangle A (i,j),(i,j+1),(i+1,j+1); B (i,j),(i+1,j+1),(i+1,j).
-                let centres: [(f64, f64); 2] = match mode {
+                // Triangle A (i,j),(i,j+1),(i+1,j+1); B (i,j),(i+1,j+1),(i+1,j).
+                let sets: [[(f64, f64); POINTS_PER_FACET]; 2] = match mode {
                     NormalMode::Triangles => [
-                        (x + 2.0 / 3.0, y + 1.0 / 3.0),
-                        (x + 1.0 / 3.0, y + 2.0 / 3.0),
+                        triangle_points([(x, y), (x + 1.0, y), (x + 1.0, y + 1.0)]),
+                        triangle_points([(x, y), (x + 1.0, y + 1.0), (x, y + 1.0)]),
                     ],
-                    NormalMode::CentralDifferences => [(x + 0.5, y + 0.5); 2],
+                    NormalMode::CentralDifferences if np == 1 => [[(x + 0.5, y + 0.5); 4]; 2],
+                    NormalMode::CentralDifferences => {
+                        let q = [
+                            (x + 0.25, y + 0.25),
+                            (x + 0.75, y + 0.25),
+                            (x + 0.25, y + 0.75),
+                            (x + 0.75, y + 0.75),
+                        ];
+                        [q, q]
+                    }
                 };
-                for (k, &(cx, cy)) in centres.iter().take(per_cell).enumerate() {
-                    let h0 = match mode {
-                        NormalMode::Triangles => surface_height(map, cx, cy),
-                        NormalMode::CentralDifferences => {
-                            let (ii, jj) = (i as isize, j as isize);
-                            0.25 * (map.at(ii, jj)
-                                + map.at(ii, jj + 1)
-                                + map.at(ii + 1, jj)
-                                + map.at(ii + 1, jj + 1))
+                for (k, pts) in sets.iter().take(per_cell).enumerate() {
+                    // One point: the centroid (last of the rule).
+                    let pts = if np == 1 { &pts[POINTS_PER_FACET - 1..] } else { &pts[..] };
+                    for (p, &(cx, cy)) in pts.iter().enumerate() {
+                        let h0 = surface_height(map, cx, cy);
+                        let base = ((j * per_cell + k) * np + p) * AZIMUTHS;
+                        for (a, &d) in dirs.iter().enumerate() {
+                            row[base + a] = horizon_tan(map, cx, cy, h0, d, hmax) as f32;
                         }
-                    };
-                    let base = (j * per_cell + k) * AZIMUTHS;
-                    for (a, &d) in dirs.iter().enumerate() {
-                        row[base + a] = horizon_tan(map, cx, cy, h0, d, hmax) as f32;
                     }
                 }
             }
@@ -239,16 +291,18 @@ impl BinnedVisibility {
         normals: &[DVec3],
     ) -> BinnedVisibility {
         let nb = normals.len();
+        let np = horizons.len() / (bins.len() * AZIMUTHS).max(1);
+        let pp = np as u32;
         let mut count = vec![0u32; nb + 1];
         for &b in bins {
-            count[b as usize + 1] += 1;
+            count[b as usize + 1] += pp;
         }
         for k in 0..nb {
             count[k + 1] += count[k];
         }
         let start = count.clone();
         let mut fill = count;
-        let n = bins.len();
+        let n = bins.len() * np;
         let mut hz = vec![0.0f32; n * AZIMUTHS];
         let mut ws = vec![0.0f32; n];
         let mut max_horizon = vec![0.0f32; nb * AZIMUTHS];
@@ -256,16 +310,20 @@ impl BinnedVisibility {
         for (f, &b) in bins.iter().enumerate() {
             let b = b as usize;
             let (s0, len) = (start[b] as usize, (start[b + 1] - start[b]) as usize);
-            let local = fill[b] as usize - s0;
-            fill[b] += 1;
-            for a in 0..AZIMUTHS {
-                let v = horizons[f * AZIMUTHS + a];
-                hz[s0 * AZIMUTHS + a * len + local] = v;
-                let mh = &mut max_horizon[b * AZIMUTHS + a];
-                *mh = mh.max(v);
+            let w = (facets.weights[f] / np as f64) as f32;
+            for p in 0..np {
+                let local = fill[b] as usize - s0;
+                fill[b] += 1;
+                let src = (f * np + p) * AZIMUTHS;
+                for a in 0..AZIMUTHS {
+                    let v = horizons[src + a];
+                    hz[s0 * AZIMUTHS + a * len + local] = v;
+                    let mh = &mut max_horizon[b * AZIMUTHS + a];
+                    *mh = mh.max(v);
+                }
+                ws[s0 + local] = w;
+                total[b] += w;
             }
-            ws[s0 + local] = facets.weights[f] as f32;
-            total[b] += facets.weights[f] as f32;
         }
         let index = normals
             .iter()
