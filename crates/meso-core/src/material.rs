@@ -917,7 +917,13 @@ impl MaterialSpec {
         }
         if let Transfer::Mirror { .. } = self.transfer {
             if ndf.is_singular() {
-                return err("[transfer] kind = \"mirror\" needs a continuous NDF");
+                return err(if conditioned {
+                    "[transfer] kind = \"mirror\" needs a continuous NDF: a height map's facets \
+                     (represent = \"facets\", the default) are a sum of deltas; use a rough facet \
+                     (kind = \"microfacet\") or represent = \"lobes\""
+                } else {
+                    "[transfer] kind = \"mirror\" needs a continuous NDF"
+                });
             }
         }
         Ok(Material {

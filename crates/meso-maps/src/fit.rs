@@ -69,13 +69,21 @@ pub const AXIS_MIN_Z: f64 = 0.05;
 fn bounded(axis: DVec3, eta: f64) -> (DVec3, f64) {
     let a = if axis.z < AXIS_MIN_Z {
         let r = (axis.x * axis.x + axis.y * axis.y).sqrt();
-        let (cx, cy) = if r > 1e-12 { (axis.x / r, axis.y / r) } else { (1.0, 0.0) };
+        let (cx, cy) = if r > 1e-12 {
+            (axis.x / r, axis.y / r)
+        } else {
+            (1.0, 0.0)
+        };
         let s = (1.0 - AXIS_MIN_Z * AXIS_MIN_Z).sqrt();
         DVec3::new(cx * s, cy * s, AXIS_MIN_Z)
     } else {
         axis
     };
-    let eta = if eta.is_finite() { eta.clamp(ETA_MIN, ETA_MAX) } else { ETA_MIN };
+    let eta = if eta.is_finite() {
+        eta.clamp(ETA_MIN, ETA_MAX)
+    } else {
+        ETA_MIN
+    };
     (a, eta)
 }
 /// Resolution of the equal-area grid used to merge normals into [`Entry`]s (≈ 0.8° bins).

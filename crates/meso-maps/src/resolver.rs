@@ -10,10 +10,10 @@
 //! | `max_lobes` | lobes per texel, 1–8 (default 4) |
 //! | `border` | `"wrap"` (default) or `"clamp"` |
 //! | `normals` | `"triangles"` (default) or `"central"` (central differences) |
-//! | `represent` | `"lobes"` (default: the pyramid's top-level fitted Phong peaks) or `"facets"` (every facet normal of the map, binned to ≈ 0.8°, as a delta sum: exact up to the binning; see [`MapsResolver::heightmap_facets`]) |
+//! | `represent` | `"facets"` (default: every facet normal of the map, binned to ≈ 0.8°, as a delta sum with each bin's own visibility, `shadowing = "visibility"`: within 0.1–6% of the ray-traced BRDF where the lobes miss by 3–88%, docs/heightmaps.md; see [`MapsResolver::heightmap_facets`]) or `"lobes"` (the pyramid's top-level fitted Phong peaks, with Smith or horizon masking) |
 //!
-//! The pyramid is extracted once per (file, modification time, parameters) and cached in the
-//! resolver; the NDF is the top level's lobes (the whole map).
+//! With `represent = "lobes"` the pyramid is extracted once per (file, modification time,
+//! parameters) and cached in the resolver; the NDF is the top level's lobes (the whole map).
 //!
 //! # `kind = "map"`
 //! | key | value |
@@ -471,7 +471,7 @@ impl NdfResolver for MapsResolver {
         file: &Path,
     ) -> Result<ResolvedNdf, MaterialError> {
         match kind {
-            "heightmap" if choice(table, "represent", &["lobes", "facets"])? == Some("facets") => {
+            "heightmap" if choice(table, "represent", &["lobes", "facets"])? != Some("lobes") => {
                 Self::heightmap_facets(table, file)
             }
             "heightmap" => {

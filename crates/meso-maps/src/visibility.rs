@@ -106,7 +106,7 @@ fn horizon_tan(map: &HeightMap, x: f64, y: f64, h0: f64, d: (f64, f64), hmax: f6
     let mut best = HORIZON_FLOOR;
     loop {
         let t = cx.next.min(cy.next).min(cd.next);
-        if !(t <= reach) {
+        if t.is_nan() || t > reach {
             break;
         }
         for c in [&mut cx, &mut cy, &mut cd] {
@@ -214,7 +214,11 @@ pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
                 };
                 for (k, pts) in sets.iter().take(per_cell).enumerate() {
                     // One point: the centroid (last of the rule).
-                    let pts = if np == 1 { &pts[POINTS_PER_FACET - 1..] } else { &pts[..] };
+                    let pts = if np == 1 {
+                        &pts[POINTS_PER_FACET - 1..]
+                    } else {
+                        &pts[..]
+                    };
                     for (p, &(cx, cy)) in pts.iter().enumerate() {
                         let h0 = surface_height(map, cx, cy);
                         let base = ((j * per_cell + k) * np + p) * AZIMUTHS;

@@ -444,6 +444,51 @@ mod inputs {
 mod pyramid {
     use super::*;
 
+    /// Issue #11 item 4, as a property over random maps: steep Gaussian surfaces (RMS slope up
+    /// to ≈ 2) and random normal maps with texels below the horizon. Every fitted lobe of every
+    /// level has its axis above the horizon and a bounded exponent; weights sum to 1.
+    #[test]
+    fn no_lobe_below_the_horizon_or_flat_on_random_maps() {
+        use meso_maps::fit::{AXIS_MIN_Z, ETA_MIN};
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let mut checked = 0;
+        for seed in 0..6u64 {
+            let rms = 0.2 + 0.4 * seed as f64;
+            let corr = 1.5 + (seed % 3) as f64;
+            let map = fixtures::gaussian(32, corr, rms, seed, 1.0).unwrap();
+            let normals: Vec<DVec3> = (0..32 * 32)
+                .map(|_| {
+                    let z = rng.random::<f64>() * 1.2 - 0.3;
+                    DVec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, z)
+                })
+                .map(|v| if v.length() < 1e-3 { DVec3::Z } else { v })
+                .collect();
+            let nm = NormalMap::from_normals(32, 32, normals).unwrap();
+            assert!(nm.clamped() > 0);
+            for k in [1, 4, 8] {
+                let mut p = ExtractParams::default();
+                p.fit.max_lobes = k;
+                for src in [Source::Heights(&map), Source::Normals(&nm)] {
+                    let pyr = extract(src, &p, &mut |_| {}).unwrap();
+                    for l in &pyr.levels {
+                        for t in 0..l.texels() {
+                            let lobes = l.texel_lobes(t / l.cols, t % l.cols).unwrap();
+                            let w: f64 = lobes.iter().map(|x| x.weight).sum();
+                            assert!((w - 1.0).abs() < 1e-9, "weights {w}");
+                            for x in lobes {
+                                assert!(x.axis.z >= AXIS_MIN_Z - 1e-9, "axis {:?}", x.axis);
+                                assert!(x.exponent >= ETA_MIN && x.exponent <= ETA_MAX);
+                                checked += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked}");
+    }
+
     #[test]
     fn flat_gives_one_delta_lobe_everywhere() {
         let map = fixtures::flat(24, 0.1).unwrap(); // not a power of two: ragged levels
