@@ -8,6 +8,7 @@
 //!
 //! ```text
 //! cargo run --release -p meso-maps --example farfield_table
+//! FARFIELD_TIMING=1 cargo run --release -p meso-maps --example farfield_table   # timing only
 //! ```
 use glam::DVec3;
 use meso_core::frame::spherical_direction_deg as d;
@@ -132,6 +133,8 @@ fn main() {
         0.02,
     ));
     let pairs = pairs();
+    // FARFIELD_TIMING=1: the timing table only.
+    let timing_only = std::env::var_os("FARFIELD_TIMING").is_some();
     let gp = GonioParams {
         rays_per_side: 256,
         ..GonioParams::default()
@@ -181,7 +184,11 @@ fn main() {
     println!();
     println!("| 10⁴ pairs, 256² Gaussian map, Beckmann 0.1 | load + build | 10⁴ pairs |");
     println!("|---|---|---|");
-    for (label, ndf, sh) in REPRESENTATIONS {
+    for (label, ndf, sh) in REPRESENTATIONS
+        .iter()
+        .filter(|r| !timing_only || r.1.contains("facets"))
+    {
+        let (ndf, sh) = (*ndf, *sh);
         let t0 = Instant::now();
         let m = material(
             &dir,

@@ -59,75 +59,153 @@ pub fn surface_height(map: &HeightMap, x: f64, y: f64) -> f64 {
     }
 }
 
-/// Successive parameters `t > 0` at which `c0 + t·dc` crosses an integer (∞ when `dc = 0`).
-struct Crossings {
-    next: f64,
-    step: f64,
+/// Maxima of the heights over aligned blocks of `2^k × 2^k` cells (their corner samples
+/// included), for every level `k`: the bound that lets the horizon march skip a block whose
+/// highest point cannot rise above the horizon already found. Blocks that run past the map's
+/// last cell take the map's maximum.
+struct MaxPyramid {
+    /// `levels[k]` has `cols_k × rows_k` blocks, row-major.
+    levels: Vec<(usize, usize, Vec<f64>)>,
+    /// The map's highest sample.
+    hmax: f64,
 }
 
-impl Crossings {
-    fn new(c0: f64, dc: f64) -> Crossings {
-        if dc.abs() < 1e-12 {
-            return Crossings {
-                next: f64::INFINITY,
-                step: f64::INFINITY,
-            };
+impl MaxPyramid {
+    fn new(map: &HeightMap) -> MaxPyramid {
+        let (cols, rows) = (map.cells_x(), map.cells_y());
+        let hmax = map.range().1;
+        let mut l0 = Vec::with_capacity(cols * rows);
+        for i in 0..rows as isize {
+            for j in 0..cols as isize {
+                l0.push(
+                    map.at(i, j)
+                        .max(map.at(i, j + 1))
+                        .max(map.at(i + 1, j))
+                        .max(map.at(i + 1, j + 1)),
+                );
+            }
         }
-        let target = if dc > 0.0 {
-            (c0 + 1e-9).floor() + 1.0
-        } else {
-            (c0 - 1e-9).ceil() - 1.0
-        };
-        Crossings {
-            next: (target - c0) / dc,
-            step: 1.0 / dc.abs(),
+        let mut levels = vec![(cols, rows, l0)];
+        while {
+            let (c, r, _) = &levels[levels.len() - 1];
+            *c > 1 || *r > 1
+        } {
+            let (c, r, prev) = &levels[levels.len() - 1];
+            let (c, r) = (*c, *r);
+            let (nc, nr) = (c.div_ceil(2), r.div_ceil(2));
+            let mut next = Vec::with_capacity(nc * nr);
+            for bi in 0..nr {
+                for bj in 0..nc {
+                    let mut m = f64::NEG_INFINITY;
+                    for (di, dj) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        let (ci, cj) = (2 * bi + di, 2 * bj + dj);
+                        m = m.max(if ci < r && cj < c {
+                            prev[ci * c + cj]
+                        } else {
+                            hmax
+                        });
+                    }
+                    next.push(m);
+                }
+            }
+            levels.push((nc, nr, next));
         }
+        MaxPyramid { levels, hmax }
     }
 }
 
 /// Tangent of the horizon elevation seen from `(x, y, h0)` (texel units, height in length
-/// units) along the unit direction `(dx, dy)`, ≥ 0. Along a straight line the piecewise-linear
-/// surface is linear between its crossings of the cell edges (rows, columns and the cells'
-/// diagonals), and so is the rise over distance between them monotonic: the largest slope is
-/// found exactly by evaluating the surface at every crossing.
-fn horizon_tan(map: &HeightMap, x: f64, y: f64, h0: f64, d: (f64, f64), hmax: f64) -> f64 {
+/// units) along the unit direction `(dx, dy)`, ≥ [`HORIZON_FLOOR`]. Along a straight line the
+/// piecewise-linear surface is linear between its crossings of the cell edges (rows, columns
+/// and the cells' diagonals), and so the rise over distance is monotonic between them: the
+/// largest slope is found exactly by evaluating the surface at every crossing — except inside
+/// blocks of cells ([`MaxPyramid`]) whose highest point cannot beat the slope already found,
+/// which are skipped whole.
+fn horizon_tan(map: &HeightMap, maxes: &MaxPyramid, x: f64, y: f64, h0: f64, d: (f64, f64)) -> f64 {
     let s = map.texel_size();
     let (w, h) = (map.width() as f64, map.height() as f64);
-    let reach = match map.border() {
-        // Farther copies of the tile are seen under smaller angles.
-        Border::Wrap => 2.0 * w.max(h),
-        Border::Clamp => f64::INFINITY,
+    let (cw, ch) = (map.cells_x() as f64, map.cells_y() as f64);
+    let wrap = map.border() == Border::Wrap;
+    let hmax = maxes.hmax;
+    // Farther copies of a wrapped tile are seen under smaller angles.
+    let reach = if wrap { 2.0 * w.max(h) } else { f64::INFINITY };
+    let next_crossing = |t: f64, c0: f64, dc: f64| -> f64 {
+        if dc.abs() < 1e-12 {
+            return f64::INFINITY;
+        }
+        let c = c0 + dc * t;
+        let target = if dc > 0.0 {
+            (c + 1e-9).floor() + 1.0
+        } else {
+            (c - 1e-9).ceil() - 1.0
+        };
+        t + (target - c) / dc
     };
-    let mut cx = Crossings::new(x, d.0);
-    let mut cy = Crossings::new(y, d.1);
-    let mut cd = Crossings::new(x - y, d.0 - d.1);
-    // Horizons below HORIZON_FLOOR are not searched for: the march ends once nothing can rise
-    // above it, and the facet keeps the floor (directions lower than that are hidden).
+    // Horizons below the floor are not searched for (module docs).
     let mut best = HORIZON_FLOOR;
+    let mut t = 0.0f64;
     loop {
-        let t = cx.next.min(cy.next).min(cd.next);
-        if t.is_nan() || t > reach {
+        if t > 0.0 && (hmax - h0) / (t * s) <= best {
             break;
         }
-        for c in [&mut cx, &mut cy, &mut cd] {
-            if c.next <= t {
-                c.next += c.step;
+        // Skip the largest block ahead whose maximum cannot rise above `best`.
+        if t > 0.0 {
+            let eps = 1e-7;
+            let (px, py) = (x + d.0 * (t + eps), y + d.1 * (t + eps));
+            let (qx, qy) = if wrap {
+                (px.rem_euclid(cw), py.rem_euclid(ch))
+            } else {
+                (px, py)
+            };
+            let mut skip_to = None;
+            if qx >= 0.0 && qy >= 0.0 && qx < cw && qy < ch {
+                // The cell first (one test when it cannot be skipped), then ever larger blocks.
+                let mut found = None;
+                for (k, (bc, br, m)) in maxes.levels.iter().enumerate() {
+                    let b = (1usize << k) as f64;
+                    let (bj, bi) = ((qx / b) as usize, (qy / b) as usize);
+                    if bj >= *bc || bi >= *br || (m[bi * bc + bj] - h0) / (t * s) > best {
+                        break;
+                    }
+                    found = Some((b, bj, bi));
+                }
+                if let Some((b, bj, bi)) = found {
+                    // Leave the block: its x and y boundaries ahead, in unwrapped units.
+                    let (ox, oy) = (px - qx, py - qy);
+                    let exit = |lo: f64, c0: f64, dc: f64| -> f64 {
+                        if dc > 1e-12 {
+                            (lo + b - c0) / dc
+                        } else if dc < -1e-12 {
+                            (lo - c0) / dc
+                        } else {
+                            f64::INFINITY
+                        }
+                    };
+                    let tx = exit(ox + bj as f64 * b, x, d.0);
+                    let ty = exit(oy + bi as f64 * b, y, d.1);
+                    skip_to = Some(tx.min(ty).max(t + eps));
+                }
+            }
+            if let Some(t2) = skip_to {
+                t = t2;
+                if t > reach {
+                    break;
+                }
+                continue;
             }
         }
-        if t < 1e-9 {
-            continue;
+        let t2 = next_crossing(t, x, d.0)
+            .min(next_crossing(t, y, d.1))
+            .min(next_crossing(t, x - y, d.0 - d.1));
+        if t2.is_nan() || t2 > reach {
+            break;
         }
+        t = t2;
         let (px, py) = (x + d.0 * t, y + d.1 * t);
-        if map.border() == Border::Clamp
-            && (px < -1e-9 || py < -1e-9 || px > w - 1.0 + 1e-9 || py > h - 1.0 + 1e-9)
-        {
+        if !wrap && (px < -1e-9 || py < -1e-9 || px > w - 1.0 + 1e-9 || py > h - 1.0 + 1e-9) {
             break;
         }
-        let dist = t * s;
-        if (hmax - h0) / dist <= best {
-            break;
-        }
-        let rise = (surface_height(map, px, py) - h0) / dist;
+        let rise = (surface_height(map, px, py) - h0) / (t * s);
         best = best.max(rise);
     }
     best
@@ -176,7 +254,7 @@ fn triangle_points(v: [(f64, f64); 3]) -> [(f64, f64); POINTS_PER_FACET] {
 #[must_use]
 pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
     let (cols, rows) = (map.cells_x(), map.cells_y());
-    let hmax = map.range().1;
+    let maxes = MaxPyramid::new(map);
     let dirs: Vec<(f64, f64)> = (0..AZIMUTHS)
         .map(|a| {
             let p = TAU * a as f64 / AZIMUTHS as f64;
@@ -223,7 +301,7 @@ pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
                         let h0 = surface_height(map, cx, cy);
                         let base = ((j * per_cell + k) * np + p) * AZIMUTHS;
                         for (a, &d) in dirs.iter().enumerate() {
-                            row[base + a] = horizon_tan(map, cx, cy, h0, d, hmax) as f32;
+                            row[base + a] = horizon_tan(map, &maxes, cx, cy, h0, d) as f32;
                         }
                     }
                 }
