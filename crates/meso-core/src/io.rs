@@ -51,6 +51,7 @@ pub fn write_atomic_with(
 /// place; dropping it removes the temporary file and leaves the target untouched.
 #[derive(Debug)]
 pub struct Staged {
+    path: PathBuf,
     inner: StagedInner,
 }
 
@@ -162,6 +163,7 @@ pub fn stage_with(
             let mut bytes = Vec::new();
             fill(&mut bytes)?;
             return Ok(Staged {
+                path: path.to_path_buf(),
                 inner: StagedInner::Direct { target, bytes },
             });
         }
@@ -204,6 +206,7 @@ pub fn stage_with(
     }
     tmp.as_file().sync_all()?;
     Ok(Staged {
+        path: path.to_path_buf(),
         inner: StagedInner::Rename {
             tmp,
             dest,
@@ -271,21 +274,39 @@ fn dup_fd(_fd: i32) -> std::io::Result<File> {
 /// Put several staged outputs in place, in order. The outputs were all written before, so a
 /// command that fails while producing them leaves none. If a rename fails here, the outputs of
 /// this batch that did not exist before are removed again (a file that was replaced cannot be
-/// restored).
-pub fn commit_all(staged: Vec<Staged>) -> std::io::Result<()> {
+/// restored). The error names the output that failed.
+pub fn commit_all(staged: Vec<Staged>) -> Result<(), CommitError> {
     let mut created: Vec<PathBuf> = Vec::new();
     for s in staged {
         let new = s.created_path().map(Path::to_path_buf);
-        if let Err(e) = s.commit() {
+        let path = s.path.clone();
+        if let Err(source) = s.commit() {
             for p in &created {
                 let _ = std::fs::remove_file(p);
             }
-            return Err(e);
+            return Err(CommitError { path, source });
         }
         created.extend(new);
     }
     Ok(())
 }
+
+/// The failure of [`commit_all`]: which output could not be put in place, and why.
+#[derive(Debug)]
+pub struct CommitError {
+    /// The output path, as given to [`stage_with`].
+    pub path: PathBuf,
+    /// The I/O error.
+    pub source: std::io::Error,
+}
+
+impl std::fmt::Display for CommitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: cannot write: {}", self.path.display(), self.source)
+    }
+}
+
+impl std::error::Error for CommitError {}
 
 /// Refuse an output that is the same file as one of the inputs (same device and inode, symlinks
 /// followed): writing it would destroy the input. Outputs that do not exist yet and non-regular

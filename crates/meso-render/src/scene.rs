@@ -15,6 +15,7 @@ use crate::light::{EnvironmentMap, Light};
 use crate::sampling::MAX_SAMPLES_PER_PIXEL;
 use crate::shader::Shader;
 use glam::DVec3;
+use meso_core::display::Num;
 use meso_core::frame::Frame;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -126,7 +127,7 @@ fn positive(field: &str, x: f64) -> Result<(), SceneError> {
     } else {
         Err(SceneError::invalid(
             field,
-            format!("must be a finite number > 0, got {x}"),
+            format!("must be a finite number > 0, got {}", Num(x)),
         ))
     }
 }
@@ -1124,7 +1125,7 @@ impl SceneFile {
             if !(env.scale.is_finite() && env.scale >= 0.0) {
                 return Err(SceneError::invalid(
                     "environment.scale",
-                    format!("must be finite and >= 0, got {}", env.scale),
+                    format!("must be finite and >= 0, got {}", Num(f64::from(env.scale))),
                 ));
             }
             if !env.rotation_deg.is_finite() {
