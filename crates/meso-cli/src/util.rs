@@ -7,17 +7,20 @@ use std::path::Path;
 
 /// Read a UTF-8 text file of at most `limit` bytes, naming the file in every error.
 pub fn read_text(path: &Path, limit: u64) -> Result<String> {
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    if meta.len() > limit {
-        bail!(
-            "{}: {} bytes is larger than the limit of {limit} bytes",
-            path.display(),
-            meta.len()
-        );
-    }
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bytes = read_bytes(path, limit)?;
     String::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))
+}
+
+/// Read at most `limit` bytes of a file, counting the bytes actually read
+/// ([`meso_core::io::read_limited`]: `/dev/zero` and FIFOs too); errors name the file.
+pub fn read_bytes(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    meso_core::io::read_limited(path, limit).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::FileTooLarge {
+            anyhow::anyhow!("{}: {e}", path.display())
+        } else {
+            anyhow::anyhow!("{}: cannot read: {e}", path.display())
+        }
+    })
 }
 
 /// A progress bar on standard error, hidden when stderr is not a terminal or the job is small.

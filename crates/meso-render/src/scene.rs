@@ -5,6 +5,13 @@
 //! into shaders by a caller-supplied [`MaterialResolver`], so the renderer does not depend on
 //! any material file format. Each distinct path is resolved once.
 
+/// Largest scene file read (bytes actually read): 16 MiB.
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+/// Largest OBJ mesh file read (bytes actually read): 256 MiB.
+pub const MAX_OBJ_BYTES: u64 = 256 << 20;
+/// Largest environment-map image file read (bytes actually read): 256 MiB.
+pub const MAX_ENVIRONMENT_BYTES: u64 = 256 << 20;
+
 use crate::bvh::{Bvh, Prim};
 use crate::camera::{Camera, Projection, Ray, RayDifferential};
 use crate::error::SceneError;
@@ -764,9 +771,15 @@ impl Scene {
         path: &Path,
         resolver: &dyn MaterialResolver,
     ) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+        let bytes = meso_core::io::read_limited(path, MAX_SCENE_BYTES).map_err(|source| {
+            SceneError::Read {
+                file: path.to_path_buf(),
+                source,
+            }
+        })?;
+        let text = String::from_utf8(bytes).map_err(|_| SceneError::Read {
             file: path.to_path_buf(),
-            source,
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"),
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Scene::from_toml_str_in(&text, path, &base, resolver)

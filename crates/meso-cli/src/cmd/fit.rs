@@ -17,6 +17,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Largest sample CSV read (bytes actually read).
+const MAX_CSV_BYTES: u64 = 1 << 30;
+
 /// Number of data cells on which the written material is evaluated exactly.
 const EXACT_CELLS: usize = 500;
 
@@ -155,14 +158,7 @@ fn load(path: &Path, target: usize) -> Result<Data> {
             merl: Some(table),
         });
     }
-    if meta.len() > 1 << 30 {
-        bail!(
-            "{}: {} bytes is too large for a sample CSV",
-            path.display(),
-            meta.len()
-        );
-    }
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bytes = crate::util::read_bytes(path, MAX_CSV_BYTES)?;
     let Ok(text) = String::from_utf8(bytes) else {
         bail!(
             "{}: neither a MERL binary (header 90, 90, 180) nor a UTF-8 sample CSV",
