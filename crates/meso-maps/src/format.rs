@@ -104,7 +104,7 @@ impl Pyramid {
     /// Write the map file atomically (`meso_core::io::write_atomic_with`): on error no partial
     /// file is left.
     pub fn write(&self, path: &Path) -> Result<()> {
-        meso_core::io::write_atomic_with(path, |w| self.write_to(w)).map_err(|e| MapError::Io {
+        meso_core::io::write_atomic_with(path, |w| self.write_to(w)).map_err(|e| MapError::Write {
             path: path.to_path_buf(),
             source: e,
         })

@@ -802,9 +802,40 @@ impl Scene {
     ) -> Result<Scene, SceneError> {
         let parsed: SceneFile = toml::from_str(text).map_err(|e| SceneError::Parse {
             file: file.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: toml_error_line(text, &e),
         })?;
         parsed.build(base, resolver).map_err(|e| e.in_file(file))
+    }
+}
+
+/// Longest excerpt of the offending line quoted in a TOML error.
+const TOML_EXCERPT_CHARS: usize = 40;
+
+/// A TOML error on one short line: `line L, column C: MESSAGE (at `EXCERPT…`)`, the excerpt at
+/// most [`TOML_EXCERPT_CHARS`] characters from the error's position, so a 20 MB line is not
+/// echoed.
+fn toml_error_line(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace('\n', "; ");
+    let Some(span) = e.span() else {
+        return message;
+    };
+    let start = span.start.min(text.len());
+    let start = (0..=start)
+        .rev()
+        .find(|&i| text.is_char_boundary(i))
+        .unwrap_or(0);
+    let line_start = text[..start].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[..start].matches('\n').count() + 1;
+    let column = text[line_start..start].chars().count() + 1;
+    let rest = text[start..].lines().next().unwrap_or("");
+    let mut excerpt: String = rest.chars().take(TOML_EXCERPT_CHARS).collect();
+    if rest.chars().nth(TOML_EXCERPT_CHARS).is_some() {
+        excerpt.push('…');
+    }
+    if excerpt.trim().is_empty() {
+        format!("line {line}, column {column}: {message}")
+    } else {
+        format!("line {line}, column {column}: {message} (at `{excerpt}`)")
     }
 }
 

@@ -123,3 +123,27 @@ fn item12_obj_with_nan_normals_or_uvs_is_refused() {
     assert!(Mesh::from_obj(&p).is_ok());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn item12_scene_toml_error_is_one_short_line() {
+    let long = "9".repeat(2_000_000);
+    let text = format!("[camera]\nkind = \"orthographic\"\n[image]\nwidth = {long}\n");
+    let e = Scene::from_toml_str(&text, Path::new("."), &resolver)
+        .err()
+        .unwrap()
+        .to_string();
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(
+        e.len() < 300,
+        "{} chars: {}",
+        e.len(),
+        &e[..300.min(e.len())]
+    );
+    assert!(e.contains("line 4, column"), "{e}");
+    let e = Scene::from_toml_str("[camera\n", Path::new("."), &resolver)
+        .err()
+        .unwrap()
+        .to_string();
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(e.contains("line 1"), "{e}");
+}

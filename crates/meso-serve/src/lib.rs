@@ -24,6 +24,14 @@
 //! of range, 404 for unknown routes, 405 for wrong methods, 413 for bodies over
 //! [`MAX_BODY_BYTES`].
 //!
+//! Only same-origin requests are served ([`router_for`], used by [`serve`]): the `Host` header
+//! must name the address the server is bound to (`localhost`, `127.0.0.1` or `[::1]` for a
+//! loopback address, with the bound port if a port is given), an `Origin` header, when present,
+//! must be `http://` + that `Host`, and a `POST` must declare `Content-Type: application/json`
+//! (or `application/toml` for `/api/parse`), which a cross-origin page cannot send without a
+//! CORS preflight. Other requests are answered 403 (Host, Origin) or 415 (Content-Type): a web
+//! page on another site, or a DNS-rebound name, cannot drive the editor.
+//!
 //! ```no_run
 //! let server = meso_serve::spawn("127.0.0.1:0".parse().unwrap()).unwrap();
 //! println!("editor at http://{}/", server.addr());
@@ -76,7 +84,101 @@ struct AppState {
     renders: Arc<Semaphore>,
 }
 
-/// The application's router (all routes, limits and fallbacks).
+/// The application's router for a server bound to `bound`: [`router`] behind the same-origin
+/// checks (see the crate documentation).
+pub fn router_for(bound: SocketAddr) -> Router {
+    router().layer(axum::middleware::from_fn(
+        move |req: axum::extract::Request, next: axum::middleware::Next| async move {
+            match same_origin(bound, &req) {
+                Ok(()) => next.run(req).await,
+                Err(e) => e.into_response(),
+            }
+        },
+    ))
+}
+
+/// Whether `host` (a `Host` header or an origin's authority) names the server bound to `bound`.
+fn host_matches(bound: SocketAddr, host: &str) -> bool {
+    let (name, port) = match host.rsplit_once(':') {
+        Some((n, p)) if !n.ends_with(':') && p.bytes().all(|b| b.is_ascii_digit()) => (n, Some(p)),
+        _ => (host, None),
+    };
+    if let Some(p) = port {
+        if p.parse::<u16>().ok() != Some(bound.port()) {
+            return false;
+        }
+    }
+    let name = name.to_ascii_lowercase();
+    let ip = bound.ip();
+    if ip.is_loopback() {
+        matches!(name.as_str(), "localhost" | "127.0.0.1" | "[::1]")
+            || name == ip.to_string()
+            || name == format!("[{ip}]")
+    } else if ip.is_unspecified() {
+        // Bound to every interface on purpose: any name of this machine, but still one origin.
+        true
+    } else {
+        name == ip.to_string() || name == format!("[{ip}]")
+    }
+}
+
+/// The same-origin checks of [`router_for`].
+fn same_origin(bound: SocketAddr, req: &axum::extract::Request) -> Result<(), ApiError> {
+    let headers = req.headers();
+    let forbidden = |m: String| ApiError::new(StatusCode::FORBIDDEN, m);
+    let Some(host) = headers.get(header::HOST).and_then(|h| h.to_str().ok()) else {
+        return Err(forbidden(
+            "a Host header naming this server is required".into(),
+        ));
+    };
+    if !host_matches(bound, host) {
+        return Err(forbidden(format!(
+            "Host {host:?} is not this server ({bound}); open http://{bound}/"
+        )));
+    }
+    if let Some(origin) = headers.get(header::ORIGIN) {
+        let origin = origin.to_str().unwrap_or("");
+        let same = origin
+            .strip_prefix("http://")
+            .is_some_and(|o| o.eq_ignore_ascii_case(host));
+        if !same {
+            return Err(forbidden(format!(
+                "cross-origin request from {origin:?} refused"
+            )));
+        }
+    }
+    if req.method() == axum::http::Method::POST {
+        let ct = headers
+            .get(header::CONTENT_TYPE)
+            .and_then(|h| h.to_str().ok())
+            .unwrap_or("");
+        let mime = ct
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
+        let ok = mime == "application/json"
+            || (mime == "application/toml" && req.uri().path() == "/api/parse");
+        if !ok {
+            return Err(ApiError::new(
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                format!(
+                    "Content-Type {ct:?} is not accepted: send application/json{}",
+                    if req.uri().path() == "/api/parse" {
+                        " or application/toml"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The application's router (all routes, limits and fallbacks), without the same-origin checks
+/// of [`router_for`] (for embedding behind one's own).
 pub fn router() -> Router {
     let state = AppState {
         renders: Arc::new(Semaphore::new(MAX_CONCURRENT_RENDERS)),
@@ -300,7 +402,8 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    axum::serve(listener, router())
+    let bound = listener.local_addr()?;
+    axum::serve(listener, router_for(bound))
         .with_graceful_shutdown(shutdown)
         .await
 }
