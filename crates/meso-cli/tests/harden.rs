@@ -509,3 +509,39 @@ fn item12_os_errors_are_printed_once() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn item5_a_written_map_always_passes_map_info() {
+    let d = tmp("item5");
+    let n = 16u32;
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |x, y| {
+        image::Luma([((x * 7 + y * 13) % 64 * 1000) as u16])
+    });
+    let png = d.join("h.png");
+    img.save(&png).unwrap();
+    for (texel, height) in [("1e-3", "1e160"), ("1e-150", "1e10"), ("1e-3", "1e300")] {
+        let map = d.join("h.map");
+        let o = run(&[
+            "extract",
+            s(&png),
+            "--texel-size",
+            texel,
+            "--height-scale",
+            height,
+            "--out",
+            s(&map),
+        ]);
+        if o.status.success() {
+            let info = run(&["map", "info", s(&map)]);
+            ok(&info);
+        } else {
+            fails_with(&o, "h.map");
+            assert!(
+                !map.exists(),
+                "{texel} {height}: a failed extract left a map"
+            );
+        }
+        let _ = std::fs::remove_file(&map);
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

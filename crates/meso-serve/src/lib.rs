@@ -64,6 +64,10 @@ pub const MAX_BODY_BYTES: usize = 1 << 20;
 /// client went away while waiting are dropped without rendering.
 pub const MAX_CONCURRENT_RENDERS: usize = 2;
 
+/// Renders running or waiting at once; a render request beyond them is answered
+/// 503 Service Unavailable (with `Retry-After: 1`) instead of queueing without bound.
+pub const MAX_QUEUED_RENDERS: usize = 8;
+
 const PAGE_HTML: &str = include_str!("page/index.html");
 const PAGE_CSS: &str = include_str!("page/style.css");
 const PAGE_JS: &str = include_str!("page/app.js");
@@ -82,6 +86,30 @@ pub fn page() -> &'static str {
 #[derive(Clone)]
 struct AppState {
     renders: Arc<Semaphore>,
+    /// Renders running or waiting for a slot.
+    queued: Arc<std::sync::atomic::AtomicUsize>,
+    /// Most renders running or waiting; further ones are answered 503.
+    max_queued: usize,
+}
+
+impl AppState {
+    fn new(slots: usize, max_queued: usize) -> AppState {
+        AppState {
+            renders: Arc::new(Semaphore::new(slots)),
+            queued: Arc::new(std::sync::atomic::AtomicUsize::new(0)),
+            max_queued,
+        }
+    }
+}
+
+/// A place in the render queue, given back when dropped (the render finished, failed, or its
+/// client went away while it waited).
+struct QueuePlace(Arc<std::sync::atomic::AtomicUsize>);
+
+impl Drop for QueuePlace {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
 }
 
 /// The application's router for a server bound to `bound`: [`router`] behind the same-origin
@@ -181,7 +209,7 @@ fn same_origin(bound: SocketAddr, req: &axum::extract::Request) -> Result<(), Ap
 /// of [`router_for`] (for embedding behind one's own).
 pub fn router() -> Router {
     let state = AppState {
-        renders: Arc::new(Semaphore::new(MAX_CONCURRENT_RENDERS)),
+        ..AppState::new(MAX_CONCURRENT_RENDERS, MAX_QUEUED_RENDERS)
     };
     Router::new()
         .route("/", get(index))
@@ -281,11 +309,26 @@ async fn blocking<T: Send + 'static>(
     state: &AppState,
     f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
+    let place = QueuePlace(state.queued.clone());
+    if state
+        .queued
+        .fetch_add(1, std::sync::atomic::Ordering::SeqCst)
+        >= state.max_queued
+    {
+        return Err(ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!(
+                "busy: {} renders are running or waiting; try again shortly",
+                state.max_queued
+            ),
+        ));
+    }
     let _permit = state
         .renders
         .acquire()
         .await
         .map_err(|_| ApiError::internal("server shutting down"))?;
+    let _place = place;
     tokio::task::spawn_blocking(f)
         .await
         .map_err(|e| ApiError::internal(format!("render task failed: {e}")))?
@@ -499,4 +542,48 @@ pub fn run(host: &str, port: u16, on_listening: impl FnOnce(SocketAddr)) -> Resu
         .await?;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// item 10: with one slot and a queue of two, a third render is answered 503 at once; a
+    /// waiting request whose client goes away gives its place back.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn item10_render_queue_is_bounded_and_answers_503_when_full() {
+        let state = AppState::new(1, 2);
+        let (release, wait) = std::sync::mpsc::channel::<()>();
+        let wait = Arc::new(std::sync::Mutex::new(wait));
+        let s1 = state.clone();
+        let w1 = wait.clone();
+        let running = tokio::spawn(async move {
+            blocking(&s1, move || {
+                let _ = w1.lock().unwrap().recv();
+                Ok(1)
+            })
+            .await
+        });
+        while state.renders.available_permits() > 0 {
+            tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        }
+        let s2 = state.clone();
+        let waiting = tokio::spawn(async move { blocking(&s2, || Ok(2)).await });
+        while state.queued.load(std::sync::atomic::Ordering::SeqCst) < 2 {
+            tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        }
+        let e = blocking(&state, || Ok(3)).await.unwrap_err();
+        assert_eq!(e.status, StatusCode::SERVICE_UNAVAILABLE);
+        assert!(e.message.contains("busy"), "{}", e.message);
+        // The waiting client disconnects: its future is dropped, its place given back.
+        waiting.abort();
+        let _ = waiting.await;
+        assert_eq!(state.queued.load(std::sync::atomic::Ordering::SeqCst), 1);
+        let s3 = state.clone();
+        let next = tokio::spawn(async move { blocking(&s3, || Ok(4)).await });
+        release.send(()).unwrap();
+        assert_eq!(running.await.unwrap().unwrap(), 1);
+        assert_eq!(next.await.unwrap().unwrap(), 4);
+        assert_eq!(state.queued.load(std::sync::atomic::Ordering::SeqCst), 0);
+    }
 }
