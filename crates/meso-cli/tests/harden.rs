@@ -531,6 +531,7 @@ fn item5_a_written_map_always_passes_map_info() {
             "--out",
             s(&map),
         ]);
+        eprintln!("{texel} {height}: {:?} {}", o.status, stderr(&o).trim());
         if o.status.success() {
             let info = run(&["map", "info", s(&map)]);
             ok(&info);
