@@ -105,7 +105,7 @@ fn item9_foreign_host_is_refused() {
         format!("Host: evil.example:{}", server().port()),
         "Host: 127.0.0.1:1".to_string(),
     ] {
-        let (st, body) = send("GET", "/api/health", &[h.clone()], "");
+        let (st, body) = send("GET", "/api/health", std::slice::from_ref(&h), "");
         assert_eq!(st, 403, "{h}: {body}");
         let (st, _) = send(
             "POST",
