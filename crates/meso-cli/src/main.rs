@@ -4,6 +4,13 @@
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+/// `eprintln!` that cannot panic: a diagnostic line on standard error ([`util::note`]).
+macro_rules! note {
+    ($($t:tt)*) => {
+        $crate::util::note(format_args!($($t)*))
+    };
+}
+
 mod cmd;
 mod util;
 
@@ -66,8 +73,9 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if util::is_stdout_closed(&e) => ExitCode::from(util::EXIT_STDOUT_CLOSED),
         Err(e) => {
-            eprintln!("meso: error: {e:#}");
+            note!("meso: error: {}", util::error_message(&e));
             ExitCode::FAILURE
         }
     }

@@ -7,17 +7,20 @@ use std::path::Path;
 
 /// Read a UTF-8 text file of at most `limit` bytes, naming the file in every error.
 pub fn read_text(path: &Path, limit: u64) -> Result<String> {
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    if meta.len() > limit {
-        bail!(
-            "{}: {} bytes is larger than the limit of {limit} bytes",
-            path.display(),
-            meta.len()
-        );
-    }
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bytes = read_bytes(path, limit)?;
     String::from_utf8(bytes).with_context(|| format!("{}: not UTF-8 text", path.display()))
+}
+
+/// Read at most `limit` bytes of a file, counting the bytes actually read
+/// ([`meso_core::io::read_limited`]: `/dev/zero` and FIFOs too); errors name the file.
+pub fn read_bytes(path: &Path, limit: u64) -> Result<Vec<u8>> {
+    meso_core::io::read_limited(path, limit).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::FileTooLarge {
+            anyhow::anyhow!("{}: {e}", path.display())
+        } else {
+            anyhow::anyhow!("{}: cannot read: {e}", path.display())
+        }
+    })
 }
 
 /// A progress bar on standard error, hidden when stderr is not a terminal or the job is small.
@@ -78,8 +81,132 @@ pub fn write_brdf_table(
         None => {
             let stdout = std::io::stdout();
             let mut lock = std::io::BufWriter::new(stdout.lock());
-            write(&mut lock)?;
-            lock.flush()?;
+            write(&mut lock)
+                .and_then(|()| lock.flush())
+                .map_err(stdout_error)?;
+        }
+    }
+    Ok(())
+}
+
+/// The reader of standard output went away (`EPIPE`, e.g. `meso map info MAP | head -1`): the
+/// command stops writing and exits quietly with status 141 (128 + SIGPIPE), the status a Unix
+/// tool killed by SIGPIPE reports, so `set -o pipefail` scripts see what they see for `cat`.
+#[derive(Debug)]
+pub struct StdoutClosed;
+
+impl std::fmt::Display for StdoutClosed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("standard output closed")
+    }
+}
+
+impl std::error::Error for StdoutClosed {}
+
+/// The exit status of a command whose standard output was closed by its reader.
+pub const EXIT_STDOUT_CLOSED: u8 = 141;
+
+/// An error writing standard output: [`StdoutClosed`] for a broken pipe, otherwise a one-line
+/// error ("cannot write to standard output: No space left on device (os error 28)").
+pub fn stdout_error(e: std::io::Error) -> anyhow::Error {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        anyhow::Error::new(StdoutClosed)
+    } else {
+        anyhow::anyhow!("cannot write to standard output: {e}")
+    }
+}
+
+/// Write `text` to standard output and flush it, turning write errors into errors
+/// ([`stdout_error`]) instead of the panic of `print!`.
+pub fn print_stdout(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(stdout_error)
+}
+
+/// Write a diagnostic line to standard error. A failure to write it (stderr on a full disk or a
+/// closed pipe) is ignored: there is nowhere left to report it, and the exit status still tells
+/// whether the command succeeded.
+pub fn note(args: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let mut err = std::io::stderr().lock();
+    let _ = err.write_fmt(args).and_then(|()| err.write_all(b"\n"));
+}
+
+/// Whether `e` (or any error in its chain) is a closed standard output or a broken pipe.
+pub fn is_stdout_closed(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.is::<StdoutClosed>()
+            || c.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+/// The one-line message of an error chain: each cause appended once. Causes whose text the
+/// message already contains (errors that print their source themselves) are not repeated, so an
+/// OS error appears once.
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if text.is_empty() || msg.contains(&text) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
+}
+
+/// The file a path names, for comparing outputs that may not exist yet: the canonical parent
+/// directory joined with the file name (the path itself when the parent cannot be resolved).
+fn output_identity(p: &Path) -> std::path::PathBuf {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return c;
+    }
+    let parent = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(parent), p.file_name()) {
+        (Ok(d), Some(n)) => d.join(n),
+        _ => p.to_path_buf(),
+    }
+}
+
+/// Refuse outputs that would overwrite one of the command's inputs
+/// ([`meso_core::io::check_not_input`]) or name the same file twice.
+pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
+    for (j, out) in outputs.iter().enumerate() {
+        meso_core::io::check_not_input(out, inputs)?;
+        if std::fs::symlink_metadata(out).is_err() {
+            // Fail before the work, not after it: the output's directory must exist.
+            let dir = match out.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            if !dir.is_dir() {
+                bail!(
+                    "{}: cannot write: the directory {} does not exist",
+                    out.display(),
+                    dir.display()
+                );
+            }
+        }
+        let id = output_identity(out);
+        if let Some(first) = outputs[..j].iter().find(|o| output_identity(o) == id) {
+            let regular = std::fs::metadata(out).map_or(true, |m| m.is_file());
+            if regular {
+                bail!(
+                    "{} and {} are the same output file; choose two different files",
+                    first.display(),
+                    out.display()
+                );
+            }
         }
     }
     Ok(())

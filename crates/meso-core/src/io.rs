@@ -1,55 +1,392 @@
-//! Safe file output: every file meso writes goes through [`write_atomic`], so a failure never
-//! leaves a partial output file behind.
+//! Safe file input and output.
+//!
+//! Every file meso writes goes through [`write_atomic`] / [`write_atomic_with`] (or, for a
+//! command with several outputs, [`stage_with`] and [`commit_all`]):
+//!
+//! * a **regular file** (or a path that does not exist yet) is written to a temporary file
+//!   created exclusively (`O_EXCL`, random name `.NAME.XXXXXX.tmp`) in the target's directory,
+//!   flushed, synced and renamed over the target, so a failure never leaves a partial output and
+//!   nobody can make meso write through a planted temporary name. An existing target keeps its
+//!   permission bits (and, where the process may, its owner); a new one gets `0666 & !umask` like
+//!   any other file;
+//! * a **symbolic link** is followed: the file it points at is replaced, the link stays;
+//! * a **non-regular target** (character or block device, FIFO, socket, `/dev/stdout` and the
+//!   other `/proc/self/fd/N` links) is written directly, in place: it is never replaced by a
+//!   regular file. Such a write is not atomic (a failure part-way leaves what was written);
+//! * a directory is refused.
+//!
+//! [`check_not_input`] refuses an output that is the same file as one of a command's inputs, and
+//! [`read_limited`] reads a file with a limit on the bytes actually read (which also holds for
+//! `/dev/zero`, FIFOs and `/proc` files, whose reported size is 0).
 
-use std::io::Write;
-use std::path::Path;
+use std::fs::File;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
 
-/// Write `bytes` to `path` atomically: the data go to a temporary file in the same directory,
-/// are flushed and synced, and only then renamed over `path`. On error nothing is left behind.
+/// Write `bytes` to `path` atomically (see the [module documentation](self) for what happens to
+/// symlinks, devices and existing files). On error nothing is left behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))
 }
 
 /// Like [`write_atomic`], with the content produced by a closure writing into a buffered file.
-/// If the closure fails, the temporary file is removed and `path` is untouched.
+/// If the closure fails, the temporary file is removed and `path` is untouched. A non-regular
+/// target (device, FIFO, `/dev/stdout`) receives the content as it is produced.
 pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => std::path::PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "no file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let f = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(f);
-        fill(&mut w)?;
-        let f = w.into_inner().map_err(|e| e.into_error())?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    if path.file_name().is_some() {
+        if let Resolved::Direct(target) = resolve(path)? {
+            let mut w = std::io::BufWriter::new(open_direct(&target)?);
+            fill(&mut w)?;
+            return w.flush();
+        }
     }
-    result
+    stage_with(path, fill)?.commit()
+}
+
+/// An output written but not yet in place: a synced temporary file next to its target (or, for a
+/// non-regular target, the bytes to write to it). [`Staged::commit`] or [`commit_all`] put it in
+/// place; dropping it removes the temporary file and leaves the target untouched.
+#[derive(Debug)]
+pub struct Staged {
+    path: PathBuf,
+    inner: StagedInner,
+}
+
+#[derive(Debug)]
+enum StagedInner {
+    /// A temporary file to rename over `dest` (`existed`: `dest` was there before).
+    Rename {
+        tmp: tempfile::NamedTempFile,
+        dest: PathBuf,
+        existed: bool,
+    },
+    /// Bytes to write directly to a non-regular target.
+    Direct {
+        target: DirectTarget,
+        bytes: Vec<u8>,
+    },
+}
+
+/// A non-regular output: a path opened for writing, or a file descriptor of this process.
+#[derive(Debug)]
+enum DirectTarget {
+    Path(PathBuf),
+    Fd(i32),
+}
+
+/// What an output path resolves to.
+enum Resolved {
+    /// A regular file (symlinks followed), with its metadata.
+    Regular(PathBuf, std::fs::Metadata),
+    /// Nothing there yet (symlinks followed): a new file at this path.
+    New(PathBuf),
+    /// A device, FIFO, socket or `/proc` link: written in place.
+    Direct(DirectTarget),
+}
+
+/// The file descriptor named by `/proc/self/fd/N`, `/dev/fd/N`, `/dev/stdout` or `/dev/stderr`.
+fn own_fd(p: &Path) -> Option<i32> {
+    match p.to_str()? {
+        "/dev/stdout" => return Some(1),
+        "/dev/stderr" => return Some(2),
+        _ => {}
+    }
+    let s = p.to_str()?;
+    let n = s
+        .strip_prefix("/proc/self/fd/")
+        .or_else(|| s.strip_prefix("/dev/fd/"))
+        .or_else(|| s.strip_prefix("/proc/thread-self/fd/"))?;
+    n.parse().ok()
+}
+
+fn resolve(path: &Path) -> std::io::Result<Resolved> {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        if let Some(fd) = own_fd(&p) {
+            return Ok(Resolved::Direct(DirectTarget::Fd(fd)));
+        }
+        let meta = match std::fs::symlink_metadata(&p) {
+            Ok(m) => m,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Resolved::New(p)),
+            Err(e) => return Err(e),
+        };
+        let ft = meta.file_type();
+        if ft.is_symlink() {
+            if p.starts_with("/proc") {
+                // A /proc "magic" link (another process's descriptor, …): open it as it is.
+                return Ok(Resolved::Direct(DirectTarget::Path(p)));
+            }
+            let t = std::fs::read_link(&p)?;
+            p = if t.is_absolute() {
+                t
+            } else {
+                p.parent().unwrap_or(Path::new("")).join(t)
+            };
+            continue;
+        }
+        if ft.is_file() {
+            return Ok(Resolved::Regular(p, meta));
+        }
+        if ft.is_dir() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::IsADirectory,
+                "is a directory",
+            ));
+        }
+        return Ok(Resolved::Direct(DirectTarget::Path(p)));
+    }
+    Err(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        "too many levels of symbolic links",
+    ))
+}
+
+/// Write the content of an output without putting it in place yet (see [`Staged`]).
+///
+/// For a regular target the closure writes into the temporary file; for a non-regular one into
+/// memory (the bytes go to the device at commit, so a failed command writes nothing to it).
+pub fn stage_with(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<Staged> {
+    if path.file_name().is_none() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a file name",
+        ));
+    }
+    let (dest, meta) = match resolve(path)? {
+        Resolved::Direct(target) => {
+            let mut bytes = Vec::new();
+            fill(&mut bytes)?;
+            return Ok(Staged {
+                path: path.to_path_buf(),
+                inner: StagedInner::Direct { target, bytes },
+            });
+        }
+        Resolved::Regular(p, m) => (p, Some(m)),
+        Resolved::New(p) => (p, None),
+    };
+    let dir = match dest.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = dest
+        .file_name()
+        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"))?;
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // Subject to the umask, as `File::create` is.
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let tmp = builder.tempfile_in(&dir)?;
+    let mut w = std::io::BufWriter::new(tmp);
+    fill(&mut w)?;
+    let tmp = w.into_inner().map_err(|e| e.into_error())?;
+    if let Some(m) = &meta {
+        tmp.as_file().set_permissions(m.permissions())?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let mine = tmp.as_file().metadata()?;
+            if (mine.uid(), mine.gid()) != (m.uid(), m.gid()) {
+                // Only a privileged process may give the file away; otherwise it is ours.
+                let _ = std::os::unix::fs::fchown(tmp.as_file(), Some(m.uid()), Some(m.gid()));
+                // fchown may clear set-id bits: restore the mode.
+                tmp.as_file().set_permissions(m.permissions())?;
+            }
+        }
+    }
+    tmp.as_file().sync_all()?;
+    Ok(Staged {
+        path: path.to_path_buf(),
+        inner: StagedInner::Rename {
+            tmp,
+            dest,
+            existed: meta.is_some(),
+        },
+    })
+}
+
+impl Staged {
+    /// Put the output in place: rename the temporary file over the target, or write the bytes to
+    /// the non-regular target.
+    pub fn commit(self) -> std::io::Result<()> {
+        match self.inner {
+            StagedInner::Rename { tmp, dest, .. } => {
+                tmp.persist(&dest).map(drop).map_err(|e| e.error)
+            }
+            StagedInner::Direct { target, bytes } => {
+                let mut f = open_direct(&target)?;
+                f.write_all(&bytes)?;
+                f.flush()
+            }
+        }
+    }
+
+    /// The path the output goes to (symlinks followed).
+    fn created_path(&self) -> Option<&Path> {
+        match &self.inner {
+            StagedInner::Rename {
+                dest,
+                existed: false,
+                ..
+            } => Some(dest),
+            _ => None,
+        }
+    }
+}
+
+fn open_direct(t: &DirectTarget) -> std::io::Result<File> {
+    match t {
+        DirectTarget::Path(p) => std::fs::OpenOptions::new().write(true).open(p),
+        DirectTarget::Fd(fd) => dup_fd(*fd),
+    }
+}
+
+#[cfg(unix)]
+fn dup_fd(fd: i32) -> std::io::Result<File> {
+    use std::os::fd::FromRawFd;
+    // SAFETY: fcntl(F_DUPFD_CLOEXEC) returns a new descriptor we own, or -1.
+    let new = unsafe { libc::fcntl(fd, libc::F_DUPFD_CLOEXEC, 0) };
+    if new < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // SAFETY: `new` is a freshly duplicated descriptor owned by nobody else.
+    Ok(unsafe { File::from_raw_fd(new) })
+}
+
+#[cfg(not(unix))]
+fn dup_fd(_fd: i32) -> std::io::Result<File> {
+    Err(std::io::Error::new(
+        std::io::ErrorKind::Unsupported,
+        "file descriptors are not supported here",
+    ))
+}
+
+/// Put several staged outputs in place, in order. The outputs were all written before, so a
+/// command that fails while producing them leaves none. If a rename fails here, the outputs of
+/// this batch that did not exist before are removed again (a file that was replaced cannot be
+/// restored). The error names the output that failed.
+pub fn commit_all(staged: Vec<Staged>) -> Result<(), CommitError> {
+    let mut created: Vec<PathBuf> = Vec::new();
+    for s in staged {
+        let new = s.created_path().map(Path::to_path_buf);
+        let path = s.path.clone();
+        if let Err(source) = s.commit() {
+            for p in &created {
+                let _ = std::fs::remove_file(p);
+            }
+            return Err(CommitError { path, source });
+        }
+        created.extend(new);
+    }
+    Ok(())
+}
+
+/// The failure of [`commit_all`]: which output could not be put in place, and why.
+#[derive(Debug)]
+pub struct CommitError {
+    /// The output path, as given to [`stage_with`].
+    pub path: PathBuf,
+    /// The I/O error.
+    pub source: std::io::Error,
+}
+
+impl std::fmt::Display for CommitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: cannot write: {}", self.path.display(), self.source)
+    }
+}
+
+impl std::error::Error for CommitError {}
+
+/// Refuse an output that is the same file as one of the inputs (same device and inode, symlinks
+/// followed): writing it would destroy the input. Outputs that do not exist yet and non-regular
+/// outputs (`/dev/null`, `/dev/stdout`, …) always pass. The error names both paths.
+pub fn check_not_input(out: &Path, inputs: &[&Path]) -> std::io::Result<()> {
+    let Ok(o) = std::fs::metadata(out) else {
+        return Ok(());
+    };
+    if !o.is_file() {
+        return Ok(());
+    }
+    for input in inputs {
+        let Ok(i) = std::fs::metadata(input) else {
+            continue;
+        };
+        if same_file(&o, &i) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "{}: is the same file as the input {}; choose another output",
+                    out.display(),
+                    input.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(_a: &std::fs::Metadata, _b: &std::fs::Metadata) -> bool {
+    false
+}
+
+/// Read at most `limit` bytes of `path`, counting the bytes actually read (not the size the file
+/// system reports, which is 0 for `/dev/zero`, FIFOs and `/proc` files). A longer file is an
+/// error of kind [`std::io::ErrorKind::FileTooLarge`] whose message gives the limit.
+pub fn read_limited(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    let f = File::open(path)?;
+    if let Ok(m) = f.metadata() {
+        if m.is_file() && m.len() > limit {
+            return Err(too_large(limit));
+        }
+    }
+    let mut bytes = Vec::new();
+    f.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large(limit));
+    }
+    Ok(bytes)
+}
+
+/// The error of a file longer than `limit` bytes (see [`read_limited`]).
+pub fn too_large(limit: u64) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::FileTooLarge,
+        format!("larger than the limit of {limit} bytes"),
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn tmpdir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("meso-io-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
     #[test]
     fn failed_write_leaves_nothing() {
-        let dir = std::env::temp_dir().join(format!("meso-io-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = tmpdir("failed");
         let p = dir.join("out.bin");
         let r = write_atomic_with(&p, |w| {
             w.write_all(b"half")?;
@@ -64,6 +401,249 @@ mod tests {
         );
         write_atomic(&p, b"whole").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"whole");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temp left");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item1_output_to_device_node_is_written_in_place() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tmpdir("item1-dev");
+        let dev = dir.join("null");
+        // A character device copy of /dev/null (major 1, minor 3).
+        let made = std::process::Command::new("mknod")
+            .arg(&dev)
+            .args(["c", "1", "3"])
+            .status();
+        if !matches!(made, Ok(s) if s.success()) {
+            eprintln!("skipped: mknod needs privileges");
+            return;
+        }
+        write_atomic(&dev, b"into the device").unwrap();
+        let ft = std::fs::symlink_metadata(&dev).unwrap().file_type();
+        assert!(ft.is_char_device(), "still a character device: {ft:?}");
+        // Through a symlink too.
+        let link = dir.join("link");
+        std::os::unix::fs::symlink(&dev, &link).unwrap();
+        write_atomic(&link, b"again").unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert!(std::fs::metadata(&dev)
+            .unwrap()
+            .file_type()
+            .is_char_device());
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2, "no temp left");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item1_output_to_fifo_is_written_in_place() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tmpdir("item1-fifo");
+        let fifo = dir.join("fifo");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(ok.success());
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        write_atomic(&fifo, b"through the pipe").unwrap();
+        assert_eq!(reader.join().unwrap(), b"through the pipe");
+        assert!(std::fs::symlink_metadata(&fifo)
+            .unwrap()
+            .file_type()
+            .is_fifo());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item1_symlink_to_file_replaces_the_file_not_the_link() {
+        let dir = tmpdir("item1-link");
+        let sub = dir.join("real");
+        std::fs::create_dir(&sub).unwrap();
+        let target = sub.join("data.csv");
+        std::fs::write(&target, b"old").unwrap();
+        let link = dir.join("link.csv");
+        std::os::unix::fs::symlink("real/data.csv", &link).unwrap();
+        write_atomic(&link, b"new").unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        // A dangling link creates the file it names.
+        let dangling = dir.join("dangling.csv");
+        std::os::unix::fs::symlink("real/new.csv", &dangling).unwrap();
+        write_atomic(&dangling, b"fresh").unwrap();
+        assert_eq!(std::fs::read(sub.join("new.csv")).unwrap(), b"fresh");
+        assert_eq!(std::fs::read_dir(&sub).unwrap().count(), 2, "no temp left");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item1_existing_file_keeps_its_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tmpdir("item1-perm");
+        let p = dir.join("secret.toml");
+        std::fs::write(&p, b"old").unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o600)).unwrap();
+        write_atomic(&p, b"new").unwrap();
+        let mode = std::fs::metadata(&p).unwrap().permissions().mode() & 0o7777;
+        assert_eq!(mode, 0o600);
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o640)).unwrap();
+        write_atomic(&p, b"newer").unwrap();
+        let mode = std::fs::metadata(&p).unwrap().permissions().mode() & 0o7777;
+        assert_eq!(mode, 0o640);
+        assert_eq!(std::fs::read(&p).unwrap(), b"newer");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item1_new_file_gets_the_usual_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tmpdir("item1-newperm");
+        let reference = dir.join("reference");
+        std::fs::File::create(&reference).unwrap();
+        let p = dir.join("new.csv");
+        write_atomic(&p, b"x").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+        assert_eq!(
+            mode(&p),
+            mode(&reference),
+            "0666 & !umask, like File::create"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn item1_directory_target_is_refused() {
+        let dir = tmpdir("item1-dir");
+        let e = write_atomic(&dir, b"x").unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::IsADirectory);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item1_output_that_is_an_input_is_refused() {
+        let dir = tmpdir("item1-input");
+        let input = dir.join("in.toml");
+        std::fs::write(&input, b"input").unwrap();
+        let link = dir.join("alias.toml");
+        std::os::unix::fs::symlink(&input, &link).unwrap();
+        let hard = dir.join("hard.toml");
+        std::fs::hard_link(&input, &hard).unwrap();
+        let other = dir.join("other.toml");
+        std::fs::write(&other, b"other").unwrap();
+        for out in [&input, &link, &hard] {
+            let e = check_not_input(out, &[&other, &input]).unwrap_err();
+            assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput);
+            let msg = e.to_string();
+            assert!(msg.contains("same file as the input"), "{msg}");
+            assert!(msg.contains("in.toml"), "{msg}");
+        }
+        let dotted = dir.join(".").join("in.toml");
+        assert!(check_not_input(&dotted, &[&input]).is_err());
+        check_not_input(&other, &[&input]).unwrap();
+        check_not_input(&dir.join("missing.toml"), &[&input]).unwrap();
+        check_not_input(Path::new("/dev/null"), &[Path::new("/dev/null")]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item2_planted_symlink_at_the_old_temp_name_is_not_followed() {
+        let dir = tmpdir("item2");
+        let victim = dir.join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let out = dir.join("out.csv");
+        // The names the old implementation used (`.NAME.tmp-PID`) and plausible variants.
+        for name in [
+            format!(".out.csv.tmp-{}", std::process::id()),
+            ".out.csv.tmp".to_string(),
+        ] {
+            std::os::unix::fs::symlink(&victim, dir.join(name)).unwrap();
+        }
+        write_atomic(&out, b"output").unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert_eq!(std::fs::read(&out).unwrap(), b"output");
+        // The planted links are untouched, and no temp file is left.
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names.len(), 4, "{names:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item2_temp_files_are_created_exclusively_with_random_names() {
+        let dir = tmpdir("item2-names");
+        let out = dir.join("out.csv");
+        let mut seen = Vec::new();
+        for _ in 0..2 {
+            write_atomic_with(&out, |_| {
+                let names: Vec<String> = std::fs::read_dir(&dir)
+                    .unwrap()
+                    .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.starts_with(".out.csv."))
+                    .collect();
+                seen.extend(names);
+                Ok(())
+            })
+            .unwrap();
+        }
+        assert_eq!(seen.len(), 2, "{seen:?}");
+        assert_ne!(seen[0], seen[1], "random names");
+        assert!(seen.iter().all(|n| n.ends_with(".tmp")));
+        assert!(!seen
+            .iter()
+            .any(|n| n.contains(&std::process::id().to_string())));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn item6_commit_all_writes_all_or_none() {
+        let dir = tmpdir("item6");
+        let a = dir.join("a.txt");
+        let b = dir.join("b.txt");
+        let sa = stage_with(&a, |w| w.write_all(b"a")).unwrap();
+        let sb = stage_with(&b, |_| Err(std::io::Error::other("second fails")));
+        assert!(sb.is_err());
+        drop(sa);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "nothing left");
+        let sa = stage_with(&a, |w| w.write_all(b"a")).unwrap();
+        let sb = stage_with(&b, |w| w.write_all(b"b")).unwrap();
+        assert!(!a.exists() && !b.exists(), "not in place before commit");
+        commit_all(vec![sa, sb]).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"a");
+        assert_eq!(std::fs::read(&b).unwrap(), b"b");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn item4_read_limited_counts_bytes_read() {
+        let e = read_limited(Path::new("/dev/zero"), 1000).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::FileTooLarge);
+        assert!(e.to_string().contains("1000 bytes"), "{e}");
+        let dir = tmpdir("item4");
+        let p = dir.join("f");
+        std::fs::write(&p, [7u8; 1000]).unwrap();
+        assert_eq!(read_limited(&p, 1000).unwrap().len(), 1000);
+        assert!(read_limited(&p, 999).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -29,6 +29,7 @@
 #![warn(missing_docs)]
 
 pub mod convolution;
+pub mod display;
 pub mod frame;
 pub mod grid;
 pub mod io;

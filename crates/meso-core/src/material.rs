@@ -11,6 +11,7 @@
 //! [`Material::from_file`] do both steps with the core resolver, which refuses external NDFs.
 
 use crate::convolution::{effective_brdf_with, Accuracy, Form, Visibility};
+use crate::display::Num;
 use crate::frame::spherical_direction_deg;
 use crate::ndf::{
     Cylinder, DeltaSum, Distribution, Harmonics, Microfacet, Ndf, PhongLobe, PhongPeaks, Sphere,
@@ -238,22 +239,22 @@ impl Material {
     }
 }
 
-/// Read a material file's text: at most [`MAX_MATERIAL_BYTES`], UTF-8; errors name the file.
+/// Read a material file's text: at most [`MAX_MATERIAL_BYTES`] bytes actually read (so
+/// `/dev/zero` and FIFOs are limited too), UTF-8; errors name the file.
 ///
 /// # Errors
 /// The file cannot be read, is too large, or is not UTF-8.
 pub fn read_limited(path: &Path) -> Result<String, MaterialError> {
-    let meta = std::fs::metadata(path)
-        .map_err(|e| MaterialError(format!("{}: cannot read: {e}", path.display())))?;
-    if meta.len() > MAX_MATERIAL_BYTES {
-        return err(format!(
-            "{}: {} bytes is too large for a material file (limit {MAX_MATERIAL_BYTES})",
-            path.display(),
-            meta.len()
-        ));
-    }
-    let bytes = std::fs::read(path)
-        .map_err(|e| MaterialError(format!("{}: cannot read: {e}", path.display())))?;
+    let bytes = crate::io::read_limited(path, MAX_MATERIAL_BYTES).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::FileTooLarge {
+            MaterialError(format!(
+                "{}: too large for a material file (limit {MAX_MATERIAL_BYTES} bytes)",
+                path.display()
+            ))
+        } else {
+            MaterialError(format!("{}: cannot read: {e}", path.display()))
+        }
+    })?;
     String::from_utf8(bytes)
         .map_err(|_| MaterialError(format!("{}: not UTF-8 text", path.display())))
 }
@@ -323,8 +324,11 @@ impl<'a> Fields<'a> {
         if let Some(x) = v {
             if !(x.is_finite() && x >= min && x <= max) {
                 return err(format!(
-                    "{} {key}: must be a finite number in [{min}, {max}], got {x}",
-                    self.name
+                    "{} {key}: must be a finite number in [{}, {}], got {}",
+                    self.name,
+                    Num(min),
+                    Num(max),
+                    Num(x)
                 ));
             }
         }
@@ -379,8 +383,10 @@ impl<'a> Fields<'a> {
         };
         if let Some(x) = a.iter().find(|x| !(**x >= 0.0 && **x <= max)) {
             return err(format!(
-                "{} {key}: colour components must be in [0, {max}], got {x}",
-                self.name
+                "{} {key}: colour components must be in [0, {}], got {}",
+                self.name,
+                Num(max),
+                Num(*x)
             ));
         }
         Ok(Some([a[0], a[1], a[2]]))
@@ -455,9 +461,14 @@ fn parse_lobes(
     if arr.is_empty() {
         return err(format!("{name} lobes: the list is empty"));
     }
-    if arr.len() > 10_000 {
+    let (limit, what) = if with_exponent {
+        (MAX_PHONG_LOBES, "phong-peaks lobes")
+    } else {
+        (MAX_DELTAS, "delta normals")
+    };
+    if arr.len() > limit {
         return err(format!(
-            "{name} lobes: {} lobes is above the limit 10000",
+            "{name} lobes: {} {what} is above the limit of {limit}",
             arr.len()
         ));
     }
@@ -472,16 +483,19 @@ fn parse_lobes(
         let w = lf.req_number("weight")?;
         if !(w.is_finite() && w >= 0.0) {
             return err(format!(
-                "{name} lobes[{}] weight: must be a finite number >= 0, got {w}",
-                k + 1
+                "{name} lobes[{}] weight: must be a finite number >= 0, got {}",
+                k + 1,
+                Num(w)
             ));
         }
         let e = if with_exponent {
             let e = lf.req_number("exponent")?;
             if !(e.is_finite() && (0.0..=MAX_EXPONENT).contains(&e)) {
                 return err(format!(
-                    "{name} lobes[{}] exponent: must be a finite number in [0, {MAX_EXPONENT}], got {e}",
-                    k + 1
+                    "{name} lobes[{}] exponent: must be a finite number in [0, {}], got {}",
+                    k + 1,
+                    Num(MAX_EXPONENT),
+                    Num(e)
                 ));
             }
             e

@@ -122,3 +122,93 @@ fn files_name_themselves_in_errors_and_huge_files_are_refused() {
     assert!(e.0.contains("too large"), "{}", e.0);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A material with `n` Phong peaks (or delta normals), spread over the hemisphere.
+fn many_lobes(kind: &str, n: usize) -> String {
+    let mut t = format!("[transfer]\nkind = \"lambert\"\n[ndf]\nkind = \"{kind}\"\nlobes = [\n");
+    for k in 0..n {
+        let (theta, phi) = ((k % 80) as f64, (k / 80 % 360) as f64);
+        if kind == "deltas" {
+            t.push_str(&format!("{{axis=[{theta},{phi}],weight=1}},\n"));
+        } else {
+            t.push_str(&format!(
+                "{{ axis = [{theta}, {phi}], weight = 1.0, exponent = 40.0 }},\n"
+            ));
+        }
+    }
+    t.push_str("]\n");
+    t
+}
+
+#[test]
+fn item7_phong_peaks_lobe_limit_is_enforced() {
+    use meso_core::material::{NoExternalNdfs, MAX_PHONG_LOBES};
+    assert!(Material::from_toml_str(&many_lobes("phong-peaks", MAX_PHONG_LOBES)).is_ok());
+    let e = Material::from_toml_str(&many_lobes("phong-peaks", MAX_PHONG_LOBES + 1)).unwrap_err();
+    assert!(
+        e.0.contains("257 phong-peaks lobes is above the limit of 256"),
+        "{}",
+        e.0
+    );
+    // The file: 10,000 lobes in ~500 KB, refused at parse time, naming the file.
+    let dir = std::env::temp_dir().join(format!("meso-item7-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("many.toml");
+    std::fs::write(&p, many_lobes("phong-peaks", 10_000)).unwrap();
+    let t = std::time::Instant::now();
+    let e = Material::from_file(&p, &NoExternalNdfs).unwrap_err();
+    assert!(t.elapsed().as_secs_f64() < 5.0, "refused at parse time");
+    assert!(
+        e.0.contains("many.toml") && e.0.contains("limit of 256"),
+        "{}",
+        e.0
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn item7_delta_normal_limit_is_enforced() {
+    use meso_core::material::MAX_DELTAS;
+    // Too many to fit in a material file (MAX_MATERIAL_BYTES), so through the string parser.
+    let e = Material::from_toml_str(&many_lobes("deltas", MAX_DELTAS + 1)).unwrap_err();
+    assert!(e.0.contains("above the limit of 100000"), "{}", e.0);
+    assert!(Material::from_toml_str(&many_lobes("deltas", 20_000)).is_ok());
+}
+
+#[test]
+fn item7_exponent_table_and_band_limits_are_enforced() {
+    use meso_core::material::{MAX_EXPONENT, MAX_TABLE_CELLS};
+    let head = "[transfer]\nkind = \"lambert\"\n";
+    let phong = |e: f64| {
+        format!("{head}[ndf]\nkind = \"phong-peaks\"\nlobes = [{{ axis = [0, 0], weight = 1, exponent = {e:?} }}]\n")
+    };
+    assert!(Material::from_toml_str(&phong(MAX_EXPONENT)).is_ok());
+    let e = Material::from_toml_str(&phong(MAX_EXPONENT * 1.01)).unwrap_err();
+    assert!(e.0.contains("exponent"), "{}", e.0);
+    // Tabulated: n_z × n_phi above MAX_TABLE_CELLS.
+    let side = (MAX_TABLE_CELLS as f64).sqrt() as usize;
+    let table = |nz: usize, np: usize| {
+        format!("{head}[ndf]\nkind = \"tabulated\"\nn_z = {nz}\nn_phi = {np}\nof = {{ kind = \"sphere\" }}\n")
+    };
+    let e = Material::from_toml_str(&table(side, side + 1)).unwrap_err();
+    assert!(e.0.contains("above the limit"), "{}", e.0);
+    // Spherical harmonics: band above MAX_BAND.
+    let band = meso_core::ndf::harmonics::MAX_BAND + 1;
+    let sh =
+        format!("{head}[ndf]\nkind = \"harmonics\"\nband = {band}\nof = {{ kind = \"sphere\" }}\n");
+    let e = Material::from_toml_str(&sh).unwrap_err();
+    assert!(e.0.contains("band"), "{}", e.0);
+}
+
+#[cfg(unix)]
+#[test]
+fn item4_material_size_limit_counts_bytes_read() {
+    use meso_core::material::NoExternalNdfs;
+    // /dev/zero reports size 0: the limit must hold on the bytes read.
+    let e = Material::from_file(std::path::Path::new("/dev/zero"), &NoExternalNdfs).unwrap_err();
+    assert!(
+        e.0.contains("/dev/zero") && e.0.contains("too large for a material file"),
+        "{}",
+        e.0
+    );
+}

@@ -14,6 +14,14 @@ pub enum MapError {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// The file could not be written (nothing is left behind).
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
     /// The image is corrupt, truncated, or in a format the image decoder does not read.
     #[error("cannot decode image {path}: {message}")]
     Decode {

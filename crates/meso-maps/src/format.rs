@@ -102,9 +102,22 @@ impl Pyramid {
     }
 
     /// Write the map file atomically (`meso_core::io::write_atomic_with`): on error no partial
-    /// file is left.
+    /// file is left. The bytes are validated by the reader ([`Pyramid::from_bytes`]) first, so a
+    /// written map always reads back (a pyramid with NaN lobes, say from an extreme height
+    /// scale, is refused here rather than written).
     pub fn write(&self, path: &Path) -> Result<()> {
-        meso_core::io::write_atomic_with(path, |w| self.write_to(w)).map_err(|e| MapError::Io {
+        let bytes = self.to_bytes();
+        if let Err(e) = Pyramid::from_bytes(path, &bytes) {
+            let why = match e {
+                MapError::MapFormat { message, .. } => message,
+                e => e.to_string(),
+            };
+            return Err(MapError::MapFormat {
+                path: path.to_path_buf(),
+                message: format!("not written: the map would be invalid ({why})"),
+            });
+        }
+        meso_core::io::write_atomic(path, &bytes).map_err(|e| MapError::Write {
             path: path.to_path_buf(),
             source: e,
         })
@@ -268,6 +281,11 @@ impl Pyramid {
                         && mean.iter().chain(&var).all(|v| v.is_finite()))
                     {
                         return Err(r.err(format!("level {k}: bad horizon statistics")));
+                    }
+                    if var.iter().any(|v| *v < 0.0) {
+                        return Err(
+                            r.err(format!("level {k}: negative horizon variance {:?}", var))
+                        );
                     }
                     h.push(HorizonStats { weight, mean, var });
                 }

@@ -613,7 +613,9 @@ mod pyramid {
             .contains("outside"));
         // A failing write leaves nothing behind.
         let e = p.write(&dir_.join("no/such/dir/x.map")).unwrap_err();
-        assert!(matches!(e, MapError::Io { .. }));
+        // item 12: a write failure is reported as one, not as "cannot read".
+        assert!(matches!(e, MapError::Write { .. }));
+        assert!(e.to_string().starts_with("cannot write "), "{e}");
         std::fs::remove_dir_all(&dir_).unwrap();
         assert!(p.info().to_string().contains("level"));
     }

@@ -7,6 +7,7 @@
 
 use crate::error::SceneError;
 use glam::DVec3;
+use meso_core::display::Num;
 
 /// How the image plane maps to rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,7 +103,7 @@ impl Camera {
                 if !(fov_deg.is_finite() && fov_deg > 0.0 && fov_deg < 180.0) {
                     return Err(SceneError::invalid(
                         "camera.fov_deg",
-                        format!("must be in (0, 180) degrees, got {fov_deg}"),
+                        format!("must be in (0, 180) degrees, got {}", Num(fov_deg)),
                     ));
                 }
             }
@@ -110,7 +111,10 @@ impl Camera {
                 if !(width.is_finite() && width > 0.0) {
                     return Err(SceneError::invalid(
                         "camera.width",
-                        format!("must be a positive number of world units, got {width}"),
+                        format!(
+                            "must be a positive number of world units, got {}",
+                            Num(width)
+                        ),
                     ));
                 }
             }

@@ -185,6 +185,20 @@ impl Mesh {
         if let Some(bad) = positions.iter().position(|p| !p.is_finite()) {
             return Err(e(format!("vertex {bad} has a non-finite position")));
         }
+        if let Some(bad) = normals
+            .as_ref()
+            .and_then(|ns| ns.iter().position(|v| !v.is_finite()))
+        {
+            return Err(e(format!("vertex {bad} has a non-finite normal")));
+        }
+        if let Some(bad) = uvs
+            .as_ref()
+            .and_then(|uv| uv.iter().position(|v| !v.is_finite()))
+        {
+            return Err(e(format!(
+                "vertex {bad} has a non-finite texture coordinate"
+            )));
+        }
         for (name, len) in [
             ("normals", normals.as_ref().map(Vec::len)),
             ("uvs", uvs.as_ref().map(Vec::len)),
@@ -248,8 +262,13 @@ impl Mesh {
             ignore_lines: true,
             ..Default::default()
         };
-        let (models, _materials) =
-            tobj::load_obj(path, &opts).map_err(|e| err(format!("broken OBJ: {e}")))?;
+        let bytes = meso_core::io::read_limited(path, crate::scene::MAX_OBJ_BYTES)
+            .map_err(|e| err(format!("cannot read: {e}")))?;
+        // `mtllib` files are never opened: materials come from the scene, not the OBJ.
+        let (models, _materials) = tobj::load_obj_buf(&mut bytes.as_slice(), &opts, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .map_err(|e| err(format!("broken OBJ: {e}")))?;
         let mut positions = Vec::new();
         let mut normals = Vec::new();
         let mut uvs = Vec::new();

@@ -138,6 +138,23 @@ impl Image {
 
     /// Write linear radiance as a 32-bit float RGB OpenEXR file.
     pub fn write_exr(&self, path: &Path) -> Result<(), ImageError> {
+        let bytes = self.encode_exr().map_err(|e| match e {
+            ImageError::Encode { message, .. } => ImageError::Encode {
+                file: path.to_path_buf(),
+                message,
+            },
+            e => e,
+        })?;
+        meso_core::io::write_atomic_with(path, |w| w.write_all(&bytes)).map_err(|source| {
+            ImageError::Write {
+                file: path.to_path_buf(),
+                source,
+            }
+        })
+    }
+
+    /// Encode linear radiance as a 32-bit float RGB OpenEXR file in memory.
+    pub fn encode_exr(&self) -> Result<Vec<u8>, ImageError> {
         let raw: Vec<u8> = self
             .pixels
             .iter()
@@ -152,16 +169,10 @@ impl Image {
                 image::ExtendedColorType::Rgb32F,
             )
             .map_err(|e| ImageError::Encode {
-                file: path.to_path_buf(),
+                file: "<memory>".into(),
                 message: e.to_string(),
             })?;
-        let bytes = cursor.into_inner();
-        meso_core::io::write_atomic_with(path, |w| w.write_all(&bytes)).map_err(|source| {
-            ImageError::Write {
-                file: path.to_path_buf(),
-                source,
-            }
-        })
+        Ok(cursor.into_inner())
     }
 }
 

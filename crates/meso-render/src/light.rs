@@ -282,8 +282,9 @@ impl EnvironmentMap {
         if !path.is_file() {
             return Err(err("file not found".into()));
         }
-        let reader = image::ImageReader::open(path)
-            .map_err(|e| err(format!("cannot open: {e}")))?
+        let bytes = meso_core::io::read_limited(path, crate::scene::MAX_ENVIRONMENT_BYTES)
+            .map_err(|e| err(format!("cannot read: {e}")))?;
+        let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| err(format!("cannot read: {e}")))?;
         let dynimg = reader

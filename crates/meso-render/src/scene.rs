@@ -5,6 +5,13 @@
 //! into shaders by a caller-supplied [`MaterialResolver`], so the renderer does not depend on
 //! any material file format. Each distinct path is resolved once.
 
+/// Largest scene file read (bytes actually read): 16 MiB.
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
+/// Largest OBJ mesh file read (bytes actually read): 256 MiB.
+pub const MAX_OBJ_BYTES: u64 = 256 << 20;
+/// Largest environment-map image file read (bytes actually read): 256 MiB.
+pub const MAX_ENVIRONMENT_BYTES: u64 = 256 << 20;
+
 use crate::bvh::{Bvh, Prim};
 use crate::camera::{Camera, Projection, Ray, RayDifferential};
 use crate::error::SceneError;
@@ -15,6 +22,7 @@ use crate::light::{EnvironmentMap, Light};
 use crate::sampling::MAX_SAMPLES_PER_PIXEL;
 use crate::shader::Shader;
 use glam::DVec3;
+use meso_core::display::Num;
 use meso_core::frame::Frame;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -126,7 +134,7 @@ fn positive(field: &str, x: f64) -> Result<(), SceneError> {
     } else {
         Err(SceneError::invalid(
             field,
-            format!("must be a finite number > 0, got {x}"),
+            format!("must be a finite number > 0, got {}", Num(x)),
         ))
     }
 }
@@ -763,9 +771,15 @@ impl Scene {
         path: &Path,
         resolver: &dyn MaterialResolver,
     ) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+        let bytes = meso_core::io::read_limited(path, MAX_SCENE_BYTES).map_err(|source| {
+            SceneError::Read {
+                file: path.to_path_buf(),
+                source,
+            }
+        })?;
+        let text = String::from_utf8(bytes).map_err(|_| SceneError::Read {
             file: path.to_path_buf(),
-            source,
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"),
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Scene::from_toml_str_in(&text, path, &base, resolver)
@@ -788,9 +802,40 @@ impl Scene {
     ) -> Result<Scene, SceneError> {
         let parsed: SceneFile = toml::from_str(text).map_err(|e| SceneError::Parse {
             file: file.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: toml_error_line(text, &e),
         })?;
         parsed.build(base, resolver).map_err(|e| e.in_file(file))
+    }
+}
+
+/// Longest excerpt of the offending line quoted in a TOML error.
+const TOML_EXCERPT_CHARS: usize = 40;
+
+/// A TOML error on one short line: `line L, column C: MESSAGE (at `EXCERPT…`)`, the excerpt at
+/// most [`TOML_EXCERPT_CHARS`] characters from the error's position, so a 20 MB line is not
+/// echoed.
+fn toml_error_line(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace('\n', "; ");
+    let Some(span) = e.span() else {
+        return message;
+    };
+    let start = span.start.min(text.len());
+    let start = (0..=start)
+        .rev()
+        .find(|&i| text.is_char_boundary(i))
+        .unwrap_or(0);
+    let line_start = text[..start].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[..start].matches('\n').count() + 1;
+    let column = text[line_start..start].chars().count() + 1;
+    let rest = text[start..].lines().next().unwrap_or("");
+    let mut excerpt: String = rest.chars().take(TOML_EXCERPT_CHARS).collect();
+    if rest.chars().nth(TOML_EXCERPT_CHARS).is_some() {
+        excerpt.push('…');
+    }
+    if excerpt.trim().is_empty() {
+        format!("line {line}, column {column}: {message}")
+    } else {
+        format!("line {line}, column {column}: {message} (at `{excerpt}`)")
     }
 }
 
@@ -1124,7 +1169,7 @@ impl SceneFile {
             if !(env.scale.is_finite() && env.scale >= 0.0) {
                 return Err(SceneError::invalid(
                     "environment.scale",
-                    format!("must be finite and >= 0, got {}", env.scale),
+                    format!("must be finite and >= 0, got {}", Num(f64::from(env.scale))),
                 ));
             }
             if !env.rotation_deg.is_finite() {

@@ -24,6 +24,14 @@
 //! of range, 404 for unknown routes, 405 for wrong methods, 413 for bodies over
 //! [`MAX_BODY_BYTES`].
 //!
+//! Only same-origin requests are served ([`router_for`], used by [`serve`]): the `Host` header
+//! must name the address the server is bound to (`localhost`, `127.0.0.1` or `[::1]` for a
+//! loopback address, with the bound port if a port is given), an `Origin` header, when present,
+//! must be `http://` + that `Host`, and a `POST` must declare `Content-Type: application/json`
+//! (or `application/toml` for `/api/parse`), which a cross-origin page cannot send without a
+//! CORS preflight. Other requests are answered 403 (Host, Origin) or 415 (Content-Type): a web
+//! page on another site, or a DNS-rebound name, cannot drive the editor.
+//!
 //! ```no_run
 //! let server = meso_serve::spawn("127.0.0.1:0".parse().unwrap()).unwrap();
 //! println!("editor at http://{}/", server.addr());
@@ -56,6 +64,10 @@ pub const MAX_BODY_BYTES: usize = 1 << 20;
 /// client went away while waiting are dropped without rendering.
 pub const MAX_CONCURRENT_RENDERS: usize = 2;
 
+/// Renders running or waiting at once; a render request beyond them is answered
+/// 503 Service Unavailable (with `Retry-After: 1`) instead of queueing without bound.
+pub const MAX_QUEUED_RENDERS: usize = 8;
+
 const PAGE_HTML: &str = include_str!("page/index.html");
 const PAGE_CSS: &str = include_str!("page/style.css");
 const PAGE_JS: &str = include_str!("page/app.js");
@@ -74,12 +86,130 @@ pub fn page() -> &'static str {
 #[derive(Clone)]
 struct AppState {
     renders: Arc<Semaphore>,
+    /// Renders running or waiting for a slot.
+    queued: Arc<std::sync::atomic::AtomicUsize>,
+    /// Most renders running or waiting; further ones are answered 503.
+    max_queued: usize,
 }
 
-/// The application's router (all routes, limits and fallbacks).
+impl AppState {
+    fn new(slots: usize, max_queued: usize) -> AppState {
+        AppState {
+            renders: Arc::new(Semaphore::new(slots)),
+            queued: Arc::new(std::sync::atomic::AtomicUsize::new(0)),
+            max_queued,
+        }
+    }
+}
+
+/// A place in the render queue, given back when dropped (the render finished, failed, or its
+/// client went away while it waited).
+struct QueuePlace(Arc<std::sync::atomic::AtomicUsize>);
+
+impl Drop for QueuePlace {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
+/// The application's router for a server bound to `bound`: [`router`] behind the same-origin
+/// checks (see the crate documentation).
+pub fn router_for(bound: SocketAddr) -> Router {
+    router().layer(axum::middleware::from_fn(
+        move |req: axum::extract::Request, next: axum::middleware::Next| async move {
+            match same_origin(bound, &req) {
+                Ok(()) => next.run(req).await,
+                Err(e) => e.into_response(),
+            }
+        },
+    ))
+}
+
+/// Whether `host` (a `Host` header or an origin's authority) names the server bound to `bound`.
+fn host_matches(bound: SocketAddr, host: &str) -> bool {
+    let (name, port) = match host.rsplit_once(':') {
+        Some((n, p)) if !n.ends_with(':') && p.bytes().all(|b| b.is_ascii_digit()) => (n, Some(p)),
+        _ => (host, None),
+    };
+    if let Some(p) = port {
+        if p.parse::<u16>().ok() != Some(bound.port()) {
+            return false;
+        }
+    }
+    let name = name.to_ascii_lowercase();
+    let ip = bound.ip();
+    if ip.is_loopback() {
+        matches!(name.as_str(), "localhost" | "127.0.0.1" | "[::1]")
+            || name == ip.to_string()
+            || name == format!("[{ip}]")
+    } else if ip.is_unspecified() {
+        // Bound to every interface on purpose: any name of this machine, but still one origin.
+        true
+    } else {
+        name == ip.to_string() || name == format!("[{ip}]")
+    }
+}
+
+/// The same-origin checks of [`router_for`].
+fn same_origin(bound: SocketAddr, req: &axum::extract::Request) -> Result<(), ApiError> {
+    let headers = req.headers();
+    let forbidden = |m: String| ApiError::new(StatusCode::FORBIDDEN, m);
+    let Some(host) = headers.get(header::HOST).and_then(|h| h.to_str().ok()) else {
+        return Err(forbidden(
+            "a Host header naming this server is required".into(),
+        ));
+    };
+    if !host_matches(bound, host) {
+        return Err(forbidden(format!(
+            "Host {host:?} is not this server ({bound}); open http://{bound}/"
+        )));
+    }
+    if let Some(origin) = headers.get(header::ORIGIN) {
+        let origin = origin.to_str().unwrap_or("");
+        let same = origin
+            .strip_prefix("http://")
+            .is_some_and(|o| o.eq_ignore_ascii_case(host));
+        if !same {
+            return Err(forbidden(format!(
+                "cross-origin request from {origin:?} refused"
+            )));
+        }
+    }
+    if req.method() == axum::http::Method::POST {
+        let ct = headers
+            .get(header::CONTENT_TYPE)
+            .and_then(|h| h.to_str().ok())
+            .unwrap_or("");
+        let mime = ct
+            .split(';')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .to_ascii_lowercase();
+        let ok = mime == "application/json"
+            || (mime == "application/toml" && req.uri().path() == "/api/parse");
+        if !ok {
+            return Err(ApiError::new(
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                format!(
+                    "Content-Type {ct:?} is not accepted: send application/json{}",
+                    if req.uri().path() == "/api/parse" {
+                        " or application/toml"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The application's router (all routes, limits and fallbacks), without the same-origin checks
+/// of [`router_for`] (for embedding behind one's own).
 pub fn router() -> Router {
     let state = AppState {
-        renders: Arc::new(Semaphore::new(MAX_CONCURRENT_RENDERS)),
+        ..AppState::new(MAX_CONCURRENT_RENDERS, MAX_QUEUED_RENDERS)
     };
     Router::new()
         .route("/", get(index))
@@ -179,11 +309,26 @@ async fn blocking<T: Send + 'static>(
     state: &AppState,
     f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
+    let place = QueuePlace(state.queued.clone());
+    if state
+        .queued
+        .fetch_add(1, std::sync::atomic::Ordering::SeqCst)
+        >= state.max_queued
+    {
+        return Err(ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!(
+                "busy: {} renders are running or waiting; try again shortly",
+                state.max_queued
+            ),
+        ));
+    }
     let _permit = state
         .renders
         .acquire()
         .await
         .map_err(|_| ApiError::internal("server shutting down"))?;
+    let _place = place;
     tokio::task::spawn_blocking(f)
         .await
         .map_err(|e| ApiError::internal(format!("render task failed: {e}")))?
@@ -300,7 +445,8 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    axum::serve(listener, router())
+    let bound = listener.local_addr()?;
+    axum::serve(listener, router_for(bound))
         .with_graceful_shutdown(shutdown)
         .await
 }
@@ -396,4 +542,48 @@ pub fn run(host: &str, port: u16, on_listening: impl FnOnce(SocketAddr)) -> Resu
         .await?;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// item 10: with one slot and a queue of two, a third render is answered 503 at once; a
+    /// waiting request whose client goes away gives its place back.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn item10_render_queue_is_bounded_and_answers_503_when_full() {
+        let state = AppState::new(1, 2);
+        let (release, wait) = std::sync::mpsc::channel::<()>();
+        let wait = Arc::new(std::sync::Mutex::new(wait));
+        let s1 = state.clone();
+        let w1 = wait.clone();
+        let running = tokio::spawn(async move {
+            blocking(&s1, move || {
+                let _ = w1.lock().unwrap().recv();
+                Ok(1)
+            })
+            .await
+        });
+        while state.renders.available_permits() > 0 {
+            tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        }
+        let s2 = state.clone();
+        let waiting = tokio::spawn(async move { blocking(&s2, || Ok(2)).await });
+        while state.queued.load(std::sync::atomic::Ordering::SeqCst) < 2 {
+            tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+        }
+        let e = blocking(&state, || Ok(3)).await.unwrap_err();
+        assert_eq!(e.status, StatusCode::SERVICE_UNAVAILABLE);
+        assert!(e.message.contains("busy"), "{}", e.message);
+        // The waiting client disconnects: its future is dropped, its place given back.
+        waiting.abort();
+        let _ = waiting.await;
+        assert_eq!(state.queued.load(std::sync::atomic::Ordering::SeqCst), 1);
+        let s3 = state.clone();
+        let next = tokio::spawn(async move { blocking(&s3, || Ok(4)).await });
+        release.send(()).unwrap();
+        assert_eq!(running.await.unwrap().unwrap(), 1);
+        assert_eq!(next.await.unwrap().unwrap(), 4);
+        assert_eq!(state.queued.load(std::sync::atomic::Ordering::SeqCst), 0);
+    }
 }

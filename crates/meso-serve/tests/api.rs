@@ -294,7 +294,13 @@ fn validation_errors_are_400_with_the_key() {
     assert!(msg.contains("exponent"), "{msg}");
     let msg = request("POST", "/api/parse", "application/toml", b"[ndf\n").assert_error(400);
     assert!(msg.contains("TOML"), "{msg}");
-    let msg = request("POST", "/api/parse", "text/plain", &[0xff, 0xfe, 0x00]).assert_error(400);
+    let msg = request(
+        "POST",
+        "/api/parse",
+        "application/toml",
+        &[0xff, 0xfe, 0x00],
+    )
+    .assert_error(400);
     assert!(msg.contains("UTF-8"), "{msg}");
     let msg = request(
         "POST",

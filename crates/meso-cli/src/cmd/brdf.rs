@@ -23,6 +23,9 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(out) = &a.out {
+        crate::util::check_outputs(&[out], &[&a.material, &a.pairs])?;
+    }
     let material = crate::load_material(&a.material)?;
     let text = crate::read_text(&a.pairs, 1 << 30)?;
     let pairs = parse_pairs(&text).with_context(|| format!("{}", a.pairs.display()))?;

@@ -88,6 +88,7 @@ pub fn run(a: Args) -> Result<()> {
             meso_maps::fit::MAX_LOBES
         );
     }
+    crate::util::check_outputs(&[&a.out], &[&a.heightmap])?;
     let border = if a.clamp { Border::Clamp } else { Border::Wrap };
     let mut params = ExtractParams {
         normal_mode: match a.normals {
@@ -116,7 +117,7 @@ pub fn run(a: Args) -> Result<()> {
         };
         normals = NormalMap::load(&a.heightmap, conv)?;
         if normals.clamped() > 0 {
-            eprintln!(
+            note!(
                 "{}: warning: {} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
                 a.heightmap.display(),
                 normals.clamped(),
@@ -131,7 +132,7 @@ pub fn run(a: Args) -> Result<()> {
         };
         heights = HeightMap::load(&a.heightmap, s, h, border)?;
         for w in heights.warnings() {
-            eprintln!("{}: warning: {w}", a.heightmap.display());
+            note!("{}: warning: {w}", a.heightmap.display());
         }
         Source::Heights(&heights)
     };
@@ -148,7 +149,7 @@ pub fn run(a: Args) -> Result<()> {
     bar.finish_and_clear();
     pyr.write(&a.out)?;
     let top = pyr.top();
-    eprintln!(
+    note!(
         "{}: {} levels, top level {} lobes (NDF residual {:.4})",
         a.out.display(),
         pyr.levels.len(),

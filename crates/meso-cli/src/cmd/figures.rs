@@ -40,8 +40,8 @@ pub fn run(a: Args) -> Result<()> {
         zoom_frames: a.zoom_frames,
     };
     let t = std::time::Instant::now();
-    let report = meso_figures::run(&opts, &mut |line| eprintln!("  {line}"))?;
-    eprintln!(
+    let report = meso_figures::run(&opts, &mut |line| note!("  {line}"))?;
+    note!(
         "wrote {} files to {} in {:.1} s (contact sheet: {})",
         report.files.len(),
         a.out.display(),

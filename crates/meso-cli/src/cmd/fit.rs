@@ -17,6 +17,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Largest sample CSV read (bytes actually read).
+const MAX_CSV_BYTES: u64 = 1 << 30;
+
 /// Number of data cells on which the written material is evaluated exactly.
 const EXACT_CELLS: usize = 500;
 
@@ -155,14 +158,7 @@ fn load(path: &Path, target: usize) -> Result<Data> {
             merl: Some(table),
         });
     }
-    if meta.len() > 1 << 30 {
-        bail!(
-            "{}: {} bytes is too large for a sample CSV",
-            path.display(),
-            meta.len()
-        );
-    }
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let bytes = crate::util::read_bytes(path, MAX_CSV_BYTES)?;
     let Ok(text) = String::from_utf8(bytes) else {
         bail!(
             "{}: neither a MERL binary (header 90, 90, 180) nor a UTF-8 sample CSV",
@@ -347,6 +343,28 @@ fn out_paths(out: &Path, per_channel: bool) -> Vec<PathBuf> {
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
     let k = a.lobes as usize;
+    let paths = out_paths(&a.out, a.per_channel_lobes);
+    {
+        let mut outs: Vec<PathBuf> = paths.clone();
+        if let Some(dir) = &a.plot {
+            if dir.exists() && !dir.is_dir() {
+                bail!("{}: --plot needs a directory", dir.display());
+            }
+            outs.extend(PLOT_FILES.iter().map(|f| dir.join(f)));
+        }
+        let outs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
+        // A missing plot directory is created at the end.
+        let checked: Vec<&Path> = outs
+            .iter()
+            .copied()
+            .filter(|p| {
+                a.plot
+                    .as_deref()
+                    .is_none_or(|d| !p.starts_with(d) || d.is_dir())
+            })
+            .collect();
+        crate::util::check_outputs(&checked, &[&a.data])?;
+    }
     let data = load(&a.data, a.samples)?;
     let metric = match a.metric {
         MetricArg::Ngan => Metric::NganL2,
@@ -412,7 +430,6 @@ pub fn run(a: Args) -> Result<()> {
         (!held_out.is_empty()).then(|| fit::evaluate_samples_fn(held_out, model_eval));
 
     // The written material(s), parsed back by meso-core before anything is written.
-    let paths = out_paths(&a.out, a.per_channel_lobes);
     let mut texts = Vec::new();
     let mut materials = Vec::new();
     for (j, (lobes, r)) in finals.iter().enumerate() {
@@ -520,11 +537,26 @@ pub fn run(a: Args) -> Result<()> {
     }
     progress.finish_and_clear();
 
-    // Write the material(s) only once everything succeeded.
-    for (p, t) in paths.iter().zip(&texts) {
-        meso_core::io::write_atomic(p, t.as_bytes())
-            .with_context(|| format!("{}: cannot write", p.display()))?;
-    }
+    // The plots, in memory.
+    let plots = match &a.plot {
+        Some(dir) => plot_files(dir, &data, &model_eval, &|wi, wo| {
+            if materials.len() == 1 {
+                materials[0].brdf(wi, wo)
+            } else {
+                [0, 1, 2].map(|c| materials[c].brdf(wi, wo)[c])
+            }
+        })?,
+        None => Vec::new(),
+    };
+
+    // Write the material(s) and plots only once everything succeeded, all or none.
+    let mut files: Vec<(PathBuf, &[u8])> = paths
+        .iter()
+        .zip(&texts)
+        .map(|(p, t)| (p.clone(), t.as_bytes()))
+        .collect();
+    files.extend(plots.iter().map(|(p, b)| (p.clone(), b.as_slice())));
+    write_all_or_none(a.plot.as_deref(), &files)?;
 
     // Report.
     let mut rep = String::new();
@@ -669,21 +701,12 @@ pub fn run(a: Args) -> Result<()> {
         let _ = writeln!(rep, "\nwrote {}", p.display());
     }
 
-    if let Some(dir) = &a.plot {
-        let files = write_plots(dir, &data, &model_eval, &|wi, wo| {
-            if materials.len() == 1 {
-                materials[0].brdf(wi, wo)
-            } else {
-                [0, 1, 2].map(|c| materials[c].brdf(wi, wo)[c])
-            }
-        })?;
-        for f in files {
-            let _ = writeln!(rep, "wrote {}", f.display());
-        }
+    for (f, _) in &plots {
+        let _ = writeln!(rep, "wrote {}", f.display());
     }
     let _ = write!(rep, "total time {:.2} s", t0.elapsed().as_secs_f64());
-    println!("{rep}");
-    Ok(())
+    rep.push('\n');
+    crate::util::print_stdout(&rep)
 }
 
 fn key(wi: DVec3, wo: DVec3) -> [u64; 6] {
@@ -709,17 +732,54 @@ fn in_plane(theta_i: f64, theta_o: f64) -> (DVec3, DVec3) {
 
 type Brdf<'a> = &'a (dyn Fn(DVec3, DVec3) -> [f64; 3] + Sync);
 
+/// The names of the PNGs `--plot DIR` writes into DIR.
+const PLOT_FILES: [&str; 2] = ["slices.png", "spheres.png"];
+
+/// Write `files` (path, content) all or none: each to a temporary file first, then all renamed
+/// into place ([`meso_core::io::commit_all`]). `plot_dir` is created if missing, and removed
+/// again if nothing could be written into it.
+fn write_all_or_none(plot_dir: Option<&Path>, files: &[(PathBuf, &[u8])]) -> Result<()> {
+    let created_dir = match plot_dir {
+        Some(dir) if !dir.exists() => {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+            Some(dir)
+        }
+        _ => None,
+    };
+    let result = (|| -> Result<()> {
+        let mut staged = Vec::new();
+        for (p, bytes) in files {
+            staged.push(
+                meso_core::io::stage_with(p, |w| w.write_all(bytes))
+                    .with_context(|| format!("{}: cannot write", p.display()))?,
+            );
+        }
+        meso_core::io::commit_all(staged)?;
+        Ok(())
+    })();
+    if result.is_err() {
+        if let Some(dir) = created_dir {
+            // Only succeeds when empty: nothing else is removed.
+            let _ = std::fs::remove_dir(dir);
+        }
+    }
+    result
+}
+
 /// Polar slices (in-plane, θi = 0°, 30°, 60°) of `ln(1 + Y cos θi)` for the data, the fitted
-/// closed form and the written material (exact), and rendered spheres of data and model.
-fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+/// closed form and the written material (exact), and rendered spheres of data and model, as
+/// PNG files in memory (paths in `dir`, [`PLOT_FILES`]).
+fn plot_files(
+    dir: &Path,
+    data: &Data,
+    model: Brdf<'_>,
+    exact: Brdf<'_>,
+) -> Result<Vec<(PathBuf, Vec<u8>)>> {
     let mut written = Vec::new();
-    let save = |c: &Canvas, name: &str, written: &mut Vec<PathBuf>| -> Result<()> {
-        let p = dir.join(name);
+    let save = |c: &Canvas, name: &str, written: &mut Vec<(PathBuf, Vec<u8>)>| -> Result<()> {
         let bytes = c.to_png_bytes().map_err(|e| anyhow::anyhow!("{e}"))?;
-        meso_core::io::write_atomic(&p, &bytes)
-            .with_context(|| format!("{}: cannot write", p.display()))?;
-        written.push(p);
+        written.push((dir.join(name), bytes));
         Ok(())
     };
     let lm = |f: [f64; 3], ci: f64| (luminance(f) * ci).max(0.0).ln_1p();
@@ -801,7 +861,7 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
         sheet.add(c, format!("θi = {ti_deg}°, in the plane of incidence"));
     }
     let slices = sheet.render().map_err(|e| anyhow::anyhow!("{e}"))?;
-    save(&slices, "slices.png", &mut written)?;
+    save(&slices, PLOT_FILES[0], &mut written)?;
 
     // Spheres under the same directional light, same exposure.
     let light = DVec3::new(-0.5, 0.55, 0.67).normalize();
@@ -893,7 +953,7 @@ fn write_plots(dir: &Path, data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Res
     }
     sheet.add(to_canvas(&model_img)?, "fitted model");
     let spheres = sheet.render().map_err(|e| anyhow::anyhow!("{e}"))?;
-    save(&spheres, "spheres.png", &mut written)?;
+    save(&spheres, PLOT_FILES[1], &mut written)?;
     Ok(written)
 }
 

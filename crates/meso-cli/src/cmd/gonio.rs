@@ -51,6 +51,9 @@ pub fn run(a: Args) -> Result<()> {
             a.material.display()
         ),
     };
+    if let Some(out) = &a.out {
+        crate::util::check_outputs(&[out], &[&a.material, &a.pairs, file])?;
+    }
     let map = MapsResolver::heightmap(table, file)
         .with_context(|| format!("{}", a.material.display()))?;
     let gonio = Gonio::new(&map).with_context(|| format!("{}", file.display()))?;

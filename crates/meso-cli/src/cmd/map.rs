@@ -23,8 +23,7 @@ pub fn run(c: MapCommand) -> Result<()> {
     match c {
         MapCommand::Info(a) => {
             let pyr = Pyramid::read(&a.map)?;
-            print!("{}", pyr.info());
-            Ok(())
+            crate::util::print_stdout(&pyr.info().to_string())
         }
     }
 }

@@ -1,6 +1,7 @@
 //! `meso ndf plot|stats MATERIAL` — look at a material's NDF.
 
 use anyhow::Result;
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Inspect the NDF of a material.
@@ -69,7 +70,7 @@ fn stats(a: StatsArgs) -> Result<()> {
     };
     let rows = [c.x_axis, c.y_axis, c.z_axis];
     if a.json {
-        println!(
+        let json = format!(
             "{{\"kind\":\"{}\",\"integral\":{:.9},\"mean_normal\":[{:.9},{:.9},{:.9}],\"mean_length\":{:.9},\"mean_theta_deg\":{},\"mean_phi_deg\":{},\"covariance\":[[{:.9},{:.9},{:.9}],[{:.9},{:.9},{:.9}],[{:.9},{:.9},{:.9}]]}}",
             m.ndf.kind(),
             s.integral,
@@ -81,11 +82,13 @@ fn stats(a: StatsArgs) -> Result<()> {
             rows[0].y, rows[1].y, rows[2].y,
             rows[0].z, rows[1].z, rows[2].z,
         );
-        return Ok(());
+        return crate::util::print_stdout(&(json + "\n"));
     }
-    println!("ndf kind        {}", m.ndf.kind());
-    println!("integral (Eq.1) {:.6}", s.integral);
-    println!(
+    let mut t = String::new();
+    let _ = writeln!(t, "ndf kind        {}", m.ndf.kind());
+    let _ = writeln!(t, "integral (Eq.1) {:.6}", s.integral);
+    let _ = writeln!(
+        t,
         "mean normal     [{:.6}, {:.6}, {:.6}]  (length {:.6}; theta {:.2} deg, phi {:.2} deg)",
         mu.x,
         mu.y,
@@ -94,19 +97,22 @@ fn stats(a: StatsArgs) -> Result<()> {
         theta,
         phi
     );
-    println!(
+    let _ = writeln!(
+        t,
         "covariance      [{:+.6} {:+.6} {:+.6}]",
         rows[0].x, rows[1].x, rows[2].x
     );
-    println!(
+    let _ = writeln!(
+        t,
         "                [{:+.6} {:+.6} {:+.6}]",
         rows[0].y, rows[1].y, rows[2].y
     );
-    println!(
+    let _ = writeln!(
+        t,
         "                [{:+.6} {:+.6} {:+.6}]",
         rows[0].z, rows[1].z, rows[2].z
     );
-    Ok(())
+    crate::util::print_stdout(&t)
 }
 
 fn json_num(x: f64) -> String {

@@ -13,6 +13,7 @@ use meso_plot::{
 
 /// Render the NDF of a material to a PNG.
 pub fn plot(a: &PlotArgs) -> Result<()> {
+    crate::util::check_outputs(&[&a.out], &[&a.material])?;
     let m = crate::load_material(&a.material)?;
     let title = format!(
         "NDF of {} ({})",

@@ -103,8 +103,25 @@ pub fn run(a: Args) -> Result<()> {
     if !a.exposure.is_finite() {
         bail!("--exposure must be a finite number of stops");
     }
-    let scene = Scene::from_toml_file(&a.scene, &resolve_material)
+    let out_paths: Vec<&Path> = outputs.iter().map(|(p, _)| p.as_path()).collect();
+    crate::util::check_outputs(&out_paths, &[&a.scene])?;
+    // The material files the scene loads are inputs too.
+    let loaded = std::sync::Mutex::new(Vec::<PathBuf>::new());
+    let resolver = |p: &Path| {
+        loaded
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .push(p.to_path_buf());
+        resolve_material(p)
+    };
+    let scene = Scene::from_toml_file(&a.scene, &resolver)
         .with_context(|| format!("cannot load the scene {}", a.scene.display()))?;
+    let loaded = loaded
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let mut inputs: Vec<&Path> = vec![&a.scene];
+    inputs.extend(loaded.iter().map(PathBuf::as_path));
+    crate::util::check_outputs(&out_paths, &inputs)?;
     let opts = RenderOptions {
         width: a.width,
         height: a.height,
@@ -125,14 +142,22 @@ pub fn run(a: Args) -> Result<()> {
     let img = render(&scene, &opts, Some(&tick));
     bar.finish_and_clear();
     let secs = t.elapsed().as_secs_f64();
+    // Every image is encoded and written to its temporary file before any is put in place: a
+    // failure leaves none of them.
+    let mut staged = Vec::new();
     for (path, f) in &outputs {
-        match f {
-            Format::Exr => img.write_exr(path),
-            Format::Png => img.write_png(path, a.exposure),
+        let bytes = match f {
+            Format::Exr => img.encode_exr(),
+            Format::Png => img.encode_png(a.exposure),
         }
-        .with_context(|| format!("cannot write {}", path.display()))?;
+        .with_context(|| format!("{}: cannot encode the image", path.display()))?;
+        staged.push(
+            meso_core::io::stage_with(path, |w| w.write_all(&bytes))
+                .with_context(|| format!("{}: cannot write", path.display()))?,
+        );
     }
-    eprintln!(
+    meso_core::io::commit_all(staged)?;
+    note!(
         "rendered {}x{} at {} spp in {:.2} s -> {}",
         img.width(),
         img.height(),

@@ -20,10 +20,9 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let open = a.open;
     meso_serve::run(&a.host, a.port, move |addr| {
-        use std::io::Write;
         let url = format!("http://{addr}/");
-        println!("meso serve: listening on {url}");
-        let _ = std::io::stdout().flush();
+        // The address is for whoever started the server; the server runs on without a reader.
+        let _ = crate::util::print_stdout(&format!("meso serve: listening on {url}\n"));
         if open {
             let opener = if cfg!(target_os = "macos") {
                 "open"
@@ -33,7 +32,7 @@ pub fn run(a: Args) -> Result<()> {
                 "xdg-open"
             };
             if let Err(e) = std::process::Command::new(opener).arg(&url).spawn() {
-                eprintln!("meso serve: cannot open a browser ({opener}: {e}); open {url}");
+                note!("meso serve: cannot open a browser ({opener}: {e}); open {url}");
             }
         }
     })?;

@@ -1,0 +1,548 @@
+//! Issue #12 (hardening) through the binary: outputs aimed at devices, symlinks and inputs
+//! (item 1), no partial outputs (item 6), declared limits (item 7), broken pipes and full
+//! streams (item 8), messages (item 12).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn meso() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_meso"))
+}
+
+fn run(args: &[&str]) -> Output {
+    meso().args(args).output().expect("run meso")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meso-harden-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A failed run: status 1 (never a panic's 101), one error line on stderr containing `what`.
+fn fails_with(o: &Output, what: &str) {
+    let e = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "status {:?}: {e}", o.status);
+    assert!(!e.contains("panicked"), "{e}");
+    assert_eq!(e.lines().count(), 1, "one line: {e}");
+    assert!(e.starts_with("meso: error: "), "{e}");
+    assert!(e.contains(what), "expected {what:?} in: {e}");
+}
+
+fn ok(o: &Output) {
+    assert!(o.status.success(), "status {:?}: {}", o.status, stderr(o));
+}
+
+const PHONG: &str = "[ndf]\nkind = \"phong-peaks\"\nlobes = [{ axis = [0.0, 0.0], weight = 1.0, exponent = 40.0 }]\n\
+[transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n";
+
+const PAIRS: &str = "theta_i,phi_i,theta_o,phi_o\n0,0,0,0\n30,0,30,180\n45,0,45,180\n";
+
+/// A material and a pairs file in a fresh directory.
+fn brdf_inputs(name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let d = tmp(name);
+    let m = d.join("m.toml");
+    let p = d.join("pairs.csv");
+    std::fs::write(&m, PHONG).unwrap();
+    std::fs::write(&p, PAIRS).unwrap();
+    (d, m, p)
+}
+
+/// Names in `dir`, sorted.
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[cfg(unix)]
+#[test]
+fn item1_output_to_device_node_is_written_in_place() {
+    use std::os::unix::fs::FileTypeExt;
+    let (d, m, p) = brdf_inputs("item1-dev");
+    let dev = d.join("null");
+    let made = Command::new("mknod")
+        .arg(&dev)
+        .args(["c", "1", "3"])
+        .status()
+        .unwrap();
+    if !made.success() {
+        eprintln!("skipped: mknod needs privileges");
+        return;
+    }
+    ok(&run(&["brdf", s(&m), "--pairs", s(&p), "--out", s(&dev)]));
+    let ft = std::fs::symlink_metadata(&dev).unwrap().file_type();
+    assert!(ft.is_char_device(), "the device stays a device: {ft:?}");
+    assert_eq!(names(&d), ["m.toml", "null", "pairs.csv"], "no temp left");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn item1_out_dev_stdout_writes_to_standard_output() {
+    let (d, m, p) = brdf_inputs("item1-stdout");
+    let o = run(&["brdf", s(&m), "--pairs", s(&p), "--out", "/dev/stdout"]);
+    ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.starts_with("theta_i,phi_i,theta_o,phi_o,r,g,b\n"),
+        "{text}"
+    );
+    assert_eq!(text.lines().count(), 4, "{text}");
+    // Standard output redirected to a file: the file receives the table, the same inode.
+    let file = d.join("redirected.csv");
+    let f = std::fs::File::create(&file).unwrap();
+    let ino = |p: &Path| std::os::unix::fs::MetadataExt::ino(&std::fs::metadata(p).unwrap());
+    let before = ino(&file);
+    let st = meso()
+        .args(["brdf", s(&m), "--pairs", s(&p), "--out", "/dev/stdout"])
+        .stdout(f)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    assert_eq!(ino(&file), before, "written in place, not replaced");
+    assert_eq!(std::fs::read_to_string(&file).unwrap().lines().count(), 4);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn item1_existing_output_keeps_its_permissions_and_symlinks_stay() {
+    use std::os::unix::fs::PermissionsExt;
+    let (d, m, p) = brdf_inputs("item1-perm");
+    let out = d.join("out.csv");
+    std::fs::write(&out, "old").unwrap();
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let link = d.join("link.csv");
+    std::os::unix::fs::symlink("out.csv", &link).unwrap();
+    ok(&run(&["brdf", s(&m), "--pairs", s(&p), "--out", s(&link)]));
+    let meta = std::fs::metadata(&out).unwrap();
+    assert_eq!(meta.permissions().mode() & 0o7777, 0o600);
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read_to_string(&out)
+        .unwrap()
+        .starts_with("theta_i"));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn item1_output_that_is_an_input_is_refused() {
+    let (d, m, p) = brdf_inputs("item1-input");
+    let alias = d.join("alias.csv");
+    std::os::unix::fs::symlink(&p, &alias).unwrap();
+    for out in [&p, &alias] {
+        let o = run(&["brdf", s(&m), "--pairs", s(&p), "--out", s(out)]);
+        fails_with(&o, "is the same file as the input");
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), PAIRS, "input intact");
+    }
+    let o = run(&["ndf", "plot", s(&m), "--out", s(&m)]);
+    fails_with(&o, "is the same file as the input");
+    assert_eq!(std::fs::read_to_string(&m).unwrap(), PHONG);
+    // A render whose output is one of the scene's materials.
+    std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
+    let o = run(&["render", s(&d.join("scene.toml")), "--out", s(&m)]);
+    // (`m.toml` is not an image extension: aim at the material through a .png symlink.)
+    fails_with(&o, "unknown image format");
+    let png_alias = d.join("m.png");
+    std::os::unix::fs::symlink(&m, &png_alias).unwrap();
+    let o = run(&["render", s(&d.join("scene.toml")), "--out", s(&png_alias)]);
+    fails_with(&o, "is the same file as the input");
+    assert_eq!(std::fs::read_to_string(&m).unwrap(), PHONG);
+    // --out and --also naming one file.
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&d.join("a.png")),
+        "--also",
+        s(&d.join(".").join("a.png")),
+    ]);
+    fails_with(&o, "are the same output file");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A tiny scene (8×8 pixels, 1 spp) with one sphere of `material`.
+fn scene(material: &str) -> String {
+    format!(
+        "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+         up = [0.0, 1.0, 0.0]\nwidth = 2.5\n[image]\nwidth = 8\nheight = 8\nspp = 1\n\
+         [[object]]\nkind = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"{material}\"\n\
+         [[light]]\nkind = \"directional\"\ndirection = [0.3, 0.4, 0.866]\nirradiance = [1.0, 1.0, 1.0]\n"
+    )
+}
+
+#[test]
+fn item6_render_also_badpath_leaves_no_image() {
+    let (d, _m, _p) = brdf_inputs("item6-render");
+    std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
+    let first = d.join("first.png");
+    // A missing directory: refused before rendering.
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&first),
+        "--also",
+        s(&d.join("missing/second.exr")),
+    ]);
+    fails_with(&o, "does not exist");
+    assert!(!first.exists(), "the first image was written");
+    // A target that fails only when written (a directory named like an image).
+    std::fs::create_dir(d.join("second.exr")).unwrap();
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&first),
+        "--also",
+        s(&d.join("second.exr")),
+    ]);
+    fails_with(&o, "second.exr");
+    assert!(!first.exists(), "the first image was written");
+    assert_eq!(
+        names(&d),
+        ["m.toml", "pairs.csv", "scene.toml", "second.exr"],
+        "no temp left"
+    );
+    ok(&run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&first),
+        "--also",
+        s(&d.join("second.png")),
+    ]));
+    assert!(first.exists() && d.join("second.png").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A small sample CSV (a Phong-like peak plus a diffuse term), fitted in well under a second.
+fn fit_csv(dir: &Path) -> PathBuf {
+    let mut t = String::from("theta_i,phi_i,theta_o,phi_o,r,g,b\n");
+    for ti in (0..80).step_by(8) {
+        for to in (0..80).step_by(8) {
+            for po in (0..360).step_by(45) {
+                let (a, b) = ((ti as f64).to_radians(), (to as f64).to_radians());
+                let pr = (po as f64).to_radians();
+                // Angle between the mirror direction of (θi, 0) and (θo, φo).
+                let mirror = [-a.sin(), 0.0, a.cos()];
+                let wo = [b.sin() * pr.cos(), b.sin() * pr.sin(), b.cos()];
+                let c = (mirror[0] * wo[0] + mirror[1] * wo[1] + mirror[2] * wo[2]).max(0.0);
+                let f = 0.1 + 2.0 * c.powi(60);
+                t.push_str(&format!("{ti},0,{to},{po},{f},{},{}\n", 0.8 * f, 0.6 * f));
+            }
+        }
+    }
+    let p = dir.join("data.csv");
+    std::fs::write(&p, t).unwrap();
+    p
+}
+
+#[test]
+fn item6_fit_per_channel_failure_leaves_no_file() {
+    let d = tmp("item6-fit");
+    let csv = fit_csv(&d);
+    // The third per-channel file cannot be written (a directory of that name).
+    std::fs::create_dir(d.join("m.blue.toml")).unwrap();
+    let o = run(&[
+        "fit",
+        s(&csv),
+        "--lobes",
+        "1",
+        "--per-channel-lobes",
+        "--out",
+        s(&d.join("m.toml")),
+    ]);
+    fails_with(&o, "m.blue.toml");
+    assert_eq!(names(&d), ["data.csv", "m.blue.toml"], "nothing left");
+    std::fs::remove_dir(d.join("m.blue.toml")).unwrap();
+    // The second plot cannot be written: no material either.
+    let plots = d.join("plots");
+    std::fs::create_dir_all(plots.join("spheres.png")).unwrap();
+    let o = run(&[
+        "fit",
+        s(&csv),
+        "--lobes",
+        "1",
+        "--plot",
+        s(&plots),
+        "--out",
+        s(&d.join("m.toml")),
+    ]);
+    fails_with(&o, "spheres.png");
+    assert_eq!(names(&d), ["data.csv", "plots"], "no material");
+    assert_eq!(names(&plots), ["spheres.png"], "no slices");
+    // A --plot that is a file: refused before fitting.
+    let o = run(&[
+        "fit",
+        s(&csv),
+        "--lobes",
+        "1",
+        "--plot",
+        s(&csv),
+        "--out",
+        s(&d.join("m.toml")),
+    ]);
+    fails_with(&o, "needs a directory");
+    assert!(!d.join("m.toml").exists());
+    // The good case writes all three outputs.
+    let fresh = d.join("fresh");
+    ok(&run(&[
+        "fit",
+        s(&csv),
+        "--lobes",
+        "1",
+        "--plot",
+        s(&fresh),
+        "--out",
+        s(&d.join("m.toml")),
+    ]));
+    assert!(d.join("m.toml").exists());
+    assert_eq!(names(&fresh), ["slices.png", "spheres.png"]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Run `meso args` with standard output on a pipe whose reading end is already closed: every
+/// write fails with EPIPE, deterministically.
+#[cfg(unix)]
+fn run_into_closed_pipe(args: &[&str]) -> Output {
+    use std::os::fd::{FromRawFd, OwnedFd};
+    let mut fds = [0i32; 2];
+    // SAFETY: pipe() fills two new descriptors we own.
+    assert_eq!(unsafe { libc::pipe(fds.as_mut_ptr()) }, 0);
+    // SAFETY: both descriptors were just created and are owned here only.
+    let (read, write) = unsafe { (OwnedFd::from_raw_fd(fds[0]), OwnedFd::from_raw_fd(fds[1])) };
+    drop(read);
+    meso()
+        .args(args)
+        .stdout(Stdio::from(write))
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap()
+}
+
+/// A material file and a map file written by `meso extract` from a small height map.
+fn map_file(dir: &Path) -> PathBuf {
+    let n = 32u32;
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |x, y| {
+        let v = ((x as f64 * 0.7).sin() + (y as f64 * 0.4).cos()) * 3000.0 + 32768.0;
+        image::Luma([v as u16])
+    });
+    let png = dir.join("h.png");
+    img.save(&png).unwrap();
+    let map = dir.join("h.map");
+    ok(&run(&[
+        "extract",
+        s(&png),
+        "--texel-size",
+        "0.01",
+        "--height-scale",
+        "0.05",
+        "--max-lobes",
+        "2",
+        "--out",
+        s(&map),
+    ]));
+    map
+}
+
+#[cfg(unix)]
+#[test]
+fn item8_map_info_piped_into_head_1_does_not_panic() {
+    let d = tmp("item8-head");
+    let map = map_file(&d);
+    let bin = env!("CARGO_BIN_EXE_meso");
+    let o = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "set -o pipefail; '{bin}' map info '{}' | head -1",
+            map.display()
+        ))
+        .output()
+        .unwrap();
+    let e = stderr(&o);
+    assert!(
+        matches!(o.status.code(), Some(0 | 141)),
+        "status {:?}: {e}",
+        o.status
+    );
+    assert!(e.is_empty(), "quiet: {e}");
+    assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 1);
+    // Deterministically broken: the pipe's reader is gone before the first write.
+    for args in [
+        vec!["map", "info", s(&map)],
+        vec!["ndf", "stats", s(&d.join("m.toml"))],
+        vec![
+            "brdf",
+            s(&d.join("m.toml")),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+        ],
+        vec![
+            "brdf",
+            s(&d.join("m.toml")),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+            "--out",
+            "/dev/stdout",
+        ],
+    ] {
+        std::fs::write(d.join("m.toml"), PHONG).unwrap();
+        std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
+        let o = run_into_closed_pipe(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(141), "{args:?}: {:?} {e}", o.status);
+        assert!(e.is_empty(), "{args:?}: quiet, got {e}");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// Run `meso args` with standard output (or standard error) on /dev/full.
+#[cfg(unix)]
+fn run_full(args: &[&str], stderr_full: bool) -> Output {
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let mut c = meso();
+    c.args(args);
+    if stderr_full {
+        c.stderr(full).stdout(Stdio::piped());
+    } else {
+        c.stdout(full).stderr(Stdio::piped());
+    }
+    c.output().unwrap()
+}
+
+#[cfg(unix)]
+#[test]
+fn item8_stdout_on_dev_full_is_an_error_not_a_panic() {
+    let d = tmp("item8-full");
+    let map = map_file(&d);
+    std::fs::write(d.join("m.toml"), PHONG).unwrap();
+    std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
+    let csv = fit_csv(&d);
+    let out = d.join("fit.toml");
+    for args in [
+        vec!["map", "info", s(&map)],
+        vec!["ndf", "stats", s(&d.join("m.toml"))],
+        vec!["ndf", "stats", "--json", s(&d.join("m.toml"))],
+        vec![
+            "brdf",
+            s(&d.join("m.toml")),
+            "--pairs",
+            s(&d.join("pairs.csv")),
+        ],
+        vec!["fit", s(&csv), "--lobes", "1", "--out", s(&out)],
+    ] {
+        let o = run_full(&args, false);
+        fails_with(
+            &o,
+            "cannot write to standard output: No space left on device",
+        );
+        assert!(!stderr(&o).contains("os error 28): "), "{}", stderr(&o));
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn item8_stderr_on_dev_full_does_not_panic() {
+    let d = tmp("item8-stderr");
+    std::fs::write(d.join("m.toml"), PHONG).unwrap();
+    std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
+    // An error with nowhere to report it: status 1.
+    let o = run_full(&["ndf", "stats", s(&d.join("missing.toml"))], true);
+    assert_eq!(o.status.code(), Some(1), "{:?}", o.status);
+    // Success with a progress line on a full stderr: status 0, the image written.
+    let png = d.join("out.png");
+    let o = run_full(
+        &["render", s(&d.join("scene.toml")), "--out", s(&png)],
+        true,
+    );
+    assert_eq!(o.status.code(), Some(0), "{:?}", o.status);
+    assert!(png.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn item12_os_errors_are_printed_once() {
+    let d = tmp("item12-os");
+    let missing = d.join("missing.toml");
+    for args in [
+        vec!["ndf", "stats", s(&missing)],
+        vec!["render", s(&missing), "--out", s(&d.join("x.png"))],
+        vec!["map", "info", s(&d.join("missing.map"))],
+        vec![
+            "fit",
+            s(&d.join("missing.csv")),
+            "--lobes",
+            "1",
+            "--out",
+            s(&d.join("o.toml")),
+        ],
+    ] {
+        let o = run(&args);
+        let e = stderr(&o);
+        fails_with(&o, "missing");
+        assert_eq!(
+            e.matches("No such file or directory").count(),
+            1,
+            "{args:?}: {e}"
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn item5_a_written_map_always_passes_map_info() {
+    let d = tmp("item5");
+    let n = 16u32;
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |x, y| {
+        image::Luma([((x * 7 + y * 13) % 64 * 1000) as u16])
+    });
+    let png = d.join("h.png");
+    img.save(&png).unwrap();
+    for (texel, height) in [("1e-3", "1e160"), ("1e-150", "1e10"), ("1e-3", "1e300")] {
+        let map = d.join("h.map");
+        let o = run(&[
+            "extract",
+            s(&png),
+            "--texel-size",
+            texel,
+            "--height-scale",
+            height,
+            "--out",
+            s(&map),
+        ]);
+        eprintln!("{texel} {height}: {:?} {}", o.status, stderr(&o).trim());
+        if o.status.success() {
+            let info = run(&["map", "info", s(&map)]);
+            ok(&info);
+        } else {
+            fails_with(&o, "h.map");
+            assert!(
+                !map.exists(),
+                "{texel} {height}: a failed extract left a map"
+            );
+        }
+        let _ = std::fs::remove_file(&map);
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}
