@@ -32,6 +32,12 @@ pub fn roughness_png(k: usize) -> String {
     format!("metallic_roughness_mip{k}.png")
 }
 
+/// File name of the grey inspection PNG of roughness level `k` (`round(255·√α)`, for viewing).
+#[must_use]
+pub fn roughness_grey_png(k: usize) -> String {
+    format!("roughness_mip{k}.png")
+}
+
 /// Per-sample normals of a height map by central differences,
 /// `n ∝ (−∂h/∂x, −∂h/∂y, 1)` with `∂h/∂x = (h(i, j+1) − h(i, j−1)) / 2S` (the border as the
 /// map's own [`meso_maps::Border`]): one normal per sample, the texture's size.
@@ -261,6 +267,11 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
         files.push((
             roughness_png(k),
             texture::encode_png(l.width, l.height, 3, &texture::rgba_to_rgb(&r))?,
+        ));
+        let grey: Vec<u8> = r.chunks_exact(4).map(|p| p[1]).collect();
+        files.push((
+            roughness_grey_png(k),
+            texture::encode_png(l.width, l.height, 1, &grey)?,
         ));
         nlev.push(ktx2::Level {
             width: l.width as u32,

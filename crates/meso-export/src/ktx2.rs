@@ -75,7 +75,7 @@ pub struct Level {
     pub data: Vec<u8>,
 }
 
-/// A parsed texture: what [`write`] takes and [`read`] gives back.
+/// A parsed texture: what [`write()`] takes and [`read`] gives back.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Texture {
     /// Texel format.
@@ -252,7 +252,7 @@ fn u64_at(b: &[u8], off: usize) -> Result<u64, ExportError> {
     Ok(lo | hi << 32)
 }
 
-/// Parse a KTX 2.0 file written by [`write`] (or any uncompressed single-face 2-D texture of a
+/// Parse a KTX 2.0 file written by [`write()`] (or any uncompressed single-face 2-D texture of a
 /// supported format), checking the identifier, the header, the DFD's size and the level layout.
 ///
 /// # Errors

@@ -225,6 +225,13 @@ fn export_round_trip_through_independent_readers() {
             assert_eq!((png.width(), png.height()), (a.width, a.height));
             let rgb: Vec<u8> = a.data.chunks(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
             assert_eq!(png.as_raw(), &rgb, "{name} level {k}");
+            if name == export::ROUGHNESS_KTX2 {
+                let grey = image::open(dir.join(export::roughness_grey_png(k)))
+                    .unwrap()
+                    .to_luma8();
+                let g: Vec<u8> = a.data.chunks(4).map(|p| p[1]).collect();
+                assert_eq!(grey.as_raw(), &g, "grey roughness level {k}");
+            }
         }
         // Level 0 of the normal map: decoded texels are the input normals, image row order.
         if name == export::NORMAL_KTX2 {
