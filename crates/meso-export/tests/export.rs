@@ -335,3 +335,37 @@ fn fitted_chain_beats_the_standard_mip() {
         assert!(s.mean_alpha > 0.04);
     }
 }
+
+/// Roughness maps: grey r → α = r² in map row order; a colour map takes G with a warning; a
+/// size mismatch, an empty file and a 16-bit base colour are reported.
+#[test]
+fn roughness_and_base_color_loading() {
+    let dir = scratch("loading");
+    // 2 × 2 grey: image top row (map row 1) = 51, 102; bottom row (map row 0) = 153, 204.
+    let grey = image::GrayImage::from_raw(2, 2, vec![51, 102, 153, 204]).unwrap();
+    grey.save(dir.join("r.png")).unwrap();
+    let (a, w) = export::load_roughness(&dir.join("r.png"), 2, 2).unwrap();
+    assert!(w.is_empty());
+    let want = [0.6_f64, 0.8, 0.2, 0.4].map(|r| r * r);
+    for (x, y) in a.iter().zip(want) {
+        assert!((x - y).abs() < 1e-6, "{x} vs {y}");
+    }
+    let rgb = image::RgbImage::from_raw(1, 1, vec![10, 51, 200]).unwrap();
+    rgb.save(dir.join("mr.png")).unwrap();
+    let (a, w) = export::load_roughness(&dir.join("mr.png"), 1, 1).unwrap();
+    assert!((a[0] - 0.04).abs() < 1e-6 && w.len() == 1 && w[0].contains("green"));
+    let e = export::load_roughness(&dir.join("r.png"), 4, 4)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("2 × 2") && e.contains("4 × 4"), "{e}");
+    std::fs::write(dir.join("empty.png"), b"").unwrap();
+    assert!(export::load_roughness(&dir.join("empty.png"), 1, 1).is_err());
+    let deep =
+        image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(1, 1, vec![65535u16, 0, 0]).unwrap();
+    deep.save(dir.join("c16.png")).unwrap();
+    let (bc, w) = export::load_base_color(&dir.join("c16.png")).unwrap();
+    assert!(w.len() == 1 && w[0].contains("8-bit"), "{w:?}");
+    let back = image::load_from_memory(&bc.png).unwrap().to_rgba8();
+    assert_eq!(back.as_raw(), &vec![255, 0, 0, 255]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
