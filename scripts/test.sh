@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite, as CI runs it: formatting, lints, the API docs, every crate's tests, and the browser
-# end-to-end tests of the editor (installs Debian's chromium and npm's playwright-core when missing).
+# end-to-end tests of the editor (installs Debian's chromium and npm's playwright-core when missing), and the
+# independent checks of `meso export` (npm ktx-parse and gltf-validator, tests/export).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,8 +25,15 @@ if [ -f tests/e2e/package.json ]; then
   bash tests/e2e/run.sh 2>&1 | tee target/e2e-output.txt || e2e_status=1
 fi
 
+export_status=0
+: > target/export-output.txt
+if [ -f tests/export/package.json ]; then
+  echo "== export checks (ktx-parse, gltf-validator)"
+  bash tests/export/run.sh 2>&1 | tee target/export-output.txt || export_status=1
+fi
+
 # One closing line for humans and CI: cargo's per-binary results plus the browser tests.
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed;?$/) p += $(i-1); if ($i ~ /^failed;?$/) f += $(i-1) } }
      /^e2e: [0-9]+ passed, [0-9]+ failed/ { p += $2; f += $4 }
-     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt
-exit $e2e_status
+     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt target/export-output.txt
+[ $e2e_status = 0 ] && [ $export_status = 0 ]

@@ -45,6 +45,9 @@ enum Command {
     Fit(cmd::fit::Args),
     /// Extract the NDF pyramid of a height map (or normal map) into a map file.
     Extract(cmd::extract::Args),
+    /// Export a normal/height map as engine-ready textures: fitted GGX roughness and normal mip
+    /// chains (KTX2 + PNG) and a glTF 2.0 preview asset.
+    Export(cmd::export::Args),
     /// Inspect map files (NDF pyramids).
     #[command(subcommand)]
     Map(cmd::map::MapCommand),
@@ -65,6 +68,7 @@ fn main() -> ExitCode {
         Command::Ndf(a) => cmd::ndf::run(a),
         Command::Fit(a) => cmd::fit::run(a),
         Command::Extract(a) => cmd::extract::run(a),
+        Command::Export(a) => cmd::export::run(a),
         Command::Map(a) => cmd::map::run(a),
         Command::Gonio(a) => cmd::gonio::run(a),
         Command::Render(a) => cmd::render::run(a),

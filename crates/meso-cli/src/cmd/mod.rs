@@ -1,5 +1,6 @@
 //! One module per subcommand.
 pub mod brdf;
+pub mod export;
 pub mod extract;
 pub mod figures;
 pub mod fit;

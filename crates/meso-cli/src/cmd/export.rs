@@ -1,0 +1,111 @@
+//! `meso export MAP --out DIR [--alpha A | --roughness-map R] [--base-color C]` — engine-ready
+//! maps: fitted GGX roughness and normal mip chains as KTX2 (plus a PNG per level) and a glTF
+//! 2.0 preview asset (docs/export.md).
+
+use anyhow::{bail, Context, Result};
+use meso_export::export::{self, Inputs, Roughness};
+use meso_maps::{Border, HeightMap, NormalConvention, NormalMap};
+use std::path::PathBuf;
+
+/// Green-channel convention of the input normal map.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Convention {
+    /// OpenGL / glTF: green is +y (up in the image).
+    Gl,
+    /// DirectX: green is −y.
+    Dx,
+}
+
+/// Export a normal map (or height map) and its roughness as engine-ready textures.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Tangent-space normal map (RGB) or, with --texel-size and --height-scale, a height map.
+    pub map: PathBuf,
+    /// Output folder (created; every file written atomically, all or nothing).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// The input is a height map: distance between samples S (length units, > 0).
+    #[arg(long, requires = "height_scale")]
+    pub texel_size: Option<f64>,
+    /// The input is a height map: height of the full code range H (same unit, > 0).
+    #[arg(long, requires = "texel_size")]
+    pub height_scale: Option<f64>,
+    /// Green-channel convention of a normal-map input.
+    #[arg(long, value_enum, default_value = "gl")]
+    pub convention: Convention,
+    /// Constant base GGX width α in (0, 1] (glTF roughness is √α).
+    #[arg(long, default_value_t = 0.1, conflicts_with = "roughness_map")]
+    pub alpha: f64,
+    /// Per-texel roughness image holding glTF perceptual roughness r (α = r²): grey, or a
+    /// metallicRoughness image (G is used). Same size as the map.
+    #[arg(long)]
+    pub roughness_map: Option<PathBuf>,
+    /// Metallic value written to the B channel, in [0, 1].
+    #[arg(long, default_value_t = 0.0)]
+    pub metallic: f64,
+    /// Base colour image (sRGB) for the glTF material; a constant grey without it.
+    #[arg(long)]
+    pub base_color: Option<PathBuf>,
+}
+
+/// Run the command.
+pub fn run(a: Args) -> Result<()> {
+    let mut inputs = match (a.texel_size, a.height_scale) {
+        (Some(s), Some(h)) => {
+            let map = HeightMap::load(&a.map, s, h, Border::Wrap)?;
+            for w in map.warnings() {
+                eprintln!("{}: warning: {w}", a.map.display());
+            }
+            Inputs::from_heightmap(&map, a.alpha)
+        }
+        (None, None) => {
+            let conv = match a.convention {
+                Convention::Gl => NormalConvention::Gl,
+                Convention::Dx => NormalConvention::Dx,
+            };
+            let map = NormalMap::load(&a.map, conv)?;
+            if map.clamped() > 0 {
+                eprintln!(
+                    "{}: warning: {} of {} texels point at or below the horizon; tilted up to it",
+                    a.map.display(),
+                    map.clamped(),
+                    map.width() * map.height()
+                );
+            }
+            Inputs::from_normal_map(&map, a.alpha)
+        }
+        _ => bail!("a height map needs both --texel-size and --height-scale"),
+    };
+    if let Some(r) = &a.roughness_map {
+        let (alphas, warnings) = export::load_roughness(r, inputs.width, inputs.height)?;
+        for w in warnings {
+            eprintln!("warning: {w}");
+        }
+        inputs.roughness = Roughness::Map(alphas);
+    }
+    if let Some(c) = &a.base_color {
+        let (bc, warnings) = export::load_base_color(c)?;
+        for w in warnings {
+            eprintln!("warning: {w}");
+        }
+        inputs.base_color = Some(bc);
+    }
+    inputs.metallic = a.metallic;
+    let ex = export::build(&inputs).with_context(|| a.map.display().to_string())?;
+    let files = export::write(&ex, &a.out)?;
+    println!("level  size        mean α   fit error % of peak (mean / max)   standard mip %");
+    for s in &ex.stats {
+        println!(
+            "{:>5}  {:>4} × {:<4}  {:.4}   {:>8.3} / {:<8.3}                {:>8.3}",
+            s.level,
+            s.width,
+            s.height,
+            s.mean_alpha,
+            s.mean_error_pct,
+            s.max_error_pct,
+            s.mean_plain_error_pct
+        );
+    }
+    eprintln!("{}: {} files", a.out.display(), files.len());
+    Ok(())
+}

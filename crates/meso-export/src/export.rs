@@ -1,0 +1,380 @@
+//! The whole export: inputs → mip chains → KTX2, PNG, glTF and an error table, written
+//! all-or-nothing.
+
+use crate::ggx::roughness_to_alpha;
+use crate::mips::{build_chain, BaseMaps, LevelStats, MipLevel};
+use crate::{gltf, ktx2, texture, ExportError};
+use glam::DVec3;
+use meso_maps::{HeightMap, NormalMap};
+use std::path::{Path, PathBuf};
+
+/// File name of the normal map KTX2 (RGBA8 UNORM, full mip chain).
+pub const NORMAL_KTX2: &str = "normal.ktx2";
+/// File name of the metallicRoughness KTX2 (RGBA8 UNORM, G = roughness, B = metallic).
+pub const ROUGHNESS_KTX2: &str = "metallic_roughness.ktx2";
+/// File name of the glTF JSON.
+pub const GLTF: &str = "scene.gltf";
+/// File name of the glTF binary buffer.
+pub const GLTF_BIN: &str = "scene.bin";
+/// File name of the base colour PNG (when one is given).
+pub const BASE_COLOR_PNG: &str = "base_color.png";
+/// File name of the per-level fit errors (CSV).
+pub const ERRORS_CSV: &str = "errors.csv";
+
+/// File name of the inspection PNG of normal mip level `k` (RGB, OpenGL convention).
+#[must_use]
+pub fn normal_png(k: usize) -> String {
+    format!("normal_mip{k}.png")
+}
+/// File name of the inspection PNG of metallicRoughness mip level `k` (RGB, G = roughness).
+#[must_use]
+pub fn roughness_png(k: usize) -> String {
+    format!("metallic_roughness_mip{k}.png")
+}
+
+/// File name of the grey inspection PNG of roughness level `k` (`round(255·√α)`, for viewing).
+#[must_use]
+pub fn roughness_grey_png(k: usize) -> String {
+    format!("roughness_mip{k}.png")
+}
+
+/// Per-sample normals of a height map by central differences,
+/// `n ∝ (−∂h/∂x, −∂h/∂y, 1)` with `∂h/∂x = (h(i, j+1) − h(i, j−1)) / 2S` (the border as the
+/// map's own [`meso_maps::Border`]): one normal per sample, the texture's size.
+#[must_use]
+pub fn normals_from_heightmap(map: &HeightMap) -> Vec<DVec3> {
+    let s = map.texel_size();
+    let mut v = Vec::with_capacity(map.width() * map.height());
+    for i in 0..map.height() as isize {
+        for j in 0..map.width() as isize {
+            let gx = (map.at(i, j + 1) - map.at(i, j - 1)) / (2.0 * s);
+            let gy = (map.at(i + 1, j) - map.at(i - 1, j)) / (2.0 * s);
+            v.push(DVec3::new(-gx, -gy, 1.0).normalize());
+        }
+    }
+    v
+}
+
+/// Where level-0 roughness comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Roughness {
+    /// One GGX width α everywhere (not glTF roughness; `r = √α`).
+    Alpha(f64),
+    /// Per-texel GGX widths α, map row order (e.g. from [`load_roughness`]).
+    Map(Vec<f64>),
+}
+
+/// Load a roughness image holding glTF perceptual roughness `r` (α = r²): a grey image, or a
+/// colour one in glTF's metallicRoughness layout (G is taken). Rows are reversed into map order.
+/// Returns α per texel and warnings for the user.
+///
+/// # Errors
+/// Unreadable or undecodable files, or a size other than `width × height`.
+pub fn load_roughness(
+    path: &Path,
+    width: usize,
+    height: usize,
+) -> Result<(Vec<f64>, Vec<String>), ExportError> {
+    let img = open(path)?;
+    let mut warnings = Vec::new();
+    if (img.width() as usize, img.height() as usize) != (width, height) {
+        return Err(ExportError::Invalid(format!(
+            "{}: the roughness map is {} × {}, the normals {width} × {height}",
+            path.display(),
+            img.width(),
+            img.height()
+        )));
+    }
+    let rgb = img.to_rgb32f();
+    let grey = rgb.pixels().all(|p| p.0[0] == p.0[1] && p.0[1] == p.0[2]);
+    if !grey {
+        warnings.push(format!(
+            "{}: a colour roughness map; taking its green channel (glTF metallicRoughness layout)",
+            path.display()
+        ));
+    }
+    let mut alphas = Vec::with_capacity(width * height);
+    for r in (0..height as u32).rev() {
+        for c in 0..width as u32 {
+            alphas.push(roughness_to_alpha(rgb.get_pixel(c, r).0[1] as f64));
+        }
+    }
+    Ok((alphas, warnings))
+}
+
+fn open(path: &Path) -> Result<image::DynamicImage, ExportError> {
+    let bytes = std::fs::read(path).map_err(|e| ExportError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let img = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| ExportError::Invalid(format!("{}: {e}", path.display())))?
+        .decode()
+        .map_err(|e| ExportError::Invalid(format!("{}: {e}", path.display())))?;
+    if img.width() == 0 || img.height() == 0 {
+        return Err(ExportError::Invalid(format!(
+            "{}: empty image",
+            path.display()
+        )));
+    }
+    Ok(img)
+}
+
+/// A base colour image (sRGB, as stored), re-encoded as an 8-bit RGBA PNG in image order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BaseColor {
+    /// The PNG bytes.
+    pub png: Vec<u8>,
+}
+
+/// Load a base colour image (PNG, JPEG, TGA, TIFF) for the glTF asset; 16-bit and float images
+/// are converted to 8 bits, with a warning.
+///
+/// # Errors
+/// Unreadable or undecodable files.
+pub fn load_base_color(path: &Path) -> Result<(BaseColor, Vec<String>), ExportError> {
+    let img = open(path)?;
+    let mut warnings = Vec::new();
+    if !matches!(
+        img.color(),
+        image::ColorType::Rgb8
+            | image::ColorType::Rgba8
+            | image::ColorType::L8
+            | image::ColorType::La8
+    ) {
+        warnings.push(format!(
+            "{}: {:?} base colour converted to 8-bit sRGB RGBA (glTF stores 8-bit colour)",
+            path.display(),
+            img.color()
+        ));
+    }
+    let rgba = img.to_rgba8();
+    let png = texture::encode_png(
+        rgba.width() as usize,
+        rgba.height() as usize,
+        4,
+        rgba.as_raw(),
+    )?;
+    Ok((BaseColor { png }, warnings))
+}
+
+/// Everything the exporter needs besides the output folder.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Inputs {
+    /// Texels along x.
+    pub width: usize,
+    /// Texels along y.
+    pub height: usize,
+    /// Level-0 unit normals, map row order.
+    pub normals: Vec<DVec3>,
+    /// Level-0 roughness.
+    pub roughness: Roughness,
+    /// Metallic value written to the B channel (`[0, 1]`).
+    pub metallic: f64,
+    /// Base colour texture, if any.
+    pub base_color: Option<BaseColor>,
+    /// Linear base colour factor (RGBA, `[0, 1]`).
+    pub base_color_factor: [f64; 4],
+}
+
+impl Inputs {
+    /// Inputs from a tangent-space normal map with a constant α and no base colour texture.
+    #[must_use]
+    pub fn from_normal_map(map: &NormalMap, alpha: f64) -> Inputs {
+        Inputs {
+            width: map.width(),
+            height: map.height(),
+            normals: map.normals().to_vec(),
+            roughness: Roughness::Alpha(alpha),
+            metallic: 0.0,
+            base_color: None,
+            base_color_factor: [0.8, 0.8, 0.8, 1.0],
+        }
+    }
+    /// Inputs from a height map (normals by [`normals_from_heightmap`]) with a constant α.
+    #[must_use]
+    pub fn from_heightmap(map: &HeightMap, alpha: f64) -> Inputs {
+        Inputs {
+            width: map.width(),
+            height: map.height(),
+            normals: normals_from_heightmap(map),
+            roughness: Roughness::Alpha(alpha),
+            metallic: 0.0,
+            base_color: None,
+            base_color_factor: [0.8, 0.8, 0.8, 1.0],
+        }
+    }
+}
+
+/// The export in memory: every file's name and bytes, and the per-level statistics.
+#[derive(Clone, Debug)]
+pub struct Export {
+    /// `(file name, bytes)` in writing order.
+    pub files: Vec<(String, Vec<u8>)>,
+    /// Per-level fit statistics, level 0 first.
+    pub stats: Vec<LevelStats>,
+    /// The mip chains themselves.
+    pub levels: Vec<MipLevel>,
+}
+
+/// Build every output in memory (nothing is written).
+///
+/// # Errors
+/// [`ExportError::Invalid`] for inconsistent inputs (empty map, α or metallic outside `[0, 1]`,
+/// bad normals).
+pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
+    let (w, h) = (inputs.width, inputs.height);
+    if !(0.0..=1.0).contains(&inputs.metallic) {
+        return Err(ExportError::Invalid(format!(
+            "metallic {} is outside [0, 1]",
+            inputs.metallic
+        )));
+    }
+    let alphas = match &inputs.roughness {
+        Roughness::Alpha(a) => {
+            if !(a.is_finite() && *a > 0.0 && *a <= 1.0) {
+                return Err(ExportError::Invalid(format!(
+                    "α = {a}: the GGX width must be in (0, 1]"
+                )));
+            }
+            vec![*a; w * h]
+        }
+        Roughness::Map(v) => v.clone(),
+    };
+    let base = BaseMaps::new(w, h, inputs.normals.clone(), alphas)?;
+    let levels = build_chain(&base);
+    let stats: Vec<LevelStats> = levels.iter().enumerate().map(|(k, l)| l.stats(k)).collect();
+    let orient = || {
+        vec![
+            ("KTXorientation".to_string(), "rd".to_string()),
+            (
+                "KTXwriter".to_string(),
+                concat!("meso export ", env!("CARGO_PKG_VERSION")).to_string(),
+            ),
+        ]
+    };
+    let mut files = Vec::new();
+    let mut nlev = Vec::new();
+    let mut rlev = Vec::new();
+    for (k, l) in levels.iter().enumerate() {
+        let n = texture::normals_rgba8(l.width, l.height, &l.normals);
+        let r = texture::metallic_roughness_rgba8(l.width, l.height, &l.alphas, inputs.metallic);
+        files.push((
+            normal_png(k),
+            texture::encode_png(l.width, l.height, 3, &texture::rgba_to_rgb(&n))?,
+        ));
+        files.push((
+            roughness_png(k),
+            texture::encode_png(l.width, l.height, 3, &texture::rgba_to_rgb(&r))?,
+        ));
+        let grey: Vec<u8> = r.chunks_exact(4).map(|p| p[1]).collect();
+        files.push((
+            roughness_grey_png(k),
+            texture::encode_png(l.width, l.height, 1, &grey)?,
+        ));
+        nlev.push(ktx2::Level {
+            width: l.width as u32,
+            height: l.height as u32,
+            data: n,
+        });
+        rlev.push(ktx2::Level {
+            width: l.width as u32,
+            height: l.height as u32,
+            data: r,
+        });
+    }
+    files.push((
+        NORMAL_KTX2.to_string(),
+        ktx2::write(&ktx2::Texture {
+            format: ktx2::Format::Rgba8Unorm,
+            levels: nlev,
+            key_values: orient(),
+        })?,
+    ));
+    files.push((
+        ROUGHNESS_KTX2.to_string(),
+        ktx2::write(&ktx2::Texture {
+            format: ktx2::Format::Rgba8Unorm,
+            levels: rlev,
+            key_values: orient(),
+        })?,
+    ));
+    if let Some(bc) = &inputs.base_color {
+        files.push((BASE_COLOR_PNG.to_string(), bc.png.clone()));
+    }
+    let tex = gltf::MaterialTextures {
+        normal: normal_png(0),
+        metallic_roughness: roughness_png(0),
+        base_color: inputs
+            .base_color
+            .as_ref()
+            .map(|_| BASE_COLOR_PNG.to_string()),
+    };
+    let meshes = [
+        ("sphere", gltf::uv_sphere(1.0, 64, 32, 2.0)),
+        ("plane", gltf::plane(2.0, 1.0)),
+    ];
+    let (bin, doc) = gltf::asset(&meshes, &tex, GLTF_BIN, inputs.base_color_factor);
+    files.push((GLTF_BIN.to_string(), bin));
+    let json = serde_json::to_vec_pretty(&doc)
+        .map_err(|e| ExportError::Invalid(format!("glTF JSON: {e}")))?;
+    files.push((GLTF.to_string(), json));
+    files.push((ERRORS_CSV.to_string(), errors_csv(&stats).into_bytes()));
+    Ok(Export {
+        files,
+        stats,
+        levels,
+    })
+}
+
+/// The per-level statistics as CSV:
+/// `level,width,height,mean_alpha,mean_error_pct,max_error_pct,plain_mip_error_pct`.
+#[must_use]
+pub fn errors_csv(stats: &[LevelStats]) -> String {
+    let mut s = String::from(
+        "level,width,height,mean_alpha,mean_error_pct,max_error_pct,plain_mip_error_pct\n",
+    );
+    for l in stats {
+        s += &format!(
+            "{},{},{},{:.5},{:.3},{:.3},{:.3}\n",
+            l.level,
+            l.width,
+            l.height,
+            l.mean_alpha,
+            l.mean_error_pct,
+            l.max_error_pct,
+            l.mean_plain_error_pct
+        );
+    }
+    s
+}
+
+/// Write the export's files into `dir` (created if missing), each atomically
+/// (`meso_core::io::write_atomic`). All or nothing: if any file cannot be written, the files
+/// already written by this call are removed (and `dir`, if this call created it).
+///
+/// # Errors
+/// [`ExportError::Io`] naming the path that failed.
+pub fn write(export: &Export, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
+    let existed = dir.is_dir();
+    std::fs::create_dir_all(dir).map_err(|e| ExportError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    })?;
+    let mut written = Vec::new();
+    for (name, bytes) in &export.files {
+        let path = dir.join(name);
+        if let Err(e) = meso_core::io::write_atomic(&path, bytes) {
+            for p in &written {
+                let _ = std::fs::remove_file(p);
+            }
+            if !existed {
+                let _ = std::fs::remove_dir(dir);
+            }
+            return Err(ExportError::Io { path, source: e });
+        }
+        written.push(path);
+    }
+    Ok(written)
+}

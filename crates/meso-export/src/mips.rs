@@ -1,0 +1,314 @@
+//! The normal and GGX-roughness mip chains.
+//!
+//! # Conventions
+//! * Maps are row-major in meso's map order: row 0 is y = 0, the image's **bottom** row
+//!   (`meso_maps::heightmap`). Converting to images (top row first) is [`crate::texture`]'s job.
+//! * Level `k` has `max(1, ⌊W / 2ᵏ⌋) × max(1, ⌊H / 2ᵏ⌋)` texels (the KTX2 / OpenGL rule), down
+//!   to 1 × 1. Texel `(i, j)` of level `k` covers the level-0 texels of rows
+//!   `⌊i·H/Hₖ⌋ .. ⌊(i+1)·H/Hₖ⌋` and columns `⌊j·W/Wₖ⌋ .. ⌊(j+1)·W/Wₖ⌋` — the 2ᵏ × 2ᵏ box for
+//!   power-of-two sizes.
+//! * **Normals** (the standard mip): the plain average of the footprint's level-0 unit normals,
+//!   renormalised.
+//! * **Roughness**: level 0 is the base α. A coarser texel's α is the one that minimises the RMS
+//!   difference between one GGX lobe about its renormalised normal and the average of the
+//!   footprint's level-0 lobes (each about its own normal, with its own base α), on the fixed
+//!   direction set of [`crate::ggx::direction_pairs`] — what a supersampled render sees.
+
+use crate::ggx::{self, FineTexel};
+use crate::ExportError;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// The level-0 input: a unit normal and a GGX width α per texel, row-major in map order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BaseMaps {
+    /// Texels along x.
+    pub width: usize,
+    /// Texels along y.
+    pub height: usize,
+    /// Unit normals (tangent frame), `width × height`, map row order.
+    pub normals: Vec<DVec3>,
+    /// GGX widths α (not glTF roughness), `width × height`, map row order.
+    pub alphas: Vec<f64>,
+}
+
+impl BaseMaps {
+    /// Validated base maps: non-empty, matching lengths, unit finite normals with `n_z > 0`,
+    /// finite α in `[0, 1]` (raised to [`ggx::MIN_ALPHA`]).
+    ///
+    /// # Errors
+    /// [`ExportError::Invalid`] naming the first problem.
+    pub fn new(
+        width: usize,
+        height: usize,
+        normals: Vec<DVec3>,
+        alphas: Vec<f64>,
+    ) -> Result<BaseMaps, ExportError> {
+        if width == 0 || height == 0 {
+            return Err(ExportError::Invalid(format!(
+                "the map is {width} × {height} texels: nothing to export"
+            )));
+        }
+        if normals.len() != width * height || alphas.len() != width * height {
+            return Err(ExportError::Invalid(format!(
+                "{} normals and {} roughness values for a {width} × {height} map",
+                normals.len(),
+                alphas.len()
+            )));
+        }
+        for (k, n) in normals.iter().enumerate() {
+            if !n.is_finite() || (n.length() - 1.0).abs() > 1e-6 || n.z <= 0.0 {
+                return Err(ExportError::Invalid(format!(
+                    "normal at row {}, column {} is not a unit vector above the surface: {n}",
+                    k / width,
+                    k % width
+                )));
+            }
+        }
+        let mut alphas = alphas;
+        for (k, a) in alphas.iter_mut().enumerate() {
+            if !a.is_finite() || *a < 0.0 || *a > 1.0 {
+                return Err(ExportError::Invalid(format!(
+                    "α at row {}, column {} is {a}, outside [0, 1]",
+                    k / width,
+                    k % width
+                )));
+            }
+            *a = a.max(ggx::MIN_ALPHA);
+        }
+        Ok(BaseMaps {
+            width,
+            height,
+            normals,
+            alphas,
+        })
+    }
+}
+
+/// One mip level of both chains.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MipLevel {
+    /// Texels along x.
+    pub width: usize,
+    /// Texels along y.
+    pub height: usize,
+    /// Renormalised box-filtered unit normals, map row order.
+    pub normals: Vec<DVec3>,
+    /// Fitted GGX widths α, map row order.
+    pub alphas: Vec<f64>,
+    /// Per-texel relative fit error `rms / peak` (0 at level 0), map row order.
+    pub errors: Vec<f64>,
+    /// Per-texel relative error of the standard mip (the base α — the footprint's mean α —
+    /// about the averaged normal, no added variance) on the same direction set, for comparison.
+    pub errors_plain: Vec<f64>,
+}
+
+/// Summary of one level's fit, relative errors in % of the supersampled BRDF peak.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelStats {
+    /// Level index (0 = full resolution).
+    pub level: usize,
+    /// Texels along x.
+    pub width: usize,
+    /// Texels along y.
+    pub height: usize,
+    /// Mean α over the level.
+    pub mean_alpha: f64,
+    /// Mean over texels of the fitted lobe's RMS error, % of each texel's peak.
+    pub mean_error_pct: f64,
+    /// Largest per-texel error of the fitted lobe, % of the peak.
+    pub max_error_pct: f64,
+    /// Mean error of the standard mip (mean base α, no added variance), % of the peak.
+    pub mean_plain_error_pct: f64,
+}
+
+impl MipLevel {
+    /// The level's summary statistics.
+    #[must_use]
+    pub fn stats(&self, level: usize) -> LevelStats {
+        let n = self.alphas.len().max(1) as f64;
+        LevelStats {
+            level,
+            width: self.width,
+            height: self.height,
+            mean_alpha: self.alphas.iter().sum::<f64>() / n,
+            mean_error_pct: 100.0 * self.errors.iter().sum::<f64>() / n,
+            max_error_pct: 100.0 * self.errors.iter().copied().fold(0.0, f64::max),
+            mean_plain_error_pct: 100.0 * self.errors_plain.iter().sum::<f64>() / n,
+        }
+    }
+}
+
+/// Number of levels of a full chain for a `width × height` level 0: `⌊log₂ max(W, H)⌋ + 1`.
+#[must_use]
+pub fn level_count(width: usize, height: usize) -> usize {
+    let m = width.max(height).max(1);
+    (usize::BITS - m.leading_zeros()) as usize
+}
+
+/// Size of level `k`: `max(1, ⌊W / 2ᵏ⌋) × max(1, ⌊H / 2ᵏ⌋)`.
+#[must_use]
+pub fn level_size(width: usize, height: usize, k: usize) -> (usize, usize) {
+    ((width >> k).max(1), (height >> k).max(1))
+}
+
+/// Level-0 index range `a .. b` covered by coarse index `i` of `coarse` along an axis of `fine`.
+fn span(i: usize, fine: usize, coarse: usize) -> (usize, usize) {
+    (
+        i * fine / coarse,
+        ((i + 1) * fine / coarse).max(i * fine / coarse + 1),
+    )
+}
+
+/// The level-0 texels under texel `(i, j)` of a `wk × hk` level.
+#[must_use]
+pub fn footprint(base: &BaseMaps, wk: usize, hk: usize, i: usize, j: usize) -> Vec<FineTexel> {
+    let (r0, r1) = span(i, base.height, hk);
+    let (c0, c1) = span(j, base.width, wk);
+    let mut v = Vec::with_capacity((r1 - r0) * (c1 - c0));
+    for r in r0..r1 {
+        for c in c0..c1 {
+            let k = r * base.width + c;
+            v.push(FineTexel {
+                normal: base.normals[k],
+                alpha: base.alphas[k],
+            });
+        }
+    }
+    v
+}
+
+/// The renormalised average of the footprint's normals (+z if they cancel).
+#[must_use]
+pub fn average_normal(fine: &[FineTexel]) -> DVec3 {
+    let s: DVec3 = fine.iter().map(|t| t.normal).sum();
+    let n = s.normalize_or_zero();
+    if n == DVec3::ZERO || n.z <= 0.0 {
+        DVec3::Z
+    } else {
+        n
+    }
+}
+
+/// Fit one texel of a coarse level: `(normal, α, error, plain error)`.
+fn fit_texel(fine: &[FineTexel]) -> (DVec3, f64, f64, f64) {
+    let nbar = average_normal(fine);
+    let width = ggx::footprint_width(fine, nbar);
+    let pairs = ggx::direction_pairs(nbar, width);
+    // The supersampled average, in parallel over large footprints.
+    let target = if fine.len() > 4096 {
+        fine.par_chunks(1024)
+            .map(|c| {
+                let mut v = ggx::average_shaded(c, &pairs);
+                v.iter_mut().for_each(|x| *x *= c.len() as f64);
+                v
+            })
+            .reduce(
+                || vec![0.0; pairs.len()],
+                |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            )
+            .into_iter()
+            .map(|x| x / fine.len() as f64)
+            .collect()
+    } else {
+        ggx::average_shaded(fine, &pairs)
+    };
+    let fit = ggx::fit_alpha_on(&target, nbar, &pairs);
+    let mean_alpha = fine.iter().map(|t| t.alpha).sum::<f64>() / fine.len() as f64;
+    let plain = ggx::rms_error(&target, nbar, mean_alpha, &pairs);
+    let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
+    (nbar, fit.alpha, rel(fit.rms), rel(plain))
+}
+
+/// Build level `k` of both chains from the level-0 maps.
+#[must_use]
+pub fn build_level(base: &BaseMaps, k: usize) -> MipLevel {
+    let (wk, hk) = level_size(base.width, base.height, k);
+    if k == 0 {
+        let n = base.width * base.height;
+        return MipLevel {
+            width: wk,
+            height: hk,
+            normals: base.normals.clone(),
+            alphas: base.alphas.clone(),
+            errors: vec![0.0; n],
+            errors_plain: vec![0.0; n],
+        };
+    }
+    let texels: Vec<(DVec3, f64, f64, f64)> = (0..wk * hk)
+        .into_par_iter()
+        .map(|t| fit_texel(&footprint(base, wk, hk, t / wk, t % wk)))
+        .collect();
+    MipLevel {
+        width: wk,
+        height: hk,
+        normals: texels.iter().map(|t| t.0).collect(),
+        alphas: texels.iter().map(|t| t.1).collect(),
+        errors: texels.iter().map(|t| t.2).collect(),
+        errors_plain: texels.iter().map(|t| t.3).collect(),
+    }
+}
+
+/// The full chains, level 0 (the base maps) down to 1 × 1.
+#[must_use]
+pub fn build_chain(base: &BaseMaps) -> Vec<MipLevel> {
+    (0..level_count(base.width, base.height))
+        .map(|k| build_level(base, k))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_sizes_follow_the_ktx_rule() {
+        assert_eq!(level_count(1, 1), 1);
+        assert_eq!(level_count(8, 8), 4);
+        assert_eq!(level_count(8, 3), 4);
+        assert_eq!(level_count(5, 1), 3);
+        assert_eq!(level_size(8, 3, 2), (2, 1));
+        assert_eq!(level_size(8, 3, 3), (1, 1));
+    }
+
+    #[test]
+    fn footprints_tile_the_base_for_odd_sizes() {
+        let (w, h) = (7, 5);
+        let base = BaseMaps::new(w, h, vec![DVec3::Z; w * h], vec![0.1; w * h]).unwrap();
+        for k in 1..level_count(w, h) {
+            let (wk, hk) = level_size(w, h, k);
+            let total: usize = (0..hk)
+                .flat_map(|i| (0..wk).map(move |j| (i, j)))
+                .map(|(i, j)| footprint(&base, wk, hk, i, j).len())
+                .sum();
+            assert_eq!(total, w * h, "level {k}");
+        }
+    }
+
+    /// The averaged normal is the renormalised vector sum, by hand.
+    #[test]
+    fn renormalised_average() {
+        let a = DVec3::new(0.6, 0.0, 0.8);
+        let b = DVec3::new(0.0, -0.6, 0.8);
+        let fine = [a, b].map(|n| FineTexel {
+            normal: n,
+            alpha: 0.1,
+        });
+        let n = average_normal(&fine);
+        let want = DVec3::new(0.3, -0.3, 0.8) / (0.09_f64 + 0.09 + 0.64).sqrt();
+        assert!((n - want).length() < 1e-12);
+        assert!((n.length() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_base_maps_are_refused() {
+        assert!(BaseMaps::new(0, 4, vec![], vec![]).is_err());
+        assert!(BaseMaps::new(1, 1, vec![DVec3::Z], vec![1.5]).is_err());
+        assert!(BaseMaps::new(1, 1, vec![-DVec3::Z], vec![0.5]).is_err());
+        assert!(BaseMaps::new(1, 1, vec![DVec3::new(0.0, 0.0, 2.0)], vec![0.5]).is_err());
+        assert!(BaseMaps::new(2, 1, vec![DVec3::Z], vec![0.5]).is_err());
+    }
+}
