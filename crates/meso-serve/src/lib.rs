@@ -66,7 +66,7 @@ pub const MAX_CONCURRENT_RENDERS: usize = 2;
 
 /// Renders running or waiting at once; a render request beyond them is answered
 /// 503 Service Unavailable (with `Retry-After: 1`) instead of queueing without bound.
-pub const MAX_QUEUED_RENDERS: usize = 8;
+pub const MAX_QUEUED_RENDERS: usize = 32;
 
 const PAGE_HTML: &str = include_str!("page/index.html");
 const PAGE_CSS: &str = include_str!("page/style.css");
