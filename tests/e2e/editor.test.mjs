@@ -174,7 +174,7 @@ test('the saved TOML holds the new values', async () => {
   assert.ok(text.includes(`axis = [${t}, ${p}]`), `axis [${t}, ${p}] in\n${text}`);
   assert.ok(text.includes(`weight = ${m.ndf.lobes[1].weight}`), `weight ${m.ndf.lobes[1].weight} in\n${text}`);
   // The file is a valid material for meso itself.
-  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', body: text });
+  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', headers: { 'content-type': 'application/toml' }, body: text });
   assert.equal(r.status, 200);
   const back = await r.json();
   assert.deepEqual(back.ndf.lobes[0].axis, [t, p]);
@@ -267,7 +267,7 @@ test('preview latency at 384×384 (recorded in artifacts/timings.json)', async (
     const out = [];
     for (let k = 0; k < 12; k++) {
       const t0 = performance.now();
-      const r = await fetch('/api/render', { method: 'POST', body: JSON.stringify(body([k * 5, k * 30])) });
+      const r = await fetch('/api/render', { method: 'POST', headers: { 'content-type': 'application/json' }, body: JSON.stringify(body([k * 5, k * 30])) });
       await r.arrayBuffer();
       out.push({ roundTripMs: performance.now() - t0, renderMs: Number(r.headers.get('x-render-ms')) });
     }
@@ -374,7 +374,7 @@ test('a mirror facet: select it, set its specular colour, the request and the pr
   const text = await page.evaluate(() => window.mesoEditor.tomlText());
   assert.match(text, /kind = "mirror"/);
   assert.match(text, /specular = \[0\.5, 0(\.0)?, 0(\.0)?\]/);
-  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', body: text });
+  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', headers: { 'content-type': 'application/toml' }, body: text });
   assert.equal(r.status, 200);
 
   // A delta NDF cannot carry a mirror facet: switching to deltas falls back to Phong (same
@@ -484,7 +484,7 @@ test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the 
   assert.doesNotMatch(text, /^alpha = /m);
   assert.doesNotMatch(text, /lobes/);
   assert.match(text, /\[transfer\]\nkind = "mirror"\n/);
-  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', body: text });
+  const r = await fetch(`${baseUrl}/api/parse`, { method: 'POST', headers: { 'content-type': 'application/toml' }, body: text });
   assert.equal(r.status, 200);
   assert.deepEqual((await r.json()).ndf, edited.ndf);
 
