@@ -122,3 +122,32 @@ pub fn exr_bytes(width: u32, height: u32, values: &[f32]) -> Result<Vec<u8>> {
         })?;
     Ok(out)
 }
+
+/// The 16 direction pairs `(i, o)` (unit vectors, local frame) at which height-map materials are
+/// compared with the gonioreflectometer (tests/visibility.rs, examples/farfield_table.rs): θ ≤ 60°,
+/// across and along the fixtures' grooves (y), in and out of the plane of incidence.
+#[must_use]
+pub fn farfield_pairs() -> Vec<(glam::DVec3, glam::DVec3)> {
+    use meso_core::frame::spherical_direction_deg as d;
+    [
+        (0.0, 0.0, 0.0, 0.0),
+        (20.0, 0.0, 20.0, 180.0),
+        (40.0, 0.0, 40.0, 180.0),
+        (60.0, 0.0, 60.0, 180.0),
+        (60.0, 0.0, 20.0, 180.0),
+        (50.0, 0.0, 10.0, 0.0),
+        (30.0, 0.0, 0.0, 0.0),
+        (60.0, 0.0, 0.0, 0.0),
+        (45.0, 90.0, 45.0, 270.0),
+        (60.0, 90.0, 30.0, 270.0),
+        (40.0, 45.0, 40.0, 225.0),
+        (55.0, 30.0, 35.0, 200.0),
+        (60.0, 10.0, 55.0, 170.0),
+        (25.0, 120.0, 50.0, 300.0),
+        (60.0, 180.0, 60.0, 0.0),
+        (35.0, 160.0, 15.0, 350.0),
+    ]
+    .iter()
+    .map(|&(ti, pi, to, po)| (d(ti, pi), d(to, po)))
+    .collect()
+}
