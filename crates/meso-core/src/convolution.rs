@@ -42,6 +42,7 @@ use crate::frame::{half_vector, Frame};
 use crate::ndf::{Ndf, PhongLobe};
 use crate::quadrature::gauss_legendre;
 use crate::transfer::Transfer;
+use crate::visibility::VisibilityModel;
 use glam::DVec3;
 use std::f64::consts::PI;
 use std::sync::OnceLock;
@@ -293,8 +294,9 @@ pub enum Visibility<'a> {
     /// A caller's model conditioned on the facet normal, `G(i, o | m)` in `[0, 1]` (the
     /// fraction of the facets of normal `m` lit from `i` and seen from `o`, e.g. from a height
     /// map's geometry): applied inside the integral, so that bumps and grooves with the same NDF
-    /// get different BRDFs.
-    GivenNormal(&'a (dyn Fn(DVec3, DVec3, DVec3) -> f64 + Sync)),
+    /// get different BRDFs. Delta sums ask it for all their deltas at once
+    /// ([`VisibilityModel::g_given_deltas`]).
+    GivenNormal(&'a dyn VisibilityModel),
 }
 
 /// The effective BRDF `f(i, o)` (RGB, 1/sr, no cosine factor) of an NDF with a facet transfer
@@ -370,7 +372,7 @@ pub fn effective_brdf_with(
                 }
                 let d = ndf.eval(h) / masking.projected_area;
                 let f = transfer.mirror_reflectance(i.dot(h)).unwrap_or([0.0; 3]);
-                let g2 = given.map_or(g2, |g| g(i, o, h).clamp(0.0, 1.0));
+                let g2 = given.map_or(g2, |g| g.g_given_normal(i, o, h).clamp(0.0, 1.0));
                 let c = d * g2 / (4.0 * i.z * o.z);
                 return [f[0] * c, f[1] * c, f[2] * c];
             }
@@ -393,7 +395,7 @@ pub fn effective_brdf_with(
                 if v == [0.0; 3] {
                     return v;
                 }
-                let c = ci * co * given.map_or(1.0, |g| g(i, o, m).clamp(0.0, 1.0));
+                let c = ci * co * given.map_or(1.0, |g| g.g_given_normal(i, o, m).clamp(0.0, 1.0));
                 [v[0] * c, v[1] * c, v[2] * c]
             });
             let s = g2 / (masking.projected_area * i.z * o.z);
@@ -415,52 +417,87 @@ pub const VISIBILITY_CUTOFF: f64 = 1e-4;
 fn deltas_given_normal(
     d: &crate::ndf::DeltaSum,
     transfer: &Transfer,
-    g: &(dyn Fn(DVec3, DVec3, DVec3) -> f64 + Sync),
+    g: &dyn VisibilityModel,
     i: DVec3,
     o: DVec3,
 ) -> [f64; 3] {
     thread_local! {
-        static CONTRIB: std::cell::RefCell<Vec<(usize, [f64; 3])>> =
-            const { std::cell::RefCell::new(Vec::new()) };
+        static SCRATCH: std::cell::RefCell<DeltaScratch> =
+            const { std::cell::RefCell::new(DeltaScratch { contrib: Vec::new(), ks: Vec::new(), gs: Vec::new() }) };
     }
-    CONTRIB.with(|c| deltas_given_normal_in(&mut c.borrow_mut(), d, transfer, g, i, o))
+    SCRATCH.with(|c| deltas_given_normal_in(&mut c.borrow_mut(), d, transfer, g, i, o))
+}
+
+/// Per-thread buffers of [`deltas_given_normal`] (nothing allocates per pair once warm).
+struct DeltaScratch {
+    /// Contributing deltas and their contributions without `G`.
+    contrib: Vec<(u32, [f64; 3])>,
+    /// The deltas whose `G` is asked for, and the answers.
+    ks: Vec<u32>,
+    gs: Vec<f64>,
 }
 
 fn deltas_given_normal_in(
-    contrib: &mut Vec<(usize, [f64; 3])>,
+    s: &mut DeltaScratch,
     d: &crate::ndf::DeltaSum,
     transfer: &Transfer,
-    g: &(dyn Fn(DVec3, DVec3, DVec3) -> f64 + Sync),
+    g: &dyn VisibilityModel,
     i: DVec3,
     o: DVec3,
 ) -> [f64; 3] {
-    contrib.clear();
+    s.contrib.clear();
+    s.ks.clear();
     let mut peak = 0.0f64;
-    for (k, wn) in d.normals().iter().enumerate() {
+    let h = half_vector(i, o);
+    let normals = d.normals();
+    let mut visit = |k: usize| {
+        let wn = normals[k];
         let m = wn.normal;
         if m.z <= 0.0 {
-            continue;
+            return;
         }
         let (ci, co) = (m.dot(i), m.dot(o));
         if ci <= 0.0 || co <= 0.0 {
-            continue;
+            return;
         }
-        let fr = Frame::from_normal_tangent(m, DVec3::X);
-        let v = transfer.eval(fr.to_local(i), fr.to_local(o));
+        let v = transfer.eval_facet(m, i, o, h);
         let c = wn.weight * ci * co;
         let v = [v[0] * c, v[1] * c, v[2] * c];
         let mx = v[0].max(v[1]).max(v[2]);
         if mx > 0.0 {
             peak = peak.max(mx);
-            contrib.push((k, v));
+            s.contrib.push((k as u32, v));
         }
+    };
+    // Transfers with a bounded support (Beckmann, sharp Phong) visit only the normals near
+    // the half vector: the rest is below 1e-7 of the peak (`Transfer::support`).
+    match transfer.support(i, o) {
+        Some((axis, cos_r)) => d.for_each_in_cap(axis, cos_r, |k| {
+            if normals[k].normal.dot(axis) >= cos_r {
+                visit(k);
+            }
+        }),
+        None => (0..normals.len()).for_each(visit),
     }
+    // Ask for G of the deltas that matter, all at once; the contributions stay in order.
+    let cut = VISIBILITY_CUTOFF * peak;
+    s.ks.extend(
+        s.contrib
+            .iter()
+            .filter(|(_, v)| v[0].max(v[1]).max(v[2]) >= cut)
+            .map(|(k, _)| *k),
+    );
+    s.gs.clear();
+    s.gs.resize(s.ks.len(), 1.0);
+    g.g_given_deltas(i, o, d.normals(), &s.ks, &mut s.gs);
     let (mut acc, mut rest) = ([0.0; 3], [0.0; 3]);
     let (mut gsum, mut wsum) = (0.0, 0.0);
-    for (k, v) in contrib.iter() {
+    let mut next = 0;
+    for (_, v) in &s.contrib {
         let mx = v[0].max(v[1]).max(v[2]);
-        if mx >= VISIBILITY_CUTOFF * peak {
-            let gk = g(i, o, d.normals()[*k].normal).clamp(0.0, 1.0);
+        if mx >= cut {
+            let gk = s.gs[next].clamp(0.0, 1.0);
+            next += 1;
             gsum += gk * mx;
             wsum += mx;
             for c in 0..3 {
@@ -493,7 +530,10 @@ impl<'a> SmithMasking<'a> {
     /// Prepare the masking function of `ndf`.
     #[must_use]
     pub fn new(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
-        let [z] = integrate(ndf, accuracy, None, |m| [m.z.max(0.0)]);
+        let z = match ndf {
+            Ndf::Deltas(d) => d.projected_area(),
+            _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
+        };
         SmithMasking {
             ndf,
             accuracy,

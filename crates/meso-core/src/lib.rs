@@ -41,6 +41,7 @@ pub mod quadrature;
 pub mod sh;
 pub mod shading;
 pub mod transfer;
+pub mod visibility;
 
 /// An invalid NDF description.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -50,23 +50,7 @@ pub enum ShadowingKind {
     Visibility,
 }
 
-/// A masking–shadowing model supplied by a resolver: `G(i, o) ∈ [0, 1]` in the local frame.
-pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
-    /// The fraction of facets both lit from `i` and seen from `o`.
-    fn g(&self, i: DVec3, o: DVec3) -> f64;
-    /// The fraction of the facets of normal `m` both lit from `i` and seen from `o` (local
-    /// frame, unit vectors); models that do not know which normals are hidden return
-    /// [`VisibilityModel::g`].
-    fn g_given_normal(&self, i: DVec3, o: DVec3, m: DVec3) -> f64 {
-        let _ = m;
-        self.g(i, o)
-    }
-    /// Whether [`VisibilityModel::g_given_normal`] depends on the normal (then
-    /// [`ShadowingKind::Visibility`] is available and the default).
-    fn conditions_on_normal(&self) -> bool {
-        false
-    }
-}
+pub use crate::visibility::VisibilityModel;
 
 /// The `[ndf]` table, parsed.
 #[derive(Clone, Debug, PartialEq)]
@@ -219,13 +203,14 @@ impl Material {
     pub fn convolved(&self, i: DVec3, o: DVec3) -> [f64; 3] {
         let horizon = self.horizon.as_ref();
         let custom = |a: DVec3, b: DVec3| horizon.map_or(1.0, |h| h.g(a, b));
-        let given =
-            |a: DVec3, b: DVec3, m: DVec3| horizon.map_or(1.0, |h| h.g_given_normal(a, b, m));
         let vis = match self.shadowing {
             ShadowingKind::Smith => Visibility::Smith,
             ShadowingKind::None => Visibility::None,
             ShadowingKind::Horizon => Visibility::Custom(&custom),
-            ShadowingKind::Visibility => Visibility::GivenNormal(&given),
+            ShadowingKind::Visibility => match horizon {
+                Some(h) => Visibility::GivenNormal(h.as_ref()),
+                None => Visibility::None,
+            },
         };
         effective_brdf_with(
             &self.ndf,

@@ -9,6 +9,7 @@
 //! ```text
 //! cargo run --release -p meso-maps --example farfield_table
 //! FARFIELD_TIMING=1 cargo run --release -p meso-maps --example farfield_table   # timing only
+//! FARFIELD_TIMING=1 FARFIELD_ONLY=visibility cargo run …   # one representation's timing
 //! ```
 use glam::DVec3;
 use meso_core::frame::spherical_direction_deg as d;
@@ -124,7 +125,7 @@ fn main() {
         REPRESENTATIONS.map(|r| r.0).join(" | ")
     );
     println!("|---|---|{}", "---|".repeat(REPRESENTATIONS.len()));
-    for (name, file, s, h) in &surfaces {
+    for (name, file, s, h) in surfaces.iter().filter(|_| !timing_only) {
         let map = HeightMap::load(&dir.join(file), *s, *h, Border::Wrap).unwrap();
         let g = Gonio::new(&map).unwrap();
         for (tname, t) in TRANSFERS {
@@ -167,6 +168,8 @@ fn main() {
     for (label, ndf, sh) in REPRESENTATIONS
         .iter()
         .filter(|r| !timing_only || r.1.contains("facets"))
+        // FARFIELD_ONLY=visibility: the representations whose label contains it.
+        .filter(|r| std::env::var("FARFIELD_ONLY").map_or(true, |k| r.0.contains(k.as_str())))
     {
         let (ndf, sh) = (*ndf, *sh);
         let t0 = Instant::now();

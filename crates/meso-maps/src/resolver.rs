@@ -64,6 +64,23 @@ impl VisibilityModel for FacetVisibility {
     fn g_given_normal(&self, i: DVec3, o: DVec3, m: DVec3) -> f64 {
         self.bins.given_normal(i, o, m)
     }
+    fn g_given_deltas(
+        &self,
+        i: DVec3,
+        o: DVec3,
+        normals: &[WeightedNormal],
+        ks: &[u32],
+        out: &mut [f64],
+    ) {
+        // Built for this very delta sum (bin k = delta k): answer by index.
+        if normals.len() == self.bins.bins() {
+            self.bins.joint_many(i, o, ks, out);
+        } else {
+            for (v, &k) in out.iter_mut().zip(ks) {
+                *v = self.bins.given_normal(i, o, normals[k as usize].normal);
+            }
+        }
+    }
     fn conditions_on_normal(&self) -> bool {
         true
     }

@@ -431,7 +431,19 @@ impl BinnedVisibility {
     /// `G(i, o | bin k)`: the weighted fraction of bin `k`'s facets that both `i` and `o` reach.
     #[must_use]
     pub fn joint(&self, k: usize, i: DVec3, o: DVec3) -> f64 {
+        self.joint_probed(k, &Probe::new(i), &Probe::new(o))
+    }
+
+    /// [`BinnedVisibility::joint`] for many bins `ks` of one direction pair, written to
+    /// `out[..ks.len()]`: the directions' azimuths and elevations are found once.
+    pub fn joint_many(&self, i: DVec3, o: DVec3, ks: &[u32], out: &mut [f64]) {
         let (pi, po) = (Probe::new(i), Probe::new(o));
+        for (v, &k) in out.iter_mut().zip(ks) {
+            *v = self.joint_probed(k as usize, &pi, &po);
+        }
+    }
+
+    fn joint_probed(&self, k: usize, pi: &Probe, po: &Probe) -> f64 {
         let mh = &self.max_horizon[k * AZIMUTHS..(k + 1) * AZIMUTHS];
         // Above every facet's horizon on both sides: all visible.
         if pi.tan_e > mh[pi.a0].max(mh[pi.a1]) && po.tan_e > mh[po.a0].max(mh[po.a1]) {

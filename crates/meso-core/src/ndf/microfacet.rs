@@ -45,6 +45,17 @@ pub struct Microfacet {
     area_ratio: f64,
 }
 
+/// Beckmann's Smith `Λ = ½(e^{−a²}/(a√π) − erfc a)` for `a = 1/(α tan θ)`; 0 for `a > 6`,
+/// where both terms are below `1e-17` (it spares an `erfc` for every direction near the
+/// normal).
+#[inline]
+fn beckmann_lambda(a: f64) -> f64 {
+    if a > 6.0 {
+        return 0.0;
+    }
+    0.5 * ((-a * a).exp() / (a * PI.sqrt()) - libm::erfc(a))
+}
+
 /// Smallest roughness accepted (below it the distribution is numerically a delta).
 pub const MIN_ALPHA: f64 = 1e-4;
 
@@ -167,10 +178,50 @@ impl Microfacet {
         let a2 = self.alpha2_along(w);
         match self.distribution {
             Distribution::Ggx => 0.5 * (-1.0 + (1.0 + a2 * tan2).sqrt()),
-            Distribution::Beckmann => {
-                let a = 1.0 / (a2 * tan2).sqrt();
-                0.5 * ((-a * a).exp() / (a * PI.sqrt()) - libm::erfc(a))
-            }
+            Distribution::Beckmann => beckmann_lambda(1.0 / (a2 * tan2).sqrt()),
+        }
+    }
+
+    /// Whether `α_x = α_y` (then `D` and `Λ` depend on the polar angle only).
+    #[must_use]
+    pub fn is_isotropic(&self) -> bool {
+        self.alpha_x == self.alpha_y
+    }
+
+    /// `D` of an **isotropic** distribution at the normal making cosine `cos_theta` with +z
+    /// (1/sr; 0 for `cos_theta ≤ 0`): [`Microfacet::d`] without building the direction.
+    #[inline]
+    #[must_use]
+    pub fn d_isotropic(&self, cos_theta: f64) -> f64 {
+        if cos_theta <= 0.0 {
+            return 0.0;
+        }
+        let cos2 = cos_theta * cos_theta;
+        let a2 = self.alpha_x * self.alpha_y;
+        let e = (1.0 - cos2).max(0.0) / (cos2 * a2);
+        match self.distribution {
+            Distribution::Beckmann => (-e).exp() / (PI * a2 * cos2 * cos2),
+            Distribution::Ggx => 1.0 / (PI * a2 * cos2 * cos2 * (1.0 + e) * (1.0 + e)),
+        }
+    }
+
+    /// Smith `Λ` of an **isotropic** distribution for a direction making cosine `cos_theta`
+    /// with +z: [`Microfacet::lambda`] without building the direction.
+    #[inline]
+    #[must_use]
+    pub fn lambda_isotropic(&self, cos_theta: f64) -> f64 {
+        if cos_theta <= 0.0 {
+            return f64::INFINITY;
+        }
+        let c2 = cos_theta * cos_theta;
+        let tan2 = (1.0 - c2).max(0.0) / c2;
+        if tan2 == 0.0 {
+            return 0.0;
+        }
+        let a2 = self.alpha_x * self.alpha_y;
+        match self.distribution {
+            Distribution::Ggx => 0.5 * (-1.0 + (1.0 + a2 * tan2).sqrt()),
+            Distribution::Beckmann => beckmann_lambda(1.0 / (a2 * tan2).sqrt()),
         }
     }
 

@@ -112,6 +112,90 @@ impl Transfer {
         }
     }
 
+    /// `f_μ(i, o; m)`: [`Transfer::eval`] for the facet of unit normal `m`, with `i`, `o` (and
+    /// their half vector `h`, [`half_vector`]) in the macro surface's local frame — the
+    /// facet's frame has `m` as its normal and the macro `+x`, made orthogonal to `m`, as its
+    /// tangent (as the convolution builds it). Transfers that are isotropic about the facet
+    /// normal (Lambert, both Phong forms, isotropic microfacets) are evaluated from the cosines
+    /// alone; anisotropic microfacets build the frame.
+    #[inline]
+    #[must_use]
+    pub fn eval_facet(&self, m: DVec3, i: DVec3, o: DVec3, h: Option<DVec3>) -> [f64; 3] {
+        match *self {
+            Transfer::Lambert { albedo } => {
+                if m.dot(i) <= 0.0 || m.dot(o) <= 0.0 {
+                    return [0.0; 3];
+                }
+                [albedo[0] / PI, albedo[1] / PI, albedo[2] / PI]
+            }
+            Transfer::Phong {
+                exponent,
+                specular,
+                variant,
+            } => {
+                let c = match variant {
+                    PhongVariant::Half => match h {
+                        Some(h) => h.dot(m),
+                        None => return [0.0; 3],
+                    },
+                    // reflect(i, m)·o = 2(i·m)(o·m) − i·o.
+                    PhongVariant::Reflect => 2.0 * m.dot(i) * m.dot(o) - i.dot(o),
+                };
+                if c <= 0.0 {
+                    return [0.0; 3];
+                }
+                let v = c.powf(exponent);
+                [specular[0] * v, specular[1] * v, specular[2] * v]
+            }
+            Transfer::Mirror { .. } => [0.0; 3],
+            Transfer::Microfacet {
+                distribution,
+                fresnel,
+            } if distribution.is_isotropic() => {
+                let (ci, co) = (m.dot(i), m.dot(o));
+                if ci <= 0.0 || co <= 0.0 {
+                    return [0.0; 3];
+                }
+                let Some(h) = h else {
+                    return [0.0; 3];
+                };
+                let g2 = 1.0
+                    / (1.0 + distribution.lambda_isotropic(ci) + distribution.lambda_isotropic(co));
+                let common = distribution.d_isotropic(h.dot(m)) * g2 / (4.0 * ci * co);
+                let f = fresnel.eval(i.dot(h));
+                [f[0] * common, f[1] * common, f[2] * common]
+            }
+            Transfer::Microfacet { .. } => {
+                let fr = crate::frame::Frame::from_normal_tangent(m, DVec3::X);
+                self.eval(fr.to_local(i), fr.to_local(o))
+            }
+        }
+    }
+
+    /// The facet normals outside of which `f_μ(i, o; m)` is below `1e-7` of its largest value,
+    /// as a cap `(axis, cos of its radius)` about the half vector; `None` where the transfer has
+    /// no such bound worth using (Lambert, GGX's long tails, broad Phong lobes, mirrors).
+    /// Beckmann: `tan θ > 4 α_max` (`e^{−16}`); Phong (half-vector form): `cos^η θ < 1e-7`.
+    #[must_use]
+    pub fn support(&self, i: DVec3, o: DVec3) -> Option<(DVec3, f64)> {
+        let h = half_vector(i, o)?;
+        let cos_r = match *self {
+            Transfer::Microfacet { distribution, .. }
+                if distribution.distribution == crate::ndf::Distribution::Beckmann =>
+            {
+                let t = 4.0 * distribution.alpha_x.max(distribution.alpha_y);
+                1.0 / (1.0 + t * t).sqrt()
+            }
+            Transfer::Phong {
+                exponent,
+                variant: PhongVariant::Half,
+                ..
+            } if exponent > 16.0 => (-16.2 / exponent).exp(),
+            _ => return None,
+        };
+        (cos_r > 0.1).then_some((h, cos_r))
+    }
+
     /// The reflectance of a [`Transfer::Mirror`] facet for the cosine `cos_d = i·m` between the
     /// light and the facet normal: `specular · F(cos_d)` per channel (dimensionless, in `[0, 1]`
     /// for the validated inputs). Every evaluation of the collapsed mirror integral multiplies

@@ -1,0 +1,58 @@
+//! Masking–shadowing models supplied from outside the core (a height map's own geometry):
+//! the one trait the convolution ([`crate::convolution::Visibility::GivenNormal`]), the
+//! materials ([`crate::material::ShadowingKind`]) and the fast evaluators
+//! ([`crate::shading::FastBrdf`]) read.
+//!
+//! # Conventions
+//! Directions are unit vectors in the local frame (normal +z), pointing away from the surface:
+//! `i` towards the light, `o` towards the viewer. Every value is a probability in `[0, 1]`.
+//!
+//! * [`VisibilityModel::g`] — `G(i, o)`: the fraction of the microsurface both lit from `i` and
+//!   seen from `o` (not conditioned on the facet normal; e.g. filtered horizon angles).
+//! * [`VisibilityModel::g_given_normal`] — `G(i, o | m)`: the same fraction among the facets of
+//!   normal `m`. This is what tells bumps from grooves: positive and negative half-cylinders
+//!   share an NDF, but only the facets in the creases are hidden.
+//! * [`VisibilityModel::g_given_deltas`] — `G(i, o | m_k)` for many deltas `k` of a delta-sum
+//!   NDF at once, addressed by their index: what the convolution of a height map's facets calls
+//!   once per direction pair, so that a model can do its per-pair work (the directions'
+//!   azimuth and elevation) once, not once per delta.
+
+use crate::ndf::WeightedNormal;
+use glam::DVec3;
+
+/// A masking–shadowing model supplied by a resolver (e.g. from a height map): probabilities in
+/// `[0, 1]` for unit directions in the local frame (module docs).
+pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
+    /// `G(i, o)`: the fraction of facets both lit from `i` and seen from `o`.
+    fn g(&self, i: DVec3, o: DVec3) -> f64;
+
+    /// `G(i, o | m)`: the fraction of the facets of normal `m` both lit from `i` and seen from
+    /// `o`; models that do not know which normals are hidden return [`VisibilityModel::g`].
+    fn g_given_normal(&self, i: DVec3, o: DVec3, m: DVec3) -> f64 {
+        let _ = m;
+        self.g(i, o)
+    }
+
+    /// `G(i, o | m_k)` for the deltas `ks` (indices into `normals`, the delta-sum NDF's normals
+    /// in order) written to `out[..ks.len()]`. The default asks
+    /// [`VisibilityModel::g_given_normal`] for each; a model built for that very NDF answers by
+    /// index with its per-pair work done once.
+    fn g_given_deltas(
+        &self,
+        i: DVec3,
+        o: DVec3,
+        normals: &[WeightedNormal],
+        ks: &[u32],
+        out: &mut [f64],
+    ) {
+        for (v, &k) in out.iter_mut().zip(ks) {
+            *v = self.g_given_normal(i, o, normals[k as usize].normal);
+        }
+    }
+
+    /// Whether [`VisibilityModel::g_given_normal`] depends on the normal (then
+    /// [`crate::material::ShadowingKind::Visibility`] is available and the default).
+    fn conditions_on_normal(&self) -> bool {
+        false
+    }
+}
