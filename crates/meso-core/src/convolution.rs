@@ -376,9 +376,10 @@ pub fn effective_brdf_with(
                 let c = d * g2 / (4.0 * i.z * o.z);
                 return [f[0] * c, f[1] * c, f[2] * c];
             }
-            if let (Ndf::Deltas(d), Some(g)) = (ndf, given) {
-                let r = deltas_given_normal(d, transfer, g, i, o);
-                let s = 1.0 / (masking.projected_area * i.z * o.z);
+            if let Ndf::Deltas(d) = ndf {
+                // Exact finite sum; `g2` is 1 when the visibility is conditioned (inside).
+                let r = deltas_microfacet(d, transfer, given, i, o);
+                let s = g2 / (masking.projected_area * i.z * o.z);
                 return [r[0] * s, r[1] * s, r[2] * s];
             }
             let hint = transfer.peak(i, o);
@@ -404,20 +405,27 @@ pub fn effective_brdf_with(
     }
 }
 
-/// Relative size below which a delta's contribution is summed without its own visibility
-/// (`G(i, o | m)` is replaced by the visibility of the deltas that matter): at most this
-/// fraction of the largest contribution per delta, so at most `n · VISIBILITY_CUTOFF` of the
-/// result for `n` such deltas, in practice far less (they lie in the transfer lobe's tails).
-pub const VISIBILITY_CUTOFF: f64 = 1e-4;
+/// The largest share of a delta sum's result that the normals outside a transfer's support cap
+/// may hold for the cap alone to be summed ([`crate::transfer::Transfer::support`]).
+pub const CAP_TAIL: f64 = 1e-5;
+
+/// The share of a delta sum's result (before visibility) that may be summed without each
+/// delta's own visibility: the smallest contributions whose total is at most this fraction take
+/// the contribution-weighted mean `G` of the others, so the result moves by at most this
+/// fraction of itself (`G ∈ [0, 1]`).
+pub const VISIBILITY_TAIL: f64 = 1e-5;
 
 /// `Σ_k w_k f_μ(i, o; m_k)(i·m_k)(o·m_k) G(i, o | m_k)` over the deltas above the horizon (the
-/// microfacet integrand of a delta sum with a normal-conditioned visibility). Two passes: the
-/// contributions without `G`, then `G` for those above [`VISIBILITY_CUTOFF`] of the largest;
-/// the others take the contribution-weighted mean `G` of those evaluated.
-fn deltas_given_normal(
+/// microfacet integrand of a delta sum; `G = 1` without a normal-conditioned visibility `g`).
+/// Transfers with a support cap visit only the normals in it when the rest cannot matter
+/// ([`CAP_TAIL`]). Two passes: the contributions without `G`, then `G` for all but the smallest
+/// ones that add up to at most [`VISIBILITY_TAIL`] of the total (found by a histogram of their
+/// sizes in powers of two); the others take the contribution-weighted mean `G` of those
+/// evaluated.
+fn deltas_microfacet(
     d: &crate::ndf::DeltaSum,
     transfer: &Transfer,
-    g: &dyn VisibilityModel,
+    g: Option<&dyn VisibilityModel>,
     i: DVec3,
     o: DVec3,
 ) -> [f64; 3] {
@@ -425,10 +433,10 @@ fn deltas_given_normal(
         static SCRATCH: std::cell::RefCell<DeltaScratch> =
             const { std::cell::RefCell::new(DeltaScratch { contrib: Vec::new(), ks: Vec::new(), gs: Vec::new() }) };
     }
-    SCRATCH.with(|c| deltas_given_normal_in(&mut c.borrow_mut(), d, transfer, g, i, o))
+    SCRATCH.with(|c| deltas_microfacet_in(&mut c.borrow_mut(), d, transfer, g, i, o))
 }
 
-/// Per-thread buffers of [`deltas_given_normal`] (nothing allocates per pair once warm).
+/// Per-thread buffers of [`deltas_microfacet`] (nothing allocates per pair once warm).
 struct DeltaScratch {
     /// Contributing deltas and their contributions without `G`.
     contrib: Vec<(u32, [f64; 3])>,
@@ -437,20 +445,20 @@ struct DeltaScratch {
     gs: Vec<f64>,
 }
 
-fn deltas_given_normal_in(
+fn deltas_microfacet_in(
     s: &mut DeltaScratch,
     d: &crate::ndf::DeltaSum,
     transfer: &Transfer,
-    g: &dyn VisibilityModel,
+    g: Option<&dyn VisibilityModel>,
     i: DVec3,
     o: DVec3,
 ) -> [f64; 3] {
     s.contrib.clear();
     s.ks.clear();
-    let mut peak = 0.0f64;
     let h = half_vector(i, o);
     let normals = d.normals();
-    let mut visit = |k: usize| {
+    // (peak, total) of the contributions found.
+    let visit = |k: usize, contrib: &mut Vec<(u32, [f64; 3])>, acc: &mut (f64, f64)| {
         let wn = normals[k];
         let m = wn.normal;
         if m.z <= 0.0 {
@@ -465,22 +473,42 @@ fn deltas_given_normal_in(
         let v = [v[0] * c, v[1] * c, v[2] * c];
         let mx = v[0].max(v[1]).max(v[2]);
         if mx > 0.0 {
-            peak = peak.max(mx);
-            s.contrib.push((k as u32, v));
+            acc.0 = acc.0.max(mx);
+            acc.1 += mx;
+            contrib.push((k as u32, v));
         }
     };
     // Transfers with a bounded support (Beckmann, sharp Phong) visit only the normals near
-    // the half vector: the rest is below 1e-7 of the peak (`Transfer::support`).
-    match transfer.support(i, o) {
-        Some((axis, cos_r)) => d.for_each_in_cap(axis, cos_r, |k| {
-            if normals[k].normal.dot(axis) >= cos_r {
-                visit(k);
+    // the half vector, when what the others could add (at most `bound`, the weights summing
+    // to 1) is below CAP_TAIL of what the cap holds; otherwise every normal.
+    let mut acc = (0.0f64, 0.0f64);
+    let support = transfer.support(i, o);
+    if let Some(sp) = support {
+        d.for_each_in_cap(sp.axis, sp.cos_radius, |k| {
+            if normals[k].normal.dot(sp.axis) >= sp.cos_radius {
+                visit(k, &mut s.contrib, &mut acc);
             }
-        }),
-        None => (0..normals.len()).for_each(visit),
+        });
     }
+    if support.is_none_or(|sp| sp.bound > CAP_TAIL * acc.1) {
+        s.contrib.clear();
+        acc = (0.0, 0.0);
+        for k in 0..normals.len() {
+            visit(k, &mut s.contrib, &mut acc);
+        }
+    }
+    let peak = acc.0;
+    let Some(g) = g else {
+        let mut r = [0.0; 3];
+        for (_, v) in &s.contrib {
+            for c in 0..3 {
+                r[c] += v[c];
+            }
+        }
+        return r;
+    };
     // Ask for G of the deltas that matter, all at once; the contributions stay in order.
-    let cut = VISIBILITY_CUTOFF * peak;
+    let cut = tail_cut(&s.contrib, peak);
     s.ks.extend(
         s.contrib
             .iter()
@@ -515,6 +543,44 @@ fn deltas_given_normal_in(
         acc[1] + rest[1] * gmean,
         acc[2] + rest[2] * gmean,
     ]
+}
+
+/// The size below which contributions are summed without their own visibility: the largest
+/// power-of-two fraction of `peak` such that everything smaller adds up to at most
+/// [`VISIBILITY_TAIL`] of the total.
+fn tail_cut(contrib: &[(u32, [f64; 3])], peak: f64) -> f64 {
+    const BUCKETS: usize = 64;
+    if peak <= 0.0 {
+        return 0.0;
+    }
+    // Bucket b holds contributions in (peak·2^{−b−1}, peak·2^{−b}].
+    let mut sums = [0.0f64; BUCKETS];
+    let mut total = 0.0;
+    let inv = 1.0 / peak;
+    for (_, v) in contrib {
+        let mx = v[0].max(v[1]).max(v[2]);
+        total += mx;
+        let e = ((mx * inv).to_bits() >> 52) as i64 & 0x7ff;
+        let b = (1022 - e).clamp(0, BUCKETS as i64 - 1) as usize;
+        sums[b] += mx;
+    }
+    // Drop buckets from the smallest up while their sum stays within the tail.
+    let budget = VISIBILITY_TAIL * total;
+    let mut dropped = 0.0;
+    let mut first_dropped = BUCKETS;
+    for b in (1..BUCKETS).rev() {
+        if dropped + sums[b] > budget {
+            break;
+        }
+        dropped += sums[b];
+        first_dropped = b;
+    }
+    if first_dropped >= BUCKETS {
+        0.0
+    } else {
+        // Everything below peak·2^{−first_dropped} is in the tail.
+        peak * 0.5f64.powi(first_dropped as i32)
+    }
 }
 
 /// Smith masking computed numerically for an arbitrary NDF restricted to the upper hemisphere.

@@ -146,7 +146,10 @@ impl DeltaSum {
         let r = cos_radius.clamp(-1.0, 1.0).acos() + 1e-9;
         let theta_a = axis.z.clamp(-1.0, 1.0).acos();
         let (t0, t1) = (theta_a - r, theta_a + r);
-        let row = |t: f64| ((t / PI * INDEX_ROWS as f64).floor() as isize).clamp(0, INDEX_ROWS as isize - 1) as usize;
+        let row = |t: f64| {
+            ((t / PI * INDEX_ROWS as f64).floor() as isize).clamp(0, INDEX_ROWS as isize - 1)
+                as usize
+        };
         let (r0, r1) = (row(t0.max(0.0)), row(t1.min(PI)));
         // A cap around a pole covers every azimuth; otherwise its azimuths lie within
         // asin(sin r / sin θ_a) of the axis's.

@@ -13,6 +13,19 @@ use crate::ndf::Microfacet;
 use glam::DVec3;
 use std::f64::consts::PI;
 
+/// The cap of facet normals where a transfer matters for one pair of directions
+/// ([`Transfer::support`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Support {
+    /// The cap's axis (the half vector), a unit vector in the local frame.
+    pub axis: DVec3,
+    /// The cosine of the cap's angular radius.
+    pub cos_radius: f64,
+    /// An upper bound of `f_μ(i, o; m)(m·i)⁺(m·o)⁺` (1/sr, every channel) for facet normals
+    /// `m` outside the cap.
+    pub bound: f64,
+}
+
 /// Which Phong lobe shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PhongVariant {
@@ -172,28 +185,44 @@ impl Transfer {
         }
     }
 
-    /// The facet normals outside of which `f_μ(i, o; m)` is below `1e-7` of its largest value,
-    /// as a cap `(axis, cos of its radius)` about the half vector; `None` where the transfer has
-    /// no such bound worth using (Lambert, GGX's long tails, broad Phong lobes, mirrors).
-    /// Beckmann: `tan θ > 4 α_max` (`e^{−16}`); Phong (half-vector form): `cos^η θ < 1e-7`.
+    /// Where this transfer matters for the pair `(i, o)`: a cap of facet normals about the half
+    /// vector outside which every facet's share `f_μ(i, o; m) (m·i)⁺ (m·o)⁺` is at most
+    /// [`Support::bound`] (about `1e-11` of the transfer's peak); `None` where the transfer has
+    /// no such cap worth using (Lambert, GGX's long tails, broad lobes, mirrors).
+    /// Beckmann (α ≤ 0.5): the cap `tan θ ≤ 5 α_max`, outside it `D ≤ e^{−25}/(π α_x α_y
+    /// cos⁴θ)` (decreasing in θ there), Fresnel ≤ 1 and `G₂ ≤ 1`; Phong (half-vector form,
+    /// η > 16): `cos^η θ ≤ e^{−25}`.
     #[must_use]
-    pub fn support(&self, i: DVec3, o: DVec3) -> Option<(DVec3, f64)> {
+    pub fn support(&self, i: DVec3, o: DVec3) -> Option<Support> {
         let h = half_vector(i, o)?;
-        let cos_r = match *self {
+        let (cos_r, bound) = match *self {
             Transfer::Microfacet { distribution, .. }
-                if distribution.distribution == crate::ndf::Distribution::Beckmann =>
+                if distribution.distribution == crate::ndf::Distribution::Beckmann
+                    && distribution.alpha_x.max(distribution.alpha_y) <= 0.5 =>
             {
-                let t = 4.0 * distribution.alpha_x.max(distribution.alpha_y);
-                1.0 / (1.0 + t * t).sqrt()
+                let t = 5.0 * distribution.alpha_x.max(distribution.alpha_y);
+                let c2 = 1.0 / (1.0 + t * t);
+                // f_μ (m·i)(m·o) = F D G₂ / 4 ≤ D / 4.
+                let d =
+                    (-25.0f64).exp() / (PI * distribution.alpha_x * distribution.alpha_y * c2 * c2);
+                (c2.sqrt(), 0.25 * d)
             }
             Transfer::Phong {
                 exponent,
+                specular,
                 variant: PhongVariant::Half,
-                ..
-            } if exponent > 16.0 => (-16.2 / exponent).exp(),
+            } if exponent > 16.0 => {
+                let c = (-25.0 / exponent).exp();
+                let s = specular[0].max(specular[1]).max(specular[2]);
+                (c, s * c.powf(exponent))
+            }
             _ => return None,
         };
-        (cos_r > 0.1).then_some((h, cos_r))
+        (cos_r > 0.1).then_some(Support {
+            axis: h,
+            cos_radius: cos_r,
+            bound,
+        })
     }
 
     /// The reflectance of a [`Transfer::Mirror`] facet for the cosine `cos_d = i·m` between the
