@@ -118,9 +118,19 @@ pub fn facets_with_visibility(
         .iter()
         .map(|e| merged.binary_search_by_key(&e.bin, |m| m.bin).unwrap_or(0) as u32)
         .collect();
-    let horizons = crate::visibility::facet_horizons(map, mode);
+    // Horizons of at most MAX_FACETS_PER_BIN facets per bin, each standing for its share.
+    let (chosen, factor) = crate::visibility::facets_to_march(&bins, merged.len());
+    let horizons = crate::visibility::facet_horizons_of(map, mode, &chosen);
+    let weights: Vec<f64> = chosen
+        .iter()
+        .zip(&factor)
+        .map(|(&f, s)| facets.weights[f as usize] * s)
+        .collect();
+    let chosen_bins: Vec<u32> = chosen.iter().map(|&f| bins[f as usize]).collect();
+    drop(bins);
     let exact: Vec<DVec3> = deltas.normals().iter().map(|n| n.normal).collect();
-    let bins = BinnedVisibility::new(&facets, &horizons, &bins, &exact);
+    let bins = BinnedVisibility::new(&weights, &horizons, &chosen_bins, &exact);
+    drop(horizons);
     let horizon = crate::horizon::HorizonMap::compute(map).total_stats();
     Ok((
         Ndf::Deltas(deltas),
