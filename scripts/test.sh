@@ -16,6 +16,10 @@ RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 
 echo "== cargo test (workspace)"
 mkdir -p target   # the logs below live here even when CARGO_TARGET_DIR points elsewhere
+# Height-map facet caches (crates/meso-maps/src/facet_cache.rs) of the tests live here, fresh each
+# run, not in the user's ~/.cache.
+export MESO_CACHE_DIR="$PWD/target/test-cache"
+rm -rf "$MESO_CACHE_DIR"
 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
 
 e2e_status=0

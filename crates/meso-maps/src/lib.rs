@@ -22,6 +22,7 @@
 
 pub mod brdf;
 pub mod error;
+pub mod facet_cache;
 pub mod facets;
 pub mod fit;
 pub mod fixtures;

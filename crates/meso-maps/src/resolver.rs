@@ -428,11 +428,21 @@ impl MapsResolver {
         file: &Path,
     ) -> Result<ResolvedNdf, MaterialError> {
         let p = Self::heightmap_params(table)?;
-        let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
-            .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let what = format!("[ndf] {}", file.display());
-        let (ndf, vis) = facets_with_visibility(&map, p.normal_mode)
-            .map_err(|e| MaterialError(format!("{what}: {e}")))?;
+        // Built once per map content and parameters, then read from the cache
+        // (`crate::facet_cache`).
+        let (ndf, vis, _cached) = crate::facet_cache::facets_cached(
+            file,
+            p.texel_size,
+            p.height_scale,
+            p.border,
+            p.normal_mode,
+            || {
+                HeightMap::load(file, p.texel_size, p.height_scale, p.border)
+                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))
+            },
+            |e| MaterialError(format!("{what}: {e}")),
+        )?;
         Ok(ResolvedNdf {
             ndf,
             horizon: Some(Arc::new(vis) as Arc<dyn VisibilityModel>),

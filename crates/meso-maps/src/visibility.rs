@@ -548,6 +548,79 @@ impl BinnedVisibility {
         }
     }
 
+    /// Append this model to `out` (little-endian; [`BinnedVisibility::decode`] reads it back):
+    /// the five arrays, each as a `u64` length and its values.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        fn put<T: Copy>(out: &mut Vec<u8>, v: &[T], bytes: impl Fn(T) -> [u8; 4]) {
+            out.extend_from_slice(&(v.len() as u64).to_le_bytes());
+            for &x in v {
+                out.extend_from_slice(&bytes(x));
+            }
+        }
+        put(out, &self.horizons, f32::to_le_bytes);
+        put(out, &self.weights, f32::to_le_bytes);
+        put(out, &self.start, u32::to_le_bytes);
+        put(out, &self.max_horizon, f32::to_le_bytes);
+        put(out, &self.total, f32::to_le_bytes);
+    }
+
+    /// Read a model written by [`BinnedVisibility::encode`] for the deltas `normals` from the
+    /// front of `bytes`, advancing it; `None` unless every length and offset is consistent
+    /// with one bin per normal and every value is finite.
+    #[must_use]
+    pub fn decode(bytes: &mut &[u8], normals: &[DVec3]) -> Option<BinnedVisibility> {
+        fn take<T>(bytes: &mut &[u8], limit: usize, f: impl Fn([u8; 4]) -> T) -> Option<Vec<T>> {
+            let (len, rest) = bytes.split_first_chunk::<8>()?;
+            let n = usize::try_from(u64::from_le_bytes(*len)).ok()?;
+            if n > limit || rest.len() < n.checked_mul(4)? {
+                return None;
+            }
+            let (data, rest) = rest.split_at(n * 4);
+            *bytes = rest;
+            Some(
+                data.chunks_exact(4)
+                    .map(|c| f([c[0], c[1], c[2], c[3]]))
+                    .collect(),
+            )
+        }
+        let limit = bytes.len() / 4;
+        let horizons = take(bytes, limit, f32::from_le_bytes)?;
+        let weights = take(bytes, limit, f32::from_le_bytes)?;
+        let start = take(bytes, limit, u32::from_le_bytes)?;
+        let max_horizon = take(bytes, limit, f32::from_le_bytes)?;
+        let total = take(bytes, limit, f32::from_le_bytes)?;
+        let nb = normals.len();
+        let ok = start.len() == nb + 1
+            && start[0] == 0
+            && start.windows(2).all(|w| w[0] <= w[1])
+            && start[nb] as usize == weights.len()
+            && horizons.len() == weights.len() * AZIMUTHS
+            && max_horizon.len() == nb * AZIMUTHS
+            && total.len() == nb
+            && horizons
+                .iter()
+                .chain(&weights)
+                .chain(&max_horizon)
+                .chain(&total)
+                .all(|v| v.is_finite());
+        if !ok {
+            return None;
+        }
+        let index = normals
+            .iter()
+            .enumerate()
+            .map(|(k, m)| (key(*m), k as u32))
+            .collect();
+        Some(BinnedVisibility {
+            horizons,
+            weights,
+            start,
+            max_horizon,
+            total,
+            index,
+        })
+    }
+
     /// Number of bins.
     #[must_use]
     pub fn bins(&self) -> usize {

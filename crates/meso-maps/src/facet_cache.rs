@@ -1,0 +1,227 @@
+//! The on-disk cache of height-map facet representations (`[ndf] kind = "heightmap"`,
+//! `represent = "facets"`, the default): the binned facet normals and their visibility
+//! ([`crate::resolver::facets_with_visibility`]) take seconds to minutes to build (every
+//! facet's horizon is marched in 32 azimuths) and are the same every time the same map is
+//! loaded with the same parameters, so they are kept in a file and read back by the next
+//! `meso brdf`, `meso render` or editor session.
+//!
+//! # Where and how
+//! * The folder: `$MESO_CACHE_DIR` if set (empty or `off` turns the cache off), else
+//!   `$XDG_CACHE_HOME/meso`, else `$HOME/.cache/meso`; none of them: no cache.
+//! * The key: SHA-256 of the height map file's bytes, the parameters that shape the result
+//!   (texel size, height scale, border, normal mode), this crate's version and [`FORMAT`]. A
+//!   changed file or parameter is a different key; nothing is ever looked up by path alone.
+//! * The file `facets-<key>.bin`: magic, format, the key again, the deltas (unit normal and
+//!   weight, `f64`), the map's horizon statistics and the [`BinnedVisibility`] arrays, all
+//!   little-endian, and the SHA-256 of all that. Written atomically (`meso_core::io::write_atomic`); read with a size limit
+//!   and checked (every length, offset and value) before use: a damaged or foreign file is
+//!   ignored and rebuilt, never trusted.
+//! * Failing to create the folder or write the file only costs the next run the build; it is
+//!   not an error.
+
+use crate::facets::NormalMode;
+use crate::heightmap::{Border, HeightMap};
+use crate::horizon::HorizonStats;
+use crate::resolver::FacetVisibility;
+use crate::visibility::BinnedVisibility;
+use glam::DVec3;
+use meso_core::ndf::{DeltaSum, Ndf, WeightedNormal};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The cache file format; bumped whenever what is stored or how it is built changes.
+pub const FORMAT: u32 = 1;
+const MAGIC: &[u8; 8] = b"MESOFCT\0";
+/// The largest cache file read back (4 GiB).
+pub const MAX_CACHE_BYTES: u64 = 4 << 30;
+
+/// The cache folder (module docs), or `None` when the cache is off or no folder is known.
+#[must_use]
+pub fn cache_dir() -> Option<PathBuf> {
+    match std::env::var_os("MESO_CACHE_DIR") {
+        Some(v) if v.is_empty() || v == "off" => None,
+        Some(v) => Some(PathBuf::from(v)),
+        None => std::env::var_os("XDG_CACHE_HOME")
+            .filter(|v| !v.is_empty())
+            .map(|v| PathBuf::from(v).join("meso"))
+            .or_else(|| {
+                std::env::var_os("HOME")
+                    .filter(|v| !v.is_empty())
+                    .map(|h| PathBuf::from(h).join(".cache").join("meso"))
+            }),
+    }
+}
+
+/// The cache key of a height map file's bytes and the parameters that shape its facets.
+#[must_use]
+pub fn key(
+    file_bytes: &[u8],
+    texel_size: f64,
+    height_scale: f64,
+    border: Border,
+    mode: NormalMode,
+) -> [u8; 32] {
+    let mut h = Sha256::new();
+    h.update(b"meso facets ");
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(FORMAT.to_le_bytes());
+    h.update(texel_size.to_le_bytes());
+    h.update(height_scale.to_le_bytes());
+    h.update([
+        u8::from(border == Border::Clamp),
+        u8::from(mode == NormalMode::CentralDifferences),
+    ]);
+    h.update((file_bytes.len() as u64).to_le_bytes());
+    h.update(file_bytes);
+    h.finalize().into()
+}
+
+fn path_of(dir: &Path, key: &[u8; 32]) -> PathBuf {
+    let hex: String = key.iter().map(|b| format!("{b:02x}")).collect();
+    dir.join(format!("facets-{hex}.bin"))
+}
+
+/// The facets and visibility stored under `key` in `dir`, if a valid entry is there.
+#[must_use]
+pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
+    let bytes = meso_core::io::read_limited(&path_of(dir, key), MAX_CACHE_BYTES).ok()?;
+    decode(&bytes, key)
+}
+
+/// Store the facets and visibility under `key` in `dir` (creating it); errors are returned
+/// for the caller to ignore or report.
+///
+/// # Errors
+/// The folder cannot be created or the file written.
+pub fn store(
+    dir: &Path,
+    key: &[u8; 32],
+    deltas: &DeltaSum,
+    vis: &FacetVisibility,
+) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    meso_core::io::write_atomic(&path_of(dir, key), &encode(key, deltas, vis))
+}
+
+fn encode(key: &[u8; 32], deltas: &DeltaSum, vis: &FacetVisibility) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&FORMAT.to_le_bytes());
+    out.extend_from_slice(key);
+    out.extend_from_slice(&(deltas.normals().len() as u64).to_le_bytes());
+    for n in deltas.normals() {
+        for v in [n.normal.x, n.normal.y, n.normal.z, n.weight] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let h = &vis.horizon;
+    for v in std::iter::once(h.weight).chain(h.mean).chain(h.var) {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    vis.bins.encode(&mut out);
+    let sum: [u8; 32] = Sha256::digest(&out).into();
+    out.extend_from_slice(&sum);
+    out
+}
+
+fn f64s<const N: usize>(bytes: &mut &[u8]) -> Option<[f64; N]> {
+    let mut out = [0.0; N];
+    for v in &mut out {
+        let (c, rest) = bytes.split_first_chunk::<8>()?;
+        *v = f64::from_le_bytes(*c);
+        *bytes = rest;
+        if !v.is_finite() {
+            return None;
+        }
+    }
+    Some(out)
+}
+
+fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
+    let (payload, sum) = bytes.split_last_chunk::<32>()?;
+    if <[u8; 32]>::from(Sha256::digest(payload)) != *sum {
+        return None;
+    }
+    let mut b = payload.strip_prefix(MAGIC.as_slice())?;
+    let (format, rest) = b.split_first_chunk::<4>()?;
+    if u32::from_le_bytes(*format) != FORMAT {
+        return None;
+    }
+    let (stored_key, rest) = rest.split_first_chunk::<32>()?;
+    if stored_key != key {
+        return None;
+    }
+    let (n, rest) = rest.split_first_chunk::<8>()?;
+    let n = usize::try_from(u64::from_le_bytes(*n)).ok()?;
+    if n == 0 || n > rest.len() / 32 {
+        return None;
+    }
+    b = rest;
+    let mut normals = Vec::with_capacity(n);
+    for _ in 0..n {
+        let [x, y, z, w] = f64s::<4>(&mut b)?;
+        normals.push(WeightedNormal {
+            normal: DVec3::new(x, y, z),
+            weight: w,
+        });
+    }
+    let deltas = DeltaSum::new(normals).ok()?;
+    let [weight, m0, m1, m2, m3, v0, v1, v2, v3] = f64s::<9>(&mut b)?;
+    let horizon = HorizonStats {
+        weight,
+        mean: [m0, m1, m2, m3],
+        var: [v0, v1, v2, v3],
+    };
+    let exact: Vec<DVec3> = deltas.normals().iter().map(|n| n.normal).collect();
+    let bins = BinnedVisibility::decode(&mut b, &exact)?;
+    if !b.is_empty() {
+        return None;
+    }
+    Some((
+        Ndf::Deltas(deltas),
+        FacetVisibility {
+            bins: Arc::new(bins),
+            horizon,
+        },
+    ))
+}
+
+/// The largest height map file hashed for the cache (1 GiB; larger files are not cached).
+pub const MAX_HASHED_BYTES: u64 = 1 << 30;
+
+/// The facets of the height map in `file` with their visibility, from the cache when it has
+/// them (the image is then not even decoded), else loaded with `load`, built
+/// ([`crate::resolver::facets_with_visibility`]) and stored. Returns whether the cache
+/// answered.
+///
+/// # Errors
+/// `load`'s errors, and those of [`crate::resolver::facets_with_visibility`] as `build_err`
+/// makes them.
+pub fn facets_cached<E>(
+    file: &Path,
+    texel_size: f64,
+    height_scale: f64,
+    border: Border,
+    mode: NormalMode,
+    load: impl FnOnce() -> Result<HeightMap, E>,
+    build_err: impl FnOnce(String) -> E,
+) -> Result<(Ndf, FacetVisibility, bool), E> {
+    let dir = cache_dir();
+    let k = dir.as_ref().and_then(|_| {
+        let bytes = meso_core::io::read_limited(file, MAX_HASHED_BYTES).ok()?;
+        Some(key(&bytes, texel_size, height_scale, border, mode))
+    });
+    if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
+        if let Some((ndf, vis)) = load_entry(d, k) {
+            return Ok((ndf, vis, true));
+        }
+    }
+    let map = load()?;
+    let (ndf, vis) = crate::resolver::facets_with_visibility(&map, mode).map_err(build_err)?;
+    if let (Some(d), Some(k), Ndf::Deltas(deltas)) = (dir.as_deref(), &k, &ndf) {
+        // A cache that cannot be written only costs the next run the build.
+        let _ = store(d, k, deltas, &vis);
+    }
+    Ok((ndf, vis, false))
+}
