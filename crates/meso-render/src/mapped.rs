@@ -556,10 +556,14 @@ pub struct NdfMapped {
     shadowing: bool,
     footprint_scale: f64,
     sharp_magnification: bool,
+    box_filter: bool,
 }
 
-/// Up to 8 `(level, texel, weight)` taps of the trilinear filter.
-type Taps = ([(usize, usize, f64); 8], usize);
+/// Most taps of one shading call: 8 for the trilinear filter, up to 10 × 10 + 6 × 6 for the
+/// box filter.
+const MAX_TAPS: usize = 136;
+/// Up to [`MAX_TAPS`] `(level, texel, weight)` taps of the filter.
+type Taps = ([(usize, usize, f64); MAX_TAPS], usize);
 
 impl NdfMapped {
     /// The filtered material of `pyramid` with the facet transfer and diffuse term of
@@ -684,6 +688,7 @@ impl NdfMapped {
             shadowing,
             footprint_scale: 1.0,
             sharp_magnification: false,
+            box_filter: false,
         })
     }
 
@@ -716,6 +721,18 @@ impl NdfMapped {
     #[must_use]
     pub fn with_sharp_magnification(mut self, sharp: bool) -> NdfMapped {
         self.sharp_magnification = sharp;
+        self
+    }
+
+    /// Filter with a box the size of the sample's footprint (the bounding box of its
+    /// ray-differential parallelogram) instead of the trilinear filter: the texels it overlaps,
+    /// weighted by overlap, on the level whose texels are a quarter to half its longer side
+    /// (blended with the next coarser level, so zooming stays continuous). Up to 52 taps per
+    /// shading call instead of 8, and closer to the supersampled bump map on busy maps (see
+    /// the module docs, "Steep maps").
+    #[must_use]
+    pub fn with_box_filter(mut self, on: bool) -> NdfMapped {
+        self.box_filter = on;
         self
     }
 
@@ -757,7 +774,7 @@ impl NdfMapped {
             sp.filter_uv.x * self.texels_per_uv,
             sp.filter_uv.y * self.texels_per_uv,
         );
-        let mut taps = [(0usize, 0usize, 0.0f64); 8];
+        let mut taps = [(0usize, 0usize, 0.0f64); MAX_TAPS];
         let mut n = 0;
         if self.sharp_magnification && fp.is_finite() && fp < std::f64::consts::SQRT_2 {
             let c = (fp * fp - 1.0).max(0.0).sqrt();
@@ -786,6 +803,9 @@ impl NdfMapped {
             }
             return (taps, n);
         }
+        if self.box_filter && fp.is_finite() && fp > 0.0 {
+            return self.box_taps(sp, x, y);
+        }
         let lod = self.lod(sp);
         let l0 = lod.floor() as usize;
         let l1 = (l0 + 1).min(self.levels.len() - 1);
@@ -808,6 +828,64 @@ impl NdfMapped {
                     let c = (fx as i64 + dx).rem_euclid(l.cols as i64) as usize;
                     let r = (fy as i64 + dy).rem_euclid(l.rows as i64) as usize;
                     taps[n] = (lev, r * l.cols + c, w);
+                    n += 1;
+                }
+            }
+        }
+        (taps, n)
+    }
+
+    /// The box filter's taps (see [`NdfMapped::with_box_filter`]) around `(x, y)` (in level-0
+    /// cells).
+    fn box_taps(&self, sp: &ShadingPoint, x: f64, y: f64) -> Taps {
+        let k = self.texels_per_uv * self.footprint_scale;
+        // The bounding box of the pixel's parallelogram in cells.
+        let wx = ((sp.duvdx.x.abs() + sp.duvdy.x.abs()) * k).max(1e-9);
+        let wy = ((sp.duvdx.y.abs() + sp.duvdy.y.abs()) * k).max(1e-9);
+        let top = (self.levels.len() - 1) as f64;
+        // Texels of an eighth to a quarter of the box's longer side: at most 10 × 10 (and 6 × 6
+        // on the coarser level blended in).
+        let lod = (wx.max(wy).log2() - 2.0).clamp(0.0, top);
+        let l0 = lod.floor() as usize;
+        let l1 = (l0 + 1).min(self.levels.len() - 1);
+        let t = lod - l0 as f64;
+        let mut taps = [(0usize, 0usize, 0.0f64); MAX_TAPS];
+        let mut n = 0;
+        for (lev, lw) in [(l0, 1.0 - t), (l1, t)] {
+            if lw <= 0.0 {
+                continue;
+            }
+            let l = &self.levels[lev];
+            // Overlaps of [p − w/2, p + w/2] with the texels [c·s, (c + 1)·s), at most 10.
+            let axis = |p: f64, w: f64| -> ([(i64, f64); 10], usize) {
+                let mut out = [(0i64, 0.0f64); 10];
+                let (lo, hi) = ((p - 0.5 * w) / l.span, (p + 0.5 * w) / l.span);
+                let w = hi - lo;
+                let mut m = 0;
+                let mut c = lo.floor();
+                while c < hi && m < 10 {
+                    let o = ((c + 1.0).min(hi) - c.max(lo)) / w;
+                    if o > 0.0 {
+                        out[m] = (c as i64, o);
+                        m += 1;
+                    }
+                    c += 1.0;
+                }
+                (out, m)
+            };
+            let ((ax, nx), (ay, ny)) = (axis(x, wx), axis(y, wy));
+            let (sx, sy) = (
+                ax[..nx].iter().map(|a| a.1).sum::<f64>(),
+                ay[..ny].iter().map(|a| a.1).sum::<f64>(),
+            );
+            for &(r, wyr) in &ay[..ny] {
+                for &(c, wxc) in &ax[..nx] {
+                    if n == MAX_TAPS {
+                        break;
+                    }
+                    let col = c.rem_euclid(l.cols as i64) as usize;
+                    let row = r.rem_euclid(l.rows as i64) as usize;
+                    taps[n] = (lev, row * l.cols + col, lw * wxc / sx * wyr / sy);
                     n += 1;
                 }
             }

@@ -206,18 +206,24 @@ albedo = [0.7, 0.6, 0.5]
 
 /// The stone wall NDF-mapped at 1 spp against bump-mapped at 256 spp (48² pixels, a plane
 /// seen from ≈ 24°), Phong facets (η = 20, plus a diffuse term) and Lambert facets, two lights
-/// (one high, one grazing from +y), 2, 4, 8 and 16 map texels per pixel; every case is
-/// printed. Bounds, at 2 and 4 texels per pixel: mean radiance within 5% of the truth; every
-/// class of sub-texel phase (where the pixel centre falls in the texels of the pyramid level
-/// it reads, 4 × 4 classes: a regular grid of sparkles would make one class brighter) within
-/// 10%; no pixel brighter than the truth by more than 3× the image's mean radiance; mean
-/// relative pixel error below 14%. Measured (docs/heightmaps.md, "Steep maps"): mean ratios
-/// 0.967–1.003, classes 0.931–1.044, largest excess 0.77, errors 5.5–13.5%. The code before
-/// (commit 52fe59d) fails: Lambert facets up to 47% too bright on average, a class 1.65×,
-/// one pixel 54× its truth (4× the image mean too bright). Not met: the issue's 3% mean pixel
-/// error (the bilinear tent of the pyramid's texels against the pixel's box on a map this
-/// busy, and the lobe fits of the coarse levels: at 16 texels per pixel the renders are
-/// 15–29% too dark), so 8 and 16 texels per pixel are only reported.
+/// (one high, one grazing from +y), 2, 4, 8 and 16 map texels per pixel, with the default
+/// trilinear filter and with [`NdfMapped::with_box_filter`]; every case is printed.
+///
+/// Compared per pixel (mean relative error `Σ|a − b|/Σb`), on average, per class of sub-texel
+/// phase (where the pixel centre falls in the texels of the pyramid level it reads, 4 × 4
+/// classes: a regular grid of sparkles makes one class brighter) and by the largest excess of
+/// one pixel over its truth, relative to the image's mean radiance.
+///
+/// * Trilinear, 2 and 4 texels per pixel: mean within 5%, every class within 10%, no excess
+///   over 3, error below 14%. Measured: means 0.967–1.003, classes 0.931–1.044, excess ≤ 0.77,
+///   errors 5.5–13.5%. The code before (commit 52fe59d) fails: Lambert facets up to 47% too
+///   bright on average, a class 1.65×, one pixel 54× its truth (excess 3.96).
+/// * Box filter, up to 8 texels per pixel for Phong facets and 4 for Lambert facets: the
+///   issue's 3% mean pixel error, classes within 5%, no excess over 0.5. Measured: errors
+///   0.1–2.9% (Phong), 0.2–1.2% (Lambert), classes 0.990–1.009 (Phong η = 20 up to 8 texels
+///   per pixel: 0.990–1.003), excess ≤ 0.25. At 8 texels per pixel Lambert facets are at
+///   3.4–5.7%, at 16 texels per pixel Phong facets at 3.3–4.2% and Lambert at 4.9–7.0%
+///   (the lobe fits of the coarser levels), reported only.
 #[test]
 fn steep_normal_map_renders_without_sparkle() {
     let normals = stone_wall();
@@ -248,34 +254,37 @@ fn steep_normal_map_renders_without_sparkle() {
         let surface = Material::from_toml_str(text).unwrap();
         let bump: Arc<dyn Shader> =
             Arc::new(BumpMapped::from_normal_map(&map, &surface, tpu).unwrap());
-        let ndf = NdfMapped::new(&pyr, &surface, tpu, false).unwrap();
-        for light in [DVec3::new(-0.5, 0.3, 0.8), DVec3::new(0.2, 0.9, 0.35)] {
-            for cells_per_pixel in [2.0, 4.0, 8.0, 16.0] {
-                let width = cells_per_pixel * f64::from(size) / tpu;
-                let truth = render(
-                    &plane_scene(bump.clone(), width, size, light),
-                    &RenderOptions {
-                        spp: Some(256),
-                        ..RenderOptions::default()
-                    },
-                    None,
-                );
-                let scene = plane_scene(Arc::new(ndf.clone()), width, size, light);
-                let filtered = render(
-                    &scene,
-                    &RenderOptions {
-                        spp: Some(1),
-                        ..RenderOptions::default()
-                    },
-                    None,
-                );
-                let c = compare(&scene, &ndf, tpu, &filtered, &truth);
-                let (lo, hi) = c
-                    .class_ratios
-                    .iter()
-                    .fold((f64::MAX, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
-                let line = format!(
-                    "{name}, light y = {:.2}, {cells_per_pixel} texels/px: error {:.4}, mean ratio \
+        for boxf in [false, true] {
+            let ndf = NdfMapped::new(&pyr, &surface, tpu, false)
+                .unwrap()
+                .with_box_filter(boxf);
+            for light in [DVec3::new(-0.5, 0.3, 0.8), DVec3::new(0.2, 0.9, 0.35)] {
+                for cells_per_pixel in [2.0, 4.0, 8.0, 16.0] {
+                    let width = cells_per_pixel * f64::from(size) / tpu;
+                    let truth = render(
+                        &plane_scene(bump.clone(), width, size, light),
+                        &RenderOptions {
+                            spp: Some(256),
+                            ..RenderOptions::default()
+                        },
+                        None,
+                    );
+                    let scene = plane_scene(Arc::new(ndf.clone()), width, size, light);
+                    let filtered = render(
+                        &scene,
+                        &RenderOptions {
+                            spp: Some(1),
+                            ..RenderOptions::default()
+                        },
+                        None,
+                    );
+                    let c = compare(&scene, &ndf, tpu, &filtered, &truth);
+                    let (lo, hi) = c
+                        .class_ratios
+                        .iter()
+                        .fold((f64::MAX, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
+                    let line = format!(
+                    "{name} box {boxf}, light y = {:.2}, {cells_per_pixel} texels/px: error {:.4}, mean ratio \
                      {:.4}, classes {lo:.3}..{hi:.3}, max pixel ratio {:.2}, max excess {:.2}",
                     light.normalize().y,
                     c.mean_error,
@@ -283,24 +292,36 @@ fn steep_normal_map_renders_without_sparkle() {
                     c.max_pixel_ratio,
                     c.max_excess
                 );
-                eprintln!("{line}");
-                if cells_per_pixel <= 4.0
-                    && ((c.mean_ratio - 1.0).abs() > 0.05
-                        || lo < 0.9
-                        || hi > 1.1
-                        || c.max_excess > 3.0
-                        || c.mean_error > 0.14)
-                {
-                    failures.push(line);
-                }
-                if let Some(dir) = &report {
-                    let stem = format!("{dir}/{name}-{:.2}-{cells_per_pixel}", light.normalize().y);
-                    filtered
-                        .write_png(std::path::Path::new(&format!("{stem}-ndf.png")), 0.0)
-                        .unwrap();
-                    truth
-                        .write_png(std::path::Path::new(&format!("{stem}-bump.png")), 0.0)
-                        .unwrap();
+                    eprintln!("{line}");
+                    let bad = if boxf {
+                        // The box filter: the issue's 3% mean pixel error.
+                        let reach = if name == "lambert" { 4.0 } else { 8.0 };
+                        cells_per_pixel <= reach
+                            && (c.mean_error > 0.03 || lo < 0.95 || hi > 1.05 || c.max_excess > 0.5)
+                    } else {
+                        cells_per_pixel <= 4.0
+                            && ((c.mean_ratio - 1.0).abs() > 0.05
+                                || lo < 0.9
+                                || hi > 1.1
+                                || c.max_excess > 3.0
+                                || c.mean_error > 0.14)
+                    };
+                    if bad {
+                        failures.push(line);
+                    }
+                    if let Some(dir) = &report {
+                        let stem = format!(
+                            "{dir}/{name}-{}-{:.2}-{cells_per_pixel}",
+                            if boxf { "box" } else { "trilinear" },
+                            light.normalize().y
+                        );
+                        filtered
+                            .write_png(std::path::Path::new(&format!("{stem}-ndf.png")), 0.0)
+                            .unwrap();
+                        truth
+                            .write_png(std::path::Path::new(&format!("{stem}-bump.png")), 0.0)
+                            .unwrap();
+                    }
                 }
             }
         }
