@@ -220,8 +220,8 @@ albedo = [0.7, 0.6, 0.5]
 ///   bright on average, a class 1.65×, one pixel 54× its truth (excess 3.96).
 /// * Box filter, up to 8 texels per pixel for Phong facets and 4 for Lambert facets: the
 ///   issue's 3% mean pixel error, classes within 5%, no excess over 0.5. Measured: errors
-///   0.1–2.9% (Phong), 0.2–1.2% (Lambert), classes 0.990–1.009 (Phong η = 20 up to 8 texels
-///   per pixel: 0.990–1.003), excess ≤ 0.25. At 8 texels per pixel Lambert facets are at
+///   0.1–2.9% (Phong), 0.2–1.2% (Lambert), classes 0.990–1.009, excess ≤ 0.25. At 8 texels
+///   per pixel Lambert facets are at
 ///   3.4–5.7%, at 16 texels per pixel Phong facets at 3.3–4.2% and Lambert at 4.9–7.0%
 ///   (the lobe fits of the coarser levels), reported only.
 #[test]
