@@ -464,8 +464,9 @@ fn projected_shares(pyramid: &Pyramid) -> Vec<Vec<f64>> {
                 if pa == pb {
                     continue;
                 }
-                for j in l0.lobe_start[ct] as usize..l0.lobe_start[ct + 1] as usize {
-                    let (m, mj) = (l0.lobes[j].axis, base[j]);
+                let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
+                for (lobe, &mj) in l0.lobes[ca..cb].iter().zip(&base[ca..cb]) {
+                    let m = lobe.axis;
                     if mj <= 0.0 {
                         continue;
                     }
