@@ -13,6 +13,7 @@
 //! texel_size = 0.01        # distance between height samples (length units)
 //! height_scale = 0.02      # height of the full code range (same unit)
 //! texels_per_uv = 64       # height-map cells per unit of u and v (default: the map's width)
+//! filter = "trilinear"     # ndf-mapped: or "box" (NdfMapped::with_box_filter)
 //! [transfer]
 //! kind = "phong"
 //! exponent = 20
@@ -54,12 +55,14 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
                 "shadowing",
                 "normal_map",
                 "convention",
+                "filter",
             ]
             .contains(&k.as_str()))
         {
             return Err(named(format!(
                 "[texture]: unknown key `{k}` (known: kind, file, normal_map, convention, \
-                 texel_size, height_scale, texels_per_uv, shadowing, max_lobes, border, normals)"
+                 texel_size, height_scale, texels_per_uv, shadowing, filter, max_lobes, border, \
+                 normals)"
             )));
         }
     }
@@ -73,6 +76,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         Some(None) => return Err(named("[texture] kind: expected a string".into())),
         None => return Err(named("[texture]: missing `kind`".into())),
     };
+    let box_filter = box_filter(tex, kind).map_err(named)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let string = |key: &str| match tex.get(key).map(|f| f.as_str()) {
         Some(Some(f)) => Ok(Some(f)),
@@ -103,9 +107,18 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
                     )))
                 }
             };
-            return normal_mapped(kind, tex, &doc, path, &dir.join(n), convention, maps)
-                .map(Some)
-                .map_err(named);
+            return normal_mapped(
+                kind,
+                tex,
+                &doc,
+                path,
+                &dir.join(n),
+                convention,
+                box_filter,
+                maps,
+            )
+            .map(Some)
+            .map_err(named);
         }
         (Some(_), Some(_)) => {
             return Err(named(
@@ -149,10 +162,32 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
             let pyramid = maps
                 .heightmap_pyramid(&map_table, &file)
                 .map_err(texture_err)?;
-            Arc::new(NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing).map_err(named)?)
+            Arc::new(
+                NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)
+                    .map_err(named)?
+                    .with_box_filter(box_filter),
+            )
         }
     };
     Ok(Some(shader))
+}
+
+/// `filter` of a `[texture]` table: `"trilinear"` (default) or `"box"`, NDF-mapped only.
+fn box_filter(tex: &toml::Table, kind: &str) -> Result<bool, String> {
+    match tex.get("filter") {
+        None => Ok(false),
+        Some(_) if kind != "ndf-mapped" => {
+            Err("[texture] filter: applies to kind = \"ndf-mapped\"".to_string())
+        }
+        Some(v) => match v.as_str() {
+            Some("trilinear") => Ok(false),
+            Some("box") => Ok(true),
+            Some(o) => Err(format!(
+                "[texture] filter: unknown \"{o}\" (known: trilinear, box)"
+            )),
+            None => Err("[texture] filter: expected a string".to_string()),
+        },
+    }
 }
 
 /// `texels_per_uv` of a `[texture]` table (default: the map's width, one copy per unit of uv).
@@ -189,6 +224,7 @@ fn facet_material(
 
 /// A `[texture]` over a tangent-space normal map: texel by texel, or through the pyramid of
 /// its normals (no heights: no shadowing).
+#[allow(clippy::too_many_arguments)]
 fn normal_mapped(
     kind: &str,
     tex: &toml::Table,
@@ -196,6 +232,7 @@ fn normal_mapped(
     path: &Path,
     file: &Path,
     convention: NormalConvention,
+    box_filter: bool,
     maps: &MapsResolver,
 ) -> Result<Arc<dyn Shader>, String> {
     let map = NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"))?;
@@ -220,10 +257,7 @@ fn normal_mapped(
     }
     let pyramid = extract(Source::Normals(&map), &params, &mut |_| {})
         .map_err(|e| format!("[texture] {}: {e}", file.display()))?;
-    Ok(Arc::new(NdfMapped::new(
-        &pyramid,
-        &surface,
-        texels_per_uv,
-        false,
-    )?))
+    Ok(Arc::new(
+        NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(box_filter),
+    ))
 }

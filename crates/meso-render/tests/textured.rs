@@ -32,6 +32,14 @@ fn write_fixture(dir: &Path) {
         )
         .unwrap();
     }
+    std::fs::write(
+        dir.join("ndf-box.toml"),
+        format!(
+            "[texture]\nkind = \"ndf-mapped\"\nfilter = \"box\"\nfile = \"bumps.exr\"\n\
+             texel_size = 0.03125\nheight_scale = 0.035\n{surface}"
+        ),
+    )
+    .unwrap();
     std::fs::write(dir.join("plain.toml"), surface).unwrap();
 }
 
@@ -109,6 +117,13 @@ fn filtered_matches_texel_by_texel(d: &Path, ndf: &str, bump: &str) {
     assert!((flat - 1.0).abs() > 0.1, "flat/bumpy {flat}");
 }
 
+/// `filter = "box"` (NdfMapped::with_box_filter) reaches the scene file and matches too.
+#[test]
+fn box_filtered_file_matches_supersampled_bump_mapped_file() {
+    let d = dir("textured_box");
+    filtered_matches_texel_by_texel(&d, "ndf-box", "bump-mapped");
+}
+
 #[test]
 fn ordinary_material_files_are_not_textured() {
     let d = dir("textured_plain");
@@ -145,6 +160,14 @@ fn bad_texture_tables_are_errors_naming_the_problem() {
             "texels_per_uv",
         ),
         (format!("[texture]\nkind = \"ndf-mapped\"\n{base}"), "[transfer]"),
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nfilter = \"gauss\"\n{base}{transfer}"),
+            "unknown \"gauss\"",
+        ),
+        (
+            format!("[texture]\nkind = \"bump-mapped\"\nfilter = \"box\"\n{base}{transfer}"),
+            "filter: applies to",
+        ),
         ("texture = 3\n".to_string(), "expected a table"),
     ] {
         let p = d.join("bad.toml");
