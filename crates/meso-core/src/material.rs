@@ -48,6 +48,10 @@ pub enum ShadowingKind {
     /// jointly (`G(i, o | m)`, from the heights; needs a resolver model that conditions on the
     /// normal, e.g. `represent = "facets"`). The default wherever one is available.
     Visibility,
+    /// [`ShadowingKind::Visibility`] plus the light reflected more than once inside the
+    /// microgeometry (`[shadowing] kind = "visibility"`, `interreflection = true`; Lambert
+    /// facets; `meso_core::convolution::deltas_interreflection`).
+    VisibilityInterreflected,
 }
 
 pub use crate::visibility::VisibilityModel;
@@ -207,12 +211,12 @@ impl Material {
             ShadowingKind::Smith => Visibility::Smith,
             ShadowingKind::None => Visibility::None,
             ShadowingKind::Horizon => Visibility::Custom(&custom),
-            ShadowingKind::Visibility => match horizon {
+            ShadowingKind::Visibility | ShadowingKind::VisibilityInterreflected => match horizon {
                 Some(h) => Visibility::GivenNormal(h.as_ref()),
                 None => Visibility::None,
             },
         };
-        effective_brdf_with(
+        let mut f = effective_brdf_with(
             &self.ndf,
             &self.transfer,
             self.form,
@@ -220,7 +224,17 @@ impl Material {
             i,
             o,
             self.accuracy,
-        )
+        );
+        if let (ShadowingKind::VisibilityInterreflected, Some(h), Ndf::Deltas(d)) =
+            (self.shadowing, horizon, &self.ndf)
+        {
+            let extra =
+                crate::convolution::deltas_interreflection(d, &self.transfer, h.as_ref(), i, o);
+            for (c, e) in f.iter_mut().zip(extra) {
+                *c += e;
+            }
+        }
+        f
     }
 }
 
@@ -830,7 +844,13 @@ impl MaterialSpec {
                     Some("none") => ShadowingKind::None,
                     Some("smith") => ShadowingKind::Smith,
                     Some("horizon") => ShadowingKind::Horizon,
-                    Some("visibility") => ShadowingKind::Visibility,
+                    Some("visibility") => {
+                        if f.boolean("interreflection")?.unwrap_or(false) {
+                            ShadowingKind::VisibilityInterreflected
+                        } else {
+                            ShadowingKind::Visibility
+                        }
+                    }
                     Some(o) => {
                         return err(format!(
                             "[shadowing] kind: unknown \"{o}\" (known: visibility, horizon, smith, none)"
@@ -908,7 +928,20 @@ impl MaterialSpec {
                 "[shadowing] kind = \"horizon\" needs an NDF from a height map or map file",
             );
         }
-        if shadowing == ShadowingKind::Visibility && !conditioned {
+        if shadowing == ShadowingKind::VisibilityInterreflected
+            && !matches!(self.transfer, Transfer::Lambert { .. })
+        {
+            return err(
+                "[shadowing] interreflection = true needs Lambert facets ([transfer] kind = \
+                 \"lambert\"): the estimate of the light between facets assumes they scatter \
+                 diffusely",
+            );
+        }
+        if matches!(
+            shadowing,
+            ShadowingKind::Visibility | ShadowingKind::VisibilityInterreflected
+        ) && !conditioned
+        {
             return err(
                 "[shadowing] kind = \"visibility\" needs a height-map NDF that keeps its facets' \
                  visibility ([ndf] kind = \"heightmap\" with represent = \"facets\")",

@@ -50,6 +50,15 @@ pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
         }
     }
 
+    /// The cosine-weighted share of each delta's facet hemisphere that sees the sky (not the
+    /// surface itself), `s_k = (1/π) ∫_{sky} (ω·m_k)⁺ dω`, indexed like the delta sum's
+    /// `normals`: what the inter-reflection estimate needs
+    /// ([`crate::convolution::deltas_interreflection`]). `None` for models that do not know it.
+    fn sky_views(&self, normals: &[WeightedNormal]) -> Option<&[f32]> {
+        let _ = normals;
+        None
+    }
+
     /// Whether [`VisibilityModel::g_given_normal`] depends on the normal (then
     /// [`crate::material::ShadowingKind::Visibility`] is available and the default).
     fn conditions_on_normal(&self) -> bool {

@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The cache file format; bumped whenever what is stored or how it is built changes.
-pub const FORMAT: u32 = 1;
+pub const FORMAT: u32 = 2;
 const MAGIC: &[u8; 8] = b"MESOFCT\0";
 /// The largest cache file read back (4 GiB).
 pub const MAX_CACHE_BYTES: u64 = 4 << 30;

@@ -81,6 +81,10 @@ impl VisibilityModel for FacetVisibility {
             }
         }
     }
+    fn sky_views(&self, normals: &[WeightedNormal]) -> Option<&[f32]> {
+        // Built for this very delta sum (bin k = delta k).
+        (normals.len() == self.bins.bins()).then(|| self.bins.sky_views())
+    }
     fn conditions_on_normal(&self) -> bool {
         true
     }

@@ -435,6 +435,57 @@ fn splitmix64(x: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// Gauss–Legendre nodes on [0, 1] for the elevation integral of [`sky_view`].
+struct SkyRule {
+    x: Vec<f64>,
+    w: Vec<f64>,
+    dirs: Vec<(f64, f64)>,
+}
+
+impl SkyRule {
+    fn new() -> SkyRule {
+        let (x, w) = meso_core::quadrature::gauss_legendre(8);
+        SkyRule {
+            x: x.iter().map(|x| 0.5 * (x + 1.0)).collect(),
+            w: w.iter().map(|w| 0.5 * w).collect(),
+            dirs: (0..AZIMUTHS)
+                .map(|a| {
+                    let p = TAU * a as f64 / AZIMUTHS as f64;
+                    (p.cos(), p.sin())
+                })
+                .collect(),
+        }
+    }
+
+    /// [`sky_view`] with this rule.
+    fn view(&self, horizon_tan: &[f32], m: DVec3) -> f64 {
+        let mut s = 0.0;
+        for (&(c, sn), &t) in self.dirs.iter().zip(horizon_tan) {
+            let e0 = f64::from(t).atan().max(0.0);
+            let span = 0.5 * std::f64::consts::PI - e0;
+            let tangential = c * m.x + sn * m.y;
+            let mut acc = 0.0;
+            for (x, w) in self.x.iter().zip(&self.w) {
+                let e = e0 + span * x;
+                let (se, ce) = e.sin_cos();
+                acc += w * (ce * tangential + se * m.z).max(0.0) * ce;
+            }
+            s += acc * span;
+        }
+        // Azimuthal sectors of 2π/A, and the 1/π of the cosine weighting.
+        (s * TAU / AZIMUTHS as f64 / std::f64::consts::PI).clamp(0.0, 1.0)
+    }
+}
+
+/// The cosine-weighted share of the hemisphere about the facet normal `m` that sees the sky
+/// from a point with the horizon `horizon_tan` (per azimuth, as stored): `(1/π) ∫ (ω·m)⁺ dω`
+/// over the directions above the horizon, 1 for a flat facet under an open sky (less the 1°
+/// horizon floor). Eight Gauss–Legendre nodes in elevation per stored azimuth.
+#[must_use]
+pub fn sky_view(horizon_tan: &[f32], m: DVec3) -> f64 {
+    SkyRule::new().view(horizon_tan, m)
+}
+
 /// Where a direction falls among the stored azimuths: the two neighbours, the interpolation
 /// weight of the second, and the tangent of its elevation.
 #[derive(Clone, Copy, Debug)]
@@ -477,6 +528,9 @@ pub struct BinnedVisibility {
     max_horizon: Vec<f32>,
     /// Per bin, the total weight of its facets.
     total: Vec<f32>,
+    /// Per bin, the weighted mean cosine-weighted sky view of its facets' points
+    /// ([`sky_view`]).
+    sky: Vec<f32>,
     /// Lookup from a delta's normal (its bits) to its bin.
     index: std::collections::HashMap<[u64; 3], u32>,
 }
@@ -515,10 +569,16 @@ impl BinnedVisibility {
         let mut ws = vec![0.0f32; n];
         let mut max_horizon = vec![0.0f32; nb * AZIMUTHS];
         let mut total = vec![0.0f32; nb];
+        let mut sky = vec![0.0f64; nb];
+        let sky_rule = SkyRule::new();
         for (f, &b) in bins.iter().enumerate() {
             let b = b as usize;
             let (s0, len) = (start[b] as usize, (start[b + 1] - start[b]) as usize);
             let w = (weights[f] / np as f64) as f32;
+            for p in 0..np {
+                let src = (f * np + p) * AZIMUTHS;
+                sky[b] += f64::from(w) * sky_rule.view(&horizons[src..src + AZIMUTHS], normals[b]);
+            }
             for p in 0..np {
                 let local = fill[b] as usize - s0;
                 fill[b] += 1;
@@ -538,12 +598,24 @@ impl BinnedVisibility {
             .enumerate()
             .map(|(k, m)| (key(*m), k as u32))
             .collect();
+        let sky = sky
+            .iter()
+            .zip(&total)
+            .map(|(&s, &t)| {
+                if t > 0.0 {
+                    (s / f64::from(t)) as f32
+                } else {
+                    1.0
+                }
+            })
+            .collect();
         BinnedVisibility {
             horizons: hz,
             weights: ws,
             start,
             max_horizon,
             total,
+            sky,
             index,
         }
     }
@@ -562,6 +634,7 @@ impl BinnedVisibility {
         put(out, &self.start, u32::to_le_bytes);
         put(out, &self.max_horizon, f32::to_le_bytes);
         put(out, &self.total, f32::to_le_bytes);
+        put(out, &self.sky, f32::to_le_bytes);
     }
 
     /// Read a model written by [`BinnedVisibility::encode`] for the deltas `normals` from the
@@ -589,6 +662,7 @@ impl BinnedVisibility {
         let start = take(bytes, limit, u32::from_le_bytes)?;
         let max_horizon = take(bytes, limit, f32::from_le_bytes)?;
         let total = take(bytes, limit, f32::from_le_bytes)?;
+        let sky = take(bytes, limit, f32::from_le_bytes)?;
         let nb = normals.len();
         let ok = start.len() == nb + 1
             && start[0] == 0
@@ -597,6 +671,8 @@ impl BinnedVisibility {
             && horizons.len() == weights.len() * AZIMUTHS
             && max_horizon.len() == nb * AZIMUTHS
             && total.len() == nb
+            && sky.len() == nb
+            && sky.iter().all(|s| (0.0..=1.0).contains(s))
             && horizons
                 .iter()
                 .chain(&weights)
@@ -617,8 +693,16 @@ impl BinnedVisibility {
             start,
             max_horizon,
             total,
+            sky,
             index,
         })
+    }
+
+    /// Per bin, the cosine-weighted share of its facets' hemisphere that sees the sky
+    /// ([`sky_view`], weight-averaged over the bin's points).
+    #[must_use]
+    pub fn sky_views(&self) -> &[f32] {
+        &self.sky
     }
 
     /// Number of bins.
