@@ -807,14 +807,15 @@ mod brdf {
             Baseline::Vmf,
         ] {
             let ndf = fit_baseline(m, &normals);
-            // 64 × 64 stratified draws of the core NDF's own sampler, equal weights.
-            let nodes: Vec<(DVec3, f64)> = (0..64 * 64)
+            // 64² draws of the core NDF's own sampler on a Fibonacci lattice (every draw its
+            // own stratum in both coordinates: the tabulated sampler picks its cell from u₀
+            // alone), equal weights.
+            let n = 64 * 64;
+            let golden = 0.5 * (5f64.sqrt() - 1.0);
+            let nodes: Vec<(DVec3, f64)> = (0..n)
                 .map(|k| {
-                    let u = [
-                        ((k / 64) as f64 + 0.5) / 64.0,
-                        ((k % 64) as f64 + 0.5) / 64.0,
-                    ];
-                    (ndf.sample(u), 1.0 / (64.0 * 64.0))
+                    let u = [(k as f64 + 0.5) / n as f64, (k as f64 * golden).fract()];
+                    (ndf.sample(u), 1.0 / n as f64)
                 })
                 .collect();
             let s: f64 = nodes.iter().map(|p| p.1).sum();
