@@ -155,8 +155,8 @@ impl FacetNormals {
                 weight: *w,
             })
             .collect();
-        Ok(meso_core::ndf::Ndf::Deltas(
-            meso_core::ndf::DeltaSum::new(normals)?,
-        ))
+        Ok(meso_core::ndf::Ndf::Deltas(meso_core::ndf::DeltaSum::new(
+            normals,
+        )?))
     }
 }

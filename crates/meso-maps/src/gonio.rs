@@ -244,13 +244,7 @@ impl Gonio {
     /// evaluated in the facet frame `Frame::from_normal_tangent(m, DVec3::X)` exactly as
     /// `meso_core::convolution` evaluates it.
     #[must_use]
-    pub fn measure(
-        &self,
-        facet: &Transfer,
-        i: DVec3,
-        o: DVec3,
-        params: &GonioParams,
-    ) -> [f64; 3] {
+    pub fn measure(&self, facet: &Transfer, i: DVec3, o: DVec3, params: &GonioParams) -> [f64; 3] {
         if i.z <= 0.0 || o.z <= 0.0 {
             return [0.0; 3];
         }
