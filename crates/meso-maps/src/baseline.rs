@@ -12,14 +12,15 @@
 //! | [`Baseline::MipNormal`] | `Ndf::PhongPeaks`, one lobe of η = [`ETA_MAX`] about the mean normal | the same lobe |
 //! | [`Baseline::Toksvig`] | `Ndf::PhongPeaks`, one lobe of η = 4R̄/(1 − R̄) | the same lobe |
 //! | [`Baseline::Vmf`] | `Ndf::VonMisesFisher` (the core's own vMF: the same density) | η = 4κ |
-//! | [`Baseline::Lean`] | `Ndf::Tabulated`: [`Lean::density`] on an equal-area grid sized to the lobe ([`Lean::to_ndf`]) | isotropised, η = 8/tr Σ |
+//! | [`Baseline::Lean`] | `Ndf::Tabulated`: [`Lean::density`], slightly broadened, on an equal-area grid sized to the lobe ([`Lean::to_ndf`]) | isotropised, η = 8/tr Σ |
 //!
 //! Why: the Phong baselines and the vMF are core NDFs as they are. LEAN's anisotropic,
 //! off-centre Gaussian-slope density is no core analytic NDF (the core's Beckmann has neither a
 //! mean slope nor a correlation), so the core sees it tabulated, which keeps its anisotropy
 //! (the NDF and BRDF errors of `examples/extract_bench.rs` measure LEAN itself, not a Toksvig
-//! look-alike); the tabulation broadens lobes narrower than its finest grid (slope spread below
-//! about 0.06). A map file stores isotropic Phong lobes only, hence the isotropised LEAN and the
+//! look-alike). The tabulation broadens the lobe by an eighth of its slope spread in every
+//! direction (no grid resolves the ridge of one-directional slopes, e.g. V-grooves), and further
+//! where the lobe is narrower than its finest grid (slope spread below about 0.03). A map file stores isotropic Phong lobes only, hence the isotropised LEAN and the
 //! vMF's Phong peak of the same small-angle shape (`cos^η(α/2) ≈ exp((η/4)(cos α − 1))`).
 
 use crate::fit::ETA_MAX;
@@ -145,20 +146,30 @@ impl Lean {
         )
     }
 
-    /// The density as a core `Ndf::Tabulated` on an equal-area grid sized to the lobe: bands of
-    /// `Δz ≤ w²/32` (`w` = [`Lean::width`]; the polar cap then has an angular radius `≤ w/4`),
-    /// sectors of arc `≤ w/4` at the lobe's far side, each cell the mean of 3 × 3 samples; at
-    /// most 16384 bands × 4096 sectors and 2²⁰ cells (narrower lobes come out broadened). Falls
-    /// back to the isotropised Phong peak ([`Lean::to_phong_lobe`]) where the grid misses the
-    /// lobe entirely.
+    /// The density as a core `Ndf::Tabulated` on an equal-area grid sized to the lobe. The
+    /// covariance is first broadened by `(w/8)²` on its diagonal (`w` = [`Lean::width`]), so
+    /// that no direction of the lobe is narrower than `w/8` (a V-groove's slopes vary along x
+    /// only: its LEAN lobe is a ridge no grid resolves); then the grid has bands of polar-cap
+    /// radius and sectors of arc (at the lobe's far side) at most half the lobe's narrowest
+    /// width `w_min`, each cell the mean of 3 × 3 samples, at most 16384 bands × 4096 sectors
+    /// and 2²⁰ cells (lobes narrower than about 0.03 come out broadened further). Falls back to
+    /// the isotropised Phong peak ([`Lean::to_phong_lobe`]) where the grid misses the lobe.
     #[must_use]
     pub fn to_ndf(&self) -> Ndf {
         let w = self.width().max(1e-6);
+        let floor = (w / 8.0) * (w / 8.0);
+        let b = Lean::new(
+            self.mean,
+            self.cov + DMat2::from_diagonal(DVec2::new(floor, floor)),
+        );
+        let (a, c, d) = (b.cov.x_axis.x, b.cov.x_axis.y, b.cov.y_axis.y);
+        let lambda_min = 0.5 * (a + d - ((a - d) * (a - d) + 4.0 * c * c).sqrt());
+        let w_min = lambda_min.max(floor).sqrt();
         let theta0 = self.mean.length().atan();
-        let n_z = (64.0 / (w * w)).ceil().clamp(64.0, 16384.0) as usize;
-        let n_phi = (8.0 * PI * (theta0 + w) / w).ceil().clamp(64.0, 4096.0) as usize;
+        let n_z = (8.0 / (w_min * w_min)).ceil().clamp(64.0, 16384.0) as usize;
+        let n_phi = (4.0 * PI * (theta0 + w) / w_min).ceil().clamp(64.0, 4096.0) as usize;
         let n_phi = n_phi.min(((1usize << 20) / n_z).max(64));
-        match Tabulated::from_fn(EqualAreaGrid::new(n_z, n_phi), 3, |m| self.density(m)) {
+        match Tabulated::from_fn(EqualAreaGrid::new(n_z, n_phi), 3, |m| b.density(m)) {
             Ok(t) => Ndf::Tabulated(t),
             Err(_) => phong(vec![self.to_phong_lobe()]),
         }
