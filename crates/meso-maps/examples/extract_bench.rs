@@ -5,19 +5,35 @@
 //! ```text
 //! CARGO_TARGET_DIR=/work/targets/maps cargo run --release -p meso-maps --example extract_bench
 //! ```
+use glam::DVec3;
+use meso_core::convolution::{effective_brdf_with, Accuracy, Form, Visibility};
 use meso_core::frame::spherical_direction_deg as dir;
-use meso_maps::fit::ndf_l2_error;
+use meso_core::ndf::{Ndf, PhongPeaks};
+use meso_core::transfer::{PhongVariant, Transfer};
+use meso_maps::fit::{ndf_bin_mass, ndf_l2_error};
 use meso_maps::*;
 use std::time::Instant;
 
-fn brdf_error(ndf: &PatchNdf, exact: &EffectiveBrdf, facet: &dyn FacetBrdf) -> f64 {
-    let fit = EffectiveBrdf::new(ndf, 48, Shadowing::None, Form::Microfacet);
+/// The core's microfacet form without masking.
+fn eval(ndf: &Ndf, facet: &Transfer, i: DVec3, o: DVec3) -> f64 {
+    effective_brdf_with(
+        ndf,
+        facet,
+        Form::Microfacet,
+        Visibility::None,
+        i,
+        o,
+        Accuracy::default(),
+    )[0]
+}
+
+fn brdf_error(ndf: &Ndf, exact: &Ndf, facet: &Transfer) -> f64 {
     let mut vals = Vec::new();
     for ti in [0.0, 30.0, 60.0] {
         for to in [0.0, 20.0, 45.0, 60.0] {
             for po in [0.0, 90.0, 180.0] {
                 let (i, o) = (dir(ti, 0.0), dir(to, po));
-                vals.push((fit.eval(facet, i, o)[0], exact.eval(facet, i, o)[0]));
+                vals.push((eval(ndf, facet, i, o), eval(exact, facet, i, o)));
             }
         }
     }
@@ -43,24 +59,21 @@ fn main() {
         ),
         ("woven", fixtures::woven(128, 16, 0.1, 0.05).unwrap()),
     ];
-    let phong = PhongFacet {
+    let phong = Transfer::Phong {
         exponent: 20.0,
         specular: [1.0; 3],
+        variant: PhongVariant::Half,
     };
     println!("map        method     top-level NDF L2 (rel)  BRDF err (Phong 20, of peak)  lobes");
     for (name, map) in &maps {
-        let facets = FacetNormals::from_heightmap(map, NormalMode::Triangles).normalized();
-        let exact = EffectiveBrdf::new(
-            &PatchNdf::Facets(facets.clone()),
-            1,
-            Shadowing::None,
-            Form::Microfacet,
-        );
+        let fnorm = FacetNormals::from_heightmap(map, NormalMode::Triangles);
+        let facets = fnorm.normalized();
+        let exact = fnorm.to_deltas().unwrap();
         for k in [1, 2, 4, 7] {
             let mut p = ExtractParams::default();
             p.fit.max_lobes = k;
             let pyr = extract(Source::Heights(map), &p, &mut |_| {}).unwrap();
-            let ndf = PatchNdf::Lobes(pyr.top().lobes.clone());
+            let ndf = Ndf::PhongPeaks(PhongPeaks::new(pyr.top().lobes.clone()).unwrap());
             println!(
                 "{name:<10} K={k:<7} {:<23.4} {:<29.4} {}",
                 pyr.top().residual.mean,
@@ -75,7 +88,7 @@ fn main() {
             Baseline::Vmf,
         ] {
             let ndf = fit_baseline(b, &facets);
-            let e = ndf_l2_error(facets.iter().copied(), |g, out| ndf.bin_mass(g, out));
+            let e = ndf_l2_error(facets.iter().copied(), |g, out| ndf_bin_mass(&ndf, g, out));
             println!(
                 "{name:<10} {:<9} {:<23.4} {:<29.4} 1",
                 format!("{b:?}"),
@@ -90,14 +103,13 @@ fn main() {
         0.2 * (2.0 * ((x + y) / 0.75).rem_euclid(1.0) - 1.0).abs()
     })
     .unwrap();
-    let tri =
-        PatchNdf::Facets(FacetNormals::from_heightmap(vg, NormalMode::Triangles).normalized());
-    let cd = PatchNdf::Facets(
-        FacetNormals::from_heightmap(vg, NormalMode::CentralDifferences).normalized(),
-    );
     let (a, b) = (
-        EffectiveBrdf::new(&tri, 1, Shadowing::None, Form::Microfacet),
-        EffectiveBrdf::new(&cd, 1, Shadowing::None, Form::Microfacet),
+        FacetNormals::from_heightmap(vg, NormalMode::Triangles)
+            .to_deltas()
+            .unwrap(),
+        FacetNormals::from_heightmap(vg, NormalMode::CentralDifferences)
+            .to_deltas()
+            .unwrap(),
     );
     let mut worst: f64 = 0.0;
     for (i, o) in [
@@ -105,7 +117,7 @@ fn main() {
         (dir(30.0, 0.0), dir(30.0, 180.0)),
         (dir(45.0, 0.0), dir(10.0, 0.0)),
     ] {
-        let (x, y) = (a.eval(&phong, i, o)[0], b.eval(&phong, i, o)[0]);
+        let (x, y) = (eval(&a, &phong, i, o), eval(&b, &phong, i, o));
         println!("v-grooves triangles vs central differences: i={i:.3} o={o:.3}: {x:.4} vs {y:.4}");
         worst = worst.max((x - y).abs() / x.max(y));
     }

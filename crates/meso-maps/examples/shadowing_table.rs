@@ -6,7 +6,11 @@
 //! ```text
 //! CARGO_TARGET_DIR=/work/targets/maps cargo run --release -p meso-maps --example shadowing_table
 //! ```
+use meso_core::convolution::{effective_brdf_with, Accuracy, Form, Visibility};
 use meso_core::frame::spherical_direction_deg as dir;
+use meso_core::ndf::{Ndf, PhongPeaks};
+use meso_core::transfer::Transfer;
+use meso_core::visibility::VisibilityModel;
 use meso_maps::*;
 
 fn main() {
@@ -34,7 +38,7 @@ fn main() {
         (85.0, 0.0, 45.0, 180.0),
         (75.0, 90.0, 75.0, 270.0),
     ];
-    let facet = Lambert { albedo: [1.0; 3] };
+    let facet = Transfer::Lambert { albedo: [1.0; 3] };
     let gp = GonioParams {
         rays_per_side: 128,
         ..Default::default()
@@ -44,12 +48,16 @@ fn main() {
     for (name, map) in &maps {
         let pyr = extract(Source::Heights(map), &ExtractParams::default(), &mut |_| {}).unwrap();
         let top = pyr.top();
-        let ndf = PatchNdf::Lobes(top.lobes.clone());
+        let ndf = Ndf::PhongPeaks(PhongPeaks::new(top.lobes.clone()).unwrap());
         let hz = top.texel_horizon(0, 0).unwrap().unwrap();
+        // The horizon model of a texel, as `meso brdf` gets it from a map (`[shadowing] kind =
+        // "horizon"`).
+        let hv = HorizonVisibility(hz);
+        let horizon = |i: glam::DVec3, o: glam::DVec3| hv.g(i, o);
         let models = [
-            EffectiveBrdf::new(&ndf, 48, Shadowing::Smith, Form::Microfacet),
-            EffectiveBrdf::new(&ndf, 48, Shadowing::Horizon(hz), Form::Microfacet),
-            EffectiveBrdf::new(&ndf, 48, Shadowing::None, Form::Microfacet),
+            Visibility::Smith,
+            Visibility::Custom(&horizon),
+            Visibility::None,
         ];
         let gonio = Gonio::new(map).unwrap();
         let mut row = format!("| {name} |");
@@ -59,7 +67,15 @@ fn main() {
                 let (i, o) = (dir(ti, pi), dir(to, po));
                 let g = gonio.measure(&facet, i, o, &gp)[0];
                 for (w, m) in worst.iter_mut().zip(&models) {
-                    let v = m.eval(&facet, i, o)[0];
+                    let v = effective_brdf_with(
+                        &ndf,
+                        &facet,
+                        Form::Microfacet,
+                        *m,
+                        i,
+                        o,
+                        Accuracy::default(),
+                    )[0];
                     *w = w.max((v - g).abs() / g.max(1e-12));
                 }
             }

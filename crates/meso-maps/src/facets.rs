@@ -138,4 +138,25 @@ impl FacetNormals {
             .map(|(n, w)| (*n, w / total))
             .collect()
     }
+
+    /// Every facet as a delta of the core's delta-sum NDF (`Ndf::Deltas`, Eq. 3, weights the
+    /// normalised true areas): the exact Eq. 1 density of the whole map, unmerged (for the
+    /// binned form with per-bin visibility see `crate::resolver::facets_with_visibility`).
+    ///
+    /// # Errors
+    /// No facet with a positive weight.
+    pub fn to_deltas(&self) -> Result<meso_core::ndf::Ndf, meso_core::NdfError> {
+        let normals = self
+            .normals
+            .iter()
+            .zip(&self.weights)
+            .map(|(n, w)| meso_core::ndf::WeightedNormal {
+                normal: *n,
+                weight: *w,
+            })
+            .collect();
+        Ok(meso_core::ndf::Ndf::Deltas(meso_core::ndf::DeltaSum::new(
+            normals,
+        )?))
+    }
 }

@@ -1078,6 +1078,47 @@ pub fn lobe_bin_mass(lobes: &[PhongLobe], grid: SphereGrid, out: &mut [f64]) {
     }
 }
 
+/// Probability of each bin of `grid` under any core NDF (`∫ n = 1`): Phong peaks by
+/// [`lobe_bin_mass`], delta sums by their histogram, a vMF lobe narrower than a quarter of a bin
+/// in the bin of its axis, other densities (vMF, tabulated) with 3×3 points per bin,
+/// renormalised (a density the points all miss goes to the bin of its mean normal). `out` has
+/// `grid.bins()` entries.
+pub fn ndf_bin_mass(ndf: &meso_core::ndf::Ndf, grid: SphereGrid, out: &mut [f64]) {
+    use meso_core::ndf::Ndf;
+    out.fill(0.0);
+    let da = grid.bin_solid_angle();
+    match ndf {
+        Ndf::PhongPeaks(p) => return lobe_bin_mass(p.lobes(), grid, out),
+        Ndf::Deltas(d) => {
+            for n in d.normals() {
+                out[grid.bin(n.normal)] += n.weight;
+            }
+            return;
+        }
+        Ndf::VonMisesFisher(v) if 1.0 / (v.kappa + 1.0).sqrt() < 0.25 * da.sqrt() => {
+            out[grid.bin(v.mu)] = 1.0;
+            return;
+        }
+        _ => {}
+    }
+    let mut tot = 0.0;
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut s = 0.0;
+        for a in 0..3 {
+            for b in 0..3 {
+                s += ndf.eval(grid.point(k, (a as f64 + 0.5) / 3.0, (b as f64 + 0.5) / 3.0));
+            }
+        }
+        *o = s / 9.0 * da;
+        tot += *o;
+    }
+    if tot > 0.0 {
+        out.iter_mut().for_each(|o| *o /= tot);
+    } else {
+        out[grid.bin(ndf.stats().mean_normal.normalize_or(DVec3::Z))] = 1.0;
+    }
+}
+
 /// Relative L2 error `‖P_fit − P_hist‖ / ‖P_hist‖` between the lobes' bin probabilities and the
 /// histogram of `(normal, weight)` pairs on a [`RESIDUAL_GRID_RES`]² equal-area grid. Because
 /// the bins have equal solid angle this equals the relative L2 error of the bin-averaged NDFs.

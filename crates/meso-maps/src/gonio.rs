@@ -10,15 +10,19 @@
 //! [`GonioParams::bounces`] > 1 adds light inter-reflected between facets (path tracing with
 //! cosine-weighted continuation and a shadow ray at every hit).
 //!
+//! `f_μ` is a `meso_core::transfer::Transfer`, the very facet BRDF that
+//! `meso_core::convolution::effective_brdf_with` (and so `meso brdf` and the renderer)
+//! convolves with the NDF: the measurement checks that code, not a copy of it.
+//!
 //! Acceleration: a 2-D DDA over the grid cells with the per-cell maximum height; a ray is
 //! tested against a cell's two triangles only where its height range over the cell reaches
 //! below that maximum. The triangles are those of `crate::facets` (diagonal `(i,j)–(i+1,j+1)`).
 
-use crate::brdf::FacetBrdf;
 use crate::error::{MapError, Result};
 use crate::heightmap::{Border, HeightMap};
 use glam::DVec3;
 use meso_core::frame::Frame;
+use meso_core::transfer::Transfer;
 use rand::RngExt;
 use rand::SeedableRng;
 use rayon::prelude::*;
@@ -236,15 +240,11 @@ impl Gonio {
     }
 
     /// Measure the BRDF (1/sr, RGB) for light direction `i` and view direction `o` (unit, macro
-    /// frame, both with z > 0).
+    /// frame, both with z > 0). The facet BRDF `facet` is the core's transfer function,
+    /// evaluated in the facet frame `Frame::from_normal_tangent(m, DVec3::X)` exactly as
+    /// `meso_core::convolution` evaluates it.
     #[must_use]
-    pub fn measure(
-        &self,
-        facet: &dyn FacetBrdf,
-        i: DVec3,
-        o: DVec3,
-        params: &GonioParams,
-    ) -> [f64; 3] {
+    pub fn measure(&self, facet: &Transfer, i: DVec3, o: DVec3, params: &GonioParams) -> [f64; 3] {
         if i.z <= 0.0 || o.z <= 0.0 {
             return [0.0; 3];
         }

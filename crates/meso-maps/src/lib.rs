@@ -3,9 +3,12 @@
 //! Bump maps to multiple surfaces (Fournier 1992, §3.2, and "Filtering Normal Maps and Creating
 //! Multiple Surfaces", UBC TR-92-41): height maps → meso-normals → a pyramid of per-texel NDFs
 //! fitted as sums of Phong peaks, with filtered horizon angles for masking and self-shadowing;
-//! the effective BRDF of a patch in microfacet form; a map file; a virtual gonioreflectometer
-//! that ray-traces the height field to check all of it; baselines (mip normal, Toksvig, LEAN,
-//! vMF).
+//! a map file; a virtual gonioreflectometer that ray-traces the height field to check all of it;
+//! baselines (mip normal, Toksvig, LEAN, vMF). Every NDF here is handed to the core as a
+//! `meso_core::ndf::Ndf` (fitted lobes `Ndf::PhongPeaks`, raw facets `Ndf::Deltas`), and its
+//! effective BRDF is `meso_core::convolution::effective_brdf_with`, with the masking of this
+//! crate's [`HorizonVisibility`] / [`FacetVisibility`] or the core's Smith: one convolution
+//! engine for `meso brdf`, the renderer and the gonioreflectometer's comparisons.
 //!
 //! Conventions are those of `meso_core::frame`: the macro surface has its normal on +z, x along
 //! the map's columns, y along its rows; directions are unit vectors pointing away from the
@@ -20,7 +23,7 @@
 //! ```
 #![warn(missing_docs)]
 
-pub mod brdf;
+pub mod baseline;
 pub mod error;
 pub mod facet_cache;
 pub mod facets;
@@ -35,10 +38,7 @@ pub mod resolver;
 pub mod sphgrid;
 pub mod visibility;
 
-pub use brdf::{
-    fit_baseline, Baseline, EffectiveBrdf, FacetBrdf, Form, Lambert, PatchNdf, PhongFacet,
-    Shadowing,
-};
+pub use baseline::{baseline_lobes, fit_baseline, Baseline, Lean};
 pub use error::{MapError, Result};
 pub use facets::{FacetNormals, NormalMode};
 pub use fit::FitParams;

@@ -48,9 +48,9 @@ pub enum Method {
     /// Up to `max_lobes` fitted Phong peaks (the multiple surface).
     #[default]
     Lobes,
-    /// A single-lobe baseline, converted to one Phong peak (`PatchNdf::to_phong_lobes`): the
-    /// map file stores isotropic Phong lobes only, so LEAN is isotropised.
-    Baseline(crate::brdf::Baseline),
+    /// A single-lobe baseline, converted to one Phong peak ([`crate::baseline::baseline_lobes`]):
+    /// the map file stores isotropic Phong lobes only, so LEAN is isotropised.
+    Baseline(crate::baseline::Baseline),
 }
 
 impl Default for ExtractParams {
@@ -424,7 +424,7 @@ pub fn extract(
                             let pts: Vec<(glam::DVec3, f64)> =
                                 merged.iter().map(|e| (e.mean(), e.w)).collect();
                             lobes.clear();
-                            lobes.extend(crate::brdf::fit_baseline(b, &pts).to_phong_lobes());
+                            lobes.extend(crate::baseline::baseline_lobes(b, &pts));
                         }
                     }
                     out.entries.extend_from_slice(&merged);

@@ -1,7 +1,10 @@
 //! Integration tests of meso-maps against independent truth.
 
 use glam::DVec3;
+use meso_core::convolution::{effective_brdf_with, Accuracy, Form, SmithMasking, Visibility};
 use meso_core::frame::spherical_direction_deg as dir;
+use meso_core::ndf::{Ndf, PhongLobe, PhongPeaks};
+use meso_core::transfer::{PhongVariant, Transfer};
 use meso_maps::fit::ETA_MAX;
 use meso_maps::*;
 
@@ -15,7 +18,33 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs().max(1e-12)
 }
 
-const LAMBERT: Lambert = Lambert { albedo: [1.0; 3] };
+const LAMBERT: Transfer = Transfer::Lambert { albedo: [1.0; 3] };
+
+/// Eq. 10 as written, the half-vector form: `specular · max(0, N·H)^η`.
+fn phong(exponent: f64, specular: [f64; 3]) -> Transfer {
+    Transfer::Phong {
+        exponent,
+        specular,
+        variant: PhongVariant::Half,
+    }
+}
+
+/// Fitted lobes as the core NDF.
+fn lobes_ndf(lobes: &[PhongLobe]) -> Ndf {
+    Ndf::PhongPeaks(PhongPeaks::new(lobes.to_vec()).unwrap())
+}
+
+/// Every triangle of a map as a delta (the brute-force reference).
+fn facets_ndf(map: &HeightMap) -> Ndf {
+    FacetNormals::from_heightmap(map, NormalMode::Triangles)
+        .to_deltas()
+        .unwrap()
+}
+
+/// The core's microfacet form (`meso brdf`, the renderer) at its default accuracy.
+fn microfacet(ndf: &Ndf, t: &Transfer, vis: Visibility<'_>, i: DVec3, o: DVec3) -> [f64; 3] {
+    effective_brdf_with(ndf, t, Form::Microfacet, vis, i, o, Accuracy::default())
+}
 
 mod inputs {
     use super::*;
@@ -686,13 +715,8 @@ mod shadowing {
         // For a symmetric V-groove with wall slope s, in the plane of the grooves:
         // 1 + Λ(ω) = (Σ_m p_m max(0, ω·m)/m_z)/cos θ = (½)(|tanθ| + s)... for tanθ > s: tanθ/tanθ=1.
         let map = fixtures::v_grooves(16, 8, 0.1, 0.05).unwrap();
-        let f = FacetNormals::from_heightmap(&map, NormalMode::Triangles);
-        let b = EffectiveBrdf::new(
-            &PatchNdf::Facets(f.normalized()),
-            1,
-            Shadowing::Smith,
-            Form::Microfacet,
-        );
+        let ndf = facets_ndf(&map);
+        let b = SmithMasking::new(&ndf, Accuracy::default());
         let s: f64 = 2.0 * 0.1 / 0.4;
         for t in [10.0f64, 40.0, 70.0, 85.0] {
             let w = dir(t, 0.0);
@@ -706,10 +730,6 @@ mod shadowing {
 
 mod brdf {
     use super::*;
-
-    fn facets(map: &HeightMap) -> PatchNdf {
-        PatchNdf::Facets(FacetNormals::from_heightmap(map, NormalMode::Triangles).normalized())
-    }
 
     fn pairs() -> Vec<(DVec3, DVec3)> {
         let mut v = Vec::new();
@@ -725,10 +745,7 @@ mod brdf {
 
     #[test]
     fn top_level_lobes_match_brute_force_facet_sum() {
-        let phong = PhongFacet {
-            exponent: 20.0,
-            specular: [1.0; 3],
-        };
+        let phong = phong(20.0, [1.0; 3]);
         for (name, map) in [
             (
                 "gaussian",
@@ -740,15 +757,19 @@ mod brdf {
             ),
         ] {
             let p = pyr(&map, 7);
-            let lobes = PatchNdf::Lobes(p.top().texel_lobes(0, 0).unwrap().to_vec());
-            let fit = EffectiveBrdf::new(&lobes, 48, Shadowing::None, Form::Microfacet);
-            let exact = EffectiveBrdf::new(&facets(&map), 1, Shadowing::None, Form::Microfacet);
+            let fit = lobes_ndf(p.top().texel_lobes(0, 0).unwrap());
+            let exact = facets_ndf(&map);
             // Errors relative to the largest value of the set (a peaked BRDF's far tail is
             // reported, not bounded: see docs/heightmaps.md).
-            for f in [&LAMBERT as &dyn FacetBrdf, &phong] {
+            for f in [&LAMBERT, &phong] {
                 let vals: Vec<(f64, f64)> = pairs()
                     .into_iter()
-                    .map(|(i, o)| (fit.eval(f, i, o)[0], exact.eval(f, i, o)[0]))
+                    .map(|(i, o)| {
+                        (
+                            microfacet(&fit, f, Visibility::None, i, o)[0],
+                            microfacet(&exact, f, Visibility::None, i, o)[0],
+                        )
+                    })
                     .collect();
                 let peak = vals.iter().map(|v| v.1).fold(0.0, f64::max);
                 let worst = vals
@@ -763,13 +784,10 @@ mod brdf {
     #[test]
     fn flat_facet_sum_is_the_facet_brdf() {
         let map = fixtures::flat(8, 0.1).unwrap();
-        let b = EffectiveBrdf::new(&facets(&map), 1, Shadowing::Smith, Form::Microfacet);
-        let phong = PhongFacet {
-            exponent: 30.0,
-            specular: [1.0, 0.5, 0.25],
-        };
+        let b = facets_ndf(&map);
+        let phong = phong(30.0, [1.0, 0.5, 0.25]);
         for (i, o) in pairs() {
-            let a = b.eval(&phong, i, o);
+            let a = microfacet(&b, &phong, Visibility::Smith, i, o);
             let e = phong.eval(i, o);
             for c in 0..3 {
                 assert!((a[c] - e[c]).abs() < 1e-12 * (1.0 + e[c]));
@@ -789,7 +807,17 @@ mod brdf {
             Baseline::Vmf,
         ] {
             let ndf = fit_baseline(m, &normals);
-            let nodes = ndf.nodes(64);
+            // 64² draws of the core NDF's own sampler on a Fibonacci lattice (every draw its
+            // own stratum in both coordinates: the tabulated sampler picks its cell from u₀
+            // alone), equal weights.
+            let n = 64 * 64;
+            let golden = 0.5 * (5f64.sqrt() - 1.0);
+            let nodes: Vec<(DVec3, f64)> = (0..n)
+                .map(|k| {
+                    let u = [(k as f64 + 0.5) / n as f64, (k as f64 * golden).fract()];
+                    (ndf.sample(u), 1.0 / n as f64)
+                })
+                .collect();
             let s: f64 = nodes.iter().map(|p| p.1).sum();
             let nm: DVec3 = nodes.iter().map(|(n, w)| *n * *w).sum();
             assert!((s - 1.0).abs() < 1e-9);
@@ -799,7 +827,7 @@ mod brdf {
             if m != Baseline::MipNormal {
                 let g = meso_maps::sphgrid::SphereGrid { res: 128 };
                 let tot: f64 = (0..g.bins())
-                    .map(|k| ndf.density(g.point(k, 0.5, 0.5)))
+                    .map(|k| ndf.eval(g.point(k, 0.5, 0.5)))
                     .sum::<f64>()
                     * g.bin_solid_angle();
                 assert!((tot - 1.0).abs() < 2e-2, "{m:?}: {tot}");
@@ -815,10 +843,7 @@ mod gonio {
     fn flat_map_gives_exactly_the_facet_brdf() {
         let map = fixtures::flat(8, 0.1).unwrap();
         let g = Gonio::new(&map).unwrap();
-        let phong = PhongFacet {
-            exponent: 10.0,
-            specular: [1.0; 3],
-        };
+        let phong = phong(10.0, [1.0; 3]);
         let gp = GonioParams {
             rays_per_side: 16,
             ..Default::default()
@@ -839,10 +864,7 @@ mod gonio {
         // neither mask nor shadow, so the gonio result is the plain facet sum.
         let map = fixtures::v_grooves(16, 8, 0.1, 0.05).unwrap();
         let g = Gonio::new(&map).unwrap();
-        let ndf = PatchNdf::Facets(
-            FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized(),
-        );
-        let sum = EffectiveBrdf::new(&ndf, 1, Shadowing::None, Form::Microfacet);
+        let ndf = facets_ndf(&map);
         let gp = GonioParams {
             rays_per_side: 64,
             ..Default::default()
@@ -852,7 +874,7 @@ mod gonio {
             (dir(0.0, 0.0), dir(20.0, 90.0)),
         ] {
             let a = g.measure(&LAMBERT, i, o, &gp)[0];
-            let b = sum.eval(&LAMBERT, i, o)[0];
+            let b = microfacet(&ndf, &LAMBERT, Visibility::None, i, o)[0];
             assert!(rel(a, b) < 0.01, "{a} vs {b}");
         }
     }
@@ -861,11 +883,7 @@ mod gonio {
     fn random_surface_gonio_matches_microfacet_smith() {
         let map = fixtures::gaussian(64, 4.0, 0.12, 21, 0.1).unwrap();
         let g = Gonio::new(&map).unwrap();
-        let ndf = PatchNdf::Facets(
-            FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized(),
-        );
-        let smith = EffectiveBrdf::new(&ndf, 1, Shadowing::Smith, Form::Microfacet);
-        let none = EffectiveBrdf::new(&ndf, 1, Shadowing::None, Form::Microfacet);
+        let ndf = facets_ndf(&map);
         let gp = GonioParams {
             rays_per_side: 160,
             ..Default::default()
@@ -881,8 +899,10 @@ mod gonio {
         ] {
             let (i, o) = (dir(ti, 0.0), dir(to, po));
             let a = g.measure(&LAMBERT, i, o, &gp)[0];
-            worst_smith = worst_smith.max(rel(smith.eval(&LAMBERT, i, o)[0], a));
-            worst_none = worst_none.max(rel(none.eval(&LAMBERT, i, o)[0], a));
+            let smith = microfacet(&ndf, &LAMBERT, Visibility::Smith, i, o)[0];
+            let none = microfacet(&ndf, &LAMBERT, Visibility::None, i, o)[0];
+            worst_smith = worst_smith.max(rel(smith, a));
+            worst_none = worst_none.max(rel(none, a));
         }
         assert!(worst_smith < 0.05, "Smith vs gonio: {worst_smith}");
         assert!(
@@ -930,12 +950,10 @@ mod gonio {
         let grooves = bumps.negated();
         // Same NDF: the two normal sets are mirror images about the groove axis (x → −x) and
         // the set is symmetric, so their histograms coincide.
-        let hb = FacetNormals::from_heightmap(&bumps, NormalMode::Triangles).normalized();
-        let hg = FacetNormals::from_heightmap(&grooves, NormalMode::Triangles).normalized();
         let grid = meso_maps::sphgrid::SphereGrid { res: 32 };
         let (mut a, mut b) = (vec![0.0; grid.bins()], vec![0.0; grid.bins()]);
-        PatchNdf::Facets(hb).bin_mass(grid, &mut a);
-        PatchNdf::Facets(hg).bin_mass(grid, &mut b);
+        meso_maps::fit::ndf_bin_mass(&facets_ndf(&bumps), grid, &mut a);
+        meso_maps::fit::ndf_bin_mass(&facets_ndf(&grooves), grid, &mut b);
         let d: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).sum();
         assert!(d < 0.02, "histograms differ by {d}");
         // Different BRDFs at grazing light across the cylinders.
@@ -965,9 +983,54 @@ mod gonio {
 /// and the effective BRDF is the core's microfacet form.
 mod convention {
     use super::*;
-    use meso_core::convolution::{effective_brdf_with, Accuracy, Form as CoreForm, Visibility};
-    use meso_core::ndf::{Ndf, PhongPeaks};
-    use meso_core::transfer::Transfer;
+    use meso_core::frame::Frame;
+
+    /// An independent reference for the microfacet form over Phong peaks: `n × n` stratified
+    /// draws of each lobe's exact sampler, each carrying `weight/n²`, summed with Smith `Λ` from
+    /// the same nodes (not the core's warped product rule).
+    fn stratified_microfacet(
+        lobes: &[PhongLobe],
+        n: usize,
+        smith: bool,
+        t: &Transfer,
+        i: DVec3,
+        o: DVec3,
+    ) -> f64 {
+        let mut nodes = Vec::new();
+        for l in lobes {
+            for a in 0..n {
+                for b in 0..n {
+                    let u = [(a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64];
+                    nodes.push((l.sample(u), l.weight / (n * n) as f64));
+                }
+            }
+        }
+        let tot: f64 = nodes.iter().map(|p| p.1).sum();
+        let projected: f64 = nodes.iter().map(|p| p.1 * p.0.z.max(0.0)).sum::<f64>() / tot;
+        let lambda = |w: DVec3| {
+            let s: f64 = nodes
+                .iter()
+                .filter(|p| p.0.z > 0.0)
+                .map(|p| p.1 * w.dot(p.0).max(0.0))
+                .sum();
+            (s / (tot * projected * w.z) - 1.0).max(0.0)
+        };
+        let g = if smith {
+            1.0 / (1.0 + lambda(i) + lambda(o))
+        } else {
+            1.0
+        };
+        let mut acc = 0.0;
+        for (m, w) in &nodes {
+            let (im, om) = (i.dot(*m), o.dot(*m));
+            if m.z <= 0.0 || im <= 0.0 || om <= 0.0 {
+                continue;
+            }
+            let fr = Frame::from_normal_tangent(*m, DVec3::X);
+            acc += w / tot * t.eval(fr.to_local(i), fr.to_local(o))[0] * im * om;
+        }
+        acc * g / (projected * i.z * o.z)
+    }
 
     #[test]
     fn lobe_weights_are_true_area_shares() {
@@ -1001,41 +1064,29 @@ mod convention {
         let f = FacetNormals::from_heightmap(&map, NormalMode::Triangles).normalized();
         let steep: f64 = f.iter().filter(|(n, _)| n.x < 0.0).map(|p| p.1).sum();
         assert!((steep - a1 / (a1 + a2)).abs() < 1e-12);
-        // The effective BRDF's projected area ∫ n m_z is the macro/micro area ratio.
-        let b = EffectiveBrdf::new(&PatchNdf::Facets(f), 1, Shadowing::None, Form::Microfacet);
-        assert!((b.projected_area() - 1.0 / (a1 + a2)).abs() < 1e-12);
+        // The microfacet form's projected area ∫ n m_z is the macro/micro area ratio.
+        let ndf = facets_ndf(&map);
+        let b = SmithMasking::new(&ndf, Accuracy::default());
+        assert!((b.projected_area - 1.0 / (a1 + a2)).abs() < 1e-12);
     }
 
     #[test]
     fn effective_brdf_is_the_core_microfacet_form() {
-        // Smooth lobes from a Gaussian surface, evaluated by meso-core's own quadrature.
+        // Smooth lobes from a Gaussian surface: meso-core's quadrature (what `meso brdf` and
+        // the renderer run, at the accuracy of the materials) against stratified lobe samples.
         let map = fixtures::gaussian(64, 3.0, 0.15, 11, 0.1).unwrap();
         let p = pyr(&map, 3);
         let lobes = p.top().texel_lobes(0, 0).unwrap().to_vec();
-        let core = Ndf::PhongPeaks(PhongPeaks::new(lobes.clone()).unwrap());
-        let transfer = Transfer::Lambert { albedo: [1.0; 3] };
-        let acc = Accuracy {
-            radial: 64,
-            azimuth: 96,
-        };
-        for (shadow, vis) in [
-            (Shadowing::None, Visibility::None),
-            (Shadowing::Smith, Visibility::Smith),
-        ] {
-            let ours = EffectiveBrdf::new(
-                &PatchNdf::Lobes(lobes.clone()),
-                64,
-                shadow,
-                Form::Microfacet,
-            );
+        let core = lobes_ndf(&lobes);
+        let transfer = LAMBERT;
+        for (smith, vis) in [(false, Visibility::None), (true, Visibility::Smith)] {
             for (ti, to, po) in [(0.0, 0.0, 0.0), (30.0, 45.0, 180.0), (60.0, 20.0, 90.0)] {
                 let (i, o) = (dir(ti, 0.0), dir(to, po));
-                let a = ours.eval(&transfer, i, o)[0];
-                let b =
-                    effective_brdf_with(&core, &transfer, CoreForm::Microfacet, vis, i, o, acc)[0];
+                let a = stratified_microfacet(&lobes, 64, smith, &transfer, i, o);
+                let b = microfacet(&core, &transfer, vis, i, o)[0];
                 assert!(
                     rel(a, b) < 0.01,
-                    "{shadow:?} θi {ti} θo {to}: {a} vs core {b}"
+                    "Smith {smith} θi {ti} θo {to}: {a} vs core {b}"
                 );
             }
         }
