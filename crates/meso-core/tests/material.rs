@@ -78,6 +78,10 @@ fn bad_materials_are_refused_with_a_message_naming_the_problem() {
         ("[texture]\nkind = \"ndf-mapped\"\n", "for scene files"),
         ("form = \"sideways\"\n", "form"),
         ("[shadowing]\nkind = \"horizon\"\n", "horizon"),
+        ("[shadowing]\nkind = \"smith\"\ninterreflection = true\n", "unknown key `interreflection`"),
+        ("[shadowing]\nkind = \"visibility\"\ninterreflection = 3\n", "interreflection"),
+        // Lambert facets, but no height map: the visibility has nothing to come from.
+        ("[shadowing]\nkind = \"visibility\"\ninterreflection = true\n", "height-map"),
         ("[ndf\n", "not valid TOML"),
     ];
     for (extra, needle) in cases {
@@ -101,6 +105,12 @@ fn bad_materials_are_refused_with_a_message_naming_the_problem() {
         .unwrap_err()
         .0
         .contains("exponent"));
+    let glossy_interreflected = "[transfer]\nkind = \"phong\"\nexponent = 20\n\
+        [shadowing]\nkind = \"visibility\"\ninterreflection = true\n";
+    assert!(Material::from_toml_str(glossy_interreflected)
+        .unwrap_err()
+        .0
+        .contains("Lambert facets"));
     let mirror_on_deltas = "[transfer]\nkind = \"mirror\"\n";
     assert!(Material::from_toml_str(mirror_on_deltas)
         .unwrap_err()
