@@ -172,10 +172,11 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     Ok(Some(shader))
 }
 
-/// `filter` of a `[texture]` table: `"trilinear"` (default) or `"box"`, NDF-mapped only.
+/// `filter` of a `[texture]` table: `"box"` (default: the closer to the supersampled bump map
+/// on every map measured, docs/heightmaps.md "Steep maps") or `"trilinear"`, NDF-mapped only.
 fn box_filter(tex: &toml::Table, kind: &str) -> Result<bool, String> {
     match tex.get("filter") {
-        None => Ok(false),
+        None => Ok(true),
         Some(_) if kind != "ndf-mapped" => {
             Err("[texture] filter: applies to kind = \"ndf-mapped\"".to_string())
         }
