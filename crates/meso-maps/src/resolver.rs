@@ -69,6 +69,51 @@ impl VisibilityModel for FacetVisibility {
     }
 }
 
+/// The estimated peak memory (bytes) of [`facets_with_visibility`] on a map of `cols × rows`
+/// cells with `per_cell` facets each and `samples` height samples: the facets and their bin
+/// entries, each facet's horizons at [`crate::visibility::AZIMUTHS`] azimuths (per sample point)
+/// and their binned copy, and the horizon map.
+#[must_use]
+pub fn facets_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) -> u64 {
+    let facets = (cols as u64)
+        .saturating_mul(rows as u64)
+        .saturating_mul(per_cell as u64);
+    let points = crate::visibility::points_per_facet(facets as usize) as u64;
+    let horizons = 4 * crate::visibility::AZIMUTHS as u64;
+    facets
+        .saturating_mul(32 + 40 + 8 + horizons * points + horizons + 8)
+        .saturating_add((samples as u64).saturating_mul(48))
+}
+
+/// Check the memory of loading the height map `file` and of `task` (its estimate from the
+/// image's header: `work(cols, rows, per_cell, samples)`) against the budget.
+fn check_heightmap_budget(
+    file: &Path,
+    p: &HeightmapParams,
+    task: &str,
+    work: impl Fn(usize, usize, usize, usize) -> u64,
+) -> Result<(), MaterialError> {
+    if !std::fs::metadata(file).is_ok_and(|m| m.is_file()) {
+        return Ok(());
+    }
+    let Ok(h) = crate::heightmap::probe(file) else {
+        return Ok(());
+    };
+    let (w, hgt) = (h.width as usize, h.height as usize);
+    let (cols, rows) = match p.border {
+        Border::Wrap => (w, hgt),
+        Border::Clamp => (w.saturating_sub(1), hgt.saturating_sub(1)),
+    };
+    let per_cell = match p.normal_mode {
+        NormalMode::Triangles => 2,
+        NormalMode::CentralDifferences => 1,
+    };
+    let estimate = h
+        .height_map_bytes()
+        .saturating_add(work(cols, rows, per_cell, w * hgt));
+    meso_core::budget::check(file, task, estimate).map_err(|e| MaterialError(format!("[ndf]: {e}")))
+}
+
 /// The facets of a height map as a delta-sum NDF (merged per ≈ 0.8° bin of the fit's entry
 /// grid, each bin's area-weighted mean normal) with each bin's visibility
 /// ([`crate::visibility`]).
@@ -366,6 +411,18 @@ impl MapsResolver {
         if let Some(p) = self.cache_get(&key) {
             return Ok(p);
         }
+        check_heightmap_budget(
+            file,
+            &HeightmapParams {
+                texel_size,
+                height_scale,
+                max_lobes,
+                border,
+                normal_mode,
+            },
+            "extracting the NDF pyramid",
+            crate::pyramid::extract_bytes,
+        )?;
         let map = HeightMap::load(file, texel_size, height_scale, border)
             .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let mut params = ExtractParams {
@@ -401,6 +458,12 @@ impl MapsResolver {
         file: &Path,
     ) -> Result<ResolvedNdf, MaterialError> {
         let p = Self::heightmap_params(table)?;
+        check_heightmap_budget(
+            file,
+            &p,
+            "building the facet NDF and its visibility",
+            facets_bytes,
+        )?;
         let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
             .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let what = format!("[ndf] {}", file.display());
