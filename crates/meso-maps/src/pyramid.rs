@@ -88,20 +88,24 @@ pub struct Progress {
     pub work_total: u64,
 }
 
-/// Estimated cost units of computing normals and horizon angles, per sample.
-const PREP_WORK_PER_SAMPLE: u64 = 4;
-/// Estimated cost units of one EM point × lobe.
-const FIT_WORK_PER_POINT: u64 = 6;
-/// Factor of the thorough fits of the coarse levels (every start run to the end).
-const THOROUGH_FACTOR: u64 = 4;
+/// Estimated cost units (≈ µs of one core) of computing the normals and horizon angles, per
+/// height sample, and of a level-0 texel (no EM: its few entries are its lobes).
+const PREP_WORK_PER_SAMPLE: u64 = 1;
+/// Estimated cost units of one EM point of a texel's fit on a level fitted plainly.
+const FIT_WORK_PLAIN: u64 = 4;
+/// … on a level with the smoothed refinement (`FitParams::smooth_texels`).
+const FIT_WORK_SMOOTH: u64 = 22;
+/// … on a level fitted thoroughly (`FitParams::thorough_texels`).
+const FIT_WORK_THOROUGH: u64 = 45;
 
 /// Peak memory of [`extract`] per level-0 cell with one normal per cell (bytes): the normals,
 /// the level-0 fits (row buffers and their flat copies), the coarser levels, and writing the map
-/// (the file's bytes and the reader's check of them). Measured with `meso extract` on Gaussian
-/// height maps (docs/limits.md), with a margin.
-pub const EXTRACT_BYTES_PER_CELL: u64 = 400;
+/// (the file's bytes and the reader's check of them). `meso extract` on rough 16-bit maps
+/// measured 735–755 bytes per cell (peak RSS, triangles, 512² and 1024²; docs/limits.md):
+/// with the per-sample term the estimate is 890, a 20% margin.
+pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
 /// Extra peak memory of [`extract`] per cell for each further normal of the cell (triangles: 2).
-pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 150;
+pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
 /// Peak memory of [`extract`] per height sample (horizon angles, bytes).
 pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 40;
 
@@ -121,8 +125,12 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 
 /// The estimated work of [`extract`] on a `cols × rows` cell grid with `per_cell` normals per
 /// cell (2 for triangles, 1 otherwise) and `samples` height samples (0 for a normal map): the
-/// preparation (normals, horizons) and then each level, in cost units (≈ one facet visited by
-/// the residual). Used to weight [`Progress`] by time rather than by texels.
+/// preparation (normals, horizons) and then each level, in cost units (≈ µs of one core). A
+/// texel's fit costs its EM points (its footprint's facets, capped as [`extract`] caps them) ×
+/// a factor of the level's fitting regime (plain, smoothed, thorough), measured per level with
+/// `cargo run -p meso-maps --example level_times` on 64² to 256² Gaussian maps; merging costs
+/// its entries and the residual its footprint facets. Used to weight [`Progress`] by time
+/// rather than by texels (the coarse levels have few texels and most of the time).
 #[must_use]
 pub fn extract_work(
     cols: usize,
@@ -131,27 +139,31 @@ pub fn extract_work(
     samples: usize,
     params: &ExtractParams,
 ) -> (u64, Vec<u64>) {
-    let prep = (samples as u64 + (cols * rows * per_cell) as u64) * PREP_WORK_PER_SAMPLE;
+    let prep = (samples.max(cols * rows) as u64) * PREP_WORK_PER_SAMPLE;
     let nlev = level_count(cols, rows);
-    let cells = (cols * rows) as u64;
+    let cells = (cols as u64) * (rows as u64);
     let kmax = params.fit.max_lobes.clamp(1, MAX_LOBES) as u64;
+    let bins = (crate::fit::ENTRY_GRID_RES * crate::fit::ENTRY_GRID_RES) as u64;
     let mut out = Vec::with_capacity(nlev);
     let (mut c, mut r) = (cols, rows);
     for k in 0..nlev {
-        let t = (c * r) as u64;
+        let texels = c * r;
+        let t = texels as u64;
         let span2 = 1u64 << (2 * k.min(31));
         let facets = span2.min(cells).max(1) * per_cell as u64;
-        let entries = facets.min((crate::fit::ENTRY_GRID_RES * crate::fit::ENTRY_GRID_RES) as u64);
-        let cap = (params.fit.level_em_points / (c * r).max(1))
+        let entries = facets.min(bins);
+        let cap = (params.fit.level_em_points / texels.max(1))
             .clamp(64, params.fit.max_em_points.max(64)) as u64;
         let points = if entries <= kmax { 0 } else { entries.min(cap) };
-        let thorough = if c * r <= params.fit.thorough_texels {
-            THOROUGH_FACTOR
+        let per_point = if texels <= params.fit.thorough_texels {
+            FIT_WORK_THOROUGH
+        } else if texels <= params.fit.smooth_texels {
+            FIT_WORK_SMOOTH
         } else {
-            1
+            FIT_WORK_PLAIN
         };
-        let fit = t * (entries + FIT_WORK_PER_POINT * points * kmax * thorough);
-        let residual = t.min(params.residual_texels.max(1) as u64) * facets;
+        let fit = t * (1 + entries / 4 + per_point * points);
+        let residual = t.min(params.residual_texels.max(1) as u64) * facets / 4;
         out.push(fit + residual);
         c = c.div_ceil(2);
         r = r.div_ceil(2);
