@@ -265,7 +265,8 @@ impl fmt::Display for AllocError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "out of memory: cannot allocate {} (memory budget {}; lower it, or free memory)",
+            "out of memory: cannot allocate {} (the memory budget, {}, is more than this process \
+             can get: free memory, or lower the budget to have such work refused up front)",
             human(self.bytes),
             human(budget().bytes)
         )
