@@ -715,6 +715,19 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
         .args(["--memory-budget", "1G", "render", s(&sc), "--out", s(&out)])
         .output()
         .unwrap());
+    // An OBJ mesh, from its size.
+    std::fs::write(d.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".repeat(40)).unwrap();
+    let with_mesh = scene("m.toml").replace(
+        "kind = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\n",
+        "kind = \"mesh\"\nfile = \"tri.obj\"\n",
+    );
+    std::fs::write(&sc, with_mesh).unwrap();
+    let o = meso()
+        .args(["--memory-budget", "10K", "render", s(&sc), "--out", s(&d.join("m.png"))])
+        .output()
+        .unwrap();
+    fails_with(&o, "tri.obj: loading the OBJ mesh needs about");
+    assert!(!d.join("m.png").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 
@@ -740,6 +753,7 @@ fn item13_extract_and_render_report_each_phase_time() {
         for n in names {
             let i = e
                 .find(&format!(" {n} "))
+                .or_else(|| e.find(&format!("({n} ")))
                 .unwrap_or_else(|| panic!("no {n} phase in {e}"));
             let secs: f64 = e[i + n.len() + 2..]
                 .split_whitespace()
