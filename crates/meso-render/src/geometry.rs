@@ -261,8 +261,13 @@ impl Mesh {
         if !path.is_file() {
             return Err(err("file not found".into()));
         }
-        if let Ok(m) = std::fs::metadata(path) {
-            meso_core::budget::check(path, "loading the OBJ mesh", obj_bytes(m.len()))
+        // (A file over the size limit gets that error from the reader below.)
+        if let Some(len) = std::fs::metadata(path)
+            .ok()
+            .map(|m| m.len())
+            .filter(|&n| n <= crate::scene::MAX_OBJ_BYTES)
+        {
+            meso_core::budget::check(path, "loading the OBJ mesh", obj_bytes(len))
                 .map_err(|e| SceneError::Budget(e.to_string()))?;
         }
         // Some LoadOptions fields exist only with tobj features: keep the struct update.
