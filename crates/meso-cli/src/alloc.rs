@@ -37,14 +37,20 @@ fn failed(size: usize) {
     };
     let gib = size as f64 / (1u64 << 30) as f64;
     let _ = if gib >= 0.1 {
-        write!(buf, "meso: error: out of memory: cannot allocate {gib:.2} GiB")
+        write!(
+            buf,
+            "meso: error: out of memory: cannot allocate {gib:.2} GiB"
+        )
     } else {
-        write!(buf, "meso: error: out of memory: cannot allocate {size} bytes")
+        write!(
+            buf,
+            "meso: error: out of memory: cannot allocate {size} bytes"
+        )
     };
-    let _ = write!(
+    let _ = writeln!(
         buf,
-        " (less memory is available than the work needs: free memory, lower --memory-budget, \
-         or give the command a smaller input)\n"
+        " (less memory is available than the work needs: free memory, or lower \
+         --memory-budget so that such work is refused before it starts)"
     );
     // SAFETY: writing a valid buffer to descriptor 2 and ending the process; no allocation.
     unsafe {

@@ -700,10 +700,7 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
         image::Rgb([90, 120, 200]),
     );
     img.save(&env).unwrap();
-    let with_env = format!(
-        "{}[environment]\nfile = \"sky.png\"\n",
-        scene("m.toml")
-    );
+    let with_env = format!("{}[environment]\nfile = \"sky.png\"\n", scene("m.toml"));
     std::fs::write(&sc, with_env).unwrap();
     let o = meso()
         .args(["--memory-budget", "64M", "render", s(&sc), "--out", s(&out)])
@@ -716,14 +713,25 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
         .output()
         .unwrap());
     // An OBJ mesh, from its size.
-    std::fs::write(d.join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".repeat(40)).unwrap();
+    std::fs::write(
+        d.join("tri.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".repeat(40),
+    )
+    .unwrap();
     let with_mesh = scene("m.toml").replace(
         "kind = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\n",
         "kind = \"mesh\"\nfile = \"tri.obj\"\n",
     );
     std::fs::write(&sc, with_mesh).unwrap();
     let o = meso()
-        .args(["--memory-budget", "10K", "render", s(&sc), "--out", s(&d.join("m.png"))])
+        .args([
+            "--memory-budget",
+            "10K",
+            "render",
+            s(&sc),
+            "--out",
+            s(&d.join("m.png")),
+        ])
         .output()
         .unwrap();
     fails_with(&o, "tri.obj: loading the OBJ mesh needs about");
@@ -773,7 +781,12 @@ fn item13_extract_and_render_report_each_phase_time() {
     )
     .unwrap();
     std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
-    let o = run(&["render", s(&d.join("scene.toml")), "--out", s(&d.join("r.png"))]);
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&d.join("r.png")),
+    ]);
     ok(&o);
     let e = stderr(&o);
     assert!(e.starts_with("rendered 8x8 at 1 spp in "), "{e}");

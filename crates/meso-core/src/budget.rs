@@ -111,8 +111,12 @@ pub fn physical_memory() -> Option<u64> {
     #[cfg(unix)]
     {
         // SAFETY: sysconf has no preconditions.
-        let (pages, size) =
-            unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
+        let (pages, size) = unsafe {
+            (
+                libc::sysconf(libc::_SC_PHYS_PAGES),
+                libc::sysconf(libc::_SC_PAGESIZE),
+            )
+        };
         if pages > 0 && size > 0 {
             return Some((pages as u64).saturating_mul(size as u64));
         }
@@ -133,6 +137,7 @@ pub fn address_space_limit() -> Option<u64> {
         if unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut r) } == 0
             && r.rlim_cur != libc::RLIM_INFINITY
         {
+            #[allow(clippy::unnecessary_cast)] // rlim_t is not u64 everywhere
             return Some(r.rlim_cur as u64);
         }
     }
@@ -167,8 +172,10 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
         .parse()
         .map_err(|_| format!("not a size (e.g. 4G, 512M, 1000000): {s:?}"))?;
     let bytes = x * mult as f64;
-    if !(bytes >= 1.0) {
-        return Err(format!("a memory budget must be at least 1 byte, got {s:?}"));
+    if bytes.is_nan() || bytes < 1.0 {
+        return Err(format!(
+            "a memory budget must be at least 1 byte, got {s:?}"
+        ));
     }
     if bytes >= u64::MAX as f64 {
         return Err(format!("too large: {s:?}"));
@@ -362,12 +369,18 @@ mod tests {
         set_budget(1 << 20);
         let e = check(Path::new("big.png"), "decoding", 2 << 20).unwrap_err();
         let msg = e.to_string();
-        assert!(msg.starts_with("big.png: decoding needs about 2.00 MiB"), "{msg}");
+        assert!(
+            msg.starts_with("big.png: decoding needs about 2.00 MiB"),
+            "{msg}"
+        );
         assert!(msg.contains("budget of 1.00 MiB (--memory-budget"), "{msg}");
         assert!(check(Path::new("small.png"), "decoding", 1 << 20).is_ok());
         set_budget(0);
         let e = try_vec(0u64, usize::MAX / 16).unwrap_err();
-        assert!(e.to_string().starts_with("out of memory: cannot allocate"), "{e}");
+        assert!(
+            e.to_string().starts_with("out of memory: cannot allocate"),
+            "{e}"
+        );
         assert_eq!(try_vec(1u8, 3).unwrap(), vec![1, 1, 1]);
         assert!(!in_fallible_section());
     }

@@ -22,7 +22,11 @@ fn main() {
     extract(Source::Heights(&map), &ExtractParams::default(), &mut |p| {
         let dt = last.elapsed().as_secs_f64();
         last = Instant::now();
-        rows.push((p.levels_done, dt, (p.work_done - prev) as f64 / p.work_total as f64));
+        rows.push((
+            p.levels_done,
+            dt,
+            (p.work_done - prev) as f64 / p.work_total as f64,
+        ));
         prev = p.work_done;
     })
     .unwrap();

@@ -341,7 +341,11 @@ impl HeightMap {
     ) -> Result<HeightMap> {
         positive("texel_size", texel_size)?;
         positive("height_scale", height_scale)?;
-        let img = open_image_budgeted(path, "loading the height map", ImageHeader::height_map_bytes)?;
+        let img = open_image_budgeted(
+            path,
+            "loading the height map",
+            ImageHeader::height_map_bytes,
+        )?;
         Self::from_image(img, texel_size, height_scale, border).map_err(|e| match e {
             MapError::OutOfMemory { source, .. } => oom(path, source),
             e => e,
@@ -667,7 +671,11 @@ impl NormalMap {
     /// below the horizon (`n_z ≤ 0`, common in real maps) are tilted up to [`MIN_NORMAL_Z`] and
     /// counted ([`NormalMap::clamped`]); NaN or zero-length texels are an error naming the file.
     pub fn load(path: &Path, convention: NormalConvention) -> Result<NormalMap> {
-        let img = open_image_budgeted(path, "loading the normal map", ImageHeader::normal_map_bytes)?;
+        let img = open_image_budgeted(
+            path,
+            "loading the normal map",
+            ImageHeader::normal_map_bytes,
+        )?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let two_channel = matches!(img.color(), image::ColorType::La8 | image::ColorType::La16);
         let rgb = if two_channel {

@@ -116,8 +116,8 @@ pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 40;
 #[must_use]
 pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) -> u64 {
     let cells = (cols as u64).saturating_mul(rows as u64);
-    let per = EXTRACT_BYTES_PER_CELL
-        + EXTRACT_BYTES_PER_EXTRA_NORMAL * (per_cell.max(1) as u64 - 1);
+    let per =
+        EXTRACT_BYTES_PER_CELL + EXTRACT_BYTES_PER_EXTRA_NORMAL * (per_cell.max(1) as u64 - 1);
     cells
         .saturating_mul(per)
         .saturating_add((samples as u64).saturating_mul(EXTRACT_BYTES_PER_SAMPLE))

@@ -19,12 +19,23 @@ fn progress_of(n: usize) -> Vec<Progress> {
 fn item13_extract_progress_is_monotone_and_ends_at_its_total() {
     let calls = progress_of(64);
     let first = calls[0];
-    assert_eq!((first.work_done, first.texels_done, first.levels_done), (0, 0, 0));
-    assert!(first.work_total > 0 && first.work_total < u64::MAX / 2, "{first:?}");
+    assert_eq!(
+        (first.work_done, first.texels_done, first.levels_done),
+        (0, 0, 0)
+    );
+    assert!(
+        first.work_total > 0 && first.work_total < u64::MAX / 2,
+        "{first:?}"
+    );
     assert!(first.texels_total > 0 && first.texels_total < u64::MAX / 2);
     for w in calls.windows(2) {
         assert_eq!(w[0].work_total, w[1].work_total, "the total never changes");
-        assert!(w[1].work_done >= w[0].work_done, "{:?} then {:?}", w[0], w[1]);
+        assert!(
+            w[1].work_done >= w[0].work_done,
+            "{:?} then {:?}",
+            w[0],
+            w[1]
+        );
         assert!(w[1].texels_done >= w[0].texels_done);
     }
     let last = calls.last().unwrap();
