@@ -674,6 +674,21 @@ fn item3_memory_capped_run_is_an_error_not_an_abort() {
         .unwrap();
     fails_with(&o, "memory budget of");
     assert!(!map.exists());
+    // An allocation that is no `try_reserve` (the 3 GiB render target) failing under the cap:
+    // the binary's allocator turns it into an error too.
+    std::fs::write(d.join("m.toml"), PHONG).unwrap();
+    std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
+    let png = d.join("big.png");
+    let o = Command::new("prlimit")
+        .arg("--as=2147483648")
+        .arg(env!("CARGO_BIN_EXE_meso"))
+        .args(["--memory-budget", "100G", "render", s(&d.join("scene.toml"))])
+        .args(["--width", "16384", "--height", "16384", "--out", s(&png)])
+        .output()
+        .unwrap();
+    eprintln!("{:?}: {}", o.status, stderr(&o).trim());
+    fails_with(&o, "out of memory: cannot allocate 3.00 GiB");
+    assert!(!png.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 
