@@ -682,7 +682,12 @@ fn item3_memory_capped_run_is_an_error_not_an_abort() {
     let o = Command::new("prlimit")
         .arg("--as=2147483648")
         .arg(env!("CARGO_BIN_EXE_meso"))
-        .args(["--memory-budget", "100G", "render", s(&d.join("scene.toml"))])
+        .args([
+            "--memory-budget",
+            "100G",
+            "render",
+            s(&d.join("scene.toml")),
+        ])
         .args(["--width", "16384", "--height", "16384", "--out", s(&png)])
         .output()
         .unwrap();
@@ -806,5 +811,16 @@ fn item13_extract_and_render_report_each_phase_time() {
     let e = stderr(&o);
     assert!(e.starts_with("rendered 8x8 at 1 spp in "), "{e}");
     phases(&e, &["load", "pyramid", "render", "write"]);
+    // The default representation, facets: their horizon march is its own phase.
+    let m = std::fs::read_to_string(d.join("m.toml")).unwrap();
+    std::fs::write(d.join("m.toml"), m.replace("represent = \"lobes\"\n", "")).unwrap();
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&d.join("r.png")),
+    ]);
+    ok(&o);
+    phases(&stderr(&o), &["load", "facets", "render", "write"]);
     std::fs::remove_dir_all(&d).unwrap();
 }

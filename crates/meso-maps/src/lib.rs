@@ -49,7 +49,7 @@ pub use pyramid::{
     PyramidInfo, Source,
 };
 pub use resolver::{
-    facets_bytes, facets_with_visibility, ExtractProgress, FacetVisibility, HorizonVisibility,
-    MapsResolver,
+    facets_bytes, facets_with_visibility, facets_with_visibility_progress, ExtractProgress,
+    FacetVisibility, HorizonVisibility, MapsResolver,
 };
 pub use visibility::BinnedVisibility;

@@ -124,6 +124,19 @@ pub fn facets_with_visibility(
     map: &HeightMap,
     mode: NormalMode,
 ) -> Result<(Ndf, FacetVisibility), String> {
+    facets_with_visibility_progress(map, mode, &|_, _| {})
+}
+
+/// [`facets_with_visibility`], reporting the horizon march's rows done (`rows_done(done,
+/// total)`, from worker threads; see [`crate::visibility::facet_horizons_with`]).
+///
+/// # Errors
+/// A degenerate map (no facet with positive weight).
+pub fn facets_with_visibility_progress(
+    map: &HeightMap,
+    mode: NormalMode,
+    rows_done: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(Ndf, FacetVisibility), String> {
     let facets = crate::facets::FacetNormals::from_heightmap(map, mode);
     let entries: Vec<Entry> = facets
         .normals
@@ -146,7 +159,7 @@ pub fn facets_with_visibility(
         .iter()
         .map(|e| merged.binary_search_by_key(&e.bin, |m| m.bin).unwrap_or(0) as u32)
         .collect();
-    let horizons = crate::visibility::facet_horizons(map, mode);
+    let horizons = crate::visibility::facet_horizons_with(map, mode, rows_done);
     let exact: Vec<DVec3> = deltas.normals().iter().map(|n| n.normal).collect();
     let bins = BinnedVisibility::new(&facets, &horizons, &bins, &exact);
     let horizon = crate::horizon::HorizonMap::compute(map).total_stats();
@@ -457,6 +470,17 @@ impl MapsResolver {
         table: &toml::Table,
         file: &Path,
     ) -> Result<ResolvedNdf, MaterialError> {
+        Self::heightmap_facets_with(table, file, None)
+    }
+
+    /// [`MapsResolver::heightmap_facets`], reporting the horizon march to `progress` as a
+    /// [`crate::pyramid::Progress`] with `levels = 0` (no pyramid levels: `work_done` counts
+    /// rows of cells marched, from 0 to `work_total`).
+    fn heightmap_facets_with(
+        table: &toml::Table,
+        file: &Path,
+        progress: Option<&ExtractProgress>,
+    ) -> Result<ResolvedNdf, MaterialError> {
         let p = Self::heightmap_params(table)?;
         check_heightmap_budget(
             file,
@@ -467,8 +491,32 @@ impl MapsResolver {
         let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
             .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let what = format!("[ndf] {}", file.display());
-        let (ndf, vis) = facets_with_visibility(&map, p.normal_mode)
+        // Rows finish on several threads: report only a count above every one reported.
+        let highest = std::sync::atomic::AtomicUsize::new(0);
+        let report = |done: usize, total: usize| {
+            if done > 0 && highest.fetch_max(done, std::sync::atomic::Ordering::Relaxed) >= done {
+                return;
+            }
+            if let Some(f) = progress {
+                f(
+                    file,
+                    crate::pyramid::Progress {
+                        levels_done: 0,
+                        levels: 0,
+                        texels_done: 0,
+                        texels_total: 0,
+                        work_done: done as u64,
+                        work_total: total.max(1) as u64,
+                    },
+                );
+            }
+        };
+        report(0, map.cells_y());
+        let (ndf, vis) = facets_with_visibility_progress(&map, p.normal_mode, &report)
             .map_err(|e| MaterialError(format!("{what}: {e}")))?;
+        if map.cells_y() == 0 {
+            report(1, 1);
+        }
         Ok(ResolvedNdf {
             ndf,
             horizon: Some(Arc::new(vis) as Arc<dyn VisibilityModel>),
@@ -535,7 +583,7 @@ impl NdfResolver for MapsResolver {
     ) -> Result<ResolvedNdf, MaterialError> {
         match kind {
             "heightmap" if choice(table, "represent", &["lobes", "facets"])? != Some("lobes") => {
-                Self::heightmap_facets(table, file)
+                Self::heightmap_facets_with(table, file, self.progress.as_ref())
             }
             "heightmap" => {
                 let pyr = self.heightmap_pyramid(table, file)?;

@@ -253,7 +253,19 @@ fn triangle_points(v: [(f64, f64); 3]) -> [(f64, f64); POINTS_PER_FACET] {
 /// [`FacetNormals::from_heightmap`] with the same mode), point `p` and azimuth `a`.
 #[must_use]
 pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
+    facet_horizons_with(map, mode, &|_, _| {})
+}
+
+/// [`facet_horizons`], calling `rows_done(done, total)` (from the worker threads) after each row
+/// of cells: the progress of the horizon march, the long part of a facet NDF's visibility.
+#[must_use]
+pub fn facet_horizons_with(
+    map: &HeightMap,
+    mode: NormalMode,
+    rows_done: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<f32> {
     let (cols, rows) = (map.cells_x(), map.cells_y());
+    let finished = std::sync::atomic::AtomicUsize::new(0);
     let maxes = MaxPyramid::new(map);
     let dirs: Vec<(f64, f64)> = (0..AZIMUTHS)
         .map(|a| {
@@ -306,6 +318,8 @@ pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
                     }
                 }
             }
+            let n = finished.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            rows_done(n, rows);
         });
     out
 }

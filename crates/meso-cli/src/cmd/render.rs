@@ -61,8 +61,10 @@ fn format_of(path: &Path) -> Result<Format> {
     }
 }
 
-/// Seconds spent extracting NDF pyramids while the scene loads (nanoseconds, all materials).
+/// Time spent extracting NDF pyramids while the scene loads (nanoseconds, all materials).
 static PYRAMID_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+/// Time spent marching the facet horizons of `represent = "facets"` materials (nanoseconds).
+static FACETS_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// The scene's material resolver: meso material files as [`MaterialShader`]s, and material
 /// files with a `[texture]` table as bump- or NDF-mapped materials
@@ -77,7 +79,11 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
     let shown = bar.clone();
     let st = std::sync::Mutex::new(None::<std::time::Instant>);
     let maps = meso_maps::MapsResolver::new().with_progress(Arc::new(move |_, p| {
-        let b = shown.get_or_init(|| crate::util::progress_work(p.work_total, "pyramid"));
+        // `levels == 0`: the horizon march of a facet NDF, not a pyramid.
+        let facets = p.levels == 0;
+        let b = shown.get_or_init(|| {
+            crate::util::progress_work(p.work_total, if facets { "facets" } else { "pyramid" })
+        });
         b.set_length(p.work_total);
         b.set_position(p.work_done);
         let mut s = st.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -86,7 +92,12 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
         } else if p.work_done >= p.work_total {
             if let Some(t) = s.take() {
                 let ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
-                PYRAMID_NANOS.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+                let total = if facets {
+                    &FACETS_NANOS
+                } else {
+                    &PYRAMID_NANOS
+                };
+                total.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
             }
         }
     }));
@@ -179,13 +190,21 @@ pub fn run(a: Args) -> Result<()> {
         resolve_material(p)
     };
     PYRAMID_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
+    FACETS_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let t = std::time::Instant::now();
     let scene = Scene::from_toml_file(&a.scene, &resolver)
         .with_context(|| format!("cannot load the scene {}", a.scene.display()))?;
     let pyramid = PYRAMID_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
-    phases.add("load", (t.elapsed().as_secs_f64() - pyramid).max(0.0));
+    let facets = FACETS_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
+    phases.add(
+        "load",
+        (t.elapsed().as_secs_f64() - pyramid - facets).max(0.0),
+    );
     if pyramid > 0.0 {
         phases.add("pyramid", pyramid);
+    }
+    if facets > 0.0 {
+        phases.add("facets", facets);
     }
     let loaded = loaded
         .into_inner()
