@@ -32,6 +32,11 @@
 //! CORS preflight. Other requests are answered 403 (Host, Origin) or 415 (Content-Type): a web
 //! page on another site, or a DNS-rebound name, cannot drive the editor.
 //!
+//! Connections time out ([`Timeouts`]): a request header must arrive within
+//! [`HEADER_READ_TIMEOUT`] of the moment the server waits for it (also the idle keep-alive
+//! timeout), a body within [`BODY_READ_TIMEOUT`] of its header (else 408); a client that
+//! half-closes its side after sending a request still gets the reply.
+//!
 //! ```no_run
 //! let server = meso_serve::spawn("127.0.0.1:0".parse().unwrap()).unwrap();
 //! println!("editor at http://{}/", server.addr());
