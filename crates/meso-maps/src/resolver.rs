@@ -225,7 +225,9 @@ pub struct MapsResolver {
 }
 
 /// A progress hook for pyramid extractions: the height map's path and the extraction's
-/// [`crate::pyramid::Progress`] (called from the extracting thread).
+/// [`crate::pyramid::Progress`] (called from the extracting thread). `represent = "facets"`
+/// materials report their horizon march through it too, with `levels = 0` and `work_done`
+/// counting rows of cells (called from rayon's worker threads).
 pub type ExtractProgress = Arc<dyn Fn(&Path, crate::pyramid::Progress) + Send + Sync>;
 
 fn merr<T>(msg: impl Into<String>) -> Result<T, MaterialError> {
