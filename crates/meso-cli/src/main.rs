@@ -11,8 +11,14 @@ macro_rules! note {
     };
 }
 
+mod alloc;
 mod cmd;
 mod util;
+
+/// The process's allocator: the system's, with an allocation failure turned into a one-line
+/// error and exit status 1 instead of an abort ([`alloc::ExitOnOom`]).
+#[global_allocator]
+static ALLOCATOR: alloc::ExitOnOom = alloc::ExitOnOom;
 
 pub(crate) use util::{par_map_progress, progress, read_text};
 
@@ -30,8 +36,19 @@ pub(crate) fn load_material(
 #[derive(Parser)]
 #[command(name = "meso", version, about, long_about = None)]
 struct Cli {
+    /// Memory budget: refuse work whose estimated peak memory is larger (bytes, or with a K, M,
+    /// G or T suffix: 8G, 512M). Default: 4G, or ¾ of the physical memory or of the
+    /// address-space limit when smaller; also set by the MESO_MEMORY_BUDGET environment
+    /// variable (docs/limits.md).
+    #[arg(long, global = true, value_name = "SIZE", value_parser = parse_budget)]
+    memory_budget: Option<u64>,
     #[command(subcommand)]
     command: Command,
+}
+
+/// `--memory-budget`'s value parser.
+fn parse_budget(s: &str) -> Result<u64, String> {
+    meso_core::budget::parse_size(s)
 }
 
 #[derive(Subcommand)]
@@ -63,6 +80,12 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(b) = cli.memory_budget {
+        meso_core::budget::set_budget(b);
+    } else if let Some(Err(e)) = meso_core::budget::env_budget() {
+        note!("meso: error: {e}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Brdf(a) => cmd::brdf::run(a),
         Command::Ndf(a) => cmd::ndf::run(a),

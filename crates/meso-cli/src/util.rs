@@ -39,6 +39,65 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
+/// A progress bar for work measured in estimated cost units (not items): a percentage, the
+/// elapsed time ticking every 200 ms even while the position does not move, and the estimate of
+/// the time left. Hidden when stderr is not a terminal. `len` is the total work (> 0); set it
+/// again with `set_length` once known, never to a placeholder.
+pub fn progress_work(len: u64, what: &str) -> ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len.max(1));
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:40}] {percent:>3}% ({elapsed}, eta {eta})")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(what.to_owned());
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
+}
+
+/// The times of a command's phases, for the closing line: `load 0.10 s, pyramid 11.80 s`.
+#[derive(Debug, Default)]
+pub struct Phases(Vec<(String, f64)>);
+
+impl Phases {
+    /// Record that phase `name` took `seconds` (a phase named twice adds up).
+    pub fn add(&mut self, name: &str, seconds: f64) {
+        match self.0.iter_mut().find(|(n, _)| n == name) {
+            Some((_, s)) => *s += seconds,
+            None => self.0.push((name.to_owned(), seconds)),
+        }
+    }
+
+    /// Run `f` as phase `name`, recording its time.
+    pub fn time<R>(&mut self, name: &str, f: impl FnOnce() -> R) -> R {
+        let t = std::time::Instant::now();
+        let r = f();
+        self.add(name, t.elapsed().as_secs_f64());
+        r
+    }
+
+    /// The seconds of phase `name` (0 if it did not run).
+    pub fn seconds(&self, name: &str) -> f64 {
+        self.0
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(0.0, |(_, s)| *s)
+    }
+
+    /// `load 0.10 s, pyramid 11.80 s, render 0.05 s`.
+    pub fn summary(&self) -> String {
+        self.0
+            .iter()
+            .map(|(n, s)| format!("{n} {s:.2} s"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
 /// Map `f` over `items` in parallel (rayon), ticking `bar` in chunks.
 pub fn par_map_progress<T: Sync, R: Send>(
     items: &[T],

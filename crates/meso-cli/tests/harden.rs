@@ -546,3 +546,281 @@ fn item5_a_written_map_always_passes_map_info() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// A `w × h` 8-bit grey PNG of one value: a few kilobytes on disk whatever its size.
+fn flat_png(path: &Path, w: u32, h: u32) {
+    let img = image::ImageBuffer::<image::Luma<u8>, Vec<u8>>::from_pixel(w, h, image::Luma([100]));
+    img.save(path).unwrap();
+}
+
+#[test]
+fn item3_extract_above_the_memory_budget_is_refused_from_the_header() {
+    let d = tmp("item3-extract");
+    let png = d.join("wide.png");
+    flat_png(&png, 65536, 256);
+    assert!(std::fs::metadata(&png).unwrap().len() < 200_000);
+    let map = d.join("wide.map");
+    let t = std::time::Instant::now();
+    let o = meso()
+        .args([
+            "extract",
+            s(&png),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "1",
+            "--out",
+            s(&map),
+        ])
+        .env_remove("MESO_MEMORY_BUDGET")
+        .output()
+        .unwrap();
+    eprintln!("{}", stderr(&o).trim());
+    fails_with(&o, "wide.png: extracting the NDF pyramid needs about");
+    assert!(stderr(&o).contains("memory budget of"), "{}", stderr(&o));
+    assert!(t.elapsed().as_secs_f64() < 10.0, "refused before the work");
+    assert!(!map.exists());
+    // A small map under a tiny budget, by option and by environment variable.
+    let small = d.join("small.png");
+    flat_png(&small, 64, 64);
+    let args = [
+        "extract",
+        s(&small),
+        "--texel-size",
+        "1",
+        "--height-scale",
+        "1",
+        "--out",
+        s(&map),
+    ];
+    let o = meso()
+        .args(["--memory-budget", "100K"])
+        .args(args)
+        .output()
+        .unwrap();
+    fails_with(&o, "small.png: extracting the NDF pyramid needs about");
+    assert!(stderr(&o).contains("(--memory-budget;"), "{}", stderr(&o));
+    let o = meso()
+        .args(args)
+        .env("MESO_MEMORY_BUDGET", "100K")
+        .output()
+        .unwrap();
+    fails_with(&o, "(MESO_MEMORY_BUDGET;");
+    let o = meso()
+        .args(args)
+        .env("MESO_MEMORY_BUDGET", "lots")
+        .output()
+        .unwrap();
+    fails_with(&o, "MESO_MEMORY_BUDGET=\"lots\": not a size");
+    assert!(!map.exists());
+    ok(&meso()
+        .args(["--memory-budget", "1G"])
+        .args(args)
+        .output()
+        .unwrap());
+    assert!(map.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn item3_memory_capped_run_is_an_error_not_an_abort() {
+    if Command::new("prlimit").arg("--version").output().is_err() {
+        eprintln!("skipped: no prlimit");
+        return;
+    }
+    let d = tmp("item3-capped");
+    let png = d.join("wide.png");
+    flat_png(&png, 65536, 256);
+    let map = d.join("wide.map");
+    // The budget raised far above what the 1 GiB address-space cap allows: the allocation
+    // itself fails, and must be an error, not SIGABRT.
+    let o = Command::new("prlimit")
+        .arg("--as=1073741824")
+        .arg(env!("CARGO_BIN_EXE_meso"))
+        .args([
+            "--memory-budget",
+            "100G",
+            "extract",
+            s(&png),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "1",
+            "--out",
+            s(&map),
+        ])
+        .output()
+        .unwrap();
+    eprintln!("{:?}: {}", o.status, stderr(&o).trim());
+    fails_with(&o, "out of memory: cannot allocate");
+    assert!(!map.exists());
+    // Under the same cap with the default budget (lowered to the cap): refused up front.
+    let o = Command::new("prlimit")
+        .arg("--as=1073741824")
+        .arg(env!("CARGO_BIN_EXE_meso"))
+        .args([
+            "extract",
+            s(&png),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "1",
+            "--out",
+            s(&map),
+        ])
+        .env_remove("MESO_MEMORY_BUDGET")
+        .output()
+        .unwrap();
+    fails_with(&o, "memory budget of");
+    assert!(!map.exists());
+    // An allocation that is no `try_reserve` (the 3 GiB render target) failing under the cap:
+    // the binary's allocator turns it into an error too.
+    std::fs::write(d.join("m.toml"), PHONG).unwrap();
+    std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
+    let png = d.join("big.png");
+    let o = Command::new("prlimit")
+        .arg("--as=2147483648")
+        .arg(env!("CARGO_BIN_EXE_meso"))
+        .args([
+            "--memory-budget",
+            "100G",
+            "render",
+            s(&d.join("scene.toml")),
+        ])
+        .args(["--width", "16384", "--height", "16384", "--out", s(&png)])
+        .output()
+        .unwrap();
+    eprintln!("{:?}: {}", o.status, stderr(&o).trim());
+    fails_with(&o, "out of memory: cannot allocate 3.00 GiB");
+    assert!(!png.exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn item3_render_and_environment_map_above_the_budget_are_refused() {
+    let (d, _m, _p) = brdf_inputs("item3-render");
+    let sc = d.join("scene.toml");
+    std::fs::write(&sc, scene("m.toml")).unwrap();
+    let out = d.join("big.png");
+    // The largest render the options allow, under the default budget (4 GiB at most).
+    let o = meso()
+        .args(["render", s(&sc), "--width", "16384", "--height", "16384"])
+        .args(["--out", s(&out)])
+        .env_remove("MESO_MEMORY_BUDGET")
+        .output()
+        .unwrap();
+    fails_with(&o, "rendering 16384×16384 pixels needs about");
+    assert!(!out.exists());
+    // An environment map whose pixels need more than the budget.
+    let env = d.join("sky.png");
+    let img = image::ImageBuffer::<image::Rgb<u8>, Vec<u8>>::from_pixel(
+        2048,
+        1024,
+        image::Rgb([90, 120, 200]),
+    );
+    img.save(&env).unwrap();
+    let with_env = format!("{}[environment]\nfile = \"sky.png\"\n", scene("m.toml"));
+    std::fs::write(&sc, with_env).unwrap();
+    let o = meso()
+        .args(["--memory-budget", "64M", "render", s(&sc), "--out", s(&out)])
+        .output()
+        .unwrap();
+    fails_with(&o, "sky.png: loading the environment map needs about");
+    assert!(!out.exists());
+    ok(&meso()
+        .args(["--memory-budget", "1G", "render", s(&sc), "--out", s(&out)])
+        .output()
+        .unwrap());
+    // An OBJ mesh, from its size.
+    std::fs::write(
+        d.join("tri.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".repeat(40),
+    )
+    .unwrap();
+    let with_mesh = scene("m.toml").replace(
+        "kind = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\n",
+        "kind = \"mesh\"\nfile = \"tri.obj\"\n",
+    );
+    std::fs::write(&sc, with_mesh).unwrap();
+    let o = meso()
+        .args([
+            "--memory-budget",
+            "10K",
+            "render",
+            s(&sc),
+            "--out",
+            s(&d.join("m.png")),
+        ])
+        .output()
+        .unwrap();
+    fails_with(&o, "tri.obj: loading the OBJ mesh needs about");
+    assert!(!d.join("m.png").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn item13_extract_and_render_report_each_phase_time() {
+    let d = tmp("item13");
+    let map = map_file(&d);
+    let _ = map;
+    // `meso extract` (run by map_file again, to see its report).
+    let o = run(&[
+        "extract",
+        s(&d.join("h.png")),
+        "--texel-size",
+        "0.01",
+        "--height-scale",
+        "0.05",
+        "--out",
+        s(&d.join("h2.map")),
+    ]);
+    ok(&o);
+    let e = stderr(&o);
+    let phases = |e: &str, names: &[&str]| {
+        for n in names {
+            let i = e
+                .find(&format!(" {n} "))
+                .or_else(|| e.find(&format!("({n} ")))
+                .unwrap_or_else(|| panic!("no {n} phase in {e}"));
+            let secs: f64 = e[i + n.len() + 2..]
+                .split_whitespace()
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap_or_else(|_| panic!("no time after {n}: {e}"));
+            assert!((0.0..1e4).contains(&secs), "{n} {secs}: {e}");
+        }
+    };
+    phases(&e, &["load", "pyramid", "write"]);
+    // A render of a height-map material: the extraction is its own phase, not hidden.
+    std::fs::write(
+        d.join("m.toml"),
+        "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 0.01\nheight_scale = 0.05\n\
+         represent = \"lobes\"\n[transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&d.join("r.png")),
+    ]);
+    ok(&o);
+    let e = stderr(&o);
+    assert!(e.starts_with("rendered 8x8 at 1 spp in "), "{e}");
+    phases(&e, &["load", "pyramid", "render", "write"]);
+    // The default representation, facets: their horizon march is its own phase.
+    let m = std::fs::read_to_string(d.join("m.toml")).unwrap();
+    std::fs::write(d.join("m.toml"), m.replace("represent = \"lobes\"\n", "")).unwrap();
+    let o = run(&[
+        "render",
+        s(&d.join("scene.toml")),
+        "--out",
+        s(&d.join("r.png")),
+    ]);
+    ok(&o);
+    phases(&stderr(&o), &["load", "facets", "render", "write"]);
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -10,7 +10,8 @@
 //! * [`transfer`] — facet BRDFs (Phong, Lambert, mirror, rough microfacet) with Fresnel;
 //! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form;
 //! * [`material`] — the TOML material format;
-//! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output.
+//! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output;
+//!   [`budget`] — the memory budget and fallible allocation.
 //!
 //! ```
 //! use meso_core::{frame::spherical_direction_deg, material::Material};
@@ -28,6 +29,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod budget;
 pub mod convolution;
 pub mod display;
 pub mod frame;

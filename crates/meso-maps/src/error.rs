@@ -106,6 +106,18 @@ pub enum MapError {
     /// The operation needs heights but the source is a normal map.
     #[error("{0} needs a height map; a normal map has no heights")]
     NeedsHeights(&'static str),
+    /// Refused before allocating: the work would need more memory than the budget
+    /// (`meso_core::budget`); the message names the file, the estimate and the budget.
+    #[error("{0}")]
+    Budget(#[from] meso_core::budget::BudgetError),
+    /// A big allocation failed (the memory was not there after all).
+    #[error("{what}: {source}")]
+    OutOfMemory {
+        /// What was being allocated for (the file, or the step).
+        what: String,
+        /// The failed allocation.
+        source: meso_core::budget::AllocError,
+    },
 }
 
 /// Shorthand for `Result<T, MapError>`.

@@ -191,13 +191,12 @@ fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
 pub const MAX_HASHED_BYTES: u64 = 1 << 30;
 
 /// The facets of the height map in `file` with their visibility, from the cache when it has
-/// them (the image is then not even decoded), else loaded with `load`, built
-/// ([`crate::resolver::facets_with_visibility`]) and stored. Returns whether the cache
+/// them (the image is then not even decoded), else loaded with `load`, built with `build`
+/// (e.g. [`crate::resolver::facets_with_visibility`]) and stored. Returns whether the cache
 /// answered.
 ///
 /// # Errors
-/// `load`'s errors, and those of [`crate::resolver::facets_with_visibility`] as `build_err`
-/// makes them.
+/// `load`'s and `build`'s errors.
 pub fn facets_cached<E>(
     file: &Path,
     texel_size: f64,
@@ -205,7 +204,7 @@ pub fn facets_cached<E>(
     border: Border,
     mode: NormalMode,
     load: impl FnOnce() -> Result<HeightMap, E>,
-    build_err: impl FnOnce(String) -> E,
+    build: impl FnOnce(&HeightMap) -> Result<(Ndf, FacetVisibility), E>,
 ) -> Result<(Ndf, FacetVisibility, bool), E> {
     let dir = cache_dir();
     let k = dir.as_ref().and_then(|_| {
@@ -218,7 +217,7 @@ pub fn facets_cached<E>(
         }
     }
     let map = load()?;
-    let (ndf, vis) = crate::resolver::facets_with_visibility(&map, mode).map_err(build_err)?;
+    let (ndf, vis) = build(&map)?;
     if let (Some(d), Some(k), Ndf::Deltas(deltas)) = (dir.as_deref(), &k, &ndf) {
         // A cache that cannot be written only costs the next run the build.
         let _ = store(d, k, deltas, &vis);

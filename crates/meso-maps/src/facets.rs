@@ -59,13 +59,32 @@ impl FacetNormals {
     /// The meso-normals of a height map.
     #[must_use]
     pub fn from_heightmap(map: &HeightMap, mode: NormalMode) -> FacetNormals {
+        match Self::try_from_heightmap(map, mode) {
+            Ok(f) => f,
+            Err(e) => std::alloc::handle_alloc_error(
+                std::alloc::Layout::from_size_align(e.bytes as usize, 8)
+                    .unwrap_or(std::alloc::Layout::new::<DVec3>()),
+            ),
+        }
+    }
+
+    /// [`FacetNormals::from_heightmap`], with an error instead of an abort when the memory for
+    /// the normals (32 bytes per facet) is not there.
+    ///
+    /// # Errors
+    /// The failed allocation.
+    pub fn try_from_heightmap(
+        map: &HeightMap,
+        mode: NormalMode,
+    ) -> Result<FacetNormals, meso_core::budget::AllocError> {
         let (cols, rows) = (map.cells_x(), map.cells_y());
         let s = map.texel_size();
         let per_cell = match mode {
             NormalMode::Triangles => 2,
             NormalMode::CentralDifferences => 1,
         };
-        let mut normals = Vec::with_capacity(cols * rows * per_cell);
+        let mut normals = meso_core::budget::try_with_capacity(cols * rows * per_cell)?;
+        let mut weights = meso_core::budget::try_with_capacity(cols * rows * per_cell)?;
         for i in 0..rows as isize {
             for j in 0..cols as isize {
                 let h00 = map.at(i, j);
@@ -86,14 +105,14 @@ impl FacetNormals {
             }
         }
         let share = 1.0 / per_cell as f64;
-        let weights = normals.iter().map(|n| share / n.z).collect();
-        FacetNormals {
+        weights.extend(normals.iter().map(|n: &DVec3| share / n.z));
+        Ok(FacetNormals {
             cols,
             rows,
             per_cell,
             normals,
             weights,
-        }
+        })
     }
 
     /// The normals of a tangent-space normal map: one per texel, standing for one texel of

@@ -117,6 +117,93 @@ fn decode_err(path: &Path, e: impl std::fmt::Display) -> MapError {
     }
 }
 
+/// What an image file's header says, read without decoding the pixels: enough to budget the
+/// memory of loading it ([`ImageHeader::height_map_bytes`], [`ImageHeader::normal_map_bytes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageHeader {
+    /// Width in pixels.
+    pub width: u64,
+    /// Height in pixels.
+    pub height: u64,
+    /// Bytes per decoded pixel (1 for 8-bit grey, 6 for 16-bit RGB, 16 for float RGBA, …).
+    pub bytes_per_pixel: u64,
+    /// Whether the image has colour channels.
+    pub color: bool,
+    /// Whether the samples are 8-bit.
+    pub eight_bit: bool,
+    /// Size of the file in bytes.
+    pub file_bytes: u64,
+}
+
+impl ImageHeader {
+    /// Number of pixels.
+    #[must_use]
+    pub fn pixels(&self) -> u64 {
+        self.width.saturating_mul(self.height)
+    }
+
+    /// Peak memory (bytes) of loading the image as a height map ([`HeightMap::load`]): the file,
+    /// the decoded image, the codes and heights (f64), a colour image's float conversion, and
+    /// the four buffers of 8-bit dequantisation.
+    #[must_use]
+    pub fn height_map_bytes(&self) -> u64 {
+        let per_pixel = self.bytes_per_pixel
+            + 16
+            + if self.color { 12 } else { 0 }
+            + if self.eight_bit { 32 } else { 0 };
+        self.file_bytes + self.pixels().saturating_mul(per_pixel)
+    }
+
+    /// Peak memory (bytes) of loading the image as a normal map ([`NormalMap::load`]): the file,
+    /// the decoded image, its float RGB conversion and two arrays of normals (f64).
+    #[must_use]
+    pub fn normal_map_bytes(&self) -> u64 {
+        self.file_bytes + self.pixels().saturating_mul(self.bytes_per_pixel + 12 + 48)
+    }
+}
+
+/// Read an image file's header (size, sample format) without decoding its pixels, and check the
+/// size limits ([`MAX_DIMENSION`], [`MAX_TEXELS`]).
+///
+/// # Errors
+/// The file cannot be read, is not an image meso reads, or is too large.
+pub fn probe(path: &Path) -> Result<ImageHeader> {
+    use image::ImageDecoder;
+    let io = |e: std::io::Error| MapError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let file_bytes = std::fs::metadata(path).map_err(io)?.len();
+    let mut r = image::ImageReader::open(path).map_err(io)?;
+    if r.format().is_none() {
+        r.set_format(image::ImageFormat::Png);
+    }
+    let r = r.with_guessed_format().map_err(io)?;
+    if r.format().is_none() {
+        return Err(decode_err(path, "unknown image format"));
+    }
+    let d = r.into_decoder().map_err(|e| decode_err(path, e))?;
+    let (w, h) = d.dimensions();
+    check_dims(path, w as u64, h as u64)?;
+    let ct = d.color_type();
+    Ok(ImageHeader {
+        width: w as u64,
+        height: h as u64,
+        bytes_per_pixel: ct.bytes_per_pixel() as u64,
+        color: ct.has_color(),
+        eight_bit: ct.bytes_per_pixel() / ct.channel_count().max(1) == 1,
+        file_bytes,
+    })
+}
+
+/// An allocation error of loading `path`.
+fn oom(path: &Path, e: meso_core::budget::AllocError) -> MapError {
+    MapError::OutOfMemory {
+        what: path.display().to_string(),
+        source: e,
+    }
+}
+
 /// Read the header, check the size limits, then decode (with decoder limits set as well).
 fn open_image(path: &Path) -> Result<image::DynamicImage> {
     let io = |e: std::io::Error| MapError::Io {
@@ -125,6 +212,23 @@ fn open_image(path: &Path) -> Result<image::DynamicImage> {
     };
     let bytes = std::fs::read(path).map_err(io)?;
     decode_bytes(path, &bytes)
+}
+
+/// [`open_image`] after checking the memory of loading it (`estimate` from its header) against
+/// the budget (`meso_core::budget`).
+fn open_image_budgeted(
+    path: &Path,
+    task: &str,
+    estimate: impl Fn(&ImageHeader) -> u64,
+) -> Result<image::DynamicImage> {
+    // Regular files only (a FIFO cannot be read twice); a header the probe cannot read is left
+    // to the decoder, whose errors say more.
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        if let Ok(header) = probe(path) {
+            meso_core::budget::check(path, task, estimate(&header))?;
+        }
+    }
+    open_image(path)
 }
 
 fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicImage> {
@@ -237,8 +341,15 @@ impl HeightMap {
     ) -> Result<HeightMap> {
         positive("texel_size", texel_size)?;
         positive("height_scale", height_scale)?;
-        let img = open_image(path)?;
-        Self::from_image(img, texel_size, height_scale, border)
+        let img = open_image_budgeted(
+            path,
+            "loading the height map",
+            ImageHeader::height_map_bytes,
+        )?;
+        Self::from_image(img, texel_size, height_scale, border).map_err(|e| match e {
+            MapError::OutOfMemory { source, .. } => oom(path, source),
+            e => e,
+        })
     }
 
     /// Like [`HeightMap::load`], from the bytes of an image file (`name` chooses the format
@@ -316,7 +427,12 @@ impl HeightMap {
         };
         // Image row 0 is the top; meso's +y is up in the image, so row 0 of the map (y = 0) is
         // the image's bottom row.
-        let mut heights = Vec::with_capacity(codes.len());
+        let mut heights = meso_core::budget::try_with_capacity(codes.len()).map_err(|e| {
+            MapError::OutOfMemory {
+                what: "<image>".into(),
+                source: e,
+            }
+        })?;
         for r in (0..h).rev() {
             heights.extend(codes[r * w..(r + 1) * w].iter().map(|v| v * height_scale));
         }
@@ -555,7 +671,11 @@ impl NormalMap {
     /// below the horizon (`n_z ≤ 0`, common in real maps) are tilted up to [`MIN_NORMAL_Z`] and
     /// counted ([`NormalMap::clamped`]); NaN or zero-length texels are an error naming the file.
     pub fn load(path: &Path, convention: NormalConvention) -> Result<NormalMap> {
-        let img = open_image(path)?;
+        let img = open_image_budgeted(
+            path,
+            "loading the normal map",
+            ImageHeader::normal_map_bytes,
+        )?;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let two_channel = matches!(img.color(), image::ColorType::La8 | image::ColorType::La16);
         let rgb = if two_channel {

@@ -43,10 +43,14 @@ pub use error::{MapError, Result};
 pub use facets::{FacetNormals, NormalMode};
 pub use fit::FitParams;
 pub use gonio::{Gonio, GonioParams};
-pub use heightmap::{Border, HeightMap, NormalConvention, NormalMap};
+pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::{HorizonMap, HorizonStats};
-pub use pyramid::{extract, ExtractParams, Level, Method, Progress, Pyramid, PyramidInfo, Source};
+pub use pyramid::{
+    extract, extract_bytes, extract_work, ExtractParams, Level, Method, Progress, Pyramid,
+    PyramidInfo, Source,
+};
 pub use resolver::{
-    facets_with_visibility, ExtractProgress, FacetVisibility, HorizonVisibility, MapsResolver,
+    facets_bytes, facets_with_visibility, facets_with_visibility_progress, ExtractProgress,
+    FacetVisibility, HorizonVisibility, MapsResolver,
 };
 pub use visibility::BinnedVisibility;

@@ -64,7 +64,14 @@ impl Default for ExtractParams {
     }
 }
 
-/// Progress of [`extract`], reported after each level.
+/// Progress of [`extract`]: reported once before any work (everything at 0, the totals set),
+/// once the normals and horizon angles are computed, and after each level.
+///
+/// `work_done / work_total` is the fraction of the expected *time* done: work is counted in
+/// estimated cost units ([`extract_work`]: the normals and horizons per sample, and per level
+/// the merging, the EM fit on its capped point set and the residual's footprint visits), so the
+/// few coarse levels, each fitted thoroughly on many points, weigh what they cost rather than
+/// their handful of texels. `work_done` only grows and ends equal to `work_total`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Progress {
     /// Levels finished so far.
@@ -75,6 +82,93 @@ pub struct Progress {
     pub texels_done: u64,
     /// Texels to fit in all.
     pub texels_total: u64,
+    /// Work done so far (estimated cost units, see [`extract_work`]).
+    pub work_done: u64,
+    /// All the work of the extraction (estimated cost units); > 0.
+    pub work_total: u64,
+}
+
+/// Estimated cost units (≈ µs of one core) of computing the normals and horizon angles, per
+/// height sample, and of a level-0 texel (no EM: its few entries are its lobes).
+const PREP_WORK_PER_SAMPLE: u64 = 1;
+/// Estimated cost units of one EM point of a texel's fit on a level fitted plainly.
+const FIT_WORK_PLAIN: u64 = 4;
+/// … on a level with the smoothed refinement (`FitParams::smooth_texels`).
+const FIT_WORK_SMOOTH: u64 = 22;
+/// … on a level fitted thoroughly (`FitParams::thorough_texels`).
+const FIT_WORK_THOROUGH: u64 = 45;
+
+/// Peak memory of [`extract`] per level-0 cell with one normal per cell (bytes): the normals,
+/// the level-0 fits (row buffers and their flat copies), the coarser levels, and writing the map
+/// (the file's bytes and the reader's check of them). `meso extract` on rough 16-bit maps
+/// measured 735–755 bytes per cell (peak RSS, triangles, 512² and 1024²; docs/limits.md):
+/// with the per-sample term the estimate is 890, a 20% margin.
+pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
+/// Extra peak memory of [`extract`] per cell for each further normal of the cell (triangles: 2).
+pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
+/// Peak memory of [`extract`] per height sample (horizon angles, bytes).
+pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 40;
+
+/// The estimated peak memory (bytes) of [`extract`] on a `cols × rows` cell grid with
+/// `per_cell` normals per cell and `samples` height samples (0 for a normal map), including
+/// writing the pyramid as a map file ([`Pyramid::write`]); the source map itself is not
+/// counted.
+#[must_use]
+pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) -> u64 {
+    let cells = (cols as u64).saturating_mul(rows as u64);
+    let per =
+        EXTRACT_BYTES_PER_CELL + EXTRACT_BYTES_PER_EXTRA_NORMAL * (per_cell.max(1) as u64 - 1);
+    cells
+        .saturating_mul(per)
+        .saturating_add((samples as u64).saturating_mul(EXTRACT_BYTES_PER_SAMPLE))
+}
+
+/// The estimated work of [`extract`] on a `cols × rows` cell grid with `per_cell` normals per
+/// cell (2 for triangles, 1 otherwise) and `samples` height samples (0 for a normal map): the
+/// preparation (normals, horizons) and then each level, in cost units (≈ µs of one core). A
+/// texel's fit costs its EM points (its footprint's facets, capped as [`extract`] caps them) ×
+/// a factor of the level's fitting regime (plain, smoothed, thorough), measured per level with
+/// `cargo run -p meso-maps --example level_times` on 64² to 256² Gaussian maps; merging costs
+/// its entries and the residual its footprint facets. Used to weight [`Progress`] by time
+/// rather than by texels (the coarse levels have few texels and most of the time).
+#[must_use]
+pub fn extract_work(
+    cols: usize,
+    rows: usize,
+    per_cell: usize,
+    samples: usize,
+    params: &ExtractParams,
+) -> (u64, Vec<u64>) {
+    let prep = (samples.max(cols * rows) as u64) * PREP_WORK_PER_SAMPLE;
+    let nlev = level_count(cols, rows);
+    let cells = (cols as u64) * (rows as u64);
+    let kmax = params.fit.max_lobes.clamp(1, MAX_LOBES) as u64;
+    let bins = (crate::fit::ENTRY_GRID_RES * crate::fit::ENTRY_GRID_RES) as u64;
+    let mut out = Vec::with_capacity(nlev);
+    let (mut c, mut r) = (cols, rows);
+    for k in 0..nlev {
+        let texels = c * r;
+        let t = texels as u64;
+        let span2 = 1u64 << (2 * k.min(31));
+        let facets = span2.min(cells).max(1) * per_cell as u64;
+        let entries = facets.min(bins);
+        let cap = (params.fit.level_em_points / texels.max(1))
+            .clamp(64, params.fit.max_em_points.max(64)) as u64;
+        let points = if entries <= kmax { 0 } else { entries.min(cap) };
+        let per_point = if texels <= params.fit.thorough_texels {
+            FIT_WORK_THOROUGH
+        } else if texels <= params.fit.smooth_texels {
+            FIT_WORK_SMOOTH
+        } else {
+            FIT_WORK_PLAIN
+        };
+        let fit = t * (1 + entries / 4 + per_point * points);
+        let residual = t.min(params.residual_texels.max(1) as u64) * facets / 4;
+        out.push(fit + residual);
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+    }
+    (prep, out)
 }
 
 /// The NDF fit residual of one level.
@@ -312,9 +406,47 @@ pub fn extract(
             reason: "must be a finite number ≥ 0",
         });
     }
+    let (cells_x, cells_y, per_cell, samples) = match source {
+        Source::Heights(m) => (
+            m.cells_x(),
+            m.cells_y(),
+            match params.normal_mode {
+                NormalMode::Triangles => 2,
+                NormalMode::CentralDifferences => 1,
+            },
+            m.width() * m.height(),
+        ),
+        Source::Normals(n) => (n.width(), n.height(), 1, 0),
+    };
+    let (prep_work, level_work) = extract_work(cells_x, cells_y, per_cell, samples, params);
+    let work_total = (prep_work + level_work.iter().sum::<u64>()).max(1);
+    let texels_total: u64 = {
+        let (mut c, mut r, mut t) = (cells_x, cells_y, 0u64);
+        for _ in 0..level_work.len() {
+            t += (c * r) as u64;
+            c = c.div_ceil(2);
+            r = r.div_ceil(2);
+        }
+        t
+    };
+    let mut report = |levels_done: usize, texels_done: u64, work_done: u64| {
+        progress(Progress {
+            levels_done,
+            levels: level_work.len(),
+            texels_done,
+            texels_total,
+            work_done: work_done.min(work_total),
+            work_total,
+        });
+    };
+    report(0, 0, 0);
+    let oom = |e: meso_core::budget::AllocError| MapError::OutOfMemory {
+        what: "the NDF pyramid".into(),
+        source: e,
+    };
     let (facets, horizon, width, height, texel_size, border) = match source {
         Source::Heights(m) => (
-            FacetNormals::from_heightmap(m, params.normal_mode),
+            FacetNormals::try_from_heightmap(m, params.normal_mode).map_err(oom)?,
             Some(HorizonMap::compute(m)),
             m.width(),
             m.height(),
@@ -331,15 +463,9 @@ pub fn extract(
         ),
     };
     let nlev = level_count(facets.cols, facets.rows);
-    let mut total = 0u64;
-    {
-        let (mut c, mut r) = (facets.cols, facets.rows);
-        for _ in 0..nlev {
-            total += (c * r) as u64;
-            c = c.div_ceil(2);
-            r = r.div_ceil(2);
-        }
-    }
+    debug_assert_eq!(nlev, level_work.len());
+    let mut work_done = prep_work;
+    report(0, 0, work_done);
     let mut levels: Vec<Level> = Vec::with_capacity(nlev);
     // Entries of the previous level, flat, with per-texel offsets.
     let mut prev_entries: Vec<Entry> = Vec::new();
@@ -465,12 +591,12 @@ pub fn extract(
         prev_entries = entries;
         prev_start = estart;
         done += (cols * rows) as u64;
-        progress(Progress {
-            levels_done: k + 1,
-            levels: nlev,
-            texels_done: done,
-            texels_total: total,
-        });
+        work_done += level_work[k];
+        report(
+            k + 1,
+            done,
+            if k + 1 == nlev { work_total } else { work_done },
+        );
         cols = cols.div_ceil(2);
         rows = rows.div_ceil(2);
     }

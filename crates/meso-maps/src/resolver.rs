@@ -90,6 +90,51 @@ impl VisibilityModel for FacetVisibility {
     }
 }
 
+/// The estimated peak memory (bytes) of [`facets_with_visibility`] on a map of `cols × rows`
+/// cells with `per_cell` facets each and `samples` height samples: the facets and their bin
+/// entries, each facet's horizons at [`crate::visibility::AZIMUTHS`] azimuths (per sample point)
+/// and their binned copy, and the horizon map.
+#[must_use]
+pub fn facets_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) -> u64 {
+    let facets = (cols as u64)
+        .saturating_mul(rows as u64)
+        .saturating_mul(per_cell as u64);
+    let points = crate::visibility::points_per_facet(facets as usize) as u64;
+    let horizons = 4 * crate::visibility::AZIMUTHS as u64;
+    facets
+        .saturating_mul(32 + 40 + 8 + horizons * points + horizons + 8)
+        .saturating_add((samples as u64).saturating_mul(48))
+}
+
+/// Check the memory of loading the height map `file` and of `task` (its estimate from the
+/// image's header: `work(cols, rows, per_cell, samples)`) against the budget.
+fn check_heightmap_budget(
+    file: &Path,
+    p: &HeightmapParams,
+    task: &str,
+    work: impl Fn(usize, usize, usize, usize) -> u64,
+) -> Result<(), MaterialError> {
+    if !std::fs::metadata(file).is_ok_and(|m| m.is_file()) {
+        return Ok(());
+    }
+    let Ok(h) = crate::heightmap::probe(file) else {
+        return Ok(());
+    };
+    let (w, hgt) = (h.width as usize, h.height as usize);
+    let (cols, rows) = match p.border {
+        Border::Wrap => (w, hgt),
+        Border::Clamp => (w.saturating_sub(1), hgt.saturating_sub(1)),
+    };
+    let per_cell = match p.normal_mode {
+        NormalMode::Triangles => 2,
+        NormalMode::CentralDifferences => 1,
+    };
+    let estimate = h
+        .height_map_bytes()
+        .saturating_add(work(cols, rows, per_cell, w * hgt));
+    meso_core::budget::check(file, task, estimate).map_err(|e| MaterialError(format!("[ndf]: {e}")))
+}
+
 /// The facets of a height map as a delta-sum NDF (merged per ≈ 0.8° bin of the fit's entry
 /// grid, each bin's area-weighted mean normal) with each bin's visibility
 /// ([`crate::visibility`]).
@@ -99,6 +144,20 @@ impl VisibilityModel for FacetVisibility {
 pub fn facets_with_visibility(
     map: &HeightMap,
     mode: NormalMode,
+) -> Result<(Ndf, FacetVisibility), String> {
+    facets_with_visibility_progress(map, mode, &|_, _| {})
+}
+
+/// [`facets_with_visibility`], reporting the horizon march's progress (`rows_done(done,
+/// total)` in chunks of facets, from worker threads; see
+/// [`crate::visibility::facet_horizons_of`]).
+///
+/// # Errors
+/// A degenerate map (no facet with positive weight).
+pub fn facets_with_visibility_progress(
+    map: &HeightMap,
+    mode: NormalMode,
+    rows_done: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(Ndf, FacetVisibility), String> {
     let facets = crate::facets::FacetNormals::from_heightmap(map, mode);
     let entries: Vec<Entry> = facets
@@ -124,7 +183,12 @@ pub fn facets_with_visibility(
         .collect();
     // Horizons of at most MAX_FACETS_PER_BIN facets per bin, each standing for its share.
     let (chosen, factor) = crate::visibility::facets_to_march(&bins, merged.len());
-    let horizons = crate::visibility::facet_horizons_of(map, mode, &chosen);
+    const CHUNK: usize = 256;
+    rows_done(0, chosen.len().div_ceil(CHUNK).max(1));
+    let horizons = crate::visibility::facet_horizons_of(map, mode, &chosen, rows_done);
+    if chosen.is_empty() {
+        rows_done(1, 1);
+    }
     let weights: Vec<f64> = chosen
         .iter()
         .zip(&factor)
@@ -198,7 +262,9 @@ pub struct MapsResolver {
 }
 
 /// A progress hook for pyramid extractions: the height map's path and the extraction's
-/// [`crate::pyramid::Progress`] (called from the extracting thread).
+/// [`crate::pyramid::Progress`] (called from the extracting thread). `represent = "facets"`
+/// materials report their horizon march through it too, with `levels = 0` and `work_done`
+/// counting rows of cells (called from rayon's worker threads).
 pub type ExtractProgress = Arc<dyn Fn(&Path, crate::pyramid::Progress) + Send + Sync>;
 
 fn merr<T>(msg: impl Into<String>) -> Result<T, MaterialError> {
@@ -397,6 +463,18 @@ impl MapsResolver {
         if let Some(p) = self.cache_get(&key) {
             return Ok(p);
         }
+        check_heightmap_budget(
+            file,
+            &HeightmapParams {
+                texel_size,
+                height_scale,
+                max_lobes,
+                border,
+                normal_mode,
+            },
+            "extracting the NDF pyramid",
+            crate::pyramid::extract_bytes,
+        )?;
         let map = HeightMap::load(file, texel_size, height_scale, border)
             .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let mut params = ExtractParams {
@@ -431,10 +509,47 @@ impl MapsResolver {
         table: &toml::Table,
         file: &Path,
     ) -> Result<ResolvedNdf, MaterialError> {
+        Self::heightmap_facets_with(table, file, None)
+    }
+
+    /// [`MapsResolver::heightmap_facets`], reporting the horizon march to `progress` as a
+    /// [`crate::pyramid::Progress`] with `levels = 0` (no pyramid levels: `work_done` counts
+    /// rows of cells marched, from 0 to `work_total`).
+    fn heightmap_facets_with(
+        table: &toml::Table,
+        file: &Path,
+        progress: Option<&ExtractProgress>,
+    ) -> Result<ResolvedNdf, MaterialError> {
         let p = Self::heightmap_params(table)?;
+        check_heightmap_budget(
+            file,
+            &p,
+            "building the facet NDF and its visibility",
+            facets_bytes,
+        )?;
         let what = format!("[ndf] {}", file.display());
+        // Chunks finish on several threads: report only a count above every one reported.
+        let highest = std::sync::atomic::AtomicUsize::new(0);
+        let report = |done: usize, total: usize| {
+            if done > 0 && highest.fetch_max(done, std::sync::atomic::Ordering::Relaxed) >= done {
+                return;
+            }
+            if let Some(f) = progress {
+                f(
+                    file,
+                    crate::pyramid::Progress {
+                        levels_done: 0,
+                        levels: 0,
+                        texels_done: 0,
+                        texels_total: 0,
+                        work_done: done as u64,
+                        work_total: total.max(1) as u64,
+                    },
+                );
+            }
+        };
         // Built once per map content and parameters, then read from the cache
-        // (`crate::facet_cache`).
+        // (`crate::facet_cache`), which reports no progress: it takes a moment.
         let (ndf, vis, _cached) = crate::facet_cache::facets_cached(
             file,
             p.texel_size,
@@ -445,7 +560,10 @@ impl MapsResolver {
                 HeightMap::load(file, p.texel_size, p.height_scale, p.border)
                     .map_err(|e| MaterialError(format!("[ndf]: {e}")))
             },
-            |e| MaterialError(format!("{what}: {e}")),
+            |map| {
+                facets_with_visibility_progress(map, p.normal_mode, &report)
+                    .map_err(|e| MaterialError(format!("{what}: {e}")))
+            },
         )?;
         Ok(ResolvedNdf {
             ndf,
@@ -513,7 +631,7 @@ impl NdfResolver for MapsResolver {
     ) -> Result<ResolvedNdf, MaterialError> {
         match kind {
             "heightmap" if choice(table, "represent", &["lobes", "facets"])? != Some("lobes") => {
-                Self::heightmap_facets(table, file)
+                Self::heightmap_facets_with(table, file, self.progress.as_ref())
             }
             "heightmap" => {
                 let pyr = self.heightmap_pyramid(table, file)?;

@@ -313,15 +313,23 @@ pub fn facet_horizons(map: &HeightMap, mode: NormalMode) -> Vec<f32> {
         NormalMode::CentralDifferences => 1,
     };
     let all: Vec<u32> = (0..(map.cells_x() * map.cells_y() * per_cell) as u32).collect();
-    facet_horizons_of(map, mode, &all)
+    facet_horizons_of(map, mode, &all, &|_, _| {})
 }
 
 /// The horizons of the listed facets (indices in the order of
-/// [`crate::facets::FacetNormals::from_heightmap`] with the same mode) at the map's [`points_per_facet`]
-/// points: `tan[(n · P + p) · AZIMUTHS + a]` for the `n`-th listed facet.
+/// [`crate::facets::FacetNormals::from_heightmap`] with the same mode) at the map's
+/// [`points_per_facet`] points: `tan[(n · P + p) · AZIMUTHS + a]` for the `n`-th listed facet.
+/// `done(chunks_done, chunks)` is called (from the worker threads) after each chunk of facets:
+/// the progress of the horizon march, the long part of a facet NDF's visibility.
 #[must_use]
-pub fn facet_horizons_of(map: &HeightMap, mode: NormalMode, facets: &[u32]) -> Vec<f32> {
+pub fn facet_horizons_of(
+    map: &HeightMap,
+    mode: NormalMode,
+    facets: &[u32],
+    done: &(dyn Fn(usize, usize) + Sync),
+) -> Vec<f32> {
     let (cols, rows) = (map.cells_x(), map.cells_y());
+    let finished = std::sync::atomic::AtomicUsize::new(0);
     let maxes = MaxPyramid::new(map);
     let dirs: Vec<(f64, f64)> = (0..AZIMUTHS)
         .map(|a| {
@@ -337,6 +345,7 @@ pub fn facet_horizons_of(map: &HeightMap, mode: NormalMode, facets: &[u32]) -> V
     let stride = np * AZIMUTHS;
     let mut out = vec![0.0f32; facets.len() * stride];
     const CHUNK: usize = 256;
+    let chunks = facets.len().div_ceil(CHUNK);
     out.par_chunks_mut(CHUNK * stride)
         .zip(facets.par_chunks(CHUNK))
         .for_each(|(dst, list)| {
@@ -374,6 +383,8 @@ pub fn facet_horizons_of(map: &HeightMap, mode: NormalMode, facets: &[u32]) -> V
                     }
                 }
             }
+            let n = finished.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            done(n, chunks);
         });
     out
 }

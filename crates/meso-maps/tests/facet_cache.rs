@@ -6,7 +6,7 @@
 use meso_core::frame::spherical_direction_deg as d;
 use meso_core::material::Material;
 use meso_maps::facet_cache::{cache_dir, facets_cached};
-use meso_maps::{fixtures, Border, HeightMap, MapsResolver, NormalMode};
+use meso_maps::{facets_with_visibility, fixtures, Border, HeightMap, MapsResolver, NormalMode};
 use std::path::Path;
 
 fn entries(dir: &Path) -> Vec<std::path::PathBuf> {
@@ -70,7 +70,7 @@ fn facet_cache_round_trip_damage_and_keys() {
             Border::Wrap,
             NormalMode::Triangles,
             load,
-            |e| e,
+            |m| facets_with_visibility(m, NormalMode::Triangles),
         )
         .unwrap()
         .2
@@ -112,7 +112,7 @@ fn facet_cache_round_trip_damage_and_keys() {
         Border::Wrap,
         NormalMode::Triangles,
         || HeightMap::load(&file, 1.0 / 48.0, scale * 2.0, Border::Wrap).map_err(|e| e.to_string()),
-        |e| e,
+        |m| facets_with_visibility(m, NormalMode::Triangles),
     )
     .unwrap();
     assert_eq!(entries(&cache).len(), 2);

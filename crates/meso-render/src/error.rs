@@ -60,6 +60,10 @@ pub enum SceneError {
         /// The problem.
         message: String,
     },
+    /// Refused before allocating: loading an input would need more memory than the budget
+    /// (`meso_core::budget`); the message names the file, the estimate and the budget.
+    #[error("{0}")]
+    Budget(String),
     /// An environment map file is missing or broken.
     #[error("{}: environment map: {message}", file.display())]
     Environment {

@@ -215,6 +215,19 @@ pub struct EnvironmentMap {
     dist: Distribution2D,
 }
 
+/// The estimated peak memory (bytes) of [`EnvironmentMap::from_file`] on a file of `file_bytes`
+/// bytes holding a `width × height` image of `bytes_per_pixel` decoded bytes per pixel: the
+/// file, the decoded image, its float RGB conversion, the linear texels and the sampling
+/// distribution (f64 function and CDF per texel).
+#[must_use]
+pub fn environment_bytes(file_bytes: u64, width: u64, height: u64, bytes_per_pixel: u64) -> u64 {
+    file_bytes.saturating_add(
+        width
+            .saturating_mul(height)
+            .saturating_mul(bytes_per_pixel + 12 + 12 + 24),
+    )
+}
+
 impl EnvironmentMap {
     /// A map from row-major linear RGB texels (`width × height`, row 0 = zenith), a radiance
     /// `scale` and a rotation about `+y` in radians. Returns `None` if the sizes do not match,
@@ -284,6 +297,24 @@ impl EnvironmentMap {
         }
         let bytes = meso_core::io::read_limited(path, crate::scene::MAX_ENVIRONMENT_BYTES)
             .map_err(|e| err(format!("cannot read: {e}")))?;
+        // The memory of decoding, from the header (before the pixels are decoded).
+        {
+            use image::ImageDecoder;
+            let probe = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
+                .with_guessed_format()
+                .map_err(|e| err(format!("cannot read: {e}")))?;
+            if let Ok(d) = probe.into_decoder() {
+                let (w, h) = d.dimensions();
+                let estimate = environment_bytes(
+                    bytes.len() as u64,
+                    u64::from(w),
+                    u64::from(h),
+                    u64::from(d.color_type().bytes_per_pixel()),
+                );
+                meso_core::budget::check(path, "loading the environment map", estimate)
+                    .map_err(|e| crate::error::SceneError::Budget(e.to_string()))?;
+            }
+        }
         let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| err(format!("cannot read: {e}")))?;

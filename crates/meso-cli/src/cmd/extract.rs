@@ -79,6 +79,35 @@ pub struct Args {
     pub out: PathBuf,
 }
 
+/// Refuse, from the image's header and before anything is decoded, an extraction whose estimated
+/// peak memory (loading, the pyramid, writing the map) is above the memory budget.
+fn budget_check(a: &Args, params: &ExtractParams) -> Result<()> {
+    if !std::fs::metadata(&a.heightmap).is_ok_and(|m| m.is_file()) {
+        return Ok(());
+    }
+    // A header that cannot be read is reported by the loader, with more detail.
+    let Ok(h) = meso_maps::probe(&a.heightmap) else {
+        return Ok(());
+    };
+    let (w, hgt) = (h.width as usize, h.height as usize);
+    let estimate = if a.normal_map {
+        h.normal_map_bytes() + meso_maps::extract_bytes(w, hgt, 1, 0)
+    } else {
+        let (cols, rows) = if a.clamp {
+            (w.saturating_sub(1), hgt.saturating_sub(1))
+        } else {
+            (w, hgt)
+        };
+        let per_cell = match params.normal_mode {
+            NormalMode::Triangles => 2,
+            NormalMode::CentralDifferences => 1,
+        };
+        h.height_map_bytes() + meso_maps::extract_bytes(cols, rows, per_cell, w * hgt)
+    };
+    meso_core::budget::check(&a.heightmap, "extracting the NDF pyramid", estimate)?;
+    Ok(())
+}
+
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
     if !(1..=meso_maps::fit::MAX_LOBES).contains(&a.max_lobes) {
@@ -105,6 +134,9 @@ pub fn run(a: Args) -> Result<()> {
         ..ExtractParams::default()
     };
     params.fit.max_lobes = a.max_lobes;
+    budget_check(&a, &params)?;
+    let mut phases = crate::util::Phases::default();
+    let t = std::time::Instant::now();
     let heights;
     let normals;
     let source = if a.normal_map {
@@ -136,25 +168,26 @@ pub fn run(a: Args) -> Result<()> {
         }
         Source::Heights(&heights)
     };
-    let bar = crate::progress(u64::MAX, "extract");
-    let mut started = false;
-    let pyr = extract(source, &params, &mut |p| {
-        if !started {
-            bar.set_length(p.texels_total);
-            started = true;
-        }
-        bar.set_position(p.texels_done);
-    })
-    .with_context(|| format!("{}", a.heightmap.display()))?;
+    phases.add("load", t.elapsed().as_secs_f64());
+    let bar = crate::util::progress_work(1, "pyramid");
+    let pyr = phases
+        .time("pyramid", || {
+            extract(source, &params, &mut |p| {
+                bar.set_length(p.work_total);
+                bar.set_position(p.work_done);
+            })
+        })
+        .with_context(|| format!("{}", a.heightmap.display()))?;
     bar.finish_and_clear();
-    pyr.write(&a.out)?;
+    phases.time("write", || pyr.write(&a.out))?;
     let top = pyr.top();
     note!(
-        "{}: {} levels, top level {} lobes (NDF residual {:.4})",
+        "{}: {} levels, top level {} lobes (NDF residual {:.4}); {}",
         a.out.display(),
         pyr.levels.len(),
         top.lobes.len(),
-        top.residual.mean
+        top.residual.mean,
+        phases.summary()
     );
     Ok(())
 }

@@ -61,25 +61,87 @@ fn format_of(path: &Path) -> Result<Format> {
     }
 }
 
+/// Time spent extracting NDF pyramids while the scene loads (nanoseconds, all materials).
+static PYRAMID_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+/// Time spent marching the facet horizons of `represent = "facets"` materials (nanoseconds).
+static FACETS_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 /// The scene's material resolver: meso material files as [`MaterialShader`]s, and material
 /// files with a `[texture]` table as bump- or NDF-mapped materials
 /// ([`meso_render::load_textured`]).
 pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, ResolveError> {
     // NDF-mapped materials extract their height map's pyramid at load: a progress bar on a
-    // terminal for the big ones.
-    let bar = crate::progress(u64::MAX, "pyramid");
+    // terminal, weighted by the work of each level, with its time counted as the `pyramid`
+    // phase.
+    // The bar appears with the first extraction's first report (with its total), not for
+    // materials that extract nothing.
+    let bar = Arc::new(std::sync::OnceLock::<indicatif::ProgressBar>::new());
     let shown = bar.clone();
+    let st = std::sync::Mutex::new(None::<std::time::Instant>);
     let maps = meso_maps::MapsResolver::new().with_progress(Arc::new(move |_, p| {
-        shown.set_length(p.texels_total);
-        shown.set_position(p.texels_done);
+        // `levels == 0`: the horizon march of a facet NDF, not a pyramid.
+        let facets = p.levels == 0;
+        let b = shown.get_or_init(|| {
+            crate::util::progress_work(p.work_total, if facets { "facets" } else { "pyramid" })
+        });
+        b.set_length(p.work_total);
+        b.set_position(p.work_done);
+        let mut s = st.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if p.work_done == 0 && p.levels_done == 0 && s.is_none() {
+            *s = Some(std::time::Instant::now());
+        } else if p.work_done >= p.work_total {
+            if let Some(t) = s.take() {
+                let ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
+                let total = if facets {
+                    &FACETS_NANOS
+                } else {
+                    &PYRAMID_NANOS
+                };
+                total.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+            }
+        }
     }));
     let textured = meso_render::load_textured(path, &maps);
-    bar.finish_and_clear();
-    if let Some(s) = textured? {
-        return Ok(s);
+    let result: std::result::Result<Arc<dyn Shader>, ResolveError> = match textured {
+        Err(e) => Err(e.into()),
+        Ok(Some(s)) => Ok(s),
+        Ok(None) => meso_core::material::Material::from_file(path, &maps)
+            .map(|m| Arc::new(MaterialShader::new(&m)) as Arc<dyn Shader>)
+            .map_err(|e| -> ResolveError { format!("{e:#}").into() }),
+    };
+    if let Some(b) = bar.get() {
+        b.finish_and_clear();
     }
-    let m = crate::load_material(path).map_err(|e| -> ResolveError { format!("{e:#}").into() })?;
-    Ok(Arc::new(MaterialShader::new(&m)))
+    result
+}
+
+/// Bytes of the rendered image and of encoding it to `outputs` (f32 RGB radiance; per PNG the
+/// 8-bit pixels and the encoded file; per EXR two f32 copies).
+fn render_bytes(width: u32, height: u32, outputs: &[(PathBuf, Format)]) -> u64 {
+    let px = u64::from(width) * u64::from(height);
+    let per_px: u64 = 12
+        + outputs
+            .iter()
+            .map(|(_, f)| match f {
+                Format::Png => 6,
+                Format::Exr => 24,
+            })
+            .sum::<u64>();
+    px.saturating_mul(per_px)
+}
+
+/// The image size the scene file asks for (its `[image]` table), read before the scene (and
+/// its materials, environment and meshes) is loaded; `None` when the file does not say.
+fn scene_image_size(scene: &Path) -> Option<(u32, u32)> {
+    let text = crate::util::read_text(scene, meso_render::scene::MAX_SCENE_BYTES).ok()?;
+    let t: toml::Table = text.parse().ok()?;
+    let img = t.get("image")?.as_table()?;
+    let dim = |k: &str| {
+        img.get(k)
+            .and_then(toml::Value::as_integer)
+            .and_then(|v| u32::try_from(v).ok())
+    };
+    Some((dim("width")?, dim("height")?))
 }
 
 /// Run the command.
@@ -105,6 +167,19 @@ pub fn run(a: Args) -> Result<()> {
     }
     let out_paths: Vec<&Path> = outputs.iter().map(|(p, _)| p.as_path()).collect();
     crate::util::check_outputs(&out_paths, &[&a.scene])?;
+    // The image's memory, from the options or the scene's [image] table, before loading.
+    let size = match (a.width, a.height) {
+        (Some(w), Some(h)) => Some((w, h)),
+        (w, h) => scene_image_size(&a.scene).map(|(sw, sh)| (w.unwrap_or(sw), h.unwrap_or(sh))),
+    };
+    if let Some((w, h)) = size {
+        meso_core::budget::check(
+            &a.scene,
+            &format!("rendering {w}×{h} pixels"),
+            render_bytes(w, h, &outputs),
+        )?;
+    }
+    let mut phases = crate::util::Phases::default();
     // The material files the scene loads are inputs too.
     let loaded = std::sync::Mutex::new(Vec::<PathBuf>::new());
     let resolver = |p: &Path| {
@@ -114,8 +189,23 @@ pub fn run(a: Args) -> Result<()> {
             .push(p.to_path_buf());
         resolve_material(p)
     };
+    PYRAMID_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
+    FACETS_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
+    let t = std::time::Instant::now();
     let scene = Scene::from_toml_file(&a.scene, &resolver)
         .with_context(|| format!("cannot load the scene {}", a.scene.display()))?;
+    let pyramid = PYRAMID_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
+    let facets = FACETS_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
+    phases.add(
+        "load",
+        (t.elapsed().as_secs_f64() - pyramid - facets).max(0.0),
+    );
+    if pyramid > 0.0 {
+        phases.add("pyramid", pyramid);
+    }
+    if facets > 0.0 {
+        phases.add("facets", facets);
+    }
     let loaded = loaded
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -131,6 +221,11 @@ pub fn run(a: Args) -> Result<()> {
     };
     let w = a.width.unwrap_or(scene.image.width);
     let h = a.height.unwrap_or(scene.image.height);
+    meso_core::budget::check(
+        &a.scene,
+        &format!("rendering {w}×{h} pixels"),
+        render_bytes(w, h, &outputs),
+    )?;
     let ts = opts.tile_size.max(1);
     let tiles = u64::from(w.div_ceil(ts) * h.div_ceil(ts));
     let spp = u64::from(a.spp.unwrap_or(scene.image.spp));
@@ -138,12 +233,11 @@ pub fn run(a: Args) -> Result<()> {
     let bar = crate::progress(tiles * spp.max(1), "render");
     let step = spp.max(1);
     let tick = |_: usize, _: usize| bar.inc(step);
-    let t = std::time::Instant::now();
-    let img = render(&scene, &opts, Some(&tick));
+    let img = phases.time("render", || render(&scene, &opts, Some(&tick)));
     bar.finish_and_clear();
-    let secs = t.elapsed().as_secs_f64();
     // Every image is encoded and written to its temporary file before any is put in place: a
     // failure leaves none of them.
+    let t = std::time::Instant::now();
     let mut staged = Vec::new();
     for (path, f) in &outputs {
         let bytes = match f {
@@ -157,17 +251,19 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     meso_core::io::commit_all(staged)?;
+    phases.add("write", t.elapsed().as_secs_f64());
     note!(
-        "rendered {}x{} at {} spp in {:.2} s -> {}",
+        "rendered {}x{} at {} spp in {:.2} s -> {} ({})",
         img.width(),
         img.height(),
         spp,
-        secs,
+        phases.seconds("render"),
         outputs
             .iter()
             .map(|(p, _)| p.display().to_string())
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        phases.summary()
     );
     Ok(())
 }

@@ -1,0 +1,63 @@
+//! Issue #12, item 13: the progress of an extraction tells the truth: a total known from the
+//! first call (never a placeholder such as `u64::MAX`), monotone, ending at its total, and
+//! weighted by work, so that the coarse levels (few texels, each fitted on many points) are not
+//! a last few percent that take most of the time.
+
+use meso_maps::{extract, fixtures, ExtractParams, Progress, Source};
+
+fn progress_of(n: usize) -> Vec<Progress> {
+    let map = fixtures::gaussian(n, 3.0, 0.15, 7, 0.1).unwrap();
+    let mut calls = Vec::new();
+    extract(Source::Heights(&map), &ExtractParams::default(), &mut |p| {
+        calls.push(p)
+    })
+    .unwrap();
+    calls
+}
+
+#[test]
+fn item13_extract_progress_is_monotone_and_ends_at_its_total() {
+    let calls = progress_of(64);
+    let first = calls[0];
+    assert_eq!(
+        (first.work_done, first.texels_done, first.levels_done),
+        (0, 0, 0)
+    );
+    assert!(
+        first.work_total > 0 && first.work_total < u64::MAX / 2,
+        "{first:?}"
+    );
+    assert!(first.texels_total > 0 && first.texels_total < u64::MAX / 2);
+    for w in calls.windows(2) {
+        assert_eq!(w[0].work_total, w[1].work_total, "the total never changes");
+        assert!(
+            w[1].work_done >= w[0].work_done,
+            "{:?} then {:?}",
+            w[0],
+            w[1]
+        );
+        assert!(w[1].texels_done >= w[0].texels_done);
+    }
+    let last = calls.last().unwrap();
+    assert_eq!(last.work_done, last.work_total);
+    assert_eq!(last.texels_done, last.texels_total);
+    assert_eq!(last.levels_done, last.levels);
+    // One call before the work, one after the normals and horizons, one per level.
+    assert_eq!(calls.len(), last.levels + 2);
+}
+
+#[test]
+fn item13_extract_progress_is_weighted_by_work_not_texels() {
+    let calls = progress_of(128);
+    let total = calls[0].work_total as f64;
+    // After the two finest levels (94% of the texels) much of the work is still to come.
+    let after2 = calls.iter().find(|p| p.levels_done == 2).unwrap();
+    let texel_share = after2.texels_done as f64 / after2.texels_total as f64;
+    let work_share = after2.work_done as f64 / total;
+    assert!(texel_share > 0.9, "{texel_share}");
+    assert!(
+        work_share < 0.8,
+        "two finest levels {:.0}% of the work",
+        100.0 * work_share
+    );
+}
