@@ -626,6 +626,54 @@ mod pyramid {
         }
     }
 
+    /// Against truth: normals drawn from two narrow clusters (3° spread, 60 % / 40 % of the
+    /// area, 30° either side of the normal) need exactly two lobes at the default tolerance
+    /// (1 % of the peak), found at the clusters with their shares; one lobe is far off.
+    #[test]
+    fn two_clusters_get_two_lobes_where_they_are() {
+        use meso_maps::fit::{fit_lobes, merge_entries, shading_error, Entry};
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let axes = [
+            DVec3::new(0.5, 0.0, 0.75f64.sqrt()),
+            DVec3::new(-0.5, 0.0, 0.75f64.sqrt()),
+        ];
+        let mut singles = Vec::new();
+        for i in 0..5000 {
+            let a = if i % 5 < 3 { axes[0] } else { axes[1] };
+            // A Gaussian offset of 3° in the tangent plane.
+            let (u, v): (f64, f64) = (rng.random(), rng.random());
+            let r = 3f64.to_radians() * (-2.0 * (1.0 - u).ln()).sqrt();
+            let t1 = DVec3::Y;
+            let t2 = a.cross(t1);
+            let phi = std::f64::consts::TAU * v;
+            let n = (a + (t1 * phi.cos() + t2 * phi.sin()) * r.tan()).normalize();
+            singles.push(Entry::new(n, 1.0));
+        }
+        let mut entries = Vec::new();
+        merge_entries(&[&singles], &mut entries);
+        let mut lobes = Vec::new();
+        let e = fit_lobes(&entries, &FitParams::default(), &mut lobes);
+        assert_eq!(lobes.len(), 2, "{lobes:?}");
+        assert!(e <= 0.01, "shading error {e}");
+        let mut l = lobes.clone();
+        l.sort_by(|a, b| b.axis.x.total_cmp(&a.axis.x));
+        for (x, (a, w)) in l.iter().zip([(axes[0], 0.6), (axes[1], 0.4)]) {
+            assert!(x.axis.angle_between(a).to_degrees() < 1.0, "{x:?}");
+            assert!((x.weight - w).abs() < 0.02, "{x:?}");
+        }
+        let one = FitParams {
+            max_lobes: 1,
+            ..FitParams::default()
+        };
+        let e1 = fit_lobes(&entries, &one, &mut lobes);
+        assert!(e1 > 0.1, "one lobe: {e1}");
+        assert_eq!(
+            e1,
+            shading_error(&entries, &lobes, one.smooth_exponent).rms_of_peak
+        );
+    }
+
     #[test]
     fn flat_gives_one_delta_lobe_everywhere() {
         let map = fixtures::flat(24, 0.1).unwrap(); // not a power of two: ragged levels
