@@ -79,8 +79,8 @@
 //!
 //! 1 % is the largest tolerance that keeps every map's Phong-facet error within about one
 //! point of the tolerance-0 fit (2 % doubles the Gaussian map's); it saves 5–13 % of the lobes
-//! on levels 1 and up, and most on level 0, where a cell's two triangles usually become one lobe
-//! (the 256² facade height map: 1.04 lobes per level-0 texel instead of 2).
+//! on levels 1 and up of these maps. Before and after on real maps: docs/heightmaps.md
+//! ("Monotone K, measured").
 //!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
