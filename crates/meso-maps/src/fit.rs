@@ -126,6 +126,21 @@ fn bounded(axis: DVec3, eta: f64) -> (DVec3, f64) {
     };
     (a, eta)
 }
+/// Smallest facet roughness α accepted for the shading-error kernel (`λ = 2/α²` = 5000: a
+/// kernel ≈ 0.8° wide, the entry grid's bin); `meso extract --facet-alpha` and the
+/// `facet_alpha` key of height-map materials.
+pub const FACET_ALPHA_MIN: f64 = 0.02;
+/// Largest facet roughness α accepted for the shading-error kernel (`λ = 2`: a kernel as wide as
+/// the hemisphere).
+pub const FACET_ALPHA_MAX: f64 = 1.0;
+
+/// The kernel exponent λ (`FitParams::smooth_exponent`) of a Beckmann-like facet of roughness α:
+/// `exp(λ(h·m − 1)) ≈ exp(−λθ²/2)` matches `exp(−tan²θ/α²) ≈ exp(−θ²/α²)` at `λ = 2/α²`.
+#[must_use]
+pub fn kernel_exponent_of_alpha(alpha: f64) -> f64 {
+    2.0 / (alpha * alpha)
+}
+
 /// Resolution of the equal-area grid used to merge normals into [`Entry`]s (≈ 0.8° bins).
 pub const ENTRY_GRID_RES: usize = 256;
 /// Resolution of the equal-area grid of the NDF residual (1024 bins of ≈ 6.3°).

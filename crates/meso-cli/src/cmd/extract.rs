@@ -2,16 +2,12 @@
 //! NDF pyramid of a height map (or normal map) and write it as a map file (docs/map-format.md).
 
 use anyhow::{bail, Context, Result};
+use meso_maps::fit::{kernel_exponent_of_alpha, FACET_ALPHA_MAX, FACET_ALPHA_MIN};
 use meso_maps::{
     extract, Baseline, Border, ExtractParams, HeightMap, Method, NormalConvention, NormalMap,
     NormalMode, Source,
 };
 use std::path::PathBuf;
-
-/// Smallest `--facet-alpha` (λ = 5000: a kernel ≈ 0.8° wide, the entry grid's bin).
-const FACET_ALPHA_MIN: f64 = 0.02;
-/// Largest `--facet-alpha` (λ = 2: a kernel as wide as the hemisphere).
-const FACET_ALPHA_MAX: f64 = 1.0;
 
 /// Green-channel convention of a normal map.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,7 +120,7 @@ pub fn run(a: Args) -> Result<()> {
         if !(alpha.is_finite() && (FACET_ALPHA_MIN..=FACET_ALPHA_MAX).contains(&alpha)) {
             bail!("--facet-alpha {alpha}: must be between {FACET_ALPHA_MIN} and {FACET_ALPHA_MAX}");
         }
-        params.fit.smooth_exponent = 2.0 / (alpha * alpha);
+        params.fit.smooth_exponent = kernel_exponent_of_alpha(alpha);
     }
     if !(a.shading_tolerance.is_finite() && (0.0..=100.0).contains(&a.shading_tolerance)) {
         bail!(
