@@ -887,14 +887,14 @@ impl<'a> Smoothed<'a> {
     }
 }
 
-/// Relative smoothed L2 error of the EM fit up to which it is kept as it is.
+/// Relative smoothed L2 error of the chain's fit up to which it is not refined at a K.
 const SMOOTH_KEEP: f64 = 0.05;
-/// Relative L2 error of the smoothed fit below which the EM start is not challenged by the
-/// greedy one.
+/// Relative L2 error of the LM-polished EM fit below which it is not challenged by the K − 1
+/// fit plus one lobe.
 const SMOOTH_GOOD: f64 = 0.03;
 /// Most entries the smoothed objective is computed from (a strided subset beyond).
 const SMOOTH_MAX_POINTS: usize = 1024;
-/// Most LM steps per start (and per greedy stage) of the smoothed refinement; the starts stop
+/// Most LM steps per start of the smoothed refinement (at each K); the starts stop
 /// when a step gains less than [`SMOOTH_TOL_START`] (relative).
 const SMOOTH_START_ITERATIONS: usize = 10;
 const SMOOTH_TOL_START: f64 = 1e-3;
@@ -902,6 +902,7 @@ const SMOOTH_TOL_START: f64 = 1e-3;
 /// [`SMOOTH_TOL`].
 const SMOOTH_ITERATIONS: usize = 30;
 const SMOOTH_TOL: f64 = 1e-5;
+
 fn to_phong(lobes: &[L]) -> Vec<PhongLobe> {
     let s: f64 = lobes.iter().map(|l| l.w).sum();
     lobes
