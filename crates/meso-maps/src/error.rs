@@ -84,7 +84,9 @@ pub enum MapError {
         message: String,
     },
     /// A map file has a version this library does not read.
-    #[error("map file {path} has format version {found}; this build reads version {expected}")]
+    #[error(
+        "map file {path} has format version {found}; this build reads versions 2 to {expected}"
+    )]
     MapVersion {
         /// The file.
         path: PathBuf,

@@ -49,3 +49,42 @@ fn extraction_progress_reaches_every_texel_once() {
         "cached: no second extraction"
     );
 }
+
+/// `facet_alpha` sets the kernel of the shading error (a sharper facet asks for more lobes),
+/// is part of the cache key, and is refused outside 0.02–1 with a message naming it.
+#[test]
+fn facet_alpha_sets_the_kernel_and_is_checked() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("resolver_alpha");
+    std::fs::create_dir_all(&dir).unwrap();
+    let map = meso_maps::fixtures::gaussian(32, 2.0, 0.3, 4, 1.0).unwrap();
+    let values: Vec<f32> = (0..32 * 32).map(|k| map.heights()[k] as f32).collect();
+    let file = dir.join("g.exr");
+    std::fs::write(
+        &file,
+        meso_maps::fixtures::exr_bytes(32, 32, &values).unwrap(),
+    )
+    .unwrap();
+    let maps = MapsResolver::new();
+    let table = |extra: &str| -> toml::Table {
+        format!("kind = \"heightmap\"\nfile = \"g.exr\"\ntexel_size = 1.0\nheight_scale = 1.0\nmax_lobes = 8\n{extra}")
+            .parse()
+            .unwrap()
+    };
+    let lobes = |extra: &str| -> usize {
+        let p = maps.heightmap_pyramid(&table(extra), &file).unwrap();
+        p.levels.iter().map(|l| l.lobes.len()).sum()
+    };
+    let (wide, default, sharp) = (
+        lobes("facet_alpha = 0.5"),
+        lobes(""),
+        lobes("facet_alpha = 0.05"),
+    );
+    assert!(
+        wide < default && default < sharp,
+        "lobes: α 0.5 {wide}, default {default}, α 0.05 {sharp}"
+    );
+    for bad in ["facet_alpha = 0.01", "facet_alpha = 2", "facet_alpha = -1"] {
+        let e = maps.heightmap_pyramid(&table(bad), &file).unwrap_err();
+        assert!(e.to_string().contains("facet_alpha"), "{e}");
+    }
+}
