@@ -144,9 +144,9 @@ fn main() {
     // The same without the smoothed refinement of the coarse levels (EM fit only), then the
     // default again (the first extraction of the process also pays for page faults).
     let mut em_only = ExtractParams::default();
-    em_only.fit.smooth_texels = 0;
+    em_only.fit.smooth_exponent = 0.0;
     for (name, p) in [
-        ("EM only (smooth_texels = 0)", &em_only),
+        ("EM only (smooth_exponent = 0)", &em_only),
         ("default, again", &ExtractParams::default()),
     ] {
         let t = Instant::now();

@@ -12,8 +12,7 @@
 //! ```text
 //! CARGO_TARGET_DIR=/work/targets/maps cargo run --release -p meso-maps --example fit_probe [K]
 //! ```
-//! Environment: `SMOOTH=λ` sets `FitParams::smooth_exponent` (0: EM only), `TOL=t`
-//! `FitParams::shading_tolerance`, `FETA=η` the facet
+//! Environment: `SMOOTH=λ` sets `FitParams::smooth_exponent` (0: EM only), `FETA=η` the facet
 //! exponent of every map (default 40 for the zoom map, 20 for the others), `SHOW=1` prints the
 //! coarse texels' lobes, `VIEWS=1` the top level's per-pair errors.
 use glam::DVec3;
@@ -81,15 +80,7 @@ fn main() {
         p.fit.max_lobes = k;
         p.fit.max_em_points = em_points;
         if let Ok(v) = std::env::var("SMOOTH") {
-            let v: f64 = v.parse().unwrap();
-            if v > 0.0 {
-                p.fit.smooth_exponent = v;
-            } else {
-                p.fit.smooth_texels = 0;
-            }
-        }
-        if let Ok(v) = std::env::var("TOL") {
-            p.fit.shading_tolerance = v.parse().unwrap();
+            p.fit.smooth_exponent = v.parse().unwrap();
         }
         let t0 = std::time::Instant::now();
         let mut lt = vec![];

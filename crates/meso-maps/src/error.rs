@@ -84,9 +84,7 @@ pub enum MapError {
         message: String,
     },
     /// A map file has a version this library does not read.
-    #[error(
-        "map file {path} has format version {found}; this build reads versions 2 to {expected}"
-    )]
+    #[error("map file {path} has format version {found}; this build reads version {expected}")]
     MapVersion {
         /// The file.
         path: PathBuf,

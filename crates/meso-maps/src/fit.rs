@@ -5,82 +5,42 @@
 //! ([`ENTRY_GRID_RES`]² bins, ≈ 0.8° wide) into [`Entry`]s that keep the *sum* of their weighted
 //! normals, so the within-bin spread survives in the length of the mean vector.
 //!
-//! * A footprint of one entry is one lobe (exact): axis = its mean direction, exponent from its
-//!   spread (a set of identical normals gets [`ETA_MAX`], a delta-like lobe). A footprint of
-//!   n ≤ [`MAX_LOBES`] entries has the same exact n-lobe fit as its candidate at K = n.
-//! * The mixture of K lobes is fitted by maximum likelihood with EM. With
+//! * If there are no more entries than `max_lobes`, every entry becomes its own lobe (exact):
+//!   axis = its mean direction, exponent from its spread (a set of identical normals gets
+//!   [`ETA_MAX`], a delta-like lobe).
+//! * Otherwise the mixture of K lobes is fitted by maximum likelihood with EM. With
 //!   `t = ln((1 + a·m)/2)` the log-density of a lobe is `ln((η+2)/(8π)) + (η/2)·t`, so the
 //!   exponent's M-step is closed-form, `η + 2 = −2 / E_r[t]` (clamped to `[0, ETA_MAX]`), and
 //!   the axis satisfies `a ∝ Σ r_n m_n / (1 + a·m_n)`, iterated once per EM step.
-//!   Each K starts from a spherical k-means (greedy weighted k-means++ seeds) and from the
-//!   K − 1 EM fit with its heaviest lobe split into a concentric pair; the start of higher
-//!   likelihood is kept. Footprints with more than `max_em_points` entries are fitted on a
-//!   strided subset; footprints with at most 4 entries per lobe use the k-means clusters
-//!   directly (no EM).
-//! * **Smoothed refinement** (levels of at most `smooth_texels` texels). Maximum likelihood is
-//!   the wrong objective for shading when K
+//!   K grows from 1; each K starts from a spherical k-means (greedy weighted k-means++ seeds);
+//!   K lobes are kept only if they raise the mean log-likelihood (per unit weight) over K − 1
+//!   lobes by more than `min_gain` nats.
+//!   Footprints with more than `max_em_points` entries are fitted on a strided subset; footprints
+//!   with at most 4 entries per lobe use the k-means clusters directly (no EM).
+//! * **Smoothed refinement** (levels of at most `smooth_texels` texels, when
+//!   `smooth_exponent` λ > 0). Maximum likelihood is the wrong objective for shading when K
 //!   peaks cannot follow the normals: it is dominated by where the normals pile up (an
 //!   egg crate's normals sit on the edges of a diamond, a ring 26–37° from the normal, densest
 //!   at its corners) and puts narrow peaks there, leaving the rest of the ring dark: the coarse
 //!   levels of the zoom bump map shaded 13–45% too dark at the bench's view
 //!   (`docs/figures.md`, diagnosis). A renderer only sees the NDF through the facet BRDF, a
-//!   kernel about 10° wide; so the lobes are refined to minimise the **smoothed objective**
-//!   `S = Σ_h (∫ n_fit(m) K(h·m) dm − Σ_n w_n K(h·m_n))²` with `K = exp(λ(h·m − 1))`, over the
+//!   kernel about 10° wide; so the lobes are refined to minimise
+//!   `Σ_h (∫ n_fit(m) K(h·m) dm − Σ_n w_n K(h·m_n))²` with `K = exp(λ(h·m − 1))`, over the
 //!   upper-hemisphere centres `h` of an equal-area grid of spacing ≈ the kernel's width `1/√λ`
 //!   near the data (the data term from up to 1024 entries, weights normalised to 1). Each peak
 //!   is treated as the spherical Gaussian of the same mean cosine `η/(η+4)` (as `NdfMapped`
 //!   does), so the smoothed lobe is exact in closed form (`sg_response`). Levenberg–Marquardt
-//!   (`Smoothed::lm`) over axes, `ln κ` and softmax weight logits (the weights stay a
-//!   probability: Eq. 1) runs at every K from two starts: the K-lobe EM fit (a lobe whose weight
-//!   dies is re-seeded; at K = 1 also the data's mean axis and mean cosine) and — when that
-//!   leaves a relative smoothed L2 error above 3% — **the K − 1 fit plus one lobe** seeded
-//!   where the data most exceed it, with weight 1/K; the lower one is polished further. A fit
-//!   already within 5% (relative smoothed L2) is not refined: the spherical-Gaussian stand-in
-//!   for a Phong peak (same mean cosine, a slightly narrower core) and the kernel's blindness to
-//!   finer detail would cost a facet BRDF sharper than the kernel a few percent (a Beckmann
-//!   α = 0.1 facet on a random surface lost 4–5% when every fit was refined).
-//!
-//! # Choice of K (issue #11 item 4)
-//! The **shading error** of a fit ([`ShadingError`], [`shading_error`]) is the smoothed
-//! objective read in a unit a user can judge: `√(S / #h) / max_h Σ_n w_n K(h·m_n)`, the RMS
-//! over the sample half vectors of the difference between the fitted NDF and the footprint's
-//! normals, both blurred by the facet kernel, as a fraction of the blurred normals' peak. The
-//! kernel stands for the facet BRDF the map will be shaded with: `exp(λ(h·m − 1))` is a Phong
-//! facet of exponent ≈ λ, or a Beckmann one of `α = √(2/λ)` (`FitParams::smooth_exponent`,
-//! default λ = 40, α ≈ 0.22; `meso extract --facet-alpha`).
-//!
-//! K grows from 1 along a **chain**: `r_1` is the best of the EM lobe and (refined levels) its
-//! smoothed candidates; at each K the candidates are the K-lobe EM fit, on refined levels the
-//! LM candidates above, and — for a footprint of exactly K entries — the exact lobes. `r_K` is
-//! the best candidate when its `S` is *strictly* lower than `S(r_{K−1})`, else `r_{K−1}` (fewer
-//! lobes win ties). Every `S` is evaluated on the final, bounded Phong lobes (the numbers
-//! [`shading_error`] recomputes from the returned lobes), and nothing in the chain depends on
-//! `max_lobes`. The chain stops at the first K whose shading error is within
-//! `FitParams::shading_tolerance` (default 1 % of the peak) or at `max_lobes`. Hence a larger
-//! `max_lobes` returns the same lobes or lobes of lower `S`: **the fit's objective and its
-//! shading error never grow with `max_lobes`**, exactly (tests
-//! `more_lobes_never_raise_the_fit_objective_on_random_maps`,
-//! `level_shading_error_never_grows_with_max_lobes`). The binned NDF residual below is *not* the
-//! fit's objective and can still grow with K (it rewards detail finer than any facet BRDF
-//! sees).
-//!
-//! **The default tolerance, measured** with `TOL=t fit_probe 4` (the `fit_probe` example: the
-//! shading of Phong facets, η = 40 on the zoom map, 20 on the others, integrated over each
-//! texel's triangles against its lobes, mean over ten view/light pairs and over levels 1 to the
-//! top; 2 cores, not idle: other builds ran, which does not change the numbers):
-//!
-//! | tolerance | zoom: error / lobes per texel | test egg crate | half-cylinders | Gaussian |
-//! |---|---|---|---|---|
-//! | 0 (always `max_lobes` as far as they help) | 6.26 % / 3.92 | 4.76 % / 3.90 | 8.58 % / 3.67 | 1.45 % / 3.61 |
-//! | 0.5 % | 6.28 % / 3.83 | 4.76 % / 3.90 | 8.58 % / 3.67 | 1.49 % / 3.39 |
-//! | **1 % (default)** | 6.42 % / 3.71 | 4.76 % / 3.90 | 9.61 % / 3.42 | 1.64 % / 3.13 |
-//! | 2 % | 6.90 % / 3.46 | 4.76 % / 3.90 | 9.95 % / 3.29 | 2.66 % / 2.71 |
-//! | 5 % | 9.83 % / 3.19 | 6.13 % / 3.70 | 14.10 % / 2.96 | 5.95 % / 1.54 |
-//!
-//! 1 % is the largest tolerance that keeps every map's Phong-facet error within about one
-//! point of the tolerance-0 fit (2 % doubles the Gaussian map's); it saves 5–13 % of the lobes
-//! on levels 1 and up of these maps. Before and after on real maps: docs/heightmaps.md
-//! ("Monotone K, measured").
+//!   over axes, `ln κ` and softmax weight logits (the weights stay a probability: Eq. 1) runs
+//!   from two starts: the EM lobes (a lobe whose weight dies is re-seeded) and a greedy start
+//!   (one lobe, then lobes added where the data most exceed the fit, while each lowers the
+//!   objective by > 2%, up to `max_lobes`; tried only when the EM start leaves a relative
+//!   smoothed L2 error above 3%); the lower objective wins. EM fits already within 5%
+//!   (relative smoothed L2) are kept as they are: the spherical-Gaussian stand-in for a Phong
+//!   peak (same mean cosine, a slightly narrower core) and the kernel's blindness to finer
+//!   detail would cost a facet BRDF sharper than the kernel a few percent (a Beckmann α = 0.1
+//!   facet on a random surface lost 4–5% when every fit was refined). It never raises the
+//!   smoothed objective above the EM fit's; it can raise the binned L2 residual below (which
+//!   rewards detail finer than any facet BRDF sees).
 //!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
@@ -126,21 +86,6 @@ fn bounded(axis: DVec3, eta: f64) -> (DVec3, f64) {
     };
     (a, eta)
 }
-/// Smallest facet roughness α accepted for the shading-error kernel (`λ = 2/α²` = 5000: a
-/// kernel ≈ 0.8° wide, the entry grid's bin); `meso extract --facet-alpha` and the
-/// `facet_alpha` key of height-map materials.
-pub const FACET_ALPHA_MIN: f64 = 0.02;
-/// Largest facet roughness α accepted for the shading-error kernel (`λ = 2`: a kernel as wide as
-/// the hemisphere).
-pub const FACET_ALPHA_MAX: f64 = 1.0;
-
-/// The kernel exponent λ (`FitParams::smooth_exponent`) of a Beckmann-like facet of roughness α:
-/// `exp(λ(h·m − 1)) ≈ exp(−λθ²/2)` matches `exp(−tan²θ/α²) ≈ exp(−θ²/α²)` at `λ = 2/α²`.
-#[must_use]
-pub fn kernel_exponent_of_alpha(alpha: f64) -> f64 {
-    2.0 / (alpha * alpha)
-}
-
 /// Resolution of the equal-area grid used to merge normals into [`Entry`]s (≈ 0.8° bins).
 pub const ENTRY_GRID_RES: usize = 256;
 /// Resolution of the equal-area grid of the NDF residual (1024 bins of ≈ 6.3°).
@@ -204,11 +149,9 @@ pub fn merge_entries(lists: &[&[Entry]], out: &mut Vec<Entry>) {
 pub struct FitParams {
     /// Largest number of lobes per texel, 1..=[`MAX_LOBES`] (default 4).
     pub max_lobes: usize,
-    /// K is the smallest number of lobes whose shading error ([`ShadingError::rms_of_peak`]:
-    /// RMS over the sample half vectors of the kernel-blurred NDF error, as a fraction of its
-    /// peak) is at most this, up to `max_lobes` (default 0.01 = 1 % of the peak; module docs,
-    /// "Choice of K"); 0 always grows K to `max_lobes` (as far as each lobe helps).
-    pub shading_tolerance: f64,
+    /// Smallest gain in mean log-likelihood (nats per unit weight) that justifies one more
+    /// lobe (default 0.001).
+    pub min_gain: f64,
     /// EM iterations per K (default 30; stops earlier when the likelihood settles).
     pub em_iterations: usize,
     /// Entries used by EM; larger footprints are fitted on a strided subset (default 512).
@@ -221,14 +164,12 @@ pub struct FitParams {
     /// Levels with at most this many texels (the coarse ones) are fitted thoroughly: full
     /// `em_iterations` for every start (default 64; see `fit_lobes_with`).
     pub thorough_texels: usize,
-    /// Exponent λ of the facet kernel `exp(λ(h·m − 1))` (> 0) by which the shading error is
-    /// measured and K chosen, and of the smoothed refinement (module docs). The kernel is about
-    /// as wide as a Phong facet `(h·m)^(λ−1)`, or a Beckmann facet of roughness `α = √(2/λ)`:
-    /// ≈ `1/√λ` rad. Default 40 (α ≈ 0.22, ≈ 9°).
+    /// Exponent λ of the smoothing kernel `exp(λ(h·m − 1))` of the smoothed refinement (module
+    /// docs; the kernel is about as wide as a Phong facet `(h·m)^(λ−1)`, ≈ `1/√λ` rad); 0 turns
+    /// the refinement off (maximum-likelihood EM only). Default 40.
     pub smooth_exponent: f64,
     /// Levels with at most this many texels get the smoothed refinement (default 1024; it
-    /// costs ≈ 1 ms per texel, so the big fine levels keep the EM fit); 0 turns it off
-    /// (maximum-likelihood EM candidates only, K still chosen by the shading error).
+    /// costs ≈ 1 ms per texel, so the big fine levels keep the EM fit).
     pub smooth_texels: usize,
 }
 
@@ -236,7 +177,7 @@ impl Default for FitParams {
     fn default() -> Self {
         FitParams {
             max_lobes: 4,
-            shading_tolerance: 0.01,
+            min_gain: 0.001,
             em_iterations: 30,
             max_em_points: 512,
             level_em_points: 1 << 18,
@@ -818,48 +759,32 @@ impl<'a> Smoothed<'a> {
         st.k += 1;
     }
 
-    /// One lobe with the data's mean axis and the concentration of its mean cosine (the first
-    /// start of the chain at K = 1).
-    fn one_lobe(&self) -> SgState {
-        let c = self.pts.iter().map(|p| p.0 * p.1).sum::<DVec3>() / self.total.max(1e-300);
+    /// Greedy fit: one lobe with the data's mean axis and mean cosine, then lobes added by
+    /// [`Self::add_lobe`] while each lowers the objective by more than `min_drop` (relative),
+    /// up to `kmax`.
+    fn greedy(&self, kmax: usize, iters: usize, min_drop: f64) -> (SgState, f64) {
+        let c = self.pts.iter().map(|p| p.0 * p.1).sum::<DVec3>() / self.total;
         let mc = c.length().clamp(0.0, 1.0 - 1e-9);
-        SgState {
+        let mut st = SgState {
             k: 1,
             axes: [c.try_normalize().unwrap_or(DVec3::Z); MAX_LOBES],
             lk: [vmf::kappa_from_mean_cos(mc)
                 .clamp(KAPPA_MIN, KAPPA_MAX)
                 .ln(); MAX_LOBES],
             sl: [0.0; MAX_LOBES],
+        };
+        let mut obj = self.lm(&mut st, iters, SMOOTH_TOL_START);
+        while st.k < kmax {
+            let mut next = st.clone();
+            self.add_lobe(&mut next, 1.0 / (st.k + 1) as f64);
+            let o = self.lm(&mut next, iters, SMOOTH_TOL_START);
+            if o > obj * (1.0 - min_drop) {
+                break;
+            }
+            st = next;
+            obj = o;
         }
-    }
-
-    /// The objective of final (bounded) Phong lobes: each peak as the spherical Gaussian of
-    /// the same mean cosine ([`peak_kappa`]).
-    fn objective_of(&self, lobes: &[PhongLobe]) -> f64 {
-        let ls: Vec<L> = lobes
-            .iter()
-            .map(|l| L {
-                a: l.axis,
-                w: l.weight,
-                eta: l.exponent,
-            })
-            .collect();
-        self.eval(&SgState::from_lobes(&ls), None)
-    }
-
-    /// Largest kernel-smoothed value of the data (the peak the shading error is relative to).
-    fn peak(&self) -> f64 {
-        self.target.iter().copied().fold(0.0, f64::max)
-    }
-
-    /// The shading error of an objective value: RMS over the sample half vectors, as a fraction
-    /// of [`Self::peak`] (0 when there is nothing to measure).
-    fn rms_of_peak(&self, obj: f64) -> f64 {
-        let peak = self.peak();
-        if self.hs.is_empty() || peak <= 0.0 {
-            return 0.0;
-        }
-        (obj / self.hs.len() as f64).sqrt() / peak
+        (st, obj)
     }
 
     /// LM from `st`; a lobe whose weight dies (< 10⁻³) or whose axis sinks below the horizon is
@@ -887,14 +812,46 @@ impl<'a> Smoothed<'a> {
     }
 }
 
-/// Relative smoothed L2 error of the chain's fit up to which it is not refined at a K.
+/// Refine the EM fit `lobes` on the smoothed L2 objective (module docs) unless it is already
+/// within [`SMOOTH_KEEP`]: LM from the EM lobes and from a greedy start (up to `kmax` lobes);
+/// the lobes of the lower objective are kept.
+fn refine_smoothed(pts: &[Pt], lobes: &mut Vec<L>, lambda: f64, kmax: usize) {
+    let sm = Smoothed::new(pts, lambda);
+    if lobes.is_empty() || sm.hs.len() < 4 * kmax {
+        return;
+    }
+    let mut a = SgState::from_lobes(lobes);
+    let energy: f64 = sm.target.iter().map(|t| t * t).sum();
+    // The EM fit is kept unless it is off by more than SMOOTH_KEEP (relative L2): the
+    // refinement models the peaks as spherical Gaussians and ignores detail finer than the
+    // kernel, which a sharper facet BRDF than the kernel would see.
+    if sm.eval(&a, None) <= SMOOTH_KEEP * SMOOTH_KEEP * energy {
+        return;
+    }
+    let oa = sm.polish(&mut a, SMOOTH_START_ITERATIONS);
+    // The greedy start only when the EM start leaves more than SMOOTH_GOOD (relative L2).
+    let mut best = if oa <= SMOOTH_GOOD * SMOOTH_GOOD * energy {
+        a
+    } else {
+        let (b, ob) = sm.greedy(kmax, SMOOTH_START_ITERATIONS, SMOOTH_MIN_DROP);
+        if ob < oa {
+            b
+        } else {
+            a
+        }
+    };
+    sm.lm(&mut best, SMOOTH_ITERATIONS, SMOOTH_TOL);
+    *lobes = best.to_lobes();
+}
+
+/// Relative smoothed L2 error of the EM fit up to which it is kept as it is.
 const SMOOTH_KEEP: f64 = 0.05;
-/// Relative L2 error of the LM-polished EM fit below which it is not challenged by the K − 1
-/// fit plus one lobe.
+/// Relative L2 error of the smoothed fit below which the EM start is not challenged by the
+/// greedy one.
 const SMOOTH_GOOD: f64 = 0.03;
 /// Most entries the smoothed objective is computed from (a strided subset beyond).
 const SMOOTH_MAX_POINTS: usize = 1024;
-/// Most LM steps per start of the smoothed refinement (at each K); the starts stop
+/// Most LM steps per start (and per greedy stage) of the smoothed refinement; the starts stop
 /// when a step gains less than [`SMOOTH_TOL_START`] (relative).
 const SMOOTH_START_ITERATIONS: usize = 10;
 const SMOOTH_TOL_START: f64 = 1e-3;
@@ -902,6 +859,9 @@ const SMOOTH_TOL_START: f64 = 1e-3;
 /// [`SMOOTH_TOL`].
 const SMOOTH_ITERATIONS: usize = 30;
 const SMOOTH_TOL: f64 = 1e-5;
+/// The greedy start adds a lobe only when it lowers the smoothed objective by more than this
+/// fraction.
+const SMOOTH_MIN_DROP: f64 = 0.02;
 
 fn to_phong(lobes: &[L]) -> Vec<PhongLobe> {
     let s: f64 = lobes.iter().map(|l| l.w).sum();
@@ -940,9 +900,8 @@ fn split_heaviest(lobes: &[L]) -> Vec<L> {
 }
 
 /// Fit up to `params.max_lobes` Phong peaks to the merged normals `entries` (see module docs).
-/// Writes the lobes into `out` (cleared first; weights sum to 1) and returns their shading
-/// error (a fraction of the peak, see [`ShadingError`]).
-pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>) -> f64 {
+/// Writes the lobes into `out` (cleared first); weights sum to 1.
+pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>) {
     let mut pts = Vec::new();
     fit_lobes_with(
         entries,
@@ -952,84 +911,14 @@ pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>
         true,
         &mut pts,
         out,
-    )
-}
-
-/// The shading error of a lobe set against the normals of a footprint (module docs, "Choice
-/// of K"): both blurred by the facet kernel `exp(λ(h·m − 1))` at the half vectors `h` of the
-/// smoothed objective.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShadingError {
-    /// The fit's own objective: `Σ_h (∫ n_fit(m) K(h·m) dm − Σ_n w_n K(h·m_n))²`, weights of
-    /// both sides summing to 1 (dimensionless; what the K chain never lets grow).
-    pub objective: f64,
-    /// RMS of the difference over the sample half vectors, as a fraction of the largest
-    /// blurred value of the normals (0.01 = 1 % of the peak).
-    pub rms_of_peak: f64,
-}
-
-/// The data of the smoothed objective: the entries' mean vectors and weights, a strided subset
-/// of at most [`SMOOTH_MAX_POINTS`] (the same for the fit and for [`shading_error`]).
-fn smooth_data(entries: &[Entry]) -> Vec<Pt> {
-    let stride = entries.len().div_ceil(SMOOTH_MAX_POINTS).max(1);
-    entries
-        .iter()
-        .step_by(stride)
-        .map(|e| (e.mean(), e.w))
-        .collect()
-}
-
-/// The shading error of `lobes` (weights summing to 1) against the merged normals `entries`
-/// under the kernel of exponent `lambda` (> 0; `FitParams::smooth_exponent`). Exactly the value
-/// [`fit_lobes_with`] chose K by and returned, for the lobes it returned.
-#[must_use]
-pub fn shading_error(entries: &[Entry], lobes: &[PhongLobe], lambda: f64) -> ShadingError {
-    let data = smooth_data(entries);
-    if data.is_empty() || !(lambda.is_finite() && lambda > 0.0) {
-        return ShadingError {
-            objective: 0.0,
-            rms_of_peak: 0.0,
-        };
-    }
-    let sm = Smoothed::new(&data, lambda);
-    let objective = sm.objective_of(lobes);
-    ShadingError {
-        objective,
-        rms_of_peak: sm.rms_of_peak(objective),
-    }
-}
-
-/// The K chain's state: the fit so far (final, bounded lobes) and its objective.
-struct Chain {
-    lobes: Vec<PhongLobe>,
-    obj: f64,
-}
-
-impl Chain {
-    /// Take `cand` if its objective is strictly lower (ties keep the fewer lobes).
-    fn offer(&mut self, sm: &Smoothed<'_>, cand: Vec<PhongLobe>) -> bool {
-        let o = sm.objective_of(&cand);
-        if o < self.obj {
-            self.lobes = cand;
-            self.obj = o;
-            true
-        } else {
-            false
-        }
-    }
+    );
 }
 
 /// [`fit_lobes`] with the EM subset capped at `max_points` entries (≤ `params.max_em_points`)
 /// and a caller-owned buffer (no allocation per call once it has grown). `thorough` runs every
-/// EM for `em_iterations`; otherwise each EM start runs 5 iterations and the better start 5
-/// more (the cheap path of the big, fine pyramid levels). `smooth` adds the smoothed
-/// (Levenberg–Marquardt) candidates at every K (module docs). Returns the shading error of the
-/// lobes written to `out` (fraction of the peak, [`ShadingError::rms_of_peak`]).
-///
-/// K grows from 1 along a chain that never lets the smoothed objective grow (module docs,
-/// "Choice of K"); it stops at the first K whose shading error is within
-/// `params.shading_tolerance`, or at `params.max_lobes`. Nothing in the chain depends on
-/// `max_lobes`, so a larger `max_lobes` never gives a higher objective.
+/// EM for `em_iterations`; otherwise K is chosen after 5 EM iterations per start and the chosen
+/// K polished with at most 10 more (the cheap path of the big, fine pyramid levels). `smooth`
+/// adds the smoothed refinement (module docs) when `params.smooth_exponent > 0`.
 pub fn fit_lobes_with(
     entries: &[Entry],
     params: &FitParams,
@@ -1038,42 +927,25 @@ pub fn fit_lobes_with(
     smooth: bool,
     pts: &mut Vec<(DVec3, f64)>,
     out: &mut Vec<PhongLobe>,
-) -> f64 {
+) {
     out.clear();
     let total: f64 = entries.iter().map(|e| e.w).sum();
     if entries.is_empty() || total <= 0.0 {
-        return 0.0;
+        return;
     }
     let kmax = params.max_lobes.clamp(1, MAX_LOBES);
-    let lambda = if params.smooth_exponent.is_finite() && params.smooth_exponent > 0.0 {
-        params.smooth_exponent
-    } else {
-        FitParams::default().smooth_exponent
-    };
-    let tol = params.shading_tolerance.max(0.0);
-    // Every entry its own lobe: exact (the candidate at K = number of entries).
-    let exact = || -> Vec<PhongLobe> {
-        entries
-            .iter()
-            .map(|e| {
-                let mean = e.mean();
-                let a = mean.normalize();
-                let (axis, exponent) = bounded(a, eta_from_mean_t(log_t(a, mean)));
-                PhongLobe {
-                    axis,
-                    weight: e.w / total,
-                    exponent,
-                }
-            })
-            .collect()
-    };
-    let data = smooth_data(entries);
-    let sm = Smoothed::new(&data, lambda);
-    let energy: f64 = sm.target.iter().map(|t| t * t).sum();
-    if entries.len() == 1 {
-        out.extend(exact());
-        let o = sm.objective_of(out);
-        return sm.rms_of_peak(o);
+    if entries.len() <= kmax {
+        for e in entries {
+            let mean = e.mean();
+            let a = mean.normalize();
+            let (axis, exponent) = bounded(a, eta_from_mean_t(log_t(a, mean)));
+            out.push(PhongLobe {
+                axis,
+                weight: e.w / total,
+                exponent,
+            });
+        }
+        return;
     }
     // Strided subset for EM.
     let cap = max_points.min(params.max_em_points).max(8);
@@ -1083,7 +955,8 @@ pub fn fit_lobes_with(
     let pts: &[Pt] = pts;
     let ptotal: f64 = pts.iter().map(|p| p.1).sum();
     let iters = params.em_iterations.max(3);
-    // Thorough: every EM start runs `em_iterations`; cheap: 5 per start, 5 more for the better.
+    // With the full point budget (small levels) every EM runs `em_iterations`; on budget-capped
+    // levels, selection runs short EM (5 iterations) and the chosen K is polished with ≤ 10 more.
     let full = thorough;
     let sel_iters = if full { iters } else { iters.min(5) };
     // K = 1: mean direction, then the fixed point and the closed-form η.
@@ -1093,141 +966,81 @@ pub fn fit_lobes_with(
     } else {
         DVec3::Z
     };
-    let mut em_lobes = vec![L {
+    let mut lobes = vec![L {
         a,
         w: 1.0,
         eta: 0.0,
     }];
-    em(
+    let mut ll = em(
         pts,
-        &mut em_lobes,
+        &mut lobes,
         ptotal,
         if full { iters } else { iters.min(10) },
     );
-    let lobes1 = to_phong(&em_lobes);
-    let mut chain = Chain {
-        obj: sm.objective_of(&lobes1),
-        lobes: lobes1,
-    };
-    let refine = smooth && params.smooth_texels > 0;
     // Nearly identical normals: one delta-like lobe, nothing to gain from more.
-    let delta = em_lobes.len() == 1 && em_lobes[0].eta >= ETA_MAX;
-    let mut k = 1;
-    loop {
-        // Candidates at K = k (k = 1: the EM lobe above, plus the smoothed one).
-        if k > 1 {
-            if k == entries.len() {
-                chain.offer(&sm, exact());
-            } else if k < entries.len() {
-                let small = pts.len() <= 4 * k;
-                let starts: &[usize] = if small {
-                    &[0]
-                } else if full || k == 2 {
-                    &[0, 1]
-                } else {
-                    &[0]
-                };
-                let mut best: Option<(f64, Vec<L>)> = None;
-                for &start in starts {
-                    let mut trial = if start == 0 {
-                        kmeans_init(pts, k)
-                    } else {
-                        split_heaviest(&em_lobes)
-                    };
-                    // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
-                    let l2 = if small {
-                        loglik(pts, &trial, ptotal)
-                    } else {
-                        em(pts, &mut trial, ptotal, sel_iters)
-                    };
-                    if !trial.is_empty() && best.as_ref().is_none_or(|b| l2 > b.0) {
-                        best = Some((l2, trial));
-                    }
-                }
-                if let Some((_, mut trial)) = best {
-                    if !full && !small {
-                        em(pts, &mut trial, ptotal, 5);
-                    }
-                    if trial.len() == k {
-                        em_lobes = trial.clone();
-                    }
-                    chain.offer(&sm, to_phong(&trial));
-                }
-            }
-        }
-        if refine
-            && !delta
-            && k < entries.len()
-            && sm.hs.len() >= 4 * k
-            && sm.rms_of_peak(chain.obj) > tol
-        {
-            smoothed_candidates(&sm, &mut chain, &em_lobes, k, energy);
-        }
-        if k >= kmax || delta || sm.rms_of_peak(chain.obj) <= tol || k >= entries.len() {
-            break;
-        }
-        k += 1;
-    }
-    out.extend_from_slice(&chain.lobes);
-    sm.rms_of_peak(chain.obj)
-}
-
-/// The Levenberg–Marquardt candidates at K = `k` (module docs): the EM lobes of this K polished
-/// on the smoothed objective (unless the chain is already within [`SMOOTH_KEEP`] relative L2),
-/// and — when that leaves more than [`SMOOTH_GOOD`] — the chain's fit so far plus one lobe
-/// where the data most exceed it; the better one is polished further and offered to the chain.
-fn smoothed_candidates(
-    sm: &Smoothed<'_>,
-    chain: &mut Chain,
-    em_lobes: &[L],
-    k: usize,
-    energy: f64,
-) {
-    // The chain's fit is kept unless it is off by more than SMOOTH_KEEP (relative L2): the
-    // refinement models the peaks as spherical Gaussians and ignores detail finer than the
-    // kernel, which a sharper facet BRDF than the kernel would see.
-    if chain.obj <= SMOOTH_KEEP * SMOOTH_KEEP * energy {
+    if lobes.len() == 1 && lobes[0].eta >= ETA_MAX {
+        out.extend(to_phong(&lobes));
         return;
     }
-    let mut best: Option<(f64, SgState)> = None;
-    if k == 1 {
-        let mut st = sm.one_lobe();
-        let o = sm.polish(&mut st, SMOOTH_START_ITERATIONS);
-        best = Some((o, st));
-    }
-    if em_lobes.len() == k {
-        let mut st = SgState::from_lobes(em_lobes);
-        let o = sm.polish(&mut st, SMOOTH_START_ITERATIONS);
-        if best.as_ref().is_none_or(|b| o < b.0) {
-            best = Some((o, st));
+    let small = pts.len() <= 4 * kmax;
+    let mut improved = false;
+    for k in 2..=kmax {
+        let mut best: Option<(f64, Vec<L>)> = None;
+        // Thorough fits try both starts at every K, the cheap path both at K = 2 and k-means
+        // after; small footprints (no EM) only k-means (a split start needs EM to move).
+        let starts: &[usize] = if small {
+            &[0]
+        } else if full || k == 2 {
+            &[0, 1]
+        } else {
+            &[0]
+        };
+        for &start in starts {
+            let mut trial = if start == 0 {
+                kmeans_init(pts, k)
+            } else {
+                split_heaviest(&lobes)
+            };
+            // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
+            let l2 = if small {
+                loglik(pts, &trial, ptotal)
+            } else {
+                em(pts, &mut trial, ptotal, sel_iters)
+            };
+            if trial.len() == k && best.as_ref().is_none_or(|b| l2 > b.0) {
+                best = Some((l2, trial));
+            }
+        }
+        match best {
+            Some((l2, trial)) if l2 - ll > params.min_gain => {
+                lobes = trial;
+                ll = l2;
+                improved = true;
+            }
+            _ => break,
         }
     }
-    let good = best
-        .as_ref()
-        .is_some_and(|b| b.0 <= SMOOTH_GOOD * SMOOTH_GOOD * energy);
-    // The K fit plus one lobe (only when the chain holds K − 1 lobes: otherwise it is the
-    // same start as at the previous K).
-    if k > 1 && !good && chain.lobes.len() == k - 1 {
-        let ls: Vec<L> = chain
-            .lobes
-            .iter()
-            .map(|l| L {
-                a: l.axis,
-                w: l.weight,
-                eta: l.exponent,
-            })
-            .collect();
-        let mut st = SgState::from_lobes(&ls);
-        sm.add_lobe(&mut st, 1.0 / k as f64);
-        let o = sm.lm(&mut st, SMOOTH_START_ITERATIONS, SMOOTH_TOL_START);
-        if best.as_ref().is_none_or(|b| o < b.0) {
-            best = Some((o, st));
-        }
+    if improved && !small && iters > sel_iters {
+        em(pts, &mut lobes, ptotal, (iters - sel_iters).min(10));
     }
-    if let Some((_, mut st)) = best {
-        sm.lm(&mut st, SMOOTH_ITERATIONS, SMOOTH_TOL);
-        chain.offer(sm, to_phong(&st.to_lobes()));
+    if smooth && params.smooth_exponent > 0.0 {
+        // The smoothed objective sees up to SMOOTH_MAX_POINTS entries (a strided subset of
+        // `max_em_points` aliases with periodic maps).
+        let data: Vec<Pt>;
+        let data = if entries.len() > pts.len() {
+            let stride = entries.len().div_ceil(SMOOTH_MAX_POINTS);
+            data = entries
+                .iter()
+                .step_by(stride)
+                .map(|e| (e.mean(), e.w))
+                .collect();
+            &data[..]
+        } else {
+            pts
+        };
+        refine_smoothed(data, &mut lobes, params.smooth_exponent, kmax);
     }
+    out.extend(to_phong(&lobes));
 }
 
 /// Probability of each bin of `grid` under a lobe set (weights summing to 1): lobes narrower

@@ -15,11 +15,9 @@ use std::path::{Path, PathBuf};
 
 /// The 8 magic bytes opening every map file.
 pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
-/// The format version written by this build (3: each level also records its shading error;
-/// 2: the same without it, still read; version 1 stored projected-area shares and is refused).
-pub const VERSION: u32 = 3;
-/// The oldest format version this build reads (its levels have no shading error).
-pub const OLDEST_READ_VERSION: u32 = 2;
+/// The format version written and read by this build (2: lobe weights are Eq. 1 area shares;
+/// version 1 stored projected-area shares).
+pub const VERSION: u32 = 2;
 const LOBE_BYTES: u64 = 20;
 const HORIZON_BYTES: u64 = 36;
 
@@ -75,9 +73,6 @@ impl Pyramid {
             put_f64(w, l.residual.mean)?;
             put_f64(w, l.residual.max)?;
             put_u32(w, l.residual.texels)?;
-            // NaN marks "not measured" (a pyramid read from a version-2 file).
-            put_f64(w, l.residual.shading_mean.unwrap_or(f64::NAN))?;
-            put_f64(w, l.residual.shading_max.unwrap_or(f64::NAN))?;
             let counts: Vec<u8> = l
                 .lobe_start
                 .windows(2)
@@ -163,7 +158,7 @@ impl Pyramid {
             return Err(r.err("not a meso map file (bad magic bytes)".into()));
         }
         let version = r.u32("version")?;
-        if !(OLDEST_READ_VERSION..=VERSION).contains(&version) {
+        if version != VERSION {
             return Err(MapError::MapVersion {
                 path: r.path.clone(),
                 found: version,
@@ -244,32 +239,15 @@ impl Pyramid {
                 } else {
                     0
                 }
-                + 20
-                + if version >= 3 { 16 } else { 0 };
+                + 20;
             if ((r.b.len() - r.pos) as u64) < need {
                 return Err(r.err(format!("truncated in level {k}")));
             }
-            let mut residual = Residual {
+            let residual = Residual {
                 mean: r.f64("residual")?,
                 max: r.f64("residual")?,
                 texels: r.u32("residual texels")?,
-                shading_mean: None,
-                shading_max: None,
             };
-            if version >= 3 {
-                let mean = r.f64("shading error")?;
-                let max = r.f64("shading error")?;
-                // NaN in both: not measured; otherwise finite and ≥ 0.
-                if !(mean.is_nan() && max.is_nan()) {
-                    if !(mean.is_finite() && max.is_finite() && mean >= 0.0 && max >= 0.0) {
-                        return Err(
-                            r.err(format!("level {k}: shading error mean {mean} / max {max}"))
-                        );
-                    }
-                    residual.shading_mean = Some(mean);
-                    residual.shading_max = Some(max);
-                }
-            }
             let counts = r.take(texels, "lobe counts")?;
             let mut lobe_start = Vec::with_capacity(texels + 1);
             lobe_start.push(0u32);

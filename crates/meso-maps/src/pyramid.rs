@@ -13,9 +13,7 @@
 
 use crate::error::{MapError, Result};
 use crate::facets::{FacetNormals, NormalMode};
-use crate::fit::{
-    fit_lobes_with, merge_entries, ndf_l2_error, shading_error, Entry, FitParams, MAX_LOBES,
-};
+use crate::fit::{fit_lobes_with, merge_entries, ndf_l2_error, Entry, FitParams, MAX_LOBES};
 use crate::heightmap::{Border, HeightMap, NormalMap};
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
@@ -173,23 +171,15 @@ pub fn extract_work(
     (prep, out)
 }
 
-/// The fit residuals of one level: the binned NDF error (sampled texels) and the shading error
-/// (every texel).
+/// The NDF fit residual of one level.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Residual {
-    /// Mean relative NDF L2 error over the measured texels (`crate::fit::ndf_l2_error`).
+    /// Mean relative NDF L2 error over the measured texels.
     pub mean: f64,
     /// Largest relative NDF L2 error among them.
     pub max: f64,
-    /// Number of texels the NDF error was measured on.
+    /// Number of texels measured.
     pub texels: u32,
-    /// Mean shading error over all texels of the level, as a fraction of each texel's peak
-    /// (`crate::fit::ShadingError::rms_of_peak`: the kernel-blurred NDF against the footprint's
-    /// normals, RMS over the half vectors; 0.01 = 1 %). `None` for map files of format
-    /// version 2, which did not record it.
-    pub shading_mean: Option<f64>,
-    /// Largest shading error of a texel of the level (fraction of its peak); `None` as above.
-    pub shading_max: Option<f64>,
 }
 
 /// One level of the pyramid.
@@ -308,7 +298,7 @@ impl std::fmt::Display for PyramidInfo {
         )?;
         writeln!(
             f,
-            "level  texels       span  lobes     lobes/texel  lobe-count histogram  NDF residual mean/max (n)  shading error mean/max (% of peak)"
+            "level  texels       span  lobes     lobes/texel  lobe-count histogram  residual mean/max (n)"
         )?;
         for (k, l) in self.levels.iter().enumerate() {
             let hist: Vec<String> = l
@@ -318,22 +308,17 @@ impl std::fmt::Display for PyramidInfo {
                 .filter(|(_, c)| **c > 0)
                 .map(|(n, c)| format!("{n}:{c}"))
                 .collect();
-            let shading = match (l.residual.shading_mean, l.residual.shading_max) {
-                (Some(m), Some(x)) => format!("{:.2}/{:.2}", 100.0 * m, 100.0 * x),
-                _ => "not recorded (map format 2)".to_string(),
-            };
             writeln!(
                 f,
-                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:<26} {shading}",
+                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:.4}/{:.4} ({})",
                 format!("{}x{}", l.cols, l.rows),
                 l.span,
                 l.lobes,
                 l.lobes as f64 / (l.cols * l.rows) as f64,
                 hist.join(" "),
-                format!(
-                    "{:.4}/{:.4} ({})",
-                    l.residual.mean, l.residual.max, l.residual.texels
-                ),
+                l.residual.mean,
+                l.residual.max,
+                l.residual.texels
             )?;
         }
         Ok(())
@@ -414,18 +399,11 @@ pub fn extract(
             reason: "must be between 1 and 8",
         });
     }
-    if !(params.fit.shading_tolerance.is_finite() && params.fit.shading_tolerance >= 0.0) {
+    if !(params.fit.min_gain.is_finite() && params.fit.min_gain >= 0.0) {
         return Err(MapError::InvalidParameter {
-            name: "shading_tolerance",
-            value: params.fit.shading_tolerance.to_string(),
+            name: "min_gain",
+            value: params.fit.min_gain.to_string(),
             reason: "must be a finite number ≥ 0",
-        });
-    }
-    if !(params.fit.smooth_exponent.is_finite() && params.fit.smooth_exponent > 0.0) {
-        return Err(MapError::InvalidParameter {
-            name: "smooth_exponent",
-            value: params.fit.smooth_exponent.to_string(),
-            reason: "must be a finite number > 0 (the facet kernel's exponent)",
         });
     }
     let (cells_x, cells_y, per_cell, samples) = match source {
@@ -509,7 +487,6 @@ pub fn extract(
             lobes: Vec<PhongLobe>,
             lcount: Vec<u32>,
             horizon: Vec<HorizonStats>,
-            shading: Vec<f64>,
         }
         let em_cap = (params.fit.level_em_points / (cols * rows).max(1))
             .clamp(64, params.fit.max_em_points.max(64));
@@ -524,7 +501,6 @@ pub fn extract(
                     lobes: Vec::new(),
                     lcount: Vec::with_capacity(cols),
                     horizon: Vec::new(),
-                    shading: Vec::with_capacity(cols),
                 };
                 let mut merged = Vec::new();
                 let mut singles = Vec::new();
@@ -560,7 +536,7 @@ pub fn extract(
                             out.horizon.push(hs);
                         }
                     }
-                    let err = match params.method {
+                    match params.method {
                         Method::Lobes => fit_lobes_with(
                             &merged,
                             &params.fit,
@@ -575,10 +551,8 @@ pub fn extract(
                                 merged.iter().map(|e| (e.mean(), e.w)).collect();
                             lobes.clear();
                             lobes.extend(crate::baseline::baseline_lobes(b, &pts));
-                            shading_error(&merged, &lobes, params.fit.smooth_exponent).rms_of_peak
                         }
-                    };
-                    out.shading.push(err);
+                    }
                     out.entries.extend_from_slice(&merged);
                     out.ecount.push(merged.len() as u32);
                     out.lobes.extend_from_slice(&lobes);
@@ -592,7 +566,6 @@ pub fn extract(
         let mut lobes = Vec::with_capacity(rows_out.iter().map(|r| r.lobes.len()).sum());
         let mut lstart = Vec::with_capacity(cols * rows + 1);
         let mut hz = Vec::new();
-        let mut shading = Vec::with_capacity(cols * rows);
         estart.push(0u32);
         lstart.push(0u32);
         for ro in rows_out {
@@ -603,7 +576,6 @@ pub fn extract(
             entries.extend_from_slice(&ro.entries);
             lobes.extend_from_slice(&ro.lobes);
             hz.extend_from_slice(&ro.horizon);
-            shading.extend_from_slice(&ro.shading);
         }
         let mut level = Level {
             cols,
@@ -615,9 +587,6 @@ pub fn extract(
             residual: Residual::default(),
         };
         level.residual = level_residual(&level, &facets, params.residual_texels);
-        level.residual.shading_mean =
-            Some(shading.iter().sum::<f64>() / shading.len().max(1) as f64);
-        level.residual.shading_max = Some(shading.iter().copied().fold(0.0, f64::max));
         levels.push(level);
         prev_entries = entries;
         prev_start = estart;
@@ -680,7 +649,5 @@ fn level_residual(level: &Level, facets: &FacetNormals, max_texels: usize) -> Re
         mean: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
         max: errs.iter().copied().fold(0.0, f64::max),
         texels,
-        shading_mean: None,
-        shading_max: None,
     }
 }

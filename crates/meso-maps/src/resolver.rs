@@ -10,7 +10,6 @@
 //! | `max_lobes` | lobes per texel, 1–8 (default 4) |
 //! | `border` | `"wrap"` (default) or `"clamp"` |
 //! | `normals` | `"triangles"` (default) or `"central"` (central differences) |
-//! | `facet_alpha` | roughness α of the facet BRDF the lobes are fitted for, 0.02–1 (default ≈ 0.22): the width of the kernel by which each texel's shading error is measured and its number of lobes chosen (`crate::fit`, "Choice of K"; as `meso extract --facet-alpha`) |
 //! | `represent` | `"facets"` (default: every facet normal of the map, binned to ≈ 0.8°, as a delta sum with each bin's own visibility, `shadowing = "visibility"`: within 0.1–6% of the ray-traced BRDF where the lobes miss by 3–88%, docs/heightmaps.md; see [`MapsResolver::heightmap_facets`]) or `"lobes"` (the pyramid's top-level fitted Phong peaks, with Smith or horizon masking) |
 //!
 //! With `represent = "lobes"` the pyramid is extracted once per (file, modification time,
@@ -218,14 +217,13 @@ impl VisibilityModel for HorizonVisibility {
 
 /// The keys that describe a height map and its pyramid in a `kind = "heightmap"` table (besides
 /// `kind` and `represent`); `[texture]` tables of scene files take the same ones.
-pub const HEIGHTMAP_KEYS: [&str; 7] = [
+pub const HEIGHTMAP_KEYS: [&str; 6] = [
     "file",
     "texel_size",
     "height_scale",
     "max_lobes",
     "border",
     "normals",
-    "facet_alpha",
 ];
 
 /// The parameters of a `kind = "heightmap"` table.
@@ -241,9 +239,6 @@ pub struct HeightmapParams {
     pub border: Border,
     /// How normals are derived.
     pub normal_mode: NormalMode,
-    /// Roughness α of the facet BRDF the lobes are fitted for (dimensionless; `None`: the
-    /// default kernel, `FitParams::smooth_exponent`).
-    pub facet_alpha: Option<f64>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -256,7 +251,6 @@ struct CacheKey {
     max_lobes: usize,
     clamp: bool,
     central: bool,
-    facet_alpha: Option<u64>,
 }
 
 /// An `NdfResolver` for `[ndf] kind = "heightmap"` and `kind = "map"` (see the module docs).
@@ -419,26 +413,12 @@ impl MapsResolver {
             Some("central") => NormalMode::CentralDifferences,
             _ => NormalMode::Triangles,
         };
-        let facet_alpha = match table.get("facet_alpha") {
-            None => None,
-            Some(_) => {
-                let a = positive_number(table, "facet_alpha")?;
-                let (lo, hi) = (crate::fit::FACET_ALPHA_MIN, crate::fit::FACET_ALPHA_MAX);
-                if !(lo..=hi).contains(&a) {
-                    return merr(format!(
-                        "[ndf] facet_alpha: must be between {lo} and {hi}, got {a}"
-                    ));
-                }
-                Some(a)
-            }
-        };
         Ok(HeightmapParams {
             texel_size,
             height_scale,
             max_lobes,
             border,
             normal_mode,
-            facet_alpha,
         })
     }
 
@@ -467,7 +447,6 @@ impl MapsResolver {
             max_lobes,
             border,
             normal_mode,
-            facet_alpha,
         } = Self::heightmap_params(table)?;
         let meta = std::fs::metadata(file)
             .map_err(|e| MaterialError(format!("[ndf] file {}: {e}", file.display())))?;
@@ -480,7 +459,6 @@ impl MapsResolver {
             max_lobes,
             clamp: border == Border::Clamp,
             central: normal_mode == NormalMode::CentralDifferences,
-            facet_alpha: facet_alpha.map(f64::to_bits),
         };
         if let Some(p) = self.cache_get(&key) {
             return Ok(p);
@@ -493,7 +471,6 @@ impl MapsResolver {
                 max_lobes,
                 border,
                 normal_mode,
-                facet_alpha,
             },
             "extracting the NDF pyramid",
             crate::pyramid::extract_bytes,
@@ -505,9 +482,6 @@ impl MapsResolver {
             ..ExtractParams::default()
         };
         params.fit.max_lobes = max_lobes;
-        if let Some(a) = facet_alpha {
-            params.fit.smooth_exponent = crate::fit::kernel_exponent_of_alpha(a);
-        }
         let pyr = Arc::new(
             extract(Source::Heights(&map), &params, &mut |p| {
                 if let Some(f) = &self.progress {

@@ -62,7 +62,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
             return Err(named(format!(
                 "[texture]: unknown key `{k}` (known: kind, file, normal_map, convention, \
                  texel_size, height_scale, texels_per_uv, shadowing, filter, max_lobes, border, \
-                 normals, facet_alpha)"
+                 normals)"
             )));
         }
     }
@@ -86,13 +86,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     let file = match (string("file")?, string("normal_map")?) {
         (Some(f), None) => dir.join(f),
         (None, Some(n)) => {
-            for k in [
-                "texel_size",
-                "height_scale",
-                "border",
-                "normals",
-                "facet_alpha",
-            ] {
+            for k in ["texel_size", "height_scale", "border", "normals"] {
                 if tex.contains_key(k) {
                     return Err(named(format!(
                         "[texture] {k}: applies to height maps (`file`), not to `normal_map`"

@@ -232,10 +232,6 @@ fn normal_maps_texel_by_texel_and_filtered() {
             "applies to height maps",
         ),
         (
-            format!("[texture]\nkind = \"ndf-mapped\"\nnormal_map = \"normals.png\"\nfacet_alpha = 0.1\n{transfer}"),
-            "facet_alpha: applies to height maps",
-        ),
-        (
             format!("[texture]\nkind = \"bump-mapped\"\nnormal_map = \"normals.png\"\nconvention = \"up\"\n{transfer}"),
             "unknown \"up\"",
         ),

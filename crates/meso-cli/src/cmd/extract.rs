@@ -2,7 +2,6 @@
 //! NDF pyramid of a height map (or normal map) and write it as a map file (docs/map-format.md).
 
 use anyhow::{bail, Context, Result};
-use meso_maps::fit::{kernel_exponent_of_alpha, FACET_ALPHA_MAX, FACET_ALPHA_MIN};
 use meso_maps::{
     extract, Baseline, Border, ExtractParams, HeightMap, Method, NormalConvention, NormalMap,
     NormalMode, Source,
@@ -75,16 +74,6 @@ pub struct Args {
     /// Fitted lobes (default) or a single-lobe baseline.
     #[arg(long, value_enum, default_value = "lobes")]
     pub method: MethodArg,
-    /// Roughness α of the facet BRDF the map will be shaded with (Beckmann-like; 0.02–1): the
-    /// width of the kernel `exp(λ(h·m − 1))`, λ = 2/α², by which each texel's shading error is
-    /// measured and its number of lobes chosen (docs/heightmaps.md). Default 0.224 (λ = 40).
-    #[arg(long)]
-    pub facet_alpha: Option<f64>,
-    /// Largest shading error per texel, in % of the texel's peak (RMS of the kernel-blurred
-    /// NDF error): each texel gets the fewest lobes (up to --max-lobes) within it; 0 always
-    /// uses as many lobes as help.
-    #[arg(long, default_value_t = 1.0)]
-    pub shading_tolerance: f64,
     /// Output map file (written atomically).
     #[arg(long, short)]
     pub out: PathBuf,
@@ -145,19 +134,6 @@ pub fn run(a: Args) -> Result<()> {
         ..ExtractParams::default()
     };
     params.fit.max_lobes = a.max_lobes;
-    if let Some(alpha) = a.facet_alpha {
-        if !(alpha.is_finite() && (FACET_ALPHA_MIN..=FACET_ALPHA_MAX).contains(&alpha)) {
-            bail!("--facet-alpha {alpha}: must be between {FACET_ALPHA_MIN} and {FACET_ALPHA_MAX}");
-        }
-        params.fit.smooth_exponent = kernel_exponent_of_alpha(alpha);
-    }
-    if !(a.shading_tolerance.is_finite() && (0.0..=100.0).contains(&a.shading_tolerance)) {
-        bail!(
-            "--shading-tolerance {}: must be a percentage between 0 and 100",
-            a.shading_tolerance
-        );
-    }
-    params.fit.shading_tolerance = a.shading_tolerance / 100.0;
     budget_check(&a, &params)?;
     let mut phases = crate::util::Phases::default();
     let t = std::time::Instant::now();
@@ -213,19 +189,5 @@ pub fn run(a: Args) -> Result<()> {
         top.residual.mean,
         phases.summary()
     );
-    note!("level  texels       lobes/texel  shading error mean/max (% of peak)");
-    for (k, l) in pyr.levels.iter().enumerate() {
-        let (m, x) = (
-            l.residual.shading_mean.unwrap_or(f64::NAN),
-            l.residual.shading_max.unwrap_or(f64::NAN),
-        );
-        note!(
-            "{k:<5}  {:<11}  {:<11.3}  {:.2}/{:.2}",
-            format!("{}x{}", l.cols, l.rows),
-            l.lobes.len() as f64 / l.texels() as f64,
-            100.0 * m,
-            100.0 * x
-        );
-    }
     Ok(())
 }
