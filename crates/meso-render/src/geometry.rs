@@ -84,6 +84,53 @@ pub struct Mesh {
     indices: Vec<[u32; 3]>,
 }
 
+/// Refuse OBJ element indices that cannot refer to anything: in `f`, `l` and `p` lines, an
+/// index of 0, a relative (negative) index reaching before the first position, texture
+/// coordinate or normal declared so far, an index larger than the file's line count, or one
+/// that is not a number that fits. The OBJ reader computes offsets from such indices with
+/// unchecked arithmetic (found by the `obj` fuzz target: `f 1/-1111111111111111` and
+/// `f 1/-11/1` after three `vt` overflowed tobj 4.0.5's `vt * 2 + 1`).
+fn check_obj_indices(bytes: &[u8]) -> Result<(), String> {
+    let lines = bytes.split(|&b| b == b'\n').count() as u64;
+    // Positions, texture coordinates and normals declared so far.
+    let mut declared = [0u64; 3];
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => declared[0] += 1,
+            Some("vt") => declared[1] += 1,
+            Some("vn") => declared[2] += 1,
+            Some("f" | "l" | "p") => {
+                for word in words.take_while(|w| !w.starts_with('#')) {
+                    for (kind, part) in word.split('/').enumerate().take(3) {
+                        if part.is_empty() {
+                            continue;
+                        }
+                        let ok = part.parse::<i64>().is_ok_and(|i| {
+                            i != 0
+                                && if i < 0 {
+                                    i.unsigned_abs() <= declared[kind]
+                                } else {
+                                    i.unsigned_abs() <= lines
+                                }
+                        });
+                        if !ok {
+                            return Err(format!(
+                                "line {}: index `{}` refers to no element",
+                                n + 1,
+                                part.chars().take(24).collect::<String>()
+                            ));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// Everything a shader may need about a surface point seen along a camera ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadingPoint {
@@ -281,6 +328,7 @@ impl Mesh {
         };
         let bytes = meso_core::io::read_limited(path, crate::scene::MAX_OBJ_BYTES)
             .map_err(|e| err(format!("cannot read: {e}")))?;
+        check_obj_indices(&bytes).map_err(|e| err(format!("broken OBJ: {e}")))?;
         // `mtllib` files are never opened: materials come from the scene, not the OBJ.
         let (models, _materials) = tobj::load_obj_buf(&mut bytes.as_slice(), &opts, |_| {
             Err(tobj::LoadError::OpenFileFailed)

@@ -147,3 +147,48 @@ fn item12_scene_toml_error_is_one_short_line() {
     assert_eq!(e.lines().count(), 1, "{e}");
     assert!(e.contains("line 1"), "{e}");
 }
+
+/// Found by the `obj` fuzz target: face indices that refer to no element (here a texture index
+/// of −1111111111111111) overflowed the OBJ reader's offset arithmetic (a panic with overflow
+/// checks, silently wrong UVs without). They are refused with the line; relative indices that
+/// do exist still load.
+#[test]
+fn item4_obj_indices_that_refer_to_nothing_are_refused() {
+    let d = tmpdir("indices");
+    let obj = d.join("bad.obj");
+    std::fs::write(
+        &obj,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/-1111111111111111 2/1 3/1\n",
+    )
+    .unwrap();
+    let e = Mesh::from_obj(&obj).err().unwrap().to_string();
+    assert!(
+        e.contains("bad.obj") && e.contains("line 5") && e.contains("refers to no element"),
+        "{e}"
+    );
+    for (name, text) in [
+        ("huge.obj", "v 0 0 0\nf 1 1 99999999999999999999999\n"),
+        // The fuzzer's second find: −11 reaches before the first of three `vt`.
+        (
+            "relative.obj",
+            "v 0 0 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/-11/1 1/2 1/3\n",
+        ),
+        ("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
+    ] {
+        let p = d.join(name);
+        std::fs::write(&p, text).unwrap();
+        let e = Mesh::from_obj(&p)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("refers to no element"), "{name}: {e}");
+    }
+    let ok = d.join("ok.obj");
+    std::fs::write(
+        &ok,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n# a comment\nf -3/1 -2/1 -1/1\n",
+    )
+    .unwrap();
+    assert_eq!(Mesh::from_obj(&ok).unwrap().indices().len(), 1);
+    std::fs::remove_dir_all(&d).unwrap();
+}
