@@ -45,9 +45,7 @@ pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
         ks: &[u32],
         out: &mut [f64],
     ) {
-        for (v, &k) in out.iter_mut().zip(ks) {
-            *v = self.g_given_normal(i, o, normals[k as usize].normal);
-        }
+        g_given_each_normal(self, i, o, normals, ks, out);
     }
 
     /// The cosine-weighted share of each delta's facet hemisphere that sees the sky (not the
@@ -63,5 +61,21 @@ pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
     /// [`crate::material::ShadowingKind::Visibility`] is available and the default).
     fn conditions_on_normal(&self) -> bool {
         false
+    }
+}
+
+/// [`VisibilityModel::g_given_deltas`] answered normal by normal through
+/// [`VisibilityModel::g_given_normal`] (the trait's default; for models whose fast path does not
+/// apply to the NDF at hand).
+pub fn g_given_each_normal<M: VisibilityModel + ?Sized>(
+    model: &M,
+    i: DVec3,
+    o: DVec3,
+    normals: &[WeightedNormal],
+    ks: &[u32],
+    out: &mut [f64],
+) {
+    for (v, &k) in out.iter_mut().zip(ks) {
+        *v = model.g_given_normal(i, o, normals[k as usize].normal);
     }
 }

@@ -76,9 +76,7 @@ impl VisibilityModel for FacetVisibility {
         if normals.len() == self.bins.bins() {
             self.bins.joint_many(i, o, ks, out);
         } else {
-            for (v, &k) in out.iter_mut().zip(ks) {
-                *v = self.bins.given_normal(i, o, normals[k as usize].normal);
-            }
+            meso_core::visibility::g_given_each_normal(self, i, o, normals, ks, out);
         }
     }
     fn sky_views(&self, normals: &[WeightedNormal]) -> Option<&[f32]> {

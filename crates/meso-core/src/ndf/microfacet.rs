@@ -152,10 +152,7 @@ impl Microfacet {
         let (ax, ay) = (self.alpha_x, self.alpha_y);
         // e = tan²θ (cos²φ/αx² + sin²φ/αy²) = (mx²/αx² + my²/αy²)/mz²
         let e = (m.x * m.x / (ax * ax) + m.y * m.y / (ay * ay)) / cos2;
-        match self.distribution {
-            Distribution::Beckmann => (-e).exp() / (PI * ax * ay * cos2 * cos2),
-            Distribution::Ggx => 1.0 / (PI * ax * ay * cos2 * cos2 * (1.0 + e) * (1.0 + e)),
-        }
+        self.d_of(e, cos2, ax * ay)
     }
 
     /// The Eq. 1 density `n(m) = D(m)/A` (1/sr, integrates to 1 over the sphere).
@@ -182,6 +179,16 @@ impl Microfacet {
         }
     }
 
+    /// `D` from `e = tan²θ (cos²φ/α_x² + sin²φ/α_y²)`, `cos²θ` and `α_x α_y`: the one formula
+    /// behind [`Microfacet::d`] and [`Microfacet::d_isotropic`].
+    #[inline]
+    fn d_of(&self, e: f64, cos2: f64, axay: f64) -> f64 {
+        match self.distribution {
+            Distribution::Beckmann => (-e).exp() / (PI * axay * cos2 * cos2),
+            Distribution::Ggx => 1.0 / (PI * axay * cos2 * cos2 * (1.0 + e) * (1.0 + e)),
+        }
+    }
+
     /// Whether `α_x = α_y` (then `D` and `Λ` depend on the polar angle only).
     #[must_use]
     pub fn is_isotropic(&self) -> bool {
@@ -199,10 +206,7 @@ impl Microfacet {
         let cos2 = cos_theta * cos_theta;
         let a2 = self.alpha_x * self.alpha_y;
         let e = (1.0 - cos2).max(0.0) / (cos2 * a2);
-        match self.distribution {
-            Distribution::Beckmann => (-e).exp() / (PI * a2 * cos2 * cos2),
-            Distribution::Ggx => 1.0 / (PI * a2 * cos2 * cos2 * (1.0 + e) * (1.0 + e)),
-        }
+        self.d_of(e, cos2, a2)
     }
 
     /// Smith `Λ` of an **isotropic** distribution for a direction making cosine `cos_theta`

@@ -75,6 +75,16 @@ pub enum Transfer {
     },
 }
 
+/// Eq. 10's value `specular · c^η` for the Phong cosine `c` (`N·H` or `R·o`), 0 for `c ≤ 0`.
+#[inline]
+fn phong_value(c: f64, exponent: f64, specular: [f64; 3]) -> [f64; 3] {
+    if c <= 0.0 {
+        return [0.0; 3];
+    }
+    let v = c.powf(exponent);
+    [specular[0] * v, specular[1] * v, specular[2] * v]
+}
+
 impl Transfer {
     /// `f_μ(i, o)` in 1/sr, RGB, in the facet frame (facet normal +z). Zero when `i` or `o` is
     /// below the facet, except for the Phong form which is Eq. 10 as written (it only needs `H`).
@@ -94,11 +104,7 @@ impl Transfer {
                     },
                     PhongVariant::Reflect => reflect(i, DVec3::Z).dot(o),
                 };
-                if c <= 0.0 {
-                    return [0.0; 3];
-                }
-                let v = c.powf(exponent);
-                [specular[0] * v, specular[1] * v, specular[2] * v]
+                phong_value(c, exponent, specular)
             }
             Transfer::Lambert { albedo } => {
                 if i.z <= 0.0 || o.z <= 0.0 {
@@ -154,11 +160,7 @@ impl Transfer {
                     // reflect(i, m)·o = 2(i·m)(o·m) − i·o.
                     PhongVariant::Reflect => 2.0 * m.dot(i) * m.dot(o) - i.dot(o),
                 };
-                if c <= 0.0 {
-                    return [0.0; 3];
-                }
-                let v = c.powf(exponent);
-                [specular[0] * v, specular[1] * v, specular[2] * v]
+                phong_value(c, exponent, specular)
             }
             Transfer::Mirror { .. } => [0.0; 3],
             Transfer::Microfacet {
