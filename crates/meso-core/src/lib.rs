@@ -9,7 +9,7 @@
 //! * [`ndf`] — the NDF representations, each normalised as Eq. 1, evaluated and sampled;
 //! * [`transfer`] — facet BRDFs (Phong, Lambert, mirror, rough microfacet) with Fresnel;
 //! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form;
-//! * [`material`] — the TOML material format;
+//! * [`material`] — the TOML material format; [`importance`] — importance sampling of its BRDF;
 //! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output;
 //!   [`budget`] — the memory budget and fallible allocation.
 //!
@@ -34,6 +34,7 @@ pub mod convolution;
 pub mod display;
 pub mod frame;
 pub mod grid;
+pub mod importance;
 pub mod io;
 pub mod linalg;
 pub mod material;

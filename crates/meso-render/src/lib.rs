@@ -70,4 +70,4 @@ pub use material::MaterialShader;
 pub use render::{render, render_pixel, shade, shade_with, RenderOptions, ShadeScratch};
 pub use scene::{ImageSettings, MaterialResolver, ResolveError, Scene, SceneBuilder};
 pub use shader::{Lambert, PhongLobes, Shader};
-pub use textured::load_textured;
+pub use textured::{load_textured, resolve_material_file};

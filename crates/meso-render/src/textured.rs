@@ -262,3 +262,22 @@ fn normal_mapped(
         NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(box_filter),
     ))
 }
+
+/// The shader of a material file: a `[texture]` material (bump- or NDF-mapped, through
+/// [`load_textured`]) or a plain meso-core material (height-map NDFs loaded by `maps`). The one
+/// "material file → shader" resolver of the `meso` CLI and the Python package.
+///
+/// # Errors
+/// A message naming the file and the problem.
+pub fn resolve_material_file(
+    path: &Path,
+    maps: &MapsResolver,
+) -> Result<Arc<dyn Shader>, crate::ResolveError> {
+    match load_textured(path, maps) {
+        Err(e) => Err(e.into()),
+        Ok(Some(s)) => Ok(s),
+        Ok(None) => meso_core::material::Material::from_file(path, maps)
+            .map(|m| Arc::new(crate::MaterialShader::new(&m)) as Arc<dyn Shader>)
+            .map_err(|e| -> crate::ResolveError { format!("{e:#}").into() }),
+    }
+}

@@ -2,7 +2,7 @@
 //! render a scene file (docs/scene-format.md) with meso-core materials.
 
 use anyhow::{bail, Context, Result};
-use meso_render::{render, MaterialShader, RenderOptions, ResolveError, Scene, Shader};
+use meso_render::{render, RenderOptions, ResolveError, Scene, Shader};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -66,7 +66,7 @@ static PYRAMID_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU6
 /// Time spent marching the facet horizons of `represent = "facets"` materials (nanoseconds).
 static FACETS_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-/// The scene's material resolver: meso material files as [`MaterialShader`]s, and material
+/// The scene's material resolver: meso material files as `MaterialShader`s, and material
 /// files with a `[texture]` table as bump- or NDF-mapped materials
 /// ([`meso_render::load_textured`]).
 pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, ResolveError> {
@@ -101,14 +101,7 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
             }
         }
     }));
-    let textured = meso_render::load_textured(path, &maps);
-    let result: std::result::Result<Arc<dyn Shader>, ResolveError> = match textured {
-        Err(e) => Err(e.into()),
-        Ok(Some(s)) => Ok(s),
-        Ok(None) => meso_core::material::Material::from_file(path, &maps)
-            .map(|m| Arc::new(MaterialShader::new(&m)) as Arc<dyn Shader>)
-            .map_err(|e| -> ResolveError { format!("{e:#}").into() }),
-    };
+    let result = meso_render::resolve_material_file(path, &maps);
     if let Some(b) = bar.get() {
         b.finish_and_clear();
     }
