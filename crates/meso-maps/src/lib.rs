@@ -33,6 +33,7 @@ pub mod format;
 pub mod gonio;
 pub mod heightmap;
 pub mod horizon;
+pub mod input;
 pub mod pyramid;
 pub mod resolver;
 pub mod sphgrid;
@@ -45,6 +46,7 @@ pub use fit::FitParams;
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::{HorizonMap, HorizonStats};
+pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_work, ExtractParams, Level, Method, Progress, Pyramid,
     PyramidInfo, Source,

@@ -3,8 +3,7 @@
 
 use anyhow::{bail, Context, Result};
 use meso_maps::{
-    extract, Baseline, Border, ExtractParams, HeightMap, Method, NormalConvention, NormalMap,
-    NormalMode, Source,
+    extract, Baseline, Border, ExtractParams, InputKind, Method, NormalConvention, NormalMode,
 };
 use std::path::PathBuf;
 
@@ -79,35 +78,6 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// Refuse, from the image's header and before anything is decoded, an extraction whose estimated
-/// peak memory (loading, the pyramid, writing the map) is above the memory budget.
-fn budget_check(a: &Args, params: &ExtractParams) -> Result<()> {
-    if !std::fs::metadata(&a.heightmap).is_ok_and(|m| m.is_file()) {
-        return Ok(());
-    }
-    // A header that cannot be read is reported by the loader, with more detail.
-    let Ok(h) = meso_maps::probe(&a.heightmap) else {
-        return Ok(());
-    };
-    let (w, hgt) = (h.width as usize, h.height as usize);
-    let estimate = if a.normal_map {
-        h.normal_map_bytes() + meso_maps::extract_bytes(w, hgt, 1, 0)
-    } else {
-        let (cols, rows) = if a.clamp {
-            (w.saturating_sub(1), hgt.saturating_sub(1))
-        } else {
-            (w, hgt)
-        };
-        let per_cell = match params.normal_mode {
-            NormalMode::Triangles => 2,
-            NormalMode::CentralDifferences => 1,
-        };
-        h.height_map_bytes() + meso_maps::extract_bytes(cols, rows, per_cell, w * hgt)
-    };
-    meso_core::budget::check(&a.heightmap, "extracting the NDF pyramid", estimate)?;
-    Ok(())
-}
-
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
     if !(1..=meso_maps::fit::MAX_LOBES).contains(&a.max_lobes) {
@@ -134,40 +104,31 @@ pub fn run(a: Args) -> Result<()> {
         ..ExtractParams::default()
     };
     params.fit.max_lobes = a.max_lobes;
-    budget_check(&a, &params)?;
-    let mut phases = crate::util::Phases::default();
-    let t = std::time::Instant::now();
-    let heights;
-    let normals;
-    let source = if a.normal_map {
+    let kind = if a.normal_map {
         if a.texel_size.is_some() || a.height_scale.is_some() {
             bail!("--texel-size and --height-scale do not apply to a normal map (--normal-map)");
         }
-        let conv = match a.convention {
+        InputKind::Normals(match a.convention {
             Convention::Gl => NormalConvention::Gl,
             Convention::Dx => NormalConvention::Dx,
-        };
-        normals = NormalMap::load(&a.heightmap, conv)?;
-        if normals.clamped() > 0 {
-            note!(
-                "{}: warning: {} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
-                a.heightmap.display(),
-                normals.clamped(),
-                normals.width() * normals.height(),
-                meso_maps::heightmap::MIN_NORMAL_Z
-            );
-        }
-        Source::Normals(&normals)
+        })
     } else {
-        let (Some(s), Some(h)) = (a.texel_size, a.height_scale) else {
+        let (Some(texel_size), Some(height_scale)) = (a.texel_size, a.height_scale) else {
             bail!("a height map needs --texel-size S and --height-scale H");
         };
-        heights = HeightMap::load(&a.heightmap, s, h, border)?;
-        for w in heights.warnings() {
-            note!("{}: warning: {w}", a.heightmap.display());
+        InputKind::Heights {
+            texel_size,
+            height_scale,
+            border,
         }
-        Source::Heights(&heights)
     };
+    let mut phases = crate::util::Phases::default();
+    let t = std::time::Instant::now();
+    let (input, warnings) = meso_maps::input::load(&a.heightmap, kind, &params)?;
+    for w in warnings {
+        note!("{}: warning: {w}", a.heightmap.display());
+    }
+    let source = input.source();
     phases.add("load", t.elapsed().as_secs_f64());
     let bar = crate::util::progress_work(1, "pyramid");
     let pyr = phases

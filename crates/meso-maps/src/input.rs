@@ -1,0 +1,111 @@
+//! An input image for extraction, loaded as `meso extract` loads it: the memory budget checked from
+//! the image header before anything is decoded, then the height map or normal map read, with the
+//! warnings a user should see. The one loader of the `meso` CLI and the Python package, so both
+//! write the same map file for the same input.
+
+use crate::pyramid::{extract_bytes, ExtractParams, Source};
+use crate::{Border, HeightMap, NormalConvention, NormalMap, NormalMode, Result};
+use std::path::Path;
+
+/// What an input image holds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum InputKind {
+    /// Grey heights: `height_scale` (length units) spans the full code range; samples are
+    /// `texel_size` apart (same unit).
+    Heights {
+        /// Distance between samples, length units (> 0).
+        texel_size: f64,
+        /// Height of the full code range, length units (> 0).
+        height_scale: f64,
+        /// Periodic or clamped border.
+        border: Border,
+    },
+    /// A tangent-space RGB normal map in the given green-channel convention.
+    Normals(NormalConvention),
+}
+
+/// A loaded input.
+#[derive(Debug)]
+pub enum Input {
+    /// A height map.
+    Heights(HeightMap),
+    /// A normal map.
+    Normals(NormalMap),
+}
+
+impl Input {
+    /// The extraction source of this input.
+    #[must_use]
+    pub fn source(&self) -> Source<'_> {
+        match self {
+            Input::Heights(h) => Source::Heights(h),
+            Input::Normals(n) => Source::Normals(n),
+        }
+    }
+}
+
+/// Refuse, from the image's header and before anything is decoded, an extraction whose estimated
+/// peak memory (loading, the pyramid, writing the map) is above the memory budget
+/// ([`meso_core::budget`]). A file whose header cannot be read passes: its loader reports it.
+///
+/// # Errors
+/// [`crate::MapError::Budget`] naming the file.
+pub fn check_budget(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<()> {
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Ok(());
+    }
+    let Ok(h) = crate::probe(path) else {
+        return Ok(());
+    };
+    let (w, hgt) = (h.width as usize, h.height as usize);
+    let estimate = match kind {
+        InputKind::Normals(_) => h.normal_map_bytes() + extract_bytes(w, hgt, 1, 0),
+        InputKind::Heights { border, .. } => {
+            let (cols, rows) = if border == Border::Clamp {
+                (w.saturating_sub(1), hgt.saturating_sub(1))
+            } else {
+                (w, hgt)
+            };
+            let per_cell = match params.normal_mode {
+                NormalMode::Triangles => 2,
+                NormalMode::CentralDifferences => 1,
+            };
+            h.height_map_bytes() + extract_bytes(cols, rows, per_cell, w * hgt)
+        }
+    };
+    meso_core::budget::check(path, "extracting the NDF pyramid", estimate)?;
+    Ok(())
+}
+
+/// Check the budget ([`check_budget`]) and load the input. The warnings (quantised heights, texels
+/// at the horizon, …) are returned for the caller to show, each without the file name.
+///
+/// # Errors
+/// Budget, unreadable or invalid images, invalid parameters; messages name the file.
+pub fn load(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<(Input, Vec<String>)> {
+    check_budget(path, kind, params)?;
+    match kind {
+        InputKind::Heights {
+            texel_size,
+            height_scale,
+            border,
+        } => {
+            let h = HeightMap::load(path, texel_size, height_scale, border)?;
+            let warnings = h.warnings().iter().map(ToString::to_string).collect();
+            Ok((Input::Heights(h), warnings))
+        }
+        InputKind::Normals(conv) => {
+            let n = NormalMap::load(path, conv)?;
+            let mut warnings = Vec::new();
+            if n.clamped() > 0 {
+                warnings.push(format!(
+                    "{} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
+                    n.clamped(),
+                    n.width() * n.height(),
+                    crate::heightmap::MIN_NORMAL_Z
+                ));
+            }
+            Ok((Input::Normals(n), warnings))
+        }
+    }
+}

@@ -1,0 +1,99 @@
+"""meso — normal distribution functions and multiple surfaces (Fournier 1992) from Python.
+
+The native core (``meso._meso``, Rust through PyO3) evaluates on numpy arrays with the GIL released:
+
+* :class:`Material` — a meso material (docs/material-format.md): ``brdf(wi, wo)`` on ``(N, 3)``
+  arrays of local-frame directions (``wi`` towards the light, ``wo`` towards the viewer, normal +z)
+  gives ``(N, 3)`` RGB values in 1/sr, the same numbers as ``meso brdf``; ``sample`` / ``pdf`` are
+  its importance sampler.
+* :class:`Ndf` — an NDF normalised as Eq. 1, with ``eval``, ``sample`` and ``pdf``.
+* :func:`extract` / :func:`extract_file` — height maps filtered into NDF pyramids
+  (:class:`Pyramid`, whose levels read as numpy arrays); :func:`render` — a scene file to a float
+  image; :func:`export` — GGX roughness and normal mip chains, KTX2 and glTF.
+* :mod:`meso.mitsuba` — a Mitsuba 3 BSDF plugin; :mod:`meso.batch` — batches on Dask.
+
+Errors raise :class:`MesoError` (meso's message, naming the file and the problem),
+``ValueError`` for bad arrays or parameters, ``TypeError`` for arguments that are not arrays of
+numbers, and ``FileNotFoundError`` for missing inputs.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Optional, Sequence
+
+from ._meso import (  # noqa: F401  (re-exported)
+    Level,
+    Material,
+    MesoError,
+    Ndf,
+    Pyramid,
+    __version__,
+    export,
+    extract,
+    extract_file,
+    render,
+    set_memory_budget,
+)
+
+__all__ = [
+    "Level",
+    "Material",
+    "MesoError",
+    "Ndf",
+    "Pyramid",
+    "__version__",
+    "export",
+    "extract",
+    "extract_file",
+    "material_toml",
+    "render",
+    "set_memory_budget",
+]
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ValueError(f"{v!r}: not a finite number")
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, Sequence):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if hasattr(v, "tolist"):  # numpy scalars and arrays
+        return _toml_value(v.tolist())
+    raise TypeError(f"{v!r}: cannot be written in a material file")
+
+
+def material_toml(
+    ndf: Optional[dict] = None,
+    transfer: Optional[dict] = None,
+    diffuse: Optional[Sequence[float]] = None,
+    form: Optional[str] = None,
+    shadowing: Optional[dict] = None,
+    name: Optional[str] = None,
+) -> str:
+    """The material file text of the given tables (keys as in docs/material-format.md).
+
+    ``ndf`` and ``transfer`` are dicts of the ``[ndf]`` and ``[transfer]`` tables
+    (``{"kind": "beckmann", "alpha": 0.1}``), ``diffuse`` the Lambert albedo (RGB),
+    ``form`` ``"multiple-surface"`` or ``"microfacet"``, ``shadowing`` the ``[shadowing]`` table.
+    """
+    lines = []
+    if name is not None:
+        lines.append(f"name = {_toml_value(name)}")
+    if form is not None:
+        lines.append(f"form = {_toml_value(form)}")
+    for table, values in (("ndf", ndf), ("transfer", transfer), ("shadowing", shadowing)):
+        if values is not None:
+            lines.append(f"[{table}]")
+            lines.extend(f"{k} = {_toml_value(v)}" for k, v in values.items())
+    if diffuse is not None:
+        lines.append("[diffuse]")
+        lines.append(f"albedo = {_toml_value(list(diffuse))}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,74 @@
+//! numpy arrays in and out: shapes and values checked once, with messages that name the argument.
+
+use crate::error::value_err;
+use glam::DVec3;
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+/// A 2-D float64 array argument: any array-like numpy converts (lists, other dtypes) is accepted;
+/// anything else raises `TypeError`.
+pub type Arr<'py> = numpy::PyArrayLike2<'py, f64, numpy::AllowTypeChange>;
+
+/// Rows of an `(N, 3)` float64 array as unit vectors: each row normalised, zero-length or non-finite
+/// rows refused with their index.
+pub fn directions(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<DVec3>> {
+    rows(name, a, 3).and_then(|v| {
+        v.chunks_exact(3)
+            .enumerate()
+            .map(|(k, r)| {
+                let d = DVec3::new(r[0], r[1], r[2]);
+                let l = d.length();
+                if !(l.is_finite() && l > 1e-12) {
+                    return Err(value_err(format!(
+                        "{name}[{k}] = [{}, {}, {}]: not a direction (zero length or not finite)",
+                        r[0], r[1], r[2]
+                    )));
+                }
+                Ok(d / l)
+            })
+            .collect()
+    })
+}
+
+/// The values of an `(N, cols)` float64 array, row-major, every value finite.
+pub fn rows(name: &str, a: &PyReadonlyArray2<'_, f64>, cols: usize) -> PyResult<Vec<f64>> {
+    let shape = a.shape();
+    if shape[1] != cols {
+        return Err(value_err(format!(
+            "{name}: expected an array of shape (N, {cols}), got ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    let v: Vec<f64> = a.as_array().iter().copied().collect();
+    if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+        return Err(value_err(format!(
+            "{name}[{}, {}] = {}: not a finite number",
+            k / cols,
+            k % cols,
+            v[k]
+        )));
+    }
+    Ok(v)
+}
+
+/// Two arrays of the same number of rows.
+pub fn same_rows(a: (&str, usize), b: (&str, usize)) -> PyResult<()> {
+    if a.1 != b.1 {
+        return Err(value_err(format!(
+            "{} has {} rows but {} has {}",
+            a.0, a.1, b.0, b.1
+        )));
+    }
+    Ok(())
+}
+
+/// `(N, 3)` float64 array from RGB or vector rows.
+pub fn array_n3<'py>(py: Python<'py>, v: &[[f64; 3]]) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let flat: Vec<f64> = v.iter().flatten().copied().collect();
+    PyArray1::from_vec(py, flat).reshape([v.len(), 3])
+}
+
+/// `(N,)` float64 array.
+pub fn array_n<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1<f64>> {
+    PyArray1::from_vec(py, v)
+}

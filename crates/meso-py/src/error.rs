@@ -1,0 +1,50 @@
+//! Errors across the boundary: meso's messages as Python exceptions.
+
+use pyo3::exceptions::{PyException, PyFileNotFoundError, PyValueError};
+use pyo3::prelude::*;
+use std::path::Path;
+
+pyo3::create_exception!(
+    _meso,
+    MesoError,
+    PyException,
+    "An error reported by meso: the message names the file, the field and the problem."
+);
+
+/// Any displayable error as a [`MesoError`] (with its source chain).
+pub fn meso_err(e: impl std::fmt::Display) -> PyErr {
+    MesoError::new_err(format!("{e:#}"))
+}
+
+/// A [`ValueError`](PyValueError) with `msg`.
+pub fn value_err(msg: impl Into<String>) -> PyErr {
+    PyValueError::new_err(msg.into())
+}
+
+/// `FileNotFoundError` for an input path that does not exist (the message names it), so callers
+/// can catch the usual Python exception; other problems are left to the reader.
+pub fn require_exists(path: &Path) -> PyResult<()> {
+    if std::fs::symlink_metadata(path).is_err() {
+        return Err(PyFileNotFoundError::new_err(format!(
+            "{}: no such file",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Set the memory budget of this process (bytes, or a size with a K, M, G or T suffix: `"8G"`),
+/// as the CLI's `--memory-budget`: work whose estimated peak memory is larger is refused with a
+/// `MesoError` before it starts. The default is the CLI's (4G, or less on small machines, or the
+/// `MESO_MEMORY_BUDGET` environment variable).
+#[pyfunction]
+pub fn set_memory_budget(size: &Bound<'_, PyAny>) -> PyResult<()> {
+    let bytes = if let Ok(n) = size.extract::<u64>() {
+        n
+    } else {
+        let s: String = size.extract()?;
+        meso_core::budget::parse_size(&s).map_err(value_err)?
+    };
+    meso_core::budget::set_budget(bytes);
+    Ok(())
+}

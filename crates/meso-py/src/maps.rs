@@ -1,0 +1,363 @@
+//! `meso.extract`, `meso.extract_file` and `meso.Pyramid`: height maps (numpy arrays or image files)
+//! filtered into NDF pyramids of fitted Phong lobes (TR-92-41), whose levels read as numpy arrays.
+
+use crate::arrays::Arr;
+use crate::error::{meso_err, require_exists, value_err};
+use meso_maps::{
+    Baseline, Border, ExtractParams, HeightMap, InputKind, Method, NormalConvention, NormalMode,
+};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArray4, PyArrayMethods};
+use pyo3::prelude::*;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// The extraction parameters named as the CLI's `meso extract` options.
+fn params(max_lobes: usize, normals: &str, method: &str) -> PyResult<ExtractParams> {
+    if !(1..=meso_maps::fit::MAX_LOBES).contains(&max_lobes) {
+        return Err(value_err(format!(
+            "max_lobes = {max_lobes}: must be between 1 and {}",
+            meso_maps::fit::MAX_LOBES
+        )));
+    }
+    let mut p = ExtractParams {
+        normal_mode: match normals {
+            "triangles" => NormalMode::Triangles,
+            "central" => NormalMode::CentralDifferences,
+            other => {
+                return Err(value_err(format!(
+                    "normals = {other:?}: must be \"triangles\" or \"central\""
+                )))
+            }
+        },
+        method: match method {
+            "lobes" => Method::Lobes,
+            "toksvig" => Method::Baseline(Baseline::Toksvig),
+            "lean" => Method::Baseline(Baseline::Lean),
+            "vmf" => Method::Baseline(Baseline::Vmf),
+            "mip" => Method::Baseline(Baseline::MipNormal),
+            other => {
+                return Err(value_err(format!(
+                    "method = {other:?}: must be one of \"lobes\", \"toksvig\", \"lean\", \"vmf\", \"mip\""
+                )))
+            }
+        },
+        ..ExtractParams::default()
+    };
+    p.fit.max_lobes = max_lobes;
+    Ok(p)
+}
+
+fn border(name: &str) -> PyResult<Border> {
+    match name {
+        "wrap" => Ok(Border::Wrap),
+        "clamp" => Ok(Border::Clamp),
+        other => Err(value_err(format!(
+            "border = {other:?}: must be \"wrap\" or \"clamp\""
+        ))),
+    }
+}
+
+fn run_extract(
+    py: Python<'_>,
+    source: &meso_maps::Input,
+    params: &ExtractParams,
+) -> PyResult<meso_maps::Pyramid> {
+    py.detach(|| meso_maps::extract(source.source(), params, &mut |_| {}))
+        .map_err(meso_err)
+}
+
+/// Extract the NDF pyramid of a height field given as a `(rows, cols)` float64 array of heights
+/// (row 0 is the top of the image, v = 0; heights are `heights · height_scale`, so codes in
+/// [0, 1] with `height_scale = H` equal `meso extract` of the same image), samples `texel_size`
+/// apart (same length unit). The other parameters are `meso extract`'s options.
+#[pyfunction]
+#[pyo3(signature = (heights, texel_size, height_scale = 1.0, max_lobes = 4, border = "wrap", normals = "triangles", method = "lobes"))]
+#[allow(clippy::too_many_arguments)]
+pub fn extract(
+    py: Python<'_>,
+    heights: Arr<'_>,
+    texel_size: f64,
+    height_scale: f64,
+    max_lobes: usize,
+    border: &str,
+    normals: &str,
+    method: &str,
+) -> PyResult<Pyramid> {
+    let p = params(max_lobes, normals, method)?;
+    if !(height_scale.is_finite() && height_scale > 0.0) {
+        return Err(value_err(format!(
+            "height_scale = {height_scale}: must be a positive number"
+        )));
+    }
+    let a = heights.as_array();
+    let (rows, cols) = (a.shape()[0], a.shape()[1]);
+    meso_core::budget::check_named(
+        "heights",
+        "extracting the NDF pyramid",
+        meso_maps::extract_bytes(cols, rows, 2, rows * cols),
+    )
+    .map_err(meso_err)?;
+    let h: Vec<f64> = a.iter().map(|v| v * height_scale).collect();
+    let map = HeightMap::from_heights(cols, rows, h, texel_size, self::border(border)?)
+        .map_err(meso_err)?;
+    let pyr = run_extract(py, &meso_maps::Input::Heights(map), &p)?;
+    Ok(Pyramid::new(pyr))
+}
+
+/// Extract the NDF pyramid of an image file and write it as a map file, exactly as
+/// `meso extract PATH --out OUT` does (same loader, budget, warnings and bytes): a height map
+/// needs `texel_size` and `height_scale`; `normal_map=True` reads a tangent-space normal map in the
+/// `convention` `"gl"` (OpenGL/glTF: green = +Y = up in the image) or `"dx"`. Returns the pyramid
+/// and the warnings the CLI would print.
+#[pyfunction]
+#[pyo3(signature = (path, out, texel_size = None, height_scale = None, max_lobes = 4, normal_map = false, convention = "gl", border = "wrap", normals = "triangles", method = "lobes"))]
+#[allow(clippy::too_many_arguments)]
+pub fn extract_file(
+    py: Python<'_>,
+    path: PathBuf,
+    out: PathBuf,
+    texel_size: Option<f64>,
+    height_scale: Option<f64>,
+    max_lobes: usize,
+    normal_map: bool,
+    convention: &str,
+    border: &str,
+    normals: &str,
+    method: &str,
+) -> PyResult<(Pyramid, Vec<String>)> {
+    let p = params(max_lobes, normals, method)?;
+    require_exists(&path)?;
+    let kind = if normal_map {
+        if texel_size.is_some() || height_scale.is_some() {
+            return Err(value_err(
+                "texel_size and height_scale do not apply to a normal map (normal_map=True)",
+            ));
+        }
+        InputKind::Normals(match convention {
+            "gl" => NormalConvention::Gl,
+            "dx" => NormalConvention::Dx,
+            other => {
+                return Err(value_err(format!(
+                    "convention = {other:?}: must be \"gl\" or \"dx\""
+                )))
+            }
+        })
+    } else {
+        let (Some(texel_size), Some(height_scale)) = (texel_size, height_scale) else {
+            return Err(value_err("a height map needs texel_size and height_scale"));
+        };
+        InputKind::Heights {
+            texel_size,
+            height_scale,
+            border: self::border(border)?,
+        }
+    };
+    let (pyr, warnings) = py
+        .detach(|| -> Result<_, String> {
+            let (input, warnings) =
+                meso_maps::input::load(&path, kind, &p).map_err(|e| e.to_string())?;
+            let pyr = meso_maps::extract(input.source(), &p, &mut |_| {})
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            pyr.write(&out).map_err(|e| e.to_string())?;
+            Ok((pyr, warnings))
+        })
+        .map_err(meso_err)?;
+    Ok((Pyramid::new(pyr), warnings))
+}
+
+/// An NDF pyramid: level 0 is the finest (one texel per height-map cell), each coarser level
+/// halves the texels, the last (`top`) is one texel for the whole map. Read with
+/// `Pyramid.read(path)`, write with `write(path)` (the map format of docs/map-format.md).
+#[pyclass(module = "meso._meso", frozen)]
+pub struct Pyramid {
+    inner: Arc<meso_maps::Pyramid>,
+}
+
+impl Pyramid {
+    fn new(p: meso_maps::Pyramid) -> Pyramid {
+        Pyramid { inner: Arc::new(p) }
+    }
+}
+
+#[pymethods]
+impl Pyramid {
+    /// Read a map file written by `meso extract`.
+    #[staticmethod]
+    fn read(py: Python<'_>, path: PathBuf) -> PyResult<Pyramid> {
+        require_exists(&path)?;
+        let p = py
+            .detach(|| meso_maps::Pyramid::read(&path))
+            .map_err(meso_err)?;
+        Ok(Pyramid::new(p))
+    }
+
+    /// Write the map file (atomically: a temporary file renamed into place).
+    fn write(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        py.detach(|| self.inner.write(&path)).map_err(meso_err)
+    }
+
+    /// Samples across the height map.
+    #[getter]
+    fn width(&self) -> usize {
+        self.inner.width
+    }
+
+    /// Samples down the height map.
+    #[getter]
+    fn height(&self) -> usize {
+        self.inner.height
+    }
+
+    /// Distance between samples, length units.
+    #[getter]
+    fn texel_size(&self) -> f64 {
+        self.inner.texel_size
+    }
+
+    /// Largest number of lobes per texel.
+    #[getter]
+    fn max_lobes(&self) -> usize {
+        self.inner.max_lobes
+    }
+
+    /// The levels, finest first.
+    #[getter]
+    fn levels(&self) -> Vec<Level> {
+        (0..self.inner.levels.len())
+            .map(|index| Level {
+                pyramid: self.inner.clone(),
+                index,
+            })
+            .collect()
+    }
+
+    /// The coarsest level (one texel).
+    #[getter]
+    fn top(&self) -> Level {
+        Level {
+            pyramid: self.inner.clone(),
+            index: self.inner.levels.len() - 1,
+        }
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.levels.len()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "meso.Pyramid({}×{}, {} levels, max_lobes={})",
+            self.inner.width,
+            self.inner.height,
+            self.inner.levels.len(),
+            self.inner.max_lobes
+        )
+    }
+}
+
+/// One level of a pyramid: `rows × cols` texels, each a sum of up to `max_lobes` Phong lobes
+/// (Eq. 12). Arrays are padded with zero-weight lobes where a texel has fewer.
+#[pyclass(module = "meso._meso", frozen)]
+pub struct Level {
+    pyramid: Arc<meso_maps::Pyramid>,
+    index: usize,
+}
+
+impl Level {
+    fn level(&self) -> &meso_maps::Level {
+        &self.pyramid.levels[self.index]
+    }
+
+    /// `(rows, cols, K, n)` array of a per-lobe quantity, zero-padded.
+    fn per_lobe<'py, const N: usize>(
+        &self,
+        py: Python<'py>,
+        f: impl Fn(&meso_core::ndf::PhongLobe) -> [f64; N],
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let l = self.level();
+        let k = self.pyramid.max_lobes;
+        let mut v = vec![0.0; l.rows * l.cols * k * N];
+        for t in 0..l.rows * l.cols {
+            let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
+            for (j, lobe) in l.lobes[a..b].iter().enumerate().take(k) {
+                let at = (t * k + j) * N;
+                v[at..at + N].copy_from_slice(&f(lobe));
+            }
+        }
+        Ok(PyArray1::from_vec(py, v))
+    }
+}
+
+#[pymethods]
+impl Level {
+    /// Texels across.
+    #[getter]
+    fn cols(&self) -> usize {
+        self.level().cols
+    }
+
+    /// Texels down.
+    #[getter]
+    fn rows(&self) -> usize {
+        self.level().rows
+    }
+
+    /// Height-map cells per texel side.
+    #[getter]
+    fn span(&self) -> usize {
+        self.level().span
+    }
+
+    /// `(rows, cols)` int64 array: the number of lobes of each texel.
+    #[getter]
+    fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
+        let l = self.level();
+        let v: Vec<i64> = l
+            .lobe_start
+            .windows(2)
+            .map(|w| i64::from(w[1] - w[0]))
+            .collect();
+        PyArray1::from_vec(py, v).reshape([l.rows, l.cols])
+    }
+
+    /// `(rows, cols, K, 3)` float64: unit lobe axes in the local frame (normal +z).
+    #[getter]
+    fn axes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray4<f64>>> {
+        let l = self.level();
+        self.per_lobe(py, |p| [p.axis.x, p.axis.y, p.axis.z])?
+            .reshape([l.rows, l.cols, self.pyramid.max_lobes, 3])
+    }
+
+    /// `(rows, cols, K)` float64: lobe weights (each texel's sum to 1).
+    #[getter]
+    fn weights<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let l = self.level();
+        self.per_lobe(py, |p| [p.weight])?
+            .reshape([l.rows, l.cols, self.pyramid.max_lobes])
+    }
+
+    /// `(rows, cols, K)` float64: Phong exponents η of `cos^η(α/2)`.
+    #[getter]
+    fn exponents<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let l = self.level();
+        self.per_lobe(py, |p| [p.exponent])?
+            .reshape([l.rows, l.cols, self.pyramid.max_lobes])
+    }
+
+    /// The mean NDF residual of this level (the fit's error, docs/heightmaps.md).
+    #[getter]
+    fn residual(&self) -> f64 {
+        self.level().residual.mean
+    }
+
+    fn __repr__(&self) -> String {
+        let l = self.level();
+        format!(
+            "meso.Level(index={}, rows={}, cols={}, lobes={})",
+            self.index,
+            l.rows,
+            l.cols,
+            l.lobes.len()
+        )
+    }
+}
