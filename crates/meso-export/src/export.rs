@@ -125,11 +125,12 @@ pub fn export_bytes(width: u64, height: u64) -> u64 {
 }
 
 /// Peak bytes per level-0 texel of [`build`] and [`write`] (see [`export_bytes`]): normals (f64)
-/// and α held by the inputs, the base maps and level 0; each level's normals, α, two error
-/// arrays and the per-texel results while fitting it; the RGBA8 levels, PNG and KTX2 files of
-/// the chain (which sums to 4/3 of level 0). Counted 207 B; measured 187 B (peak RSS of a
-/// 1024² normal-map export less its load, docs/limits.md).
-pub const EXPORT_BYTES_PER_TEXEL: u64 = 224;
+/// held by the inputs (24), normals and α of the base maps (32), level 0's normals, α and two
+/// error arrays (48), the smaller levels (16) and the per-texel results while fitting them
+/// (12), the RGBA8 levels, PNG and KTX2 files of the chain (31): 163 B counted; measured 160 B
+/// (the peak RSS of `meso export` grows by 123 MB from a 512² to a 1024² normal map,
+/// docs/limits.md), with a 10 % margin.
+pub const EXPORT_BYTES_PER_TEXEL: u64 = 176;
 
 /// Peak bytes of [`load_roughness`] for an image with this header: the file, the decoded
 /// image, its float RGB conversion and the α values.
