@@ -177,6 +177,54 @@ fn item1_output_that_is_an_input_is_refused() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+#[cfg(unix)]
+#[test]
+fn item2_temp_file_of_a_killed_run_is_cleaned() {
+    let (d, m, p) = brdf_inputs("item2-killed");
+    let out = d.join("out.csv");
+    // A meso run killed with SIGKILL while it waits on its input (a FIFO nobody writes): its
+    // process id is dead, and the temporary file such a run leaves when killed while writing
+    // is `.out.csv.meso-PID.XXXXXX.tmp`.
+    let fifo = d.join("slow.toml");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let mut child = meso()
+        .args(["brdf", s(&fifo), "--pairs", s(&p), "--out", s(&out)])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    eprintln!("killed run: {status:?}");
+    let pid = child.id();
+    let stale = d.join(format!(".out.csv.meso-{pid}.k1LLed.tmp"));
+    std::fs::write(&stale, "theta_i,half a table").unwrap();
+    // Temporary files that are not this target's, or not of a dead process, stay.
+    let live = d.join(format!(".out.csv.meso-{}.Alive1.tmp", std::process::id()));
+    std::fs::write(&live, "a live writer's").unwrap();
+    let other = d.join(format!(".pairs.csv.meso-{pid}.k1LLed.tmp"));
+    std::fs::write(&other, "another target's").unwrap();
+    ok(&run(&["brdf", s(&m), "--pairs", s(&p), "--out", s(&out)]));
+    assert!(!stale.exists(), "the killed run's temp file is removed");
+    assert!(live.exists() && other.exists());
+    let table = std::fs::read_to_string(&out).unwrap();
+    assert!(table.starts_with("theta_i"), "{table}");
+    assert_eq!(table.lines().count(), 4, "{table}");
+    let mut expected = vec![
+        live.file_name().unwrap().to_str().unwrap().to_string(),
+        other.file_name().unwrap().to_str().unwrap().to_string(),
+    ];
+    expected.extend(["m.toml", "out.csv", "pairs.csv", "slow.toml"].map(String::from));
+    expected.sort();
+    assert_eq!(names(&d), expected);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 /// A tiny scene (8×8 pixels, 1 spp) with one sphere of `material`.
 fn scene(material: &str) -> String {
     format!(
@@ -756,6 +804,160 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
         .unwrap();
     fails_with(&o, "tri.obj: loading the OBJ mesh needs about");
     assert!(!d.join("m.png").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// A `w × h` 8-bit RGB PNG of one colour (a flat normal map, `(128, 128, 255)`).
+fn flat_rgb_png(path: &Path, w: u32, h: u32) {
+    let img = image::ImageBuffer::<image::Rgb<u8>, Vec<u8>>::from_pixel(
+        w,
+        h,
+        image::Rgb([128, 128, 255]),
+    );
+    img.save(path).unwrap();
+}
+
+#[test]
+fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
+    let d = tmp("item3-export");
+    // A normal map of some 150 KB whose header declares 65536 × 256 texels.
+    let wide = d.join("wide.png");
+    flat_rgb_png(&wide, 65536, 256);
+    assert!(std::fs::metadata(&wide).unwrap().len() < 1_000_000);
+    let out = d.join("out");
+    let t = std::time::Instant::now();
+    let o = run(&[
+        "--memory-budget",
+        "1G",
+        "export",
+        s(&wide),
+        "--out",
+        s(&out),
+    ]);
+    fails_with(&o, "wide.png: exporting 65536 × 256 texels needs about");
+    assert!(
+        stderr(&o).contains("memory budget of 1.00 GiB"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(t.elapsed().as_secs_f64() < 10.0, "refused before the work");
+    assert!(!out.exists(), "no output folder");
+    // The same file as a height map.
+    let o = run(&[
+        "--memory-budget",
+        "1G",
+        "export",
+        s(&wide),
+        "--texel-size",
+        "1",
+        "--height-scale",
+        "1",
+        "--out",
+        s(&out),
+    ]);
+    fails_with(&o, "wide.png: exporting 65536 × 256 texels needs about");
+    assert!(!out.exists());
+    // A small map with a roughness map and a base colour image whose headers declare 4096²
+    // (the largest size allowed).
+    let small = d.join("small.png");
+    flat_rgb_png(&small, 16, 16);
+    let big = d.join("big.png");
+    flat_png(&big, 4096, 4096);
+    assert!(std::fs::metadata(&big).unwrap().len() < 200_000);
+    let budget = ["--memory-budget", "64M", "export"];
+    let o = meso()
+        .args(budget)
+        .args([s(&small), "--roughness-map", s(&big), "--out", s(&out)])
+        .output()
+        .unwrap();
+    fails_with(&o, "big.png: loading the roughness map needs about");
+    assert!(!out.exists());
+    let o = meso()
+        .args(budget)
+        .args([s(&small), "--base-color", s(&big), "--out", s(&out)])
+        .output()
+        .unwrap();
+    fails_with(&o, "big.png: loading the base colour image needs about");
+    assert!(!out.exists());
+    // The budget from the environment.
+    let o = meso()
+        .args([
+            "export",
+            s(&small),
+            "--base-color",
+            s(&big),
+            "--out",
+            s(&out),
+        ])
+        .env("MESO_MEMORY_BUDGET", "64M")
+        .output()
+        .unwrap();
+    fails_with(&o, "(MESO_MEMORY_BUDGET;");
+    assert!(!out.exists());
+    // Above the size limits, from the header too (whatever the budget).
+    let huge = d.join("huge.png");
+    flat_png(&huge, 8192, 8192);
+    for opt in ["--roughness-map", "--base-color"] {
+        let o = meso()
+            .args([
+                "--memory-budget",
+                "100G",
+                "export",
+                s(&small),
+                opt,
+                s(&huge),
+            ])
+            .args(["--out", s(&out)])
+            .output()
+            .unwrap();
+        fails_with(&o, "huge.png is too large: 8192×8192");
+        assert!(!out.exists());
+    }
+    // Within the budget: written.
+    let rough = d.join("rough.png");
+    flat_png(&rough, 16, 16);
+    ok(&meso()
+        .args(budget)
+        .args([s(&small), "--roughness-map", s(&rough), "--out", s(&out)])
+        .output()
+        .unwrap());
+    assert!(out.join("normal.ktx2").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn item3_merl_fit_above_the_memory_budget_is_refused() {
+    let d = tmp("item3-merl");
+    // A valid MERL binary (every cell 0): 35 MB on disk, a fixed 70 MB to read it and a few
+    // hundred to sample it.
+    let merl = d.join("zero.binary");
+    let mut bytes = Vec::with_capacity(34_992_012);
+    for dim in [90i32, 90, 180] {
+        bytes.extend_from_slice(&dim.to_le_bytes());
+    }
+    bytes.resize(34_992_012, 0);
+    std::fs::write(&merl, &bytes).unwrap();
+    drop(bytes);
+    let out = d.join("fit.toml");
+    let t = std::time::Instant::now();
+    let o = run(&[
+        "--memory-budget",
+        "64M",
+        "fit",
+        s(&merl),
+        "--lobes",
+        "1",
+        "--out",
+        s(&out),
+    ]);
+    fails_with(&o, "zero.binary: fitting a MERL table needs about");
+    assert!(
+        stderr(&o).contains("memory budget of 64.0 MiB"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(t.elapsed().as_secs_f64() < 10.0, "refused before reading");
+    assert!(!out.exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -4,11 +4,15 @@
 //! command with several outputs, [`stage_with`] and [`commit_all`]):
 //!
 //! * a **regular file** (or a path that does not exist yet) is written to a temporary file
-//!   created exclusively (`O_EXCL`, random name `.NAME.XXXXXX.tmp`) in the target's directory,
-//!   flushed, synced and renamed over the target, so a failure never leaves a partial output and
-//!   nobody can make meso write through a planted temporary name. An existing target keeps its
-//!   permission bits (and, where the process may, its owner); a new one gets `0666 & !umask` like
-//!   any other file;
+//!   created exclusively (`O_EXCL`) in the target's directory, named
+//!   `.NAME.meso-PID.XXXXXX.tmp` (see [`temp_file_pid`]: the target's name, the writer's process
+//!   id and six random characters), flushed, synced and renamed over the target, so a failure
+//!   never leaves a partial output and nobody can make meso write through a planted temporary
+//!   name. An existing target keeps its permission bits (and, where the process may, its owner);
+//!   a new one gets `0666 & !umask` like any other file. Before creating its temporary file, a
+//!   write removes the temporary files of the same target left by runs that were killed (on
+//!   Unix: regular files of this user, with exactly that name pattern, whose process no longer
+//!   exists; see [`remove_stale_temp_files`]);
 //! * a **symbolic link** is followed: the file it points at is replaced, the link stays;
 //! * a **non-regular target** (character or block device, FIFO, socket, `/dev/stdout` and the
 //!   other `/proc/self/fd/N` links) is written directly, in place: it is never replaced by a
@@ -44,6 +48,148 @@ pub fn write_atomic_with(
         }
     }
     stage_with(path, fill)?.commit()
+}
+
+/// The mark between a temporary file's target name and the writer's process id:
+/// `.NAME` + `.meso-` + `PID` + `.` + six random characters + [`TEMP_SUFFIX`].
+pub const TEMP_MARK: &str = ".meso-";
+
+/// The end of every temporary file's name.
+pub const TEMP_SUFFIX: &str = ".tmp";
+
+/// The number of random characters (`[A-Za-z0-9]`) in a temporary file's name.
+pub const TEMP_RANDOM_CHARS: usize = 6;
+
+/// The longest target name (bytes) a temporary file's name repeats; a longer one is cut there,
+/// so that the temporary name stays within the usual 255-byte limit.
+const TEMP_NAME_MAX: usize = 200;
+
+/// The target's name as its temporary files repeat it (at most [`TEMP_NAME_MAX`] bytes).
+fn temp_stem(name: &std::ffi::OsStr) -> std::ffi::OsString {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let b = name.as_bytes();
+        std::ffi::OsStr::from_bytes(&b[..b.len().min(TEMP_NAME_MAX)]).to_os_string()
+    }
+    #[cfg(not(unix))]
+    {
+        let s: String = name.to_string_lossy().chars().take(TEMP_NAME_MAX).collect();
+        std::ffi::OsString::from(s)
+    }
+}
+
+/// `.NAME.meso-PID.`: the fixed start of the temporary files process `pid` creates for the
+/// target named `name`.
+fn temp_prefix(name: &std::ffi::OsStr, pid: u32) -> std::ffi::OsString {
+    let mut p = std::ffi::OsString::from(".");
+    p.push(temp_stem(name));
+    p.push(TEMP_MARK);
+    p.push(pid.to_string());
+    p.push(".");
+    p
+}
+
+/// If `file_name` is the name of a temporary file meso creates for the target named
+/// `target_name` — exactly `.NAME.meso-PID.XXXXXX.tmp`, with a decimal PID (no sign, no leading
+/// zero) and [`TEMP_RANDOM_CHARS`] characters `[A-Za-z0-9]` — the PID of the process that
+/// created it.
+#[must_use]
+pub fn temp_file_pid(file_name: &std::ffi::OsStr, target_name: &std::ffi::OsStr) -> Option<u32> {
+    let mut start = std::ffi::OsString::from(".");
+    start.push(temp_stem(target_name));
+    start.push(TEMP_MARK);
+    let (name, start) = (os_bytes(file_name)?, os_bytes(&start)?);
+    let rest = name.strip_prefix(start.as_slice())?;
+    let rest = rest.strip_suffix(TEMP_SUFFIX.as_bytes())?;
+    let dot = rest.iter().position(|&c| c == b'.')?;
+    let (digits, random) = (&rest[..dot], &rest[dot + 1..]);
+    if digits.is_empty()
+        || digits.len() > 10
+        || digits[0] == b'0'
+        || !digits.iter().all(u8::is_ascii_digit)
+        || random.len() != TEMP_RANDOM_CHARS
+        || !random.iter().all(u8::is_ascii_alphanumeric)
+    {
+        return None;
+    }
+    std::str::from_utf8(digits).ok()?.parse().ok()
+}
+
+/// The bytes of a name (on Unix, any name; elsewhere, UTF-8 names).
+fn os_bytes(s: &std::ffi::OsStr) -> Option<Vec<u8>> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        Some(s.as_bytes().to_vec())
+    }
+    #[cfg(not(unix))]
+    {
+        s.to_str().map(|s| s.as_bytes().to_vec())
+    }
+}
+
+/// Remove, from `dir`, the temporary files that killed runs left for the target named `name`.
+///
+/// On Unix, an entry is removed only when all of these hold: its name is exactly the pattern of
+/// [`temp_file_pid`] for this target; the process id it carries is not this process's and no
+/// process with that id exists (`kill(pid, 0)` fails with `ESRCH`; a process of another user
+/// counts as alive); it is a regular file (symlinks are never followed: a symlink, directory or
+/// anything else with such a name stays); and it belongs to this process's effective user.
+/// Errors (an unreadable directory, a file removed meanwhile) are ignored. Elsewhere nothing is
+/// removed. Returns the number of files removed.
+pub fn remove_stale_temp_files(dir: &Path, name: &std::ffi::OsStr) -> usize {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return 0;
+        };
+        let me = std::process::id();
+        // SAFETY: geteuid has no preconditions and cannot fail.
+        let uid = unsafe { libc::geteuid() };
+        let mut removed = 0;
+        for e in entries.flatten() {
+            let Some(pid) = temp_file_pid(&e.file_name(), name) else {
+                continue;
+            };
+            if pid == me || process_exists(pid) {
+                continue;
+            }
+            let path = e.path();
+            let Ok(m) = std::fs::symlink_metadata(&path) else {
+                continue;
+            };
+            if !m.file_type().is_file() || m.uid() != uid {
+                continue;
+            }
+            if std::fs::remove_file(&path).is_ok() {
+                removed += 1;
+            }
+        }
+        removed
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (dir, name);
+        0
+    }
+}
+
+/// Whether a process with id `pid` may exist: anything but a definite "no such process".
+#[cfg(unix)]
+fn process_exists(pid: u32) -> bool {
+    let Ok(p) = libc::pid_t::try_from(pid) else {
+        return true;
+    };
+    if p <= 0 {
+        return true;
+    }
+    // SAFETY: signal 0 only checks that the process exists; nothing is sent.
+    if unsafe { libc::kill(p, 0) } == 0 {
+        return true;
+    }
+    std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
 }
 
 /// An output written but not yet in place: a synced temporary file next to its target (or, for a
@@ -177,9 +323,13 @@ pub fn stage_with(
     let name = dest
         .file_name()
         .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"))?;
-    let prefix = format!(".{}.", name.to_string_lossy());
+    remove_stale_temp_files(&dir, name);
+    let prefix = temp_prefix(name, std::process::id());
     let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".tmp");
+    builder
+        .prefix(&prefix)
+        .rand_bytes(TEMP_RANDOM_CHARS)
+        .suffix(TEMP_SUFFIX);
     #[cfg(unix)]
     {
         use std::os::unix::fs::PermissionsExt;
@@ -608,10 +758,104 @@ mod tests {
         }
         assert_eq!(seen.len(), 2, "{seen:?}");
         assert_ne!(seen[0], seen[1], "random names");
-        assert!(seen.iter().all(|n| n.ends_with(".tmp")));
-        assert!(!seen
-            .iter()
-            .any(|n| n.contains(&std::process::id().to_string())));
+        // `.NAME.meso-PID.XXXXXX.tmp`: recognisable (target, writer), not predictable.
+        let start = format!(".out.csv.meso-{}.", std::process::id());
+        for n in &seen {
+            assert!(n.starts_with(&start) && n.ends_with(".tmp"), "{n}");
+            assert_eq!(n.len(), start.len() + TEMP_RANDOM_CHARS + 4, "{n}");
+            assert_eq!(
+                temp_file_pid(n.as_ref(), "out.csv".as_ref()),
+                Some(std::process::id())
+            );
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn item2_temp_name_pattern_is_exact() {
+        let pid = |n: &str| temp_file_pid(n.as_ref(), "a.png".as_ref());
+        assert_eq!(pid(".a.png.meso-4242.aZ09xy.tmp"), Some(4242));
+        for n in [
+            ".a.png.meso-4242.aZ09x.tmp",   // 5 random characters
+            ".a.png.meso-4242.aZ09xyz.tmp", // 7
+            ".a.png.meso-4242.aZ-9xy.tmp",  // not alphanumeric
+            ".a.png.meso-04242.aZ09xy.tmp", // leading zero
+            ".a.png.meso-.aZ09xy.tmp",      // no PID
+            ".a.png.meso--1.aZ09xy.tmp",    // sign
+            ".a.png.meso-99999999999.aZ09xy.tmp",
+            ".a.png.meso-4242.aZ09xy.tmp~",
+            "a.png.meso-4242.aZ09xy.tmp",
+            ".b.png.meso-4242.aZ09xy.tmp", // another target
+            ".xa.png.meso-4242.aZ09xy.tmp",
+            ".a.png.aZ09xy.tmp", // the old random names
+            ".a.png.tmp-4242",   // the oldest
+            "a.png",
+        ] {
+            assert_eq!(pid(n), None, "{n}");
+        }
+        // Long names are cut to the same stem on both sides.
+        let long = "x".repeat(250);
+        let prefix = temp_prefix(long.as_ref(), 7);
+        let name = format!("{}abcdef.tmp", prefix.to_string_lossy());
+        assert!(name.len() < 255);
+        assert_eq!(temp_file_pid(name.as_ref(), long.as_ref()), Some(7));
+    }
+
+    /// The id of a process that has exited (and been reaped).
+    #[cfg(unix)]
+    fn dead_pid() -> u32 {
+        let mut c = std::process::Command::new("true").spawn().unwrap();
+        let pid = c.id();
+        c.wait().unwrap();
+        pid
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn item2_stale_temp_files_of_dead_writers_are_removed() {
+        let dir = tmpdir("item2-stale");
+        let out = dir.join("out.csv");
+        let dead = dead_pid();
+        let stale = dir.join(format!(".out.csv.meso-{dead}.Ab3dE9.tmp"));
+        std::fs::write(&stale, b"half an output").unwrap();
+        let victim = dir.join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        // What must stay: a live writer's file (pid 1 always exists; this process's own),
+        // another target's, near misses of the pattern, a symlink and a directory named like a
+        // stale temp file.
+        let keep = [
+            ".out.csv.meso-1.Ab3dE9.tmp".to_string(),
+            format!(".out.csv.meso-{}.Ab3dE9.tmp", std::process::id()),
+            format!(".other.csv.meso-{dead}.Ab3dE9.tmp"),
+            format!(".out.csv.meso-{dead}.Ab3dE.tmp"),
+            format!(".out.csv.meso-{dead}.Ab3dE9.tmp.bak"),
+            format!("out.csv.meso-{dead}.Ab3dE9.tmp"),
+        ];
+        for k in &keep {
+            std::fs::write(dir.join(k), b"keep").unwrap();
+        }
+        let link = dir.join(format!(".out.csv.meso-{dead}.LinkEd.tmp"));
+        std::os::unix::fs::symlink(&victim, &link).unwrap();
+        let sub = dir.join(format!(".out.csv.meso-{dead}.Direct.tmp"));
+        std::fs::create_dir(&sub).unwrap();
+        write_atomic(&out, b"output").unwrap();
+        assert!(!stale.exists(), "stale temp file removed");
+        assert_eq!(std::fs::read(&out).unwrap(), b"output");
+        for k in &keep {
+            assert_eq!(std::fs::read(dir.join(k)).unwrap(), b"keep", "{k}");
+        }
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert!(sub.is_dir());
+        // Nothing else: out.csv, victim, the kept files, the link and the directory.
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            2 + keep.len() + 2,
+            "no temp left"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -69,13 +69,25 @@ pub enum Roughness {
 /// Returns α per texel and warnings for the user.
 ///
 /// # Errors
-/// Unreadable or undecodable files, or a size other than `width × height`.
+/// Unreadable or undecodable files, a size other than `width × height`, or an image whose
+/// decoding needs more memory than the budget (`meso_core::budget`, checked from the header).
 pub fn load_roughness(
     path: &Path,
     width: usize,
     height: usize,
 ) -> Result<(Vec<f64>, Vec<String>), ExportError> {
-    let img = open(path)?;
+    // The size from the header first: a mismatch needs no decoding.
+    if let Some(h) = header(path)? {
+        if (h.width, h.height) != (width as u64, height as u64) {
+            return Err(ExportError::Invalid(format!(
+                "{}: the roughness map is {} × {}, the normals {width} × {height}",
+                path.display(),
+                h.width,
+                h.height
+            )));
+        }
+    }
+    let img = open(path, "loading the roughness map", roughness_bytes)?;
     let mut warnings = Vec::new();
     if (img.width() as usize, img.height() as usize) != (width, height) {
         return Err(ExportError::Invalid(format!(
@@ -102,7 +114,67 @@ pub fn load_roughness(
     Ok((alphas, warnings))
 }
 
-fn open(path: &Path) -> Result<image::DynamicImage, ExportError> {
+/// Bytes of memory an export of a `width × height` map needs besides loading the map
+/// ([`EXPORT_BYTES_PER_TEXEL`] per level-0 texel): the inputs, the base maps, both mip chains
+/// with their errors, and every file's bytes (PNG, KTX2), all held until they are written.
+#[must_use]
+pub fn export_bytes(width: u64, height: u64) -> u64 {
+    width
+        .saturating_mul(height)
+        .saturating_mul(EXPORT_BYTES_PER_TEXEL)
+}
+
+/// Peak bytes per level-0 texel of [`build`] and [`write`] (see [`export_bytes`]): normals (f64)
+/// held by the inputs (24), normals and α of the base maps (32), level 0's normals, α and two
+/// error arrays (48), the smaller levels (16) and the per-texel results while fitting them
+/// (12), the RGBA8 levels, PNG and KTX2 files of the chain (31): 163 B counted; measured 160 B
+/// (the peak RSS of `meso export` grows by 123 MB from a 512² to a 1024² normal map,
+/// docs/limits.md), with a 10 % margin.
+pub const EXPORT_BYTES_PER_TEXEL: u64 = 176;
+
+/// Peak bytes of [`load_roughness`] for an image with this header: the file, the decoded
+/// image, its float RGB conversion and the α values.
+#[must_use]
+pub fn roughness_bytes(h: &meso_maps::ImageHeader) -> u64 {
+    h.file_bytes
+        .saturating_add(h.pixels().saturating_mul(h.bytes_per_pixel + 12 + 8))
+}
+
+/// Peak bytes of [`load_base_color`] for an image with this header: the file, the decoded
+/// image, its RGBA8 conversion and the PNG re-encoding (at most about the raw size).
+#[must_use]
+pub fn base_color_bytes(h: &meso_maps::ImageHeader) -> u64 {
+    h.file_bytes
+        .saturating_add(h.pixels().saturating_mul(h.bytes_per_pixel + 4 + 4))
+}
+
+/// The header of a regular image file, read without decoding it; `None` for a file that is not
+/// regular or whose header the probe cannot read (the decoder reports that, with more detail).
+///
+/// # Errors
+/// An image larger than meso's size limits (`meso_maps::heightmap::MAX_DIMENSION`,
+/// `MAX_TEXELS`).
+pub fn header(path: &Path) -> Result<Option<meso_maps::ImageHeader>, ExportError> {
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Ok(None);
+    }
+    match meso_maps::probe(path) {
+        Ok(h) => Ok(Some(h)),
+        Err(e @ meso_maps::MapError::TooLarge { .. }) => Err(e.into()),
+        Err(_) => Ok(None),
+    }
+}
+
+/// Read and decode an image after checking, from its header, that `task` (its estimated peak
+/// memory, `estimate`) fits the memory budget (`meso_core::budget`).
+fn open(
+    path: &Path,
+    task: &str,
+    estimate: impl Fn(&meso_maps::ImageHeader) -> u64,
+) -> Result<image::DynamicImage, ExportError> {
+    if let Some(h) = header(path)? {
+        meso_core::budget::check(path, task, estimate(&h))?;
+    }
     let bytes = std::fs::read(path).map_err(|e| ExportError::Io {
         path: path.to_path_buf(),
         source: e,
@@ -132,9 +204,10 @@ pub struct BaseColor {
 /// are converted to 8 bits, with a warning.
 ///
 /// # Errors
-/// Unreadable or undecodable files.
+/// Unreadable or undecodable files, or an image whose decoding needs more memory than the
+/// budget (`meso_core::budget`, checked from the header).
 pub fn load_base_color(path: &Path) -> Result<(BaseColor, Vec<String>), ExportError> {
-    let img = open(path)?;
+    let img = open(path, "loading the base colour image", base_color_bytes)?;
     let mut warnings = Vec::new();
     if !matches!(
         img.color(),

@@ -43,4 +43,8 @@ pub enum ExportError {
     /// A map could not be loaded.
     #[error(transparent)]
     Map(#[from] meso_maps::MapError),
+    /// Work refused because its estimated memory is above the budget (`meso_core::budget`);
+    /// the message names the file, the estimate and the budget.
+    #[error(transparent)]
+    Budget(#[from] meso_core::budget::BudgetError),
 }

@@ -37,6 +37,10 @@ pub const N_PHI_D: usize = 180;
 pub const N_CELLS: usize = N_THETA_H * N_THETA_D * N_PHI_D;
 /// Size in bytes of a valid MERL file: 12 + 3·8·1 458 000.
 pub const MERL_FILE_BYTES: u64 = 12 + 3 * 8 * N_CELLS as u64;
+/// Bytes of a table in memory ([`MerlTable`]: `3·N_CELLS` values, f64): 34 992 000.
+pub const MERL_TABLE_BYTES: u64 = 3 * 8 * N_CELLS as u64;
+/// Peak memory of [`MerlTable::read`]: the file's body and the decoded table, 69 984 000 bytes.
+pub const MERL_READ_BYTES: u64 = 2 * MERL_TABLE_BYTES;
 /// Channel scales: stored value × scale = BRDF in 1/sr (red, green, blue).
 pub const MERL_SCALES: [f64; 3] = [1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0];
 
@@ -104,6 +108,18 @@ pub enum MerlError {
         ip: usize,
         /// The value.
         value: f64,
+    },
+    /// Reading refused because its memory ([`MERL_READ_BYTES`]) is above the budget
+    /// (`meso_core::budget`); the message names the file, the estimate and the budget.
+    #[error(transparent)]
+    Budget(#[from] meso_core::budget::BudgetError),
+    /// A big allocation failed (the memory was not there after all).
+    #[error("{path}: {source}")]
+    OutOfMemory {
+        /// The file.
+        path: String,
+        /// The failed allocation.
+        source: meso_core::budget::AllocError,
     },
     /// Writing failed (nothing was left behind).
     #[error("cannot write MERL file {path}: {source}")]
@@ -269,8 +285,11 @@ pub fn decode_values(bytes: &[u8], first: usize, out: &mut Vec<f64>) -> Result<(
 }
 
 impl MerlTable {
-    /// Read a MERL binary. The header and the file size are checked before any allocation; NaN
-    /// or infinite samples are errors; negative samples are kept as "not measured".
+    /// Read a MERL binary. The header, the file size and the memory budget
+    /// ([`MERL_READ_BYTES`] against `meso_core::budget`) are checked before any allocation, and
+    /// the two big buffers are reserved fallibly (an allocation failure is
+    /// [`MerlError::OutOfMemory`], not an abort); NaN or infinite samples are errors; negative
+    /// samples are kept as "not measured".
     pub fn read(path: &Path) -> Result<MerlTable, MerlError> {
         let p = path.display().to_string();
         let io = |source| MerlError::Io {
@@ -302,7 +321,13 @@ impl MerlTable {
                 expected: MERL_FILE_BYTES,
             });
         }
-        let mut bytes = Vec::with_capacity(3 * N_CELLS * 8);
+        meso_core::budget::check(path, "reading the MERL table", MERL_READ_BYTES)?;
+        let oom = |source| MerlError::OutOfMemory {
+            path: p.clone(),
+            source,
+        };
+        let mut bytes = meso_core::budget::try_with_capacity::<u8>(3 * N_CELLS * 8).map_err(oom)?;
+        let mut data = meso_core::budget::try_with_capacity::<f64>(3 * N_CELLS).map_err(oom)?;
         f.take(3 * N_CELLS as u64 * 8)
             .read_to_end(&mut bytes)
             .map_err(io)?;
@@ -314,24 +339,26 @@ impl MerlTable {
                 expected: MERL_FILE_BYTES,
             });
         }
-        Self::from_le_bytes(&bytes).map_err(|e| match e {
-            MerlError::NonFinite {
-                channel,
-                ih,
-                id,
-                ip,
-                value,
-                ..
-            } => MerlError::NonFinite {
-                path: p.clone(),
-                channel,
-                ih,
-                id,
-                ip,
-                value,
-            },
-            other => other,
-        })
+        decode_values(&bytes, 0, &mut data)
+            .map(|()| MerlTable { data })
+            .map_err(|e| match e {
+                MerlError::NonFinite {
+                    channel,
+                    ih,
+                    id,
+                    ip,
+                    value,
+                    ..
+                } => MerlError::NonFinite {
+                    path: p.clone(),
+                    channel,
+                    ih,
+                    id,
+                    ip,
+                    value,
+                },
+                other => other,
+            })
     }
 
     /// Decode a whole MERL file held in memory (header and body), with the checks of

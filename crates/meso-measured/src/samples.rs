@@ -73,6 +73,15 @@ pub struct MerlSamplingStats {
 /// (the θh bins are 0.85–1.8° wide for θh between 16° and 71°, finer only near the normal).
 pub const MERL_CELL_SIZE: f64 = std::f64::consts::PI / 180.0;
 
+/// Peak memory (bytes) of [`SampleSet::from_merl`] besides the table: up to every cell as a
+/// [`Sample`] in the list of valid cells and again split into the kept and held-out cells, two
+/// samples per cell (233 MB; `meso fit` of a MERL table with every cell valid measured 185 MB
+/// peak RSS in all, table included).
+#[must_use]
+pub fn merl_sampling_bytes() -> u64 {
+    2 * crate::merl::N_CELLS as u64 * std::mem::size_of::<Sample>() as u64
+}
+
 /// A set of samples to fit or to score a model on.
 #[derive(Clone, Debug, Default)]
 pub struct SampleSet {

@@ -133,6 +133,18 @@ fn load(path: &Path, target: usize) -> Result<Data> {
         || meta.len() == MERL_FILE_BYTES
         || ext.eq_ignore_ascii_case("binary");
     if is_merl {
+        // The table and, after reading, its sampling (reading checks its own peak too); a
+        // file with a wrong header or size is refused by the reader, before it allocates.
+        if MerlTable::has_header(&head[..n]) && meta.len() == MERL_FILE_BYTES {
+            meso_core::budget::check(
+                path,
+                "fitting a MERL table",
+                meso_measured::merl::MERL_READ_BYTES.max(
+                    meso_measured::merl::MERL_TABLE_BYTES
+                        + meso_measured::samples::merl_sampling_bytes(),
+                ),
+            )?;
+        }
         let table = MerlTable::read(path)?;
         let (samples, stats) = SampleSet::from_merl(
             &table,
