@@ -223,7 +223,8 @@ def test_killed_worker_loses_nothing(tmp_path, client, cli_bin):
     t.join(60)
     assert not t.is_alive()
     s = res["s"]
-    assert (s.done, s.failed) == (12, 0), s.text()
+    # an item whose output was in place when its worker died is skipped by the retry
+    assert (s.done + s.skipped, s.failed) == (12, 0), s.text()
     assert pids[0] not in client.run(os.getpid).values()
     outs = outputs_by_input(s)
     for p in maps:
