@@ -199,7 +199,7 @@ def test_rerun_skips_everything(first_batch, client):
     after = {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.name != batch.REPORT_NAME}
     assert after == before
     # a directory of the same images with the same parameters maps to the same outputs
-    s2 = batch.run(first_batch["dir"] / "in", out, client=client, progress=False,
+    s2 = batch.run(first_batch["dir"] / "in", out, address=client.scheduler.address, progress=False,
                    params={"texel_size": TEXEL, "height_scale": SCALE}, glob="h*.png")
     assert (s2.done, s2.skipped, s2.failed) == (0, N_GOOD, 0), s2.text()
 
@@ -297,3 +297,18 @@ def test_item_key_is_content_and_parameter_hash(tmp_path):
                      str(tmp_path))
     assert batch.item_key(it3)[2] != k1
     assert batch.item_key(it, version="0.0.0-other")[2] != k1
+
+
+def test_one_run_per_out_dir_and_leftovers_removed(tmp_path):
+    import fcntl
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".h000-0123456789abcdef.map.AbC123.tmp").write_bytes(b"partial")
+    (out / f"{batch.TMP_PREFIX}0123456789abcdef-1234abcd").mkdir()
+    with open(out / batch.LOCK_NAME, "a+") as lock:
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX)
+        with pytest.raises(RuntimeError, match="another meso batch"):
+            batch.run([], out, progress=False)
+    assert len(leftovers(out)) == 2  # a running batch's temporaries are not touched
+    assert batch.clean_temps(out) == 2 and leftovers(out) == []

@@ -359,6 +359,7 @@ def _process(item: Item, out_dir: str, delay: float = 0.0) -> dict:
         rec["status"] = "done"
         rec.update(info)
     except (ItemError,) + meso_errors() as e:
+        rec.pop("output", None)  # nothing was written
         rec["status"] = "failed"
         rec["error"] = f"{type(e).__name__}: {e}"
     rec["seconds"] = round(time.perf_counter() - t0, 4)
@@ -574,8 +575,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="any other parameter of the operation")
     names = sorted({k for o in OPERATIONS.values() for k in o.params})
+    bools = {k for o in OPERATIONS.values() for k, (t, _) in o.params.items() if t is bool}
     for k in names:
-        ap.add_argument("--" + k.replace("_", "-"), dest="p_" + k, metavar="VALUE")
+        if k in bools:  # --normal-map, or --normal-map false
+            ap.add_argument("--" + k.replace("_", "-"), dest="p_" + k, metavar="BOOL",
+                            nargs="?", const="true")
+        else:
+            ap.add_argument("--" + k.replace("_", "-"), dest="p_" + k, metavar="VALUE")
     a = ap.parse_args(argv)
     params: Dict[str, Any] = {k: getattr(a, "p_" + k) for k in names
                               if getattr(a, "p_" + k) is not None}
