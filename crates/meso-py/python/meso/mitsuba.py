@@ -80,8 +80,8 @@ _CLASSES: Dict[str, type] = {}
 
 
 def _load_material(props) -> Material:
-    has_file = props.has_property("material")
-    has_text = props.has_property("toml")
+    has_file = "material" in props
+    has_text = "toml" in props
     if has_file == has_text:
         raise ValueError('meso BSDF: give exactly one of "material" (a TOML file) or "toml" (text)')
     if has_file:
@@ -161,14 +161,27 @@ def bsdf_class() -> type:
             self.m_flags = flags
 
         # --- the meso calls, on numpy batches (meso's wi = light = Mitsuba's wo) ---
-        def _f_cos(self, wi_light, wo_view):
-            f = self.material.brdf(wi_light, wo_view)
-            cos = np.maximum(wi_light[:, 2], 0.0)
+        # meso refuses zero or non-finite directions; rows with either direction at or below
+        # the surface (or invalid, as inactive lanes may be) get a placeholder and a 0 result.
+        def _valid(self, wi_light, wo_view):
             ok = (wi_light[:, 2] > 0.0) & (wo_view[:, 2] > 0.0)
+            ok &= np.isfinite(wi_light).all(axis=1) & np.isfinite(wo_view).all(axis=1)
+            up = np.array([0.0, 0.0, 1.0])
+            return ok, np.where(ok[:, None], wi_light, up), np.where(ok[:, None], wo_view, up)
+
+        def _f_cos(self, wi_light, wo_view):
+            ok, li, vo = self._valid(wi_light, wo_view)
+            if not ok.any():
+                return np.zeros((len(ok), 3))
+            f = self.material.brdf(li, vo)
+            cos = li[:, 2] / np.linalg.norm(li, axis=1)
             return np.where(ok[:, None], f * cos[:, None], 0.0)
 
         def _pdf(self, wi_light, wo_view):
-            return self.material.pdf(wo_view, wi_light)
+            ok, li, vo = self._valid(wi_light, wo_view)
+            if not ok.any():
+                return np.zeros(len(ok))
+            return np.where(ok, self.material.pdf(vo, li), 0.0)
 
         def eval(self, ctx, si, wo, active=True):
             n = _width(si.wi, wo, active)
@@ -203,12 +216,14 @@ def bsdf_class() -> type:
                 s2 = s2[:, None]
             u[:, 1:] = np.broadcast_to(s2, (2, n)).T
             np.clip(u, 0.0, np.nextafter(1.0, 0.0), out=u)
-            light, pdf = self.material.sample(view, u)
-            ok = _mask(active, n) & (pdf > 0.0) & (light[:, 2] > 0.0) & (view[:, 2] > 0.0)
+            ok_view = (view[:, 2] > 0.0) & np.isfinite(view).all(axis=1)
+            view_safe = np.where(ok_view[:, None], view, np.array([0.0, 0.0, 1.0]))
+            light, pdf = self.material.sample(view_safe, u)
+            ok = _mask(active, n) & ok_view & (pdf > 0.0) & (light[:, 2] > 0.0)
             pdf = np.where(ok, pdf, 0.0)
-            fcos = self._f_cos(np.where(ok[:, None], light, np.array([0.0, 0.0, 1.0])), view)
-            weight = np.where(ok[:, None], fcos / np.where(ok, pdf, 1.0)[:, None], 0.0)
             light = np.where(ok[:, None], light, 0.0)
+            fcos = self._f_cos(light, view)  # 0 where not ok (light.z = 0)
+            weight = np.where(ok[:, None], fcos / np.where(ok, pdf, 1.0)[:, None], 0.0)
 
             bs = dr.zeros(mi.BSDFSample3f) if scalar else dr.zeros(mi.BSDFSample3f, n)
             bs.wo = out_vec(light)
