@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite, as CI runs it: formatting, lints, the API docs, every crate's tests, and the browser
 # end-to-end tests of the editor (installs Debian's chromium and npm's playwright-core when missing), and the
-# independent checks of `meso export` (npm ktx-parse and gltf-validator, tests/export).
+# independent checks of `meso export` (npm ktx-parse and gltf-validator, tests/export), and the Python
+# package's pytest suite (a venv in target/venv with maturin, numpy, pytest, mitsuba, dask).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -36,8 +37,15 @@ if [ -f tests/export/package.json ]; then
   bash tests/export/run.sh 2>&1 | tee target/export-output.txt || export_status=1
 fi
 
+python_status=0
+: > target/python-output.txt
+if [ -f crates/meso-py/tests/run.sh ]; then
+  echo "== Python package (maturin, pytest, Mitsuba 3, Dask)"
+  bash crates/meso-py/tests/run.sh 2>&1 | tee target/python-output.txt || python_status=1
+fi
+
 # One closing line for humans and CI: cargo's per-binary results plus the browser tests.
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed;?$/) p += $(i-1); if ($i ~ /^failed;?$/) f += $(i-1) } }
      /^e2e: [0-9]+ passed, [0-9]+ failed/ { p += $2; f += $4 }
-     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt target/export-output.txt
-[ $e2e_status = 0 ] && [ $export_status = 0 ]
+     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt target/export-output.txt target/python-output.txt
+[ $e2e_status = 0 ] && [ $export_status = 0 ] && [ $python_status = 0 ]

@@ -67,7 +67,8 @@ fn run_extract(
 }
 
 /// Extract the NDF pyramid of a height field given as a `(rows, cols)` float64 array of heights
-/// (row 0 is the top of the image, v = 0; heights are `heights · height_scale`, so codes in
+/// in image order (row 0 is the top of the image, as an image reader returns it; meso's +y is up
+/// in the image); heights are `heights · height_scale`, so codes in
 /// [0, 1] with `height_scale = H` equal `meso extract` of the same image), samples `texel_size`
 /// apart (same length unit). The other parameters are `meso extract`'s options.
 #[pyfunction]
@@ -91,13 +92,27 @@ pub fn extract(
     }
     let a = heights.as_array();
     let (rows, cols) = (a.shape()[0], a.shape()[1]);
+    if let Some(k) = a.iter().position(|v| !v.is_finite()) {
+        return Err(value_err(format!(
+            "heights[{}, {}] = {}: not a finite number",
+            k / cols.max(1),
+            k % cols.max(1),
+            a.iter().nth(k).copied().unwrap_or(f64::NAN)
+        )));
+    }
     meso_core::budget::check_named(
         "heights",
         "extracting the NDF pyramid",
         meso_maps::extract_bytes(cols, rows, 2, rows * cols),
     )
     .map_err(meso_err)?;
-    let h: Vec<f64> = a.iter().map(|v| v * height_scale).collect();
+    // Array row 0 is the top of the image; meso's map row 0 (y = 0) is its bottom row (+y is up
+    // in the image, docs/conventions.md), as the image loader of `meso extract` reads it.
+    let h: Vec<f64> = (0..rows)
+        .rev()
+        .flat_map(|r| a.row(r).to_vec())
+        .map(|v| v * height_scale)
+        .collect();
     let map = HeightMap::from_heights(cols, rows, h, texel_size, self::border(border)?)
         .map_err(meso_err)?;
     let pyr = run_extract(py, &meso_maps::Input::Heights(map), &p)?;
@@ -255,8 +270,16 @@ impl Pyramid {
     }
 }
 
+/// The map's texel index of texel `t` in image order (row 0 at the top of the image; the map's
+/// row 0 is the image's bottom row).
+fn map_texel(l: &meso_maps::Level, t: usize) -> usize {
+    let (r, c) = (t / l.cols, t % l.cols);
+    (l.rows - 1 - r) * l.cols + c
+}
+
 /// One level of a pyramid: `rows × cols` texels, each a sum of up to `max_lobes` Phong lobes
-/// (Eq. 12). Arrays are padded with zero-weight lobes where a texel has fewer.
+/// (Eq. 12). Arrays are in image order (row 0 at the top of the image) and padded with
+/// zero-weight lobes where a texel has fewer; lobe axes are in meso's frame (+y up in the image).
 #[pyclass(module = "meso._meso", frozen)]
 pub struct Level {
     pyramid: Arc<meso_maps::Pyramid>,
@@ -278,7 +301,8 @@ impl Level {
         let k = self.pyramid.max_lobes;
         let mut v = vec![0.0; l.rows * l.cols * k * N];
         for t in 0..l.rows * l.cols {
-            let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
+            let m = map_texel(l, t);
+            let (a, b) = (l.lobe_start[m] as usize, l.lobe_start[m + 1] as usize);
             for (j, lobe) in l.lobes[a..b].iter().enumerate().take(k) {
                 let at = (t * k + j) * N;
                 v[at..at + N].copy_from_slice(&f(lobe));
@@ -312,10 +336,11 @@ impl Level {
     #[getter]
     fn counts<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
         let l = self.level();
-        let v: Vec<i64> = l
-            .lobe_start
-            .windows(2)
-            .map(|w| i64::from(w[1] - w[0]))
+        let v: Vec<i64> = (0..l.rows * l.cols)
+            .map(|t| {
+                let m = map_texel(l, t);
+                i64::from(l.lobe_start[m + 1] - l.lobe_start[m])
+            })
             .collect();
         PyArray1::from_vec(py, v).reshape([l.rows, l.cols])
     }

@@ -12,6 +12,9 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// `(directions (N, 3), densities (N,))` of [`Material::sample`].
+type Sampled<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
+
 /// Rows per rayon task: large enough that the scheduling is free, small enough to balance.
 const CHUNK: usize = 1024;
 
@@ -151,12 +154,7 @@ impl Material {
     /// reflection of `wo` about a drawn normal) and cosine-weighted directions
     /// (`meso_core::importance`). Returns `(wi, pdf)`: `(N, 3)` directions and `(N,)` densities in
     /// 1/sr; a declined draw has `wi = 0` and `pdf = 0`.
-    fn sample<'py>(
-        &self,
-        py: Python<'py>,
-        wo: Arr<'py>,
-        u: Arr<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+    fn sample<'py>(&self, py: Python<'py>, wo: Arr<'py>, u: Arr<'py>) -> PyResult<Sampled<'py>> {
         let o = directions("wo", &wo)?;
         let u = rows("u", &u, 3)?;
         same_rows(("wo", o.len()), ("u", u.len() / 3))?;
@@ -211,14 +209,43 @@ pub struct Ndf {
 
 #[pymethods]
 impl Ndf {
-    /// The NDF of a material text's `[ndf]` table (a whole material, or just the table).
+    /// The NDF of a material text's `[ndf]` table (a whole material, or just the `[ndf]` table:
+    /// a material without `[transfer]` gets a Lambert one, which does not change the NDF).
     #[staticmethod]
     #[pyo3(signature = (text, base_dir = None))]
     fn from_toml(text: &str, base_dir: Option<PathBuf>) -> PyResult<Ndf> {
         let dir = base_dir.unwrap_or_else(|| PathBuf::from("."));
+        let has_transfer = text
+            .parse::<toml::Table>()
+            .map_err(|e| meso_err(format!("not valid TOML: {}", e.message())))?
+            .contains_key("transfer");
+        let text = if has_transfer {
+            text.to_owned()
+        } else {
+            format!("{text}\n[transfer]\nkind = \"lambert\"\n")
+        };
         Ok(Ndf {
-            inner: Arc::new(build(text, &dir, None)?.ndf),
+            inner: Arc::new(build(&text, &dir, None)?.ndf),
         })
+    }
+
+    /// An NDF from the keys of an `[ndf]` table, e.g. `Ndf.from_params(kind="beckmann",
+    /// alpha=0.1)` (docs/material-format.md, "`[ndf]` kinds").
+    #[staticmethod]
+    #[pyo3(signature = (base_dir = None, **keys))]
+    fn from_params(
+        py: Python<'_>,
+        base_dir: Option<PathBuf>,
+        keys: Option<&Bound<'_, pyo3::types::PyDict>>,
+    ) -> PyResult<Ndf> {
+        let kwargs = pyo3::types::PyDict::new(py);
+        kwargs.set_item("ndf", keys)?;
+        let text: String = py
+            .import("meso")?
+            .getattr("material_toml")?
+            .call((), Some(&kwargs))?
+            .extract()?;
+        Ndf::from_toml(&text, base_dir)
     }
 
     /// The kind, as in the material format (`"beckmann"`, `"phong-peaks"`, …).

@@ -1,0 +1,156 @@
+"""Type stubs of the native module ``meso._meso`` (Rust, PyO3). Directions are unit vectors in the
+local frame (normal +z, tangent +x); ``wi`` points towards the light, ``wo`` towards the viewer;
+BRDF values are RGB in 1/sr without the cosine."""
+
+from os import PathLike
+from typing import Any, Optional, Union
+
+import numpy as np
+import numpy.typing as npt
+
+_Path = Union[str, PathLike[str]]
+_Array = npt.ArrayLike
+
+__version__: str
+
+class MesoError(Exception):
+    """An error reported by meso: the message names the file, the field and the problem."""
+
+class Material:
+    """A meso material (docs/material-format.md)."""
+
+    @staticmethod
+    def from_toml(text: str, base_dir: Optional[_Path] = None) -> Material: ...
+    @staticmethod
+    def from_file(path: _Path) -> Material: ...
+    @staticmethod
+    def from_params(base_dir: Optional[_Path] = None, **tables: Any) -> Material: ...
+    @property
+    def name(self) -> Optional[str]: ...
+    @property
+    def toml(self) -> str: ...
+    @property
+    def form(self) -> str: ...
+    @property
+    def ndf(self) -> Ndf: ...
+    def brdf(self, wi: _Array, wo: _Array) -> npt.NDArray[np.float64]:
+        """(N, 3) RGB BRDF values in 1/sr at (N, 3) direction pairs; the numbers of ``meso brdf``."""
+    def sample(self, wo: _Array, u: _Array) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Directions towards the light (N, 3) and their densities (N,) in 1/sr, for viewer
+        directions ``wo`` (N, 3) and uniform numbers ``u`` (N, 3); declined draws have pdf 0."""
+    def pdf(self, wo: _Array, wi: _Array) -> npt.NDArray[np.float64]:
+        """(N,) density in 1/sr with which ``sample`` draws ``wi`` given ``wo``."""
+
+class Ndf:
+    """A normal distribution function, ∫ n(m) dω = 1 over the sphere (Eq. 1)."""
+
+    @staticmethod
+    def from_toml(text: str, base_dir: Optional[_Path] = None) -> Ndf: ...
+    @staticmethod
+    def from_params(base_dir: Optional[_Path] = None, **keys: Any) -> Ndf: ...
+    @property
+    def kind(self) -> str: ...
+    @property
+    def singular(self) -> bool: ...
+    def eval(self, m: _Array) -> npt.NDArray[np.float64]:
+        """(N,) density n(m) in 1/sr at (N, 3) unit normals."""
+    def sample(self, u: _Array) -> npt.NDArray[np.float64]:
+        """(N, 3) normals drawn with (N, 2) uniform numbers; density ``pdf``."""
+    def pdf(self, m: _Array) -> npt.NDArray[np.float64]: ...
+    def stats(self) -> dict[str, Any]:
+        """``{"integral": ∫ n dω, "mean_normal": [x, y, z]}`` by quadrature."""
+
+class Level:
+    """One pyramid level: rows × cols texels of up to K Phong lobes (Eq. 12), zero-padded."""
+
+    @property
+    def rows(self) -> int: ...
+    @property
+    def cols(self) -> int: ...
+    @property
+    def span(self) -> int: ...
+    @property
+    def counts(self) -> npt.NDArray[np.int64]:
+        """(rows, cols) lobes per texel."""
+    @property
+    def axes(self) -> npt.NDArray[np.float64]:
+        """(rows, cols, K, 3) unit lobe axes."""
+    @property
+    def weights(self) -> npt.NDArray[np.float64]:
+        """(rows, cols, K) lobe weights, each texel's summing to 1."""
+    @property
+    def exponents(self) -> npt.NDArray[np.float64]:
+        """(rows, cols, K) Phong exponents η of cos^η(α/2)."""
+    @property
+    def residual(self) -> float: ...
+
+class Pyramid:
+    """An NDF pyramid (docs/map-format.md); level 0 finest, ``top`` one texel."""
+
+    @staticmethod
+    def read(path: _Path) -> Pyramid: ...
+    def write(self, path: _Path) -> None: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def texel_size(self) -> float: ...
+    @property
+    def max_lobes(self) -> int: ...
+    @property
+    def levels(self) -> list[Level]: ...
+    @property
+    def top(self) -> Level: ...
+    def __len__(self) -> int: ...
+
+def extract(
+    heights: _Array,
+    texel_size: float,
+    height_scale: float = 1.0,
+    max_lobes: int = 4,
+    border: str = "wrap",
+    normals: str = "triangles",
+    method: str = "lobes",
+) -> Pyramid:
+    """The NDF pyramid of a (rows, cols) height array (heights × height_scale, length units;
+    row 0 at the top of the image)."""
+
+def extract_file(
+    path: _Path,
+    out: _Path,
+    texel_size: Optional[float] = None,
+    height_scale: Optional[float] = None,
+    max_lobes: int = 4,
+    normal_map: bool = False,
+    convention: str = "gl",
+    border: str = "wrap",
+    normals: str = "triangles",
+    method: str = "lobes",
+) -> tuple[Pyramid, list[str]]:
+    """``meso extract PATH --out OUT``: the same map file, and the CLI's warnings."""
+
+def render(
+    scene: _Path,
+    spp: Optional[int] = None,
+    width: Optional[int] = None,
+    height: Optional[int] = None,
+    seed: int = 0,
+) -> npt.NDArray[np.float32]:
+    """``meso render``: (height, width, 3) linear radiance, W/(m²·sr)."""
+
+def export(
+    path: _Path,
+    out: _Path,
+    texel_size: Optional[float] = None,
+    height_scale: Optional[float] = None,
+    convention: str = "gl",
+    alpha: float = 0.1,
+    roughness_map: Optional[_Path] = None,
+    metallic: float = 0.0,
+    base_color: Optional[_Path] = None,
+) -> tuple[list[str], list[dict[str, Any]], list[str]]:
+    """``meso export PATH --out OUT``: written files, per-level statistics, warnings."""
+
+def set_memory_budget(size: Union[int, str]) -> None:
+    """The memory budget (bytes or "8G"); larger work raises MesoError before it starts."""
