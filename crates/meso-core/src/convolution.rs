@@ -664,12 +664,33 @@ pub struct SmithMasking<'a> {
     accuracy: Accuracy,
     /// `∫_{z>0} n(m)(m·z) dω` — the factor turning `n` into the microfacet `D`.
     pub projected_area: f64,
+    /// Use the closed forms of Beckmann and GGX NDFs (false: quadrature for every NDF).
+    closed_form: bool,
 }
 
 impl<'a> SmithMasking<'a> {
-    /// Prepare the masking function of `ndf`.
+    /// Prepare the masking function of `ndf`: closed forms for Beckmann and GGX NDFs (the common
+    /// material's fast path), quadrature for the others.
     #[must_use]
     pub fn new(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
+        let z = match ndf {
+            Ndf::Deltas(d) => d.projected_area(),
+            // `n = D/A` with `∫ D (m·z) dω = 1`: exactly `1/A`.
+            Ndf::Microfacet(mf) => 1.0 / mf.area_ratio(),
+            _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
+        };
+        SmithMasking {
+            ndf,
+            accuracy,
+            projected_area: z.max(1e-300),
+            closed_form: true,
+        }
+    }
+
+    /// [`SmithMasking::new`] by quadrature for every NDF, Beckmann and GGX included (the
+    /// tests compare it with the closed forms).
+    #[must_use]
+    pub fn numerical(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
         let z = match ndf {
             Ndf::Deltas(d) => d.projected_area(),
             _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
@@ -678,14 +699,19 @@ impl<'a> SmithMasking<'a> {
             ndf,
             accuracy,
             projected_area: z.max(1e-300),
+            closed_form: false,
         }
     }
 
-    /// `Λ(ω) = ∫_{z>0} D(m)(ω·m)⁺ dω_m / cos θ_ω − 1` (≥ 0 up to quadrature error).
+    /// `Λ(ω) = ∫_{z>0} D(m)(ω·m)⁺ dω_m / cos θ_ω − 1` (≥ 0 up to quadrature error); the closed
+    /// form of Beckmann and GGX NDFs ([`crate::ndf::Microfacet::lambda`]), by quadrature otherwise.
     #[must_use]
     pub fn lambda(&self, w: DVec3) -> f64 {
         if w.z <= 0.0 {
             return f64::INFINITY;
+        }
+        if let (true, Ndf::Microfacet(mf)) = (self.closed_form, self.ndf) {
+            return mf.lambda(w);
         }
         let [p] = integrate(self.ndf, self.accuracy, None, |m| {
             if m.z <= 0.0 {

@@ -124,7 +124,7 @@ pub fn export_bytes(width: u64, height: u64) -> u64 {
         .saturating_mul(EXPORT_BYTES_PER_TEXEL)
 }
 
-/// Peak bytes per level-0 texel of [`build`] and [`write`] (see [`export_bytes`]): normals (f64)
+/// Peak bytes per level-0 texel of [`build`] and [`write()`] (see [`export_bytes`]): normals (f64)
 /// held by the inputs (24), normals and α of the base maps (32), level 0's normals, α and two
 /// error arrays (48), the smaller levels (16) and the per-texel results while fitting them
 /// (12), the RGBA8 levels, PNG and KTX2 files of the chain (31): 163 B counted; measured 160 B
