@@ -1,0 +1,47 @@
+"""`python crates/meso-py/benches/brdf_batch.py [N]` — `Material.brdf` on N random direction
+pairs (default 10⁶) from Python, best of 5 wall times: the Python side of the overhead benchmark in
+docs/benchmarks.md (the Rust side: `cargo run --release -p meso-cli --example brdf_batch`, the
+same material)."""
+
+import sys
+import time
+
+import numpy as np
+
+import meso
+
+MATERIAL = """form = "microfacet"
+[ndf]
+kind = "ggx"
+alpha = 0.1
+[transfer]
+kind = "mirror"
+fresnel = "schlick"
+f0 = [0.04, 0.04, 0.04]
+[diffuse]
+albedo = [0.5, 0.4, 0.3]
+"""
+
+
+def hemisphere(rng, n):
+    z = rng.random(n)
+    s = np.sqrt(np.maximum(0.0, 1 - z * z))
+    phi = 2 * np.pi * rng.random(n)
+    return np.column_stack([s * np.cos(phi), s * np.sin(phi), z])
+
+
+def main():
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 1_000_000
+    m = meso.Material.from_toml(MATERIAL)
+    rng = np.random.default_rng(1)
+    wi, wo = hemisphere(rng, n), hemisphere(rng, n)
+    best = float("inf")
+    for _ in range(5):
+        t = time.perf_counter()
+        f = m.brdf(wi, wo)
+        best = min(best, time.perf_counter() - t)
+    print(f"python: {n} pairs, best of 5: {best:.3f} s ({best / n * 1e9:.1f} ns/pair); checksum {f[:, 1].sum():.6e}")
+
+
+if __name__ == "__main__":
+    main()
