@@ -8,6 +8,7 @@
 //! * [`csv`] — a plain CSV of samples `theta_i,phi_i,theta_o,phi_o,r,g,b`;
 //! * [`samples`] — data to fit (weighted direction pairs), with a stratified MERL subsample;
 //! * [`metric`] — the cosine-weighted L2 of Ngan et al. 2005 and the log metric of Löw et al. 2012;
+//! * [`job`] — the core of `meso fit`: loading a data file, the lobe fits for either transfer;
 //! * [`lm`] — a bounded dense Levenberg–Marquardt solver;
 //! * [`fit`] — the [`fit::BrdfModel`] trait and the fitting driver (several starts, coarse to fine,
 //!   linear per-channel amplitudes);
@@ -31,6 +32,7 @@
 
 pub mod csv;
 pub mod fit;
+pub mod job;
 pub mod lm;
 pub mod merl;
 pub mod metric;

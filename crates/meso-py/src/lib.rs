@@ -15,6 +15,7 @@
 mod arrays;
 mod error;
 mod export;
+mod fit;
 mod maps;
 mod material;
 mod render;
@@ -35,5 +36,7 @@ fn _meso(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(export::export, m)?)?;
     m.add_function(wrap_pyfunction!(error::set_memory_budget, m)?)?;
+    m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
+    m.add_function(wrap_pyfunction!(fit::fit_samples, m)?)?;
     Ok(())
 }

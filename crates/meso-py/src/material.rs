@@ -56,6 +56,14 @@ pub(crate) fn par_rows<T: Send + Default + Clone>(
     })
 }
 
+impl Material {
+    /// A material from TOML text (relative paths resolved against the current directory), as
+    /// `Material.from_toml(text)`.
+    pub(crate) fn from_text(text: &str) -> PyResult<Material> {
+        Material::from_toml(text, None)
+    }
+}
+
 #[pymethods]
 impl Material {
     /// A material from TOML text. Relative paths in it (height maps, map files) are resolved

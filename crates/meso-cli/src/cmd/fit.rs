@@ -7,18 +7,15 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use meso_core::material::Material;
 use meso_measured::fit::{self, FitErrors, FitOptions, FitResult, LobeAxes};
-use meso_measured::merl::{MerlTable, MERL_FILE_BYTES};
+use meso_measured::job::{fit_lobes, fmt3, load, Data, FitSettings, Lobes, Transfer};
 use meso_measured::metric::Metric;
-use meso_measured::model::{self, LobeMicrofacetParams, LobeParams, TransferExponent};
-use meso_measured::samples::{MerlSampling, SampleSet};
+use meso_measured::model;
+use meso_measured::samples::SampleSet;
 use meso_plot::{Canvas, LineStyle, PolarPlot, PolarSeries, Sheet};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// Largest sample CSV read (bytes actually read).
-const MAX_CSV_BYTES: u64 = 1 << 30;
 
 /// Number of data cells on which the written material is evaluated exactly.
 const EXACT_CELLS: usize = 500;
@@ -52,11 +49,6 @@ pub enum AxesArg {
     Free,
 }
 
-/// CSV data with at least this many samples above the horizon keep every
-/// [`CSV_HOLD_OUT_EVERY`]-th sample out of the fit, to report the held-out residual.
-const CSV_HOLD_OUT_MIN: usize = 200;
-/// See [`CSV_HOLD_OUT_MIN`].
-const CSV_HOLD_OUT_EVERY: usize = 10;
 /// A held-out Löw-log error above this multiple of the fitted one is reported as an over-fit.
 const OVERFIT_RATIO: f64 = 2.0;
 
@@ -99,217 +91,6 @@ pub struct Args {
     /// Output material file (TOML).
     #[arg(long, short)]
     pub out: PathBuf,
-}
-
-/// The loaded data.
-struct Data {
-    samples: SampleSet,
-    merl: Option<MerlTable>,
-    description: String,
-}
-
-fn load(path: &Path, target: usize) -> Result<Data> {
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let mut head = [0u8; 12];
-    let n = {
-        use std::io::Read;
-        let mut f = std::fs::File::open(path)
-            .with_context(|| format!("{}: cannot read", path.display()))?;
-        let mut n = 0;
-        while n < 12 {
-            let k = f
-                .read(&mut head[n..])
-                .with_context(|| format!("{}: cannot read", path.display()))?;
-            if k == 0 {
-                break;
-            }
-            n += k;
-        }
-        n
-    };
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let is_merl = MerlTable::has_header(&head[..n])
-        || meta.len() == MERL_FILE_BYTES
-        || ext.eq_ignore_ascii_case("binary");
-    if is_merl {
-        // The table and, after reading, its sampling (reading checks its own peak too); a
-        // file with a wrong header or size is refused by the reader, before it allocates.
-        if MerlTable::has_header(&head[..n]) && meta.len() == MERL_FILE_BYTES {
-            meso_core::budget::check(
-                path,
-                "fitting a MERL table",
-                meso_measured::merl::MERL_READ_BYTES.max(
-                    meso_measured::merl::MERL_TABLE_BYTES
-                        + meso_measured::samples::merl_sampling_bytes(),
-                ),
-            )?;
-        }
-        let table = MerlTable::read(path)?;
-        let (samples, stats) = SampleSet::from_merl(
-            &table,
-            &MerlSampling {
-                target,
-                ..MerlSampling::default()
-            },
-        );
-        if samples.is_empty() {
-            bail!(
-                "{}: no measured cells with θi, θo < 80° (of {} cells, {} missing)",
-                path.display(),
-                stats.total,
-                stats.missing
-            );
-        }
-        return Ok(Data {
-            description: format!(
-                "MERL binary, {} of {} valid cells fitted, {} other cells held out (θi, θo < 80°; {} cells not measured)",
-                stats.kept, stats.valid, samples.held_out.len(), stats.missing
-            ),
-            samples,
-            merl: Some(table),
-        });
-    }
-    let bytes = crate::util::read_bytes(path, MAX_CSV_BYTES)?;
-    let Ok(text) = String::from_utf8(bytes) else {
-        bail!(
-            "{}: neither a MERL binary (header 90, 90, 180) nor a UTF-8 sample CSV",
-            path.display()
-        );
-    };
-    let rows = meso_measured::csv::parse_csv(&text)
-        .with_context(|| format!("{}: not a valid sample CSV", path.display()))?;
-    let samples = SampleSet::from_csv(&rows);
-    let usable = samples
-        .samples
-        .iter()
-        .filter(|s| s.wi.z > 1e-9 && s.wo.z > 1e-9)
-        .count();
-    if usable == 0 {
-        bail!(
-            "{}: no sample has both directions above the horizon",
-            path.display()
-        );
-    }
-    let samples = SampleSet {
-        samples: samples
-            .samples
-            .into_iter()
-            .filter(|s| s.wi.z > 1e-9 && s.wo.z > 1e-9)
-            .collect(),
-        ..samples
-    };
-    let n = samples.len();
-    let samples = if n >= CSV_HOLD_OUT_MIN {
-        samples.hold_out_every(CSV_HOLD_OUT_EVERY)
-    } else {
-        samples
-    };
-    Ok(Data {
-        description: format!(
-            "sample CSV, {n} samples above the horizon, {} fitted, {} held out",
-            samples.len(),
-            samples.held_out.len()
-        ),
-        samples,
-        merl: None,
-    })
-}
-
-/// A fitted lobe material (either transfer).
-#[derive(Clone, Debug)]
-enum Lobes {
-    Phong(LobeParams),
-    Microfacet(LobeMicrofacetParams),
-}
-
-impl Lobes {
-    fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
-        match self {
-            Lobes::Phong(p) => p.eval(wi, wo),
-            Lobes::Microfacet(p) => p.eval(wi, wo),
-        }
-    }
-    fn lobes(&self) -> &[meso_core::ndf::PhongLobe] {
-        match self {
-            Lobes::Phong(p) => &p.lobes,
-            Lobes::Microfacet(p) => &p.lobes,
-        }
-    }
-    fn to_toml(&self, comment: &str) -> String {
-        match self {
-            Lobes::Phong(p) => p.to_material_toml(comment),
-            Lobes::Microfacet(p) => p.to_material_toml(comment),
-        }
-    }
-    fn describe(&self) -> String {
-        let mut s = String::new();
-        let _ = writeln!(s, "  lobe  theta(deg)  phi(deg)    weight    exponent");
-        for (j, l) in self.lobes().iter().enumerate() {
-            let (t, p) = meso_core::frame::spherical_angles(l.axis);
-            let (t, p) = (t.to_degrees(), if t < 1e-9 { 0.0 } else { p.to_degrees() });
-            let _ = writeln!(
-                s,
-                "  {:>4}  {:>10.3}  {:>8.2}  {:>8.4}  {:>10.2}",
-                j + 1,
-                t,
-                p,
-                l.weight,
-                l.exponent
-            );
-        }
-        match self {
-            Lobes::Phong(p) => {
-                let _ = writeln!(
-                    s,
-                    "  transfer phong: exponent {:.3}, specular [{:.4}, {:.4}, {:.4}]",
-                    p.transfer_exponent, p.specular[0], p.specular[1], p.specular[2]
-                );
-                let _ = write!(
-                    s,
-                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
-                    p.albedo[0], p.albedo[1], p.albedo[2]
-                );
-            }
-            Lobes::Microfacet(p) => {
-                let _ = writeln!(
-                    s,
-                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], specular [{:.4}, {:.4}, {:.4}], \
-                     Smith masking-shadowing",
-                    p.f0[0], p.f0[1], p.f0[2], p.specular[0], p.specular[1], p.specular[2]
-                );
-                let _ = write!(
-                    s,
-                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
-                    p.albedo[0], p.albedo[1], p.albedo[2]
-                );
-            }
-        }
-        s
-    }
-}
-
-/// Fit K = 1..k lobe sums progressively; every size with its result.
-fn fit_lobes(
-    k: usize,
-    transfer: TransferArg,
-    data: &SampleSet,
-    opts: &FitOptions,
-) -> Result<Vec<(Lobes, FitResult)>> {
-    Ok(match transfer {
-        TransferArg::Phong => model::fit_lobes_progressive(k, TransferExponent::Free, data, opts)?
-            .into_iter()
-            .map(|(m, r)| (Lobes::Phong(m.params(&r)), r))
-            .collect(),
-        TransferArg::Microfacet => model::fit_microfacet_lobes_progressive(k, data, opts)?
-            .into_iter()
-            .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
-            .collect(),
-    })
-}
-
-fn fmt3(v: [f64; 3], prec: usize) -> String {
-    format!("{:.p$} {:.p$} {:.p$}", v[0], v[1], v[2], p = prec)
 }
 
 fn error_row(label: &str, e: &FitErrors) -> String {
@@ -378,6 +159,10 @@ pub fn run(a: Args) -> Result<()> {
         crate::util::check_outputs(&checked, &[&a.data])?;
     }
     let data = load(&a.data, a.samples)?;
+    let transfer = match a.transfer {
+        TransferArg::Phong => Transfer::Phong,
+        TransferArg::Microfacet => Transfer::Microfacet,
+    };
     let metric = match a.metric {
         MetricArg::Ngan => Metric::NganL2,
         MetricArg::Log => Metric::LowLog,
@@ -416,12 +201,12 @@ pub fn run(a: Args) -> Result<()> {
                 held_out: grey(&data.samples.held_out),
                 cell_size: data.samples.cell_size,
             };
-            channel_fits.push(fit_lobes(k, a.transfer, &mono, &opts)?);
+            channel_fits.push(fit_lobes(k, transfer, &mono, &opts)?);
             progress.inc(1);
         }
     } else {
         progress.set_message(format!("{k} lobe(s), {:?} transfer", a.transfer));
-        channel_fits.push(fit_lobes(k, a.transfer, &data.samples, &opts)?);
+        channel_fits.push(fit_lobes(k, transfer, &data.samples, &opts)?);
         progress.inc(1);
     }
     let finals: Vec<(Lobes, FitResult)> = channel_fits
@@ -445,53 +230,20 @@ pub fn run(a: Args) -> Result<()> {
     let mut texts = Vec::new();
     let mut materials = Vec::new();
     for (j, (lobes, r)) in finals.iter().enumerate() {
-        let mut comment = format!(
-            "meso fit {} --lobes {k} --metric {} --transfer {:?} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
-            a.data.display(),
-            metric.name(),
-            a.transfer,
-            opts.axes.name(),
-            if a.per_channel_lobes { " --per-channel-lobes" } else { "" },
-            r.model,
-            data.description,
-            r.seconds,
-            r.iterations
-        );
-        if a.per_channel_lobes {
-            let _ = writeln!(
-                comment,
-                "per-channel lobes: this file is the {} channel of the fit (grey material)",
-                ["red", "green", "blue"][j]
-            );
-        }
-        let _ = writeln!(
-            comment,
-            "errors of the fitted closed form: ngan-l2 [{}], low-log [{}]",
-            fmt3(r.errors.ngan_l2, 5),
-            fmt3(r.errors.low_log, 5)
-        );
-        if let Some(h) = &r.held_out {
-            let _ = writeln!(
-                comment,
-                "errors on {} held-out samples: ngan-l2 [{}], low-log [{}]",
-                r.held_out_count,
-                fmt3(h.ngan_l2, 5),
-                fmt3(h.low_log, 5)
-            );
-        }
-        let lobes = match (lobes, a.per_channel_lobes) {
-            (Lobes::Phong(p), true) => Lobes::Phong(LobeParams {
-                specular: [p.specular[j]; 3],
-                albedo: [p.albedo[j]; 3],
-                ..p.clone()
-            }),
-            (Lobes::Microfacet(p), true) => Lobes::Microfacet(LobeMicrofacetParams {
-                f0: [p.f0[j]; 3],
-                specular: [p.specular[j]; 3],
-                albedo: [p.albedo[j]; 3],
-                ..p.clone()
-            }),
-            (l, false) => l.clone(),
+        let data_name = a.data.display().to_string();
+        let settings = FitSettings {
+            data: &data_name,
+            k,
+            metric,
+            transfer,
+            axes: opts.axes,
+            channel: a.per_channel_lobes.then_some(j),
+        };
+        let comment = meso_measured::job::material_comment(&settings, &data.description, r);
+        let lobes = if a.per_channel_lobes {
+            lobes.grey(j)
+        } else {
+            lobes.clone()
         };
         let text = lobes.to_toml(&comment);
         let material = Material::from_toml_str(&text).map_err(|e| {

@@ -32,6 +32,8 @@ from ._meso import (  # noqa: F401  (re-exported)
     export,
     extract,
     extract_file,
+    fit,
+    fit_samples,
     render,
     set_memory_budget,
 )
@@ -46,6 +48,8 @@ __all__ = [
     "export",
     "extract",
     "extract_file",
+    "fit",
+    "fit_samples",
     "material_toml",
     "render",
     "set_memory_budget",

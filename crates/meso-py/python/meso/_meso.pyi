@@ -154,3 +154,29 @@ def export(
 
 def set_memory_budget(size: Union[int, str]) -> None:
     """The memory budget (bytes or "8G"); larger work raises MesoError before it starts."""
+
+def fit(
+    data: _Path,
+    lobes: int = 3,
+    transfer: str = "microfacet",
+    metric: str = "log",
+    axes: str = "auto",
+    out: Optional[_Path] = None,
+    samples: int = 30000,
+) -> tuple[Material, dict[str, Any]]:
+    """``meso fit DATA --lobes K``: the fitted material and a report (description, lobes, model,
+    ``fitted``/``held_out`` errors per channel: ``ngan_l2`` in 1/sr and ``low_log``, the TOML);
+    ``out`` also writes the material file."""
+
+def fit_samples(
+    wi: _Array,
+    wo: _Array,
+    values: _Array,
+    lobes: int = 3,
+    transfer: str = "microfacet",
+    metric: str = "log",
+    axes: str = "auto",
+    out: Optional[_Path] = None,
+) -> tuple[Material, dict[str, Any]]:
+    """``fit`` on (N, 3) arrays: ``wi`` towards the light, ``wo`` towards the viewer (local frame),
+    ``values`` RGB BRDF in 1/sr."""

@@ -1,0 +1,417 @@
+//! The reusable core of `meso fit` (CLI) and `meso.fit` (Python): loading a data file (MERL
+//! binary or sample CSV) into a [`SampleSet`] with the hold-out rule and a description, the lobe
+//! fits for either facet transfer ([`fit_lobes`], [`Lobes`]) and the comment written at the top
+//! of the fitted material file ([`material_comment`]).
+
+use crate::csv::CsvError;
+use crate::fit::{FitError, FitOptions, FitResult};
+use crate::merl::{MerlError, MerlTable, MERL_FILE_BYTES};
+use crate::model::{self, LobeMicrofacetParams, LobeParams, TransferExponent};
+use crate::samples::{MerlSampling, SampleSet};
+use glam::DVec3;
+use meso_core::budget::BudgetError;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Largest sample CSV read (bytes actually read).
+pub const MAX_CSV_BYTES: u64 = 1 << 30;
+
+/// Scattered data (CSV) with at least this many samples above the horizon keep every
+/// [`HOLD_OUT_EVERY`]-th sample out of the fit, to report the held-out residual.
+pub const HOLD_OUT_MIN: usize = 200;
+/// See [`HOLD_OUT_MIN`].
+pub const HOLD_OUT_EVERY: usize = 10;
+
+/// Errors loading the data to fit. The messages name the file; causes are kept as sources.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The file cannot be opened or read.
+    #[error("{}: cannot read", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The CSV file cannot be read (too large, or an I/O error: `error` says which).
+    #[error("{}: {}{error}", path.display(), if error.kind() == std::io::ErrorKind::FileTooLarge { "" } else { "cannot read: " })]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong (part of the message, not a source).
+        error: std::io::Error,
+    },
+    /// Fitting the MERL table would exceed the memory budget.
+    #[error(transparent)]
+    Budget(#[from] BudgetError),
+    /// The MERL table is invalid.
+    #[error(transparent)]
+    Merl(#[from] MerlError),
+    /// The MERL table has no usable cells.
+    #[error("{}: no measured cells with θi, θo < 80° (of {total} cells, {missing} missing)", path.display())]
+    NoMerlCells {
+        /// The file.
+        path: PathBuf,
+        /// Cells in the table.
+        total: usize,
+        /// Cells not measured.
+        missing: usize,
+    },
+    /// Neither a MERL binary nor UTF-8 text.
+    #[error("{}: neither a MERL binary (header 90, 90, 180) nor a UTF-8 sample CSV", path.display())]
+    NotUtf8 {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The text is not a valid sample CSV.
+    #[error("{}: not a valid sample CSV", path.display())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// The cause (line and column).
+        source: CsvError,
+    },
+    /// No sample has both directions above the horizon.
+    #[error("{what}: no sample has both directions above the horizon")]
+    NoneAboveHorizon {
+        /// The data (a file path as displayed, or a description).
+        what: String,
+    },
+}
+
+/// The loaded data.
+#[derive(Clone, Debug)]
+pub struct Data {
+    /// The samples fitted (with the held-out ones, if any).
+    pub samples: SampleSet,
+    /// The MERL table, when the data is one.
+    pub merl: Option<MerlTable>,
+    /// One line: the kind of data, how many samples are fitted and held out.
+    pub description: String,
+}
+
+/// Load a MERL binary (detected by its header, its size or the `.binary` extension; `target`
+/// cells in a stratified subsample, 0 = all valid ones) or a CSV of samples (the samples with
+/// both directions above the horizon; every [`HOLD_OUT_EVERY`]-th one held out when there are
+/// at least [`HOLD_OUT_MIN`]), as `meso fit DATA` does.
+///
+/// # Errors
+/// [`LoadError`] naming the file.
+pub fn load(path: &Path, target: usize) -> Result<Data, LoadError> {
+    let io = |source| LoadError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    let mut head = [0u8; 12];
+    let n = {
+        use std::io::Read;
+        let mut f = std::fs::File::open(path).map_err(io)?;
+        let mut n = 0;
+        while n < 12 {
+            let k = f.read(&mut head[n..]).map_err(io)?;
+            if k == 0 {
+                break;
+            }
+            n += k;
+        }
+        n
+    };
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let is_merl = MerlTable::has_header(&head[..n])
+        || meta.len() == MERL_FILE_BYTES
+        || ext.eq_ignore_ascii_case("binary");
+    if is_merl {
+        // The table and, after reading, its sampling (reading checks its own peak too); a
+        // file with a wrong header or size is refused by the reader, before it allocates.
+        if MerlTable::has_header(&head[..n]) && meta.len() == MERL_FILE_BYTES {
+            meso_core::budget::check(
+                path,
+                "fitting a MERL table",
+                crate::merl::MERL_READ_BYTES
+                    .max(crate::merl::MERL_TABLE_BYTES + crate::samples::merl_sampling_bytes()),
+            )?;
+        }
+        let table = MerlTable::read(path)?;
+        let (samples, stats) = SampleSet::from_merl(
+            &table,
+            &MerlSampling {
+                target,
+                ..MerlSampling::default()
+            },
+        );
+        if samples.is_empty() {
+            return Err(LoadError::NoMerlCells {
+                path: path.to_path_buf(),
+                total: stats.total,
+                missing: stats.missing,
+            });
+        }
+        return Ok(Data {
+            description: format!(
+                "MERL binary, {} of {} valid cells fitted, {} other cells held out (θi, θo < 80°; {} cells not measured)",
+                stats.kept, stats.valid, samples.held_out.len(), stats.missing
+            ),
+            samples,
+            merl: Some(table),
+        });
+    }
+    let bytes =
+        meso_core::io::read_limited(path, MAX_CSV_BYTES).map_err(|error| LoadError::Read {
+            path: path.to_path_buf(),
+            error,
+        })?;
+    let Ok(text) = String::from_utf8(bytes) else {
+        return Err(LoadError::NotUtf8 {
+            path: path.to_path_buf(),
+        });
+    };
+    let rows = crate::csv::parse_csv(&text).map_err(|source| LoadError::Csv {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    scattered(
+        SampleSet::from_csv(&rows),
+        "sample CSV",
+        &path.display().to_string(),
+    )
+}
+
+/// Scattered samples (a CSV's, or arrays') prepared for fitting: the samples with both
+/// directions above the horizon, every [`HOLD_OUT_EVERY`]-th one held out when there are at least
+/// [`HOLD_OUT_MIN`]. `kind` starts the description (`"sample CSV"`); `what` names the data in
+/// the error.
+///
+/// # Errors
+/// [`LoadError::NoneAboveHorizon`] when no sample is usable.
+pub fn scattered(samples: SampleSet, kind: &str, what: &str) -> Result<Data, LoadError> {
+    let above = |s: &crate::samples::Sample| s.wi.z > 1e-9 && s.wo.z > 1e-9;
+    if !samples.samples.iter().any(above) {
+        return Err(LoadError::NoneAboveHorizon {
+            what: what.to_owned(),
+        });
+    }
+    let samples = SampleSet {
+        samples: samples.samples.into_iter().filter(above).collect(),
+        ..samples
+    };
+    let n = samples.len();
+    let samples = if n >= HOLD_OUT_MIN {
+        samples.hold_out_every(HOLD_OUT_EVERY)
+    } else {
+        samples
+    };
+    Ok(Data {
+        description: format!(
+            "{kind}, {n} samples above the horizon, {} fitted, {} held out",
+            samples.len(),
+            samples.held_out.len()
+        ),
+        samples,
+        merl: None,
+    })
+}
+
+/// The facet transfer function of the lobe model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transfer {
+    /// Phong facets `max(0, m·H)^η_t`, multiple-surface form ([`model::LobeModel`]).
+    Phong,
+    /// Mirror facets with Schlick Fresnel and Smith masking–shadowing, microfacet form
+    /// ([`model::LobeMicrofacetModel`]).
+    Microfacet,
+}
+
+/// A fitted lobe material (either transfer).
+#[derive(Clone, Debug)]
+pub enum Lobes {
+    /// Phong transfer.
+    Phong(LobeParams),
+    /// Mirror transfer (microfacet form).
+    Microfacet(LobeMicrofacetParams),
+}
+
+impl Lobes {
+    /// The closed-form BRDF (1/sr, RGB).
+    #[must_use]
+    pub fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
+        match self {
+            Lobes::Phong(p) => p.eval(wi, wo),
+            Lobes::Microfacet(p) => p.eval(wi, wo),
+        }
+    }
+
+    /// The Phong peaks of the NDF.
+    #[must_use]
+    pub fn lobes(&self) -> &[meso_core::ndf::PhongLobe] {
+        match self {
+            Lobes::Phong(p) => &p.lobes,
+            Lobes::Microfacet(p) => &p.lobes,
+        }
+    }
+
+    /// The meso material file, `comment` as `#` lines at the top.
+    #[must_use]
+    pub fn to_toml(&self, comment: &str) -> String {
+        match self {
+            Lobes::Phong(p) => p.to_material_toml(comment),
+            Lobes::Microfacet(p) => p.to_material_toml(comment),
+        }
+    }
+
+    /// A table of the lobes and the transfer and diffuse parameters (several lines, no final
+    /// newline).
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "  lobe  theta(deg)  phi(deg)    weight    exponent");
+        for (j, l) in self.lobes().iter().enumerate() {
+            let (t, p) = meso_core::frame::spherical_angles(l.axis);
+            let (t, p) = (t.to_degrees(), if t < 1e-9 { 0.0 } else { p.to_degrees() });
+            let _ = writeln!(
+                s,
+                "  {:>4}  {:>10.3}  {:>8.2}  {:>8.4}  {:>10.2}",
+                j + 1,
+                t,
+                p,
+                l.weight,
+                l.exponent
+            );
+        }
+        match self {
+            Lobes::Phong(p) => {
+                let _ = writeln!(
+                    s,
+                    "  transfer phong: exponent {:.3}, specular [{:.4}, {:.4}, {:.4}]",
+                    p.transfer_exponent, p.specular[0], p.specular[1], p.specular[2]
+                );
+                let _ = write!(
+                    s,
+                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
+                    p.albedo[0], p.albedo[1], p.albedo[2]
+                );
+            }
+            Lobes::Microfacet(p) => {
+                let _ = writeln!(
+                    s,
+                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], specular [{:.4}, {:.4}, {:.4}], \
+                     Smith masking-shadowing",
+                    p.f0[0], p.f0[1], p.f0[2], p.specular[0], p.specular[1], p.specular[2]
+                );
+                let _ = write!(
+                    s,
+                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
+                    p.albedo[0], p.albedo[1], p.albedo[2]
+                );
+            }
+        }
+        s
+    }
+
+    /// Channel `c` of a per-channel fit as a grey material (specular, albedo and `f0` of
+    /// channel `c` in all three).
+    #[must_use]
+    pub fn grey(&self, c: usize) -> Lobes {
+        match self {
+            Lobes::Phong(p) => Lobes::Phong(LobeParams {
+                specular: [p.specular[c]; 3],
+                albedo: [p.albedo[c]; 3],
+                ..p.clone()
+            }),
+            Lobes::Microfacet(p) => Lobes::Microfacet(LobeMicrofacetParams {
+                f0: [p.f0[c]; 3],
+                specular: [p.specular[c]; 3],
+                albedo: [p.albedo[c]; 3],
+                ..p.clone()
+            }),
+        }
+    }
+}
+
+/// Fit K = 1..k lobe sums progressively (each size started from the previous one); every size
+/// with its result, the last one of `k` lobes (`k` clamped to 1..=6).
+///
+/// # Errors
+/// [`FitError`] from the fitting driver.
+pub fn fit_lobes(
+    k: usize,
+    transfer: Transfer,
+    data: &SampleSet,
+    opts: &FitOptions,
+) -> Result<Vec<(Lobes, FitResult)>, FitError> {
+    Ok(match transfer {
+        Transfer::Phong => model::fit_lobes_progressive(k, TransferExponent::Free, data, opts)?
+            .into_iter()
+            .map(|(m, r)| (Lobes::Phong(m.params(&r)), r))
+            .collect(),
+        Transfer::Microfacet => model::fit_microfacet_lobes_progressive(k, data, opts)?
+            .into_iter()
+            .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
+            .collect(),
+    })
+}
+
+/// Three numbers with `prec` decimals, separated by spaces.
+#[must_use]
+pub fn fmt3(v: [f64; 3], prec: usize) -> String {
+    format!("{:.p$} {:.p$} {:.p$}", v[0], v[1], v[2], p = prec)
+}
+
+/// How a fit was asked for, as written in the material file's comment.
+#[derive(Clone, Copy, Debug)]
+pub struct FitSettings<'a> {
+    /// The data as named on the command line (a path as displayed).
+    pub data: &'a str,
+    /// Number of lobes.
+    pub k: usize,
+    /// The metric minimised.
+    pub metric: crate::metric::Metric,
+    /// The transfer.
+    pub transfer: Transfer,
+    /// Where the axes went.
+    pub axes: crate::fit::LobeAxes,
+    /// `Some(c)`: channel `c` of a per-channel-lobes fit.
+    pub channel: Option<usize>,
+}
+
+/// The comment at the top of a fitted material file (`meso fit`'s): the command, the model,
+/// the data's description, the time and iterations, the errors of the fit `r`.
+#[must_use]
+pub fn material_comment(s: &FitSettings<'_>, description: &str, r: &FitResult) -> String {
+    let mut comment = format!(
+        "meso fit {} --lobes {} --metric {} --transfer {:?} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
+        s.data,
+        s.k,
+        s.metric.name(),
+        s.transfer,
+        s.axes.name(),
+        if s.channel.is_some() { " --per-channel-lobes" } else { "" },
+        r.model,
+        description,
+        r.seconds,
+        r.iterations
+    );
+    if let Some(c) = s.channel {
+        let _ = writeln!(
+            comment,
+            "per-channel lobes: this file is the {} channel of the fit (grey material)",
+            ["red", "green", "blue"][c]
+        );
+    }
+    let _ = writeln!(
+        comment,
+        "errors of the fitted closed form: ngan-l2 [{}], low-log [{}]",
+        fmt3(r.errors.ngan_l2, 5),
+        fmt3(r.errors.low_log, 5)
+    );
+    if let Some(h) = &r.held_out {
+        let _ = writeln!(
+            comment,
+            "errors on {} held-out samples: ngan-l2 [{}], low-log [{}]",
+            r.held_out_count,
+            fmt3(h.ngan_l2, 5),
+            fmt3(h.low_log, 5)
+        );
+    }
+    comment
+}

@@ -1,0 +1,264 @@
+//! `meso.fit` and `meso.fit_samples`: fit a measured BRDF (MERL binary, sample CSV or sample
+//! arrays) with a sum of Phong peaks, as `meso fit` does (meso_measured::job), returning the
+//! material and a report.
+
+use crate::arrays::{directions, rows, same_rows, Arr};
+use crate::error::{meso_err, require_exists, value_err};
+use crate::material::Material;
+use meso_measured::fit::{evaluate_fn, evaluate_samples_fn, FitErrors, FitOptions, LobeAxes};
+use meso_measured::job::{self, Data, FitSettings, Transfer};
+use meso_measured::metric::Metric;
+use meso_measured::samples::{Sample, SampleSet};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::path::PathBuf;
+
+/// The one-line message of an error and its causes, each cause once (as the CLI prints it).
+fn chain_message(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut msg = String::new();
+    let mut cur = Some(e);
+    while let Some(c) = cur {
+        let text = c.to_string();
+        if !text.is_empty() && !msg.contains(&text) {
+            if !msg.is_empty() {
+                msg.push_str(": ");
+            }
+            msg.push_str(&text);
+        }
+        cur = c.source();
+    }
+    msg
+}
+
+/// The options as the CLI spells them.
+struct Options {
+    k: usize,
+    transfer: Transfer,
+    metric: Metric,
+    axes: Option<LobeAxes>,
+}
+
+fn options(lobes: u32, transfer: &str, metric: &str, axes: &str) -> PyResult<Options> {
+    if !(1..=6).contains(&lobes) {
+        return Err(value_err(format!("lobes = {lobes}: expected 1 to 6")));
+    }
+    let transfer = match transfer {
+        "phong" => Transfer::Phong,
+        "microfacet" => Transfer::Microfacet,
+        t => {
+            return Err(value_err(format!(
+                "transfer = {t:?}: expected \"phong\" or \"microfacet\""
+            )))
+        }
+    };
+    let metric = match metric {
+        "log" => Metric::LowLog,
+        "ngan" => Metric::NganL2,
+        m => {
+            return Err(value_err(format!(
+                "metric = {m:?}: expected \"log\" or \"ngan\""
+            )))
+        }
+    };
+    let axes = match axes {
+        "auto" => None,
+        "normal" => Some(LobeAxes::Normal),
+        "free" => Some(LobeAxes::Free),
+        a => {
+            return Err(value_err(format!(
+                "axes = {a:?}: expected \"auto\", \"normal\" or \"free\""
+            )))
+        }
+    };
+    Ok(Options {
+        k: lobes as usize,
+        transfer,
+        metric,
+        axes,
+    })
+}
+
+/// What a fit produced, before it crosses into Python.
+struct Fitted {
+    text: String,
+    description: String,
+    model: String,
+    metric: Metric,
+    axes: LobeAxes,
+    fitted: FitErrors,
+    fitted_count: usize,
+    held_out: Option<FitErrors>,
+    held_out_count: usize,
+    iterations: usize,
+    starts: usize,
+    seconds: f64,
+}
+
+/// Fit `data` as `meso fit` does (K lobes, the last of the progressive fits) and build the
+/// material text with the CLI's comment (`name` is the data as written there).
+fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
+    let axes = o.axes.unwrap_or(if data.merl.is_some() {
+        LobeAxes::Normal
+    } else {
+        LobeAxes::Free
+    });
+    let opts = FitOptions {
+        metric: o.metric,
+        axes,
+        ..FitOptions::default()
+    };
+    let fits =
+        job::fit_lobes(o.k, o.transfer, &data.samples, &opts).map_err(|e| chain_message(&e))?;
+    let (lobes, r) = fits.last().ok_or("no lobe fit")?;
+    let eval = |wi, wo| lobes.eval(wi, wo);
+    let fitted = evaluate_fn(&data.samples, eval);
+    let held = &data.samples.held_out;
+    let held_out = (!held.is_empty()).then(|| evaluate_samples_fn(held, eval));
+    let settings = FitSettings {
+        data: name,
+        k: o.k,
+        metric: o.metric,
+        transfer: o.transfer,
+        axes,
+        channel: None,
+    };
+    let comment = job::material_comment(&settings, &data.description, r);
+    Ok(Fitted {
+        text: lobes.to_toml(&comment),
+        description: data.description.clone(),
+        model: r.model.clone(),
+        metric: o.metric,
+        axes,
+        fitted,
+        fitted_count: data.samples.len(),
+        held_out,
+        held_out_count: held.len(),
+        iterations: r.iterations,
+        starts: r.starts,
+        seconds: r.seconds,
+    })
+}
+
+fn errors_dict<'py>(py: Python<'py>, e: &FitErrors, count: usize) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("samples", count)?;
+    d.set_item("ngan_l2", e.ngan_l2.to_vec())?;
+    d.set_item("low_log", e.low_log.to_vec())?;
+    Ok(d)
+}
+
+/// The material and report of a fit; the material file written to `out` when given.
+fn finish(
+    py: Python<'_>,
+    f: Fitted,
+    k: usize,
+    out: Option<PathBuf>,
+) -> PyResult<(Material, Py<PyDict>)> {
+    let material = Material::from_text(&f.text)?;
+    if let Some(out) = &out {
+        meso_core::io::write_atomic(out, f.text.as_bytes())
+            .map_err(|e| meso_err(format!("{}: cannot write: {e}", out.display())))?;
+    }
+    let d = PyDict::new(py);
+    d.set_item("description", &f.description)?;
+    d.set_item("lobes", k)?;
+    d.set_item("model", &f.model)?;
+    d.set_item("metric", f.metric.name())?;
+    d.set_item("axes", f.axes.name())?;
+    d.set_item("fitted", errors_dict(py, &f.fitted, f.fitted_count)?)?;
+    match &f.held_out {
+        Some(h) => d.set_item("held_out", errors_dict(py, h, f.held_out_count)?)?,
+        None => d.set_item("held_out", py.None())?,
+    }
+    d.set_item("iterations", f.iterations)?;
+    d.set_item("starts", f.starts)?;
+    d.set_item("seconds", f.seconds)?;
+    d.set_item("toml", &f.text)?;
+    Ok((material, d.unbind()))
+}
+
+/// Fit a measured BRDF with `lobes` Phong peaks, as `meso fit DATA --lobes K --transfer T
+/// --metric M --axes A`: `data` is a MERL binary or a sample CSV (`theta_i,phi_i,theta_o,phi_o,
+/// r,g,b`). Returns `(material, report)`; `report` holds the data's description, the number of
+/// lobes, the model, and the errors per channel (`ngan_l2` in 1/sr, `low_log`) of the fitted
+/// closed form on the fitted and the held-out samples (`held_out` is None without any). `out`:
+/// also write the material file (atomically), the CLI's bytes but for the fit time in its comment.
+#[pyfunction]
+#[pyo3(signature = (data, lobes = 3, transfer = "microfacet", metric = "log", axes = "auto", out = None, samples = 30_000))]
+#[allow(clippy::too_many_arguments)]
+pub fn fit(
+    py: Python<'_>,
+    data: PathBuf,
+    lobes: u32,
+    transfer: &str,
+    metric: &str,
+    axes: &str,
+    out: Option<PathBuf>,
+    samples: usize,
+) -> PyResult<(Material, Py<PyDict>)> {
+    let o = options(lobes, transfer, metric, axes)?;
+    require_exists(&data)?;
+    let name = data.display().to_string();
+    let f = py
+        .detach(|| {
+            let d = job::load(&data, samples).map_err(|e| chain_message(&e))?;
+            run_fit(&d, &name, &o)
+        })
+        .map_err(meso_err)?;
+    finish(py, f, o.k, out)
+}
+
+/// Fit sample arrays as [`fit`] fits a sample CSV: `wi` (towards the light) and `wo` (towards the
+/// viewer) `(N, 3)` directions in the local frame, `values` `(N, 3)` RGB BRDF values in 1/sr.
+/// Samples below the horizon are dropped; with 200 or more, every 10th is held out.
+#[pyfunction]
+#[pyo3(signature = (wi, wo, values, lobes = 3, transfer = "microfacet", metric = "log", axes = "auto", out = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn fit_samples<'py>(
+    py: Python<'py>,
+    wi: Arr<'py>,
+    wo: Arr<'py>,
+    values: Arr<'py>,
+    lobes: u32,
+    transfer: &str,
+    metric: &str,
+    axes: &str,
+    out: Option<PathBuf>,
+) -> PyResult<(Material, Py<PyDict>)> {
+    let o = options(lobes, transfer, metric, axes)?;
+    let i = directions("wi", &wi)?;
+    let w = directions("wo", &wo)?;
+    let v = rows("values", &values, 3)?;
+    same_rows(("wi", i.len()), ("wo", w.len()))?;
+    same_rows(("wi", i.len()), ("values", v.len() / 3))?;
+    if let Some(k) = v.iter().position(|x| !x.is_finite() || *x < 0.0) {
+        return Err(value_err(format!(
+            "values row {}: {} is not a finite non-negative BRDF value",
+            k / 3,
+            v[k]
+        )));
+    }
+    let set = SampleSet {
+        samples: i
+            .iter()
+            .zip(&w)
+            .zip(v.chunks_exact(3))
+            .map(|((&wi, &wo), c)| Sample {
+                wi,
+                wo,
+                rgb: [c[0], c[1], c[2]],
+                weight: 1.0,
+            })
+            .collect(),
+        cell_size: 0.0,
+        held_out: Vec::new(),
+    };
+    let f = py
+        .detach(|| {
+            let d =
+                job::scattered(set, "sample arrays", "samples").map_err(|e| chain_message(&e))?;
+            run_fit(&d, "<arrays>", &o)
+        })
+        .map_err(meso_err)?;
+    finish(py, f, o.k, out)
+}
