@@ -415,3 +415,59 @@ pub fn material_comment(s: &FitSettings<'_>, description: &str, r: &FitResult) -
     }
     comment
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn csv_file(name: &str, text: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("meso-job-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn csv_hold_out_rule_and_description() {
+        let mut text = String::from("theta_i,phi_i,theta_o,phi_o,r,g,b\n");
+        for k in 0..250 {
+            let t = 5.0 + f64::from(k % 60);
+            text.push_str(&format!("{t},0,{t},180,0.3,0.3,0.3\n"));
+        }
+        // Below the horizon: dropped.
+        text.push_str("90,0,30,180,0.3,0.3,0.3\n");
+        let p = csv_file("rule.csv", &text);
+        let d = load(&p, 0).unwrap();
+        assert_eq!(
+            d.description,
+            "sample CSV, 250 samples above the horizon, 225 fitted, 25 held out"
+        );
+        assert!(d.merl.is_none());
+        let r = fit_lobes(1, Transfer::Phong, &d.samples, &FitOptions::default()).unwrap();
+        assert_eq!(r.len(), 1);
+        assert!(r[0].0.to_toml("x").starts_with("# x\n"));
+    }
+
+    #[test]
+    fn errors_name_the_file_and_keep_the_cause() {
+        let p = csv_file("bad.csv", "a,b\n1,2\n");
+        let e = load(&p, 0).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!("{}: not a valid sample CSV", p.display())
+        );
+        assert!(std::error::Error::source(&e).is_some());
+        let missing = p.with_file_name("missing.csv");
+        let e = load(&missing, 0).unwrap_err();
+        assert!(matches!(e, LoadError::Io { .. }), "{e}");
+        let p = csv_file(
+            "low.csv",
+            "theta_i,phi_i,theta_o,phi_o,r,g,b\n90,0,90,0,1,1,1\n",
+        );
+        assert!(matches!(
+            load(&p, 0).unwrap_err(),
+            LoadError::NoneAboveHorizon { .. }
+        ));
+    }
+}

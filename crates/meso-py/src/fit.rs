@@ -198,6 +198,14 @@ pub fn fit(
 ) -> PyResult<(Material, Py<PyDict>)> {
     let o = options(lobes, transfer, metric, axes)?;
     require_exists(&data)?;
+    if let (Some(out), Ok(d)) = (&out, std::fs::canonicalize(&data)) {
+        if std::fs::canonicalize(out).is_ok_and(|o| o == d) {
+            return Err(meso_err(format!(
+                "{}: the output would overwrite the input data",
+                out.display()
+            )));
+        }
+    }
     let name = data.display().to_string();
     let f = py
         .detach(|| {

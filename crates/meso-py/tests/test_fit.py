@@ -120,6 +120,8 @@ def test_bad_inputs_raise(tmp_path, data):
     garbage.write_text("not,a,brdf\n1,2,3\n")
     with pytest.raises(meso.MesoError, match="garbage.csv: not a valid sample CSV"):
         meso.fit(garbage)
+    with pytest.raises(meso.MesoError, match="overwrite the input"):
+        meso.fit(path, out=path)
     with pytest.raises(ValueError):
         meso.fit(path, lobes=7)
     with pytest.raises(ValueError):
