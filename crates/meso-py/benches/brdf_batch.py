@@ -23,18 +23,29 @@ albedo = [0.5, 0.4, 0.3]
 """
 
 
-def hemisphere(rng, n):
-    z = rng.random(n)
+def splitmix(n, seed=1):
+    """The Rust example's SplitMix64 stream (crates/meso-cli/examples/brdf_batch.rs), so both sides
+    evaluate the same pairs (their checksums agree)."""
+    with np.errstate(over="ignore"):
+        z = np.uint64(seed) + np.arange(1, n + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z = z ^ (z >> np.uint64(31))
+    return z.astype(np.float64) / 18446744073709551616.0
+
+
+def hemisphere(u, v):
+    z = u
     s = np.sqrt(np.maximum(0.0, 1 - z * z))
-    phi = 2 * np.pi * rng.random(n)
+    phi = 2 * np.pi * v
     return np.column_stack([s * np.cos(phi), s * np.sin(phi), z])
 
 
 def main():
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 1_000_000
     m = meso.Material.from_toml(MATERIAL)
-    rng = np.random.default_rng(1)
-    wi, wo = hemisphere(rng, n), hemisphere(rng, n)
+    u = splitmix(4 * n).reshape(n, 4)
+    wi, wo = hemisphere(u[:, 0], u[:, 1]), hemisphere(u[:, 2], u[:, 3])
     best = float("inf")
     for _ in range(5):
         t = time.perf_counter()

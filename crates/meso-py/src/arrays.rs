@@ -72,3 +72,58 @@ pub fn array_n3<'py>(py: Python<'py>, v: &[[f64; 3]]) -> PyResult<Bound<'py, PyA
 pub fn array_n<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyArray1<f64>> {
     PyArray1::from_vec(py, v)
 }
+
+/// The values of an `(N, cols)` float64 array as one row-major slice: borrowed when the array is
+/// C-contiguous, copied otherwise.
+pub fn flat<'a>(
+    name: &str,
+    a: &'a PyReadonlyArray2<'_, f64>,
+    cols: usize,
+) -> PyResult<std::borrow::Cow<'a, [f64]>> {
+    let shape = a.shape();
+    if shape[1] != cols {
+        return Err(value_err(format!(
+            "{name}: expected an array of shape (N, {cols}), got ({}, {})",
+            shape[0], shape[1]
+        )));
+    }
+    Ok(match a.as_slice() {
+        Ok(s) => std::borrow::Cow::Borrowed(s),
+        Err(_) => std::borrow::Cow::Owned(a.as_array().iter().copied().collect()),
+    })
+}
+
+/// Row `k` of a flat `(N, 3)` slice as a unit direction; the error names the argument and row,
+/// as [`directions`] does.
+pub fn unit_row(name: &str, v: &[f64], k: usize) -> Result<DVec3, String> {
+    let r = &v[3 * k..3 * k + 3];
+    let d = DVec3::new(r[0], r[1], r[2]);
+    let l2 = d.length_squared();
+    // The common case first: a finite unit row (a NaN or infinity makes `l2` fail this test).
+    if (l2 - 1.0).abs() <= 1e-12 {
+        return Ok(d);
+    }
+    if let Some(j) = r.iter().position(|x| !x.is_finite()) {
+        return Err(format!(
+            "{name}[{k}, {j}] = {}: not a finite number",
+            fmt_nan(r[j])
+        ));
+    }
+    let l = l2.sqrt();
+    if !(l.is_finite() && l > 1e-12) {
+        return Err(format!(
+            "{name}[{k}] = [{}, {}, {}]: not a direction (zero length or not finite)",
+            r[0], r[1], r[2]
+        ));
+    }
+    Ok(d / l)
+}
+
+/// NaN and infinities as Python prints them.
+fn fmt_nan(x: f64) -> String {
+    if x.is_nan() {
+        "NaN".into()
+    } else {
+        format!("{x}")
+    }
+}
