@@ -133,7 +133,7 @@ def first_batch(tmp_path_factory, client, cli_bin):
         {"input": "in/missing.png"},
         {"input": "in/corrupt.png"},
         {"input": f"in/{good[1].name}", "max_lobes": 99},
-        {"input": f"in/{good[2].name}", "op": "fit"},
+        {"input": f"in/{good[2].name}", "op": "bake"},
     ]
     manifest = d / "manifest.json"
     manifest.write_text(json.dumps({"defaults": {"texel_size": TEXEL, "height_scale": SCALE},
@@ -172,7 +172,7 @@ def test_batch_outputs_match_cli_and_bad_items_reported(first_batch):
     assert "missing.png" in fails[str(d / "in" / "missing.png")]
     assert "corrupt.png" in fails[str(d / "in" / "corrupt.png")]
     assert any("max_lobes" in e for e in fails.values())
-    assert any("unknown operation 'fit'" in e for e in fails.values())
+    assert any("unknown operation 'bake'" in e for e in fails.values())
     assert all(by_input[k]["status"] == "failed" for k in fails)
     assert "missing.png" in s.text() and "corrupt.png" in s.text()
     report = json.loads((out / batch.REPORT_NAME).read_text())
@@ -312,3 +312,40 @@ def test_one_run_per_out_dir_and_leftovers_removed(tmp_path):
             batch.run([], out, progress=False)
     assert len(leftovers(out)) == 2  # a running batch's temporaries are not touched
     assert batch.clean_temps(out) == 2 and leftovers(out) == []
+
+
+def test_fit_items_equal_meso_fit(tmp_path, client):
+    """`op = "fit"`: measured data (sample CSVs) fitted on the cluster; each output is the material
+    `meso.fit` writes for the same file (the fit is deterministic; only the time in its header
+    comment differs), and a rerun skips them."""
+    import re
+
+    import meso
+
+    truth = meso.Material.from_params(
+        form="microfacet", ndf={"kind": "ggx", "alpha": 0.25}, transfer={"kind": "mirror"},
+        diffuse=[0.2, 0.2, 0.2],
+    )
+    rng = np.random.default_rng(5)
+    (tmp_path / "in").mkdir()
+    for k in range(3):
+        t = rng.uniform(2, 75, (600, 2))
+        p = rng.uniform(0, 360, (600, 2))
+        rad = np.radians
+        wi = np.column_stack([np.sin(rad(t[:, 0])) * np.cos(rad(p[:, 0])), np.sin(rad(t[:, 0])) * np.sin(rad(p[:, 0])), np.cos(rad(t[:, 0]))])
+        wo = np.column_stack([np.sin(rad(t[:, 1])) * np.cos(rad(p[:, 1])), np.sin(rad(t[:, 1])) * np.sin(rad(p[:, 1])), np.cos(rad(t[:, 1]))])
+        f = truth.brdf(wi, wo) * (1 + 0.1 * k)
+        rows = np.column_stack([t[:, 0], p[:, 0], t[:, 1], p[:, 1], f])
+        (tmp_path / "in" / f"m{k}.csv").write_text(
+            "theta_i,phi_i,theta_o,phi_o,r,g,b\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in rows)
+        )
+    out = tmp_path / "out"
+    s = batch.run(tmp_path / "in", out, client=client, op="fit", params={"lobes": 1}, glob="*.csv", progress=False)
+    assert (s.done, s.failed) == (3, 0), s.text()
+    strip = lambda text: re.sub(r" in [0-9.]+ s, ", " in <t> s, ", text)  # noqa: E731
+    for r in s.items:
+        written = (out / r["output"]).read_text()
+        _, report = meso.fit(r["input"], lobes=1)
+        assert strip(written) == strip(report["toml"]), r["input"]
+    again = batch.run(tmp_path / "in", out, client=client, op="fit", params={"lobes": 1}, glob="*.csv", progress=False)
+    assert (again.done, again.skipped) == (0, 3), again.text()

@@ -97,6 +97,13 @@ def _export(path: str, out: str, **p: Any) -> dict:
     return {"warnings": list(warnings), "files": [os.path.basename(f) for f in files]}
 
 
+def _fit(path: str, out: str, **p: Any) -> dict:
+    import meso
+
+    _material, report = meso.fit(path, out=out, **p)
+    return {"lobes": report["lobes"], "held_out": report["held_out"], "description": report["description"]}
+
+
 OPERATIONS: Dict[str, Operation] = {
     "extract": Operation(
         "extract",
@@ -128,6 +135,19 @@ OPERATIONS: Dict[str, Operation] = {
         "dir",
         "",
         _export,
+    ),
+    "fit": Operation(
+        "fit",
+        {
+            "lobes": (int, 3),
+            "transfer": (str, "microfacet"),
+            "metric": (str, "log"),
+            "axes": (str, "auto"),
+            "samples": (int, 30000),
+        },
+        "file",
+        ".toml",
+        _fit,
     ),
 }
 
@@ -560,7 +580,7 @@ def run(
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(
         prog="meso-batch",
-        description="Run meso extract/export over a manifest (.json/.csv) or a directory of "
+        description="Run meso extract/export/fit over a manifest (.json/.csv) or a directory of "
                     "images on a Dask cluster (docs/batch.md).",
     )
     ap.add_argument("source", help="manifest (.json or .csv) or directory of images")
