@@ -86,7 +86,7 @@ def _load_material(props) -> Material:
         raise ValueError('meso BSDF: give exactly one of "material" (a TOML file) or "toml" (text)')
     if has_file:
         path = str(props["material"])
-        resolved = str(mi.Thread.thread().file_resolver().resolve(path))
+        resolved = str(mi.file_resolver().resolve(path))
         if not os.path.exists(resolved):
             raise FileNotFoundError(f"meso BSDF: material file {path!r} not found")
         return Material.from_file(resolved)
