@@ -1,0 +1,207 @@
+// meso export checked in a real engine (issue #15 item 5): three.js in headless Chromium renders a
+// glossy plane with (a) the exported normal + fitted-roughness mip chains and (b) the original normal
+// map with three.js' own generated mips and constant roughness, at several distances; both are
+// compared with meso's supersampled bump-mapped render of the same normal map. See docs/engine.md.
+import { test, before, after } from 'node:test';
+import assert from 'node:assert/strict';
+import { execFileSync } from 'node:child_process';
+import fs from 'node:fs';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
+import { grey16, srgb8 } from './png.mjs';
+import { readExr } from './exr.mjs';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const art = path.join(here, 'artifacts');
+const expDir = path.join(art, 'export');
+const meso = process.env.MESO_BIN || path.join(here, '../../target/release/meso');
+const N = 256;                      // height map size
+const TEXEL = 1 / N;                // one map copy per world unit (uv_scale 1)
+const HEIGHT = 0.0125;              // full code range: RMS slope ≈ 0.15 per axis
+const ALPHA = 0.08;                 // base GGX width (glossy)
+const BASE = 0.8;                   // the exported glTF material's base colour (metallic 1): F0 = 0.8
+const SPP = Number(process.env.ENGINE_SPP || 1024);
+// Distances: an orthographic camera whose width grows with the distance, 128 px across; at d = 1 a
+// pixel spans one texel across (1.15 along the tilted axis), at d = 32 it spans 32 × 37 texels.
+const DISTANCES = [1, 2, 4, 8, 16, 32];
+const view = {
+  eye: [0, -2.5, 4.330127], up: [0, 1, 0],            // 30° from the normal
+  lightDir: [0, 0.5, 0.8660254], irradiance: 1,        // the mirror direction: the specular peak
+};
+
+// Height map: a sum of cosines with random integer frequencies 8..55 cycles per map (fine detail,
+// periodic), even in x and y about the texel centres.
+function heightMap() {
+  let s = 15;
+  const rnd = () => { s = (s + 0x6d2b79f5) | 0; let t = Math.imul(s ^ (s >>> 15), 1 | s); t = (t + Math.imul(t ^ (t >>> 7), 61 | t)) ^ t; return ((t ^ (t >>> 14)) >>> 0) / 4294967296; };
+  const terms = [];
+  for (let k = 0; k < 24; k++) terms.push([8 + Math.floor(rnd() * 48), 8 + Math.floor(rnd() * 48), 0.5 + rnd()]);
+  const h = new Float64Array(N * N);
+  for (let y = 0; y < N; y++) for (let x = 0; x < N; x++) {
+    let v = 0;
+    for (const [fx, fy, a] of terms) v += a / Math.hypot(fx, fy) * Math.cos(2 * Math.PI * fx * (x + 0.5) / N) * Math.cos(2 * Math.PI * fy * (y + 0.5) / N);
+    h[y * N + x] = v;
+  }
+  let lo = Infinity, hi = -Infinity;
+  for (const v of h) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  return Uint16Array.from(h, (v) => Math.round(65535 * (v - lo) / (hi - lo)));
+}
+
+function sceneToml(width, material) {
+  return `[camera]
+kind = "orthographic"
+position = [${view.eye.join(', ')}]
+look_at = [0.0, 0.0, 0.0]
+up = [${view.up.join(', ')}]
+width = ${width}
+[image]
+width = 128
+height = 128
+spp = ${SPP}
+[[object]]
+kind = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+tangent = [1.0, 0.0, 0.0]
+uv_scale = 1.0
+material = "${material}"
+[[light]]
+kind = "directional"
+direction = [${view.lightDir.join(', ')}]
+irradiance = [${view.irradiance}, ${view.irradiance}, ${view.irradiance}]
+`;
+}
+const transfer = `[transfer]
+kind = "microfacet"
+distribution = "ggx"
+alpha = ${ALPHA}
+fresnel = "schlick"
+f0 = [${BASE}, ${BASE}, ${BASE}]
+`;
+
+function mesoRender(name, width, material) {
+  const scene = path.join(art, `scene_${name}.toml`);
+  fs.writeFileSync(scene, sceneToml(width, material));
+  const out = path.join(art, `${name}.exr`);
+  execFileSync(meso, ['render', scene, '-o', out], { stdio: ['ignore', 'ignore', 'inherit'] });
+  const img = readExr(fs.readFileSync(out));
+  const { R, G, B } = img.channels;
+  return Array.from(R, (r, i) => 0.2126 * r + 0.7152 * G[i] + 0.0722 * B[i]);
+}
+
+const mean = (a) => a.reduce((s, v) => s + v, 0) / a.length;
+const mae = (a, b) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
+
+let browser, page, info;
+let levels = 0;
+const results = [];
+let calib = 1;
+
+before(async () => {
+  fs.mkdirSync(art, { recursive: true });
+  fs.writeFileSync(path.join(art, 'height.png'), grey16(N, N, heightMap()));
+  fs.rmSync(expDir, { recursive: true, force: true });
+  execFileSync(meso, ['export', path.join(art, 'height.png'), '--texel-size', String(TEXEL), '--height-scale', String(HEIGHT),
+    '--alpha', String(ALPHA), '--metallic', '1', '--out', expDir], { stdio: ['ignore', 'inherit', 'inherit'] });
+  while (fs.existsSync(path.join(expDir, `normal_mip${levels}.png`))) levels++;
+  fs.writeFileSync(path.join(art, 'flat.toml'), transfer);
+  fs.writeFileSync(path.join(art, 'reference.toml'),
+    `[texture]\nkind = "bump-mapped"\nnormal_map = "export/normal_mip0.png"\nconvention = "gl"\n${transfer}`);
+
+  browser = await chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    headless: true,
+    args: ['--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+      '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  page = await browser.newPage();
+  page.on('pageerror', (e) => console.error('page error:', e));
+  page.on('console', (m) => { if (m.type() === 'error' || m.type() === 'warning') console.error('page:', m.text()); });
+  const files = {
+    '/three.module.js': path.join(here, 'node_modules/three/build/three.module.js'),
+    '/three.core.js': path.join(here, 'node_modules/three/build/three.core.js'),
+    '/page.mjs': path.join(here, 'page.mjs'),
+  };
+  await page.route('http://meso.test/**', (route) => {
+    const p = new URL(route.request().url()).pathname;
+    if (p === '/') {
+      return route.fulfill({ contentType: 'text/html', body: '<!doctype html><script type="importmap">{"imports":{"three":"/three.module.js"}}</script><script type="module" src="/page.mjs"></script>' });
+    }
+    const f = files[p] || (p.startsWith('/exp/') ? path.join(expDir, path.basename(p)) : null);
+    if (!f || !fs.existsSync(f)) return route.fulfill({ status: 404, body: 'not found' });
+    return route.fulfill({ body: fs.readFileSync(f), contentType: f.endsWith('.png') ? 'image/png' : 'text/javascript' });
+  });
+  await page.goto('http://meso.test/');
+  await page.waitForFunction(() => window.ready === true, null, { timeout: 60000 });
+  info = await page.evaluate((n) => window.loadMaps(n), levels);
+});
+
+after(async () => { if (browser) await browser.close(); });
+
+const three = (mode, width, extra = {}) => page.evaluate((o) => window.renderView(o),
+  { ...view, mode, width, alpha: ALPHA, baseColor: BASE, uvScale: 1, ...extra });
+
+test('three.js has WebGL2 in headless Chromium and the export has a full mip chain', () => {
+  console.log(`# renderer: ${info.renderer}; ${levels} levels`);
+  assert.ok(info.webgl2);
+  assert.equal(levels, Math.log2(N) + 1);
+});
+
+test('flat plane: three.js and meso agree radiometrically (calibration)', () => {
+  // The same GGX (height-correlated Smith, Schlick F0 = 0.8) at the specular peak, no normal map.
+  return (async () => {
+    const ref = mesoRender('flat', 0.5, 'flat.toml');
+    const t = await three('flat', 0.5);
+    calib = mean(ref) / mean(t);
+    console.log(`# flat: meso ${mean(ref).toFixed(4)}, three.js ${mean(t).toFixed(4)}, factor ${calib.toFixed(4)}`);
+    assert.ok(Math.abs(calib - 1) < 0.03, `calibration factor ${calib}`);
+  })();
+});
+
+test('magnified, the level-0 normal map lands on the same texels in three.js as in meso (alignment)', async () => {
+  // 4 pixels per texel: meso shades each texel's normal (piecewise constant), three.js interpolates
+  // bilinearly, so the error is not small; a map shifted by a fraction of its period is much worse.
+  const ref = mesoRender('align', 0.125, 'reference.toml');
+  const aligned = await three('standard', 0.125);
+  const shifted = await three('standard', 0.125, { uvOffset: [0.37, 0.21] });
+  const eA = mae(aligned, ref) / mean(ref), eS = mae(shifted, ref) / mean(ref);
+  console.log(`# aligned: relative pixel error ${eA.toFixed(3)}; shifted map ${eS.toFixed(3)}`);
+  assert.ok(eA < 0.6 * eS, 'the texture lands where meso puts it');
+});
+
+for (const d of DISTANCES) {
+  test(`distance ${d}: the exported maps are closer to meso's supersampled reference than standard mips`, async () => {
+    const width = 0.5 * d;
+    const ref = mesoRender(`ref_d${d}`, width, 'reference.toml');
+    const a = (await three('exported', width)).map((v) => v * calib);
+    const b = (await three('standard', width)).map((v) => v * calib);
+    const r = {
+      d, ref: mean(ref), exported: mean(a), standard: mean(b),
+      maeExported: mae(a, ref) / mean(ref), maeStandard: mae(b, ref) / mean(ref),
+    };
+    results.push(r);
+    if (process.env.ENGINE_FIGURES) {
+      const dir = process.env.ENGINE_FIGURES;
+      fs.mkdirSync(dir, { recursive: true });
+      const stops = -3;   // radiance 8 → white, the same for every picture
+      for (const [n, img] of [['reference', ref], ['exported', a], ['standard', b]]) {
+        fs.writeFileSync(path.join(dir, `d${d}_${n}.png`), srgb8(128, 128, img, stops));
+      }
+    }
+    console.log(`# d = ${d}: mean luminance ref ${r.ref.toFixed(4)} exported ${r.exported.toFixed(4)} standard ${r.standard.toFixed(4)}; ` +
+      `pixel error (MAE / mean ref) exported ${(100 * r.maeExported).toFixed(1)} % standard ${(100 * r.maeStandard).toFixed(1)} %`);
+    assert.ok(Math.abs(r.exported - r.ref) < Math.abs(r.standard - r.ref), 'mean luminance closer with the exported maps');
+    assert.ok(r.maeExported < r.maeStandard, 'pixel error smaller with the exported maps');
+  });
+}
+
+test('summary table', () => {
+  fs.writeFileSync(path.join(art, 'results.json'), JSON.stringify({ spp: SPP, calib, results }, null, 1));
+  console.log('# | d | texels / pixel | reference | exported | standard | error exported | error standard |');
+  for (const r of results) {
+    console.log(`# | ${r.d} | ${r.d} × ${(r.d / Math.cos(Math.PI / 6)).toFixed(1)} | ${r.ref.toFixed(3)} | ${r.exported.toFixed(3)} (${(100 * (r.exported / r.ref - 1)).toFixed(1)} %) | ` +
+      `${r.standard.toFixed(3)} (${(100 * (r.standard / r.ref - 1)).toFixed(1)} %) | ${(100 * r.maeExported).toFixed(1)} % | ${(100 * r.maeStandard).toFixed(1)} % |`);
+  }
+  assert.equal(results.length, DISTANCES.length);
+});

@@ -1,0 +1,99 @@
+// Runs in headless Chromium: three.js renders of the exported plane into a float render target.
+import * as THREE from 'three';
+
+const W = 128, H = 128;
+const renderer = new THREE.WebGLRenderer({ antialias: false, alpha: false });
+renderer.setPixelRatio(1);
+renderer.setSize(W, H);
+renderer.toneMapping = THREE.NoToneMapping;
+renderer.outputColorSpace = THREE.LinearSRGBColorSpace;
+const target = new THREE.WebGLRenderTarget(W, H, { type: THREE.FloatType, format: THREE.RGBAFormat, depthBuffer: true });
+
+async function bitmap(url) {
+  const blob = await (await fetch(url)).blob();
+  return createImageBitmap(blob, { colorSpaceConversion: 'none', premultiplyAlpha: 'none' });
+}
+function texture(levels, generate) {
+  const t = new THREE.Texture(levels[0]);
+  if (!generate) t.mipmaps = levels;
+  t.generateMipmaps = generate;
+  t.flipY = false;                       // image row 0 at v = 0, as glTF
+  t.wrapS = t.wrapT = THREE.RepeatWrapping;
+  t.magFilter = THREE.LinearFilter;
+  t.minFilter = THREE.LinearMipmapLinearFilter;
+  t.anisotropy = 1;
+  t.colorSpace = THREE.NoColorSpace;     // data, not colour
+  t.needsUpdate = true;
+  return t;
+}
+
+// The plane z = 0 (normal +z); uv = (x, −y) / uvScale: three.js and glTF put uv (0, 0) at the image's
+// top-left with v growing down the image, meso's scene uv grows up it (docs/conventions.md).
+function plane(uvScale, half, offset = [0, 0]) {
+  const g = new THREE.BufferGeometry();
+  const p = [-half, -half, 0, half, -half, 0, half, half, 0, -half, half, 0];
+  const uv = [];
+  for (let i = 0; i < 4; i++) uv.push(p[3 * i] / uvScale + offset[0], -p[3 * i + 1] / uvScale + offset[1]);
+  g.setAttribute('position', new THREE.Float32BufferAttribute(p, 3));
+  g.setAttribute('normal', new THREE.Float32BufferAttribute([0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1], 3));
+  g.setAttribute('uv', new THREE.Float32BufferAttribute(uv, 2));
+  g.setIndex([0, 1, 2, 0, 2, 3]);
+  return g;
+}
+
+let maps = null;
+window.loadMaps = async (levels) => {
+  const nrm = [], mr = [];
+  for (let k = 0; k < levels; k++) {
+    nrm.push(await bitmap(`http://meso.test/exp/normal_mip${k}.png`));
+    mr.push(await bitmap(`http://meso.test/exp/metallic_roughness_mip${k}.png`));
+  }
+  maps = {
+    exportedNormal: texture(nrm, false),
+    exportedMR: texture(mr, false),
+    originalNormal: texture([await bitmap('http://meso.test/exp/normal_mip0.png')], true),
+  };
+  const gl = renderer.getContext();
+  return { webgl2: renderer.capabilities.isWebGL2 !== false, renderer: gl.getParameter(gl.RENDERER) };
+};
+
+// mode: 'flat' (no maps, constant roughness), 'exported' (meso's normal + roughness chains),
+// 'standard' (level-0 normal map with three.js' generated mips, constant roughness).
+window.renderView = (o) => {
+  const scene = new THREE.Scene();
+  const mat = new THREE.MeshStandardMaterial({ metalness: 1, roughness: Math.sqrt(o.alpha) });
+  mat.color.setRGB(o.baseColor, o.baseColor, o.baseColor, THREE.LinearSRGBColorSpace);
+  if (o.mode === 'exported') {
+    mat.normalMap = maps.exportedNormal;
+    mat.roughnessMap = maps.exportedMR;     // G = √α; metalness stays the constant 1
+    mat.roughness = 1;
+  } else if (o.mode === 'standard') {
+    mat.normalMap = maps.originalNormal;
+  }
+  if (mat.normalMap) mat.normalScale.set(1, -1);   // v grows down the image: green = −∂p/∂v (GLTFLoader does the same)
+  scene.add(new THREE.Mesh(plane(o.uvScale, 40, o.uvOffset), mat));
+  const light = new THREE.DirectionalLight(0xffffff, o.irradiance);
+  light.position.set(...o.lightDir);
+  light.target.position.set(0, 0, 0);
+  scene.add(light, light.target);
+  const w = o.width, h = o.width * H / W;
+  const cam = new THREE.OrthographicCamera(-w / 2, w / 2, h / 2, -h / 2, 0.01, 100);
+  cam.position.set(...o.eye);
+  cam.up.set(...o.up);
+  cam.lookAt(0, 0, 0);
+  cam.updateProjectionMatrix();
+  renderer.setRenderTarget(target);
+  renderer.render(scene, cam);
+  const buf = new Float32Array(W * H * 4);
+  renderer.readRenderTargetPixels(target, 0, 0, W, H, buf);
+  renderer.setRenderTarget(null);
+  mat.dispose();
+  // luminance, rows top-down (readPixels gives the bottom row first)
+  const y = new Array(W * H);
+  for (let r = 0; r < H; r++) for (let c = 0; c < W; c++) {
+    const i = ((H - 1 - r) * W + c) * 4;
+    y[r * W + c] = 0.2126 * buf[i] + 0.7152 * buf[i + 1] + 0.0722 * buf[i + 2];
+  }
+  return y;
+};
+window.ready = true;
