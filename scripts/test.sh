@@ -37,6 +37,13 @@ if [ -f tests/export/package.json ]; then
   bash tests/export/run.sh 2>&1 | tee target/export-output.txt || export_status=1
 fi
 
+engine_status=0
+: > target/engine-output.txt
+if [ -f tests/engine/package.json ]; then
+  echo "== export in a real engine (three.js in headless Chromium vs meso's reference)"
+  bash tests/engine/run.sh 2>&1 | tee target/engine-output.txt || engine_status=1
+fi
+
 python_status=0
 : > target/python-output.txt
 if [ -f crates/meso-py/tests/run.sh ]; then
@@ -47,5 +54,5 @@ fi
 # One closing line for humans and CI: cargo's per-binary results plus the browser tests.
 awk '/^test result:/ { for (i = 1; i <= NF; i++) { if ($i ~ /^passed;?$/) p += $(i-1); if ($i ~ /^failed;?$/) f += $(i-1) } }
      /^e2e: [0-9]+ passed, [0-9]+ failed/ { p += $2; f += $4 }
-     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt target/export-output.txt target/python-output.txt
-[ $e2e_status = 0 ] && [ $export_status = 0 ] && [ $python_status = 0 ]
+     END { printf "tests: %d passed, %d failed\n", p, f; exit (f > 0) }' target/test-output.txt target/e2e-output.txt target/export-output.txt target/engine-output.txt target/python-output.txt
+[ $e2e_status = 0 ] && [ $export_status = 0 ] && [ $engine_status = 0 ] && [ $python_status = 0 ]
