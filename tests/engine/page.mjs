@@ -41,6 +41,19 @@ function plane(uvScale, half, offset = [0, 0]) {
   return g;
 }
 
+// three.js (r16x+) multiplies direct GGX light by a multiple-scattering energy compensation,
+// 1 + F0·(1/E_ss − 1) with E_ss from its DFG table; meso's reference is single-scattering GGX. With
+// `singleScatter` that one line is replaced by 1 so both shade the same model; without, three.js as shipped.
+const MS_LINE = 'material.multiScatteringCompensation = 1.0 + material.specularColorBlended * ( 1.0 / EssMs - 1.0 );';
+const msPatchable = THREE.ShaderChunk.lights_fragment_begin.includes(MS_LINE);
+function singleScatter(mat) {
+  mat.onBeforeCompile = (shader) => {
+    shader.fragmentShader = shader.fragmentShader.replace('#include <lights_fragment_begin>',
+      THREE.ShaderChunk.lights_fragment_begin.replace(MS_LINE, 'material.multiScatteringCompensation = vec3( 1.0 );'));
+  };
+  mat.customProgramCacheKey = () => 'meso-single-scatter';
+}
+
 let maps = null;
 window.loadMaps = async (levels) => {
   const nrm = [], mr = [];
@@ -54,7 +67,7 @@ window.loadMaps = async (levels) => {
     originalNormal: texture([await bitmap('http://meso.test/exp/normal_mip0.png')], true),
   };
   const gl = renderer.getContext();
-  return { webgl2: renderer.capabilities.isWebGL2 !== false, renderer: gl.getParameter(gl.RENDERER) };
+  return { webgl2: renderer.capabilities.isWebGL2 !== false, renderer: gl.getParameter(gl.RENDERER), revision: THREE.REVISION, msPatchable };
 };
 
 // mode: 'flat' (no maps, constant roughness), 'exported' (meso's normal + roughness chains),
@@ -70,6 +83,7 @@ window.renderView = (o) => {
   } else if (o.mode === 'standard') {
     mat.normalMap = maps.originalNormal;
   }
+  if (o.singleScatter) singleScatter(mat);
   if (mat.normalMap) mat.normalScale.set(1, -1);   // v grows down the image: green = −∂p/∂v (GLTFLoader does the same)
   scene.add(new THREE.Mesh(plane(o.uvScale, 40, o.uvOffset), mat));
   const light = new THREE.DirectionalLight(0xffffff, o.irradiance);
