@@ -7,7 +7,8 @@
 //!
 //! # Where and how
 //! * The folder: `$MESO_CACHE_DIR` if set (empty or `off` turns the cache off), else
-//!   `$XDG_CACHE_HOME/meso`, else `$HOME/.cache/meso`; none of them: no cache.
+//!   `$XDG_CACHE_HOME/meso`, else `$HOME/.cache/meso`; none of them: no cache (shared with the
+//!   pyramid cache, [`crate::pyramid_cache`]; both through [`crate::disk_cache`]).
 //! * The key: SHA-256 of the height map file's bytes, the parameters that shape the result
 //!   (texel size, height scale, border, normal mode), this crate's version and [`FORMAT`]. A
 //!   changed file or parameter is a different key; nothing is ever looked up by path alone.
@@ -34,23 +35,14 @@ use std::sync::Arc;
 pub const FORMAT: u32 = 2;
 const MAGIC: &[u8; 8] = b"MESOFCT\0";
 /// The largest cache file read back (4 GiB).
-pub const MAX_CACHE_BYTES: u64 = 4 << 30;
+pub const MAX_CACHE_BYTES: u64 = crate::disk_cache::MAX_CACHE_BYTES;
+const PREFIX: &str = "facets";
 
-/// The cache folder (module docs), or `None` when the cache is off or no folder is known.
+/// The cache folder (module docs), or `None` when the cache is off or no folder is known
+/// ([`crate::disk_cache::cache_dir`]).
 #[must_use]
 pub fn cache_dir() -> Option<PathBuf> {
-    match std::env::var_os("MESO_CACHE_DIR") {
-        Some(v) if v.is_empty() || v == "off" => None,
-        Some(v) => Some(PathBuf::from(v)),
-        None => std::env::var_os("XDG_CACHE_HOME")
-            .filter(|v| !v.is_empty())
-            .map(|v| PathBuf::from(v).join("meso"))
-            .or_else(|| {
-                std::env::var_os("HOME")
-                    .filter(|v| !v.is_empty())
-                    .map(|h| PathBuf::from(h).join(".cache").join("meso"))
-            }),
-    }
+    crate::disk_cache::cache_dir()
 }
 
 /// The cache key of a height map file's bytes and the parameters that shape its facets.
@@ -77,15 +69,10 @@ pub fn key(
     h.finalize().into()
 }
 
-fn path_of(dir: &Path, key: &[u8; 32]) -> PathBuf {
-    let hex: String = key.iter().map(|b| format!("{b:02x}")).collect();
-    dir.join(format!("facets-{hex}.bin"))
-}
-
 /// The facets and visibility stored under `key` in `dir`, if a valid entry is there.
 #[must_use]
 pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
-    let bytes = meso_core::io::read_limited(&path_of(dir, key), MAX_CACHE_BYTES).ok()?;
+    let bytes = crate::disk_cache::read(dir, PREFIX, key)?;
     decode(&bytes, key)
 }
 
@@ -100,15 +87,11 @@ pub fn store(
     deltas: &DeltaSum,
     vis: &FacetVisibility,
 ) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    meso_core::io::write_atomic(&path_of(dir, key), &encode(key, deltas, vis))
+    crate::disk_cache::write(dir, PREFIX, key, &encode(key, deltas, vis))
 }
 
 fn encode(key: &[u8; 32], deltas: &DeltaSum, vis: &FacetVisibility) -> Vec<u8> {
-    let mut out = Vec::new();
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&FORMAT.to_le_bytes());
-    out.extend_from_slice(key);
+    let mut out = crate::disk_cache::header(MAGIC, FORMAT, key);
     out.extend_from_slice(&(deltas.normals().len() as u64).to_le_bytes());
     for n in deltas.normals() {
         for v in [n.normal.x, n.normal.y, n.normal.z, n.weight] {
@@ -120,8 +103,7 @@ fn encode(key: &[u8; 32], deltas: &DeltaSum, vis: &FacetVisibility) -> Vec<u8> {
         out.extend_from_slice(&v.to_le_bytes());
     }
     vis.bins.encode(&mut out);
-    let sum: [u8; 32] = Sha256::digest(&out).into();
-    out.extend_from_slice(&sum);
+    crate::disk_cache::seal(&mut out);
     out
 }
 
@@ -139,25 +121,12 @@ fn f64s<const N: usize>(bytes: &mut &[u8]) -> Option<[f64; N]> {
 }
 
 fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
-    let (payload, sum) = bytes.split_last_chunk::<32>()?;
-    if <[u8; 32]>::from(Sha256::digest(payload)) != *sum {
-        return None;
-    }
-    let mut b = payload.strip_prefix(MAGIC.as_slice())?;
-    let (format, rest) = b.split_first_chunk::<4>()?;
-    if u32::from_le_bytes(*format) != FORMAT {
-        return None;
-    }
-    let (stored_key, rest) = rest.split_first_chunk::<32>()?;
-    if stored_key != key {
-        return None;
-    }
-    let (n, rest) = rest.split_first_chunk::<8>()?;
+    let payload = crate::disk_cache::open(bytes, MAGIC, FORMAT, key)?;
+    let (n, mut b) = payload.split_first_chunk::<8>()?;
     let n = usize::try_from(u64::from_le_bytes(*n)).ok()?;
-    if n == 0 || n > rest.len() / 32 {
+    if n == 0 || n > b.len() / 32 {
         return None;
     }
-    b = rest;
     let mut normals = Vec::with_capacity(n);
     for _ in 0..n {
         let [x, y, z, w] = f64s::<4>(&mut b)?;
@@ -188,7 +157,7 @@ fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
 }
 
 /// The largest height map file hashed for the cache (1 GiB; larger files are not cached).
-pub const MAX_HASHED_BYTES: u64 = 1 << 30;
+pub const MAX_HASHED_BYTES: u64 = crate::disk_cache::MAX_HASHED_BYTES;
 
 /// The facets of the height map in `file` with their visibility, from the cache when it has
 /// them (the image is then not even decoded), else loaded with `load`, built with `build`
@@ -208,7 +177,7 @@ pub fn facets_cached<E>(
 ) -> Result<(Ndf, FacetVisibility, bool), E> {
     let dir = cache_dir();
     let k = dir.as_ref().and_then(|_| {
-        let bytes = meso_core::io::read_limited(file, MAX_HASHED_BYTES).ok()?;
+        let bytes = crate::disk_cache::source_bytes(file)?;
         Some(key(&bytes, texel_size, height_scale, border, mode))
     });
     if let (Some(d), Some(k)) = (dir.as_deref(), &k) {

@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod baseline;
+pub mod disk_cache;
 pub mod error;
 pub mod facet_cache;
 pub mod facets;
@@ -35,6 +36,7 @@ pub mod heightmap;
 pub mod horizon;
 pub mod input;
 pub mod pyramid;
+pub mod pyramid_cache;
 pub mod resolver;
 pub mod sphgrid;
 pub mod visibility;

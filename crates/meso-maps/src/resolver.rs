@@ -13,7 +13,8 @@
 //! | `represent` | `"facets"` (default: every facet normal of the map, binned to ≈ 0.8°, as a delta sum with each bin's own visibility, `shadowing = "visibility"`: within 0.1–6% of the ray-traced BRDF where the lobes miss by 3–88%, docs/heightmaps.md; see [`MapsResolver::heightmap_facets`]) or `"lobes"` (the pyramid's top-level fitted Phong peaks, with Smith or horizon masking) |
 //!
 //! With `represent = "lobes"` the pyramid is extracted once per (file, modification time,
-//! parameters) and cached in the resolver; the NDF is the top level's lobes (the whole map).
+//! parameters) and cached in the resolver, and on disk per (file content, parameters)
+//! ([`crate::pyramid_cache`]); the NDF is the top level's lobes (the whole map).
 //!
 //! # `kind = "map"`
 //! | key | value |
@@ -256,6 +257,7 @@ struct CacheKey {
 #[derive(Default)]
 pub struct MapsResolver {
     cache: Mutex<HashMap<CacheKey, Arc<Pyramid>>>,
+    disk_hits: std::sync::atomic::AtomicUsize,
     progress: Option<ExtractProgress>,
 }
 
@@ -430,7 +432,9 @@ impl MapsResolver {
             .map_err(|e| MaterialError(format!("[ndf]: {e}")))
     }
 
-    /// The pyramid of a `kind = "heightmap"` table (extracted, or from the cache).
+    /// The pyramid of a `kind = "heightmap"` table: from this resolver's memory, else from the
+    /// disk cache ([`crate::pyramid_cache`]), else extracted (and stored there). Always the
+    /// pyramid a map file would hold (`f32` lobes), whichever answered.
     ///
     /// # Errors
     /// Unknown keys, bad values, and every height-map or extraction error, as a message.
@@ -461,37 +465,57 @@ impl MapsResolver {
         if let Some(p) = self.cache_get(&key) {
             return Ok(p);
         }
-        check_heightmap_budget(
-            file,
-            &HeightmapParams {
-                texel_size,
-                height_scale,
-                max_lobes,
-                border,
-                normal_mode,
-            },
-            "extracting the NDF pyramid",
-            crate::pyramid::extract_bytes,
-        )?;
-        let map = HeightMap::load(file, texel_size, height_scale, border)
-            .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let mut params = ExtractParams {
             normal_mode,
             ..ExtractParams::default()
         };
         params.fit.max_lobes = max_lobes;
-        let pyr = Arc::new(
-            extract(Source::Heights(&map), &params, &mut |p| {
-                if let Some(f) = &self.progress {
-                    f(file, p);
-                }
-            })
-            .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))?,
-        );
+        // From the disk cache (`crate::pyramid_cache`) when it has this map and parameters.
+        let (pyr, hit) = crate::pyramid_cache::pyramid_cached(
+            file,
+            texel_size,
+            height_scale,
+            border,
+            &params,
+            || {
+                check_heightmap_budget(
+                    file,
+                    &HeightmapParams {
+                        texel_size,
+                        height_scale,
+                        max_lobes,
+                        border,
+                        normal_mode,
+                    },
+                    "extracting the NDF pyramid",
+                    crate::pyramid::extract_bytes,
+                )?;
+                let map = HeightMap::load(file, texel_size, height_scale, border)
+                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+                extract(Source::Heights(&map), &params, &mut |p| {
+                    if let Some(f) = &self.progress {
+                        f(file, p);
+                    }
+                })
+                .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))
+            },
+        )?;
+        if hit {
+            self.disk_hits
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+        let pyr = Arc::new(pyr);
         if let Ok(mut c) = self.cache.lock() {
             c.insert(key, pyr.clone());
         }
         Ok(pyr)
+    }
+
+    /// How many pyramids this resolver read from the disk cache ([`crate::pyramid_cache`])
+    /// instead of extracting them.
+    #[must_use]
+    pub fn disk_cache_hits(&self) -> usize {
+        self.disk_hits.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// `represent = "facets"`: the whole map's facet normals as a delta sum (the multiple

@@ -1,5 +1,6 @@
 //! `MapsResolver::with_progress`: a pyramid extraction through the resolver reports its
-//! progress, up to every texel, once per extraction (the cache answers the second call).
+//! progress, up to every texel, once per extraction (the cache answers the second call). The
+//! disk cache (`meso_maps::pyramid_cache`) is off in this binary, so that every run extracts.
 
 use meso_maps::MapsResolver;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -7,6 +8,7 @@ use std::sync::Arc;
 
 #[test]
 fn extraction_progress_reaches_every_texel_once() {
+    std::env::set_var("MESO_CACHE_DIR", "off");
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("resolver_progress");
     std::fs::create_dir_all(&dir).unwrap();
     let n = 16usize;

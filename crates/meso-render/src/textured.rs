@@ -9,7 +9,8 @@
 //! [texture]
 //! kind = "ndf-mapped"      # or "bump-mapped"
 //! file = "bumps.png"       # height map (PNG, TIFF, EXR), relative to this file; or
-//!                          # normal_map = "n.png" (tangent space, convention = "gl" | "dx")
+//!                          # normal_map = "n.png" (tangent space, convention = "gl" | "dx");
+//!                          # or map = "bumps.map" (written by `meso extract`, ndf-mapped only)
 //! texel_size = 0.01        # distance between height samples (length units)
 //! height_scale = 0.02      # height of the full code range (same unit)
 //! texels_per_uv = 64       # height-map cells per unit of u and v (default: the map's width)
@@ -24,13 +25,17 @@ use crate::shader::Shader;
 use meso_core::material::{read_limited, MaterialSpec};
 use meso_maps::fit::MAX_LOBES;
 use meso_maps::resolver::HEIGHTMAP_KEYS;
-use meso_maps::{extract, ExtractParams, MapsResolver, NormalConvention, NormalMap, Source};
+use meso_maps::{
+    extract, Border, ExtractParams, MapsResolver, NormalConvention, NormalMap, NormalMode, Pyramid,
+    Source,
+};
 use std::path::Path;
 use std::sync::Arc;
 
 /// The shader of the material file at `path` if it has a `[texture]` table (module docs);
-/// `Ok(None)` for an ordinary material file. Pyramids are extracted through `maps` (and cached
-/// there).
+/// `Ok(None)` for an ordinary material file. Pyramids of height maps come through `maps` (its
+/// memory, the disk cache `meso_maps::pyramid_cache`, or extracted); `map = "…"` reads a map
+/// file as it is.
 ///
 /// # Errors
 /// A message naming the file, the table and the problem: unreadable or oversized file, invalid
@@ -54,13 +59,14 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
                 "texels_per_uv",
                 "shadowing",
                 "normal_map",
+                "map",
                 "convention",
                 "filter",
             ]
             .contains(&k.as_str()))
         {
             return Err(named(format!(
-                "[texture]: unknown key `{k}` (known: kind, file, normal_map, convention, \
+                "[texture]: unknown key `{k}` (known: kind, file, normal_map, map, convention, \
                  texel_size, height_scale, texels_per_uv, shadowing, filter, max_lobes, border, \
                  normals)"
             )));
@@ -83,6 +89,18 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         Some(None) => Err(named(format!("[texture] {key}: expected a string"))),
         None => Ok(None),
     };
+    if let Some(m) = string("map")? {
+        if tex.contains_key("file") || tex.contains_key("normal_map") {
+            return Err(named(
+                "[texture]: `map` (a map file), `file` (a height map) and `normal_map` exclude \
+                 each other"
+                    .into(),
+            ));
+        }
+        return map_mapped(kind, tex, &doc, dir, &dir.join(m), box_filter, maps)
+            .map(Some)
+            .map_err(named);
+    }
     let file = match (string("file")?, string("normal_map")?) {
         (Some(f), None) => dir.join(f),
         (None, Some(n)) => {
@@ -127,10 +145,19 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         }
         (None, None) => {
             return Err(named(
-                "[texture]: missing `file = \"…\"` (a height map) or `normal_map = \"…\"`".into(),
+                "[texture]: missing `file = \"…\"` (a height map), `normal_map = \"…\"` or \
+                 `map = \"…\"` (a map file)"
+                    .into(),
             ))
         }
     };
+    if is_map_file(&file) {
+        return Err(named(format!(
+            "[texture] file: {} is a meso map file (`meso extract`), not a height map: give it \
+             as `map = \"…\"` (without `height_scale`)",
+            file.display()
+        )));
+    }
     if tex.contains_key("convention") {
         return Err(named(
             "[texture] convention: applies to `normal_map`, not to a height map".into(),
@@ -151,17 +178,20 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     map_table.insert("kind".into(), toml::Value::String("heightmap".into()));
     let texture_err =
         |e: meso_core::material::MaterialError| named(e.0.replace("[ndf]", "[texture]"));
-    let map = MapsResolver::heightmap(&map_table, &file).map_err(texture_err)?;
-    let texels_per_uv = texels_per_uv(tex, map.cells_x()).map_err(named)?;
     let surface = facet_material(&doc, dir, maps).map_err(named)?;
     let shader: Arc<dyn Shader> = match kind {
         "bump-mapped" => {
+            let map = MapsResolver::heightmap(&map_table, &file).map_err(texture_err)?;
+            let texels_per_uv = texels_per_uv(tex, map.cells_x()).map_err(named)?;
             Arc::new(BumpMapped::new(&map, &surface, texels_per_uv, shadowing).map_err(named)?)
         }
         _ => {
+            // From the resolver's memory, the disk cache or extracted (`MapsResolver`): the
+            // height map itself is only decoded to extract.
             let pyramid = maps
                 .heightmap_pyramid(&map_table, &file)
                 .map_err(texture_err)?;
+            let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols).map_err(named)?;
             Arc::new(
                 NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)
                     .map_err(named)?
@@ -170,6 +200,121 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         }
     };
     Ok(Some(shader))
+}
+
+/// Whether `file` opens with the magic bytes of a map file (`meso_maps::format::MAGIC`).
+fn is_map_file(file: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(file)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok_and(|()| magic == meso_maps::format::MAGIC)
+}
+
+/// A `[texture]` over a map file written by `meso extract` (`map = "…"`): NDF-mapped through
+/// its pyramid as stored. The keys that describe the extraction (`texel_size`, `max_lobes`,
+/// `border`, `normals`) may be given only to agree with the file; `height_scale` is refused
+/// (the file's slopes are already scaled), and so is `kind = "bump-mapped"` (no heights).
+fn map_mapped(
+    kind: &str,
+    tex: &toml::Table,
+    doc: &toml::Table,
+    dir: &Path,
+    file: &Path,
+    box_filter: bool,
+    maps: &MapsResolver,
+) -> Result<Arc<dyn Shader>, String> {
+    let shown = file.display();
+    if kind == "bump-mapped" {
+        return Err(format!(
+            "[texture] map: {shown} is a map file of fitted NDFs, without the heights that \
+             kind = \"bump-mapped\" shades: give the height map as `file = \"…\"`, or use \
+             kind = \"ndf-mapped\""
+        ));
+    }
+    for k in ["height_scale", "convention"] {
+        if tex.contains_key(k) {
+            return Err(format!(
+                "[texture] {k}: does not apply to a map file (`map`): {shown} stores slopes \
+                 already scaled by the height map's parameters it was extracted with"
+            ));
+        }
+    }
+    let pyramid = Pyramid::read(file).map_err(|e| format!("[texture] map: {e}"))?;
+    let conflict = |key: &str, given: &dyn std::fmt::Display, stored: &dyn std::fmt::Display| {
+        format!(
+            "[texture] {key} = {given} conflicts with the map file {shown}, extracted with \
+             {key} = {stored} (remove `{key}` or re-extract)"
+        )
+    };
+    if let Some(v) = tex.get("texel_size") {
+        let t = v
+            .as_float()
+            .or_else(|| v.as_integer().map(|i| i as f64))
+            .ok_or_else(|| format!("[texture] texel_size: expected a number, got {v}"))?;
+        if (t - pyramid.texel_size).abs() > 1e-12 * pyramid.texel_size.abs().max(t.abs()) {
+            return Err(conflict("texel_size", &t, &pyramid.texel_size));
+        }
+    }
+    if let Some(v) = tex.get("max_lobes") {
+        let k = v
+            .as_integer()
+            .filter(|k| (1..=MAX_LOBES as i64).contains(k))
+            .ok_or_else(|| {
+                format!("[texture] max_lobes: must be an integer 1–{MAX_LOBES}, got {v}")
+            })?;
+        if k as usize != pyramid.max_lobes {
+            return Err(conflict("max_lobes", &k, &pyramid.max_lobes));
+        }
+    }
+    let stored_border = match pyramid.border {
+        Border::Wrap => "wrap",
+        Border::Clamp => "clamp",
+    };
+    let stored_normals = match pyramid.normal_mode {
+        NormalMode::Triangles => "triangles",
+        NormalMode::CentralDifferences => "central",
+    };
+    for (key, stored, known) in [
+        ("border", stored_border, ["wrap", "clamp"]),
+        ("normals", stored_normals, ["triangles", "central"]),
+    ] {
+        if let Some(v) = tex.get(key) {
+            match v.as_str() {
+                Some(s) if s == stored => {}
+                Some(s) if known.contains(&s) => {
+                    return Err(conflict(key, &format!("\"{s}\""), &format!("\"{stored}\"")))
+                }
+                _ => {
+                    return Err(format!(
+                        "[texture] {key}: expected \"{}\" or \"{}\", got {v}",
+                        known[0], known[1]
+                    ))
+                }
+            }
+        }
+    }
+    let has_horizon = pyramid.levels.iter().all(|l| l.horizon.is_some());
+    let shadowing = match tex.get("shadowing") {
+        None => has_horizon,
+        Some(v) => {
+            let s = v
+                .as_bool()
+                .ok_or_else(|| "[texture] shadowing: expected true or false".to_string())?;
+            if s && !has_horizon {
+                return Err(format!(
+                    "[texture] shadowing: the map file {shown} has no horizon statistics \
+                     (extracted from a normal map): nothing to shadow with"
+                ));
+            }
+            s
+        }
+    };
+    let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
+    let surface = facet_material(doc, dir, maps)?;
+    Ok(Arc::new(
+        NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)?.with_box_filter(box_filter),
+    ))
 }
 
 /// `filter` of a `[texture]` table: `"box"` (default: the closer to the supersampled bump map

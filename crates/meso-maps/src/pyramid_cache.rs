@@ -1,0 +1,128 @@
+//! The on-disk cache of extracted pyramids (`[ndf] kind = "heightmap"` with
+//! `represent = "lobes"`, and `[texture]` materials of scene files): extracting a 1024² height
+//! map takes seconds, and the result is the same every time the same map is loaded with the
+//! same parameters, so it is kept in a file and read back by the next `meso render` or
+//! `meso brdf`.
+//!
+//! * The folder: that of the facet cache ([`crate::disk_cache::cache_dir`]: `$MESO_CACHE_DIR`,
+//!   `off` or empty to turn it off; else `$XDG_CACHE_HOME/meso`, else `$HOME/.cache/meso`).
+//! * The key: SHA-256 of the height map file's bytes, the texel size, height scale and border
+//!   of the map, every extraction parameter ([`ExtractParams`], lobe fit included), the map
+//!   format version ([`crate::format::VERSION`]), [`FORMAT`] and this crate's version.
+//! * The file `pyramid-<key>.bin`: the map file's bytes (`docs/map-format.md`) sealed by
+//!   [`crate::disk_cache`] (magic, format, key, SHA-256), written atomically. A damaged,
+//!   truncated or foreign file is ignored and rebuilt, never an error.
+//!
+//! A pyramid from [`pyramid_cached`] is always the one the map file stores (lobes and horizon
+//! statistics in `f32`), built or read back: the first run, the cached runs and a `.map`
+//! written by `meso extract` with the same parameters give the same pyramid, bit for bit.
+
+use crate::heightmap::Border;
+use crate::pyramid::{ExtractParams, Pyramid};
+use sha2::{Digest, Sha256};
+use std::path::Path;
+
+/// The cache entry format; bumped whenever what is stored or how it is built changes.
+pub const FORMAT: u32 = 1;
+const MAGIC: &[u8; 8] = b"MESOPYC\0";
+const PREFIX: &str = "pyramid";
+/// Bytes of [`crate::disk_cache::header`]: magic, format, key.
+const HEADER: usize = 8 + 4 + 32;
+
+/// The cache key of a height map file's bytes, its texel size, height scale and border, and
+/// the extraction parameters.
+#[must_use]
+pub fn key(
+    file_bytes: &[u8],
+    texel_size: f64,
+    height_scale: f64,
+    border: Border,
+    params: &ExtractParams,
+) -> [u8; 32] {
+    let mut h = Sha256::new();
+    h.update(b"meso pyramid ");
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(FORMAT.to_le_bytes());
+    h.update(crate::format::VERSION.to_le_bytes());
+    h.update(texel_size.to_le_bytes());
+    h.update(height_scale.to_le_bytes());
+    h.update([u8::from(border == Border::Clamp)]);
+    // Every field of the parameters, the fit's included (floats print exactly).
+    let p = format!("{params:?}");
+    h.update((p.len() as u64).to_le_bytes());
+    h.update(p.as_bytes());
+    h.update((file_bytes.len() as u64).to_le_bytes());
+    h.update(file_bytes);
+    h.finalize().into()
+}
+
+/// The path of the entry of `key` in `dir` (whether or not it exists).
+#[must_use]
+pub fn entry_path(dir: &Path, key: &[u8; 32]) -> std::path::PathBuf {
+    crate::disk_cache::entry_path(dir, PREFIX, key)
+}
+
+/// The pyramid stored under `key` in `dir`, if a valid entry is there.
+#[must_use]
+pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<Pyramid> {
+    let bytes = crate::disk_cache::read(dir, PREFIX, key)?;
+    let map = crate::disk_cache::open(&bytes, MAGIC, FORMAT, key)?;
+    Pyramid::from_bytes(&entry_path(dir, key), map).ok()
+}
+
+/// Store `pyramid` under `key` in `dir` (creating it).
+///
+/// # Errors
+/// The folder cannot be created or the file written.
+pub fn store(dir: &Path, key: &[u8; 32], pyramid: &Pyramid) -> std::io::Result<()> {
+    let mut entry = crate::disk_cache::header(MAGIC, FORMAT, key);
+    pyramid
+        .write_to(&mut entry)
+        .expect("writing to memory cannot fail");
+    crate::disk_cache::seal(&mut entry);
+    crate::disk_cache::write(dir, PREFIX, key, &entry)
+}
+
+/// The pyramid of the height map in `file`, from the cache when it has it (the image is then
+/// not decoded), else built by `build` (which loads and extracts), stored and returned as the
+/// map file stores it (module docs). Returns whether the cache answered.
+///
+/// # Errors
+/// `build`'s errors; the cache's own failures are misses, never errors.
+pub fn pyramid_cached<E>(
+    file: &Path,
+    texel_size: f64,
+    height_scale: f64,
+    border: Border,
+    params: &ExtractParams,
+    build: impl FnOnce() -> Result<Pyramid, E>,
+) -> Result<(Pyramid, bool), E> {
+    let dir = crate::disk_cache::cache_dir();
+    let k = dir.as_ref().and_then(|_| {
+        let bytes = crate::disk_cache::source_bytes(file)?;
+        Some(key(&bytes, texel_size, height_scale, border, params))
+    });
+    if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
+        if let Some(p) = load_entry(d, k) {
+            return Ok((p, true));
+        }
+    }
+    let built = build()?;
+    // The entry is built in place: header, the map file's bytes, then the seal.
+    let mut entry = crate::disk_cache::header(MAGIC, FORMAT, k.as_ref().unwrap_or(&[0; 32]));
+    built
+        .write_to(&mut entry)
+        .expect("writing to memory cannot fail");
+    // What a map file holds; a pyramid the format cannot hold (non-finite values) is used as
+    // built and not cached.
+    let Ok(pyramid) = Pyramid::from_bytes(file, &entry[HEADER..]) else {
+        return Ok((built, false));
+    };
+    drop(built);
+    if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
+        crate::disk_cache::seal(&mut entry);
+        // A cache that cannot be written only costs the next run the extraction.
+        let _ = crate::disk_cache::write(d, PREFIX, k, &entry);
+    }
+    Ok((pyramid, false))
+}
