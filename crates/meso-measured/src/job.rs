@@ -222,6 +222,84 @@ pub enum Transfer {
     Microfacet,
 }
 
+impl Transfer {
+    /// The name `meso fit --transfer` takes (`phong`, `microfacet`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Transfer::Phong => "phong",
+            Transfer::Microfacet => "microfacet",
+        }
+    }
+}
+
+/// One transfer family tried by [`fit_best`]: its K-lobe fit's error in the metric minimised.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tried {
+    /// The family.
+    pub transfer: Transfer,
+    /// Mean over r, g, b of the error in the metric minimised (1/sr for Ngan's L2, dimensionless
+    /// for the log metric).
+    pub error: f64,
+    /// Whether `error` is on held-out samples (false: on the fitted ones, when none are held out).
+    pub held_out: bool,
+}
+
+/// The error of `lobes` that picks a family: the channel mean of the metric `opts.metric` on the
+/// held-out samples, or on the fitted ones when none are held out.
+#[must_use]
+pub fn selection_error(
+    lobes: &Lobes,
+    data: &SampleSet,
+    metric: crate::metric::Metric,
+) -> (f64, bool) {
+    let eval = |wi, wo| lobes.eval(wi, wo);
+    let (e, held_out) = if data.held_out.is_empty() {
+        (crate::fit::evaluate_fn(data, eval), false)
+    } else {
+        (crate::fit::evaluate_samples_fn(&data.held_out, eval), true)
+    };
+    let v = match metric {
+        crate::metric::Metric::NganL2 => e.ngan_l2,
+        crate::metric::Metric::LowLog => e.low_log,
+    };
+    ((v[0] + v[1] + v[2]) / 3.0, held_out)
+}
+
+/// Fit K lobes with each of `candidates` ([`fit_lobes`]) and keep the family whose K-lobe fit has
+/// the lowest [`selection_error`] (`meso fit --transfer auto`, the default: measured on MERL data,
+/// the microfacet family wins most materials, the Phong one some). Returns the winner, its
+/// progressive fits and every family's error.
+///
+/// # Errors
+/// The first fit that fails.
+pub fn fit_best(
+    k: usize,
+    candidates: &[Transfer],
+    data: &SampleSet,
+    opts: &FitOptions,
+) -> Result<(Transfer, Vec<(Lobes, FitResult)>, Vec<Tried>), FitError> {
+    let mut best: Option<(Transfer, Vec<(Lobes, FitResult)>, f64)> = None;
+    let mut tried = Vec::new();
+    for &t in candidates {
+        let fits = fit_lobes(k, t, data, opts)?;
+        let Some((lobes, _)) = fits.last() else {
+            continue;
+        };
+        let (error, held_out) = selection_error(lobes, data, opts.metric);
+        tried.push(Tried {
+            transfer: t,
+            error,
+            held_out,
+        });
+        if best.as_ref().is_none_or(|b| error < b.2) {
+            best = Some((t, fits, error));
+        }
+    }
+    let (t, fits, _) = best.expect("at least one candidate transfer");
+    Ok((t, fits, tried))
+}
+
 /// A fitted lobe material (either transfer).
 #[derive(Clone, Debug)]
 pub enum Lobes {
@@ -379,11 +457,14 @@ pub struct FitSettings<'a> {
 #[must_use]
 pub fn material_comment(s: &FitSettings<'_>, description: &str, r: &FitResult) -> String {
     let mut comment = format!(
-        "meso fit {} --lobes {} --metric {} --transfer {:?} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
+        "meso fit {} --lobes {} --metric {} --transfer {} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
         s.data,
         s.k,
-        s.metric.name(),
-        s.transfer,
+        match s.metric {
+            crate::metric::Metric::NganL2 => "ngan",
+            crate::metric::Metric::LowLog => "log",
+        },
+        s.transfer.name(),
         s.axes.name(),
         if s.channel.is_some() { " --per-channel-lobes" } else { "" },
         r.model,

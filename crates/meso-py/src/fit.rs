@@ -33,7 +33,8 @@ fn chain_message(e: &(dyn std::error::Error + 'static)) -> String {
 /// The options as the CLI spells them.
 struct Options {
     k: usize,
-    transfer: Transfer,
+    /// The families to try (two for `"auto"`).
+    transfers: Vec<Transfer>,
     metric: Metric,
     axes: Option<LobeAxes>,
 }
@@ -42,12 +43,13 @@ fn options(lobes: u32, transfer: &str, metric: &str, axes: &str) -> PyResult<Opt
     if !(1..=6).contains(&lobes) {
         return Err(value_err(format!("lobes = {lobes}: expected 1 to 6")));
     }
-    let transfer = match transfer {
-        "phong" => Transfer::Phong,
-        "microfacet" => Transfer::Microfacet,
+    let transfers = match transfer {
+        "auto" => vec![Transfer::Microfacet, Transfer::Phong],
+        "phong" => vec![Transfer::Phong],
+        "microfacet" => vec![Transfer::Microfacet],
         t => {
             return Err(value_err(format!(
-                "transfer = {t:?}: expected \"phong\" or \"microfacet\""
+                "transfer = {t:?}: expected \"auto\", \"phong\" or \"microfacet\""
             )))
         }
     };
@@ -72,7 +74,7 @@ fn options(lobes: u32, transfer: &str, metric: &str, axes: &str) -> PyResult<Opt
     };
     Ok(Options {
         k: lobes as usize,
-        transfer,
+        transfers,
         metric,
         axes,
     })
@@ -85,6 +87,9 @@ struct Fitted {
     model: String,
     metric: Metric,
     axes: LobeAxes,
+    /// The family kept, and every family tried with its selection error.
+    transfer: Transfer,
+    tried: Vec<job::Tried>,
     fitted: FitErrors,
     fitted_count: usize,
     held_out: Option<FitErrors>,
@@ -107,8 +112,8 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
         axes,
         ..FitOptions::default()
     };
-    let fits =
-        job::fit_lobes(o.k, o.transfer, &data.samples, &opts).map_err(|e| chain_message(&e))?;
+    let (transfer, fits, tried) =
+        job::fit_best(o.k, &o.transfers, &data.samples, &opts).map_err(|e| chain_message(&e))?;
     let (lobes, r) = fits.last().ok_or("no lobe fit")?;
     let eval = |wi, wo| lobes.eval(wi, wo);
     let fitted = evaluate_fn(&data.samples, eval);
@@ -118,7 +123,7 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
         data: name,
         k: o.k,
         metric: o.metric,
-        transfer: o.transfer,
+        transfer,
         axes,
         channel: None,
     };
@@ -129,6 +134,8 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
         model: r.model.clone(),
         metric: o.metric,
         axes,
+        transfer,
+        tried,
         fitted,
         fitted_count: data.samples.len(),
         held_out,
@@ -163,6 +170,12 @@ fn finish(
     d.set_item("description", &f.description)?;
     d.set_item("lobes", k)?;
     d.set_item("model", &f.model)?;
+    d.set_item("transfer", f.transfer.name())?;
+    let tried = PyDict::new(py);
+    for t in &f.tried {
+        tried.set_item(t.transfer.name(), t.error)?;
+    }
+    d.set_item("transfers_tried", tried)?;
     d.set_item("metric", f.metric.name())?;
     d.set_item("axes", f.axes.name())?;
     d.set_item("fitted", errors_dict(py, &f.fitted, f.fitted_count)?)?;
@@ -180,11 +193,13 @@ fn finish(
 /// Fit a measured BRDF with `lobes` Phong peaks, as `meso fit DATA --lobes K --transfer T
 /// --metric M --axes A`: `data` is a MERL binary or a sample CSV (`theta_i,phi_i,theta_o,phi_o,
 /// r,g,b`). Returns `(material, report)`; `report` holds the data's description, the number of
-/// lobes, the model, and the errors per channel (`ngan_l2` in 1/sr, `low_log`) of the fitted
+/// lobes, the transfer family kept (`transfer = "auto"` fits both and keeps the one with the lower
+/// held-out error in the metric, `transfers_tried` maps each to that error), the model, and the
+/// errors per channel (`ngan_l2` in 1/sr, `low_log`) of the fitted
 /// closed form on the fitted and the held-out samples (`held_out` is None without any). `out`:
 /// also write the material file (atomically), the CLI's bytes but for the fit time in its comment.
 #[pyfunction]
-#[pyo3(signature = (data, lobes = 3, transfer = "microfacet", metric = "log", axes = "auto", out = None, samples = 30_000))]
+#[pyo3(signature = (data, lobes = 3, transfer = "auto", metric = "log", axes = "auto", out = None, samples = 30_000))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
@@ -220,7 +235,7 @@ pub fn fit(
 /// viewer) `(N, 3)` directions in the local frame, `values` `(N, 3)` RGB BRDF values in 1/sr.
 /// Samples below the horizon are dropped; with 200 or more, every 10th is held out.
 #[pyfunction]
-#[pyo3(signature = (wi, wo, values, lobes = 3, transfer = "microfacet", metric = "log", axes = "auto", out = None))]
+#[pyo3(signature = (wi, wo, values, lobes = 3, transfer = "auto", metric = "log", axes = "auto", out = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_samples<'py>(
     py: Python<'py>,

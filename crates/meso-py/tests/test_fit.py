@@ -63,7 +63,12 @@ def test_fit_equals_the_cli(data, tmp_path):
     py_text, cli_text = out_py.read_text(), out_cli.read_text()
     assert report["toml"] == py_text
     assert material.toml == py_text
-    assert py_text.startswith(f"# meso fit {path} --lobes {LOBES} --metric low-log --transfer Microfacet --axes free\n")
+    header = f"meso fit {path} --lobes {LOBES} --metric log --transfer microfacet --axes free"
+    assert py_text.startswith(f"# {header}\n")
+    # The header re-runs as written (with an output added) and gives the same material.
+    again = tmp_path / "again.toml"
+    run_cli(*header.split()[1:], "--out", again)
+    assert _without_time(again.read_text()) == _without_time(cli_text)
     assert _without_time(py_text) == _without_time(cli_text)
     assert report["lobes"] == LOBES
     assert report["description"] == (
@@ -74,6 +79,20 @@ def test_fit_equals_the_cli(data, tmp_path):
     for key in ("ngan_l2", "low_log"):
         for v in report["fitted"][key] + report["held_out"][key]:
             assert np.isfinite(v) and v >= 0
+
+
+def test_auto_transfer_keeps_the_better_family(data, tmp_path):
+    # Data from a GGX material: the default ("auto") fits both families and keeps the microfacet
+    # one, whose held-out error is the lower; the CLI reports both.
+    path, *_ = data
+    _, report = meso.fit(path, lobes=1)
+    tried = report["transfers_tried"]
+    assert set(tried) == {"phong", "microfacet"}
+    assert report["transfer"] == min(tried, key=tried.get) == "microfacet", tried
+    r = run_cli("fit", path, "--lobes", 1, "--out", tmp_path / "auto.toml")
+    assert "transfer families tried" in r.stdout and "-> microfacet" in r.stdout, r.stdout
+    for name, err in tried.items():
+        assert f"{name} {err:.5f}" in r.stdout, (name, err, r.stdout)
 
 
 def test_report_matches_cli_stdout(data, tmp_path):

@@ -7,7 +7,7 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use meso_core::material::Material;
 use meso_measured::fit::{self, FitErrors, FitOptions, FitResult, LobeAxes};
-use meso_measured::job::{fit_lobes, fmt3, load, Data, FitSettings, Lobes, Transfer};
+use meso_measured::job::{fit_best, fmt3, load, Data, FitSettings, Lobes, Transfer, Tried};
 use meso_measured::metric::Metric;
 use meso_measured::model;
 use meso_measured::samples::SampleSet;
@@ -32,6 +32,9 @@ pub enum MetricArg {
 /// The facet transfer function of the lobe model.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TransferArg {
+    /// Fit both families and keep the one with the lower held-out error in the metric minimised
+    /// (the fitted error when nothing is held out); the report lists both.
+    Auto,
     /// Phong facets `max(0, m·H)^η_t`, multiple-surface form (Eq. 2, 10).
     Phong,
     /// Mirror facets with Schlick Fresnel and Smith masking–shadowing, microfacet form.
@@ -68,8 +71,9 @@ pub struct Args {
     /// Metric minimised.
     #[arg(long, value_enum, default_value = "log")]
     pub metric: MetricArg,
-    /// Facet transfer function.
-    #[arg(long, value_enum, default_value = "phong")]
+    /// Facet transfer function: `auto` (the default) fits both and keeps the better on held-out
+    /// data.
+    #[arg(long, value_enum, default_value = "auto")]
     pub transfer: TransferArg,
     /// Where the lobe axes may go: on the surface normal (isotropic) or free (off-specular,
     /// anisotropic); `auto`: on the normal for MERL tables, free for sample CSVs.
@@ -159,9 +163,10 @@ pub fn run(a: Args) -> Result<()> {
         crate::util::check_outputs(&checked, &[&a.data])?;
     }
     let data = load(&a.data, a.samples)?;
-    let transfer = match a.transfer {
-        TransferArg::Phong => Transfer::Phong,
-        TransferArg::Microfacet => Transfer::Microfacet,
+    let candidates: &[Transfer] = match a.transfer {
+        TransferArg::Auto => &[Transfer::Microfacet, Transfer::Phong],
+        TransferArg::Phong => &[Transfer::Phong],
+        TransferArg::Microfacet => &[Transfer::Microfacet],
     };
     let metric = match a.metric {
         MetricArg::Ngan => Metric::NganL2,
@@ -180,11 +185,14 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         Vec::new()
     };
-    let fits_per_pass = if a.per_channel_lobes { 3 } else { 1 };
+    let fits_per_pass = if a.per_channel_lobes { 3 } else { 1 } * candidates.len();
     let progress = bar((fits_per_pass + baselines.len() + 1) as u64);
 
     // The lobe fits: shared geometry, or one mono fit per channel.
     let mut channel_fits: Vec<Vec<(Lobes, FitResult)>> = Vec::new();
+    // The family kept per pass, and every family's selection error.
+    let mut chosen: Vec<Transfer> = Vec::new();
+    let mut tried: Vec<Vec<Tried>> = Vec::new();
     if a.per_channel_lobes {
         for (c, name) in ["red", "green", "blue"].iter().enumerate() {
             progress.set_message(format!("lobes, {name} channel"));
@@ -201,13 +209,20 @@ pub fn run(a: Args) -> Result<()> {
                 held_out: grey(&data.samples.held_out),
                 cell_size: data.samples.cell_size,
             };
-            channel_fits.push(fit_lobes(k, transfer, &mono, &opts)?);
-            progress.inc(1);
+            let (t, fits, scores) = fit_best(k, candidates, &mono, &opts)?;
+            channel_fits.push(fits);
+            chosen.push(t);
+            tried.push(scores);
+            progress.inc(candidates.len() as u64);
         }
     } else {
-        progress.set_message(format!("{k} lobe(s), {:?} transfer", a.transfer));
-        channel_fits.push(fit_lobes(k, transfer, &data.samples, &opts)?);
-        progress.inc(1);
+        let names: Vec<&str> = candidates.iter().map(|t| t.name()).collect();
+        progress.set_message(format!("{k} lobe(s), {} transfer", names.join(" and ")));
+        let (t, fits, scores) = fit_best(k, candidates, &data.samples, &opts)?;
+        channel_fits.push(fits);
+        chosen.push(t);
+        tried.push(scores);
+        progress.inc(candidates.len() as u64);
     }
     let finals: Vec<(Lobes, FitResult)> = channel_fits
         .iter()
@@ -235,7 +250,7 @@ pub fn run(a: Args) -> Result<()> {
             data: &data_name,
             k,
             metric,
-            transfer,
+            transfer: chosen[j],
             axes: opts.axes,
             channel: a.per_channel_lobes.then_some(j),
         };
@@ -327,9 +342,13 @@ pub fn run(a: Args) -> Result<()> {
     let _ = writeln!(rep, "data: {} — {}", a.data.display(), data.description);
     let _ = writeln!(
         rep,
-        "metric minimised: {}; transfer: {:?}; lobes: {k}{}; axes: {}",
+        "metric minimised: {}; transfer: {}; lobes: {k}{}; axes: {}",
         metric.name(),
-        a.transfer,
+        chosen
+            .iter()
+            .map(|t| t.name())
+            .collect::<Vec<_>>()
+            .join(", "),
         if a.per_channel_lobes {
             " per channel"
         } else {
@@ -337,6 +356,34 @@ pub fn run(a: Args) -> Result<()> {
         },
         opts.axes.name()
     );
+    if candidates.len() > 1 {
+        for (j, scores) in tried.iter().enumerate() {
+            let row: Vec<String> = scores
+                .iter()
+                .map(|t| {
+                    format!(
+                        "{} {:.5}{}",
+                        t.transfer.name(),
+                        t.error,
+                        if t.held_out { "" } else { " (fitted samples)" }
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                rep,
+                "transfer families tried{} ({} {}, held-out): {} -> {}",
+                if tried.len() > 1 {
+                    format!(", {} channel", ["red", "green", "blue"][j])
+                } else {
+                    String::new()
+                },
+                metric.name(),
+                "mean of r, g, b",
+                row.join(", "),
+                chosen[j].name()
+            );
+        }
+    }
     if let Some(delta) = finals[0].1.resolution {
         let cap = 4.0 / (delta * delta);
         if cap < 1e6 {

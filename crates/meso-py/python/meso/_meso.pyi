@@ -158,7 +158,7 @@ def set_memory_budget(size: Union[int, str]) -> None:
 def fit(
     data: _Path,
     lobes: int = 3,
-    transfer: str = "microfacet",
+    transfer: str = "auto",
     metric: str = "log",
     axes: str = "auto",
     out: Optional[_Path] = None,
@@ -173,7 +173,7 @@ def fit_samples(
     wo: _Array,
     values: _Array,
     lobes: int = 3,
-    transfer: str = "microfacet",
+    transfer: str = "auto",
     metric: str = "log",
     axes: str = "auto",
     out: Optional[_Path] = None,
