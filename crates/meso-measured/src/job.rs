@@ -233,6 +233,9 @@ impl Transfer {
     }
 }
 
+/// The progressive fits K = 1..k of one family, each lobe material with its fit result.
+pub type Fits = Vec<(Lobes, FitResult)>;
+
 /// One transfer family tried by [`fit_best`]: its K-lobe fit's error in the metric minimised.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tried {
@@ -278,8 +281,8 @@ pub fn fit_best(
     candidates: &[Transfer],
     data: &SampleSet,
     opts: &FitOptions,
-) -> Result<(Transfer, Vec<(Lobes, FitResult)>, Vec<Tried>), FitError> {
-    let mut best: Option<(Transfer, Vec<(Lobes, FitResult)>, f64)> = None;
+) -> Result<(Transfer, Fits, Vec<Tried>), FitError> {
+    let mut best: Option<(Transfer, Fits, f64)> = None;
     let mut tried = Vec::new();
     for &t in candidates {
         let fits = fit_lobes(k, t, data, opts)?;
