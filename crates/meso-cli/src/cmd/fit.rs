@@ -371,14 +371,13 @@ pub fn run(a: Args) -> Result<()> {
                 .collect();
             let _ = writeln!(
                 rep,
-                "transfer families tried{} ({} {}, held-out): {} -> {}",
+                "transfer families tried{} ({} mean of r, g, b, held-out): {} -> {}",
                 if tried.len() > 1 {
                     format!(", {} channel", ["red", "green", "blue"][j])
                 } else {
                     String::new()
                 },
                 metric.name(),
-                "mean of r, g, b",
                 row.join(", "),
                 chosen[j].name()
             );
