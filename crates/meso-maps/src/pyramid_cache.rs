@@ -65,6 +65,14 @@ pub fn entry_path(dir: &Path, key: &[u8; 32]) -> std::path::PathBuf {
 /// The pyramid stored under `key` in `dir`, if a valid entry is there.
 #[must_use]
 pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<Pyramid> {
+    // Over the memory budget (as `Pyramid::read` would be): a miss, and the extraction says why.
+    let len = std::fs::metadata(entry_path(dir, key)).ok()?.len();
+    meso_core::budget::check(
+        &entry_path(dir, key),
+        "reading the pyramid cache",
+        crate::format::read_bytes(len),
+    )
+    .ok()?;
     let bytes = crate::disk_cache::read(dir, PREFIX, key)?;
     let map = crate::disk_cache::open(&bytes, MAGIC, FORMAT, key)?;
     Pyramid::from_bytes(&entry_path(dir, key), map).ok()
