@@ -9,6 +9,7 @@
 //! * [`samples`] — data to fit (weighted direction pairs), with a stratified MERL subsample;
 //! * [`metric`] — the cosine-weighted L2 of Ngan et al. 2005 and the log metric of Löw et al. 2012;
 //! * [`job`] — the core of `meso fit`: loading a data file, the lobe fits for either transfer;
+//! * [`engine`] — engine (glTF metallic–roughness) parameters from a GGX + Lambert fit;
 //! * [`lm`] — a bounded dense Levenberg–Marquardt solver;
 //! * [`fit`] — the [`fit::BrdfModel`] trait and the fitting driver (several starts, coarse to fine,
 //!   linear per-channel amplitudes);
@@ -31,6 +32,7 @@
 #![warn(missing_docs)]
 
 pub mod csv;
+pub mod engine;
 pub mod fit;
 pub mod job;
 pub mod lm;

@@ -90,6 +90,7 @@ struct Fitted {
     /// The family kept, and every family tried with its selection error.
     transfer: Transfer,
     tried: Vec<job::Tried>,
+    engine: meso_measured::engine::EngineParams,
     fitted: FitErrors,
     fitted_count: usize,
     held_out: Option<FitErrors>,
@@ -114,6 +115,8 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
     };
     let (transfer, fits, tried) =
         job::fit_best(o.k, &o.transfers, &data.samples, &opts).map_err(|e| chain_message(&e))?;
+    let engine =
+        meso_measured::engine::fit_engine(&data.samples, &opts).map_err(|e| chain_message(&e))?;
     let (lobes, r) = fits.last().ok_or("no lobe fit")?;
     let eval = |wi, wo| lobes.eval(wi, wo);
     let fitted = evaluate_fn(&data.samples, eval);
@@ -136,6 +139,7 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
         axes,
         transfer,
         tried,
+        engine,
         fitted,
         fitted_count: data.samples.len(),
         held_out,
@@ -176,6 +180,16 @@ fn finish(
         tried.set_item(t.transfer.name(), t.error)?;
     }
     d.set_item("transfers_tried", tried)?;
+    let e = PyDict::new(py);
+    e.set_item("base_color", f.engine.base_color)?;
+    e.set_item("metallic", f.engine.metallic)?;
+    e.set_item("roughness", f.engine.roughness)?;
+    e.set_item("alpha", f.engine.alpha)?;
+    e.set_item("diffuse", f.engine.diffuse)?;
+    e.set_item("specular_f0", f.engine.specular_f0)?;
+    e.set_item("mismatch", f.engine.mismatch)?;
+    e.set_item("held_out_low_log", f.engine.fit.held_out.map(|h| h.low_log))?;
+    d.set_item("engine", e)?;
     d.set_item("metric", f.metric.name())?;
     d.set_item("axes", f.axes.name())?;
     d.set_item("fitted", errors_dict(py, &f.fitted, f.fitted_count)?)?;
@@ -194,7 +208,9 @@ fn finish(
 /// --metric M --axes A`: `data` is a MERL binary or a sample CSV (`theta_i,phi_i,theta_o,phi_o,
 /// r,g,b`). Returns `(material, report)`; `report` holds the data's description, the number of
 /// lobes, the transfer family kept (`transfer = "auto"` fits both and keeps the one with the lower
-/// held-out error in the metric, `transfers_tried` maps each to that error), the model, and the
+/// held-out error in the metric, `transfers_tried` maps each to that error), `engine`: glTF
+/// metallic-roughness parameters (`base_color`, `metallic`, `roughness`, GGX `alpha`) of the best
+/// single GGX + Lambert fit (meso_measured::engine), the model, and the
 /// errors per channel (`ngan_l2` in 1/sr, `low_log`) of the fitted
 /// closed form on the fitted and the held-out samples (`held_out` is None without any). `out`:
 /// also write the material file (atomically), the CLI's bytes but for the fit time in its comment.

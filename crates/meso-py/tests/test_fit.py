@@ -149,3 +149,38 @@ def test_bad_inputs_raise(tmp_path, data):
         meso.fit_samples(-wi, wo, f)
     with pytest.raises(ValueError):
         meso.fit_samples(wi, wo, f[:10])
+
+
+@pytest.mark.parametrize(
+    "params, expected",
+    [
+        # A metal: coloured Schlick F0, no diffuse, GGX α = 0.16 (roughness 0.4).
+        (
+            dict(form="microfacet", ndf={"kind": "ggx", "alpha": 0.16},
+                 transfer={"kind": "mirror", "fresnel": "schlick", "f0": [0.9, 0.6, 0.3]}),
+            dict(base_color=[0.9, 0.6, 0.3], metallic=1.0, roughness=0.4),
+        ),
+        # A dielectric: diffuse base colour, F0 = 0.04, GGX α = 0.09 (roughness 0.3).
+        (
+            dict(form="microfacet", ndf={"kind": "ggx", "alpha": 0.09},
+                 transfer={"kind": "mirror", "fresnel": "schlick", "f0": [0.04, 0.04, 0.04]},
+                 diffuse=[0.5, 0.3, 0.2]),
+            dict(base_color=[0.5, 0.3, 0.2], metallic=0.0, roughness=0.3),
+        ),
+    ],
+    ids=["metal", "dielectric"],
+)
+def test_engine_parameters_recover_gltf_materials(params, expected):
+    # Data from a material glTF can express exactly; the engine parameters of the fit (GGX +
+    # Lambert, translated to metallic-roughness) recover it.
+    truth = meso.Material.from_params(**params)
+    rng = np.random.default_rng(11)
+    ti, pi = _hemisphere(rng, 3000)
+    to, po = _hemisphere(rng, 3000)
+    wi, wo = _dirs(ti, pi), _dirs(to, po)
+    _, report = meso.fit_samples(wi, wo, truth.brdf(wi, wo), lobes=1, transfer="microfacet")
+    e = report["engine"]
+    np.testing.assert_allclose(e["base_color"], expected["base_color"], atol=0.06)
+    assert abs(e["metallic"] - expected["metallic"]) <= 0.1, e
+    assert abs(e["roughness"] - expected["roughness"]) <= 0.03, e
+    assert e["mismatch"] < 0.05, e

@@ -186,7 +186,7 @@ pub fn run(a: Args) -> Result<()> {
         Vec::new()
     };
     let fits_per_pass = if a.per_channel_lobes { 3 } else { 1 } * candidates.len();
-    let progress = bar((fits_per_pass + baselines.len() + 1) as u64);
+    let progress = bar((fits_per_pass + baselines.len() + 2) as u64);
 
     // The lobe fits: shared geometry, or one mono fit per channel.
     let mut channel_fits: Vec<Vec<(Lobes, FitResult)>> = Vec::new();
@@ -314,6 +314,10 @@ pub fn run(a: Args) -> Result<()> {
         baseline_rows.push(r);
         progress.inc(1);
     }
+    // Engine parameters: the best single GGX lobe + Lambert, as glTF metallic-roughness.
+    progress.set_message("engine parameters (GGX + Lambert)");
+    let engine = meso_measured::engine::fit_engine(&data.samples, &opts)?;
+    progress.inc(1);
     progress.finish_and_clear();
 
     // The plots, in memory.
@@ -356,6 +360,7 @@ pub fn run(a: Args) -> Result<()> {
         },
         opts.axes.name()
     );
+    let _ = writeln!(rep, "{}", engine.describe());
     if candidates.len() > 1 {
         for (j, scores) in tried.iter().enumerate() {
             let row: Vec<String> = scores

@@ -1,0 +1,117 @@
+//! Engine parameters of a measured BRDF: the best single GGX lobe plus a Lambert term, fitted by
+//! the same machinery as every other model ([`crate::model::Microfacet::GGX`]), expressed in
+//! glTF 2.0's metallic–roughness parameters (base colour, metallic, roughness).
+//!
+//! The fitted model is `f = k_d/π + k_s · D G F_Schlick(F0) / (4 cos θi cos θo)` with per-channel
+//! `k_d`, `k_s` and one `F0`, `α`. glTF's is `(1 − m) b/π` diffuse and a GGX lobe of the same `α`
+//! whose normal-incidence reflectance is `0.04 (1 − m) + m b` per channel (`F90 = 1`). The
+//! translation keeps `roughness = √α` and, over `m ∈ [0, 1]` in steps of 0.01, picks the metallic
+//! `m` and base colour `b` that match both `(1 − m) b_c ≈ k_d,c` and `0.04 (1 − m) + m b_c ≈
+//! k_s,c F0` in least squares (per channel, `b_c` clamped to [0, 1]). What glTF cannot hold (a
+//! grazing reflectance `k_s ≠ 1`, a diffuse term beside a metal's colour) is left out; the
+//! remaining mismatch of those two reflectances is reported as `mismatch`.
+
+use crate::fit::{FitError, FitOptions, FitResult};
+use crate::samples::SampleSet;
+
+/// glTF metallic–roughness parameters of a measured BRDF, and the GGX + Lambert fit they come from.
+#[derive(Clone, Debug)]
+pub struct EngineParams {
+    /// glTF `baseColorFactor` (linear RGB, each in [0, 1]).
+    pub base_color: [f64; 3],
+    /// glTF `metallicFactor`, in [0, 1].
+    pub metallic: f64,
+    /// glTF `roughnessFactor` = √α, in [0, 1] (clamped).
+    pub roughness: f64,
+    /// The fitted GGX α.
+    pub alpha: f64,
+    /// The fit's diffuse albedo `k_d` per channel.
+    pub diffuse: [f64; 3],
+    /// The fit's normal-incidence specular reflectance `k_s F0` per channel.
+    pub specular_f0: [f64; 3],
+    /// RMS over channels of the two reflectances' differences between the glTF parameters and
+    /// the fit (albedo units, 0 = exact).
+    pub mismatch: f64,
+    /// The GGX + Lambert fit (its errors, held-out errors, iterations).
+    pub fit: FitResult,
+}
+
+/// The glTF parameters of a fitted GGX + Lambert model (`θ = [ln α, F0]`, amplitudes
+/// `[diffuse, specular]`), as the module documentation describes.
+#[must_use]
+pub fn from_ggx_fit(r: FitResult) -> EngineParams {
+    let alpha = r.theta[0].exp();
+    let f0 = r.theta[1];
+    let kd = r.amps[0];
+    let ks = r.amps[1];
+    let s = [ks[0] * f0, ks[1] * f0, ks[2] * f0];
+    let mut best = (f64::INFINITY, 0.0, [0.0; 3]);
+    for step in 0..=100 {
+        let m = f64::from(step) / 100.0;
+        let mut b = [0.0; 3];
+        let mut err = 0.0;
+        for c in 0..3 {
+            // Least squares in b of (1−m) b = kd and m b = s − 0.04 (1−m).
+            let (a1, y1) = (1.0 - m, kd[c]);
+            let (a2, y2) = (m, s[c] - 0.04 * (1.0 - m));
+            let den = a1 * a1 + a2 * a2;
+            b[c] = if den > 0.0 {
+                ((a1 * y1 + a2 * y2) / den).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            err += (a1 * b[c] - y1).powi(2) + (a2 * b[c] - y2).powi(2);
+        }
+        if err < best.0 {
+            best = (err, m, b);
+        }
+    }
+    EngineParams {
+        base_color: best.2,
+        metallic: best.1,
+        roughness: alpha.sqrt().min(1.0),
+        alpha,
+        diffuse: kd,
+        specular_f0: s,
+        mismatch: (best.0 / 6.0).sqrt(),
+        fit: r,
+    }
+}
+
+/// Fit the GGX + Lambert model to `data` with `opts` and translate it ([`from_ggx_fit`]).
+///
+/// # Errors
+/// The fit's.
+pub fn fit_engine(data: &SampleSet, opts: &FitOptions) -> Result<EngineParams, FitError> {
+    Ok(from_ggx_fit(crate::fit::fit(
+        &crate::model::Microfacet::GGX,
+        data,
+        opts,
+    )?))
+}
+
+impl EngineParams {
+    /// One report line: `engine (glTF metallic-roughness, from a GGX + Lambert fit): …`.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let b = self.base_color;
+        format!(
+            "engine (glTF metallic-roughness, from a GGX + Lambert fit): base colour [{:.4}, {:.4}, {:.4}], \
+             metallic {:.2}, roughness {:.4} (GGX alpha {:.4}); fit: diffuse [{:.4}, {:.4}, {:.4}], \
+             specular F0 [{:.4}, {:.4}, {:.4}]; glTF mismatch {:.4}",
+            b[0],
+            b[1],
+            b[2],
+            self.metallic,
+            self.roughness,
+            self.alpha,
+            self.diffuse[0],
+            self.diffuse[1],
+            self.diffuse[2],
+            self.specular_f0[0],
+            self.specular_f0[1],
+            self.specular_f0[2],
+            self.mismatch
+        )
+    }
+}
