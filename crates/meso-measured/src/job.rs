@@ -236,6 +236,36 @@ impl Transfer {
 /// The progressive fits K = 1..k of one family, each lobe material with its fit result.
 pub type Fits = Vec<(Lobes, FitResult)>;
 
+/// `meso fit --lobes auto`: one more lobe must lower the held-out error ([`selection_error`]) by
+/// at least this fraction (1 %) to be kept …
+pub const AUTO_LOBES_GAIN: f64 = 0.01;
+
+/// … and by at least this much in the metric's own unit (10⁻⁴; fits of MERL materials have
+/// held-out log-metric errors of 10⁻³ to 4·10⁻², docs/measured.md): below it a lobe fits noise
+/// or rounding, not the material.
+pub const AUTO_LOBES_FLOOR: f64 = 1e-4;
+
+/// `meso fit --lobes auto` fits up to this many lobes.
+pub const AUTO_LOBES_MAX: usize = 6;
+
+/// The number of lobes `--lobes auto` keeps from progressive fits K = 1..n: the smallest K after
+/// which one more lobe lowers the [`selection_error`] by less than [`AUTO_LOBES_GAIN`] of it or
+/// less than [`AUTO_LOBES_FLOOR`].
+#[must_use]
+pub fn auto_lobes(fits: &Fits, data: &SampleSet, metric: crate::metric::Metric) -> usize {
+    let errors: Vec<f64> = fits
+        .iter()
+        .map(|(l, _)| selection_error(l, data, metric).0)
+        .collect();
+    for k in 1..errors.len() {
+        let gain = errors[k - 1] - errors[k];
+        if gain < AUTO_LOBES_GAIN * errors[k - 1] || gain < AUTO_LOBES_FLOOR {
+            return k;
+        }
+    }
+    errors.len().max(1)
+}
+
 /// One transfer family tried by [`fit_best`]: its K-lobe fit's error in the metric minimised.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tried {
@@ -269,8 +299,8 @@ pub fn selection_error(
     ((v[0] + v[1] + v[2]) / 3.0, held_out)
 }
 
-/// Fit K lobes with each of `candidates` ([`fit_lobes`]) and keep the family whose K-lobe fit has
-/// the lowest [`selection_error`] (`meso fit --transfer auto`, the default: measured on MERL data,
+/// Fit K lobes with each of `candidates` ([`fit_lobes`]; with `auto_k`, up to K and cut at
+/// [`auto_lobes`]) and keep the family whose last fit has the lowest [`selection_error`] (`meso fit --transfer auto`, the default: measured on MERL data,
 /// the microfacet family wins most materials, the Phong one some). Returns the winner, its
 /// progressive fits and every family's error.
 ///
@@ -278,6 +308,7 @@ pub fn selection_error(
 /// The first fit that fails.
 pub fn fit_best(
     k: usize,
+    auto_k: bool,
     candidates: &[Transfer],
     data: &SampleSet,
     opts: &FitOptions,
@@ -285,7 +316,10 @@ pub fn fit_best(
     let mut best: Option<(Transfer, Fits, f64)> = None;
     let mut tried = Vec::new();
     for &t in candidates {
-        let fits = fit_lobes(k, t, data, opts)?;
+        let mut fits = fit_lobes(k, t, data, opts)?;
+        if auto_k {
+            fits.truncate(auto_lobes(&fits, data, opts.metric));
+        }
         let Some((lobes, _)) = fits.last() else {
             continue;
         };

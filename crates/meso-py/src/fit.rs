@@ -32,17 +32,42 @@ fn chain_message(e: &(dyn std::error::Error + 'static)) -> String {
 
 /// The options as the CLI spells them.
 struct Options {
+    /// The number of lobes, or the most tried with `auto_k`.
     k: usize,
+    /// `lobes = "auto"`: cut at `meso_measured::job::auto_lobes`.
+    auto_k: bool,
     /// The families to try (two for `"auto"`).
     transfers: Vec<Transfer>,
     metric: Metric,
     axes: Option<LobeAxes>,
 }
 
-fn options(lobes: u32, transfer: &str, metric: &str, axes: &str) -> PyResult<Options> {
-    if !(1..=6).contains(&lobes) {
-        return Err(value_err(format!("lobes = {lobes}: expected 1 to 6")));
+/// A number of lobes 1–6, or `"auto"` (`(most tried, auto)`).
+fn parse_lobes(lobes: &Bound<'_, PyAny>) -> PyResult<(u32, bool)> {
+    if lobes.extract::<String>().is_ok_and(|s| s == "auto") {
+        return Ok((job::AUTO_LOBES_MAX as u32, true));
     }
+    match lobes.extract::<u32>() {
+        Ok(k) if (1..=6).contains(&k) => Ok((k, false)),
+        _ => Err(value_err(format!(
+            "lobes = {}: expected 1 to 6, or \"auto\"",
+            lobes.repr().map_or_else(|_| "?".into(), |r| r.to_string())
+        ))),
+    }
+}
+
+/// `lobes`: a number 1–6 (default 3) or `"auto"`.
+fn options(
+    lobes: Option<&Bound<'_, PyAny>>,
+    transfer: &str,
+    metric: &str,
+    axes: &str,
+) -> PyResult<Options> {
+    let (lobes, auto_k) = if let Some(lobes) = lobes {
+        parse_lobes(lobes)?
+    } else {
+        (3, false)
+    };
     let transfers = match transfer {
         "auto" => vec![Transfer::Microfacet, Transfer::Phong],
         "phong" => vec![Transfer::Phong],
@@ -74,6 +99,7 @@ fn options(lobes: u32, transfer: &str, metric: &str, axes: &str) -> PyResult<Opt
     };
     Ok(Options {
         k: lobes as usize,
+        auto_k,
         transfers,
         metric,
         axes,
@@ -90,6 +116,8 @@ struct Fitted {
     /// The family kept, and every family tried with its selection error.
     transfer: Transfer,
     tried: Vec<job::Tried>,
+    /// The number of lobes kept.
+    lobes: usize,
     engine: meso_measured::engine::EngineParams,
     fitted: FitErrors,
     fitted_count: usize,
@@ -113,8 +141,8 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
         axes,
         ..FitOptions::default()
     };
-    let (transfer, fits, tried) =
-        job::fit_best(o.k, &o.transfers, &data.samples, &opts).map_err(|e| chain_message(&e))?;
+    let (transfer, fits, tried) = job::fit_best(o.k, o.auto_k, &o.transfers, &data.samples, &opts)
+        .map_err(|e| chain_message(&e))?;
     let engine =
         meso_measured::engine::fit_engine(&data.samples, &opts).map_err(|e| chain_message(&e))?;
     let (lobes, r) = fits.last().ok_or("no lobe fit")?;
@@ -124,7 +152,7 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
     let held_out = (!held.is_empty()).then(|| evaluate_samples_fn(held, eval));
     let settings = FitSettings {
         data: name,
-        k: o.k,
+        k: fits.len(),
         metric: o.metric,
         transfer,
         axes,
@@ -139,6 +167,7 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
         axes,
         transfer,
         tried,
+        lobes: fits.len(),
         engine,
         fitted,
         fitted_count: data.samples.len(),
@@ -159,12 +188,7 @@ fn errors_dict<'py>(py: Python<'py>, e: &FitErrors, count: usize) -> PyResult<Bo
 }
 
 /// The material and report of a fit; the material file written to `out` when given.
-fn finish(
-    py: Python<'_>,
-    f: Fitted,
-    k: usize,
-    out: Option<PathBuf>,
-) -> PyResult<(Material, Py<PyDict>)> {
+fn finish(py: Python<'_>, f: Fitted, out: Option<PathBuf>) -> PyResult<(Material, Py<PyDict>)> {
     let material = Material::from_text(&f.text)?;
     if let Some(out) = &out {
         meso_core::io::write_atomic(out, f.text.as_bytes())
@@ -172,7 +196,7 @@ fn finish(
     }
     let d = PyDict::new(py);
     d.set_item("description", &f.description)?;
-    d.set_item("lobes", k)?;
+    d.set_item("lobes", f.lobes)?;
     d.set_item("model", &f.model)?;
     d.set_item("transfer", f.transfer.name())?;
     let tried = PyDict::new(py);
@@ -215,12 +239,12 @@ fn finish(
 /// closed form on the fitted and the held-out samples (`held_out` is None without any). `out`:
 /// also write the material file (atomically), the CLI's bytes but for the fit time in its comment.
 #[pyfunction]
-#[pyo3(signature = (data, lobes = 3, transfer = "auto", metric = "log", axes = "auto", out = None, samples = 30_000))]
+#[pyo3(signature = (data, lobes = None, transfer = "auto", metric = "log", axes = "auto", out = None, samples = 30_000))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
     data: PathBuf,
-    lobes: u32,
+    lobes: Option<&Bound<'_, PyAny>>,
     transfer: &str,
     metric: &str,
     axes: &str,
@@ -244,21 +268,21 @@ pub fn fit(
             run_fit(&d, &name, &o)
         })
         .map_err(meso_err)?;
-    finish(py, f, o.k, out)
+    finish(py, f, out)
 }
 
 /// Fit sample arrays as [`fit`] fits a sample CSV: `wi` (towards the light) and `wo` (towards the
 /// viewer) `(N, 3)` directions in the local frame, `values` `(N, 3)` RGB BRDF values in 1/sr.
 /// Samples below the horizon are dropped; with 200 or more, every 10th is held out.
 #[pyfunction]
-#[pyo3(signature = (wi, wo, values, lobes = 3, transfer = "auto", metric = "log", axes = "auto", out = None))]
+#[pyo3(signature = (wi, wo, values, lobes = None, transfer = "auto", metric = "log", axes = "auto", out = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_samples<'py>(
     py: Python<'py>,
     wi: Arr<'py>,
     wo: Arr<'py>,
     values: Arr<'py>,
-    lobes: u32,
+    lobes: Option<&Bound<'_, PyAny>>,
     transfer: &str,
     metric: &str,
     axes: &str,
@@ -299,5 +323,5 @@ pub fn fit_samples<'py>(
             run_fit(&d, "<arrays>", &o)
         })
         .map_err(meso_err)?;
-    finish(py, f, o.k, out)
+    finish(py, f, out)
 }

@@ -184,3 +184,31 @@ def test_engine_parameters_recover_gltf_materials(params, expected):
     assert abs(e["metallic"] - expected["metallic"]) <= 0.1, e
     assert abs(e["roughness"] - expected["roughness"]) <= 0.03, e
     assert e["mismatch"] < 0.05, e
+
+
+def test_auto_lobes_stop_when_a_lobe_no_longer_pays(tmp_path):
+    # Data from a one-lobe material of the microfacet family (a Phong peak NDF under a Schlick
+    # mirror with Smith masking, plus a diffuse term): a second lobe cannot lower the held-out
+    # error by 1 %, so `lobes="auto"` keeps one; the CLI's --lobes auto agrees and its header
+    # names the kept count.
+    truth = meso.Material.from_params(
+        form="microfacet",
+        ndf={"kind": "phong-peaks", "lobes": [{"axis": [0.0, 0.0], "weight": 1.0, "exponent": 200.0}]},
+        transfer={"kind": "mirror", "fresnel": "schlick", "f0": [0.5, 0.5, 0.5]},
+        diffuse=[0.2, 0.2, 0.2],
+    )
+    rng = np.random.default_rng(5)
+    ti, pi = _hemisphere(rng, N)
+    to, po = _hemisphere(rng, N)
+    f = truth.brdf(_dirs(ti, pi), _dirs(to, po))
+    path = tmp_path / "one.csv"
+    rows = np.column_stack([ti, pi, to, po, f])
+    path.write_text("theta_i,phi_i,theta_o,phi_o,r,g,b\n" + "".join(",".join(repr(float(x)) for x in r) + "\n" for r in rows))
+    _, report = meso.fit(path, lobes="auto", transfer="microfacet")
+    assert report["lobes"] == 1, report
+    out = tmp_path / "auto.toml"
+    r = run_cli("fit", path, "--lobes", "auto", "--transfer", "microfacet", "--out", out)
+    assert "lobes: 1 (auto:" in r.stdout, r.stdout
+    assert "--lobes 1 " in out.read_text().splitlines()[0]
+    with pytest.raises(ValueError, match="lobes"):
+        meso.fit(path, lobes="many")

@@ -65,9 +65,10 @@ const OVERFIT_RATIO: f64 = 2.0;
 pub struct Args {
     /// Measured data: MERL binary or sample CSV.
     pub data: PathBuf,
-    /// Number of Phong peaks (1–6).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=6))]
-    pub lobes: u32,
+    /// Number of lobes (1–6), or `auto`: up to 6, stopping when one more lobe lowers the
+    /// held-out error by less than 1 % or 1e-4.
+    #[arg(long, value_parser = parse_lobes)]
+    pub lobes: LobeCount,
     /// Metric minimised.
     #[arg(long, value_enum, default_value = "log")]
     pub metric: MetricArg,
@@ -136,10 +137,35 @@ fn out_paths(out: &Path, per_channel: bool) -> Vec<PathBuf> {
         .collect()
 }
 
+/// `--lobes`: a number of lobes or `auto`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LobeCount {
+    /// Exactly this many (1–6).
+    Fixed(u32),
+    /// Chosen on held-out data (`meso_measured::job::auto_lobes`).
+    Auto,
+}
+
+/// `--lobes`'s value parser.
+fn parse_lobes(s: &str) -> Result<LobeCount, String> {
+    if s == "auto" {
+        return Ok(LobeCount::Auto);
+    }
+    match s.parse::<u32>() {
+        Ok(k) if (1..=6).contains(&k) => Ok(LobeCount::Fixed(k)),
+        _ => Err(format!(
+            "{s}: expected a number of lobes from 1 to 6, or auto"
+        )),
+    }
+}
+
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
-    let k = a.lobes as usize;
+    let (k, auto_k) = match a.lobes {
+        LobeCount::Fixed(k) => (k as usize, false),
+        LobeCount::Auto => (meso_measured::job::AUTO_LOBES_MAX, true),
+    };
     let paths = out_paths(&a.out, a.per_channel_lobes);
     {
         let mut outs: Vec<PathBuf> = paths.clone();
@@ -209,7 +235,7 @@ pub fn run(a: Args) -> Result<()> {
                 held_out: grey(&data.samples.held_out),
                 cell_size: data.samples.cell_size,
             };
-            let (t, fits, scores) = fit_best(k, candidates, &mono, &opts)?;
+            let (t, fits, scores) = fit_best(k, auto_k, candidates, &mono, &opts)?;
             channel_fits.push(fits);
             chosen.push(t);
             tried.push(scores);
@@ -218,7 +244,7 @@ pub fn run(a: Args) -> Result<()> {
     } else {
         let names: Vec<&str> = candidates.iter().map(|t| t.name()).collect();
         progress.set_message(format!("{k} lobe(s), {} transfer", names.join(" and ")));
-        let (t, fits, scores) = fit_best(k, candidates, &data.samples, &opts)?;
+        let (t, fits, scores) = fit_best(k, auto_k, candidates, &data.samples, &opts)?;
         channel_fits.push(fits);
         chosen.push(t);
         tried.push(scores);
@@ -248,7 +274,7 @@ pub fn run(a: Args) -> Result<()> {
         let data_name = a.data.display().to_string();
         let settings = FitSettings {
             data: &data_name,
-            k,
+            k: channel_fits[j].len(),
             metric,
             transfer: chosen[j],
             axes: opts.axes,
@@ -346,13 +372,25 @@ pub fn run(a: Args) -> Result<()> {
     let _ = writeln!(rep, "data: {} — {}", a.data.display(), data.description);
     let _ = writeln!(
         rep,
-        "metric minimised: {}; transfer: {}; lobes: {k}{}; axes: {}",
+        "metric minimised: {}; transfer: {}; lobes: {}{}; axes: {}",
         metric.name(),
         chosen
             .iter()
             .map(|t| t.name())
             .collect::<Vec<_>>()
             .join(", "),
+        {
+            let ks: Vec<String> = channel_fits.iter().map(|f| f.len().to_string()).collect();
+            let auto = if auto_k {
+                format!(
+                    " (auto: one more lobe gains < {:.0} % held-out)",
+                    meso_measured::job::AUTO_LOBES_GAIN * 100.0
+                )
+            } else {
+                String::new()
+            };
+            format!("{}{auto}", ks.join(", "))
+        },
         if a.per_channel_lobes {
             " per channel"
         } else {

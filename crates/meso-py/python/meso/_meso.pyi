@@ -157,7 +157,7 @@ def set_memory_budget(size: Union[int, str]) -> None:
 
 def fit(
     data: _Path,
-    lobes: int = 3,
+    lobes: Union[int, str] = 3,
     transfer: str = "auto",
     metric: str = "log",
     axes: str = "auto",
@@ -172,7 +172,7 @@ def fit_samples(
     wi: _Array,
     wo: _Array,
     values: _Array,
-    lobes: int = 3,
+    lobes: Union[int, str] = 3,
     transfer: str = "auto",
     metric: str = "log",
     axes: str = "auto",
