@@ -383,8 +383,9 @@ pub fn run(a: Args) -> Result<()> {
             let ks: Vec<String> = channel_fits.iter().map(|f| f.len().to_string()).collect();
             let auto = if auto_k {
                 format!(
-                    " (auto: one more lobe gains < {:.0} % held-out)",
-                    meso_measured::job::AUTO_LOBES_GAIN * 100.0
+                    " (auto: one more lobe gains < {:.0} % or < {:e} held-out)",
+                    meso_measured::job::AUTO_LOBES_GAIN * 100.0,
+                    meso_measured::job::AUTO_LOBES_FLOOR
                 )
             } else {
                 String::new()
