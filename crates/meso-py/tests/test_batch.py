@@ -349,3 +349,10 @@ def test_fit_items_equal_meso_fit(tmp_path, client):
         assert strip(written) == strip(report["toml"]), r["input"]
     again = batch.run(tmp_path / "in", out, client=client, op="fit", params={"lobes": 1}, glob="*.csv", progress=False)
     assert (again.done, again.skipped) == (0, 3), again.text()
+    # `lobes = "auto"` (a manifest or --lobes auto) is a parameter set of its own.
+    auto = batch.run(tmp_path / "in", out, client=client, op="fit", params={"lobes": "auto", "transfer": "microfacet"},
+                     glob="*.csv", progress=False)
+    assert (auto.done, auto.failed) == (3, 0), auto.text()
+    for r in auto.items:
+        _, report = meso.fit(r["input"], lobes="auto", transfer="microfacet")
+        assert strip((out / r["output"]).read_text()) == strip(report["toml"]), r["input"]

@@ -70,7 +70,8 @@ class Operation:
     """One operation a manifest may name.
 
     ``params``: name → (type, default) (type one of ``float``, ``int``, ``bool``, ``str``,
-    ``"path"`` — a further input file whose bytes go into the hash); ``output``: ``"file"``
+    ``"lobes"`` — an int or ``"auto"``, ``"path"`` — a further input file whose bytes go into
+    the hash); ``output``: ``"file"``
     (``call(input, out_path, **params)`` writes one file atomically) or ``"dir"`` (``call`` writes
     the files of a new directory ``out_path``, made atomic here); ``suffix`` ends a file output's
     name.
@@ -139,8 +140,8 @@ OPERATIONS: Dict[str, Operation] = {
     "fit": Operation(
         "fit",
         {
-            "lobes": (int, 3),
-            "transfer": (str, "microfacet"),
+            "lobes": ("lobes", 3),
+            "transfer": (str, "auto"),
             "metric": (str, "log"),
             "axes": (str, "auto"),
             "samples": (int, 30000),
@@ -176,6 +177,10 @@ def _convert(op: Operation, name: str, value: Any, base: Path) -> Any:
             if isinstance(value, (bool, int)) and value in (0, 1):
                 return bool(value)
             raise ValueError(value)
+        if kind == "lobes":  # a count, or "auto"
+            if isinstance(value, str) and value.strip().lower() == "auto":
+                return "auto"
+            kind = int
         if kind is int:
             if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
                 raise ValueError(value)
