@@ -673,33 +673,28 @@ impl<'a> SmithMasking<'a> {
     /// material's fast path), quadrature for the others.
     #[must_use]
     pub fn new(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
-        let z = match ndf {
-            Ndf::Deltas(d) => d.projected_area(),
-            // `n = D/A` with `∫ D (m·z) dω = 1`: exactly `1/A`.
-            Ndf::Microfacet(mf) => 1.0 / mf.area_ratio(),
-            _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
-        };
-        SmithMasking {
-            ndf,
-            accuracy,
-            projected_area: z.max(1e-300),
-            closed_form: true,
-        }
+        Self::with(ndf, accuracy, true)
     }
 
     /// [`SmithMasking::new`] by quadrature for every NDF, Beckmann and GGX included (the
     /// tests compare it with the closed forms).
     #[must_use]
     pub fn numerical(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
+        Self::with(ndf, accuracy, false)
+    }
+
+    fn with(ndf: &'a Ndf, accuracy: Accuracy, closed_form: bool) -> SmithMasking<'a> {
         let z = match ndf {
             Ndf::Deltas(d) => d.projected_area(),
+            // `n = D/A` with `∫ D (m·z) dω = 1`: exactly `1/A`.
+            Ndf::Microfacet(mf) if closed_form => 1.0 / mf.area_ratio(),
             _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
         };
         SmithMasking {
             ndf,
             accuracy,
             projected_area: z.max(1e-300),
-            closed_form: false,
+            closed_form,
         }
     }
 

@@ -148,6 +148,44 @@ pub fn base_color_bytes(h: &meso_maps::ImageHeader) -> u64 {
         .saturating_add(h.pixels().saturating_mul(h.bytes_per_pixel + 4 + 4))
 }
 
+/// Refuse, from the images' headers and before anything is decoded, an export whose estimated
+/// memory is above the budget ([`meso_core::budget`]): the map's load (`heights`: a height map,
+/// else a normal map) and the export (mip chains and files, held until written) named after the
+/// map, then the roughness map's and the base colour's loads. The one check of `meso export` and
+/// the Python package's `meso.export`.
+///
+/// # Errors
+/// [`ExportError::Budget`] naming the file; unreadable headers as [`header`] reports them.
+pub fn check_budget(
+    map: &Path,
+    heights: bool,
+    roughness_map: Option<&Path>,
+    base_color: Option<&Path>,
+) -> Result<(), ExportError> {
+    use meso_core::budget::check;
+    if let Some(h) = header(map)? {
+        let load = if heights {
+            h.height_map_bytes()
+        } else {
+            h.normal_map_bytes()
+        };
+        let estimate = load.saturating_add(export_bytes(h.width, h.height));
+        let task = format!("exporting {} × {} texels", h.width, h.height);
+        check(map, &task, estimate)?;
+    }
+    if let Some(r) = roughness_map {
+        if let Some(h) = header(r)? {
+            check(r, "loading the roughness map", roughness_bytes(&h))?;
+        }
+    }
+    if let Some(c) = base_color {
+        if let Some(h) = header(c)? {
+            check(c, "loading the base colour image", base_color_bytes(&h))?;
+        }
+    }
+    Ok(())
+}
+
 /// The header of a regular image file, read without decoding it; `None` for a file that is not
 /// regular or whose header the probe cannot read (the decoder reports that, with more detail).
 ///

@@ -9,37 +9,18 @@ use pyo3::prelude::*;
 /// anything else raises `TypeError`.
 pub type Arr<'py> = numpy::PyArrayLike2<'py, f64, numpy::AllowTypeChange>;
 
-/// Rows of an `(N, 3)` float64 array as unit vectors: each row normalised, zero-length or non-finite
-/// rows refused with their index.
+/// Rows of an `(N, 3)` float64 array as unit directions: each row normalised, non-finite or
+/// zero-length rows refused with their index ([`unit_row`]).
 pub fn directions(name: &str, a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<DVec3>> {
-    rows(name, a, 3).and_then(|v| {
-        v.chunks_exact(3)
-            .enumerate()
-            .map(|(k, r)| {
-                let d = DVec3::new(r[0], r[1], r[2]);
-                let l = d.length();
-                if !(l.is_finite() && l > 1e-12) {
-                    return Err(value_err(format!(
-                        "{name}[{k}] = [{}, {}, {}]: not a direction (zero length or not finite)",
-                        r[0], r[1], r[2]
-                    )));
-                }
-                Ok(d / l)
-            })
-            .collect()
-    })
+    let v = flat(name, a, 3)?;
+    (0..v.len() / 3)
+        .map(|k| unit_row(name, &v, k).map_err(value_err))
+        .collect()
 }
 
 /// The values of an `(N, cols)` float64 array, row-major, every value finite.
 pub fn rows(name: &str, a: &PyReadonlyArray2<'_, f64>, cols: usize) -> PyResult<Vec<f64>> {
-    let shape = a.shape();
-    if shape[1] != cols {
-        return Err(value_err(format!(
-            "{name}: expected an array of shape (N, {cols}), got ({}, {})",
-            shape[0], shape[1]
-        )));
-    }
-    let v: Vec<f64> = a.as_array().iter().copied().collect();
+    let v = flat(name, a, cols)?.into_owned();
     if let Some(k) = v.iter().position(|x| !x.is_finite()) {
         return Err(value_err(format!(
             "{name}[{}, {}] = {}: not a finite number",
@@ -104,10 +85,7 @@ pub fn unit_row(name: &str, v: &[f64], k: usize) -> Result<DVec3, String> {
         return Ok(d);
     }
     if let Some(j) = r.iter().position(|x| !x.is_finite()) {
-        return Err(format!(
-            "{name}[{k}, {j}] = {}: not a finite number",
-            fmt_nan(r[j])
-        ));
+        return Err(format!("{name}[{k}, {j}] = {}: not a finite number", r[j]));
     }
     let l = l2.sqrt();
     if !(l.is_finite() && l > 1e-12) {
@@ -117,13 +95,4 @@ pub fn unit_row(name: &str, v: &[f64], k: usize) -> Result<DVec3, String> {
         ));
     }
     Ok(d / l)
-}
-
-/// NaN and infinities as Python prints them.
-fn fmt_nan(x: f64) -> String {
-    if x.is_nan() {
-        "NaN".into()
-    } else {
-        format!("{x}")
-    }
 }

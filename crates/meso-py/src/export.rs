@@ -48,6 +48,13 @@ pub fn export<'py>(
     }
     let (files, stats, warnings) = py
         .detach(|| -> Result<_, String> {
+            ex_lib::check_budget(
+                &path,
+                texel_size.is_some(),
+                roughness_map.as_deref(),
+                base_color.as_deref(),
+            )
+            .map_err(|e| e.to_string())?;
             let mut warnings = Vec::new();
             let mut inputs = match (texel_size, height_scale) {
                 (Some(s), Some(h)) => {

@@ -48,41 +48,14 @@ pub struct Args {
     pub base_color: Option<PathBuf>,
 }
 
-/// Refuse, from the images' headers and before anything is decoded, an export whose estimated
-/// memory is above the budget: the map's load and the export (mip chains and files, held until
-/// written) named after the map, then the roughness map's and the base colour's loads.
-fn budget_check(a: &Args) -> Result<()> {
-    use meso_core::budget::check;
-    if let Some(h) = export::header(&a.map)? {
-        let load = if a.texel_size.is_some() {
-            h.height_map_bytes()
-        } else {
-            h.normal_map_bytes()
-        };
-        let estimate = load.saturating_add(export::export_bytes(h.width, h.height));
-        let task = format!("exporting {} × {} texels", h.width, h.height);
-        check(&a.map, &task, estimate)?;
-    }
-    if let Some(r) = &a.roughness_map {
-        if let Some(h) = export::header(r)? {
-            check(r, "loading the roughness map", export::roughness_bytes(&h))?;
-        }
-    }
-    if let Some(c) = &a.base_color {
-        if let Some(h) = export::header(c)? {
-            check(
-                c,
-                "loading the base colour image",
-                export::base_color_bytes(&h),
-            )?;
-        }
-    }
-    Ok(())
-}
-
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    budget_check(&a)?;
+    export::check_budget(
+        &a.map,
+        a.texel_size.is_some(),
+        a.roughness_map.as_deref(),
+        a.base_color.as_deref(),
+    )?;
     let mut inputs = match (a.texel_size, a.height_scale) {
         (Some(s), Some(h)) => {
             let map = HeightMap::load(&a.map, s, h, Border::Wrap)?;
