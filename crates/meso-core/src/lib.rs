@@ -41,6 +41,7 @@ pub mod material;
 pub mod ndf;
 pub mod pairs;
 pub mod quadrature;
+pub mod sg;
 pub mod sh;
 pub mod shading;
 pub mod transfer;
