@@ -17,6 +17,7 @@ pub mod export;
 pub mod ggx;
 pub mod gltf;
 pub mod ktx2;
+pub mod lobes;
 pub mod mips;
 pub mod texture;
 
