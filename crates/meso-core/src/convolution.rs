@@ -755,8 +755,7 @@ fn clamped_cosine_table() -> &'static [f64] {
                 let mut e = 0.0;
                 for (x, wt) in xs.iter().zip(&ws) {
                     let u = 0.5 * (x + 1.0);
-                    let w = (1.0 + (u + (1.0 - u) * (-2.0 * kappa).exp()).ln() / kappa)
-                        .clamp(-1.0, 1.0);
+                    let w = crate::sg::sample_cos(kappa, u);
                     let sw = (1.0 - w * w).max(0.0).sqrt();
                     // m·i = w c + sw sn cos ψ; average of max(0, A + B cos ψ) over ψ.
                     let (a0, b0) = (w * c, sw * sn);
@@ -841,26 +840,25 @@ pub fn phong_closed_form(
     let Some(h) = half_vector(i, o) else {
         return [0.0; 3];
     };
-    // The transfer (m·H)^η ≈ e^{κ₂(m·H − 1)}, κ₂ = η + 1 (same integral over the hemisphere).
-    let k2 = exponent + 1.0;
+    // The transfer (m·H)^η ≈ e^{κ₂(m·H − 1)}, κ₂ = η + 1 (same integral over the hemisphere:
+    // [`crate::sg::kappa_transfer`]).
+    let k2 = crate::sg::kappa_transfer(exponent);
     let mut s = 0.0;
     for l in lobes {
-        // The NDF lobe as a normalised vMF with the same integral as the Phong peak: κ₁ = (η+2)/4.
-        let k1 = 0.25 * (l.exponent + 2.0);
-        let v = k1 * l.axis + k2 * h;
-        let k3 = v.length();
+        // The NDF lobe as a normalised vMF with the same integral as the Phong peak: κ₁ = (η+2)/4
+        // ([`crate::sg::kappa_same_integral`]).
+        let k1 = crate::sg::kappa_same_integral(l.exponent);
+        let p = crate::sg::product(l.axis, k1, h, k2);
         // ∫ vMF(μ, κ₁)(m) e^{κ₂(H·m−1)} max(0, m·i) dω
         //   = C(κ₁) e^{κ₃−κ₁−κ₂} · 2π(1−e^{−2κ₃})/κ₃ · E_{vMF(μ₃,κ₃)}[max(0, m·i)]
-        let c1 = k1 / (2.0 * PI * (-(-2.0 * k1).exp_m1()));
-        let (mass, mu3) = if k3 < 1e-9 {
-            (4.0 * PI * (-k1 - k2).exp(), DVec3::Z)
+        let mass = p.ln_scale.exp() * crate::sg::integral(p.kappa);
+        let mu3 = if p.kappa < 1e-9 {
+            DVec3::Z
         } else {
-            (
-                2.0 * PI * (k3 - k1 - k2).exp() * (-(-2.0 * k3).exp_m1()) / k3,
-                v / k3,
-            )
+            p.v / p.kappa
         };
-        s += l.weight * c1 * mass * clamped_cosine_mean(k3, mu3.dot(i));
+        let c1 = crate::sg::normaliser(k1);
+        s += l.weight * c1 * mass * clamped_cosine_mean(p.kappa, mu3.dot(i));
     }
     let c = s / i.z;
     [specular[0] * c, specular[1] * c, specular[2] * c]

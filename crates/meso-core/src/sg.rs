@@ -162,8 +162,11 @@ pub struct SgProduct {
 }
 
 /// The product of the unit-peak lobes `(a₁, κ₁)` and `(a₂, κ₂)` ([`SgProduct`]), with
-/// `κ − κ₁ − κ₂ = 2κ₁κ₂(a₁·a₂ − 1)/(κ + κ₁ + κ₂)` (no cancellation for sharp, nearly aligned
-/// lobes).
+/// `κ − κ₁ − κ₂ = (κ² − (κ₁ + κ₂)²)/(κ + κ₁ + κ₂)` and
+/// `κ² − (κ₁ + κ₂)² = 2κ₁κ₂(a₁·a₂ − 1) + κ₁²(|a₁|² − 1) + κ₂²(|a₂|² − 1)`: no cancellation for
+/// sharp, nearly aligned lobes, and exact (`|v| − κ₁ − κ₂`) for axes off the unit sphere too,
+/// so that derivatives with respect to `v` hold in every direction (the last two terms vanish
+/// for unit axes).
 #[inline]
 #[must_use]
 pub fn product(a1: DVec3, k1: f64, a2: DVec3, k2: f64) -> SgProduct {
@@ -171,7 +174,10 @@ pub fn product(a1: DVec3, k1: f64, a2: DVec3, k2: f64) -> SgProduct {
     let kappa = v.length();
     let den = kappa + k1 + k2;
     let ln_scale = if den > 0.0 {
-        2.0 * k1 * k2 * (a1.dot(a2) - 1.0) / den
+        (2.0 * k1 * k2 * (a1.dot(a2) - 1.0)
+            + k1 * k1 * (a1.length_squared() - 1.0)
+            + k2 * k2 * (a2.length_squared() - 1.0))
+            / den
     } else {
         0.0
     };

@@ -134,15 +134,14 @@ impl VonMisesFisher {
     /// Density in 1/sr.
     #[must_use]
     pub fn eval(&self, m: DVec3) -> f64 {
-        let k = self.kappa;
-        k / (2.0 * PI * (-(-2.0 * k).exp_m1())) * (k * (self.mu.dot(m) - 1.0)).exp()
+        crate::sg::Sg::normalised(self.mu, self.kappa).eval(m)
     }
 
-    /// Exact sampling (Wood 1994 / Jakob 2012): `w = 1 + ln(u + (1−u) e^{−2κ})/κ`.
+    /// Exact sampling (Wood 1994 / Jakob 2012): the cosine to the mean by the inverse CDF
+    /// [`crate::sg::sample_cos`], the azimuth uniform.
     #[must_use]
     pub fn sample(&self, u: [f64; 2]) -> DVec3 {
-        let k = self.kappa;
-        let w = (1.0 + (u[0] + (1.0 - u[0]) * (-2.0 * k).exp()).ln() / k).clamp(-1.0, 1.0);
+        let w = crate::sg::sample_cos(self.kappa, u[0]);
         let s = (1.0 - w * w).max(0.0).sqrt();
         let phi = 2.0 * PI * u[1];
         Frame::from_normal(self.mu).to_world(DVec3::new(s * phi.cos(), s * phi.sin(), w))

@@ -9,16 +9,26 @@
 //! ```
 //!
 //! # Closed form (von Mises–Fisher)
-//! `S` is evaluated in closed form by the von Mises–Fisher correspondence:
-//! `cos^η(α/2) = ((1+cos α)/2)^(η/2) ≈ exp(κ (cos α − 1))` with `κ = η/4` (equal to second order
-//! at the peak), and `(m·H)^η_t ≈ exp(κ_t (m·H − 1))` with `κ_t = η_t` (idem). The product of two
-//! such lobes is one lobe with `v = κ_k N_k + κ_t H`, `κ₃ = |v|`, `μ₃ = v/κ₃`, and
-//! `∫ exp(κ₃ μ₃·m) dω = 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃)`. The smooth cosine `max(0, m·i)` is taken at
-//! the product lobe's mean `A(κ₃) μ₃` (the axis shrunk by the mean resultant length
-//! `A(κ) = coth κ − 1/κ`). Hence
+//! `S` is evaluated in closed form by replacing both Phong shapes with spherical Gaussians
+//! ([`meso_core::sg`], whose module docs name every Phong ↔ SG mapping and its user). Two
+//! mappings are used here, both chosen to keep an integral:
+//! * each NDF peak by the *normalised* vMF `C(κ_k) exp(κ_k (cos α − 1))`,
+//!   `C(κ) = κ/(2π(1 − e^(−2κ)))`, with `κ_k = (η_k + 2)/4`
+//!   ([`meso_core::sg::kappa_same_integral`]: the peak's integral `8π/(η_k+2)` equals the
+//!   Gaussian's `2π/κ_k`, so the normalised heights agree), **not** `κ = η/4` (the second-order
+//!   match at the peak, [`meso_core::sg::kappa_same_curvature`]), which this closed form does not
+//!   use;
+//! * the transfer `(m·H)^η_t` by `exp(κ_t (m·H − 1))` with `κ_t = η_t + 1`
+//!   ([`meso_core::sg::kappa_transfer`]: the same integral `2π/(η_t+1)`), **not** `κ_t = η_t`.
+//!
+//! The product of the two is one lobe with `v = κ_k N_k + κ_t H`, `κ₃ = |v|`, `μ₃ = v/κ₃` and
+//! scale `e^(κ₃ − κ_k − κ_t)` ([`meso_core::sg::product`]), whose integral is
+//! `2π (1 − e^(−2κ₃))/κ₃`. The cosine `max(0, m·i)` is not taken at one point: its expectation
+//! `E(κ₃, μ₃·i) = E[max(0, m·i)]` under the product's vMF is read from meso-core's table over
+//! `(ln κ, c)` ([`meso_core::convolution::clamped_cosine_mean_grad`]). Hence
 //!
 //! ```text
-//! S ≈ Σ_k w_k (η_k+2)/(8π) · 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃ − κ_k − κ_t) · max(0, A(κ₃) μ₃·i) / cos θi.
+//! S ≈ Σ_k w_k C(κ_k) · 2π (1 − e^(−2κ₃))/κ₃ · e^(κ₃ − κ_k − κ_t) · E(κ₃, μ₃·i) / cos θi.
 //! ```
 //!
 //! This is meso-core's [`meso_core::convolution::phong_closed_form`] — one implementation, so
@@ -365,13 +375,13 @@ impl BrdfModel for LobeModel {
         };
         let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
         let eta_t = self.decode(theta, &mut lobes);
-        let k2 = eta_t + 1.0;
+        let k2 = meso_core::sg::kappa_transfer(eta_t);
         let inv = 1.0 / wi.z;
         let mut terms = [0.0; MAX_LOBES];
         let mut s = 0.0;
         let mut d_k2 = 0.0;
         for (j, l) in lobes.iter().enumerate().take(k) {
-            let k1 = 0.25 * (l.exponent + 2.0);
+            let k1 = meso_core::sg::kappa_same_integral(l.exponent);
             let (t, dk1, dk2, dv) = super::vmf::lobe_term_grad(l.axis, k1, k2, h, wi);
             terms[j] = t;
             s += l.weight * t;
@@ -559,11 +569,11 @@ mod tests {
                     (l.unit_density(m), m.dot(h).max(0.0).powf(kt))
                 } else {
                     // The core's vMF shapes: κ₁ = (η+2)/4 normalised, κ₂ = η_t + 1.
-                    let k1 = 0.25 * (l.exponent + 2.0);
+                    let k1 = meso_core::sg::kappa_same_integral(l.exponent);
+                    let k2 = meso_core::sg::kappa_transfer(kt);
                     (
-                        k1 / (2.0 * PI * (1.0 - (-2.0 * k1).exp()))
-                            * (k1 * (l.axis.dot(m) - 1.0)).exp(),
-                        ((kt + 1.0) * (m.dot(h) - 1.0)).exp(),
+                        meso_core::sg::Sg::normalised(l.axis, k1).eval(m),
+                        (k2 * (m.dot(h) - 1.0)).exp(),
                     )
                 };
                 s += nd * tr * m.dot(wi).max(0.0) * t.sin();

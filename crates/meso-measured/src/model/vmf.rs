@@ -11,6 +11,11 @@
 //! S  = Σ_k w_k T_k / cos θi
 //! ```
 //!
+//! `κ₁` is [`meso_core::sg::kappa_same_integral`] and `κ₂` [`meso_core::sg::kappa_transfer`]
+//! (the closed form's mappings, see [`meso_core::sg`]); `C`, `M` and the product come from
+//! [`meso_core::sg`] (`normaliser`, `integral`, `product`, whose `κ₃ − κ₁ − κ₂` has no
+//! cancellation).
+//!
 //! `E(κ, c) = E[max(0, m·i)]` for `m ~ vMF(κ)` is meso-core's table over `(ln κ, c)` (64 × 129,
 //! bilinear), read through [`meso_core::convolution::clamped_cosine_mean_grad`], whose bilinear
 //! cell also gives `∂E/∂ln κ` and `∂E/∂c`. The derivatives follow by the chain rule:
@@ -18,7 +23,7 @@
 //! `∂ln M/∂κ₁ = ∂ln M/∂κ₂ = −1`, `dκ₃ = v·dv/κ₃`, `dc = (i·dv)/κ₃ − c dκ₃/κ₃`.
 
 use glam::DVec3;
-use std::f64::consts::PI;
+use meso_core::sg;
 
 pub use meso_core::convolution::clamped_cosine_mean_grad;
 
@@ -27,20 +32,20 @@ pub use meso_core::convolution::clamped_cosine_mean_grad;
 #[inline]
 #[must_use]
 pub fn lobe_term_grad(axis: DVec3, k1: f64, k2: f64, h: DVec3, i: DVec3) -> (f64, f64, f64, DVec3) {
-    let v = k1 * axis + k2 * h;
-    let k3 = v.length();
-    let c1 = k1 / (2.0 * PI * (-(-2.0 * k1).exp_m1()));
+    let p = sg::product(axis, k1, h, k2);
+    let (v, k3) = (p.v, p.kappa);
+    let c1 = sg::normaliser(k1);
+    let mass = p.ln_scale.exp() * sg::integral(k3);
     if k3 < 1e-9 {
-        let mass = 4.0 * PI * (-k1 - k2).exp();
         let (e, _, _) = clamped_cosine_mean_grad(k3, i.z);
         return (c1 * mass * e, 0.0, 0.0, DVec3::ZERO);
     }
-    let mass = 2.0 * PI * (k3 - k1 - k2).exp() * (-(-2.0 * k3).exp_m1()) / k3;
     let c = v.dot(i) / k3;
     let (e, e_k, e_c) = clamped_cosine_mean_grad(k3, c);
     let t = c1 * mass * e;
-    let dln_c1 = 1.0 / k1 - 2.0 / (2.0 * k1).exp_m1();
-    let dln_m3 = 1.0 + 2.0 / (2.0 * k3).exp_m1() - 1.0 / k3;
+    let dln_c1 = sg::normaliser_dln(k1);
+    // ln M = κ₃ − κ₁ − κ₂ + ln integral(κ₃), and ln integral = −ln normaliser.
+    let dln_m3 = 1.0 - sg::normaliser_dln(k3);
     let cm = c1 * mass;
     // dT/dv through κ₃ and c.
     let dv = cm * ((e * dln_m3 + e_k - e_c * c / k3) * v / k3 + e_c * i / k3);
@@ -74,7 +79,13 @@ mod tests {
                 let l = PhongLobe::new(axis, 1.0, eta);
                 let core =
                     meso_core::convolution::phong_closed_form(&[l], eta_t, [1.0; 3], wi, wo)[0];
-                let (t, ..) = lobe_term_grad(axis, 0.25 * (eta + 2.0), eta_t + 1.0, h, wi);
+                let (t, ..) = lobe_term_grad(
+                    axis,
+                    sg::kappa_same_integral(eta),
+                    sg::kappa_transfer(eta_t),
+                    h,
+                    wi,
+                );
                 let ours = t / wi.z;
                 assert!(
                     (ours - core).abs() <= 1e-12 * core.abs().max(1e-300),
