@@ -42,12 +42,13 @@
 //!   and its shape normalised by its own projected area `E[m_z⁺]` (`η_n/(η_n + 4)·a_z` for a
 //!   lobe above the horizon; by quadrature for one that crosses it, whose part below covers
 //!   nothing); see "Steep maps" below. Each peak is replaced by the spherical
-//!   Gaussian `exp(κ(a·m − 1))` of the same mean cosine `η_n/(η_n + 4)`, the Phong facet term
-//!   `(m·h)^η` by `exp(λ(m·h − 1))` with `λ = η + 1` (same integral), their product integrated
-//!   exactly (a Gaussian of axis `m* ∝ κa + λh`), the facet cosines `(m·i)(m·z)` by the
-//!   product's second moment, and the shapes corrected by the ratios of the Phong forms to their
-//!   Gaussians at `m*` (exact for sharp lobes; within 1% of a quadrature of the lobes for broad
-//!   ones, tested). Lambert facets and other transfers replace each lobe by 7 weighted nodes
+//!   Gaussian `exp(κ(a·m − 1))` of the same mean cosine `η_n/(η_n + 4)`
+//!   ([`meso_core::sg::kappa_same_mean_cos`]), the Phong facet term `(m·h)^η` by
+//!   `exp(λ(m·h − 1))` with `λ = η + 1` (same integral, [`meso_core::sg::kappa_transfer`]), their
+//!   product integrated exactly (a Gaussian of axis `m* ∝ κa + λh`), the facet cosines
+//!   `(m·i)(m·z)` by the product's second moment, and the shapes corrected by the ratios of the
+//!   Phong forms to their Gaussians at `m*` (exact for sharp lobes; within 1% of a quadrature of
+//!   the lobes for broad ones, tested). Lambert facets and other transfers replace each lobe by 7 weighted nodes
 //!   (the axis and a ring of 6 with the lobe's mean cosine, weighted by their `m_z⁺`), so
 //!   that a facet facing away from the light (`m·i < 0`) or the viewer (`m·o ≤ 0`, the
 //!   bump map's Lambert test) counts for nothing, as in the bump map. Optional shadowing
@@ -99,7 +100,7 @@ use crate::shader::{fast_pow, Shader};
 use glam::DVec3;
 use meso_core::frame::Frame;
 use meso_core::material::Material;
-use meso_core::ndf::vmf;
+use meso_core::sg;
 use meso_core::transfer::{PhongVariant, Transfer};
 use meso_maps::{
     FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMap, NormalMode, Pyramid,
@@ -295,7 +296,8 @@ struct Node {
 }
 
 /// One fitted lobe of a texel, as the spherical Gaussian `c·exp(κ(a·m − 1))` of the same mean
-/// cosine (see [`NdfMapped`]'s docs).
+/// cosine ([`sg::kappa_same_mean_cos`]: the lobe's projected area normalises it, see
+/// [`NdfMapped`]'s docs): the constants of [`phong_texel`]'s loop, built by [`meso_core::sg`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct SgLobe {
     /// Unit axis.
@@ -317,12 +319,8 @@ impl SgLobe {
     /// The lobe of the Phong peak `(axis, η)` with Gaussian concentration `kappa` and weight
     /// `w` (normalisation included).
     fn new(axis: DVec3, eta: f64, kappa: f64, w: f64) -> SgLobe {
-        // Phong: (η + 2)/(8π); Gaussian: κ/(2π(1 − e^{−2κ})).
-        let ratio = if kappa < 1e-9 {
-            (eta + 2.0) / 8.0
-        } else {
-            (eta + 2.0) * -(-2.0 * kappa).exp_m1() / (4.0 * kappa)
-        };
+        // Phong: (η + 2)/(8π); Gaussian: sg::normaliser(κ) = κ/(2π(1 − e^{−2κ})).
+        let ratio = 0.25 * (eta + 2.0) / sg::normaliser_2pi(kappa);
         SgLobe {
             axis,
             ka: axis * kappa,
@@ -356,7 +354,7 @@ const AXIS_WEIGHT: f64 = 0.25;
 
 /// Replace a Phong peak by 7 weighted nodes (area weights) with the lobe's mean cosine.
 fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
-    let mean = vmf::phong_peak_mean_cos(exponent);
+    let mean = sg::phong_peak_mean_cos(exponent);
     let c = ((mean - AXIS_WEIGHT) / (1.0 - AXIS_WEIGHT)).clamp(-1.0, 1.0);
     if c > 1.0 - 1e-9 {
         out.push(Node { n: axis, w: weight });
@@ -388,7 +386,7 @@ fn peak_projected_area(a_z: f64, eta: f64) -> f64 {
     let a_z = a_z.clamp(-1.0, 1.0);
     let reach = 24.0 / eta.max(1e-9).sqrt();
     if a_z.acos() + reach < std::f64::consts::FRAC_PI_2 {
-        return vmf::phong_peak_mean_cos(eta) * a_z;
+        return sg::phong_peak_mean_cos(eta) * a_z;
     }
     let s_a = (1.0 - a_z * a_z).max(0.0).sqrt();
     let amax = reach.min(std::f64::consts::PI);
@@ -508,7 +506,10 @@ fn projected_shares(pyramid: &Pyramid) -> Vec<Vec<f64>> {
 
 /// The Phong facets' response of one texel, `E[(m·h)^η (m·i)⁺]` over its projected area
 /// (`m_z`-weighted, normalised), in closed form from its lobes (see [`NdfMapped`]).
-/// `lambda = η + 1` is the Gaussian of the transfer (same integral over the sphere).
+/// `lambda = η + 1` is the Gaussian of the transfer (same integral over the sphere:
+/// [`sg::kappa_transfer`]). The product of the lobe and the transfer's Gaussian is
+/// [`sg::product`] written out on the lobe's precomputed `κa`, with its `r − κ` kept apart for
+/// the shape corrections (no allocation, one `exp` per lobe).
 #[inline]
 fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambda: f64) -> f64 {
     let mut sum = 0.0;
@@ -544,11 +545,7 @@ fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambda: f64) -> 
                     + l.ln_ratio))
             .exp();
         // (1 − e^{−2r}) / r, and E[(m·i)(m·z)] = (A/r) i_z + (1 − 3A/r)(m*·i)(m*·z).
-        let (mass, a_r) = if r > 20.0 {
-            (inv_r, (1.0 - inv_r) * inv_r)
-        } else {
-            (-(-2.0 * r).exp_m1() * inv_r, vmf::mean_cos(r) * inv_r)
-        };
+        let (mass, a_r) = (sg::integral_per_2pi(r), sg::mean_cos(r) * inv_r);
         let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
         if q > 0.0 {
             sum += l.w * mass * q * e;
@@ -625,22 +622,19 @@ impl NdfMapped {
                         continue;
                     }
                     any = true;
-                    let kappa = vmf::phong_peak_kappa(p.exponent);
-                    let norm = if kappa < 1e-9 {
-                        0.5
-                    } else {
-                        kappa / -(-2.0 * kappa).exp_m1()
-                    };
+                    let kappa = sg::kappa_same_mean_cos(p.exponent);
+                    let norm = sg::normaliser_2pi(kappa);
                     lobes.push(SgLobe::new(p.axis, p.exponent, kappa, sh / e * norm));
                 }
                 if !any {
                     // No lobe faces up: shade as the flat surface.
-                    let kappa = vmf::phong_peak_kappa(meso_maps::fit::ETA_MAX);
+                    let kappa = sg::kappa_same_mean_cos(meso_maps::fit::ETA_MAX);
                     lobes.push(SgLobe::new(
                         DVec3::Z,
                         meso_maps::fit::ETA_MAX,
                         kappa,
-                        kappa / (meso_maps::fit::ETA_MAX / (meso_maps::fit::ETA_MAX + 4.0)),
+                        sg::normaliser_2pi(kappa)
+                            / sg::phong_peak_mean_cos(meso_maps::fit::ETA_MAX),
                     ));
                 }
                 lobe_start.push(lobes.len() as u32);
@@ -912,7 +906,11 @@ impl NdfMapped {
             Facet::Phong { exponent, .. } => {
                 let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
                 let eta = f64::from(exponent);
-                [phong_texel(lobes, wi, h, eta, eta + 1.0), 0.0, 0.0]
+                [
+                    phong_texel(lobes, wi, h, eta, sg::kappa_transfer(eta)),
+                    0.0,
+                    0.0,
+                ]
             }
             Facet::Lambert { .. } => {
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
@@ -1019,10 +1017,10 @@ mod tests {
     }
 
     fn closed(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
-        let kappa = vmf::phong_peak_kappa(eta_n);
+        let kappa = sg::kappa_same_mean_cos(eta_n);
         let area = eta_n / (eta_n + 4.0) * axis.z;
-        let lobe = SgLobe::new(axis, eta_n, kappa, kappa / -(-2.0 * kappa).exp_m1() / area);
-        phong_texel(&[lobe], wi, h, eta, eta + 1.0)
+        let lobe = SgLobe::new(axis, eta_n, kappa, sg::normaliser_2pi(kappa) / area);
+        phong_texel(&[lobe], wi, h, eta, sg::kappa_transfer(eta))
     }
 
     /// The closed form of one lobe under Phong facets agrees with the quadrature, from a
@@ -1099,14 +1097,15 @@ mod tests {
         assert!(peak_projected_area(0.05, 100.0) > 2.0 * 0.05 * 100.0 / 104.0);
     }
 
-    /// The Gaussian of a Phong peak keeps its mean cosine `η/(η + 4)`.
+    /// The Gaussian of a Phong peak keeps its mean cosine `η/(η + 4)`
+    /// ([`sg::kappa_same_mean_cos`]).
     #[test]
     fn peak_kappa_keeps_the_mean_cosine() {
         for eta in [0.5, 4.0, 40.0, 1e3, 1e6] {
             let mu = eta / (eta + 4.0);
-            let k = vmf::phong_peak_kappa(eta);
+            let k = sg::kappa_same_mean_cos(eta);
             assert!(
-                (vmf::mean_cos(k) - mu).abs() < 1e-9 * (1.0 + 1.0 / (1.0 - mu)),
+                (sg::mean_cos(k) - mu).abs() < 1e-9 * (1.0 + 1.0 / (1.0 - mu)),
                 "{eta}: {k}"
             );
         }
