@@ -290,33 +290,6 @@ pub fn files(tex: &LobeTextures) -> Result<Vec<(String, Vec<u8>)>, ExportError> 
     Ok(out)
 }
 
-/// Write [`files`] into `dir` (created if missing); returns the paths written.
-///
-/// # Errors
-/// [`ExportError::Io`] for a file that cannot be written.
-pub fn write(
-    tex: &LobeTextures,
-    dir: &std::path::Path,
-) -> Result<Vec<std::path::PathBuf>, ExportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    let mut paths = Vec::new();
-    for (name, bytes) in files(tex)? {
-        let p = dir.join(&name);
-        let tmp = dir.join(format!(".{name}.tmp"));
-        std::fs::write(&tmp, &bytes)
-            .and_then(|()| std::fs::rename(&tmp, &p))
-            .map_err(|source| ExportError::Io {
-                path: p.clone(),
-                source,
-            })?;
-        paths.push(p);
-    }
-    Ok(paths)
-}
-
 /// The synthetic lobe sets of the tests and of the browser check (`examples/lobe_cases.rs`),
 /// encoded and quantised to 16 bits (values in `[0, 1]`): single lobes on the normal
 /// (η from 0 to 10⁴), tilted lobes (30°, 60°), two- and three-lobe mixtures.
