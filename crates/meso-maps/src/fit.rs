@@ -29,7 +29,7 @@
 //!   upper-hemisphere centres `h` of an equal-area grid of spacing ≈ the kernel's width `1/√λ`
 //!   near the data (the data term from up to 1024 entries, weights normalised to 1). Each peak
 //!   is treated as the spherical Gaussian of the same mean cosine `η/(η+4)` (as `NdfMapped`
-//!   does), so the smoothed lobe is exact in closed form (`sg_response`). Levenberg–Marquardt
+//!   does; [`meso_core::sg::kappa_same_mean_cos`]), so the smoothed lobe is exact in closed form (`sg_response`). Levenberg–Marquardt
 //!   over axes, `ln κ` and softmax weight logits (the weights stay a probability: Eq. 1) runs
 //!   from two starts: the EM lobes (a lobe whose weight dies is re-seeded) and a greedy start
 //!   (one lobe, then lobes added where the data most exceed the fit, while each lowers the
@@ -49,7 +49,8 @@
 use crate::sphgrid::SphereGrid;
 use glam::DVec3;
 use meso_core::linalg::cholesky_solve;
-use meso_core::ndf::{vmf, PhongLobe};
+use meso_core::ndf::PhongLobe;
+use meso_core::sg;
 use std::f64::consts::PI;
 
 /// Largest Phong exponent η on cos(α/2); footprints of identical normals get exactly this.
@@ -411,21 +412,23 @@ fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
 }
 
 /// The spherical Gaussian concentration of a Phong peak of exponent η: the same mean cosine,
-/// `η/(η + 4)` (the renderer's `NdfMapped` makes the same substitution).
+/// `η/(η + 4)` ([`sg::kappa_same_mean_cos`]; the renderer's `NdfMapped` makes the same
+/// substitution, and the fitted κ go back to exponents exactly by [`kappa_eta`]).
 fn peak_kappa(eta: f64) -> f64 {
-    vmf::phong_peak_kappa(eta).clamp(KAPPA_MIN, KAPPA_MAX)
+    sg::kappa_same_mean_cos(eta).clamp(KAPPA_MIN, KAPPA_MAX)
 }
 
-/// The Phong exponent of a spherical Gaussian of concentration κ (inverse of [`peak_kappa`]).
+/// The Phong exponent of a spherical Gaussian of concentration κ (inverse of [`peak_kappa`]:
+/// [`sg::eta_same_mean_cos`]).
 fn kappa_eta(kappa: f64) -> f64 {
-    let mc = vmf::mean_cos(kappa);
-    (4.0 * mc / (1.0 - mc).max(1e-12)).clamp(0.0, ETA_MAX)
+    sg::eta_same_mean_cos(kappa).clamp(0.0, ETA_MAX)
 }
 
 const KAPPA_MIN: f64 = 1e-3;
 const KAPPA_MAX: f64 = 2.5e5;
 
-/// Per-lobe constants of [`sg_response`].
+/// Per-lobe constants of [`sg_response`] (a thin wrapper: the constants come from
+/// [`meso_core::sg`]).
 #[derive(Clone, Copy)]
 struct SgLobe {
     a: DVec3,
@@ -446,8 +449,8 @@ impl SgLobe {
             t1,
             t2,
             kappa,
-            norm: kappa / -(-2.0 * kappa).exp_m1(),
-            lang: vmf::mean_cos(kappa),
+            norm: sg::normaliser_2pi(kappa),
+            lang: sg::mean_cos(kappa),
         }
     }
 }
@@ -464,20 +467,15 @@ fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
     let r = (kappa * kappa + lambda * (lambda + 2.0 * kappa * ah))
         .max(0.0)
         .sqrt();
-    // r − κ − λ without cancellation.
+    // r − κ − λ without cancellation (sg::product's ln_scale, on unit axes, written out on the
+    // a·h the derivatives need too).
     let expo = 2.0 * kappa * lambda * (ah - 1.0) / (r + kappa + lambda);
-    let sr = if r < 1e-6 {
-        2.0
-    } else if r > 18.0 {
-        1.0 / r
-    } else {
-        -(-2.0 * r).exp_m1() / r
-    };
+    let sr = sg::integral_per_2pi(r);
     let g = l.norm * sr * fast_exp_neg(expo.min(0.0));
     if !grad {
         return [g, 0.0, 0.0, 0.0];
     }
-    let lr = vmf::mean_cos(r) / r.max(1e-12);
+    let lr = sg::mean_cos(r) / r.max(1e-12);
     // ∂ln G/∂κ = 1/κ − coth κ + L(r)(u·a)/r, u = κa + λh; ∂ln G/∂a = L(r) κ u / r.
     let dk = g * kappa * (lr * (kappa + lambda * ah) - l.lang);
     let c = g * lr * kappa * lambda;
@@ -768,9 +766,7 @@ impl<'a> Smoothed<'a> {
         let mut st = SgState {
             k: 1,
             axes: [c.try_normalize().unwrap_or(DVec3::Z); MAX_LOBES],
-            lk: [vmf::kappa_from_mean_cos(mc)
-                .clamp(KAPPA_MIN, KAPPA_MAX)
-                .ln(); MAX_LOBES],
+            lk: [sg::kappa_from_mean_cos(mc).clamp(KAPPA_MIN, KAPPA_MAX).ln(); MAX_LOBES],
             sl: [0.0; MAX_LOBES],
         };
         let mut obj = self.lm(&mut st, iters, SMOOTH_TOL_START);
@@ -1179,7 +1175,7 @@ mod tests {
             let g = sg_response(&l, lambda, h, true);
             // Midpoint quadrature of ∫ sg(m) exp(λ(h·m − 1)) dm on a fine equal-area grid.
             let grid = SphereGrid { res: 512 };
-            let norm = kappa / (2.0 * PI * -(-2.0 * kappa).exp_m1());
+            let norm = sg::normaliser(kappa);
             let q: f64 = (0..grid.bins())
                 .map(|b| {
                     let m = grid.point(b, 0.5, 0.5);
