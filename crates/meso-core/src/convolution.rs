@@ -666,6 +666,62 @@ pub struct SmithMasking<'a> {
     pub projected_area: f64,
     /// Use the closed forms of Beckmann and GGX NDFs (false: quadrature for every NDF).
     closed_form: bool,
+    /// The NDF is rotationally symmetric ([`Ndf::is_isotropic`]): projected areas by the 1-D
+    /// rule of [`isotropic_projected_area`].
+    isotropic: bool,
+}
+
+/// `∫_{z>0} n(m)(ω·m)⁺ dω_m` for an isotropic NDF `n` (a function of `θ_m` only) and `ω` with
+/// `cos θ = u`, as a 1-D integral over `θ_m ∈ [0, π/2]` of `n(θ_m) sin θ_m` times the closed-form
+/// azimuthal integral of the clamped cosine, `2π·(A acos(−A/B) + √(B² − A²))/π` with
+/// `A = u cos θ_m`, `B = sin θ sin θ_m` (`2πA` where `A ≥ B`). Gauss–Legendre (12 nodes) on 48
+/// intervals growing geometrically from `θ_m = 10⁻⁴` (so that lobes as sharp as η ≈ 10⁸ are
+/// resolved), split at the kink `θ_m = π/2 − θ`; relative error < 1e-9 on Phong peaks with
+/// η from 1 to 10⁶ (tested against the 2-D quadrature and closed forms).
+#[must_use]
+pub fn isotropic_projected_area(ndf: &Ndf, u: f64) -> f64 {
+    const INTERVALS: usize = 48;
+    const FIRST: f64 = 1e-4;
+    static GL: OnceLock<(Vec<f64>, Vec<f64>)> = OnceLock::new();
+    let (xs, ws) = GL.get_or_init(|| gauss_legendre(12));
+    let u = u.clamp(-1.0, 1.0);
+    let s = (1.0 - u * u).max(0.0).sqrt();
+    let kink = std::f64::consts::FRAC_PI_2 - u.acos();
+    let ratio = (std::f64::consts::FRAC_PI_2 / FIRST).powf(1.0 / INTERVALS as f64);
+    let mut sum = 0.0;
+    let mut a = 0.0;
+    for k in 0..=INTERVALS {
+        let b = if k == INTERVALS {
+            std::f64::consts::FRAC_PI_2
+        } else {
+            FIRST * ratio.powi(k as i32)
+        };
+        // Split the interval at the kink of the clamped cosine.
+        let cuts: &[f64] = if kink > a && kink < b {
+            &[kink, b]
+        } else {
+            &[b]
+        };
+        for &c in cuts {
+            let (half, mid) = (0.5 * (c - a), 0.5 * (c + a));
+            for (x, w) in xs.iter().zip(ws) {
+                let t = mid + half * x;
+                let (st, ct) = t.sin_cos();
+                let n = ndf.eval(DVec3::new(st, 0.0, ct));
+                let (aa, bb) = (u * ct, s * st);
+                let azimuthal = if aa >= bb {
+                    2.0 * PI * aa
+                } else if aa <= -bb {
+                    0.0
+                } else {
+                    2.0 * (aa * (-aa / bb).acos() + (bb * bb - aa * aa).sqrt())
+                };
+                sum += w * half * n * st * azimuthal;
+            }
+            a = c;
+        }
+    }
+    sum
 }
 
 impl<'a> SmithMasking<'a> {
@@ -684,10 +740,12 @@ impl<'a> SmithMasking<'a> {
     }
 
     fn with(ndf: &'a Ndf, accuracy: Accuracy, closed_form: bool) -> SmithMasking<'a> {
+        let isotropic = ndf.is_isotropic();
         let z = match ndf {
             Ndf::Deltas(d) => d.projected_area(),
             // `n = D/A` with `∫ D (m·z) dω = 1`: exactly `1/A`.
             Ndf::Microfacet(mf) if closed_form => 1.0 / mf.area_ratio(),
+            _ if isotropic => isotropic_projected_area(ndf, 1.0),
             _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
         };
         SmithMasking {
@@ -695,6 +753,7 @@ impl<'a> SmithMasking<'a> {
             accuracy,
             projected_area: z.max(1e-300),
             closed_form,
+            isotropic,
         }
     }
 
@@ -708,6 +767,19 @@ impl<'a> SmithMasking<'a> {
         if let (true, Ndf::Microfacet(mf)) = (self.closed_form, self.ndf) {
             return mf.lambda(w);
         }
+        (self.relative_projected_area(w) / w.z - 1.0).max(0.0)
+    }
+
+    /// The projected area of the microsurface towards `w` relative to its projected area
+    /// towards the normal, `a(ω) = ∫_{z>0} n(m)(ω·m)⁺ dω_m / ∫_{z>0} n(m)(m·z) dω_m`
+    /// (dimensionless; 1 at the normal for an NDF on the normal). Unlike `Λ = a/cos θ − 1` it is
+    /// smooth up to and across the horizon, which makes it the quantity to tabulate. By
+    /// quadrature for every NDF (the closed forms give `Λ` directly).
+    #[must_use]
+    pub fn relative_projected_area(&self, w: DVec3) -> f64 {
+        if self.isotropic {
+            return isotropic_projected_area(self.ndf, w.z) / self.projected_area;
+        }
         let [p] = integrate(self.ndf, self.accuracy, None, |m| {
             if m.z <= 0.0 {
                 [0.0]
@@ -715,7 +787,26 @@ impl<'a> SmithMasking<'a> {
                 [w.dot(m).max(0.0)]
             }
         });
-        (p / (self.projected_area * w.z) - 1.0).max(0.0)
+        p / self.projected_area
+    }
+
+    /// The mean facet normal over the upper hemisphere per unit projected area,
+    /// `c = ∫_{z>0} n(m) m dω_m / ∫_{z>0} n(m)(m·z) dω_m` (so `c_z = 1`): the linear part of
+    /// [`SmithMasking::relative_projected_area`], `a(ω) = ω·c` wherever no facet of the NDF faces
+    /// away from `ω`. `+z` for isotropic NDFs.
+    #[must_use]
+    pub fn mean_normal(&self) -> DVec3 {
+        if self.isotropic || matches!(self.ndf, Ndf::Microfacet(_)) && self.ndf.is_isotropic() {
+            return DVec3::Z;
+        }
+        let [x, y, _] = integrate(self.ndf, self.accuracy, None, |m| {
+            if m.z <= 0.0 {
+                [0.0; 3]
+            } else {
+                [m.x, m.y, m.z]
+            }
+        });
+        DVec3::new(x / self.projected_area, y / self.projected_area, 1.0)
     }
 
     /// Smith `G₁(ω) = 1/(1 + Λ(ω))`.

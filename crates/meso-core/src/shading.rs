@@ -1,15 +1,19 @@
-//! Fast evaluation of a material's effective BRDF for renderers and interactive previews.
+//! A material's compiled evaluation plan: its effective BRDF, fast, for `meso brdf`, renderers
+//! and interactive previews.
 //!
-//! [`FastBrdf::new`] compiles a [`Material`] into the cheapest evaluation that is exact or
-//! documented-approximate for it:
+//! [`FastBrdf::with_policy`] compiles a [`Material`] into the cheapest evaluation that is exact
+//! or documented-approximate for it under a [`Policy`]: [`Policy::Accurate`] (`meso brdf`,
+//! Python) keeps only the closed forms and the Λ table (≤ [`LAMBDA_TABLE_TOLERANCE`]),
+//! [`Policy::Interactive`] ([`FastBrdf::new`]: the renderer, the editor) takes every row:
 //!
 //! | material | evaluation | error |
 //! |---|---|---|
-//! | delta sum (multiple surface), Phong (N·H) facets | Eq. 4/11, flat f32 arrays of ≤ 8 lanes per chunk | f32 rounding |
+//! | delta sum (multiple surface), Phong (N·H) facets (interactive) | Eq. 4/11, flat f32 arrays of ≤ 8 lanes per chunk | f32 rounding |
 //! | delta sum, any other facet | Eq. 4, f64 | exact |
-//! | Phong peaks × Phong (N·H) facets, multiple-surface form | each lobe replaced by a fixed quadrature of weighted nodes (a dense multiple surface), then the f32 kernel; beyond [`MAX_NODES`] nodes the vMF closed form | < 1% (tested) / closed form: docs/benchmarks.md |
-//! | mirror facets (either form) | collapses onto `m = H`; Smith `Λ` tabulated once | table interpolation, < 1e-3 |
-//! | anything else | the Eq. 2/8 quadrature at [`Accuracy::fast`] | ~1e-3 |
+//! | Phong peaks × Phong (N·H) facets, multiple-surface form (interactive) | each lobe replaced by a fixed quadrature of weighted nodes (a dense multiple surface), then the f32 kernel; beyond [`MAX_NODES`] nodes the vMF closed form | < 1% (tested) / closed form: docs/benchmarks.md |
+//! | mirror facets under Beckmann / GGX (either form) | the closed-form microfacet BRDF | exact |
+//! | mirror facets under any other NDF (either form; fitted lobe sums) | collapses onto `m = H`; Smith `Λ` from a table of the projected area, built once (97 1-D integrals for an isotropic NDF, 97 × 64 quadratures otherwise) | < [`LAMBDA_TABLE_TOLERANCE`] of `G₂` (isotropic), < [`LAMBDA_TABLE_TOLERANCE_ANISOTROPIC`] (tested) |
+//! | anything else | the Eq. 2/8 quadrature, at [`Accuracy::fast`] when interactive | ~1e-3 / exact |
 //!
 //! The renderer calls it per shading point and light, so nothing here allocates per call.
 
@@ -19,6 +23,7 @@ use crate::material::{Material, ShadowingKind};
 use crate::ndf::{Ndf, PhongLobe};
 use crate::transfer::{PhongVariant, Transfer};
 use glam::DVec3;
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Lanes of the f32 delta-sum kernel.
@@ -55,55 +60,109 @@ impl Lambda {
     }
 }
 
-/// Smith Λ tabulated over the upper hemisphere in (cos θ, φ), bilinear.
+/// Smith Λ of an NDF without a closed form, from a table of the relative projected area
+/// `a(ω)` ([`SmithMasking::relative_projected_area`]) so that `Λ = a/cos θ − 1`: `a` is smooth
+/// up to the horizon where `Λ` is not. What is tabulated is its excess over its linear part,
+/// `r(ω) = a(ω) − ω·c` (`c` the [`SmithMasking::mean_normal`]), which is 0 wherever no facet
+/// faces away from `ω` (so the table is exact there) and ≥ 0 near grazing. Nodes at
+/// `cos θ = t²`, `t` uniform on `[0, 1]` (both ends included; dense near grazing, where a sharp
+/// NDF's `r` bends over a small angle), and uniform in φ unless the NDF is isotropic
+/// ([`Ndf::is_isotropic`]: one column, computed by the 1-D rule). Catmull–Rom in `t`, linear
+/// in φ. Error against the quadrature: [`LAMBDA_TABLE_TOLERANCE`] (tested on sharp and tilted
+/// lobes).
 #[derive(Clone, Debug, PartialEq)]
 struct LambdaTable {
-    n_u: usize,
+    /// The linear part `c` of `a(ω)`.
+    mean_normal: DVec3,
+    /// Rows in `t = √cos θ`.
+    n_t: usize,
+    /// Columns in φ (1 for an isotropic NDF).
     n_phi: usize,
+    /// `r(ω)` row-major, `n_t × n_phi`.
     values: Vec<f64>,
 }
 
-impl LambdaTable {
-    fn new(m: &SmithMasking<'_>) -> LambdaTable {
-        let (n_u, n_phi) = (48, 32);
-        let mut values = Vec::with_capacity(n_u * n_phi);
-        for a in 0..n_u {
-            // Nodes denser near grazing: u = cos θ = ((a + 0.5)/n_u)^2 …(keeps Λ smooth in u).
-            let u = Self::node_u(a, n_u);
-            for b in 0..n_phi {
-                let phi = 2.0 * PI * b as f64 / n_phi as f64;
-                let s = (1.0 - u * u).max(0.0).sqrt();
-                values.push(m.lambda(DVec3::new(s * phi.cos(), s * phi.sin(), u)));
-            }
-        }
-        LambdaTable { n_u, n_phi, values }
-    }
+/// Rows of [`LambdaTable`] in `t = √cos θ`.
+const LAMBDA_ROWS: usize = 97;
+/// Columns of [`LambdaTable`] in φ for an anisotropic NDF.
+const LAMBDA_COLUMNS: usize = 64;
 
-    fn node_u(a: usize, n: usize) -> f64 {
-        let t = (a as f64 + 0.5) / n as f64;
-        t.sqrt()
+/// The largest relative error of `G₂ = 1/(1 + Λ(i) + Λ(o))` from [`LambdaTable`] against the
+/// quadrature that the tests allow for an isotropic NDF (`meso fit`'s lobes on the normal;
+/// measured: docs/benchmarks.md "meso brdf").
+pub const LAMBDA_TABLE_TOLERANCE: f64 = 1e-4;
+
+/// [`LAMBDA_TABLE_TOLERANCE`] for an anisotropic NDF (tilted lobes): the 97 × 64 table's
+/// interpolation near grazing (measured 5e-3 at cos θ ≈ 0.02 on lobes tilted 10° and 25°).
+pub const LAMBDA_TABLE_TOLERANCE_ANISOTROPIC: f64 = 1e-2;
+
+impl LambdaTable {
+    fn new(m: &SmithMasking<'_>, isotropic: bool) -> LambdaTable {
+        let (n_t, n_phi) = (LAMBDA_ROWS, if isotropic { 1 } else { LAMBDA_COLUMNS });
+        let c = m.mean_normal();
+        let node = |k: usize| {
+            let (a, b) = (k / n_phi, k % n_phi);
+            let t = a as f64 / (n_t - 1) as f64;
+            let u = t * t;
+            let phi = 2.0 * PI * b as f64 / n_phi as f64;
+            let s = (1.0 - u * u).max(0.0).sqrt();
+            let w = DVec3::new(s * phi.cos(), s * phi.sin(), u);
+            m.relative_projected_area(w) - w.dot(c)
+        };
+        let values = (0..n_t * n_phi).into_par_iter().map(node).collect();
+        LambdaTable {
+            mean_normal: c,
+            n_t,
+            n_phi,
+            values,
+        }
     }
 
     fn lookup(&self, w: DVec3) -> f64 {
         if w.z <= 0.0 {
             return f64::INFINITY;
         }
-        let t = (w.z * w.z * self.n_u as f64 - 0.5).clamp(0.0, (self.n_u - 1) as f64);
-        let a0 = (t as usize).min(self.n_u - 2);
-        let fa = t - a0 as f64;
-        let mut phi = w.y.atan2(w.x);
-        if phi < 0.0 {
-            phi += 2.0 * PI;
-        }
-        let p = phi / (2.0 * PI) * self.n_phi as f64;
-        let b0 = (p as usize) % self.n_phi;
-        let b1 = (b0 + 1) % self.n_phi;
-        let fb = p - p.floor();
-        let v = |a: usize, b: usize| self.values[a * self.n_phi + b];
-        let l0 = v(a0, b0) * (1.0 - fb) + v(a0, b1) * fb;
-        let l1 = v(a0 + 1, b0) * (1.0 - fb) + v(a0 + 1, b1) * fb;
-        l0 * (1.0 - fa) + l1 * fa
+        let last = self.n_t - 1;
+        let ft = (w.z.min(1.0).sqrt() * last as f64).min(last as f64);
+        let a0 = (ft as usize).min(last - 1);
+        let ta = ft - a0 as f64;
+        // Catmull–Rom in t through rows a0 − 1 … a0 + 2, extended linearly past the ends.
+        let col = |b: usize| -> f64 {
+            let v = |a: usize| self.values[a * self.n_phi + b];
+            let (v1, v2) = (v(a0), v(a0 + 1));
+            let v0 = if a0 > 0 { v(a0 - 1) } else { 2.0 * v1 - v2 };
+            let v3 = if a0 + 2 <= last {
+                v(a0 + 2)
+            } else {
+                2.0 * v2 - v1
+            };
+            catmull_rom([v0, v1, v2, v3], ta)
+        };
+        let r = if self.n_phi == 1 {
+            col(0)
+        } else {
+            let mut phi = w.y.atan2(w.x);
+            if phi < 0.0 {
+                phi += 2.0 * PI;
+            }
+            let p = phi / (2.0 * PI) * self.n_phi as f64;
+            let b0 = (p as usize) % self.n_phi;
+            let b1 = (b0 + 1) % self.n_phi;
+            let tb = p - p.floor();
+            col(b0) * (1.0 - tb) + col(b1) * tb
+        };
+        ((r + w.dot(self.mean_normal)) / w.z - 1.0).max(0.0)
     }
+}
+
+/// The Catmull–Rom cubic through `v[0..4]` at `t ∈ [0, 1]` between `v[1]` and `v[2]`.
+#[inline]
+fn catmull_rom(v: [f64; 4], t: f64) -> f64 {
+    let (t2, t3) = (t * t, t * t * t);
+    0.5 * ((2.0 * v[1])
+        + (v[2] - v[0]) * t
+        + (2.0 * v[0] - 5.0 * v[1] + 4.0 * v[2] - v[3]) * t2
+        + (3.0 * v[1] - v[0] - 3.0 * v[2] + v[3]) * t3)
 }
 
 /// Pack weighted normals into f32 chunks of [`LANES`].
@@ -181,19 +240,45 @@ enum Kind {
     Quadrature,
 }
 
-/// A material compiled for fast repeated evaluation (see the module docs).
+/// What a compiled [`FastBrdf`] may trade for speed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Policy {
+    /// Only what keeps the result within [`LAMBDA_TABLE_TOLERANCE`] of [`Material::brdf`]
+    /// ([`LAMBDA_TABLE_TOLERANCE_ANISOTROPIC`] for anisotropic NDFs):
+    /// the closed-form microfacet BRDF of Beckmann / GGX, mirror facets collapsed at `H` with
+    /// Smith `Λ` tabulated once; every other material evaluated exactly as [`Material::brdf`]
+    /// does (its own quadrature accuracy, f64). `meso brdf`'s default and Python's
+    /// `Material.brdf`.
+    Accurate,
+    /// Renderers and interactive previews: [`Policy::Accurate`] plus the f32 kernel of delta
+    /// sums, Phong peaks under Phong facets by a node quadrature (< 1 %) or the vMF closed
+    /// form, and the quadrature at [`Accuracy::fast`] for the rest (~1e-3).
+    #[default]
+    Interactive,
+}
+
+/// A material compiled for fast repeated evaluation (see the module docs): meso-core's one
+/// evaluation plan of a material, used by `meso brdf`, the renderer, the editor and Python.
 #[derive(Clone, Debug)]
 pub struct FastBrdf {
     material: Material,
     kind: Kind,
     diffuse: [f64; 3],
+    policy: Policy,
 }
 
 impl FastBrdf {
-    /// Compile a material.
+    /// Compile a material for rendering ([`Policy::Interactive`]).
     #[must_use]
     pub fn new(material: &Material) -> FastBrdf {
+        Self::with_policy(material, Policy::Interactive)
+    }
+
+    /// Compile a material under a [`Policy`].
+    #[must_use]
+    pub fn with_policy(material: &Material, policy: Policy) -> FastBrdf {
         let mut material = material.clone();
+        let interactive = policy == Policy::Interactive;
         let kind = match (&material.ndf, &material.transfer, material.form) {
             (
                 Ndf::Deltas(d),
@@ -203,7 +288,7 @@ impl FastBrdf {
                     variant: PhongVariant::Half,
                 },
                 Form::MultipleSurface,
-            ) => {
+            ) if interactive => {
                 let nodes: Vec<(DVec3, f64)> =
                     d.normals().iter().map(|n| (n.normal, n.weight)).collect();
                 let chunks = chunk(&nodes);
@@ -222,7 +307,7 @@ impl FastBrdf {
                     variant: PhongVariant::Half,
                 },
                 Form::MultipleSurface,
-            ) => {
+            ) if interactive => {
                 let nodes = lobe_nodes(p.lobes(), *exponent);
                 if nodes.len() <= MAX_NODES {
                     Kind::DeltaPhong {
@@ -250,17 +335,19 @@ impl FastBrdf {
                 }
             }
             (ndf, Transfer::Mirror { .. }, form) => {
-                let sm = SmithMasking::new(ndf, Accuracy::default());
+                let sm = SmithMasking::new(ndf, material.accuracy);
                 let lambda = (form == Form::Microfacet
                     && material.shadowing == ShadowingKind::Smith)
-                    .then(|| Lambda::Table(LambdaTable::new(&sm)));
+                    .then(|| Lambda::Table(LambdaTable::new(&sm, ndf.is_isotropic())));
                 Kind::Mirror {
                     projected_area: sm.projected_area,
                     lambda,
                 }
             }
             _ => {
-                material.accuracy = Accuracy::fast();
+                if interactive {
+                    material.accuracy = Accuracy::fast();
+                }
                 Kind::Quadrature
             }
         };
@@ -268,6 +355,7 @@ impl FastBrdf {
             diffuse: material.diffuse,
             material,
             kind,
+            policy,
         }
     }
 
@@ -289,8 +377,24 @@ impl FastBrdf {
                 ..
             } => CLOSED_MICROFACET_PATH,
             Kind::Mirror { .. } => "mirror facets, collapsed at H",
-            Kind::Quadrature => "quadrature (fast)",
+            Kind::Quadrature => match self.policy {
+                Policy::Interactive => "quadrature (fast)",
+                Policy::Accurate => "quadrature (the material's accuracy)",
+            },
         }
+    }
+
+    /// The policy this was compiled under.
+    #[must_use]
+    pub fn policy(&self) -> Policy {
+        self.policy
+    }
+
+    /// True when every evaluation runs the Eq. 2/8 quadrature (no closed form, table or kernel
+    /// applies to the material): the slow case, which previews may want to replace.
+    #[must_use]
+    pub fn is_quadrature(&self) -> bool {
+        matches!(self.kind, Kind::Quadrature)
     }
 
     /// The effective BRDF (RGB, 1/sr, no cosine) for unit local directions; 0 below the surface.
@@ -411,6 +515,63 @@ mod tests {
                     exact[k]
                 );
             }
+        }
+    }
+
+    /// The accurate plan of fitted-like lobe sums (sharp lobes on the normal as `meso fit`
+    /// writes them, tilted and broad lobes, a vMF) under mirror facets with Smith: within
+    /// [`LAMBDA_TABLE_TOLERANCE`] of the exact material over 4000 random pairs, grazing ones
+    /// included.
+    #[test]
+    fn accurate_plan_of_lobe_sums_is_within_its_tolerance() {
+        let lobes = [
+            "{ axis = [0.0, 0.0], weight = 0.28, exponent = 1069.0 }, { axis = [0.0, 0.0], weight = 0.35, exponent = 13407.0 }, { axis = [0.0, 0.0], weight = 0.37, exponent = 149082.0 }",
+            "{ axis = [0.0, 0.0], weight = 0.5, exponent = 12.0 }, { axis = [0.0, 0.0], weight = 0.5, exponent = 300.0 }",
+            "{ axis = [25.0, 40.0], weight = 0.6, exponent = 60.0 }, { axis = [10.0, 200.0], weight = 0.4, exponent = 2000.0 }",
+        ];
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = move || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for l in lobes {
+            let toml = format!(
+                "form = \"microfacet\"\n[ndf]\nkind = \"phong-peaks\"\nlobes = [{l}]\n[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\nf0 = [0.9, 0.5, 0.1]\n[diffuse]\nalbedo = [0.01, 0.02, 0.03]\n"
+            );
+            let m = Material::from_toml_str(&toml).unwrap();
+            let plan = FastBrdf::with_policy(&m, Policy::Accurate);
+            assert!(
+                plan.path().starts_with("mirror facets, collapsed"),
+                "{}",
+                plan.path()
+            );
+            let mut worst = 0.0f64;
+            for _ in 0..4000 {
+                let mut dir = || {
+                    let (u, v) = (uniform(), uniform());
+                    let s = (1.0 - u * u).sqrt();
+                    DVec3::new(s * (2.0 * PI * v).cos(), s * (2.0 * PI * v).sin(), u)
+                };
+                let (i, o) = (dir(), dir());
+                let (exact, fast) = (m.brdf(i, o), plan.eval(i, o));
+                for c in 0..3 {
+                    let spec = exact[c] - m.diffuse[c] / PI;
+                    if spec > 1e-9 {
+                        worst = worst.max((fast[c] - exact[c]).abs() / spec);
+                    }
+                }
+            }
+            let tol = if m.ndf.is_isotropic() {
+                LAMBDA_TABLE_TOLERANCE
+            } else {
+                LAMBDA_TABLE_TOLERANCE_ANISOTROPIC
+            };
+            eprintln!(
+                "{l}: worst relative error of the specular part {worst:.2e} (allowed {tol:.0e})"
+            );
+            assert!(worst <= tol, "{l}: worst relative error {worst:.2e}");
         }
     }
 

@@ -3,7 +3,8 @@
 
 use glam::DVec3;
 use meso_core::convolution::{
-    effective_brdf, integrate, phong_closed_form, Accuracy, Form, SmithMasking,
+    effective_brdf, integrate, isotropic_projected_area, phong_closed_form, Accuracy, Form,
+    SmithMasking,
 };
 use meso_core::frame::{half_vector, spherical_direction_deg, Frame};
 use meso_core::material::Material;
@@ -283,6 +284,69 @@ fn smith_lambda_of_tabulated_beckmann_matches_closed_form() {
         assert!(
             (num - exact).abs() < 2e-3 * (1.0 + exact),
             "θ={theta}: {num} vs {exact}"
+        );
+    }
+}
+
+/// The 1-D projected area of isotropic NDFs (the Smith Λ of fitted lobe sums) against the
+/// closed-form Λ of Beckmann and GGX up to 89.9°, and against the 2-D quadrature for Phong peaks
+/// from broad to very sharp.
+#[test]
+fn isotropic_projected_area_matches_closed_forms_and_the_2d_quadrature() {
+    for (dist, alpha) in [
+        (Distribution::Beckmann, 0.05),
+        (Distribution::Beckmann, 0.5),
+        (Distribution::Ggx, 0.08),
+        (Distribution::Ggx, 0.6),
+    ] {
+        let mf = Microfacet::isotropic(dist, alpha).unwrap();
+        let ndf = Ndf::Microfacet(mf);
+        let p = isotropic_projected_area(&ndf, 1.0);
+        assert!(
+            (p * mf.area_ratio() - 1.0).abs() < 1e-9,
+            "{dist:?} {alpha}: P = {p}"
+        );
+        for theta in [0.0, 30.0, 60.0, 80.0, 85.0, 89.0, 89.9] {
+            let w = spherical_direction_deg(theta, 0.0);
+            let lambda = isotropic_projected_area(&ndf, w.z) / (p * w.z) - 1.0;
+            let exact = mf.lambda(w);
+            assert!(
+                (lambda - exact).abs() < 1e-7 * (1.0 + exact),
+                "{dist:?} α {alpha} θ {theta}: {lambda} vs {exact}"
+            );
+        }
+    }
+    for eta in [1.0, 40.0, 1e3, 1e5] {
+        let ndf =
+            Ndf::PhongPeaks(PhongPeaks::new(vec![PhongLobe::new(DVec3::Z, 1.0, eta)]).unwrap());
+        for theta in [0.0, 45.0, 75.0, 88.0] {
+            let w = spherical_direction_deg(theta, 0.0);
+            // Broad lobes: brute force on the hemisphere (the warped rule loses accuracy at
+            // the horizon they cross); sharp ones: the lobe-warped rule.
+            let q = if eta < 100.0 {
+                integrate_hemisphere(|m| ndf.eval(m) * w.dot(m).max(0.0), 600, 600)
+            } else {
+                integrate(&ndf, Accuracy::fine(), None, |m| {
+                    [if m.z > 0.0 { w.dot(m).max(0.0) } else { 0.0 }]
+                })[0]
+            };
+            let p = isotropic_projected_area(&ndf, w.z);
+            assert!(
+                (p - q).abs() < 3e-4 * q.max(1e-3),
+                "η {eta} θ {theta}: 1-D {p} vs 2-D {q}"
+            );
+        }
+        // Towards the normal, in closed form (a = η/2):
+        // P↑ = (η+2)/2 · [2(1 − 2^−(a+2))/(a+2) − (1 − 2^−(a+1))/(a+1)].
+        let a = 0.5 * eta;
+        let closed = 0.5
+            * (eta + 2.0)
+            * (2.0 * (1.0 - 2f64.powf(-(a + 2.0))) / (a + 2.0)
+                - (1.0 - 2f64.powf(-(a + 1.0))) / (a + 1.0));
+        let p = isotropic_projected_area(&ndf, 1.0);
+        assert!(
+            (p - closed).abs() < 1e-9 * closed,
+            "η {eta}: {p} vs closed form {closed}"
         );
     }
 }

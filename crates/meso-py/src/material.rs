@@ -6,11 +6,12 @@ use crate::arrays::{array_n, array_n3, directions, flat, rows, same_rows, unit_r
 use crate::error::{meso_err, require_exists, value_err};
 use glam::DVec3;
 use meso_core::material::{Material as CoreMaterial, MaterialSpec};
+use meso_core::shading::{FastBrdf, Policy};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// `(directions (N, 3), densities (N,))` of [`Material::sample`].
 type Sampled<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>);
@@ -26,6 +27,8 @@ pub struct Material {
     pub(crate) inner: Arc<CoreMaterial>,
     /// The TOML text it was built from.
     toml: String,
+    /// The compiled plan of `meso brdf` ([`Policy::Accurate`]), built on first use.
+    plan: OnceLock<FastBrdf>,
 }
 
 fn build(text: &str, dir: &Path, label: Option<&Path>) -> PyResult<CoreMaterial> {
@@ -75,6 +78,7 @@ impl Material {
         Ok(Material {
             inner: Arc::new(build(text, &dir, None)?),
             toml: text.to_owned(),
+            plan: OnceLock::new(),
         })
     }
 
@@ -88,6 +92,7 @@ impl Material {
         Ok(Material {
             inner: Arc::new(build(&text, &dir, Some(&path))?),
             toml: text,
+            plan: OnceLock::new(),
         })
     }
 
@@ -142,12 +147,15 @@ impl Material {
     /// The effective BRDF at direction pairs: `wi` (towards the light) and `wo` (towards the
     /// viewer) are `(N, 3)` float64 arrays of directions in the local frame (normal +z; rows are
     /// normalised); returns `(N, 3)` RGB values in 1/sr, without the cosine, 0 where either
-    /// direction is below the surface. The same numbers as `meso brdf`.
+    /// direction is below the surface. The same numbers as `meso brdf`: the material's compiled
+    /// plan, or with `exact=True` the quadrature of every pair (`meso brdf --exact`).
+    #[pyo3(signature = (wi, wo, exact = false))]
     fn brdf<'py>(
         &self,
         py: Python<'py>,
         wi: Arr<'py>,
         wo: Arr<'py>,
+        exact: bool,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let i = flat("wi", &wi, 3)?;
         let o = flat("wo", &wo, 3)?;
@@ -161,6 +169,12 @@ impl Material {
         let mut rw = out.readwrite();
         let dst = rw.as_slice_mut().map_err(meso_err)?;
         let m = &*self.inner;
+        let plan = (!exact).then(|| {
+            py.detach(|| {
+                self.plan
+                    .get_or_init(|| FastBrdf::with_policy(m, Policy::Accurate))
+            })
+        });
         let (i, o) = (&*i, &*o);
         py.detach(|| {
             dst.par_chunks_mut(3 * CHUNK)
@@ -168,7 +182,11 @@ impl Material {
                 .try_for_each(|(c, chunk)| {
                     for (k, slot) in chunk.chunks_exact_mut(3).enumerate() {
                         let row = c * CHUNK + k;
-                        let f = m.brdf(unit_row("wi", i, row)?, unit_row("wo", o, row)?);
+                        let (wi, wo) = (unit_row("wi", i, row)?, unit_row("wo", o, row)?);
+                        let f = match plan {
+                            Some(p) => p.eval(wi, wo),
+                            None => m.brdf(wi, wo),
+                        };
                         slot.copy_from_slice(&f);
                     }
                     Ok::<(), String>(())

@@ -321,7 +321,7 @@ pub fn preview_brdf(material: &Material) -> (PreviewBrdf, String) {
         );
     }
     let fast = FastBrdf::new(material);
-    if !fast.path().starts_with("quadrature") || material.ndf.is_singular() {
+    if !fast.is_quadrature() || material.ndf.is_singular() {
         let p = fast.path().to_owned();
         return (PreviewBrdf::Fast(Box::new(fast)), p);
     }

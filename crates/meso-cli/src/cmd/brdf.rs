@@ -1,7 +1,10 @@
-//! `meso brdf MATERIAL --pairs PAIRS.csv [--out OUT.csv]` — evaluate a material's effective BRDF.
+//! `meso brdf MATERIAL --pairs PAIRS.csv [--out OUT.csv] [--exact]` — evaluate a material's
+//! effective BRDF (its compiled plan, [`meso_core::shading::Policy::Accurate`], or with `--exact`
+//! the quadrature of every pair).
 
 use anyhow::{Context, Result};
 use meso_core::pairs::parse_pairs;
+use meso_core::shading::{FastBrdf, Policy};
 use std::path::PathBuf;
 
 /// Evaluate the effective BRDF of a material at direction pairs.
@@ -19,6 +22,12 @@ pub struct Args {
     /// Output CSV; standard output when absent.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
+    /// Evaluate every pair by the material's own quadrature (Eq. 2/8) instead of its compiled
+    /// plan. The plan differs only where it tabulates Smith Λ (mirror facets under an NDF
+    /// without a closed form, e.g. fitted lobe sums): < 1e-4 relative for isotropic NDFs,
+    /// < 1e-2 otherwise (docs/benchmarks.md "meso brdf").
+    #[arg(long)]
+    pub exact: bool,
 }
 
 /// Run the command.
@@ -30,7 +39,12 @@ pub fn run(a: Args) -> Result<()> {
     let text = crate::read_text(&a.pairs, 1 << 30)?;
     let pairs = parse_pairs(&text).with_context(|| format!("{}", a.pairs.display()))?;
     let bar = crate::progress(pairs.len() as u64, "brdf");
-    let values = crate::par_map_progress(&pairs, &bar, |p| material.brdf(p.i, p.o));
+    let values = if a.exact {
+        crate::par_map_progress(&pairs, &bar, |p| material.brdf(p.i, p.o))
+    } else {
+        let plan = FastBrdf::with_policy(&material, Policy::Accurate);
+        crate::par_map_progress(&pairs, &bar, |p| plan.eval(p.i, p.o))
+    };
     bar.finish_and_clear();
     crate::util::write_brdf_table(a.out.as_deref(), &pairs, &values)
 }

@@ -87,6 +87,21 @@ impl Ndf {
         matches!(self, Ndf::Deltas(_) | Ndf::Cylinder(_))
     }
 
+    /// True when the NDF is known to be rotationally symmetric about the surface normal (+z):
+    /// Phong peaks and vMF lobes whose axes are +z, isotropic Beckmann / GGX, the sphere.
+    /// False means "not known": other NDFs may still happen to be isotropic.
+    #[must_use]
+    pub fn is_isotropic(&self) -> bool {
+        let on_normal = |a: DVec3| a.x == 0.0 && a.y == 0.0 && a.z > 0.0;
+        match self {
+            Ndf::PhongPeaks(p) => p.lobes().iter().all(|l| on_normal(l.axis)),
+            Ndf::VonMisesFisher(v) => on_normal(v.mu),
+            Ndf::Microfacet(m) => m.alpha_x == m.alpha_y,
+            Ndf::Sphere(_) => true,
+            Ndf::Deltas(_) | Ndf::Harmonics(_) | Ndf::Tabulated(_) | Ndf::Cylinder(_) => false,
+        }
+    }
+
     /// The density `n(m)` in 1/sr at the unit direction `m` (0 for singular NDFs).
     #[must_use]
     pub fn eval(&self, m: DVec3) -> f64 {

@@ -33,8 +33,9 @@ class Material:
     def form(self) -> str: ...
     @property
     def ndf(self) -> Ndf: ...
-    def brdf(self, wi: _Array, wo: _Array) -> npt.NDArray[np.float64]:
-        """(N, 3) RGB BRDF values in 1/sr at (N, 3) direction pairs; the numbers of ``meso brdf``."""
+    def brdf(self, wi: _Array, wo: _Array, exact: bool = False) -> npt.NDArray[np.float64]:
+        """(N, 3) RGB BRDF values in 1/sr at (N, 3) direction pairs; the numbers of ``meso brdf``
+        (its compiled plan; ``exact=True``: the quadrature of every pair, ``meso brdf --exact``)."""
     def sample(self, wo: _Array, u: _Array) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Directions towards the light (N, 3) and their densities (N,) in 1/sr, for viewer
         directions ``wo`` (N, 3) and uniform numbers ``u`` (N, 3); declined draws have pdf 0."""
