@@ -1,6 +1,7 @@
 //! `meso export MAP --out DIR [--alpha A | --roughness-map R] [--base-color C]` — engine-ready
 //! maps: fitted GGX roughness and normal mip chains as KTX2 (plus a PNG per level) and a glTF
-//! 2.0 preview asset (docs/export.md).
+//! 2.0 preview asset (docs/export.md). `--lobes PYRAMID.map` adds the pyramid's lobes as
+//! textures with the WGSL and GLSL functions that evaluate them (`meso_export::lobes`).
 
 use anyhow::{bail, Context, Result};
 use meso_export::export::{self, Inputs, Roughness};
@@ -46,6 +47,11 @@ pub struct Args {
     /// Base colour image (sRGB) for the glTF material; a constant grey without it.
     #[arg(long)]
     pub base_color: Option<PathBuf>,
+    /// A lobe pyramid (`.map` file of `meso extract`) of the same map: also write its lobes
+    /// as `lobes<k>_mip<l>.png` (RGBA16, one per lobe slot and level) and the shader functions
+    /// `meso_lobes.wgsl` and `meso_lobes.glsl` that evaluate them (docs/export.md).
+    #[arg(long)]
+    pub lobes: Option<PathBuf>,
 }
 
 /// Run the command.
@@ -97,7 +103,28 @@ pub fn run(a: Args) -> Result<()> {
         inputs.base_color = Some(bc);
     }
     inputs.metallic = a.metallic;
-    let ex = export::build(&inputs).with_context(|| a.map.display().to_string())?;
+    let mut ex = export::build(&inputs).with_context(|| a.map.display().to_string())?;
+    if let Some(p) = &a.lobes {
+        let pyr = meso_maps::Pyramid::read(p)?;
+        if (pyr.width, pyr.height) != (inputs.width, inputs.height) {
+            bail!(
+                "{}: the lobe pyramid is {} × {}, the map {} × {}",
+                p.display(),
+                pyr.width,
+                pyr.height,
+                inputs.width,
+                inputs.height
+            );
+        }
+        let tex = meso_export::lobes::pack(&pyr);
+        ex.files.extend(meso_export::lobes::files(&tex)?);
+        eprintln!(
+            "{}: {} lobe slots × {} levels",
+            p.display(),
+            tex.k,
+            tex.levels.len()
+        );
+    }
     let files = export::write(&ex, &a.out)?;
     println!("level  size        mean α   fit error % of peak (mean / max)   standard mip %");
     for s in &ex.stats {
