@@ -40,7 +40,7 @@
 //! | lobes | median | 95th pct. | max |
 //! | --- | --- | --- | --- |
 //! | 9 synthetic sets, η ∈ [20, 10⁴], axes up to 60° off the normal, 1–3 lobes | 0.12 % | 2.1 % | 3.0 % |
-//! | 8 fitted texels (3 lobes, η 17–660) of a rough height map | 0.05 % | 0.96 % | 4.4 % |
+//! | 7 fitted texels (3 lobes, η 17–660) of a rough height map | 0.03 % | 0.95 % | 4.4 % |
 //! | broad lobes η = 0 and η = 2 | 16 % | 38 % | 41 % |
 //!
 //! The large errors of broad lobes come from the masking: the exact `Λ` counts only facets above
