@@ -17,13 +17,14 @@
 //! | [`kappa_same_integral`] | `(η+2)/4` | the peak's integral `8π/(η+2)` equals the Gaussian's `2π/κ` (so the normalised peak heights agree) | [`crate::convolution::phong_closed_form`], `meso-measured`'s lobe model and its Jacobian (`meso_measured::model::vmf`) |
 //! | [`kappa_transfer`] | `η+1` | the facet term `max(0, m·h)^η`'s integral `2π/(η+1)` equals the Gaussian's `2π/κ` | the same closed form, and `meso-render`'s `NdfMapped` under Phong facets |
 //! | [`kappa_same_mean_cos`] | `A⁻¹(η/(η+4))` | the peak's mean cosine to its axis `η/(η+4)` (so its projected area and spread) | `meso-render`'s `NdfMapped` texel lobes (whose projected area `E[m_z⁺]` normalises each lobe), `meso-maps`' smoothed refinement (which maps back with [`eta_same_mean_cos`]) |
-//! | [`kappa_same_curvature`] | `η/4` | equal to second order at the peak: the same small-angle variance `E[α²] ≈ 8/η` (slope variance) | the sampling warps of [`crate::convolution`] and `meso-maps`' vMF baseline (`η = 4κ`, the reverse direction) |
+//! | [`kappa_same_curvature`] (inverse [`eta_same_curvature`]) | `η/4` | equal to second order at the peak: the same small-angle variance `E[α²] ≈ 8/η` (slope variance) | the sampling warps of [`crate::convolution`] and `meso-maps`' vMF baseline (`η = 4κ`, the reverse direction) |
 //!
-//! Why the first two differ from the third: the closed form of Eq. 2 is dominated by the height
-//! of the product of the two lobes at its peak, which the integral-preserving κ gets right for
-//! sharp lobes (and `meso-measured` fits exponents through it, so changing it would change every
-//! fitted material); `NdfMapped` and the smoothed fit need the lobe's spread (its projected area
-//! and mean normal), which the mean cosine fixes. For sharp lobes all four agree to `O(1/η)`.
+//! Why the closed form and `NdfMapped` map the same NDF peak differently: the closed form of
+//! Eq. 2 is dominated by the height of the product of the two lobes at its peak, which the
+//! integral-preserving κ gets right for sharp lobes (and `meso-measured` fits exponents through
+//! it, so changing it would change every fitted material); `NdfMapped` and the smoothed fit need
+//! the lobe's spread (its projected area and mean normal), which the mean cosine fixes. For a
+//! sharp peak the three NDF mappings, `(η+2)/4`, `≈ (η+4)/4` and `η/4`, agree to `O(1/η)`.
 
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -294,6 +295,14 @@ pub fn kappa_same_curvature(eta: f64) -> f64 {
     0.25 * eta
 }
 
+/// The Phong exponent `η = 4κ` matching the lobe of concentration κ to second order at its axis:
+/// the inverse of [`kappa_same_curvature`] (the direction the warps and the vMF baseline need).
+#[inline]
+#[must_use]
+pub fn eta_same_curvature(kappa: f64) -> f64 {
+    4.0 * kappa
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -522,6 +531,7 @@ mod tests {
                 (phong / sg - 1.0).abs() < 1e-5,
                 "η = {eta}: {phong} vs {sg}"
             );
+            assert_eq!(eta_same_curvature(k), eta);
         }
         // The small-angle variance E[α²] of the two agrees for a sharp lobe.
         let eta = 1e5;
