@@ -1,5 +1,6 @@
 // K lobes in a shader, executed: the shipped GLSL (crates/meso-export/shaders/meso_lobes.glsl)
-// runs in WebGL 2 (headless Chromium, SwiftShader) on the cases of meso-export's example
+// runs in WebGL 2 and the shipped WGSL (meso_lobes.wgsl) in a WebGPU compute shader (headless
+// Chromium, SwiftShader for both) on the cases of meso-export's example
 // `lobe_cases` (lobe texels, wi, wo, f0) and must give the CPU reference `meso_export::lobes::
 // eval_texel` that the example wrote beside them: relative error ≤ 2e-3 (f32 against f64) with an
 // absolute floor of 1e-5 / sr. Results in artifacts/lobes_results.json.
@@ -16,6 +17,7 @@ const root = path.resolve(here, '../..');
 const art = path.join(here, 'artifacts');
 const casesFile = path.join(art, 'lobe_cases.json');
 const glsl = fs.readFileSync(path.join(root, 'crates/meso-export/shaders/meso_lobes.glsl'), 'utf8');
+const wgsl = fs.readFileSync(path.join(root, 'crates/meso-export/shaders/meso_lobes.wgsl'), 'utf8');
 
 let browser, page, cases;
 
@@ -28,11 +30,13 @@ before(async () => {
     executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
     headless: true,
     args: ['--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-      '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+      '--enable-unsafe-webgpu', '--enable-features=Vulkan', '--use-webgpu-adapter=swiftshader', '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
   });
   page = await browser.newPage();
   page.on('pageerror', (e) => console.error('page error:', e));
-  await page.setContent('<!doctype html><canvas id="c" width="1" height="1"></canvas>');
+  // http://localhost is a secure context (WebGPU needs one); nothing leaves the browser.
+  await page.route('http://localhost/**', (route) => route.fulfill({ contentType: 'text/html', body: '<!doctype html><canvas id="c" width="1" height="1"></canvas>' }));
+  await page.goto('http://localhost/');
 });
 
 after(async () => { if (browser) await browser.close(); });
@@ -93,13 +97,92 @@ void main() {
   return { renderer: gl.getParameter(dbg ? dbg.UNMASKED_RENDERER_WEBGL : gl.RENDERER), values: Array.from(px) };
 }
 
-test('the GLSL lobe function in WebGL 2 matches the CPU reference', async () => {
-  const { k } = cases;
+// In the page: the WGSL in a compute shader, one invocation per case, same data layout.
+async function runWgslInPage({ wgsl, k, rows }) {
+  if (!navigator.gpu) return { error: 'no navigator.gpu' };
+  const adapter = await navigator.gpu.requestAdapter();
+  if (!adapter) return { error: 'no WebGPU adapter' };
+  const device = await adapter.requestDevice();
+  const n = rows.length / ((k + 3) * 4);
+  const code = `${wgsl}
+@group(0) @binding(0) var<storage, read> data: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read_write> outv: array<vec4<f32>>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+  let i = id.x;
+  if (i >= ${n}u) { return; }
+  let b = i * ${k + 3}u;
+  let wi = data[b + ${k}u].xyz;
+  let wo = data[b + ${k + 1}u].xyz;
+  var s = vec4<f32>(0.0);
+  for (var j = 0u; j < ${k}u; j++) { s = meso_lobe_add(data[b + j], wi, wo, s); }
+  outv[i] = vec4<f32>(meso_lobes_finish(s, wi, wo, data[b + ${k + 2}u].xyz), 1.0);
+}`;
+  device.pushErrorScope('validation');
+  const module = device.createShaderModule({ code });
+  const info = await module.getCompilationInfo();
+  const errs = info.messages.filter((m) => m.type === 'error');
+  if (errs.length) return { error: errs.map((m) => `${m.lineNum}:${m.linePos} ${m.message}`).join('; ') };
+  const pipeline = device.createComputePipeline({ layout: 'auto', compute: { module, entryPoint: 'main' } });
+  const input = device.createBuffer({ size: rows.length * 4, usage: GPUBufferUsage.STORAGE, mappedAtCreation: true });
+  new Float32Array(input.getMappedRange()).set(rows);
+  input.unmap();
+  const output = device.createBuffer({ size: n * 16, usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_SRC });
+  const read = device.createBuffer({ size: n * 16, usage: GPUBufferUsage.MAP_READ | GPUBufferUsage.COPY_DST });
+  const bind = device.createBindGroup({ layout: pipeline.getBindGroupLayout(0), entries: [
+    { binding: 0, resource: { buffer: input } }, { binding: 1, resource: { buffer: output } }] });
+  const enc = device.createCommandEncoder();
+  const pass = enc.beginComputePass();
+  pass.setPipeline(pipeline);
+  pass.setBindGroup(0, bind);
+  pass.dispatchWorkgroups(Math.ceil(n / 64));
+  pass.end();
+  enc.copyBufferToBuffer(output, 0, read, 0, n * 16);
+  device.queue.submit([enc.finish()]);
+  const err = await device.popErrorScope();
+  if (err) return { error: err.message };
+  await read.mapAsync(GPUMapMode.READ);
+  const values = Array.from(new Float32Array(read.getMappedRange()));
+  const ai = adapter.info || {};
+  return { renderer: `WebGPU ${ai.vendor || ''} ${ai.architecture || ''}`.trim(), values };
+}
+
+function caseRows() {
   const rows = [];
   for (const c of cases.cases) {
     for (const t of c.texels) rows.push(...t);
     rows.push(...c.wi, 0, ...c.wo, 0, ...c.f0, 0);
   }
+  return rows;
+}
+
+test('the WGSL lobe function in WebGPU matches the CPU reference', async () => {
+  const { k } = cases;
+  const r = await page.evaluate(runWgslInPage, { wgsl, k, rows: caseRows() });
+  assert.ok(!r.error, r.error);
+  let worst = 0, worstAt = -1;
+  cases.cases.forEach((c, i) => {
+    for (let ch = 0; ch < 3; ch++) {
+      const got = r.values[4 * i + ch], want = c.f[ch];
+      assert.ok(Number.isFinite(got), `case ${i}: ${got}`);
+      const e = Math.abs(got - want) / Math.max(Math.abs(want), 1e-5 / 2e-3);
+      if (e > worst) { worst = e; worstAt = i; }
+    }
+  });
+  fs.writeFileSync(path.join(art, 'lobes_wgsl_results.json'), JSON.stringify({ renderer: r.renderer, cases: cases.cases.length, k, worstRelative: worst, worstCase: cases.cases[worstAt] ?? null }, null, 1));
+  console.log(`# ${r.renderer}: WGSL, ${cases.cases.length} cases, worst relative error ${worst.toExponential(2)}`);
+  assert.ok(worst <= 2e-3, `worst relative error ${worst} at case ${worstAt}`);
+  // The check can fail: the same wrong normalisation is caught.
+  const c = cases.cases.find((x) => x.f[1] > 1e-3);
+  const rows = [...c.texels.flat(), ...c.wi, 0, ...c.wo, 0, ...c.f0, 0];
+  const b = await page.evaluate(runWgslInPage, { wgsl: wgsl.replace('(8.0 * MESO_PI)', '(4.0 * MESO_PI)'), k, rows });
+  assert.ok(!b.error, b.error);
+  assert.ok(Math.abs(b.values[1] / c.f[1] - 2) < 1e-2, `broken WGSL gave ${b.values[1]} for ${c.f[1]}`);
+});
+
+test('the GLSL lobe function in WebGL 2 matches the CPU reference', async () => {
+  const { k } = cases;
+  const rows = caseRows();
   const r = await page.evaluate(runInPage, { glsl, k, rows });
   assert.ok(!r.error, r.error);
   let worst = 0, worstAt = -1, nonzero = 0;

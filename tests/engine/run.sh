@@ -3,8 +3,8 @@
 # renders the exported normal + roughness mip chains and the original normal map with standard mips,
 # against meso's supersampled bump-mapped render (docs/engine.md). Installs what is missing, builds the
 # meso binary (release: the reference renders take 1024 spp), runs engine.test.mjs with node's test
-# runner, and lobes.test.mjs (meso-export's GLSL lobe function run in WebGL 2 against its CPU
-# reference). Inputs, renders and results.json land in tests/engine/artifacts/; ENGINE_FIGURES=DIR also
+# runner, and lobes.test.mjs (meso-export's GLSL lobe function run in WebGL 2 and its WGSL in
+# WebGPU, against the CPU reference). Inputs, renders and results.json land in tests/engine/artifacts/; ENGINE_FIGURES=DIR also
 # writes the pictures. Last line: `e2e: N passed, M failed` (summed by scripts/test.sh).
 set -uo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
