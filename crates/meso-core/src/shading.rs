@@ -90,7 +90,7 @@ const LAMBDA_COLUMNS: usize = 64;
 /// The largest relative error of `G₂ = 1/(1 + Λ(i) + Λ(o))` from [`LambdaTable`] against the
 /// quadrature that the tests allow for an isotropic NDF (`meso fit`'s lobes on the normal;
 /// measured: docs/benchmarks.md "meso brdf").
-pub const LAMBDA_TABLE_TOLERANCE: f64 = 1e-4;
+pub const LAMBDA_TABLE_TOLERANCE: f64 = 2e-4;
 
 /// [`LAMBDA_TABLE_TOLERANCE`] for an anisotropic NDF (tilted lobes): the 97 × 64 table's
 /// interpolation near grazing (measured 5e-3 at cos θ ≈ 0.02 on lobes tilted 10° and 25°).

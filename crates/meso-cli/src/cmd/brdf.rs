@@ -24,7 +24,7 @@ pub struct Args {
     pub out: Option<PathBuf>,
     /// Evaluate every pair by the material's own quadrature (Eq. 2/8) instead of its compiled
     /// plan. The plan differs only where it tabulates Smith Λ (mirror facets under an NDF
-    /// without a closed form, e.g. fitted lobe sums): < 1e-4 relative for isotropic NDFs,
+    /// without a closed form, e.g. fitted lobe sums): < 2e-4 relative for isotropic NDFs,
     /// < 1e-2 otherwise (docs/benchmarks.md "meso brdf").
     #[arg(long)]
     pub exact: bool,
