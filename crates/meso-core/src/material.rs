@@ -14,8 +14,8 @@ use crate::convolution::{effective_brdf_with, Accuracy, Form, Visibility};
 use crate::display::Num;
 use crate::frame::spherical_direction_deg;
 use crate::ndf::{
-    Cylinder, DeltaSum, Distribution, Harmonics, Microfacet, Ndf, PhongLobe, PhongPeaks, Sphere,
-    Tabulated, VonMisesFisher, WeightedNormal,
+    Cylinder, DeltaSum, Distribution, Harmonics, Microfacet, Ndf, PhongLobe, PhongPeaks, Radial,
+    Sphere, Tabulated, VonMisesFisher, WeightedNormal,
 };
 use crate::transfer::{Fresnel, PhongVariant, Transfer};
 use glam::DVec3;
@@ -620,10 +620,20 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
                 }
             }
         }
+        "radial" => {
+            let theta = f
+                .array("theta", 0)?
+                .ok_or_else(|| MaterialError(format!("{name}: missing `theta` (degrees)")))?;
+            let density = f
+                .array("density", 0)?
+                .ok_or_else(|| MaterialError(format!("{name}: missing `density` (1/sr)")))?;
+            let theta = theta.into_iter().map(f64::to_radians).collect();
+            Ndf::Radial(Radial::new(theta, density).map_err(ndf_err)?)
+        }
         other => {
             return err(format!(
                 "{name} kind: unknown NDF kind \"{other}\" (known: phong-peaks, deltas, sphere, \
-                 cylinder, vmf, beckmann, ggx, harmonics, tabulated, heightmap, map)"
+                 cylinder, vmf, beckmann, ggx, harmonics, tabulated, radial, heightmap, map)"
             ))
         }
     };

@@ -13,6 +13,7 @@
 //! | [`Ndf::Cylinder`] | Eq. 15 | δ(m·a)/(2π) (singular, a great circle) | uniform on the circle |
 //! | [`Ndf::VonMisesFisher`] | — | κ e^{κ(μ·m−1)} / (2π(1−e^{−2κ})) | exact |
 //! | [`Ndf::Microfacet`] | — | Beckmann / GGX `D(m)/A` | `D(m)(m·z)` |
+//! | [`Ndf::Radial`] | §3.3 | isotropic, linear in `θ_m` between nodes (non-parametric, measured) | band means |
 //!
 //! For the relation to the microfacet convention `∫ D(m)(m·z) dω = 1` see [`microfacet`].
 
@@ -21,6 +22,7 @@ pub mod delta;
 pub mod harmonics;
 pub mod microfacet;
 pub mod phong;
+pub mod radial;
 pub mod tabulated;
 pub mod vmf;
 
@@ -29,6 +31,7 @@ pub use delta::{DeltaSum, WeightedNormal};
 pub use harmonics::Harmonics;
 pub use microfacet::{Distribution, Microfacet};
 pub use phong::{PhongLobe, PhongPeaks};
+pub use radial::Radial;
 pub use tabulated::Tabulated;
 
 use crate::NdfError;
@@ -53,6 +56,8 @@ pub enum Ndf {
     VonMisesFisher(VonMisesFisher),
     /// Beckmann or GGX in the Eq. 1 convention.
     Microfacet(Microfacet),
+    /// Isotropic, tabulated in `θ_m` (the non-parametric NDF of a measured material).
+    Radial(Radial),
 }
 
 impl Ndf {
@@ -77,6 +82,7 @@ impl Ndf {
                 Distribution::Beckmann => "beckmann",
                 Distribution::Ggx => "ggx",
             },
+            Ndf::Radial(_) => "radial",
         }
     }
 
@@ -97,7 +103,7 @@ impl Ndf {
             Ndf::PhongPeaks(p) => p.lobes().iter().all(|l| on_normal(l.axis)),
             Ndf::VonMisesFisher(v) => on_normal(v.mu),
             Ndf::Microfacet(m) => m.alpha_x == m.alpha_y,
-            Ndf::Sphere(_) => true,
+            Ndf::Sphere(_) | Ndf::Radial(_) => true,
             Ndf::Deltas(_) | Ndf::Harmonics(_) | Ndf::Tabulated(_) | Ndf::Cylinder(_) => false,
         }
     }
@@ -113,6 +119,7 @@ impl Ndf {
             Ndf::Sphere(s) => s.eval(m),
             Ndf::VonMisesFisher(v) => v.eval(m),
             Ndf::Microfacet(mf) => mf.eval(m),
+            Ndf::Radial(r) => r.eval(m),
         }
     }
 
@@ -129,6 +136,7 @@ impl Ndf {
             Ndf::Cylinder(c) => c.sample(u[0]),
             Ndf::VonMisesFisher(v) => v.sample(u),
             Ndf::Microfacet(mf) => mf.sample(u),
+            Ndf::Radial(r) => r.sample(u),
         }
     }
 
@@ -138,6 +146,7 @@ impl Ndf {
         match self {
             Ndf::Harmonics(h) => h.pdf(m),
             Ndf::Microfacet(mf) => mf.pdf(m),
+            Ndf::Radial(r) => r.pdf(m),
             other => other.eval(m),
         }
     }
