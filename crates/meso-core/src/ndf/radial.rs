@@ -87,7 +87,7 @@ impl Radial {
             return bad(format!("the first angle must be 0, got {}", theta[0]));
         }
         for (k, w) in theta.windows(2).enumerate() {
-            if !(w[1] > w[0]) || !w[1].is_finite() {
+            if w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) || !w[1].is_finite() {
                 return bad(format!(
                     "angles must increase strictly: node {} is {} after {}",
                     k + 1,
@@ -119,7 +119,7 @@ impl Radial {
             second += piece_theta2(theta[j], theta[j + 1], values[j], values[j + 1]);
             cdf.push(total);
         }
-        if !(total > 0.0) || !total.is_finite() {
+        if total.is_nan() || total <= 0.0 || !total.is_finite() {
             return bad("the densities have no mass".to_owned());
         }
         let values = values.into_iter().map(|v| v / total).collect();
@@ -154,7 +154,7 @@ impl Radial {
     #[must_use]
     pub fn eval_theta(&self, t: f64) -> f64 {
         let last = self.theta.len() - 1;
-        if !(t >= 0.0) || t > self.theta[last] {
+        if t.is_nan() || t < 0.0 || t > self.theta[last] {
             return 0.0;
         }
         let j = self.theta.partition_point(|&x| x <= t).clamp(1, last) - 1;
