@@ -178,7 +178,7 @@ const LAMBDA_ROWS: usize = 97;
 /// Columns of [`LambdaTable`] in φ for an anisotropic NDF.
 const LAMBDA_COLUMNS: usize = 64;
 
-/// The largest relative error of `G₂ = 1/(1 + Λ(i) + Λ(o))` from [`LambdaTable`] against the
+/// The largest relative error of `G₂ = 1/(1 + Λ(i) + Λ(o))` from the plan's Λ table against the
 /// quadrature that the tests allow for an isotropic NDF (`meso fit`'s lobes on the normal;
 /// measured: docs/benchmarks.md "meso brdf").
 pub const LAMBDA_TABLE_TOLERANCE: f64 = 2e-4;
