@@ -26,36 +26,18 @@
 //! assert!((f[0] - 1.0 / std::f32::consts::PI).abs() < 1e-6);
 //! ```
 
-use crate::geometry::{MaterialId, ShadingPoint};
+use crate::geometry::ShadingPoint;
 use crate::shader::{colour_pairs, fast_pow, lobe_pairs, pairs_one_by_one, LobeSlices, Shader};
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use meso_core::convolution::Form;
-use meso_core::frame::Frame;
 use meso_core::material::Material;
 use meso_core::ndf::Ndf;
 use meso_core::shading::FastBrdf;
 use meso_core::transfer::{PhongVariant, Transfer};
 
-/// A shading point at the origin with the identity frame (world = local), texture coordinates
-/// `uv` and an isotropic pixel footprint of `uv_footprint` uv units per pixel step — for
-/// evaluating shaders outside a render (tests, previews, BRDF queries).
-#[must_use]
-pub fn local_point(uv: DVec2, uv_footprint: f64) -> ShadingPoint {
-    ShadingPoint {
-        position: DVec3::ZERO,
-        geometric_normal: DVec3::Z,
-        frame: Frame::IDENTITY,
-        uv,
-        dpdu: DVec3::X,
-        dpdv: DVec3::Y,
-        dpdx: DVec3::X * uv_footprint,
-        dpdy: DVec3::Y * uv_footprint,
-        duvdx: DVec2::new(uv_footprint, 0.0),
-        duvdy: DVec2::new(0.0, uv_footprint),
-        filter_uv: uv,
-        material: MaterialId(0),
-    }
-}
+// `local_point` lives with the shading contract (`crate::shader`); re-exported here, where
+// callers have always found it.
+pub use crate::shader::local_point;
 
 /// Lanes of one chunk of the delta-sum kernel.
 const LANES: usize = 8;

@@ -10,9 +10,31 @@
 //! Shaders are shared between threads (`Send + Sync`) and evaluated in the per-pixel inner
 //! loop: they must not allocate.
 
-use crate::geometry::ShadingPoint;
-use glam::DVec3;
+use crate::geometry::{MaterialId, ShadingPoint};
+use glam::{DVec2, DVec3};
+use meso_core::frame::Frame;
 use std::f64::consts::FRAC_1_PI;
+
+/// A shading point at the origin with the identity frame (world = local), texture coordinates
+/// `uv` and an isotropic pixel footprint of `uv_footprint` uv units per pixel step — for
+/// evaluating shaders outside a render (tests, previews, BRDF queries).
+#[must_use]
+pub fn local_point(uv: DVec2, uv_footprint: f64) -> ShadingPoint {
+    ShadingPoint {
+        position: DVec3::ZERO,
+        geometric_normal: DVec3::Z,
+        frame: Frame::IDENTITY,
+        uv,
+        dpdu: DVec3::X,
+        dpdv: DVec3::Y,
+        dpdx: DVec3::X * uv_footprint,
+        dpdy: DVec3::Y * uv_footprint,
+        duvdx: DVec2::new(uv_footprint, 0.0),
+        duvdy: DVec2::new(0.0, uv_footprint),
+        filter_uv: uv,
+        material: MaterialId(0),
+    }
+}
 
 /// A material the renderer can shade with. See the module docs for the contract.
 pub trait Shader: Send + Sync {
@@ -59,7 +81,7 @@ pub trait Shader: Send + Sync {
     /// default evaluates [`Shader::eval`] pair by pair at a dummy shading point; lobe shaders
     /// override it with a kernel that runs across pairs, eight at a time.
     fn eval_pairs(&self, wi: [&[f32]; 3], wo: [&[f32]; 3], out: [&mut [f32]; 3]) {
-        let sp = crate::material::local_point(glam::DVec2::ZERO, 0.0);
+        let sp = local_point(DVec2::ZERO, 0.0);
         pairs_one_by_one(wi, wo, out, |i, o| self.eval(&sp, i, o));
     }
 }

@@ -1,5 +1,6 @@
 //! `meso ndf plot|stats MATERIAL` — look at a material's NDF.
 
+use super::ndf_plot::PlotArgs;
 use anyhow::Result;
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -12,31 +13,6 @@ pub enum NdfCommand {
     Plot(PlotArgs),
     /// Normalisation integral (Eq. 1), mean normal and covariance of the NDF.
     Stats(StatsArgs),
-}
-
-/// Arguments of `meso ndf plot`.
-#[derive(clap::Args, Debug)]
-pub struct PlotArgs {
-    /// Material file (TOML).
-    pub material: PathBuf,
-    /// Output PNG.
-    #[arg(long, short)]
-    pub out: PathBuf,
-    /// Colour scale of the maps.
-    #[arg(long, value_enum, default_value_t = Scale::Log)]
-    pub scale: Scale,
-    /// Size of each hemisphere map in pixels.
-    #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(64..=4096))]
-    pub size: u32,
-}
-
-/// Value scale of the NDF maps.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Scale {
-    /// Linear in density.
-    Linear,
-    /// Logarithmic over four decades below the maximum.
-    Log,
 }
 
 /// Arguments of `meso ndf stats`.
@@ -53,7 +29,7 @@ pub struct StatsArgs {
 pub fn run(c: NdfCommand) -> Result<()> {
     match c {
         NdfCommand::Stats(a) => stats(a),
-        NdfCommand::Plot(a) => crate::cmd::ndf_plot::plot(&a),
+        NdfCommand::Plot(a) => super::ndf_plot::plot(&a),
     }
 }
 

@@ -2,7 +2,6 @@
 //! polar slices of the density through the mean normal. Singular NDFs (delta sums, cylinders) are
 //! drawn as their normals: discs with area proportional to the weight, or the circle of normals.
 
-use super::ndf::{PlotArgs, Scale};
 use anyhow::{Context, Result};
 use glam::DVec3;
 use meso_core::frame::{spherical_angles, spherical_direction};
@@ -10,6 +9,32 @@ use meso_core::ndf::Ndf;
 use meso_plot::{
     color, hemisphere_map_range, Canvas, ColorMap, PolarPlot, PolarSeries, Sheet, ValueScale,
 };
+use std::path::PathBuf;
+
+/// Arguments of `meso ndf plot`.
+#[derive(clap::Args, Debug)]
+pub struct PlotArgs {
+    /// Material file (TOML).
+    pub material: PathBuf,
+    /// Output PNG.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Colour scale of the maps.
+    #[arg(long, value_enum, default_value_t = Scale::Log)]
+    pub scale: Scale,
+    /// Size of each hemisphere map in pixels.
+    #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(64..=4096))]
+    pub size: u32,
+}
+
+/// Value scale of the NDF maps.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scale {
+    /// Linear in density.
+    Linear,
+    /// Logarithmic over four decades below the maximum.
+    Log,
+}
 
 /// Render the NDF of a material to a PNG.
 pub fn plot(a: &PlotArgs) -> Result<()> {
