@@ -279,9 +279,10 @@ fn rename(e: SceneError, prefix: &str) -> SceneError {
     }
 }
 
-impl SceneFile {
-    fn build(self, base: &Path, resolver: &dyn MaterialResolver) -> Result<Scene, SceneError> {
-        let camera = match self.camera {
+impl CameraFile {
+    /// The camera this table describes.
+    fn camera(self) -> Result<Camera, SceneError> {
+        Ok(match self {
             CameraFile::Perspective {
                 position,
                 look_at,
@@ -304,7 +305,92 @@ impl SceneFile {
                 v(look_at),
                 v(up),
             )?,
-        };
+        })
+    }
+}
+
+impl LightFile {
+    /// The light this table describes (validated by the caller).
+    fn light(self) -> Light {
+        match self {
+            LightFile::Point {
+                position,
+                intensity,
+            } => Light::Point {
+                position: v(position),
+                intensity: v(intensity),
+            },
+            LightFile::Directional {
+                direction,
+                irradiance,
+            } => Light::Directional {
+                direction: v(direction),
+                irradiance: v(irradiance),
+            },
+            LightFile::Linear {
+                start,
+                end,
+                intensity,
+            } => Light::Linear {
+                start: v(start),
+                end: v(end),
+                intensity: v(intensity),
+            },
+            LightFile::Sphere {
+                center,
+                radius,
+                radiance,
+            } => Light::Sphere {
+                center: v(center),
+                radius,
+                radiance: v(radiance),
+            },
+            LightFile::Rectangle {
+                corner,
+                edge_u,
+                edge_v,
+                radiance,
+                two_sided,
+            } => Light::Rectangle {
+                corner: v(corner),
+                edge_u: v(edge_u),
+                edge_v: v(edge_v),
+                radiance: v(radiance),
+                two_sided,
+            },
+        }
+    }
+}
+
+impl EnvironmentFile {
+    /// The environment map this table names (relative to `base`), checked and loaded.
+    fn map(&self, base: &Path) -> Result<EnvironmentMap, SceneError> {
+        if !(self.scale.is_finite() && self.scale >= 0.0) {
+            return Err(SceneError::invalid(
+                "environment.scale",
+                format!(
+                    "must be finite and >= 0, got {}",
+                    Num(f64::from(self.scale))
+                ),
+            ));
+        }
+        if !self.rotation_deg.is_finite() {
+            return Err(SceneError::invalid(
+                "environment.rotation_deg",
+                "must be finite",
+            ));
+        }
+        EnvironmentMap::from_file(
+            &base.join(&self.file),
+            self.scale,
+            self.rotation_deg.to_radians(),
+        )
+    }
+}
+
+impl SceneFile {
+    fn build(self, base: &Path, resolver: &dyn MaterialResolver) -> Result<Scene, SceneError> {
+        let camera = self.camera.camera()?;
         let image = ImageSettings {
             width: self.image.width,
             height: self.image.height,
@@ -388,75 +474,12 @@ impl SceneFile {
             }
         }
         for (i, l) in self.light.into_iter().enumerate() {
-            let light = match l {
-                LightFile::Point {
-                    position,
-                    intensity,
-                } => Light::Point {
-                    position: v(position),
-                    intensity: v(intensity),
-                },
-                LightFile::Directional {
-                    direction,
-                    irradiance,
-                } => Light::Directional {
-                    direction: v(direction),
-                    irradiance: v(irradiance),
-                },
-                LightFile::Linear {
-                    start,
-                    end,
-                    intensity,
-                } => Light::Linear {
-                    start: v(start),
-                    end: v(end),
-                    intensity: v(intensity),
-                },
-                LightFile::Sphere {
-                    center,
-                    radius,
-                    radiance,
-                } => Light::Sphere {
-                    center: v(center),
-                    radius,
-                    radiance: v(radiance),
-                },
-                LightFile::Rectangle {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    radiance,
-                    two_sided,
-                } => Light::Rectangle {
-                    corner: v(corner),
-                    edge_u: v(edge_u),
-                    edge_v: v(edge_v),
-                    radiance: v(radiance),
-                    two_sided,
-                },
-            };
+            let light = l.light();
             validate_light(&format!("light[{i}]"), &light)?;
             b.light(light)?;
         }
         if let Some(env) = self.environment {
-            if !(env.scale.is_finite() && env.scale >= 0.0) {
-                return Err(SceneError::invalid(
-                    "environment.scale",
-                    format!("must be finite and >= 0, got {}", Num(f64::from(env.scale))),
-                ));
-            }
-            if !env.rotation_deg.is_finite() {
-                return Err(SceneError::invalid(
-                    "environment.rotation_deg",
-                    "must be finite",
-                ));
-            }
-            let map = EnvironmentMap::from_file(
-                &base.join(&env.file),
-                env.scale,
-                env.rotation_deg.to_radians(),
-            )?;
-            b.environment(Arc::new(map), env.visible);
+            b.environment(Arc::new(env.map(base)?), env.visible);
         }
         b.build()
     }
