@@ -89,6 +89,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Brdf(a) => cmd::brdf::run(a),
         Command::Ndf(a) => cmd::ndf::run(a),
+        Command::Fit(a) if a.nonparametric => cmd::fit_nonparametric::run(&a),
         Command::Fit(a) => cmd::fit::run(a),
         Command::Extract(a) => cmd::extract::run(a),
         Command::Export(a) => cmd::export::run(a),

@@ -167,9 +167,6 @@ fn parse_lobes(s: &str) -> Result<LobeCount, String> {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    if a.nonparametric {
-        return super::fit_nonparametric::run(&a);
-    }
     let t0 = Instant::now();
     let (k, auto_k) = match a.lobes {
         Some(LobeCount::Fixed(k)) => (k as usize, false),
