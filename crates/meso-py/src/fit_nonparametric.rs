@@ -56,7 +56,12 @@ pub fn fit_nonparametric(
                 ));
             };
             let r = fit(table, &d.samples).map_err(|e| format!("{name}: {e}"))?;
-            Ok((r, d.description.clone(), d.samples.samples.len(), d.samples.held_out.len()))
+            Ok((
+                r,
+                d.description.clone(),
+                d.samples.samples.len(),
+                d.samples.held_out.len(),
+            ))
         })
         .map_err(meso_err)?;
     let comment = format!(
