@@ -29,6 +29,7 @@ fn row(
     r: &FitResult,
     all: &SampleSet,
     lobes: &[meso_core::ndf::PhongLobe],
+    other: &str,
 ) {
     let e = evaluate(m, &r.theta, &r.amps, all);
     let f = |v: [f64; 3]| format!("{:.4} {:.4} {:.4}", v[0], v[1], v[2]);
@@ -43,7 +44,7 @@ fn row(
                 l.weight
             )
         })
-        .unwrap_or_default();
+        .unwrap_or_else(|| other.to_owned());
     println!(
         "| {material} | {} | {} | {} | {} | {} | {} | {:.2} | {} |",
         r.model,
@@ -97,7 +98,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if opts.resolution_cap { "on" } else { "off" }
     );
     println!();
-    println!("| material | model | Ngan L2 (r g b, 1/sr) | Löw log (r g b) | held-out Löw log (r g b) | held-out Ngan L2 (r g b) | sharpest lobe η | fit time (s) | LM iterations |");
+    println!("| material | model | Ngan L2 (r g b, 1/sr) | Löw log (r g b) | held-out Löw log (r g b) | held-out Ngan L2 (r g b) | sharpest lobe η (GGX lobes: α) | fit time (s) | LM iterations |");
     println!("|---|---|---|---|---|---|---|---|---|");
     let has = |m: &str| models.split(',').any(|x| x == m);
     for p in &paths {
@@ -128,7 +129,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let fits = model::fit_lobes_progressive(3, TransferExponent::Free, &data, &opts)?;
             for (m, r) in &fits {
                 let p = m.params(r);
-                row(&name, m, r, &all, &p.lobes);
+                row(&name, m, r, &all, &p.lobes, "");
                 eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
             }
         }
@@ -136,32 +137,46 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let fits = model::fit_microfacet_lobes_progressive(3, &data, &opts)?;
             for (m, r) in &fits {
                 let p = m.params(r);
-                row(&name, m, r, &all, &p.lobes);
+                row(&name, m, r, &all, &p.lobes, "");
                 eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
             }
         }
         if has("ggx-lobes") {
             let fits = model::fit_ggx_lobes_progressive(
                 3,
-                meso_core::ndf::Distribution::Ggx,
+                &model::lobes_ggx::GGX_OR_BECKMANN,
                 &data,
                 &opts,
             )?;
             for (m, r) in &fits {
                 let p = m.params(r);
-                row(&name, m, r, &all, &[]);
+                let sharpest = p
+                    .lobes
+                    .iter()
+                    .zip(p.eq1_weights())
+                    .min_by(|a, b| a.0.alpha.total_cmp(&b.0.alpha))
+                    .map(|(l, w)| format!("α {:.4} {:?} (w {w:.2})", l.alpha, l.distribution))
+                    .unwrap_or_default();
+                row(&name, m, r, &all, &[], &sharpest);
                 eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
             }
         }
         if has("ggx-baseline") {
             let m = model::Microfacet::GGX;
             let r = fit(&m, &data, &opts)?;
-            row(&name, &m, &r, &all, &[]);
+            row(
+                &name,
+                &m,
+                &r,
+                &all,
+                &[],
+                &format!("α {:.4}", r.theta[0].exp()),
+            );
         }
         if has("baselines") {
             for m in model::baselines() {
                 let r = fit(m.as_ref(), &data, &opts)?;
-                row(&name, m.as_ref(), &r, &all, &[]);
+                row(&name, m.as_ref(), &r, &all, &[], "");
                 eprintln!("{}: θ = {:?}, amplitudes = {:?}", r.model, r.theta, r.amps);
             }
         }

@@ -221,7 +221,8 @@ pub enum Transfer {
     /// ([`model::LobeMicrofacetModel`]).
     Microfacet,
     /// Mirror facets as [`Transfer::Microfacet`] under a mixture of GGX lobes (NDFs with long
-    /// tails) instead of Phong peaks ([`model::LobeGgxModel`]); K = 1 is GGX + Lambert.
+    /// tails; each lobe GGX or Beckmann, whichever fits better) instead of Phong peaks
+    /// ([`model::LobeGgxModel`]); K = 1 is GGX + Lambert or Beckmann + Lambert.
     GgxLobes,
 }
 
@@ -521,7 +522,7 @@ pub fn fit_lobes(
             .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
             .collect(),
         Transfer::GgxLobes => {
-            model::fit_ggx_lobes_progressive(k, meso_core::ndf::Distribution::Ggx, data, opts)?
+            model::fit_ggx_lobes_progressive(k, &model::lobes_ggx::GGX_OR_BECKMANN, data, opts)?
                 .into_iter()
                 .map(|(m, r)| (Lobes::GgxLobes(m.params(&r)), r))
                 .collect()

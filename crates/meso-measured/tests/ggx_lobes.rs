@@ -51,17 +51,17 @@ fn recovery_error(got: &LobeGgxParams, truth: &Material) -> (f64, String) {
     let Ndf::Mixture(mx) = &truth.ndf else {
         panic!("truth is not a mixture")
     };
-    let mut want: Vec<(f64, f64)> = mx
+    let mut want: Vec<(f64, f64, Distribution)> = mx
         .lobes()
         .iter()
-        .map(|l| (l.microfacet.alpha_x, l.weight))
+        .map(|l| (l.microfacet.alpha_x, l.weight, l.microfacet.distribution))
         .collect();
     want.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut have: Vec<(f64, f64)> = got
+    let mut have: Vec<(f64, f64, Distribution)> = got
         .lobes
         .iter()
-        .map(|l| l.alpha)
         .zip(got.eq1_weights())
+        .map(|(l, w)| (l.alpha, w, l.distribution))
         .collect();
     have.sort_by(|a, b| a.0.total_cmp(&b.0));
     assert_eq!(have.len(), want.len());
@@ -79,7 +79,10 @@ fn recovery_error(got: &LobeGgxParams, truth: &Material) -> (f64, String) {
             worst = (e, format!("{what}: {g} vs {w}"));
         }
     };
-    for ((ga, gw), (wa, ww)) in have.iter().zip(&want) {
+    for ((ga, gw, gd), (wa, ww, wd)) in have.iter().zip(&want) {
+        if gd != wd {
+            return (f64::INFINITY, format!("distributions {have:?} vs {want:?}"));
+        }
         check("alpha", *ga, *wa);
         check("weight", *gw, *ww);
     }
@@ -106,7 +109,7 @@ fn two_ggx_lobes_round_trip_within_one_percent() {
     );
     let data = merl_samples(&truth);
     let fits =
-        fit_ggx_lobes_progressive(2, Distribution::Ggx, &data, &FitOptions::default()).unwrap();
+        fit_ggx_lobes_progressive(2, &[Distribution::Ggx], &data, &FitOptions::default()).unwrap();
     let (m, r) = fits.last().unwrap();
     let got = m.params(r);
     eprintln!("K=2: {got:?}\n{:?} {:?}", r.errors, r.held_out);
@@ -132,8 +135,9 @@ fn two_beckmann_lobes_round_trip_within_one_percent() {
         [0.2, 0.1, 0.3],
     );
     let data = merl_samples(&truth);
-    let fits = fit_ggx_lobes_progressive(2, Distribution::Beckmann, &data, &FitOptions::default())
-        .unwrap();
+    let fits =
+        fit_ggx_lobes_progressive(2, &[Distribution::Beckmann], &data, &FitOptions::default())
+            .unwrap();
     let (m, r) = fits.last().unwrap();
     assert_eq!(m.name(), "lobes-2-beckmann");
     let got = m.params(r);
@@ -141,12 +145,35 @@ fn two_beckmann_lobes_round_trip_within_one_percent() {
     assert_recovered(&got, &truth, 0.01);
     // GGX lobes on Beckmann data do not recover the truth: the family matters.
     let ggx =
-        fit_ggx_lobes_progressive(2, Distribution::Ggx, &data, &FitOptions::default()).unwrap();
+        fit_ggx_lobes_progressive(2, &[Distribution::Ggx], &data, &FitOptions::default()).unwrap();
     let (mg, rg) = ggx.last().unwrap();
     assert!(rg.errors.low_log[0] > 10.0 * r.errors.low_log[0].max(1e-9));
     let pg = mg.params(rg);
     let (e, what) = recovery_error(&pg, &truth);
     assert!(e > 0.01, "GGX lobes recovered Beckmann data: {what}");
+}
+
+#[test]
+fn a_ggx_and_a_beckmann_lobe_round_trip_with_the_mixed_family() {
+    let truth = material(
+        &[("ggx", 0.05, 0.5), ("beckmann", 0.4, 0.5)],
+        [0.95, 0.8, 0.5],
+        0.7,
+        [0.02, 0.03, 0.04],
+    );
+    let data = merl_samples(&truth);
+    let fits = fit_ggx_lobes_progressive(
+        2,
+        &meso_measured::model::lobes_ggx::GGX_OR_BECKMANN,
+        &data,
+        &FitOptions::default(),
+    )
+    .unwrap();
+    let (m, r) = fits.last().unwrap();
+    assert_eq!(m.name(), "lobes-2-mixed");
+    let got = m.params(r);
+    eprintln!("K=2 mixed: {got:?}");
+    assert_recovered(&got, &truth, 0.01);
 }
 
 #[test]
