@@ -401,7 +401,11 @@ impl Lobes {
     pub fn describe(&self) -> String {
         let mut s = String::new();
         if let Lobes::GgxLobes(p) = self {
-            let _ = writeln!(s, "  lobe  kind          alpha   weight(D)  weight(Eq.1)");
+            let _ = writeln!(
+                s,
+                "  {:>4}  {:<8}  {:>9}  {:>9}  {:>12}",
+                "lobe", "kind", "alpha", "weight(D)", "weight(Eq.1)"
+            );
             for (j, (l, w)) in p.lobes.iter().zip(p.eq1_weights()).enumerate() {
                 let _ = writeln!(
                     s,
