@@ -166,6 +166,12 @@ fn warps(ndf: &Ndf, hint: Option<Peak>) -> Vec<Warp> {
                 lobes.push((DVec3::Z, 2.0 / (a * a), 0.3 * l.weight));
             }
         }
+        Ndf::Radial(r) => {
+            // Its rms angle as a core width and a lobe four times wider for the tails.
+            let s = r.rms_theta().max(1e-4);
+            lobes.push((DVec3::Z, 4.0 / (s * s), 0.6));
+            lobes.push((DVec3::Z, 0.25 / (s * s), 0.4));
+        }
         Ndf::Tabulated(_) | Ndf::Harmonics(_) => {
             // Centre a broad warp on the mean normal: cheap and robust for smooth tables.
             let s = crate::grid::EqualAreaGrid::with_cells(2048);

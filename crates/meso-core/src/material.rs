@@ -15,7 +15,7 @@ use crate::display::Num;
 use crate::frame::spherical_direction_deg;
 use crate::ndf::{
     Cylinder, DeltaSum, Distribution, Harmonics, Microfacet, Mixture, Ndf, PhongLobe, PhongPeaks,
-    Sphere, Tabulated, VonMisesFisher, WeightedNormal,
+    Radial, Sphere, Tabulated, VonMisesFisher, WeightedNormal,
 };
 use crate::transfer::{Fresnel, PhongVariant, Transfer};
 use glam::DVec3;
@@ -621,10 +621,20 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
                 }
             }
         }
+        "radial" => {
+            let theta = f
+                .array("theta", 0)?
+                .ok_or_else(|| MaterialError(format!("{name}: missing `theta` (degrees)")))?;
+            let density = f
+                .array("density", 0)?
+                .ok_or_else(|| MaterialError(format!("{name}: missing `density` (1/sr)")))?;
+            let theta = theta.into_iter().map(f64::to_radians).collect();
+            Ndf::Radial(Radial::new(theta, density).map_err(ndf_err)?)
+        }
         other => {
             return err(format!(
                 "{name} kind: unknown NDF kind \"{other}\" (known: phong-peaks, deltas, sphere, \
-                 cylinder, vmf, beckmann, ggx, mixture, harmonics, tabulated, heightmap, map)"
+                 cylinder, vmf, beckmann, ggx, mixture, harmonics, tabulated, radial, heightmap, map)"
             ))
         }
     };

@@ -57,7 +57,25 @@ fn continuous() -> Vec<(&'static str, Ndf)> {
             "harmonics",
             Ndf::Harmonics(Harmonics::project(16, 4, |m| p.eval(m)).unwrap()),
         ),
+        ("radial", radial()),
     ]
+}
+
+/// A radial table on MERL's half-angle nodes `θ = (k/90)² · 90°`: a GGX-like core of α = 0.2
+/// plus a broad tail.
+fn radial() -> Ndf {
+    let theta: Vec<f64> = (0..=90)
+        .map(|k| (f64::from(k) / 90.0).powi(2) * std::f64::consts::FRAC_PI_2)
+        .collect();
+    let density = theta
+        .iter()
+        .map(|&t| {
+            let (a2, c2) = (0.04, t.cos().powi(2));
+            let ggx = a2 / (std::f64::consts::PI * (c2 * (a2 - 1.0) + 1.0).powi(2));
+            ggx + 0.05 * t.cos()
+        })
+        .collect();
+    Ndf::Radial(Radial::new(theta, density).unwrap())
 }
 
 #[test]

@@ -53,17 +53,8 @@ use meso_core::ndf::PhongLobe;
 use meso_core::sg;
 use std::f64::consts::PI;
 
-/// Largest Phong exponent η on cos(α/2); footprints of identical normals get exactly this.
-pub const ETA_MAX: f64 = 1.0e6;
-/// Largest number of lobes per texel.
-pub const MAX_LOBES: usize = 8;
-/// Smallest Phong exponent η of a fitted lobe: a peak `((1 + a·m)/2)^(η/2)` puts
-/// `2^−(η/2 + 1)` of its mass beyond 90° from its axis — at most 1/8 with this bound, where a
-/// flat lobe (η → 0) would put half of it below the horizon.
-pub const ETA_MIN: f64 = 4.0;
-/// Smallest `z` of a fitted lobe's axis: lobes whose axis the fit left at or below the horizon
-/// (steep normal maps) are tilted up to it, keeping their azimuth.
-pub const AXIS_MIN_Z: f64 = 0.05;
+// The lobe bounds live in `crate::limits` (other crates read them there); re-exported here.
+pub use crate::limits::{AXIS_MIN_Z, ETA_MAX, ETA_MIN, MAX_LOBES};
 
 /// The bounds every fitted lobe satisfies: axis at `z ≥` [`AXIS_MIN_Z`], exponent in
 /// `[`[`ETA_MIN`]`, `[`ETA_MAX`]`]`.

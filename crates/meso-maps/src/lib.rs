@@ -35,6 +35,7 @@ pub mod gonio;
 pub mod heightmap;
 pub mod horizon;
 pub mod input;
+pub mod limits;
 pub mod pyramid;
 pub mod pyramid_cache;
 pub mod resolver;

@@ -5,7 +5,7 @@ use meso_core::convolution::{effective_brdf_with, Accuracy, Form, SmithMasking, 
 use meso_core::frame::spherical_direction_deg as dir;
 use meso_core::ndf::{Ndf, PhongLobe, PhongPeaks};
 use meso_core::transfer::{PhongVariant, Transfer};
-use meso_maps::fit::ETA_MAX;
+use meso_maps::limits::ETA_MAX;
 use meso_maps::*;
 
 fn pyr(map: &HeightMap, k: usize) -> Pyramid {
@@ -478,7 +478,7 @@ mod pyramid {
     /// level has its axis above the horizon and a bounded exponent; weights sum to 1.
     #[test]
     fn no_lobe_below_the_horizon_or_flat_on_random_maps() {
-        use meso_maps::fit::{AXIS_MIN_Z, ETA_MIN};
+        use meso_maps::limits::{AXIS_MIN_Z, ETA_MIN};
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
         let mut checked = 0;

@@ -9,7 +9,8 @@
 //!   names are allowed).
 //! * Angles in **degrees** in meso's local frame (θ from the normal, φ from the tangent towards
 //!   the bitangent; `i` towards the light, `o` towards the viewer); θ must lie in `[0, 90]`.
-//! * `r,g,b` are BRDF values in 1/sr (without the cosine factor), finite and non-negative.
+//! * `r,g,b` are BRDF values in 1/sr (without the cosine factor), finite and non-negative, and
+//!   not all zero (a file whose every value is 0 measured nothing and is refused).
 //! * Blank lines are skipped; every other line must have exactly seven numeric fields.
 //!
 //! Errors name the line (1-based) and the column.
@@ -82,6 +83,12 @@ pub enum CsvError {
     /// The file has a header but no samples.
     #[error("sample file has a header but no samples")]
     NoSamples,
+    /// Every BRDF value (r, g, b of every sample) is 0: nothing was measured, nothing to fit.
+    #[error("all {samples} samples have r = g = b = 0: no reflectance measured (a zeroed or placeholder file?)")]
+    AllZero {
+        /// Number of samples.
+        samples: usize,
+    },
     /// The first line is not the expected header.
     #[error("line 1: bad header `{found}`, expected `{CSV_HEADER}`")]
     BadHeader {
@@ -213,6 +220,9 @@ pub fn parse_csv(text: &str) -> Result<Vec<CsvSample>, CsvError> {
     }
     if out.is_empty() {
         return Err(CsvError::NoSamples);
+    }
+    if out.iter().all(|s| s.rgb == [0.0; 3]) {
+        return Err(CsvError::AllZero { samples: out.len() });
     }
     Ok(out)
 }

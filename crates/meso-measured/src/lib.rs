@@ -39,5 +39,6 @@ pub mod lm;
 pub mod merl;
 pub mod metric;
 pub mod model;
+pub mod nonparametric;
 pub mod rusinkiewicz;
 pub mod samples;

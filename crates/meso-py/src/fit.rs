@@ -14,7 +14,7 @@ use pyo3::types::PyDict;
 use std::path::PathBuf;
 
 /// The one-line message of an error and its causes, each cause once (as the CLI prints it).
-fn chain_message(e: &(dyn std::error::Error + 'static)) -> String {
+pub(crate) fn chain_message(e: &(dyn std::error::Error + 'static)) -> String {
     let mut msg = String::new();
     let mut cur = Some(e);
     while let Some(c) = cur {

@@ -16,6 +16,7 @@ mod arrays;
 mod error;
 mod export;
 mod fit;
+mod fit_nonparametric;
 mod maps;
 mod material;
 mod render;
@@ -38,5 +39,6 @@ fn _meso(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(error::set_memory_budget, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_samples, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_nonparametric::fit_nonparametric, m)?)?;
     Ok(())
 }

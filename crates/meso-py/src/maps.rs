@@ -13,10 +13,10 @@ use std::sync::Arc;
 
 /// The extraction parameters named as the CLI's `meso extract` options.
 fn params(max_lobes: usize, normals: &str, method: &str) -> PyResult<ExtractParams> {
-    if !(1..=meso_maps::fit::MAX_LOBES).contains(&max_lobes) {
+    if !(1..=meso_maps::limits::MAX_LOBES).contains(&max_lobes) {
         return Err(value_err(format!(
             "max_lobes = {max_lobes}: must be between 1 and {}",
-            meso_maps::fit::MAX_LOBES
+            meso_maps::limits::MAX_LOBES
         )));
     }
     let mut p = ExtractParams {

@@ -1,9 +1,11 @@
 //! Time the benchmark scene (1024² sphere, 7-lobe multiple surface, 4 point lights, 1 spp)
 //! in wall-clock and process CPU time, which stays meaningful on a loaded machine:
 //!
-//! `cargo run --release -p meso-render --example bench_sphere -- [SIZE] [FRAMES] [OUT.png] [--per-hit]`
+//! `cargo run --release -p meso-render --example bench_sphere -- [SIZE] [FRAMES] [OUT.png] [--per-hit] [--material FILE.toml]`
 //!
-//! `--per-hit` forces the per-hit shading path instead of the stream path (for comparison).
+//! `--per-hit` forces the per-hit shading path instead of the stream path (for comparison);
+//! `--material` shades the sphere with a material file (through `MaterialShader`) instead of the
+//! seven Phong lobes (e.g. one Beckmann lobe, the common material).
 //! Also prints the best single frame's wall time.
 
 #[path = "../benches/common/mod.rs"]
@@ -23,10 +25,37 @@ fn cpu_seconds() -> f64 {
 
 fn main() {
     let per_hit = std::env::args().any(|a| a == "--per-hit");
-    let args: Vec<String> = std::env::args().filter(|a| a != "--per-hit").collect();
+    let all: Vec<String> = std::env::args().collect();
+    let material = all
+        .iter()
+        .position(|a| a == "--material")
+        .and_then(|k| all.get(k + 1).cloned());
+    let args: Vec<String> = all
+        .iter()
+        .enumerate()
+        .filter(|(k, a)| {
+            *a != "--per-hit" && *a != "--material" && !(*k > 0 && all[k - 1] == "--material")
+        })
+        .map(|(_, a)| a.clone())
+        .collect();
     let size: u32 = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(1024);
     let frames: u32 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(20);
-    let scene = common::scene(size);
+    let scene = match &material {
+        None => common::scene(size),
+        Some(path) => {
+            let text = std::fs::read_to_string(path).unwrap_or_else(|e| {
+                eprintln!("{path}: {e}");
+                std::process::exit(1)
+            });
+            let m = meso_core::material::Material::from_toml_str(&text).unwrap_or_else(|e| {
+                eprintln!("{path}: {e}");
+                std::process::exit(1)
+            });
+            let shader = meso_render::MaterialShader::new(&m);
+            println!("material {path}: {}", shader.path());
+            common::scene_with(size, std::sync::Arc::new(shader))
+        }
+    };
     let opts = RenderOptions {
         per_hit,
         ..RenderOptions::default()

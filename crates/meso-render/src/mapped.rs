@@ -628,13 +628,13 @@ impl NdfMapped {
                 }
                 if !any {
                     // No lobe faces up: shade as the flat surface.
-                    let kappa = sg::kappa_same_mean_cos(meso_maps::fit::ETA_MAX);
+                    let kappa = sg::kappa_same_mean_cos(meso_maps::limits::ETA_MAX);
                     lobes.push(SgLobe::new(
                         DVec3::Z,
-                        meso_maps::fit::ETA_MAX,
+                        meso_maps::limits::ETA_MAX,
                         kappa,
                         sg::normaliser_2pi(kappa)
-                            / sg::phong_peak_mean_cos(meso_maps::fit::ETA_MAX),
+                            / sg::phong_peak_mean_cos(meso_maps::limits::ETA_MAX),
                     ));
                 }
                 lobe_start.push(lobes.len() as u32);

@@ -532,6 +532,31 @@ pub fn colour_pairs(
     }
 }
 
+/// Whether the CPU has AVX-512F, AVX-512VL and FMA (detected once).
+#[must_use]
+pub(crate) fn has_avx512() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(|| {
+        #[cfg(target_arch = "x86_64")]
+        {
+            std::arch::is_x86_feature_detected!("avx512f")
+                && std::arch::is_x86_feature_detected!("avx512vl")
+                && std::arch::is_x86_feature_detected!("fma")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    })
+}
+
+/// Whether the CPU has AVX2 and FMA (detected once).
+#[must_use]
+pub(crate) fn has_avx2_fma() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(detect_avx2)
+}
+
 fn detect_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -583,6 +608,39 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
+/// `e^x` in f32 without libm calls (branch-free, vectorisable): [`fast_pow`]'s `exp2` on
+/// `x·log2 e`; relative error about `1.5e-7 · (1 + |x|)`; 0 below `e^−87`.
+#[inline(always)]
+#[must_use]
+pub fn fast_exp(x: f32) -> f32 {
+    exp2_impl::<false>(x * std::f32::consts::LOG2_E)
+}
+
+/// `2^z` for `z` clamped to `[−126, 126]`: degree-7 polynomial on the fraction.
+#[inline(always)]
+fn exp2_impl<const FMA: bool>(z: f32) -> f32 {
+    let z = z.clamp(-126.0, 126.0);
+    // exp2(z) = 2^i · 2^f, i = round(z), f in [-1/2, 1/2]. Rounding by the 1.5·2^23 trick
+    // (exact for |z| < 2^22) keeps the conversion in the vector registers.
+    const MAGIC: f32 = 12_582_912.0;
+    let t = z + MAGIC;
+    let i = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
+    let f = z - (t - MAGIC);
+    let mut q = 0.000_015_252_73;
+    for c in [
+        0.000_154_035_3,
+        0.001_333_355_8,
+        0.009_618_129,
+        0.055_504_11,
+        0.240_226_5,
+        std::f32::consts::LN_2,
+        1.0,
+    ] {
+        q = madd::<FMA>(q, f, c);
+    }
+    q * f32::from_bits(((i + 127) << 23) as u32)
+}
+
 /// [`fast_pow`], with fused multiply-adds in the polynomials when `FMA`.
 #[inline(always)]
 fn fast_pow_impl<const FMA: bool>(x: f32, y: f32) -> f32 {
@@ -609,26 +667,7 @@ fn fast_pow_impl<const FMA: bool>(x: f32, y: f32) -> f32 {
         2.885_39,
     );
     let l = e as f32 + p;
-    let z = (y * l).clamp(-126.0, 126.0);
-    // exp2(z) = 2^i · 2^f, i = round(z), f in [-1/2, 1/2]. Rounding by the 1.5·2^23 trick
-    // (exact for |z| < 2^22) keeps the conversion in the vector registers.
-    const MAGIC: f32 = 12_582_912.0;
-    let t = z + MAGIC;
-    let i = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
-    let f = z - (t - MAGIC);
-    let mut q = 0.000_015_252_73;
-    for c in [
-        0.000_154_035_3,
-        0.001_333_355_8,
-        0.009_618_129,
-        0.055_504_11,
-        0.240_226_5,
-        std::f32::consts::LN_2,
-        1.0,
-    ] {
-        q = madd::<FMA>(q, f, c);
-    }
-    q * f32::from_bits(((i + 127) << 23) as u32)
+    exp2_impl::<FMA>(y * l)
 }
 
 #[cfg(test)]

@@ -23,7 +23,7 @@
 use crate::mapped::{BumpMapped, NdfMapped};
 use crate::shader::Shader;
 use meso_core::material::{read_limited, MaterialSpec};
-use meso_maps::fit::MAX_LOBES;
+use meso_maps::limits::MAX_LOBES;
 use meso_maps::resolver::HEIGHTMAP_KEYS;
 use meso_maps::{
     extract, Border, ExtractParams, MapsResolver, NormalConvention, NormalMap, NormalMode, Pyramid,

@@ -80,11 +80,11 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    if !(1..=meso_maps::fit::MAX_LOBES).contains(&a.max_lobes) {
+    if !(1..=meso_maps::limits::MAX_LOBES).contains(&a.max_lobes) {
         bail!(
             "--max-lobes {}: must be between 1 and {}",
             a.max_lobes,
-            meso_maps::fit::MAX_LOBES
+            meso_maps::limits::MAX_LOBES
         );
     }
     crate::util::check_outputs(&[&a.out], &[&a.heightmap])?;

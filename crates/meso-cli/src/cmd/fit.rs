@@ -71,8 +71,14 @@ pub struct Args {
     pub data: PathBuf,
     /// Number of lobes (1–6), or `auto`: up to 6, stopping when one more lobe lowers the
     /// held-out error by less than 1 % or 1e-4.
-    #[arg(long, value_parser = parse_lobes)]
-    pub lobes: LobeCount,
+    #[arg(long, value_parser = parse_lobes, required_unless_present = "nonparametric")]
+    pub lobes: Option<LobeCount>,
+    /// Fit the non-parametric NDF instead of lobes: the NDF tabulated in θm from the
+    /// back-scattering cells of a MERL table (power iteration, Dupuy et al. 2015), Smith masking
+    /// derived from it, Schlick Fresnel, specular scale and Lambert fitted alongside
+    /// (docs/measured.md "Non-parametric NDF").
+    #[arg(long, conflicts_with_all = ["lobes", "transfer", "axes"])]
+    pub nonparametric: bool,
     /// Metric minimised.
     #[arg(long, value_enum, default_value = "log")]
     pub metric: MetricArg,
@@ -165,10 +171,14 @@ fn parse_lobes(s: &str) -> Result<LobeCount, String> {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
+    if a.nonparametric {
+        return super::fit_nonparametric::run(&a);
+    }
     let t0 = Instant::now();
     let (k, auto_k) = match a.lobes {
-        LobeCount::Fixed(k) => (k as usize, false),
-        LobeCount::Auto => (meso_measured::job::AUTO_LOBES_MAX, true),
+        Some(LobeCount::Fixed(k)) => (k as usize, false),
+        Some(LobeCount::Auto) => (meso_measured::job::AUTO_LOBES_MAX, true),
+        None => bail!("--lobes is needed (a number or `auto`), or --nonparametric"),
     };
     let paths = out_paths(&a.out, a.per_channel_lobes);
     {

@@ -4,6 +4,7 @@ pub mod export;
 pub mod extract;
 pub mod figures;
 pub mod fit;
+pub mod fit_nonparametric;
 pub mod gonio;
 pub mod map;
 pub mod ndf;

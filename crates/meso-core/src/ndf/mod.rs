@@ -14,6 +14,7 @@
 //! | [`Ndf::VonMisesFisher`] | — | κ e^{κ(μ·m−1)} / (2π(1−e^{−2κ})) | exact |
 //! | [`Ndf::Microfacet`] | — | Beckmann / GGX `D(m)/A` | `D(m)(m·z)` |
 //! | [`Ndf::Mixture`] | Eq. 7 | Σ wₖ Dₖ(m)/Aₖ (Beckmann / GGX lobes) | `D(m)(m·z)` |
+//! | [`Ndf::Radial`] | §3.3 | isotropic, linear in `θ_m` between nodes (non-parametric, measured) | band means |
 //!
 //! For the relation to the microfacet convention `∫ D(m)(m·z) dω = 1` see [`microfacet`].
 
@@ -23,6 +24,7 @@ pub mod harmonics;
 pub mod microfacet;
 pub mod mixture;
 pub mod phong;
+pub mod radial;
 pub mod tabulated;
 pub mod vmf;
 
@@ -32,6 +34,7 @@ pub use harmonics::Harmonics;
 pub use microfacet::{Distribution, Microfacet};
 pub use mixture::{Mixture, MixtureLobe};
 pub use phong::{PhongLobe, PhongPeaks};
+pub use radial::Radial;
 pub use tabulated::Tabulated;
 
 use crate::NdfError;
@@ -58,6 +61,8 @@ pub enum Ndf {
     Microfacet(Microfacet),
     /// A weighted sum of Beckmann / GGX lobes in the Eq. 1 convention ([`mixture`]).
     Mixture(Mixture),
+    /// Isotropic, tabulated in `θ_m` (the non-parametric NDF of a measured material).
+    Radial(Radial),
 }
 
 impl Ndf {
@@ -83,6 +88,7 @@ impl Ndf {
                 Distribution::Ggx => "ggx",
             },
             Ndf::Mixture(_) => "mixture",
+            Ndf::Radial(_) => "radial",
         }
     }
 
@@ -105,7 +111,7 @@ impl Ndf {
             Ndf::VonMisesFisher(v) => on_normal(v.mu),
             Ndf::Microfacet(m) => m.alpha_x == m.alpha_y,
             Ndf::Mixture(m) => m.is_isotropic(),
-            Ndf::Sphere(_) => true,
+            Ndf::Sphere(_) | Ndf::Radial(_) => true,
             Ndf::Deltas(_) | Ndf::Harmonics(_) | Ndf::Tabulated(_) | Ndf::Cylinder(_) => false,
         }
     }
@@ -122,6 +128,7 @@ impl Ndf {
             Ndf::VonMisesFisher(v) => v.eval(m),
             Ndf::Microfacet(mf) => mf.eval(m),
             Ndf::Mixture(mx) => mx.eval(m),
+            Ndf::Radial(r) => r.eval(m),
         }
     }
 
@@ -139,6 +146,7 @@ impl Ndf {
             Ndf::VonMisesFisher(v) => v.sample(u),
             Ndf::Microfacet(mf) => mf.sample(u),
             Ndf::Mixture(mx) => mx.sample(u),
+            Ndf::Radial(r) => r.sample(u),
         }
     }
 
@@ -149,6 +157,7 @@ impl Ndf {
             Ndf::Harmonics(h) => h.pdf(m),
             Ndf::Microfacet(mf) => mf.pdf(m),
             Ndf::Mixture(mx) => mx.pdf(m),
+            Ndf::Radial(r) => r.pdf(m),
             other => other.eval(m),
         }
     }

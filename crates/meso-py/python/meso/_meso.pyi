@@ -170,6 +170,16 @@ def fit(
     ``fitted``/``held_out`` errors per channel: ``ngan_l2`` in 1/sr and ``low_log``, the TOML);
     ``out`` also writes the material file."""
 
+def fit_nonparametric(
+    data: _Path,
+    out: Optional[_Path] = None,
+    samples: int = 30000,
+) -> tuple[Material, dict[str, Any]]:
+    """``meso fit DATA --nonparametric``: the NDF tabulated in θm from a MERL table's
+    back-scattering cells, Smith derived from it, Schlick f0, specular and albedo fitted; returns
+    the material and a report (``nodes``, ``rms_theta_deg``, ``f0``, ``specular``, ``albedo``,
+    ``fitted``/``held_out`` errors per channel, the TOML); ``out`` also writes the file."""
+
 def fit_samples(
     wi: _Array,
     wo: _Array,

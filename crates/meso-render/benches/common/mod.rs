@@ -17,6 +17,12 @@ pub fn seven_lobes() -> PhongLobes {
 
 /// A `size × size` sphere with the 7-lobe shader under 4 point lights, 1 spp.
 pub fn scene(size: u32) -> Scene {
+    scene_with(size, Arc::new(seven_lobes()))
+}
+
+/// The benchmark scene with another material.
+#[allow(dead_code)] // used by the example, not by every bench
+pub fn scene_with(size: u32, shader: Arc<dyn Shader>) -> Scene {
     let cam = Camera::new(
         Projection::Perspective { fov_deg: 40.0 },
         DVec3::new(0.0, 0.0, 3.2),
@@ -33,7 +39,7 @@ pub fn scene(size: u32) -> Scene {
             background: [0.0; 3],
         },
     );
-    let m = b.material(Arc::new(seven_lobes()));
+    let m = b.material(shader);
     b.sphere(DVec3::ZERO, 1.0, DVec3::Y, m)
         .expect("valid sphere");
     for p in [

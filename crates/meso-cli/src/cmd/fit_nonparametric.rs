@@ -1,0 +1,95 @@
+//! `meso fit DATA --nonparametric --out MATERIAL.toml`: the non-parametric NDF of a MERL table
+//! (`meso_measured::nonparametric`), printed and written; the CLI only reads, calls and prints.
+
+use super::fit::Args;
+use anyhow::{bail, Context, Result};
+use meso_measured::job::{fmt3, load};
+use meso_measured::nonparametric::{fit, material_toml};
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// Run `meso fit --nonparametric`.
+pub fn run(a: &Args) -> Result<()> {
+    let t0 = Instant::now();
+    if a.per_channel_lobes || a.baselines || a.plot.is_some() {
+        bail!("--nonparametric fits one NDF for all channels; it takes no --per-channel-lobes, --baselines or --plot");
+    }
+    crate::util::check_outputs(&[&a.out], &[&a.data])?;
+    let data = load(&a.data, a.samples)?;
+    let Some(table) = &data.merl else {
+        bail!(
+            "{}: --nonparametric needs a MERL table (it reads the NDF from the back-scattering cells); this is {}",
+            a.data.display(),
+            data.description
+        );
+    };
+    let r = fit(table, &data.samples).with_context(|| a.data.display().to_string())?;
+    let mut report = String::new();
+    let _ = writeln!(report, "data: {}", data.description);
+    let _ = writeln!(
+        report,
+        "non-parametric NDF: {} back-scattering θh bins (θd = 0) up to {}°, rms angle {:.3}°",
+        r.nodes,
+        meso_measured::nonparametric::MAX_THETA_H_DEG,
+        r.ndf.rms_theta().to_degrees()
+    );
+    let _ = writeln!(
+        report,
+        "  transfer mirror, Schlick f0 [{}], specular [{}], Smith masking-shadowing from the NDF",
+        fmt3(r.f0, 4),
+        fmt3(r.specular, 4)
+    );
+    let _ = writeln!(report, "  diffuse albedo [{}]", fmt3(r.albedo, 4));
+    if r.specular_clamped {
+        let _ = writeln!(
+            report,
+            "  note: the fitted specular exceeded 1 on some channel and was scaled to 1"
+        );
+    }
+    let _ = writeln!(
+        report,
+        "\nerrors per channel (r g b)            ngan-l2 (1/sr)             low-log"
+    );
+    let row = |label: &str, e: &meso_measured::fit::FitErrors| {
+        format!(
+            "  {:<34} {:<26} {}",
+            label,
+            fmt3(e.ngan_l2, 5),
+            fmt3(e.low_log, 5)
+        )
+    };
+    let _ = writeln!(
+        report,
+        "{}",
+        row(
+            &format!("fitted ({} samples)", data.samples.samples.len()),
+            &r.fitted
+        )
+    );
+    if let Some(h) = &r.held_out {
+        let _ = writeln!(
+            report,
+            "{}",
+            row(
+                &format!(
+                    "held out, not fitted ({} samples)",
+                    data.samples.held_out.len()
+                ),
+                h
+            )
+        );
+    }
+    let comment = format!(
+        "meso fit {} --nonparametric --samples {}\nnon-parametric NDF ({} nodes): {}",
+        a.data.display(),
+        a.samples,
+        r.nodes,
+        data.description
+    );
+    let text = material_toml(&r, &comment);
+    meso_core::io::write_atomic(&a.out, text.as_bytes())
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    let _ = writeln!(report, "\nwrote {}", a.out.display());
+    let _ = writeln!(report, "total time {:.2} s", t0.elapsed().as_secs_f64());
+    crate::util::print_stdout(&report)
+}

@@ -1,0 +1,482 @@
+//! The **non-parametric NDF** of a measured isotropic material (#13 item 3, §3.3 of the paper by
+//! the data-driven route of Dupuy et al. 2015, "Extracting microfacet-based BRDF parameters from
+//! arbitrary materials with power iterations"): the NDF tabulated in `θ_m`
+//! ([`meso_core::ndf::Radial`]) from the back-scattering cells of a MERL table, with Smith
+//! masking derived from it, and Schlick Fresnel, the mirror `specular` scale and a Lambert term
+//! fitted alongside. The result is an ordinary material file (`[ndf] kind = "radial"`) that every
+//! consumer reads: `meso brdf`, the renderer, the editor, export.
+//!
+//! # Model
+//! `f(i, o) = ρ/π + (u + g (1 − i·h)⁵) D(h) G₂(i, o) / (4 cos θi cos θo)` per channel, `D` the
+//! NDF in the microfacet convention (`∫ D (m·z) dω = 1`), `G₂ = 1/(1 + Λ(i) + Λ(o))` with
+//! `Λ(ω) = a(ω)/cos θ − 1`, `a(ω) = ∫ D(m)(ω·m)⁺ dω` (meso-core's 1-D rule for isotropic NDFs,
+//! [`meso_core::convolution::isotropic_projected_area`]) — exactly what meso-core evaluates for
+//! the written material.
+//!
+//! # Fit
+//! 1. **Back-scattering** (`i = o`, so `h = i`, `i·h = 1`, `G₂ = cos θ/(2a − cos θ)`): the
+//!    measurement is `f_r(θ) = ρ/π + u D(θ) / (4 cos θ (2a(θ) − cos θ))`, hence
+//!    `D(θ) ∝ (f_r(θ) − ρ/π) cos θ (2a(θ) − cos θ)`. Since `a` depends on `D`, this is a
+//!    fixed point, found by iteration from `a = cos θ` ([`POWER_ITERATIONS`]; Dupuy et al.'s
+//!    power iteration). The nodes are MERL's `θh` bins with `θd = 0` (all 90, dense near the
+//!    normal), the channels summed (the NDF is the geometry's, shared by r, g, b).
+//! 2. **Fresnel, specular, diffuse:** with `D` and `G₂` known the model is linear in
+//!    `(ρ, u, g)` per channel: weighted least squares on the fitted cells in the Löw log metric
+//!    linearised about the data (weights: the cells' measure × `(cos θi / (1 + f cos θi))²`),
+//!    non-negative (the best of the feasible active sets).
+//! 3. Steps 1–2 alternate [`OUTER_ITERATIONS`] times (`ρ` enters the back-scattering).
+//!
+//! `s = u + g` and `f0 = u/(u + g)` are written as the mirror's `specular` and `f0`; where
+//! `u + g > 1` both are scaled to `s = 1` (as the lobe models do) and the report says so.
+
+use crate::fit::{evaluate_samples_fn, FitErrors};
+use crate::merl::{cell_angles, CellPosition, MerlTable, N_PHI_D, N_THETA_H};
+use crate::samples::SampleSet;
+use glam::DVec3;
+use meso_core::convolution::isotropic_projected_area;
+use meso_core::material::Material;
+use meso_core::ndf::{Ndf, Radial};
+use meso_core::shading::{FastBrdf, Policy};
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::fmt::Write;
+
+/// Fixed-point (power) iterations of the NDF per outer step.
+pub const POWER_ITERATIONS: usize = 12;
+/// Alternations of the NDF and the linear Fresnel / diffuse fit.
+pub const OUTER_ITERATIONS: usize = 40;
+/// Back-scattering cells above this `θh` (degrees) are not used: near grazing the measurements
+/// are unreliable and the masking dominates; the NDF keeps its last measured density up to 90°.
+pub const MAX_THETA_H_DEG: f64 = 85.0;
+
+/// A fitted non-parametric material.
+#[derive(Clone, Debug)]
+pub struct NonParametric {
+    /// The NDF (Eq. 1 convention).
+    pub ndf: Radial,
+    /// Schlick `f0` per channel, in [0, 1].
+    pub f0: [f64; 3],
+    /// The mirror's `specular` scale per channel, in [0, 1].
+    pub specular: [f64; 3],
+    /// Lambert albedo per channel, in [0, 1].
+    pub albedo: [f64; 3],
+    /// True when `u + g > 1` on some channel and both were scaled down (the written material is
+    /// dimmer there than the fitted form).
+    pub specular_clamped: bool,
+    /// Errors of the written material on the fitted samples.
+    pub fitted: FitErrors,
+    /// Errors of the written material on the held-out samples (`None` when none are held out).
+    pub held_out: Option<FitErrors>,
+    /// Back-scattering nodes used (θh bins with data).
+    pub nodes: usize,
+}
+
+/// Why a non-parametric fit cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum NonParametricError {
+    /// The data has no back-scattering cells (not a MERL table, or too few measured).
+    #[error("{0}")]
+    Data(String),
+}
+
+/// The back-scattering measurements: per θh bin with data, `(θh, [f_r; 3])`.
+fn backscattering(table: &MerlTable) -> Vec<(f64, [f64; 3])> {
+    let mut out = Vec::new();
+    for ih in 0..N_THETA_H {
+        let th = cell_angles(ih, 0, 0, CellPosition::Edge).theta_h;
+        if th.to_degrees() > MAX_THETA_H_DEG {
+            break;
+        }
+        let mut sum = [0.0; 3];
+        let mut n = 0usize;
+        for ip in 0..N_PHI_D {
+            let v = [
+                table.value(0, ih, 0, ip),
+                table.value(1, ih, 0, ip),
+                table.value(2, ih, 0, ip),
+            ];
+            if v.iter().all(|x| *x >= 0.0 && x.is_finite()) {
+                for c in 0..3 {
+                    sum[c] += v[c];
+                }
+                n += 1;
+            }
+        }
+        if n > 0 {
+            out.push((th, sum.map(|s| s / n as f64)));
+        }
+    }
+    out
+}
+
+/// The NDF through nodes `theta` with densities `d` (any scale), extended to π/2 with its last
+/// density.
+fn radial(theta: &[f64], d: &[f64]) -> Result<Radial, NonParametricError> {
+    let mut t = theta.to_vec();
+    let mut v = d.to_vec();
+    if *t.last().unwrap_or(&0.0) < FRAC_PI_2 {
+        t.push(FRAC_PI_2);
+        v.push(*v.last().unwrap_or(&0.0));
+    }
+    Radial::new(t, v).map_err(|e| NonParametricError::Data(e.to_string()))
+}
+
+/// `a(θ)` of the NDF in the microfacet convention at each node (`a(0) = 1`).
+fn projected_areas(ndf: &Ndf, theta: &[f64]) -> Vec<f64> {
+    let p = isotropic_projected_area(ndf, 1.0);
+    theta
+        .iter()
+        .map(|t| isotropic_projected_area(ndf, t.cos()) / p)
+        .collect()
+}
+
+/// Least squares `min Σ w (x·a − y)²` over `x ≥ 0` for 3 unknowns: the unconstrained solution
+/// of every active set, the feasible one with the smallest residual.
+fn nnls3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
+    // Normal equations.
+    let mut ata = [[0.0f64; 3]; 3];
+    let mut aty = [0.0f64; 3];
+    for (a, y, w) in rows {
+        for r in 0..3 {
+            aty[r] += w * a[r] * y;
+            for c in 0..3 {
+                ata[r][c] += w * a[r] * a[c];
+            }
+        }
+    }
+    let resid = |x: &[f64; 3]| -> f64 {
+        rows.iter()
+            .map(|(a, y, w)| {
+                let e = a[0] * x[0] + a[1] * x[1] + a[2] * x[2] - y;
+                w * e * e
+            })
+            .sum()
+    };
+    let mut best = ([0.0; 3], resid(&[0.0; 3]));
+    for mask in 1u32..8 {
+        let idx: Vec<usize> = (0..3).filter(|k| mask & (1 << k) != 0).collect();
+        let n = idx.len();
+        // Solve the n × n subsystem.
+        let mut m = vec![0.0f64; n * n];
+        let mut rhs = vec![0.0f64; n];
+        for (r, &i) in idx.iter().enumerate() {
+            for (c, &j) in idx.iter().enumerate() {
+                m[r * n + c] = ata[i][j];
+            }
+            rhs[r] = aty[i];
+        }
+        if (0..n).any(|k| m[k * n + k] <= 0.0) {
+            continue;
+        }
+        let sub = solve_dense(&mut m, &mut rhs, n);
+        let mut x = [0.0; 3];
+        for (r, &i) in idx.iter().enumerate() {
+            x[i] = sub[r];
+        }
+        if x.iter().all(|v| *v >= 0.0) {
+            let e = resid(&x);
+            if e < best.1 {
+                best = (x, e);
+            }
+        }
+    }
+    best.0
+}
+
+/// Solve the dense `n × n` system `a x = b` (row-major, overwritten) by Gaussian elimination
+/// with partial pivoting; a singular pivot gives 0 for that unknown.
+fn solve_dense(a: &mut [f64], b: &mut [f64], n: usize) -> Vec<f64> {
+    for col in 0..n {
+        let piv = (col..n)
+            .max_by(|&x, &y| a[x * n + col].abs().total_cmp(&a[y * n + col].abs()))
+            .unwrap_or(col);
+        if piv != col {
+            for k in 0..n {
+                a.swap(col * n + k, piv * n + k);
+            }
+            b.swap(col, piv);
+        }
+        let d = a[col * n + col];
+        if d.abs() < 1e-300 {
+            continue;
+        }
+        for r in col + 1..n {
+            let f = a[r * n + col] / d;
+            if f != 0.0 {
+                for k in col..n {
+                    a[r * n + k] -= f * a[col * n + k];
+                }
+                b[r] -= f * b[col];
+            }
+        }
+    }
+    let mut x = vec![0.0; n];
+    for r in (0..n).rev() {
+        let d = a[r * n + r];
+        if d.abs() < 1e-300 {
+            continue;
+        }
+        let mut acc = b[r];
+        for k in r + 1..n {
+            acc -= a[r * n + k] * x[k];
+        }
+        x[r] = acc / d;
+    }
+    x
+}
+
+/// The material file of a fit (TOML, with `comment` lines as `#` comments first).
+#[must_use]
+pub fn material_toml(fit: &NonParametric, comment: &str) -> String {
+    let mut s = String::new();
+    for l in comment.lines() {
+        let _ = writeln!(s, "# {l}");
+    }
+    s.push_str("form = \"microfacet\"\n\n[ndf]\nkind = \"radial\"\n");
+    let deg: Vec<String> = fit
+        .ndf
+        .theta()
+        .iter()
+        .map(|t| format!("{:?}", t.to_degrees()))
+        .collect();
+    let den: Vec<String> = fit.ndf.values().iter().map(|v| format!("{v:?}")).collect();
+    let _ = writeln!(s, "theta = [{}]", deg.join(", "));
+    let _ = writeln!(s, "density = [{}]", den.join(", "));
+    s.push_str("\n[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\n");
+    let _ = writeln!(
+        s,
+        "f0 = [{:?}, {:?}, {:?}]",
+        fit.f0[0], fit.f0[1], fit.f0[2]
+    );
+    let _ = writeln!(
+        s,
+        "specular = [{:?}, {:?}, {:?}]",
+        fit.specular[0], fit.specular[1], fit.specular[2]
+    );
+    s.push_str("\n[shadowing]\nkind = \"smith\"\n");
+    let _ = writeln!(
+        s,
+        "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
+        fit.albedo[0], fit.albedo[1], fit.albedo[2]
+    );
+    s
+}
+
+/// The material of a fit.
+///
+/// # Panics
+/// Never for a fit made here (its file always parses).
+#[must_use]
+pub fn material(fit: &NonParametric) -> Material {
+    Material::from_toml_str(&material_toml(fit, "")).expect("a fitted material parses")
+}
+
+/// Fit the non-parametric material (module docs) to a MERL table, scoring it on `data`'s fitted
+/// and held-out samples.
+///
+/// # Errors
+/// Fewer than 8 back-scattering bins with data, or data without back-scattering signal.
+pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonParametricError> {
+    let back = backscattering(table);
+    if back.len() < 8 {
+        return Err(NonParametricError::Data(format!(
+            "the non-parametric NDF needs the back-scattering cells (θd = 0) of at least 8 θh \
+             bins; this table has {}",
+            back.len()
+        )));
+    }
+    let theta: Vec<f64> = back.iter().map(|b| b.0).collect();
+    let mut albedo = [0.0f64; 3];
+    let (mut u, mut g) = ([0.0f64; 3], [0.0f64; 3]);
+    // 1. The NDF by power iteration on the back-scattering (channels summed), each channel's
+    //    smallest back-scattering value taken as its diffuse floor.
+    let floor: Vec<f64> = (0..3)
+        .map(|c| back.iter().map(|(_, f)| f[c]).fold(f64::INFINITY, f64::min))
+        .collect();
+    let spec: Vec<f64> = back
+        .iter()
+        .map(|(_, f)| (0..3).map(|c| f[c] - floor[c]).sum())
+        .collect();
+    let peak = spec.iter().copied().fold(0.0, f64::max);
+    if peak.is_nan() || peak <= 0.0 {
+        return Err(NonParametricError::Data(
+            "the back-scattering cells hold no reflection".to_owned(),
+        ));
+    }
+    let spec: Vec<f64> = spec.iter().map(|s| s.max(1e-6 * peak)).collect();
+    let mut a: Vec<f64> = theta.iter().map(|t| t.cos()).collect();
+    let mut r = radial(&theta, &spec)?;
+    for _ in 0..POWER_ITERATIONS {
+        let d: Vec<f64> = theta
+            .iter()
+            .zip(&spec)
+            .zip(&a)
+            .map(|((t, s), a)| {
+                let c = t.cos();
+                s * c * (2.0 * a - c).max(c)
+            })
+            .collect();
+        r = radial(&theta, &d)?;
+        a = projected_areas(&Ndf::Radial(r.clone()), &theta);
+    }
+    let mut ndf = None;
+    for step in 0..=OUTER_ITERATIONS {
+        // 2. Fresnel, specular and diffuse by linear least squares on the fitted samples: the
+        //    basis X = D G₂ / (4 cos θi cos θo) from the plan of a white mirror material.
+        let unit = NonParametric {
+            ndf: r.clone(),
+            f0: [1.0; 3],
+            specular: [1.0; 3],
+            albedo: [0.0; 3],
+            specular_clamped: false,
+            fitted: FitErrors::default(),
+            held_out: None,
+            nodes: back.len(),
+        };
+        let plan = FastBrdf::with_policy(&material(&unit), Policy::Accurate);
+        let basis: Vec<(f64, f64, f64)> = data
+            .samples
+            .iter()
+            .map(|s| {
+                let x = plan.eval(s.wi, s.wo)[0];
+                let h = (s.wi + s.wo).normalize_or_zero();
+                let c = s.wi.dot(h).clamp(0.0, 1.0);
+                (x, x * (1.0 - c).powi(5), s.weight * s.wi.z * s.wi.z)
+            })
+            .collect();
+        // The log metric linearised about the data: a residual δf in f weighs
+        // cos θi / (1 + f cos θi) in ln(1 + f cos θi).
+        let weight = |s: &crate::samples::Sample, ch: usize, w: f64| {
+            let l = 1.0 + s.rgb[ch].max(0.0) * s.wi.z;
+            w / (l * l)
+        };
+        for ch in 0..3 {
+            let rows: Vec<([f64; 3], f64, f64)> = data
+                .samples
+                .iter()
+                .zip(&basis)
+                .map(|(s, (x, xg, w))| ([1.0 / PI, *x, *xg], s.rgb[ch], weight(s, ch, *w)))
+                .collect();
+            let [rho, uu, gg] = nnls3(&rows);
+            albedo[ch] = rho.min(1.0);
+            u[ch] = uu;
+            g[ch] = gg;
+        }
+        if step == OUTER_ITERATIONS {
+            ndf = Some(r);
+            break;
+        }
+        // 3. The NDF's node values by linear least squares on every fitted sample (all
+        //    channels), Fresnel, diffuse and G₂ held: f − ρ/π = S(θd) G₂/(4 cos θi cos θo) ·
+        //    Σ_j D_j hat_j(θh), a tridiagonal system, non-negative by projected Gauss–Seidel.
+        let nodes: Vec<f64> = r.theta().to_vec();
+        let nn = nodes.len();
+        let ndf_now = Ndf::Radial(r.clone());
+        let p = isotropic_projected_area(&ndf_now, 1.0);
+        // Unknowns: the nn node values, then ρ_r, ρ_g, ρ_b (solved jointly: a broad NDF tail
+        // and the Lambert term trade against each other).
+        let dim = nn + 3;
+        let mut ata = vec![0.0f64; dim * dim];
+        let mut atb = vec![0.0f64; dim];
+        for (s, (x, _, w)) in data.samples.iter().zip(&basis) {
+            let h = (s.wi + s.wo).normalize_or_zero();
+            let dh = r.eval(h) / p;
+            if dh.is_nan() || dh <= 0.0 || x.is_nan() || *x <= 0.0 {
+                continue;
+            }
+            let gfac = x / dh; // G₂ / (4 cos θi cos θo)
+            let th = (h.x * h.x + h.y * h.y).sqrt().atan2(h.z);
+            let j = nodes.partition_point(|&t| t <= th).clamp(1, nn - 1) - 1;
+            let t = ((th - nodes[j]) / (nodes[j + 1] - nodes[j])).clamp(0.0, 1.0);
+            let c = s.wi.dot(h).clamp(0.0, 1.0);
+            for ch in 0..3 {
+                let sc = (u[ch] + g[ch] * (1.0 - c).powi(5)) * gfac;
+                let row = [(j, sc * (1.0 - t)), (j + 1, sc * t), (nn + ch, 1.0 / PI)];
+                let ww = weight(s, ch, *w);
+                for &(a, va) in &row {
+                    atb[a] += ww * va * s.rgb[ch];
+                    for &(b, vb) in &row {
+                        ata[a * dim + b] += ww * va * vb;
+                    }
+                }
+            }
+        }
+        // A small ridge towards the current values keeps nodes without data where they are.
+        let ridge = 1e-9 * (0..dim).map(|k| ata[k * dim + k]).fold(0.0, f64::max);
+        let prior: Vec<f64> = r
+            .values()
+            .iter()
+            .map(|x| x / p)
+            .chain(albedo.iter().copied())
+            .collect();
+        for k in 0..dim {
+            ata[k * dim + k] += ridge;
+            atb[k] += ridge * prior[k];
+        }
+        let sol = solve_dense(&mut ata, &mut atb, dim);
+        let v: Vec<f64> = sol[..nn]
+            .iter()
+            .map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 })
+            .collect();
+        // The solved D carries the specular scale: renormalise it and move its scale into u, g.
+        let next = Radial::new(nodes, v).map_err(|e| NonParametricError::Data(e.to_string()))?;
+        r = next;
+    }
+    let ndf = ndf.expect("at least one outer iteration");
+    let mut clamped = false;
+    let mut f0 = [0.0; 3];
+    let mut specular = [0.0; 3];
+    for c in 0..3 {
+        let s = u[c] + g[c];
+        if s > 1.0 {
+            clamped = true;
+        }
+        specular[c] = s.min(1.0);
+        f0[c] = if s > 0.0 { u[c] / s } else { 0.0 };
+    }
+    let mut out = NonParametric {
+        ndf,
+        f0,
+        specular,
+        albedo,
+        specular_clamped: clamped,
+        fitted: FitErrors::default(),
+        held_out: None,
+        nodes: back.len(),
+    };
+    let plan = FastBrdf::with_policy(&material(&out), Policy::Accurate);
+    let eval = |wi: DVec3, wo: DVec3| plan.eval(wi, wo);
+    out.fitted = evaluate_samples_fn(&data.samples, eval);
+    if !data.held_out.is_empty() {
+        out.held_out = Some(evaluate_samples_fn(&data.held_out, eval));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_recovers_non_negative_solutions_and_clamps_negative_ones() {
+        let rows: Vec<([f64; 3], f64, f64)> = (0..50)
+            .map(|k| {
+                let x = f64::from(k) / 50.0;
+                let a = [1.0, x, x * x];
+                (a, 0.2 + 0.5 * x + 0.1 * x * x, 1.0)
+            })
+            .collect();
+        let s = nnls3(&rows);
+        assert!(
+            (s[0] - 0.2).abs() < 1e-9 && (s[1] - 0.5).abs() < 1e-9 && (s[2] - 0.1).abs() < 1e-9
+        );
+        // y = 1 − x: the x coefficient wants −1, so the best non-negative fit drops it.
+        let rows: Vec<([f64; 3], f64, f64)> = (0..50)
+            .map(|k| {
+                let x = f64::from(k) / 50.0;
+                ([1.0, x, x * x], 1.0 - x, 1.0)
+            })
+            .collect();
+        let s = nnls3(&rows);
+        assert!(s.iter().all(|v| *v >= 0.0), "{s:?}");
+    }
+}
