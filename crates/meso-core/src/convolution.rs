@@ -693,35 +693,53 @@ pub struct SmithMasking<'a> {
 /// η from 1 to 10⁶ (tested against the 2-D quadrature and closed forms).
 #[must_use]
 pub fn isotropic_projected_area(ndf: &Ndf, u: f64) -> f64 {
+    axial_projected_area(|t| ndf.eval(DVec3::new(t.sin(), 0.0, t.cos())), u, false)
+}
+
+/// `∫ n(m)(ω·m)⁺ dω_m` for a density `n` symmetric about an axis, given as a function of the
+/// angle `θ'` to the axis, and `ω` making cosine `u` with the axis: the rule of
+/// [`isotropic_projected_area`] over `θ' ∈ [0, π/2]` (`full_sphere = false`: the upper
+/// hemisphere about the axis) or over the whole sphere (`true`: 16 more uniform intervals on
+/// `[π/2, π]`), split at both kinks `θ' = π/2 ∓ θ` of the clamped cosine.
+#[must_use]
+pub fn axial_projected_area(density: impl Fn(f64) -> f64, u: f64, full_sphere: bool) -> f64 {
+    use std::f64::consts::FRAC_PI_2;
     const INTERVALS: usize = 48;
+    const BACK: usize = 16;
     const FIRST: f64 = 1e-4;
     static GL: OnceLock<(Vec<f64>, Vec<f64>)> = OnceLock::new();
     let (xs, ws) = GL.get_or_init(|| gauss_legendre(12));
     let u = u.clamp(-1.0, 1.0);
     let s = (1.0 - u * u).max(0.0).sqrt();
-    let kink = std::f64::consts::FRAC_PI_2 - u.acos();
-    let ratio = (std::f64::consts::FRAC_PI_2 / FIRST).powf(1.0 / INTERVALS as f64);
+    let theta = u.acos();
+    let kinks = [FRAC_PI_2 - theta, FRAC_PI_2 + theta];
+    let ratio = (FRAC_PI_2 / FIRST).powf(1.0 / INTERVALS as f64);
+    let ends = INTERVALS + 1 + if full_sphere { BACK } else { 0 };
     let mut sum = 0.0;
     let mut a = 0.0;
-    for k in 0..=INTERVALS {
-        let b = if k == INTERVALS {
-            std::f64::consts::FRAC_PI_2
-        } else {
+    for k in 0..ends {
+        let b = if k < INTERVALS {
             FIRST * ratio.powi(k as i32)
-        };
-        // Split the interval at the kink of the clamped cosine.
-        let cuts: &[f64] = if kink > a && kink < b {
-            &[kink, b]
         } else {
-            &[b]
+            FRAC_PI_2 * (1.0 + (k - INTERVALS) as f64 / BACK as f64)
         };
-        for &c in cuts {
+        // Split the interval at the kinks of the clamped cosine.
+        let mut cuts = [b; 3];
+        let mut nc = 0;
+        for kk in kinks {
+            if kk > a && kk < b {
+                cuts[nc] = kk;
+                nc += 1;
+            }
+        }
+        cuts[nc] = b;
+        for &c in &cuts[..=nc] {
             let (half, mid) = (0.5 * (c - a), 0.5 * (c + a));
             for (x, w) in xs.iter().zip(ws) {
                 let t = mid + half * x;
                 let (st, ct) = t.sin_cos();
-                let n = ndf.eval(DVec3::new(st, 0.0, ct));
-                let (aa, bb) = (u * ct, s * st);
+                let n = density(t);
+                let (aa, bb) = (u * ct, s * st.abs());
                 let azimuthal = if aa >= bb {
                     2.0 * PI * aa
                 } else if aa <= -bb {

@@ -1,0 +1,274 @@
+//! The maximum-likelihood start of the lobe fit (parent module docs): spherical k-means seeds,
+//! EM on the mixture of Phong peaks with its closed-form M-step, the split start, and the fast
+//! `ln` / `exp` of EM's inner loop.
+
+use crate::limits::{ETA_MAX, MAX_LOBES};
+use glam::DVec3;
+use std::f64::consts::PI;
+
+#[inline]
+pub(super) fn log_t(a: DVec3, m: DVec3) -> f64 {
+    (0.5 * (1.0 + a.dot(m))).max(1e-300).ln()
+}
+
+#[inline]
+pub(super) fn eta_from_mean_t(t: f64) -> f64 {
+    if t >= -1.0 / ETA_MAX {
+        ETA_MAX
+    } else {
+        (-2.0 / t - 2.0).clamp(0.0, ETA_MAX)
+    }
+}
+
+#[derive(Clone, Copy)]
+/// A lobe while fitting: axis `a` (unit), weight `w`, Phong exponent `eta`.
+pub(super) struct L {
+    pub(super) a: DVec3,
+    pub(super) w: f64,
+    pub(super) eta: f64,
+}
+
+/// Spherical k-means with a greedy weighted k-means++ start (first centre: the heaviest entry;
+/// then the entry maximising weight × squared chord distance to the nearest centre), 5 Lloyd
+/// steps, then lobes with the cluster shares and the closed-form exponent of each cluster.
+pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
+    let mut centres: Vec<DVec3> = Vec::with_capacity(k);
+    let first = pts
+        .iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|e| e.0.normalize())
+        .unwrap_or(DVec3::Z);
+    centres.push(first);
+    while centres.len() < k {
+        let mut best = (-1.0, DVec3::Z);
+        for e in pts {
+            let d = e.0.normalize();
+            let dist = centres
+                .iter()
+                .map(|c| 2.0 - 2.0 * c.dot(d))
+                .fold(f64::INFINITY, f64::min);
+            if e.1 * dist > best.0 {
+                best = (e.1 * dist, d);
+            }
+        }
+        centres.push(best.1);
+    }
+    let mut sums = vec![(DVec3::ZERO, 0.0f64, 0.0f64); k];
+    for _ in 0..5 {
+        sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
+        for &(d, w) in pts {
+            let j = (0..k)
+                .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
+                .unwrap_or(0);
+            sums[j].0 += d * w;
+            sums[j].1 += w;
+        }
+        for j in 0..k {
+            if sums[j].0.length_squared() > 0.0 {
+                centres[j] = sums[j].0.normalize();
+            }
+        }
+    }
+    for &(d, w) in pts {
+        let j = (0..k)
+            .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
+            .unwrap_or(0);
+        sums[j].2 += w * log_t(centres[j], d);
+    }
+    let total: f64 = sums.iter().map(|s| s.1).sum();
+    (0..k)
+        .filter(|&j| sums[j].1 > 0.0)
+        .map(|j| L {
+            a: centres[j],
+            w: sums[j].1 / total,
+            eta: eta_from_mean_t(sums[j].2 / sums[j].1).min(1e4),
+        })
+        .collect()
+}
+
+/// `ln x` for finite `x > 0` to ~1e-9 absolute: exponent split, mantissa folded into
+/// `[√½, √2)`, then the atanh series `2(s + s³/3 + … + s⁹/9)` with `s = (m−1)/(m+1)`. EM's inner
+/// loop spends most of its time in `ln` and `exp`; libm's full-precision versions are not needed.
+#[inline]
+fn fast_ln(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let mut e = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let mut m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    if e == -1023 {
+        // Subnormal: rare (x < 2.2e-308); fall back.
+        return x.ln();
+    }
+    if m > std::f64::consts::SQRT_2 {
+        m *= 0.5;
+        e += 1;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let p = s * (2.0 + s2 * (2.0 / 3.0 + s2 * (0.4 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0)))));
+    e as f64 * std::f64::consts::LN_2 + p
+}
+
+/// `exp y` for `y ≤ 0` to ~1e-9 relative (0 below −700): `2^k · e^r`, `|r| ≤ ln2/2`, degree-8
+/// Taylor polynomial for `e^r`.
+#[inline]
+pub(super) fn fast_exp_neg(y: f64) -> f64 {
+    if y < -700.0 {
+        return 0.0;
+    }
+    // Nearest integer to y·log₂e (≤ 0) by truncation, one instruction (`round` is a libm call).
+    let ki = (y * std::f64::consts::LOG2_E - 0.5) as i64;
+    let k = ki as f64;
+    let r = y - k * std::f64::consts::LN_2;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0
+                            + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
+    p * f64::from_bits(((ki + 1023) as u64) << 52)
+}
+
+/// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
+pub(super) type Pt = (DVec3, f64);
+
+/// Mean log-likelihood per unit weight of the mixture.
+pub(super) fn loglik(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
+    let k = lobes.len();
+    let mut c = [0.0f64; MAX_LOBES];
+    for (j, l) in lobes.iter().enumerate() {
+        c[j] = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+    }
+    let mut logd = [0.0f64; MAX_LOBES];
+    let mut ll = 0.0;
+    for &(m, w) in pts {
+        let mut mx = f64::NEG_INFINITY;
+        for j in 0..k {
+            let x = (0.5 * (1.0 + lobes[j].a.dot(m))).max(1e-300);
+            logd[j] = c[j] + 0.5 * lobes[j].eta * fast_ln(x);
+            mx = mx.max(logd[j]);
+        }
+        let s: f64 = logd[..k].iter().map(|v| fast_exp_neg(v - mx)).sum();
+        ll += w * (mx + fast_ln(s));
+    }
+    ll / total
+}
+
+/// EM on the mixture (module docs), at most `iters` iterations; returns the mean
+/// log-likelihood per unit weight of the last E-step. One `ln` and one `exp` per point and lobe.
+pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
+    let mut prev = f64::NEG_INFINITY;
+    let mut acc_w = [0.0f64; MAX_LOBES];
+    let mut acc_a = [DVec3::ZERO; MAX_LOBES];
+    let mut acc_t = [0.0f64; MAX_LOBES];
+    let mut logd = [0.0f64; MAX_LOBES];
+    let mut lt = [0.0f64; MAX_LOBES];
+    let mut inv = [0.0f64; MAX_LOBES];
+    let mut c = [0.0f64; MAX_LOBES];
+    for _ in 0..iters.max(1) {
+        let k = lobes.len();
+        if k == 0 {
+            break;
+        }
+        for j in 0..k {
+            c[j] = lobes[j].w.max(1e-300).ln() + ((lobes[j].eta + 2.0) / (8.0 * PI)).ln();
+        }
+        acc_w[..k].fill(0.0);
+        acc_a[..k].fill(DVec3::ZERO);
+        acc_t[..k].fill(0.0);
+        let mut ll = 0.0;
+        for &(m, w) in pts {
+            let mut mx = f64::NEG_INFINITY;
+            for j in 0..k {
+                let x = (0.5 * (1.0 + lobes[j].a.dot(m))).max(1e-300);
+                lt[j] = fast_ln(x);
+                inv[j] = 0.5 / x.max(0.5e-6);
+                logd[j] = c[j] + 0.5 * lobes[j].eta * lt[j];
+                mx = mx.max(logd[j]);
+            }
+            if k == 1 {
+                ll += w * logd[0];
+                acc_w[0] += w;
+                acc_a[0] += m * (w * inv[0]);
+                acc_t[0] += w * lt[0];
+                continue;
+            }
+            let mut s = 0.0;
+            for v in logd.iter_mut().take(k) {
+                *v = fast_exp_neg(*v - mx);
+                s += *v;
+            }
+            ll += w * (mx + fast_ln(s));
+            let ws = w / s;
+            for j in 0..k {
+                let r = ws * logd[j];
+                acc_w[j] += r;
+                acc_a[j] += m * (r * inv[j]);
+                acc_t[j] += r * lt[j];
+            }
+        }
+        for j in 0..k {
+            if acc_w[j] <= 1e-12 * total {
+                lobes[j].w = 0.0;
+                continue;
+            }
+            lobes[j].w = acc_w[j] / total;
+            if acc_a[j].length_squared() > 0.0 {
+                lobes[j].a = acc_a[j].normalize();
+            }
+            lobes[j].eta = eta_from_mean_t(acc_t[j] / acc_w[j]);
+        }
+        lobes.retain(|l| l.w > 0.0);
+        let ll = ll / total;
+        let converged = (ll - prev).abs() < 1e-6 * (1.0 + ll.abs());
+        prev = ll;
+        if converged || lobes.len() < k {
+            break;
+        }
+    }
+    prev
+}
+
+/// Split the heaviest lobe of `lobes` into a concentric pair (same axis, exponents ×2.5 and
+/// ÷2.5): the start that lets EM model a peak sharper and tails heavier than one Phong peak
+/// (e.g. the Gaussian slopes of a random surface), which k-means starts cannot.
+pub(super) fn split_heaviest(lobes: &[L]) -> Vec<L> {
+    let mut out = lobes.to_vec();
+    if let Some(j) = (0..out.len()).max_by(|&a, &b| out[a].w.total_cmp(&out[b].w)) {
+        let l = out[j];
+        out[j] = L {
+            a: l.a,
+            w: 0.5 * l.w,
+            eta: (l.eta * 2.5).min(ETA_MAX),
+        };
+        out.push(L {
+            a: l.a,
+            w: 0.5 * l.w,
+            eta: l.eta / 2.5,
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_ln_and_exp_match_libm() {
+        let mut x: f64 = 1e-300;
+        while x < 1e3 {
+            assert!(
+                (fast_ln(x) - x.ln()).abs() < 1e-9 * (1.0 + x.ln().abs()),
+                "ln {x}"
+            );
+            x *= 1.37;
+        }
+        let mut y: f64 = 0.0;
+        while y > -745.0 {
+            let e = y.exp();
+            assert!((fast_exp_neg(y) - e).abs() <= 1e-9 * e + 1e-300, "exp {y}");
+            y -= 0.173;
+        }
+    }
+}

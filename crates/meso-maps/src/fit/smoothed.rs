@@ -1,0 +1,521 @@
+//! The smoothed refinement of the lobe fit (parent module docs): each Phong peak stood in for by
+//! the spherical Gaussian of the same mean cosine, the kernel-smoothed L2 objective in closed
+//! form, and Levenberg–Marquardt over axes, `ln κ` and weight logits from the EM lobes and from
+//! a greedy start.
+
+use super::em::{fast_exp_neg, Pt, L};
+use crate::limits::{ETA_MAX, MAX_LOBES};
+use crate::sphgrid::SphereGrid;
+use glam::DVec3;
+use meso_core::linalg::cholesky_solve;
+use meso_core::sg;
+use std::f64::consts::PI;
+
+/// The spherical Gaussian concentration of a Phong peak of exponent η: the same mean cosine,
+/// `η/(η + 4)` ([`sg::kappa_same_mean_cos`]; the renderer's `NdfMapped` makes the same
+/// substitution, and the fitted κ go back to exponents exactly by [`kappa_eta`]).
+fn peak_kappa(eta: f64) -> f64 {
+    sg::kappa_same_mean_cos(eta).clamp(KAPPA_MIN, KAPPA_MAX)
+}
+
+/// The Phong exponent of a spherical Gaussian of concentration κ (inverse of [`peak_kappa`]:
+/// [`sg::eta_same_mean_cos`]).
+fn kappa_eta(kappa: f64) -> f64 {
+    sg::eta_same_mean_cos(kappa).clamp(0.0, ETA_MAX)
+}
+
+const KAPPA_MIN: f64 = 1e-3;
+const KAPPA_MAX: f64 = 2.5e5;
+
+/// Per-lobe constants of [`sg_response`] (a thin wrapper: the constants come from
+/// [`meso_core::sg`]).
+#[derive(Clone, Copy)]
+struct SgLobe {
+    a: DVec3,
+    t1: DVec3,
+    t2: DVec3,
+    kappa: f64,
+    /// `κ / (1 − e^{−2κ})`.
+    norm: f64,
+    /// `coth κ − 1/κ`.
+    lang: f64,
+}
+
+impl SgLobe {
+    fn new(a: DVec3, kappa: f64) -> SgLobe {
+        let (t1, t2) = tangents(a);
+        SgLobe {
+            a,
+            t1,
+            t2,
+            kappa,
+            norm: sg::normaliser_2pi(kappa),
+            lang: sg::mean_cos(kappa),
+        }
+    }
+}
+
+/// Response `G(h) = ∫ sg(m) exp(λ(h·m − 1)) dm` of the unit-weight spherical Gaussian
+/// `sg(m) = κ/(2π(1 − e^{−2κ})) e^{κ(a·m − 1)}` (normalised on the sphere) to the kernel, exactly:
+/// `G = κ/(1 − e^{−2κ}) · e^{r−κ−λ} (1 − e^{−2r})/r` with `r = |κa + λh|`; and its derivatives
+/// with respect to `ln κ` and to the axis' offsets along its two tangents. With `grad == false`
+/// only `G` is computed.
+#[inline]
+fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
+    let ah = l.a.dot(h);
+    let kappa = l.kappa;
+    let r = (kappa * kappa + lambda * (lambda + 2.0 * kappa * ah))
+        .max(0.0)
+        .sqrt();
+    // r − κ − λ without cancellation (sg::product's ln_scale, on unit axes, written out on the
+    // a·h the derivatives need too).
+    let expo = 2.0 * kappa * lambda * (ah - 1.0) / (r + kappa + lambda);
+    let sr = sg::integral_per_2pi(r);
+    let g = l.norm * sr * fast_exp_neg(expo.min(0.0));
+    if !grad {
+        return [g, 0.0, 0.0, 0.0];
+    }
+    let lr = sg::mean_cos(r) / r.max(1e-12);
+    // ∂ln G/∂κ = 1/κ − coth κ + L(r)(u·a)/r, u = κa + λh; ∂ln G/∂a = L(r) κ u / r.
+    let dk = g * kappa * (lr * (kappa + lambda * ah) - l.lang);
+    let c = g * lr * kappa * lambda;
+    [g, dk, c * h.dot(l.t1), c * h.dot(l.t2)]
+}
+
+/// Two unit tangents orthogonal to `a` and to each other.
+fn tangents(a: DVec3) -> (DVec3, DVec3) {
+    let t = if a.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let t1 = (t - a * a.dot(t)).normalize();
+    (t1, a.cross(t1))
+}
+
+/// Lobe parameters of the smoothed fit: axes, `ln κ`, softmax logits of the weights (so the
+/// weights always sum to 1).
+#[derive(Clone)]
+struct SgState {
+    k: usize,
+    axes: [DVec3; MAX_LOBES],
+    lk: [f64; MAX_LOBES],
+    sl: [f64; MAX_LOBES],
+}
+
+impl SgState {
+    fn from_lobes(lobes: &[L]) -> SgState {
+        let mut st = SgState {
+            k: lobes.len(),
+            axes: [DVec3::Z; MAX_LOBES],
+            lk: [0.0; MAX_LOBES],
+            sl: [0.0; MAX_LOBES],
+        };
+        for (j, l) in lobes.iter().enumerate() {
+            st.axes[j] = l.a;
+            st.lk[j] = peak_kappa(l.eta).ln();
+            st.sl[j] = l.w.max(1e-12).ln();
+        }
+        st
+    }
+    fn weights(&self) -> [f64; MAX_LOBES] {
+        let k = self.k;
+        let mx = self.sl[..k]
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        let mut w = [0.0; MAX_LOBES];
+        for (wj, sl) in w.iter_mut().zip(&self.sl[..k]) {
+            *wj = (sl - mx).exp();
+        }
+        let s: f64 = w[..k].iter().sum();
+        w[..k].iter_mut().for_each(|v| *v /= s);
+        w
+    }
+    fn lobes(&self) -> [SgLobe; MAX_LOBES] {
+        let mut out = [SgLobe::new(DVec3::Z, 1.0); MAX_LOBES];
+        for ((o, &a), &lk) in out.iter_mut().zip(&self.axes).zip(&self.lk).take(self.k) {
+            *o = SgLobe::new(a, lk.exp());
+        }
+        out
+    }
+    fn to_lobes(&self) -> Vec<L> {
+        let w = self.weights();
+        (0..self.k)
+            .map(|j| L {
+                a: self.axes[j],
+                w: w[j],
+                eta: kappa_eta(self.lk[j].exp()),
+            })
+            .collect()
+    }
+    fn remove(&mut self, j: usize) {
+        let k = self.k;
+        self.axes.copy_within(j + 1..k, j);
+        self.lk.copy_within(j + 1..k, j);
+        self.sl.copy_within(j + 1..k, j);
+        self.k -= 1;
+    }
+}
+
+thread_local! {
+    /// Upper-hemisphere centres of the sample grid, per grid resolution.
+    static SAMPLE_GRID: std::cell::RefCell<(usize, Vec<DVec3>)> =
+        const { std::cell::RefCell::new((0, Vec::new())) };
+}
+
+/// The smoothed objective of one footprint (module docs): the sample half vectors `hs` (centres
+/// of an equal-area grid with spacing ≈ the kernel's width, upper hemisphere, within reach of the
+/// data) and the data smoothed by the kernel at them.
+struct Smoothed<'a> {
+    lambda: f64,
+    pts: &'a [Pt],
+    total: f64,
+    hs: Vec<DVec3>,
+    target: Vec<f64>,
+}
+
+impl<'a> Smoothed<'a> {
+    fn new(pts: &'a [Pt], lambda: f64) -> Smoothed<'a> {
+        let total: f64 = pts.iter().map(|p| p.1).sum();
+        // Kernel width ≈ 1/√λ rad; grid spacing √(4π)/res ≈ that width.
+        let sigma = 1.0 / lambda.sqrt();
+        let res = ((3.55 / sigma).ceil() as usize).clamp(8, 512);
+        let c = pts.iter().map(|p| p.0 * p.1).sum::<DVec3>();
+        let c = c.try_normalize().unwrap_or(DVec3::Z);
+        let cmin = pts
+            .iter()
+            .map(|p| p.0.normalize_or_zero().dot(c))
+            .fold(1.0f64, f64::min)
+            .clamp(-1.0, 1.0);
+        let cap = (cmin.acos() + 3.5 * sigma).min(PI).cos();
+        let hs: Vec<DVec3> = SAMPLE_GRID.with(|g| {
+            let mut g = g.borrow_mut();
+            if g.0 != res {
+                let grid = SphereGrid { res };
+                g.1 = (0..grid.bins())
+                    .map(|b| grid.point(b, 0.5, 0.5))
+                    .filter(|h| h.z > 0.0)
+                    .collect();
+                g.0 = res;
+            }
+            g.1.iter().copied().filter(|h| h.dot(c) >= cap).collect()
+        });
+        // Unit normals, weights over the total, the kernel's cut-off (e^−20) as a cosine.
+        let unit: Vec<(DVec3, f64)> = pts
+            .iter()
+            .map(|&(m, w)| (m.normalize_or_zero(), w / total))
+            .collect();
+        let cut = 1.0 - 20.0 / lambda;
+        let target = hs
+            .iter()
+            .map(|&h| {
+                let mut s = 0.0;
+                for &(m, w) in &unit {
+                    let c = h.dot(m);
+                    if c > cut {
+                        s += w * fast_exp_neg(lambda * (c - 1.0));
+                    }
+                }
+                s
+            })
+            .collect();
+        Smoothed {
+            lambda,
+            pts,
+            total,
+            hs,
+            target,
+        }
+    }
+
+    /// Sum of squared residuals; with `jac`, also `JᵀJ` (lower triangle) and `Jᵀr` added in.
+    fn eval(&self, st: &SgState, mut jac: Option<(&mut [f64], &mut [f64])>) -> f64 {
+        let k = st.k;
+        let np = 4 * k;
+        let ws = st.weights();
+        let ls = st.lobes();
+        let grad = jac.is_some();
+        let mut obj = 0.0;
+        let mut row = [0.0; 4 * MAX_LOBES];
+        let mut gs = [[0.0; 4]; MAX_LOBES];
+        for (&h, &t) in self.hs.iter().zip(&self.target) {
+            let mut m = 0.0;
+            for j in 0..k {
+                gs[j] = sg_response(&ls[j], self.lambda, h, grad);
+                m += ws[j] * gs[j][0];
+            }
+            let r = m - t;
+            obj += r * r;
+            if let Some((jtj, jtr)) = jac.as_mut() {
+                for j in 0..k {
+                    row[4 * j] = ws[j] * (gs[j][0] - m);
+                    row[4 * j + 1] = ws[j] * gs[j][1];
+                    row[4 * j + 2] = ws[j] * gs[j][2];
+                    row[4 * j + 3] = ws[j] * gs[j][3];
+                }
+                for a in 0..np {
+                    let ra = row[a];
+                    jtr[a] += ra * r;
+                    for (b, v) in jtj[a * np..=a * np + a].iter_mut().enumerate() {
+                        *v += ra * row[b];
+                    }
+                }
+            }
+        }
+        obj
+    }
+
+    /// Levenberg–Marquardt from `st`, at most `iters` steps, until a step lowers the objective
+    /// by less than the fraction `tol`; returns the objective.
+    fn lm(&self, st: &mut SgState, iters: usize, tol: f64) -> f64 {
+        let k = st.k;
+        let np = 4 * k;
+        let mut jtj = [0.0; 16 * MAX_LOBES * MAX_LOBES];
+        let mut a = [0.0; 16 * MAX_LOBES * MAX_LOBES];
+        let mut jtr = [0.0; 4 * MAX_LOBES];
+        let mut d = [0.0; 4 * MAX_LOBES];
+        let mut mu = 1e-3;
+        let mut obj = self.eval(st, None);
+        for _ in 0..iters {
+            jtj[..np * np].fill(0.0);
+            jtr[..np].fill(0.0);
+            self.eval(st, Some((&mut jtj[..np * np], &mut jtr[..np])));
+            for i in 0..np {
+                for j in 0..i {
+                    jtj[j * np + i] = jtj[i * np + j];
+                }
+            }
+            let mut accepted = false;
+            for _ in 0..10 {
+                a[..np * np].copy_from_slice(&jtj[..np * np]);
+                for i in 0..np {
+                    d[i] = -jtr[i];
+                    a[i * np + i] += mu * jtj[i * np + i] + 1e-18;
+                }
+                if !cholesky_solve(&mut a[..np * np], &mut d[..np], np) {
+                    mu *= 4.0;
+                    continue;
+                }
+                let mut nst = st.clone();
+                for j in 0..k {
+                    let (t1, t2) = tangents(st.axes[j]);
+                    nst.sl[j] += d[4 * j].clamp(-3.0, 3.0);
+                    nst.lk[j] = (st.lk[j] + d[4 * j + 1].clamp(-1.5, 1.5))
+                        .clamp(KAPPA_MIN.ln(), KAPPA_MAX.ln());
+                    // Axis steps of at most 0.3 rad.
+                    let (s1, s2) = (d[4 * j + 2], d[4 * j + 3]);
+                    let step = (s1 * s1 + s2 * s2).sqrt();
+                    let scale = if step > 0.3 { 0.3 / step } else { 1.0 };
+                    nst.axes[j] = (st.axes[j] + (t1 * s1 + t2 * s2) * scale).normalize();
+                }
+                let o = self.eval(&nst, None);
+                if o < obj {
+                    let drop = (obj - o) / obj.max(1e-300);
+                    *st = nst;
+                    obj = o;
+                    mu = (mu / 3.0).max(1e-9);
+                    accepted = drop > tol;
+                    break;
+                }
+                mu *= 4.0;
+            }
+            if !accepted {
+                break;
+            }
+        }
+        obj
+    }
+
+    /// Add a lobe of weight `share` (the others scaled by `1 − share`) where the data most
+    /// exceed the lobes: at the kernel-weighted mean of the data around the sample of largest
+    /// excess (so that it lies in the span of the data), concentration λ.
+    fn add_lobe(&self, st: &mut SgState, share: f64) {
+        let ws = st.weights();
+        let ls = st.lobes();
+        let mut best = (DVec3::Z, f64::NEG_INFINITY);
+        for (&h, &t) in self.hs.iter().zip(&self.target) {
+            let m: f64 = (0..st.k)
+                .map(|j| ws[j] * sg_response(&ls[j], self.lambda, h, false)[0])
+                .sum();
+            if t - m > best.1 {
+                best = (h, t - m);
+            }
+        }
+        let h = best.0;
+        let mean: DVec3 = self
+            .pts
+            .iter()
+            .map(|&(m, w)| {
+                let e = self.lambda * (h.dot(m.normalize_or_zero()) - 1.0);
+                m * (w * fast_exp_neg(e.max(-700.0)))
+            })
+            .sum();
+        let j = st.k;
+        for (sl, w) in st.sl.iter_mut().zip(&ws).take(j) {
+            *sl = (w * (1.0 - share)).max(1e-12).ln();
+        }
+        st.sl[j] = share.ln();
+        st.lk[j] = self.lambda.ln();
+        st.axes[j] = mean.try_normalize().unwrap_or(h);
+        st.k += 1;
+    }
+
+    /// Greedy fit: one lobe with the data's mean axis and mean cosine, then lobes added by
+    /// [`Self::add_lobe`] while each lowers the objective by more than `min_drop` (relative),
+    /// up to `kmax`.
+    fn greedy(&self, kmax: usize, iters: usize, min_drop: f64) -> (SgState, f64) {
+        let c = self.pts.iter().map(|p| p.0 * p.1).sum::<DVec3>() / self.total;
+        let mc = c.length().clamp(0.0, 1.0 - 1e-9);
+        let mut st = SgState {
+            k: 1,
+            axes: [c.try_normalize().unwrap_or(DVec3::Z); MAX_LOBES],
+            lk: [sg::kappa_from_mean_cos(mc).clamp(KAPPA_MIN, KAPPA_MAX).ln(); MAX_LOBES],
+            sl: [0.0; MAX_LOBES],
+        };
+        let mut obj = self.lm(&mut st, iters, SMOOTH_TOL_START);
+        while st.k < kmax {
+            let mut next = st.clone();
+            self.add_lobe(&mut next, 1.0 / (st.k + 1) as f64);
+            let o = self.lm(&mut next, iters, SMOOTH_TOL_START);
+            if o > obj * (1.0 - min_drop) {
+                break;
+            }
+            st = next;
+            obj = o;
+        }
+        (st, obj)
+    }
+
+    /// LM from `st`; a lobe whose weight dies (< 10⁻³) or whose axis sinks below the horizon is
+    /// re-seeded by [`Self::add_lobe`] (at most `k` times, kept only when that lowers the
+    /// objective).
+    fn polish(&self, st: &mut SgState, iters: usize) -> f64 {
+        let mut obj = self.lm(st, iters, SMOOTH_TOL_START);
+        for _ in 0..st.k {
+            let w = st.weights();
+            let Some(dead) = (0..st.k).find(|&j| w[j] < 1e-3 || st.axes[j].z < 0.0) else {
+                break;
+            };
+            let k = st.k;
+            let mut next = st.clone();
+            next.remove(dead);
+            self.add_lobe(&mut next, 1.0 / k as f64);
+            let o = self.lm(&mut next, iters, SMOOTH_TOL_START);
+            if o >= obj {
+                break;
+            }
+            *st = next;
+            obj = o;
+        }
+        obj
+    }
+}
+
+/// Refine the EM fit `lobes` on the smoothed L2 objective (module docs) unless it is already
+/// within [`SMOOTH_KEEP`]: LM from the EM lobes and from a greedy start (up to `kmax` lobes);
+/// the lobes of the lower objective are kept.
+pub(super) fn refine_smoothed(pts: &[Pt], lobes: &mut Vec<L>, lambda: f64, kmax: usize) {
+    let sm = Smoothed::new(pts, lambda);
+    if lobes.is_empty() || sm.hs.len() < 4 * kmax {
+        return;
+    }
+    let mut a = SgState::from_lobes(lobes);
+    let energy: f64 = sm.target.iter().map(|t| t * t).sum();
+    // The EM fit is kept unless it is off by more than SMOOTH_KEEP (relative L2): the
+    // refinement models the peaks as spherical Gaussians and ignores detail finer than the
+    // kernel, which a sharper facet BRDF than the kernel would see.
+    if sm.eval(&a, None) <= SMOOTH_KEEP * SMOOTH_KEEP * energy {
+        return;
+    }
+    let oa = sm.polish(&mut a, SMOOTH_START_ITERATIONS);
+    // The greedy start only when the EM start leaves more than SMOOTH_GOOD (relative L2).
+    let mut best = if oa <= SMOOTH_GOOD * SMOOTH_GOOD * energy {
+        a
+    } else {
+        let (b, ob) = sm.greedy(kmax, SMOOTH_START_ITERATIONS, SMOOTH_MIN_DROP);
+        if ob < oa {
+            b
+        } else {
+            a
+        }
+    };
+    sm.lm(&mut best, SMOOTH_ITERATIONS, SMOOTH_TOL);
+    *lobes = best.to_lobes();
+}
+
+/// Relative smoothed L2 error of the EM fit up to which it is kept as it is.
+const SMOOTH_KEEP: f64 = 0.05;
+/// Relative L2 error of the smoothed fit below which the EM start is not challenged by the
+/// greedy one.
+const SMOOTH_GOOD: f64 = 0.03;
+/// Most entries the smoothed objective is computed from (a strided subset beyond).
+pub(super) const SMOOTH_MAX_POINTS: usize = 1024;
+/// Most LM steps per start (and per greedy stage) of the smoothed refinement; the starts stop
+/// when a step gains less than [`SMOOTH_TOL_START`] (relative).
+const SMOOTH_START_ITERATIONS: usize = 10;
+const SMOOTH_TOL_START: f64 = 1e-3;
+/// Most LM steps of the final polish of the better start; it stops when a step gains less than
+/// [`SMOOTH_TOL`].
+const SMOOTH_ITERATIONS: usize = 30;
+const SMOOTH_TOL: f64 = 1e-5;
+/// The greedy start adds a lobe only when it lowers the smoothed objective by more than this
+/// fraction.
+const SMOOTH_MIN_DROP: f64 = 0.02;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sg_response_matches_quadrature_and_its_gradient() {
+        let a = DVec3::new(0.3, -0.2, 0.9).normalize();
+        let lambda = 40.0;
+        for kappa in [0.5, 8.0, 150.0] {
+            let l = SgLobe::new(a, kappa);
+            let h = DVec3::new(-0.1, 0.25, 0.95).normalize();
+            let g = sg_response(&l, lambda, h, true);
+            // Midpoint quadrature of ∫ sg(m) exp(λ(h·m − 1)) dm on a fine equal-area grid.
+            let grid = SphereGrid { res: 512 };
+            let norm = sg::normaliser(kappa);
+            let q: f64 = (0..grid.bins())
+                .map(|b| {
+                    let m = grid.point(b, 0.5, 0.5);
+                    norm * (kappa * (a.dot(m) - 1.0)).exp() * (lambda * (h.dot(m) - 1.0)).exp()
+                })
+                .sum::<f64>()
+                * grid.bin_solid_angle();
+            assert!((g[0] - q).abs() < 2e-3 * q, "κ {kappa}: {} vs {q}", g[0]);
+            // Derivatives against central differences.
+            let e = 1e-6;
+            let dk = (sg_response(&SgLobe::new(a, kappa * (1.0 + e)), lambda, h, false)[0]
+                - sg_response(&SgLobe::new(a, kappa * (1.0 - e)), lambda, h, false)[0])
+                / (2.0 * e);
+            assert!(
+                (g[1] - dk).abs() < 1e-5 * (1.0 + dk.abs()),
+                "∂κ {} vs {dk}",
+                g[1]
+            );
+            for (t, gi) in [(l.t1, g[2]), (l.t2, g[3])] {
+                let gp = sg_response(
+                    &SgLobe::new((a + t * e).normalize(), kappa),
+                    lambda,
+                    h,
+                    false,
+                );
+                let gm = sg_response(
+                    &SgLobe::new((a - t * e).normalize(), kappa),
+                    lambda,
+                    h,
+                    false,
+                );
+                let d = (gp[0] - gm[0]) / (2.0 * e);
+                assert!((gi - d).abs() < 1e-5 * (1.0 + d.abs()), "∂a {gi} vs {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn kappa_and_eta_round_trip() {
+        for eta in [0.5, 4.0, 20.0, 300.0, 1e5] {
+            let back = kappa_eta(peak_kappa(eta));
+            assert!((back - eta).abs() < 1e-6 * eta, "{eta} -> {back}");
+        }
+    }
+}
