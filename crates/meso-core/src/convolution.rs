@@ -159,6 +159,13 @@ fn warps(ndf: &Ndf, hint: Option<Peak>) -> Vec<Warp> {
             lobes.push((DVec3::Z, 8.0 / (a * a), 0.7));
             lobes.push((DVec3::Z, 2.0 / (a * a), 0.3));
         }
+        Ndf::Mixture(mx) => {
+            for l in mx.lobes().iter().filter(|l| l.weight > 0.0) {
+                let a = l.microfacet.alpha_x.min(l.microfacet.alpha_y);
+                lobes.push((DVec3::Z, 8.0 / (a * a), 0.7 * l.weight));
+                lobes.push((DVec3::Z, 2.0 / (a * a), 0.3 * l.weight));
+            }
+        }
         Ndf::Radial(r) => {
             // Its rms angle as a core width and a lobe four times wider for the tails.
             let s = r.rms_theta().max(1e-4);
@@ -749,7 +756,8 @@ pub fn axial_projected_area(density: impl Fn(f64) -> f64, u: f64, full_sphere: b
 }
 
 impl<'a> SmithMasking<'a> {
-    /// Prepare the masking function of `ndf`: closed forms for Beckmann and GGX NDFs (the common
+    /// Prepare the masking function of `ndf`: closed forms for Beckmann and GGX NDFs and their
+    /// mixtures (the common
     /// material's fast path), quadrature for the others.
     #[must_use]
     pub fn new(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
@@ -769,6 +777,8 @@ impl<'a> SmithMasking<'a> {
             Ndf::Deltas(d) => d.projected_area(),
             // `n = D/A` with `∫ D (m·z) dω = 1`: exactly `1/A`.
             Ndf::Microfacet(mf) if closed_form => 1.0 / mf.area_ratio(),
+            // `P = Σ w_k / A_k` ([`crate::ndf::mixture`]).
+            Ndf::Mixture(mx) if closed_form => mx.projected_area(),
             _ if isotropic => isotropic_projected_area(ndf, 1.0),
             _ => integrate(ndf, accuracy, None, |m| [m.z.max(0.0)])[0],
         };
@@ -782,14 +792,17 @@ impl<'a> SmithMasking<'a> {
     }
 
     /// `Λ(ω) = ∫_{z>0} D(m)(ω·m)⁺ dω_m / cos θ_ω − 1` (≥ 0 up to quadrature error); the closed
-    /// form of Beckmann and GGX NDFs ([`crate::ndf::Microfacet::lambda`]), by quadrature otherwise.
+    /// form of Beckmann and GGX NDFs ([`crate::ndf::Microfacet::lambda`]) and of their mixtures
+    /// ([`crate::ndf::Mixture::lambda`]), by quadrature otherwise.
     #[must_use]
     pub fn lambda(&self, w: DVec3) -> f64 {
         if w.z <= 0.0 {
             return f64::INFINITY;
         }
-        if let (true, Ndf::Microfacet(mf)) = (self.closed_form, self.ndf) {
-            return mf.lambda(w);
+        match (self.closed_form, self.ndf) {
+            (true, Ndf::Microfacet(mf)) => return mf.lambda(w),
+            (true, Ndf::Mixture(mx)) => return mx.lambda(w),
+            _ => {}
         }
         (self.relative_projected_area(w) / w.z - 1.0).max(0.0)
     }

@@ -14,8 +14,8 @@ use crate::convolution::{effective_brdf_with, Accuracy, Form, Visibility};
 use crate::display::Num;
 use crate::frame::spherical_direction_deg;
 use crate::ndf::{
-    Cylinder, DeltaSum, Distribution, Harmonics, Microfacet, Ndf, PhongLobe, PhongPeaks, Radial,
-    Sphere, Tabulated, VonMisesFisher, WeightedNormal,
+    Cylinder, DeltaSum, Distribution, Harmonics, Microfacet, Mixture, Ndf, PhongLobe, PhongPeaks,
+    Radial, Sphere, Tabulated, VonMisesFisher, WeightedNormal,
 };
 use crate::transfer::{Fresnel, PhongVariant, Transfer};
 use glam::DVec3;
@@ -570,6 +570,7 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
             let (ax, ay) = alphas(&mut f)?;
             Ndf::Microfacet(Microfacet::new(dist, ax, ay).map_err(ndf_err)?)
         }
+        "mixture" => Ndf::Mixture(parse_mixture(&mut f)?),
         "harmonics" => {
             let band = f.bounded("band", 0.0, crate::ndf::harmonics::MAX_BAND as f64)?;
             let coeffs = f.array("coefficients", 0)?;
@@ -633,7 +634,7 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
         other => {
             return err(format!(
                 "{name} kind: unknown NDF kind \"{other}\" (known: phong-peaks, deltas, sphere, \
-                 cylinder, vmf, beckmann, ggx, harmonics, tabulated, radial, heightmap, map)"
+                 cylinder, vmf, beckmann, ggx, mixture, harmonics, tabulated, radial, heightmap, map)"
             ))
         }
     };
@@ -656,6 +657,65 @@ fn sub_ndf(name: &str, v: &toml::Value, depth: usize) -> Result<Ndf, MaterialErr
         ));
     }
     Ok(inner)
+}
+
+/// `kind = "mixture"`: `lobes = [ { kind = "ggx" | "beckmann", alpha = …, weight = … }, … ]`
+/// (`alpha_x` and `alpha_y` instead of `alpha` for an anisotropic lobe).
+fn parse_mixture(f: &mut Fields<'_>) -> Result<Mixture, MaterialError> {
+    let name = f.name.clone();
+    let Some(v) = f.get("lobes") else {
+        return err(format!(
+            "{name}: a mixture needs `lobes = [ {{ kind = \"ggx\", alpha = 0.1, weight = 1 }}, … ]`"
+        ));
+    };
+    let Some(arr) = v.as_array() else {
+        return err(format!("{name} lobes: expected an array of tables"));
+    };
+    if arr.is_empty() {
+        return err(format!("{name} lobes: the list is empty"));
+    }
+    let limit = crate::ndf::mixture::MAX_MIXTURE_LOBES;
+    if arr.len() > limit {
+        return err(format!(
+            "{name} lobes: {} mixture lobes is above the limit of {limit}",
+            arr.len()
+        ));
+    }
+    let mut out = Vec::with_capacity(arr.len());
+    for (k, item) in arr.iter().enumerate() {
+        let Some(t) = item.as_table() else {
+            return err(format!("{name} lobes[{}]: expected a table", k + 1));
+        };
+        let mut lf = Fields::new(format!("{name} lobes[{}]", k + 1), t);
+        let dist = match lf.string("kind")? {
+            Some("ggx") => Distribution::Ggx,
+            Some("beckmann") => Distribution::Beckmann,
+            Some(other) => {
+                return err(format!(
+                    "{name} lobes[{}] kind: unknown lobe kind \"{other}\" (known: ggx, beckmann)",
+                    k + 1
+                ))
+            }
+            None => return err(format!("{name} lobes[{}]: missing `kind`", k + 1)),
+        };
+        let (ax, ay) = alphas(&mut lf)?;
+        let w = lf.req_number("weight")?;
+        if !(w.is_finite() && w >= 0.0) {
+            return err(format!(
+                "{name} lobes[{}] weight: must be a finite number >= 0, got {}",
+                k + 1,
+                Num(w)
+            ));
+        }
+        lf.finish()?;
+        let mf = Microfacet::new(dist, ax, ay)
+            .map_err(|e| MaterialError(format!("{name} lobes[{}]: {e}", k + 1)))?;
+        out.push((mf, w));
+    }
+    if out.iter().map(|l| l.1).sum::<f64>() <= 0.0 {
+        return err(format!("{name} lobes: the weights sum to zero"));
+    }
+    Mixture::new(out).map_err(ndf_err)
 }
 
 fn alphas(f: &mut Fields<'_>) -> Result<(f64, f64), MaterialError> {

@@ -11,7 +11,7 @@
 //! | delta sum (multiple surface), Phong (N·H) facets (interactive) | Eq. 4/11, flat f32 arrays of ≤ 8 lanes per chunk | f32 rounding |
 //! | delta sum, any other facet | Eq. 4, f64 | exact |
 //! | Phong peaks × Phong (N·H) facets, multiple-surface form (interactive) | each lobe replaced by a fixed quadrature of weighted nodes (a dense multiple surface), then the f32 kernel; beyond [`MAX_NODES`] nodes the vMF closed form | < 1% (tested) / closed form: docs/benchmarks.md |
-//! | mirror facets under Beckmann / GGX (either form) | the closed-form microfacet BRDF | exact |
+//! | mirror facets under Beckmann / GGX or a mixture of them (either form) | the closed-form microfacet BRDF (a mixture's `Λ = Σ c_k Λ_k`, [`crate::ndf::mixture`]) | exact |
 //! | mirror facets under any other NDF (either form; fitted lobe sums) | collapses onto `m = H`; Smith `Λ` from a table of the projected area, built once (97 1-D integrals for an isotropic NDF, 97 × 64 quadratures otherwise) | < [`LAMBDA_TABLE_TOLERANCE`] of `G₂` (isotropic), < [`LAMBDA_TABLE_TOLERANCE_ANISOTROPIC`] (tested) |
 //! | anything else | the Eq. 2/8 quadrature, at [`Accuracy::fast`] when interactive | ~1e-3 / exact |
 //!
@@ -38,16 +38,18 @@ struct DeltaChunk {
     w: [f32; LANES],
 }
 
-/// [`FastBrdf::path`] of a Beckmann or GGX NDF under mirror facets in the microfacet form with
+/// [`FastBrdf::path`] of a Beckmann or GGX NDF (or a mixture of them) under mirror facets in the microfacet form with
 /// Smith shadowing: the classic microfacet BRDF `R(i·h) D(h) / ((1 + Λ(i) + Λ(o)) 4 cos θᵢ
 /// cos θₒ)`, everything in closed form.
 pub const CLOSED_MICROFACET_PATH: &str =
     "mirror facets, closed-form microfacet BRDF (analytic D, Smith Lambda)";
 
-/// Smith Λ of a mirror-facet material's NDF: closed form for Beckmann and GGX, else tabulated.
+/// Smith Λ of a mirror-facet material's NDF: closed form for Beckmann and GGX and their
+/// mixtures, else tabulated.
 #[derive(Clone, Debug, PartialEq)]
 enum Lambda {
     Closed(crate::ndf::microfacet::Microfacet),
+    ClosedMixture(crate::ndf::Mixture),
     Table(LambdaTable),
     Lobes(LobeLambda),
 }
@@ -56,6 +58,7 @@ impl Lambda {
     fn lookup(&self, w: DVec3) -> f64 {
         match self {
             Lambda::Closed(mf) => mf.lambda(w),
+            Lambda::ClosedMixture(mx) => mx.lambda(w),
             Lambda::Table(t) => t.lookup(w),
             Lambda::Lobes(l) => l.lookup(w),
         }
@@ -430,6 +433,17 @@ impl FastBrdf {
                     lambda,
                 }
             }
+            (Ndf::Mixture(mx), Transfer::Mirror { .. }, form) => {
+                // Mixtures of Beckmann / GGX lobes: `Λ = Σ c_k Λ_k` and `P = Σ w_k / A_k`
+                // in closed form ([`crate::ndf::mixture`]).
+                let lambda = (form == Form::Microfacet
+                    && material.shadowing == ShadowingKind::Smith)
+                    .then(|| Lambda::ClosedMixture(mx.clone()));
+                Kind::Mirror {
+                    projected_area: mx.projected_area(),
+                    lambda,
+                }
+            }
             (ndf, Transfer::Mirror { .. }, form) => {
                 let smith = form == Form::Microfacet && material.shadowing == ShadowingKind::Smith;
                 // Tilted Phong peaks above the horizon: per-lobe 1-D tables (exact, fast to
@@ -483,7 +497,7 @@ impl FastBrdf {
             Kind::Deltas => "delta-sum (Eq. 4)",
             Kind::PhongClosed { .. } => "Phong peaks, vMF closed form",
             Kind::Mirror {
-                lambda: Some(Lambda::Closed(_)),
+                lambda: Some(Lambda::Closed(_) | Lambda::ClosedMixture(_)),
                 ..
             } => CLOSED_MICROFACET_PATH,
             Kind::Mirror { .. } => "mirror facets, collapsed at H",

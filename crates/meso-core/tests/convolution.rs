@@ -192,6 +192,16 @@ fn continuous_ndfs() -> Vec<(&'static str, Ndf)> {
             "vmf",
             Ndf::VonMisesFisher(VonMisesFisher::new(DVec3::new(0.1, 0.0, 1.0), 30.0).unwrap()),
         ),
+        (
+            "mixture",
+            Ndf::Mixture(
+                meso_core::ndf::Mixture::isotropic(&[
+                    (Distribution::Ggx, 0.25, 0.6),
+                    (Distribution::Beckmann, 0.4, 0.4),
+                ])
+                .unwrap(),
+            ),
+        ),
     ]
 }
 

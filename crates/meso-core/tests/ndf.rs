@@ -38,6 +38,16 @@ fn continuous() -> Vec<(&'static str, Ndf)> {
             Ndf::Microfacet(Microfacet::new(Distribution::Ggx, 0.3, 0.5).unwrap()),
         ),
         (
+            "mixture",
+            Ndf::Mixture(
+                Mixture::isotropic(&[
+                    (Distribution::Ggx, 0.1, 0.6),
+                    (Distribution::Beckmann, 0.45, 0.4),
+                ])
+                .unwrap(),
+            ),
+        ),
+        (
             "tabulated",
             Ndf::Tabulated(
                 Tabulated::from_fn(EqualAreaGrid::new(64, 128), 3, |m| p.eval(m)).unwrap(),

@@ -41,10 +41,10 @@ use std::time::Instant;
 /// exhaustive on purpose: a family added to [`Transfer`] stops this example from compiling until
 /// it is listed here, so the comparison always runs what `fit_best` is given by the CLI.
 fn auto_candidates() -> Vec<Transfer> {
-    let all = [Transfer::Microfacet, Transfer::Phong];
+    let all = Transfer::ALL;
     for t in all {
         match t {
-            Transfer::Microfacet | Transfer::Phong => {}
+            Transfer::Microfacet | Transfer::Phong | Transfer::GgxLobes => {}
         }
     }
     all.to_vec()

@@ -1,15 +1,18 @@
-//! Benchmark table: fit lobe sums (K = 1, 2, 3; Phong and microfacet transfer) and every baseline to MERL binaries and print
-//! per-channel errors in both metrics and fit times as a Markdown table.
+//! Benchmark table: fit lobe sums (K = 1, 2, 3; Phong and microfacet transfer, GGX lobe mixtures)
+//! and every baseline to MERL binaries and print per-channel errors in both metrics and fit times
+//! as a Markdown table.
 //!
 //! ```text
 //! cargo run --release -p meso-measured --example merl_table -- [--metric low-log|ngan-l2] \
-//!     [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,baselines] \
+//!     [--target N] [--axes normal|free] [--no-cap] \
+//!     [--models phong,microfacet,ggx-lobes,baselines,ggx-baseline] \
 //!     A.binary [B.binary ...]
 //! ```
 //!
 //! Fits use a stratified subsample of `N` cells (default 30 000, θi, θo < 80°); the errors are
-//! reported on *all* valid cells with θi, θo < 80°, and (last column, Löw log) on the 30 000
-//! held-out cells (valid cells not fitted). `--axes` and `--no-cap` set
+//! reported on *all* valid cells with θi, θo < 80°, and (Löw log and Ngan L2) on the 30 000
+//! held-out cells (valid cells not fitted). `ggx-baseline` fits only the GGX baseline of
+//! `baselines`. `--axes` and `--no-cap` set
 //! [`FitOptions::axes`] and [`FitOptions::resolution_cap`] (defaults: the library's).
 //! Each lobe fit's sharpest lobe (η, tilt) is printed too.
 
@@ -26,6 +29,7 @@ fn row(
     r: &FitResult,
     all: &SampleSet,
     lobes: &[meso_core::ndf::PhongLobe],
+    other: &str,
 ) {
     let e = evaluate(m, &r.theta, &r.amps, all);
     let f = |v: [f64; 3]| format!("{:.4} {:.4} {:.4}", v[0], v[1], v[2]);
@@ -40,13 +44,14 @@ fn row(
                 l.weight
             )
         })
-        .unwrap_or_default();
+        .unwrap_or_else(|| other.to_owned());
     println!(
-        "| {material} | {} | {} | {} | {} | {} | {:.2} | {} |",
+        "| {material} | {} | {} | {} | {} | {} | {} | {:.2} | {} |",
         r.model,
         f(e.ngan_l2),
         f(e.low_log),
         r.held_out.map(|h| f(h.low_log)).unwrap_or_default(),
+        r.held_out.map(|h| f(h.ngan_l2)).unwrap_or_default(),
         sharpest,
         r.seconds,
         r.iterations
@@ -75,7 +80,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--models" => models = args.next().ok_or("--models needs a value")?,
             "-h" | "--help" => {
                 println!(
-                    "usage: merl_table [--metric low-log|ngan-l2] [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,baselines] FILE.binary..."
+                    "usage: merl_table [--metric low-log|ngan-l2] [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,ggx-lobes,baselines,ggx-baseline] FILE.binary..."
                 );
                 return Ok(());
             }
@@ -93,8 +98,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if opts.resolution_cap { "on" } else { "off" }
     );
     println!();
-    println!("| material | model | Ngan L2 (r g b, 1/sr) | Löw log (r g b) | held-out Löw log (r g b) | sharpest lobe η | fit time (s) | LM iterations |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| material | model | Ngan L2 (r g b, 1/sr) | Löw log (r g b) | held-out Löw log (r g b) | held-out Ngan L2 (r g b) | sharpest lobe η (GGX lobes: α) | fit time (s) | LM iterations |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let has = |m: &str| models.split(',').any(|x| x == m);
     for p in &paths {
         let name = Path::new(p)
             .file_stem()
@@ -119,26 +125,58 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "{name}: {stats:?}, angular resolution {:.3}°",
             data.angular_resolution().to_degrees()
         );
-        if models.contains("phong") {
+        if has("phong") {
             let fits = model::fit_lobes_progressive(3, TransferExponent::Free, &data, &opts)?;
             for (m, r) in &fits {
                 let p = m.params(r);
-                row(&name, m, r, &all, &p.lobes);
+                row(&name, m, r, &all, &p.lobes, "");
                 eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
             }
         }
-        if models.contains("microfacet") {
+        if has("microfacet") {
             let fits = model::fit_microfacet_lobes_progressive(3, &data, &opts)?;
             for (m, r) in &fits {
                 let p = m.params(r);
-                row(&name, m, r, &all, &p.lobes);
+                row(&name, m, r, &all, &p.lobes, "");
                 eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
             }
         }
-        if models.contains("baselines") {
+        if has("ggx-lobes") {
+            let fits = model::fit_ggx_lobes_progressive(
+                3,
+                &model::lobes_ggx::GGX_OR_BECKMANN,
+                &data,
+                &opts,
+            )?;
+            for (m, r) in &fits {
+                let p = m.params(r);
+                let sharpest = p
+                    .lobes
+                    .iter()
+                    .zip(p.eq1_weights())
+                    .min_by(|a, b| a.0.alpha.total_cmp(&b.0.alpha))
+                    .map(|(l, w)| format!("α {:.4} {:?} (w {w:.2})", l.alpha, l.distribution))
+                    .unwrap_or_default();
+                row(&name, m, r, &all, &[], &sharpest);
+                eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
+            }
+        }
+        if has("ggx-baseline") {
+            let m = model::Microfacet::GGX;
+            let r = fit(&m, &data, &opts)?;
+            row(
+                &name,
+                &m,
+                &r,
+                &all,
+                &[],
+                &format!("α {:.4}", r.theta[0].exp()),
+            );
+        }
+        if has("baselines") {
             for m in model::baselines() {
                 let r = fit(m.as_ref(), &data, &opts)?;
-                row(&name, m.as_ref(), &r, &all, &[]);
+                row(&name, m.as_ref(), &r, &all, &[], "");
                 eprintln!("{}: θ = {:?}, amplitudes = {:?}", r.model, r.theta, r.amps);
             }
         }

@@ -6,7 +6,7 @@
 use crate::csv::CsvError;
 use crate::fit::{FitError, FitOptions, FitResult};
 use crate::merl::{MerlError, MerlTable, MERL_FILE_BYTES};
-use crate::model::{self, LobeMicrofacetParams, LobeParams, TransferExponent};
+use crate::model::{self, LobeGgxParams, LobeMicrofacetParams, LobeParams, TransferExponent};
 use crate::samples::{MerlSampling, SampleSet};
 use glam::DVec3;
 use meso_core::budget::BudgetError;
@@ -220,16 +220,30 @@ pub enum Transfer {
     /// Mirror facets with Schlick Fresnel and Smith masking–shadowing, microfacet form
     /// ([`model::LobeMicrofacetModel`]).
     Microfacet,
+    /// Mirror facets as [`Transfer::Microfacet`] under a mixture of GGX lobes (NDFs with long
+    /// tails; each lobe GGX or Beckmann, whichever fits better) instead of Phong peaks
+    /// ([`model::LobeGgxModel`]); K = 1 is GGX + Lambert or Beckmann + Lambert.
+    GgxLobes,
 }
 
 impl Transfer {
-    /// The name `meso fit --transfer` takes (`phong`, `microfacet`).
+    /// Every family, in the order `--transfer auto` tries them.
+    pub const ALL: [Transfer; 3] = [Transfer::Microfacet, Transfer::Phong, Transfer::GgxLobes];
+
+    /// The name `meso fit --transfer` takes (`phong`, `microfacet`, `ggx-lobes`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Transfer::Phong => "phong",
             Transfer::Microfacet => "microfacet",
+            Transfer::GgxLobes => "ggx-lobes",
         }
+    }
+
+    /// The family named `s` ([`Transfer::name`]).
+    #[must_use]
+    pub fn from_name(s: &str) -> Option<Transfer> {
+        Transfer::ALL.into_iter().find(|t| t.name() == s)
     }
 }
 
@@ -300,8 +314,9 @@ pub fn selection_error(
 }
 
 /// Fit K lobes with each of `candidates` ([`fit_lobes`]; with `auto_k`, up to K and cut at
-/// [`auto_lobes`]) and keep the family whose last fit has the lowest [`selection_error`] (`meso fit --transfer auto`, the default: measured on MERL data,
-/// the microfacet family wins most materials, the Phong one some). Returns the winner, its
+/// [`auto_lobes`]) and keep the family whose last fit has the lowest [`selection_error`]
+/// (`meso fit --transfer auto`, the default, tries [`Transfer::ALL`]: measured on MERL data,
+/// docs/measured.md). Returns the winner, its
 /// progressive fits and every family's error.
 ///
 /// # Errors
@@ -344,6 +359,8 @@ pub enum Lobes {
     Phong(LobeParams),
     /// Mirror transfer (microfacet form).
     Microfacet(LobeMicrofacetParams),
+    /// Mirror transfer (microfacet form) under a mixture of GGX / Beckmann lobes.
+    GgxLobes(LobeGgxParams),
 }
 
 impl Lobes {
@@ -353,15 +370,18 @@ impl Lobes {
         match self {
             Lobes::Phong(p) => p.eval(wi, wo),
             Lobes::Microfacet(p) => p.eval(wi, wo),
+            Lobes::GgxLobes(p) => p.eval(wi, wo),
         }
     }
 
-    /// The Phong peaks of the NDF.
+    /// The Phong peaks of the NDF (none for a GGX / Beckmann mixture: its lobes are
+    /// [`LobeGgxParams::lobes`]).
     #[must_use]
     pub fn lobes(&self) -> &[meso_core::ndf::PhongLobe] {
         match self {
             Lobes::Phong(p) => &p.lobes,
             Lobes::Microfacet(p) => &p.lobes,
+            Lobes::GgxLobes(_) => &[],
         }
     }
 
@@ -371,6 +391,7 @@ impl Lobes {
         match self {
             Lobes::Phong(p) => p.to_material_toml(comment),
             Lobes::Microfacet(p) => p.to_material_toml(comment),
+            Lobes::GgxLobes(p) => p.to_material_toml(comment),
         }
     }
 
@@ -379,7 +400,29 @@ impl Lobes {
     #[must_use]
     pub fn describe(&self) -> String {
         let mut s = String::new();
-        let _ = writeln!(s, "  lobe  theta(deg)  phi(deg)    weight    exponent");
+        if let Lobes::GgxLobes(p) = self {
+            let _ = writeln!(
+                s,
+                "  {:>4}  {:<8}  {:>9}  {:>9}  {:>12}",
+                "lobe", "kind", "alpha", "weight(D)", "weight(Eq.1)"
+            );
+            for (j, (l, w)) in p.lobes.iter().zip(p.eq1_weights()).enumerate() {
+                let _ = writeln!(
+                    s,
+                    "  {:>4}  {:<8}  {:>9.5}  {:>9.4}  {:>12.4}",
+                    j + 1,
+                    match l.distribution {
+                        meso_core::ndf::Distribution::Ggx => "ggx",
+                        meso_core::ndf::Distribution::Beckmann => "beckmann",
+                    },
+                    l.alpha,
+                    l.d_weight,
+                    w
+                );
+            }
+        } else {
+            let _ = writeln!(s, "  lobe  theta(deg)  phi(deg)    weight    exponent");
+        }
         for (j, l) in self.lobes().iter().enumerate() {
             let (t, p) = meso_core::frame::spherical_angles(l.axis);
             let (t, p) = (t.to_degrees(), if t < 1e-9 { 0.0 } else { p.to_degrees() });
@@ -419,6 +462,19 @@ impl Lobes {
                     p.albedo[0], p.albedo[1], p.albedo[2]
                 );
             }
+            Lobes::GgxLobes(p) => {
+                let _ = writeln!(
+                    s,
+                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], specular [{:.4}, {:.4}, {:.4}], \
+                     Smith masking-shadowing",
+                    p.f0[0], p.f0[1], p.f0[2], p.specular[0], p.specular[1], p.specular[2]
+                );
+                let _ = write!(
+                    s,
+                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
+                    p.albedo[0], p.albedo[1], p.albedo[2]
+                );
+            }
         }
         s
     }
@@ -434,6 +490,12 @@ impl Lobes {
                 ..p.clone()
             }),
             Lobes::Microfacet(p) => Lobes::Microfacet(LobeMicrofacetParams {
+                f0: [p.f0[c]; 3],
+                specular: [p.specular[c]; 3],
+                albedo: [p.albedo[c]; 3],
+                ..p.clone()
+            }),
+            Lobes::GgxLobes(p) => Lobes::GgxLobes(LobeGgxParams {
                 f0: [p.f0[c]; 3],
                 specular: [p.specular[c]; 3],
                 albedo: [p.albedo[c]; 3],
@@ -463,6 +525,12 @@ pub fn fit_lobes(
             .into_iter()
             .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
             .collect(),
+        Transfer::GgxLobes => {
+            model::fit_ggx_lobes_progressive(k, &model::lobes_ggx::GGX_OR_BECKMANN, data, opts)?
+                .into_iter()
+                .map(|(m, r)| (Lobes::GgxLobes(m.params(&r)), r))
+                .collect()
+        }
     })
 }
 

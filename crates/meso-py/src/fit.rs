@@ -69,14 +69,15 @@ fn options(
         (3, false)
     };
     let transfers = match transfer {
-        "auto" => vec![Transfer::Microfacet, Transfer::Phong],
-        "phong" => vec![Transfer::Phong],
-        "microfacet" => vec![Transfer::Microfacet],
-        t => {
-            return Err(value_err(format!(
-                "transfer = {t:?}: expected \"auto\", \"phong\" or \"microfacet\""
+        "auto" => Transfer::ALL.to_vec(),
+        t => match Transfer::from_name(t) {
+            Some(t) => vec![t],
+            None => {
+                return Err(value_err(format!(
+                "transfer = {t:?}: expected \"auto\", \"phong\", \"microfacet\" or \"ggx-lobes\""
             )))
-        }
+            }
+        },
     };
     let metric = match metric {
         "log" => Metric::LowLog,

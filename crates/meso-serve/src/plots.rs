@@ -135,9 +135,9 @@ pub fn ndf_png(m: &Material, p: NdfParams) -> Result<Vec<u8>, ApiError> {
                 }
             }
         }
-        // GGX and Beckmann peak at the normal (for α ≤ 1), which the sample misses when α is
+        // GGX and Beckmann (and their mixtures) peak at the normal (for α ≤ 1), which the sample misses when α is
         // below its spacing: the colour bar reads the true maximum, as for Phong peaks.
-        if let Ndf::Microfacet(_) = ndf {
+        if let Ndf::Microfacet(_) | Ndf::Mixture(_) = ndf {
             hi = hi.max(ndf.eval(DVec3::Z));
         }
     }

@@ -1,4 +1,4 @@
-//! `meso fit DATA --lobes K [--metric ngan|log] [--transfer phong|microfacet] [--axes auto|normal|free]
+//! `meso fit DATA --lobes K [--metric ngan|log] [--transfer auto|phong|microfacet|ggx-lobes] [--axes auto|normal|free]
 //! [--per-channel-lobes] [--baselines] [--plot DIR] --out MATERIAL.toml` — fit a measured BRDF with
 //! a sum of Phong peaks (Fournier 1992, §3.3) and write it as a meso material.
 
@@ -32,13 +32,17 @@ pub enum MetricArg {
 /// The facet transfer function of the lobe model.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TransferArg {
-    /// Fit both families and keep the one with the lower held-out error in the metric minimised
-    /// (the fitted error when nothing is held out); the report lists both.
+    /// Fit every family (microfacet, phong, ggx-lobes) and keep the one with the lowest held-out
+    /// error in the metric minimised (the fitted error when nothing is held out); the report
+    /// lists them all.
     Auto,
     /// Phong facets `max(0, m·H)^η_t`, multiple-surface form (Eq. 2, 10).
     Phong,
     /// Mirror facets with Schlick Fresnel and Smith masking–shadowing, microfacet form.
     Microfacet,
+    /// Mirror facets as `microfacet`, under a mixture of GGX lobes on the normal (long tails)
+    /// instead of Phong peaks: `[ndf] kind = "mixture"`; K = 1 is GGX + Lambert.
+    GgxLobes,
 }
 
 /// Where the lobe axes may go.
@@ -78,8 +82,8 @@ pub struct Args {
     /// Metric minimised.
     #[arg(long, value_enum, default_value = "log")]
     pub metric: MetricArg,
-    /// Facet transfer function: `auto` (the default) fits both and keeps the better on held-out
-    /// data.
+    /// Facet transfer function and lobe family: `auto` (the default) fits all three and keeps
+    /// the best on held-out data.
     #[arg(long, value_enum, default_value = "auto")]
     pub transfer: TransferArg,
     /// Where the lobe axes may go: on the surface normal (isotropic) or free (off-specular,
@@ -197,9 +201,10 @@ pub fn run(a: Args) -> Result<()> {
     }
     let data = load(&a.data, a.samples)?;
     let candidates: &[Transfer] = match a.transfer {
-        TransferArg::Auto => &[Transfer::Microfacet, Transfer::Phong],
+        TransferArg::Auto => &Transfer::ALL,
         TransferArg::Phong => &[Transfer::Phong],
         TransferArg::Microfacet => &[Transfer::Microfacet],
+        TransferArg::GgxLobes => &[Transfer::GgxLobes],
     };
     let metric = match a.metric {
         MetricArg::Ngan => Metric::NganL2,

@@ -13,6 +13,7 @@
 //! | [`Ndf::Cylinder`] | Eq. 15 | δ(m·a)/(2π) (singular, a great circle) | uniform on the circle |
 //! | [`Ndf::VonMisesFisher`] | — | κ e^{κ(μ·m−1)} / (2π(1−e^{−2κ})) | exact |
 //! | [`Ndf::Microfacet`] | — | Beckmann / GGX `D(m)/A` | `D(m)(m·z)` |
+//! | [`Ndf::Mixture`] | Eq. 7 | Σ wₖ Dₖ(m)/Aₖ (Beckmann / GGX lobes) | `D(m)(m·z)` |
 //! | [`Ndf::Radial`] | §3.3 | isotropic, linear in `θ_m` between nodes (non-parametric, measured) | band means |
 //!
 //! For the relation to the microfacet convention `∫ D(m)(m·z) dω = 1` see [`microfacet`].
@@ -21,6 +22,7 @@ pub mod analytic;
 pub mod delta;
 pub mod harmonics;
 pub mod microfacet;
+pub mod mixture;
 pub mod phong;
 pub mod radial;
 pub mod tabulated;
@@ -30,6 +32,7 @@ pub use analytic::{Cylinder, Sphere, VonMisesFisher};
 pub use delta::{DeltaSum, WeightedNormal};
 pub use harmonics::Harmonics;
 pub use microfacet::{Distribution, Microfacet};
+pub use mixture::{Mixture, MixtureLobe};
 pub use phong::{PhongLobe, PhongPeaks};
 pub use radial::Radial;
 pub use tabulated::Tabulated;
@@ -56,6 +59,8 @@ pub enum Ndf {
     VonMisesFisher(VonMisesFisher),
     /// Beckmann or GGX in the Eq. 1 convention.
     Microfacet(Microfacet),
+    /// A weighted sum of Beckmann / GGX lobes in the Eq. 1 convention ([`mixture`]).
+    Mixture(Mixture),
     /// Isotropic, tabulated in `θ_m` (the non-parametric NDF of a measured material).
     Radial(Radial),
 }
@@ -82,6 +87,7 @@ impl Ndf {
                 Distribution::Beckmann => "beckmann",
                 Distribution::Ggx => "ggx",
             },
+            Ndf::Mixture(_) => "mixture",
             Ndf::Radial(_) => "radial",
         }
     }
@@ -94,7 +100,8 @@ impl Ndf {
     }
 
     /// True when the NDF is known to be rotationally symmetric about the surface normal (+z):
-    /// Phong peaks and vMF lobes whose axes are +z, isotropic Beckmann / GGX, the sphere.
+    /// Phong peaks and vMF lobes whose axes are +z, isotropic Beckmann / GGX and mixtures of
+    /// them, the sphere.
     /// False means "not known": other NDFs may still happen to be isotropic.
     #[must_use]
     pub fn is_isotropic(&self) -> bool {
@@ -103,6 +110,7 @@ impl Ndf {
             Ndf::PhongPeaks(p) => p.lobes().iter().all(|l| on_normal(l.axis)),
             Ndf::VonMisesFisher(v) => on_normal(v.mu),
             Ndf::Microfacet(m) => m.alpha_x == m.alpha_y,
+            Ndf::Mixture(m) => m.is_isotropic(),
             Ndf::Sphere(_) | Ndf::Radial(_) => true,
             Ndf::Deltas(_) | Ndf::Harmonics(_) | Ndf::Tabulated(_) | Ndf::Cylinder(_) => false,
         }
@@ -119,6 +127,7 @@ impl Ndf {
             Ndf::Sphere(s) => s.eval(m),
             Ndf::VonMisesFisher(v) => v.eval(m),
             Ndf::Microfacet(mf) => mf.eval(m),
+            Ndf::Mixture(mx) => mx.eval(m),
             Ndf::Radial(r) => r.eval(m),
         }
     }
@@ -136,6 +145,7 @@ impl Ndf {
             Ndf::Cylinder(c) => c.sample(u[0]),
             Ndf::VonMisesFisher(v) => v.sample(u),
             Ndf::Microfacet(mf) => mf.sample(u),
+            Ndf::Mixture(mx) => mx.sample(u),
             Ndf::Radial(r) => r.sample(u),
         }
     }
@@ -146,6 +156,7 @@ impl Ndf {
         match self {
             Ndf::Harmonics(h) => h.pdf(m),
             Ndf::Microfacet(mf) => mf.pdf(m),
+            Ndf::Mixture(mx) => mx.pdf(m),
             Ndf::Radial(r) => r.pdf(m),
             other => other.eval(m),
         }

@@ -1,7 +1,9 @@
 //! Fittable BRDF models: the paper's lobe sums with the Phong transfer ([`lobes`]) and with the
-//! microfacet transfer ([`lobes_microfacet`]), and the baselines ([`baselines`](mod@baselines)).
+//! microfacet transfer ([`lobes_microfacet`]), mixtures of GGX / Beckmann lobes with the
+//! microfacet transfer ([`lobes_ggx`]), and the baselines ([`baselines`](mod@baselines)).
 pub mod baselines;
 pub mod lobes;
+pub mod lobes_ggx;
 pub mod lobes_microfacet;
 pub mod vmf;
 
@@ -9,6 +11,7 @@ pub use baselines::{AshikhminShirley, BlinnPhong, Lafortune, Microfacet, Microfa
 pub use lobes::{
     fit_lobes_progressive, lobe_sum_closed_form, LobeModel, LobeParams, TransferExponent,
 };
+pub use lobes_ggx::{fit_ggx_lobes_progressive, GgxLobe, LobeGgxModel, LobeGgxParams};
 pub use lobes_microfacet::{
     fit_microfacet_lobes_progressive, microfacet_lobes_fast, LobeMicrofacetModel,
     LobeMicrofacetParams,

@@ -166,6 +166,7 @@ def fit(
     samples: int = 30000,
 ) -> tuple[Material, dict[str, Any]]:
     """``meso fit DATA --lobes K``: the fitted material and a report (description, lobes, model,
+    ``transfer`` kept of ``"phong"``, ``"microfacet"``, ``"ggx-lobes"`` (``"auto"`` tries all three),
     ``fitted``/``held_out`` errors per channel: ``ngan_l2`` in 1/sr and ``low_log``, the TOML);
     ``out`` also writes the material file."""
 
