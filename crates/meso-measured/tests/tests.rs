@@ -14,10 +14,33 @@ use meso_measured::samples::{MerlSampling, Sample, SampleSet};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::PathBuf;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-measured-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
+/// A path in a fresh temporary folder, removed with the value (the MERL tables these tests
+/// write are 35 MB each).
+struct Tmp {
+    _dir: tempfile::TempDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for Tmp {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.path
+    }
+}
+
+impl AsRef<std::path::Path> for Tmp {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.path
+    }
+}
+
+fn tmp(name: &str) -> Tmp {
+    let dir = tempfile::Builder::new()
+        .prefix("meso-measured-")
+        .tempdir()
+        .unwrap();
+    let path = dir.path().join(name);
+    Tmp { _dir: dir, path }
 }
 
 /// Direction pairs covering the upper hemisphere pairs with θ < 80°, dense near the specular
@@ -164,7 +187,7 @@ fn merl_write_read_lookup_round_trip() {
     );
 }
 
-fn write_bytes(name: &str, bytes: &[u8]) -> PathBuf {
+fn write_bytes(name: &str, bytes: &[u8]) -> Tmp {
     let p = tmp(name);
     std::fs::write(&p, bytes).unwrap();
     p
