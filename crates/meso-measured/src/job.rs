@@ -57,6 +57,14 @@ pub enum LoadError {
         /// Cells not measured.
         missing: usize,
     },
+    /// Every measured cell of the MERL table is 0: no reflectance to fit.
+    #[error("{}: every measured cell is 0 ({cells} cells): no reflectance to fit", path.display())]
+    AllZero {
+        /// The file.
+        path: PathBuf,
+        /// Measured cells (θi, θo < 80°).
+        cells: usize,
+    },
     /// Neither a MERL binary nor UTF-8 text.
     #[error("{}: neither a MERL binary (header 90, 90, 180) nor a UTF-8 sample CSV", path.display())]
     NotUtf8 {
@@ -145,6 +153,13 @@ pub fn load(path: &Path, target: usize) -> Result<Data, LoadError> {
                 path: path.to_path_buf(),
                 total: stats.total,
                 missing: stats.missing,
+            });
+        }
+        let zero = |v: &[crate::samples::Sample]| v.iter().all(|s| s.rgb == [0.0; 3]);
+        if zero(&samples.samples) && zero(&samples.held_out) {
+            return Err(LoadError::AllZero {
+                path: path.to_path_buf(),
+                cells: samples.len() + samples.held_out.len(),
             });
         }
         return Ok(Data {

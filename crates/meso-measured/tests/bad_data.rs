@@ -274,3 +274,22 @@ fn all_zero_sample_csv_is_refused() {
     );
     assert!(job::load(&p, 0).is_ok());
 }
+
+#[test]
+fn all_zero_merl_table_is_refused() {
+    let s = Scratch::new("zero-merl");
+    let p = s.write("zero.binary", &merl_bytes(|_| 0.0));
+    let e = job::load(&p, 2000).unwrap_err();
+    assert!(matches!(e, LoadError::AllZero { .. }), "{e:?}");
+    let msg = chain(&e);
+    assert!(
+        msg.starts_with(&format!("{}: every measured cell is 0", p.display())),
+        "{msg}"
+    );
+    // One non-zero cell is data: accepted.
+    let p = s.write(
+        "one.binary",
+        &merl_bytes(|k| if k == 90 * 180 * 10 + 5 { 1.0 } else { 0.0 }),
+    );
+    assert!(job::load(&p, 2000).is_ok());
+}
