@@ -833,7 +833,7 @@ impl<'a> SmithMasking<'a> {
     /// away from `ω`. `+z` for isotropic NDFs.
     #[must_use]
     pub fn mean_normal(&self) -> DVec3 {
-        if self.isotropic || matches!(self.ndf, Ndf::Microfacet(_)) && self.ndf.is_isotropic() {
+        if self.isotropic {
             return DVec3::Z;
         }
         let [x, y, _] = integrate(self.ndf, self.accuracy, None, |m| {

@@ -130,15 +130,7 @@ impl LobeLambda {
         let last = LOBE_NODES - 1;
         let f = ((t + 1.0) * 0.5 * last as f64).clamp(0.0, last as f64);
         let j = (f as usize).min(last - 1);
-        let s = f - j as f64;
-        let (v1, v2) = (table[j], table[j + 1]);
-        let v0 = if j > 0 { table[j - 1] } else { 2.0 * v1 - v2 };
-        let v3 = if j + 2 <= last {
-            table[j + 2]
-        } else {
-            2.0 * v2 - v1
-        };
-        catmull_rom([v0, v1, v2, v3], s)
+        catmull_rom_at(|k| table[k], last, j, f - j as f64)
     }
 
     fn lookup(&self, w: DVec3) -> f64 {
@@ -225,18 +217,8 @@ impl LambdaTable {
         let ft = (w.z.min(1.0).sqrt() * last as f64).min(last as f64);
         let a0 = (ft as usize).min(last - 1);
         let ta = ft - a0 as f64;
-        // Catmull–Rom in t through rows a0 − 1 … a0 + 2, extended linearly past the ends.
-        let col = |b: usize| -> f64 {
-            let v = |a: usize| self.values[a * self.n_phi + b];
-            let (v1, v2) = (v(a0), v(a0 + 1));
-            let v0 = if a0 > 0 { v(a0 - 1) } else { 2.0 * v1 - v2 };
-            let v3 = if a0 + 2 <= last {
-                v(a0 + 2)
-            } else {
-                2.0 * v2 - v1
-            };
-            catmull_rom([v0, v1, v2, v3], ta)
-        };
+        // Catmull–Rom in t through rows a0 − 1 … a0 + 2.
+        let col = |b: usize| catmull_rom_at(|a| self.values[a * self.n_phi + b], last, a0, ta);
         let r = if self.n_phi == 1 {
             col(0)
         } else {
@@ -252,6 +234,20 @@ impl LambdaTable {
         };
         ((r + w.dot(self.mean_normal)) / w.z - 1.0).max(0.0)
     }
+}
+
+/// The Catmull–Rom cubic through nodes `j − 1 … j + 2` of `v` (nodes `0..=last`, extended
+/// linearly past the ends) at `t ∈ [0, 1]` between nodes `j` and `j + 1`.
+#[inline]
+fn catmull_rom_at(v: impl Fn(usize) -> f64, last: usize, j: usize, t: f64) -> f64 {
+    let (v1, v2) = (v(j), v(j + 1));
+    let v0 = if j > 0 { v(j - 1) } else { 2.0 * v1 - v2 };
+    let v3 = if j + 2 <= last {
+        v(j + 2)
+    } else {
+        2.0 * v2 - v1
+    };
+    catmull_rom([v0, v1, v2, v3], t)
 }
 
 /// The Catmull–Rom cubic through `v[0..4]` at `t ∈ [0, 1]` between `v[1]` and `v[2]`.

@@ -241,23 +241,12 @@ pub fn material_toml(fit: &NonParametric, comment: &str) -> String {
     let den: Vec<String> = fit.ndf.values().iter().map(|v| format!("{v:?}")).collect();
     let _ = writeln!(s, "theta = [{}]", deg.join(", "));
     let _ = writeln!(s, "density = [{}]", den.join(", "));
-    s.push_str("\n[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\n");
-    let _ = writeln!(
-        s,
-        "f0 = [{:?}, {:?}, {:?}]",
-        fit.f0[0], fit.f0[1], fit.f0[2]
-    );
-    let _ = writeln!(
-        s,
-        "specular = [{:?}, {:?}, {:?}]",
-        fit.specular[0], fit.specular[1], fit.specular[2]
-    );
-    s.push_str("\n[shadowing]\nkind = \"smith\"\n");
-    let _ = writeln!(
-        s,
-        "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
-        fit.albedo[0], fit.albedo[1], fit.albedo[2]
-    );
+    s.push('\n');
+    s.push_str(&crate::model::mirror_material_tail(
+        fit.f0,
+        fit.specular,
+        fit.albedo,
+    ));
     s
 }
 

@@ -180,7 +180,11 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
     })
 }
 
-fn errors_dict<'py>(py: Python<'py>, e: &FitErrors, count: usize) -> PyResult<Bound<'py, PyDict>> {
+pub(crate) fn errors_dict<'py>(
+    py: Python<'py>,
+    e: &FitErrors,
+    count: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("samples", count)?;
     d.set_item("ngan_l2", e.ngan_l2.to_vec())?;

@@ -2,22 +2,13 @@
 //! --nonparametric` (meso_measured::nonparametric), returning the material and a report.
 
 use crate::error::{meso_err, require_exists};
-use crate::fit::chain_message;
+use crate::fit::{chain_message, errors_dict};
 use crate::material::Material;
-use meso_measured::fit::FitErrors;
 use meso_measured::job;
 use meso_measured::nonparametric::{fit, material_toml, MAX_THETA_H_DEG};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
-
-fn errors_dict<'py>(py: Python<'py>, e: &FitErrors, count: usize) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("samples", count)?;
-    d.set_item("ngan_l2", e.ngan_l2.to_vec())?;
-    d.set_item("low_log", e.low_log.to_vec())?;
-    Ok(d)
-}
 
 /// Fit the non-parametric NDF of a MERL binary `data`, as `meso fit DATA --nonparametric`: the
 /// NDF tabulated in θm (`[ndf] kind = "radial"`) from the back-scattering cells, Smith masking

@@ -108,7 +108,7 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-fn error_row(label: &str, e: &FitErrors) -> String {
+pub(super) fn error_row(label: &str, e: &FitErrors) -> String {
     format!(
         "  {:<34} {:<26} {}",
         label,

@@ -50,14 +50,7 @@ pub fn run(a: &Args) -> Result<()> {
         report,
         "\nerrors per channel (r g b)            ngan-l2 (1/sr)             low-log"
     );
-    let row = |label: &str, e: &meso_measured::fit::FitErrors| {
-        format!(
-            "  {:<34} {:<26} {}",
-            label,
-            fmt3(e.ngan_l2, 5),
-            fmt3(e.low_log, 5)
-        )
-    };
+    let row = super::fit::error_row;
     let _ = writeln!(
         report,
         "{}",

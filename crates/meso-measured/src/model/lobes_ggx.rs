@@ -209,18 +209,12 @@ impl LobeGgxParams {
                 l.alpha, w
             );
         }
-        s.push_str("]\n\n[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\n");
-        let f = self.f0.map(|x| x.clamp(0.0, 1.0));
-        let _ = writeln!(s, "f0 = [{:?}, {:?}, {:?}]", f[0], f[1], f[2]);
-        let k = self.specular.map(|x| x.clamp(0.0, 1.0));
-        let _ = writeln!(s, "specular = [{:?}, {:?}, {:?}]", k[0], k[1], k[2]);
-        s.push_str("\n[shadowing]\nkind = \"smith\"\n");
-        let a = self.albedo.map(|x| x.clamp(0.0, 1.0));
-        let _ = writeln!(
-            s,
-            "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
-            a[0], a[1], a[2]
-        );
+        s.push_str("]\n\n");
+        s.push_str(&super::mirror_material_tail(
+            self.f0,
+            self.specular,
+            self.albedo,
+        ));
         s
     }
 }

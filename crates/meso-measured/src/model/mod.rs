@@ -33,3 +33,24 @@ pub fn baselines() -> Vec<Box<dyn BrdfModel>> {
         Box::new(Lafortune::new(3)),
     ]
 }
+
+/// The `[transfer]` (Schlick mirror with `f0` and the `specular` scale), `[shadowing]` (Smith) and
+/// `[diffuse]` tables of a fitted microfacet material, each value clamped to `[0, 1]`: the tail
+/// every fitted microfacet material file shares (Phong-peak lobes, GGX lobes, the
+/// non-parametric NDF). Starts with `[transfer]`; the caller writes what comes before.
+#[must_use]
+pub fn mirror_material_tail(f0: [f64; 3], specular: [f64; 3], albedo: [f64; 3]) -> String {
+    use std::fmt::Write;
+    let c = |v: [f64; 3]| v.map(|x| x.clamp(0.0, 1.0));
+    let (f, k, a) = (c(f0), c(specular), c(albedo));
+    let mut s = String::from("[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\n");
+    let _ = writeln!(s, "f0 = [{:?}, {:?}, {:?}]", f[0], f[1], f[2]);
+    let _ = writeln!(s, "specular = [{:?}, {:?}, {:?}]", k[0], k[1], k[2]);
+    s.push_str("\n[shadowing]\nkind = \"smith\"\n");
+    let _ = writeln!(
+        s,
+        "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
+        a[0], a[1], a[2]
+    );
+    s
+}
