@@ -196,6 +196,38 @@ pub fn probe(path: &Path) -> Result<ImageHeader> {
     })
 }
 
+/// [`probe`] for the bytes of an image file (`name` chooses the format when the content does not
+/// say, and names the source in errors): the header read without decoding the pixels, the size
+/// limits checked.
+///
+/// # Errors
+/// Empty bytes, an unknown or broken header, an image above the size limits.
+pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
+    use image::ImageDecoder;
+    if bytes.is_empty() {
+        return Err(MapError::Empty {
+            path: name.to_path_buf(),
+            width: 0,
+            height: 0,
+        });
+    }
+    let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
+    r.set_format(image::ImageFormat::from_path(name).unwrap_or(image::ImageFormat::Png));
+    let r = r.with_guessed_format().map_err(|e| decode_err(name, e))?;
+    let d = r.into_decoder().map_err(|e| decode_err(name, e))?;
+    let (w, h) = d.dimensions();
+    check_dims(name, w as u64, h as u64)?;
+    let ct = d.color_type();
+    Ok(ImageHeader {
+        width: w as u64,
+        height: h as u64,
+        bytes_per_pixel: ct.bytes_per_pixel() as u64,
+        color: ct.has_color(),
+        eight_bit: ct.bytes_per_pixel() / ct.channel_count().max(1) == 1,
+        file_bytes: bytes.len() as u64,
+    })
+}
+
 /// An allocation error of loading `path`.
 fn oom(path: &Path, e: meso_core::budget::AllocError) -> MapError {
     MapError::OutOfMemory {
@@ -676,6 +708,27 @@ impl NormalMap {
             "loading the normal map",
             ImageHeader::normal_map_bytes,
         )?;
+        Self::from_image(path, img, convention)
+    }
+
+    /// Like [`NormalMap::load`], from the bytes of an image file (`name` chooses the format when
+    /// the content does not say, and names the source in errors). The size limits are checked
+    /// from the header before decoding; the memory budget is the caller's (see
+    /// [`probe_bytes`]).
+    pub fn from_bytes(
+        name: &Path,
+        bytes: &[u8],
+        convention: NormalConvention,
+    ) -> Result<NormalMap> {
+        let img = decode_bytes(name, bytes)?;
+        Self::from_image(name, img, convention)
+    }
+
+    fn from_image(
+        path: &Path,
+        img: image::DynamicImage,
+        convention: NormalConvention,
+    ) -> Result<NormalMap> {
         let (w, h) = (img.width() as usize, img.height() as usize);
         let two_channel = matches!(img.color(), image::ColorType::La8 | image::ColorType::La16);
         let rgb = if two_channel {

@@ -89,23 +89,51 @@ pub fn load(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<(Inp
             texel_size,
             height_scale,
             border,
-        } => {
-            let h = HeightMap::load(path, texel_size, height_scale, border)?;
-            let warnings = h.warnings().iter().map(ToString::to_string).collect();
-            Ok((Input::Heights(h), warnings))
-        }
-        InputKind::Normals(conv) => {
-            let n = NormalMap::load(path, conv)?;
-            let mut warnings = Vec::new();
-            if n.clamped() > 0 {
-                warnings.push(format!(
-                    "{} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
-                    n.clamped(),
-                    n.width() * n.height(),
-                    crate::heightmap::MIN_NORMAL_Z
-                ));
-            }
-            Ok((Input::Normals(n), warnings))
-        }
+        } => Ok(with_warnings(Input::Heights(HeightMap::load(
+            path,
+            texel_size,
+            height_scale,
+            border,
+        )?))),
+        InputKind::Normals(conv) => Ok(with_warnings(Input::Normals(NormalMap::load(path, conv)?))),
     }
+}
+
+/// Like [`load`], from the bytes of an image file (an upload): `name` chooses the format when the
+/// content does not say and names the source in errors. The size limits are checked from the
+/// header before decoding; the memory budget is the caller's (estimate it from
+/// [`crate::heightmap::probe_bytes`] as [`check_budget`] does from the file).
+///
+/// # Errors
+/// Unreadable or invalid images, invalid parameters; messages name `name`.
+pub fn load_bytes(name: &Path, bytes: &[u8], kind: InputKind) -> Result<(Input, Vec<String>)> {
+    Ok(with_warnings(match kind {
+        InputKind::Heights {
+            texel_size,
+            height_scale,
+            border,
+        } => Input::Heights(HeightMap::from_bytes(
+            name,
+            bytes,
+            texel_size,
+            height_scale,
+            border,
+        )?),
+        InputKind::Normals(conv) => Input::Normals(NormalMap::from_bytes(name, bytes, conv)?),
+    }))
+}
+
+/// The input with the warnings a user should see (quantised heights, texels at the horizon, …).
+fn with_warnings(input: Input) -> (Input, Vec<String>) {
+    let warnings = match &input {
+        Input::Heights(h) => h.warnings().iter().map(ToString::to_string).collect(),
+        Input::Normals(n) if n.clamped() > 0 => vec![format!(
+            "{} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
+            n.clamped(),
+            n.width() * n.height(),
+            crate::heightmap::MIN_NORMAL_Z
+        )],
+        Input::Normals(_) => Vec::new(),
+    };
+    (input, warnings)
 }

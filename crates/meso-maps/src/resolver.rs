@@ -627,21 +627,35 @@ impl MapsResolver {
                 )
             }
         };
-        let lv = pyr
-            .level(level)
-            .map_err(|e| MaterialError(format!("[ndf] level: {e} in {}", file.display())))?;
-        let what = format!(
-            "[ndf] {} level {level} texel [{row}, {col}]",
-            file.display()
-        );
-        let lobes = lv
-            .texel_lobes(row, col)
-            .map_err(|e| MaterialError(format!("[ndf] texel: {e} in level {level}")))?;
-        let horizon = lv
-            .texel_horizon(row, col)
-            .map_err(|e| MaterialError(format!("[ndf] texel: {e}")))?;
-        resolved(lobes, horizon, &what)
+        texel_ndf(&pyr, level, row, col, &file.display().to_string())
     }
+}
+
+/// The NDF of texel `(row, col)` of level `level` of a pyramid, as `[ndf] kind = "map"` resolves
+/// it: the texel's fitted lobes as `Ndf::PhongPeaks`, its horizon statistics as the masking model
+/// ([`HorizonVisibility`]), the microfacet form by default. `source` names the pyramid in errors
+/// (a file, an uploaded texture).
+///
+/// # Errors
+/// A level or texel out of range, or a texel without lobes, as a message naming them.
+pub fn texel_ndf(
+    pyr: &Pyramid,
+    level: usize,
+    row: usize,
+    col: usize,
+    source: &str,
+) -> Result<ResolvedNdf, MaterialError> {
+    let lv = pyr
+        .level(level)
+        .map_err(|e| MaterialError(format!("[ndf] level: {e} in {source}")))?;
+    let what = format!("[ndf] {source} level {level} texel [{row}, {col}]");
+    let lobes = lv
+        .texel_lobes(row, col)
+        .map_err(|e| MaterialError(format!("[ndf] texel: {e} in level {level}")))?;
+    let horizon = lv
+        .texel_horizon(row, col)
+        .map_err(|e| MaterialError(format!("[ndf] texel: {e}")))?;
+    resolved(lobes, horizon, &what)
 }
 
 impl NdfResolver for MapsResolver {

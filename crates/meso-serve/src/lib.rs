@@ -19,17 +19,26 @@
 //! | `POST /api/toml` | a material (JSON) | its TOML text |
 //! | `POST /api/parse` | TOML text | the material (JSON) |
 //! | `POST /api/blend` | `{a, b, t}` | the blended material (JSON) |
+//! | `POST /api/texture?kind=…` | the bytes of a height map, normal map or map file | the texture's id and levels (JSON) |
+//! | `GET /api/texture/{id}` | — | the same summary of an open texture |
+//! | `GET /api/texture/{id}/texel?level=&row=&col=` | — | a texel's lobes (JSON) |
+//! | `POST /api/texture/render` | `{texture, material, view?, lights?, repeat?}` | PNG of the textured object |
+//!
+//! A material's NDF may name a texel of an open texture (`{"kind": "map", "texture": id,
+//! "level": k, "texel": [row, col]}`, see [`textures`]), so the NDF and slice pictures of a texel
+//! are those of `POST /api/ndf.png` and `/api/slices.png`.
 //!
 //! Errors are `{"error": "<message>"}` with a 4xx status: 400 for malformed JSON and values out
-//! of range, 404 for unknown routes, 405 for wrong methods, 413 for bodies over
-//! [`MAX_BODY_BYTES`].
+//! of range, 404 for unknown routes (and textures that are not open), 405 for wrong methods, 413
+//! for bodies over [`MAX_BODY_BYTES`] ([`textures::MAX_TEXTURE_BYTES`] for an upload) and
+//! textures above the limits.
 //!
 //! Only same-origin requests are served ([`router_for`], used by [`serve`]): the `Host` header
 //! must name the address the server is bound to (`localhost`, `127.0.0.1` or `[::1]` for a
 //! loopback address, with the bound port if a port is given), an `Origin` header, when present,
 //! must be `http://` + that `Host`, and a `POST` must declare `Content-Type: application/json`
-//! (or `application/toml` for `/api/parse`), which a cross-origin page cannot send without a
-//! CORS preflight. Other requests are answered 403 (Host, Origin) or 415 (Content-Type): a web
+//! (or `application/toml` for `/api/parse`, `application/octet-stream` or `image/…` for
+//! `/api/texture`), which a cross-origin page cannot send without a CORS preflight. Other requests are answered 403 (Host, Origin) or 415 (Content-Type): a web
 //! page on another site, or a DNS-rebound name, cannot drive the editor.
 //!
 //! Connections time out ([`Timeouts`]): a request header must arrive within
@@ -48,10 +57,12 @@ pub mod material_json;
 pub mod plots;
 pub mod presets;
 pub mod preview;
+pub mod textures;
 
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
-use axum::extract::{DefaultBodyLimit, State};
+use axum::extract::rejection::QueryRejection;
+use axum::extract::{DefaultBodyLimit, Path as UrlPath, Query, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -89,6 +100,12 @@ pub fn page() -> &'static str {
     })
 }
 
+/// Texture extractions running at once (each uses every core through rayon).
+pub const MAX_CONCURRENT_EXTRACTIONS: usize = 1;
+
+/// Texture extractions running or waiting at once; one more is answered 503.
+pub const MAX_QUEUED_EXTRACTIONS: usize = 4;
+
 #[derive(Clone)]
 struct AppState {
     renders: Arc<Semaphore>,
@@ -96,6 +113,11 @@ struct AppState {
     queued: Arc<std::sync::atomic::AtomicUsize>,
     /// Most renders running or waiting; further ones are answered 503.
     max_queued: usize,
+    /// The extraction lane: its slots, and the extractions running or waiting.
+    extractions: Arc<Semaphore>,
+    extract_queued: Arc<std::sync::atomic::AtomicUsize>,
+    /// The open textures.
+    textures: Arc<textures::TextureStore>,
 }
 
 impl AppState {
@@ -104,6 +126,9 @@ impl AppState {
             renders: Arc::new(Semaphore::new(slots)),
             queued: Arc::new(std::sync::atomic::AtomicUsize::new(0)),
             max_queued,
+            extractions: Arc::new(Semaphore::new(MAX_CONCURRENT_EXTRACTIONS)),
+            extract_queued: Arc::new(std::sync::atomic::AtomicUsize::new(0)),
+            textures: Arc::new(textures::TextureStore::new()),
         }
     }
 }
@@ -197,17 +222,26 @@ fn same_origin(bound: SocketAddr, req: &axum::extract::Request) -> Result<(), Ap
             .unwrap_or("")
             .trim()
             .to_ascii_lowercase();
-        let ok = mime == "application/json"
-            || (mime == "application/toml" && req.uri().path() == "/api/parse");
+        let path = req.uri().path();
+        let upload = path == "/api/texture";
+        // None of these is a CORS-safelisted type: another site's page cannot send them
+        // without a preflight, which this server does not answer.
+        let ok = if upload {
+            mime == "application/octet-stream" || mime.starts_with("image/")
+        } else {
+            mime == "application/json" || (mime == "application/toml" && path == "/api/parse")
+        };
         if !ok {
             return Err(ApiError::new(
                 StatusCode::UNSUPPORTED_MEDIA_TYPE,
                 format!(
-                    "Content-Type {ct:?} is not accepted: send application/json{}",
-                    if req.uri().path() == "/api/parse" {
-                        " or application/toml"
+                    "Content-Type {ct:?} is not accepted: send {}",
+                    if upload {
+                        "application/octet-stream (or the image's image/… type)"
+                    } else if path == "/api/parse" {
+                        "application/json or application/toml"
                     } else {
-                        ""
+                        "application/json"
                     }
                 ),
             ));
@@ -233,6 +267,13 @@ pub fn router() -> Router {
         .route("/api/toml", post(toml_route))
         .route("/api/parse", post(parse_route))
         .route("/api/blend", post(blend_route))
+        .route(
+            "/api/texture",
+            post(texture_route).layer(DefaultBodyLimit::max(textures::MAX_TEXTURE_BYTES)),
+        )
+        .route("/api/texture/render", post(texture_render_route))
+        .route("/api/texture/{id}", get(texture_info_route))
+        .route("/api/texture/{id}/texel", get(texel_route))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
@@ -266,7 +307,8 @@ async fn presets_route() -> Json<Value> {
 async fn not_found(uri: axum::http::Uri) -> ApiError {
     ApiError::not_found(format!(
         "no route {} (see docs/http-api.md; routes: /, /api/health, /api/presets, /api/render, \
-         /api/ndf.png, /api/slices.png, /api/toml, /api/parse, /api/blend)",
+         /api/ndf.png, /api/slices.png, /api/toml, /api/parse, /api/blend, /api/texture, \
+         /api/texture/render, /api/texture/{{id}}, /api/texture/{{id}}/texel)",
         uri.path()
     ))
 }
@@ -299,8 +341,10 @@ fn json_body(b: Result<Bytes, BytesRejection>) -> Result<Value, ApiError> {
         .map_err(|e| ApiError::bad_request(format!("malformed JSON: {e}")))
 }
 
-/// Split `{material, …params}` into the validated material and the parameters.
+/// Split `{material, …params}` into the validated material (texture texels resolved against the
+/// open textures) and the parameters.
 fn material_and<T: serde::de::DeserializeOwned>(
+    state: &AppState,
     mut v: Value,
 ) -> Result<(material_json::Validated, T), ApiError> {
     let Value::Object(o) = &mut v else {
@@ -312,7 +356,10 @@ fn material_and<T: serde::de::DeserializeOwned>(
         .remove("material")
         .ok_or_else(|| ApiError::bad_request("missing `material`"))?;
     let params: T = serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
-    Ok((material_json::validate(&m)?, params))
+    Ok((
+        material_json::validate_with(&m, Some(&state.textures))?,
+        params,
+    ))
 }
 
 /// Run `f` on the blocking pool once a render slot is free.
@@ -320,22 +367,33 @@ async fn blocking<T: Send + 'static>(
     state: &AppState,
     f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
 ) -> Result<T, ApiError> {
-    let place = QueuePlace(state.queued.clone());
-    if state
-        .queued
-        .fetch_add(1, std::sync::atomic::Ordering::SeqCst)
-        >= state.max_queued
-    {
+    in_lane(
+        &state.renders,
+        &state.queued,
+        state.max_queued,
+        "renders",
+        f,
+    )
+    .await
+}
+
+/// Run `f` on the blocking pool once one of `slots` is free, with at most `max_queued` running
+/// or waiting (503 beyond).
+async fn in_lane<T: Send + 'static>(
+    slots: &Semaphore,
+    queued: &Arc<std::sync::atomic::AtomicUsize>,
+    max_queued: usize,
+    what: &str,
+    f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    let place = QueuePlace(queued.clone());
+    if queued.fetch_add(1, std::sync::atomic::Ordering::SeqCst) >= max_queued {
         return Err(ApiError::new(
             StatusCode::SERVICE_UNAVAILABLE,
-            format!(
-                "busy: {} renders are running or waiting; try again shortly",
-                state.max_queued
-            ),
+            format!("busy: {max_queued} {what} are running or waiting; try again shortly"),
         ));
     }
-    let _permit = state
-        .renders
+    let _permit = slots
         .acquire()
         .await
         .map_err(|_| ApiError::internal("server shutting down"))?;
@@ -364,8 +422,13 @@ async fn render_route(
     let req: preview::RenderRequest =
         serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
     req.check()?;
-    let m = material_json::validate(&req.material)?;
+    let m = material_json::validate_with(&req.material, Some(&state.textures))?;
     let r = blocking(&state, move || preview::render_preview(&req, &m.material)).await?;
+    Ok(rendered_response(r))
+}
+
+/// A preview's PNG with its timing and evaluation path in headers.
+fn rendered_response(r: preview::Rendered) -> Response {
     let mut resp = png_response(r.png);
     let h = resp.headers_mut();
     if let Ok(v) = HeaderValue::from_str(&format!("{:.1}", r.render_ms)) {
@@ -378,14 +441,14 @@ async fn render_route(
         header::ACCESS_CONTROL_EXPOSE_HEADERS,
         HeaderValue::from_static("x-render-ms, x-brdf-path"),
     );
-    Ok(resp)
+    resp
 }
 
 async fn ndf_route(
     State(state): State<AppState>,
     b: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
-    let (m, p): (_, plots::NdfParams) = material_and(json_body(b)?)?;
+    let (m, p): (_, plots::NdfParams) = material_and(&state, json_body(b)?)?;
     let png = blocking(&state, move || plots::ndf_png(&m.material, p)).await?;
     Ok(png_response(png))
 }
@@ -394,14 +457,17 @@ async fn slices_route(
     State(state): State<AppState>,
     b: Result<Bytes, BytesRejection>,
 ) -> Result<Response, ApiError> {
-    let (m, p): (_, plots::SliceParams) = material_and(json_body(b)?)?;
+    let (m, p): (_, plots::SliceParams) = material_and(&state, json_body(b)?)?;
     let png = blocking(&state, move || plots::slices_png(&m.material, &p)).await?;
     Ok(png_response(png))
 }
 
-async fn toml_route(b: Result<Bytes, BytesRejection>) -> Result<Response, ApiError> {
+async fn toml_route(
+    State(state): State<AppState>,
+    b: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
     let v = json_body(b)?;
-    let m = material_json::validate(&v)?;
+    let m = material_json::validate_with(&v, Some(&state.textures))?;
     Ok((
         [(header::CONTENT_TYPE, "application/toml; charset=utf-8")],
         m.toml,
@@ -430,6 +496,90 @@ async fn blend_route(b: Result<Bytes, BytesRejection>) -> Result<Json<Value>, Ap
     let out = material_json::blend(a, bm, t)?;
     material_json::validate(&out)?;
     Ok(Json(out))
+}
+
+/// `POST /api/texture`: decode the uploaded texture and extract its pyramid (or find it open),
+/// answer its summary.
+async fn texture_route(
+    State(state): State<AppState>,
+    q: Result<Query<textures::UploadParams>, QueryRejection>,
+    b: Result<Bytes, BytesRejection>,
+) -> Result<Json<Value>, ApiError> {
+    let Query(q) = q.map_err(|e| ApiError::bad_request(format!("query: {}", e.body_text())))?;
+    let checked = textures::check_params(&q)?;
+    let bytes = b.map_err(|r| {
+        if r.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::too_large(format!(
+                "texture upload above the limit of {} bytes",
+                textures::MAX_TEXTURE_BYTES
+            ))
+        } else {
+            ApiError::new(r.status(), r.body_text())
+        }
+    })?;
+    let id = checked.id(&bytes);
+    if let Some(t) = state.textures.get(&id) {
+        return Ok(Json(t.info_json(true)));
+    }
+    let t = in_lane(
+        &state.extractions,
+        &state.extract_queued,
+        MAX_QUEUED_EXTRACTIONS,
+        "texture extractions",
+        move || textures::open(&bytes, &checked, id),
+    )
+    .await?;
+    let t = Arc::new(t);
+    state.textures.insert(t.clone());
+    Ok(Json(t.info_json(false)))
+}
+
+async fn texture_info_route(
+    State(state): State<AppState>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<Json<Value>, ApiError> {
+    Ok(Json(state.textures.require(&id)?.info_json(true)))
+}
+
+/// The query of `GET /api/texture/{id}/texel`.
+#[derive(serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TexelQuery {
+    level: usize,
+    row: usize,
+    col: usize,
+}
+
+async fn texel_route(
+    State(state): State<AppState>,
+    UrlPath(id): UrlPath<String>,
+    q: Result<Query<TexelQuery>, QueryRejection>,
+) -> Result<Json<Value>, ApiError> {
+    let Query(q) = q.map_err(|e| {
+        ApiError::bad_request(format!(
+            "query: {} (expected level, row and col: integers ≥ 0)",
+            e.body_text()
+        ))
+    })?;
+    let t = state.textures.require(&id)?;
+    Ok(Json(t.texel_json(q.level, q.row, q.col)?))
+}
+
+async fn texture_render_route(
+    State(state): State<AppState>,
+    b: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let v = json_body(b)?;
+    let req: preview::TexturedRequest =
+        serde_json::from_value(v).map_err(|e| ApiError::bad_request(format!("{e}")))?;
+    req.render_request().check()?;
+    let t = state.textures.require(&req.texture)?;
+    let m = material_json::validate_with(&req.material, Some(&state.textures))?;
+    let r = blocking(&state, move || {
+        preview::render_textured(&req, &t, &m.material)
+    })
+    .await?;
+    Ok(rendered_response(r))
 }
 
 /// Errors of starting the server.
@@ -486,7 +636,12 @@ async fn read_body_within(
     next: axum::middleware::Next,
 ) -> Response {
     let (parts, body) = req.into_parts();
-    match tokio::time::timeout(limit, axum::body::to_bytes(body, MAX_BODY_BYTES)).await {
+    let max = if parts.uri.path() == "/api/texture" {
+        textures::MAX_TEXTURE_BYTES
+    } else {
+        MAX_BODY_BYTES
+    };
+    match tokio::time::timeout(limit, axum::body::to_bytes(body, max)).await {
         Ok(Ok(bytes)) => {
             next.run(axum::extract::Request::from_parts(
                 parts,
@@ -498,10 +653,8 @@ async fn read_body_within(
             let too_large = std::error::Error::source(&e)
                 .is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
             if too_large {
-                ApiError::too_large(format!(
-                    "request body above the limit of {MAX_BODY_BYTES} bytes"
-                ))
-                .into_response()
+                ApiError::too_large(format!("request body above the limit of {max} bytes"))
+                    .into_response()
             } else {
                 let mut r = ApiError::bad_request(format!("cannot read the request body: {e}"))
                     .into_response();

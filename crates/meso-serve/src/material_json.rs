@@ -11,7 +11,7 @@
 //! `[section]` per table, lobes as one inline table per line.
 
 use crate::error::ApiError;
-use meso_core::material::Material;
+use meso_core::material::{Material, MaterialSpec};
 use serde_json::{Map, Number, Value};
 
 /// Most lobes (or normals) a material may have through the API.
@@ -199,11 +199,29 @@ pub struct Validated {
     pub toml: String,
 }
 
-/// Validate a JSON material (see the module docs) and convert it to TOML.
+/// Validate a JSON material (see the module docs) and convert it to TOML. NDFs that live in
+/// files (`heightmap`, `map`) are refused: see [`validate_with`] for open textures.
 ///
 /// # Errors
 /// 400 with the message of meso-core's validation, or of the JSON shape.
 pub fn validate(v: &Value) -> Result<Validated, ApiError> {
+    validate_with(v, None)
+}
+
+/// The keys of a JSON NDF naming a texel of an open texture (`crate::textures`).
+const TEXTURE_NDF_KEYS: [&str; 5] = ["kind", "texture", "level", "texel", "file"];
+
+/// [`validate`], with the open `textures`: an NDF `{"kind": "map", "texture": "<id>", "level":
+/// k | "top", "texel": [row, col]}` is the NDF of that texel (as `[ndf] kind = "map"` resolves a
+/// map file's), and the TOML names the texture's map file (`crate::textures::Texture::
+/// map_file_name`) instead of the id.
+///
+/// # Errors
+/// 400 as for [`validate`]; 404 for a texture that is not open.
+pub fn validate_with(
+    v: &Value,
+    textures: Option<&crate::textures::TextureStore>,
+) -> Result<Validated, ApiError> {
     let Value::Object(_) = v else {
         return Err(ApiError::bad_request(
             "material: expected a JSON object mirroring the TOML material format",
@@ -218,20 +236,53 @@ pub fn validate(v: &Value) -> Result<Validated, ApiError> {
             "material.ndf.lobes: {lobes} lobes is above the server's limit of {MAX_LOBES}"
         )));
     }
+    let mut texture = None;
     if let Some(k) = v.pointer("/ndf/kind").and_then(Value::as_str) {
         if k == "heightmap" || k == "map" {
-            return Err(ApiError::bad_request(format!(
-                "material.ndf.kind: \"{k}\" NDFs live in files, which the server does not read; \
-                 use an inline NDF"
-            )));
+            let id = v.pointer("/ndf/texture");
+            let (Some(store), Some(id)) = (textures, id) else {
+                return Err(ApiError::bad_request(format!(
+                    "material.ndf.kind: \"{k}\" NDFs live in files, which the server does not \
+                     read: open the texture in the editor (POST /api/texture uploads it) and name \
+                     a texel of it with {{\"kind\": \"map\", \"texture\": \"<id>\", \"level\": k, \
+                     \"texel\": [row, col]}}, or use an inline NDF"
+                )));
+            };
+            if k != "map" {
+                return Err(ApiError::bad_request(
+                    "material.ndf.kind: an open texture is named by kind = \"map\" (with \
+                     `texture`, `level` and `texel`)",
+                ));
+            }
+            if let Some(Value::Object(o)) = v.get("ndf") {
+                if let Some(bad) = o.keys().find(|x| !TEXTURE_NDF_KEYS.contains(&x.as_str())) {
+                    return Err(ApiError::bad_request(format!(
+                        "material.ndf.{bad}: unknown key for a texture texel (known: {})",
+                        TEXTURE_NDF_KEYS.join(", ")
+                    )));
+                }
+            }
+            let id = id
+                .as_str()
+                .ok_or_else(|| ApiError::bad_request("material.ndf.texture: expected an id"))?;
+            texture = Some(store.require(id)?);
         }
     }
-    let toml::Value::Table(t) = json_to_toml(v, "material")? else {
+    let mut v = v.clone();
+    if let (Some(t), Some(Value::Object(ndf))) = (&texture, v.get_mut("ndf")) {
+        ndf.remove("texture");
+        ndf.insert("file".into(), Value::from(t.map_file_name()));
+    }
+    let toml::Value::Table(t) = json_to_toml(&v, "material")? else {
         unreachable!("an object converts to a table")
     };
     let text = emit_toml(&t);
-    let material = Material::from_toml_str(&text)
-        .map_err(|e| ApiError::bad_request(format!("material: {}", e.0)))?;
+    let material = match &texture {
+        None => Material::from_toml_str(&text),
+        Some(t) => MaterialSpec::parse(&text, std::path::Path::new(""))
+            .and_then(|s| s.build(&crate::textures::TexelResolver { texture: t })),
+    }
+    .map_err(|e| ApiError::bad_request(format!("material: {}", e.0)))?;
     Ok(Validated {
         material,
         toml: text,
@@ -247,7 +298,19 @@ pub fn parse_toml(text: &str) -> Result<Value, ApiError> {
     if text.len() as u64 > meso_core::material::MAX_MATERIAL_BYTES {
         return Err(ApiError::too_large("material TOML above 1 MiB"));
     }
-    Material::from_toml_str(text).map_err(|e| ApiError::bad_request(e.0))?;
+    let spec = MaterialSpec::parse(text, std::path::Path::new(""))
+        .map_err(|e| ApiError::bad_request(e.0))?;
+    match &spec.ndf {
+        // An NDF in another file: its table is checked here, the file itself is the browser's
+        // to send (POST /api/texture); the editor asks for it.
+        meso_core::material::NdfSpec::External { kind, table, .. } => {
+            check_external(kind, table).map_err(|e| ApiError::bad_request(e.0))?;
+        }
+        meso_core::material::NdfSpec::Inline(_) => {
+            spec.build(&meso_core::material::NoExternalNdfs)
+                .map_err(|e| ApiError::bad_request(e.0))?;
+        }
+    }
     let table: toml::Table = text
         .parse()
         .map_err(|e: toml::de::Error| ApiError::bad_request(e.message().to_owned()))?;
@@ -272,6 +335,48 @@ pub fn parse_toml(text: &str) -> Result<Value, ApiError> {
         }
     }
     Ok(json)
+}
+
+/// Check the `[ndf]` table of a `heightmap` or `map` material as meso-maps reads it (keys and
+/// values), without its file.
+fn check_external(
+    kind: &str,
+    table: &toml::Table,
+) -> Result<(), meso_core::material::MaterialError> {
+    use meso_core::material::MaterialError;
+    match kind {
+        "heightmap" => meso_maps::resolver::MapsResolver::heightmap_params(table).map(|_| ()),
+        _ => {
+            if let Some(k) = table
+                .keys()
+                .find(|k| !["kind", "file", "level", "texel"].contains(&k.as_str()))
+            {
+                return Err(MaterialError(format!(
+                    "[ndf]: unknown key `{k}` (known here: kind, file, level, texel)"
+                )));
+            }
+            match table.get("level") {
+                None | Some(toml::Value::Integer(0..)) => {}
+                Some(toml::Value::String(s)) if s == "top" => {}
+                Some(v) => {
+                    return Err(MaterialError(format!(
+                        "[ndf] level: expected \"top\" or a level number, got {v}"
+                    )))
+                }
+            }
+            match table.get("texel") {
+                None => Ok(()),
+                Some(toml::Value::Array(a))
+                    if a.len() == 2 && a.iter().all(|x| matches!(x, toml::Value::Integer(0..))) =>
+                {
+                    Ok(())
+                }
+                Some(v) => Err(MaterialError(format!(
+                    "[ndf] texel: expected [row, col], got {v}"
+                ))),
+            }
+        }
+    }
 }
 
 /// Blend two materials' NDFs: the lobes of `a` with weights scaled by `1 − t` and those of `b`

@@ -458,8 +458,116 @@ pub fn render_image(
 ) -> Result<(meso_render::Image, f64, String), ApiError> {
     req.check()?;
     let t0 = std::time::Instant::now();
-    let v = req.view;
     let (brdf, path) = preview_brdf(material);
+    let shader = Arc::new(BrdfShader::new(brdf, req.view.tangent_deg));
+    let img = render_shader(req, shader)?;
+    let render_ms = t0.elapsed().as_secs_f64() * 1e3;
+    Ok((img, render_ms, path))
+}
+
+/// Most copies of a texture per unit of the object's texture coordinates
+/// ([`TexturedRequest::repeat`]).
+pub const MAX_REPEAT: f64 = 64.0;
+
+/// The body of `POST /api/texture/render`: a [`RenderRequest`] with the open texture whose
+/// pyramid shades the object (`meso_render::NdfMapped`, as `meso render` shades a `[texture]`
+/// material with `kind = "ndf-mapped"`), the facet transfer and diffuse term from `material`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TexturedRequest {
+    /// The texture's id (`POST /api/texture`).
+    pub texture: String,
+    /// Copies of the texture per unit of texture coordinate (default 1: once around the
+    /// sphere, once across the plane); in (0, [`MAX_REPEAT`]].
+    #[serde(default = "one")]
+    pub repeat: f64,
+    /// Horizon shadowing of the light from the pyramid's statistics (default: when the texture
+    /// has them, i.e. height maps).
+    #[serde(default)]
+    pub shadowing: Option<bool>,
+    /// The material (JSON form): its transfer, diffuse term and form shade the facets; its NDF
+    /// is not used.
+    pub material: serde_json::Value,
+    /// Camera and image (`tangent_deg` does not apply: the texture fixes the tangent).
+    #[serde(default)]
+    pub view: View,
+    /// Directional lights (default [`default_lights`]).
+    #[serde(default = "default_lights")]
+    pub lights: Vec<LightSpec>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl TexturedRequest {
+    /// The request without the texture, for the checks and the scene.
+    #[must_use]
+    pub fn render_request(&self) -> RenderRequest {
+        RenderRequest {
+            material: serde_json::Value::Null,
+            view: self.view,
+            lights: self.lights.clone(),
+        }
+    }
+}
+
+/// Render the preview of an open texture (blocking): the object shaded through the texture's NDF
+/// pyramid with the facets of `material` (module docs of [`TexturedRequest`]).
+///
+/// # Errors
+/// 400 for an invalid request (ranges, shadowing asked of a normal map), 500 if the scene
+/// cannot be built or encoded.
+pub fn render_textured(
+    req: &TexturedRequest,
+    texture: &crate::textures::Texture,
+    material: &Material,
+) -> Result<Rendered, ApiError> {
+    let rr = req.render_request();
+    rr.check()?;
+    if !(req.repeat.is_finite() && req.repeat > 0.0 && req.repeat <= MAX_REPEAT) {
+        return Err(ApiError::bad_request(format!(
+            "repeat: must be in (0, {MAX_REPEAT}], got {}",
+            req.repeat
+        )));
+    }
+    let t0 = std::time::Instant::now();
+    let pyr = &texture.pyramid;
+    let has_horizon = pyr.levels.iter().all(|l| l.horizon.is_some());
+    let shadowing = req.shadowing.unwrap_or(has_horizon);
+    if shadowing && !has_horizon {
+        return Err(ApiError::bad_request(format!(
+            "shadowing: texture {:?} has no horizon statistics (a normal map has no heights)",
+            texture.name
+        )));
+    }
+    let texels_per_uv = pyr.levels[0].cols as f64 * req.repeat;
+    let shader = meso_render::NdfMapped::new(pyr, material, texels_per_uv, shadowing)
+        .map_err(ApiError::bad_request)?;
+    let path = format!(
+        "NDF-mapped {:?}: {} levels, box filter{}",
+        texture.name,
+        shader.levels(),
+        if shadowing { ", horizon shadowing" } else { "" }
+    );
+    let img = render_shader(&rr, Arc::new(shader))?;
+    let render_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let png = img
+        .encode_png(req.view.exposure as f32)
+        .map_err(|e| ApiError::internal(format!("png: {e}")))?;
+    Ok(Rendered {
+        png,
+        render_ms,
+        path,
+    })
+}
+
+/// The preview scene of `req` (object, camera, lights) with `shader` on the object, rendered.
+fn render_shader(
+    req: &RenderRequest,
+    shader: Arc<dyn Shader>,
+) -> Result<meso_render::Image, ApiError> {
+    let v = req.view;
     let scene_err = |e: meso_render::SceneError| ApiError::internal(format!("scene: {e}"));
     let camera = match v.object {
         Object::Sphere => {
@@ -488,7 +596,7 @@ pub fn render_image(
             background: BACKGROUND,
         },
     );
-    let mat = b.material(Arc::new(BrdfShader::new(brdf, v.tangent_deg)));
+    let mat = b.material(shader);
     match v.object {
         Object::Sphere => {
             b.sphere(DVec3::ZERO, 1.0, DVec3::Y, mat)
@@ -527,9 +635,7 @@ pub fn render_image(
         tile_size: 16,
         ..RenderOptions::default()
     };
-    let img = render(&scene, &opts, None);
-    let render_ms = t0.elapsed().as_secs_f64() * 1e3;
-    Ok((img, render_ms, path))
+    Ok(render(&scene, &opts, None))
 }
 
 #[cfg(test)]

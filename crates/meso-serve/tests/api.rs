@@ -309,7 +309,21 @@ fn validation_errors_are_400_with_the_key() {
         b"[ndf]\nkind = \"heightmap\"\nfile = \"/etc/passwd\"\n[transfer]\nkind = \"lambert\"\n",
     )
     .assert_error(400);
-    assert!(msg.contains("heightmap"), "{msg}");
+    assert!(msg.contains("texel_size"), "{msg}");
+    // A complete height-map material parses (its table checked), the file is only named: the
+    // server reads no path; evaluating it needs the texture uploaded by the browser.
+    let r = request(
+        "POST",
+        "/api/parse",
+        "application/toml",
+        b"[ndf]\nkind = \"heightmap\"\nfile = \"/etc/passwd\"\ntexel_size = 1\nheight_scale = 2\n\
+          [transfer]\nkind = \"lambert\"\n",
+    );
+    assert_eq!(r.status, 200, "{}", r.text());
+    let m = r.json();
+    assert_eq!(m["ndf"]["file"], "/etc/passwd");
+    let msg = post_json("/api/render", &json!({ "material": m })).assert_error(400);
+    assert!(msg.contains("live in files"), "{msg}");
     let mut bad = material();
     bad["ndf"]["lobes"][0]["weight"] = json!(-1);
     let msg = post_json("/api/toml", &bad).assert_error(400);
@@ -757,5 +771,327 @@ fn analytic_preview_pixels_follow_the_core_brdf() {
             checked += 1;
         }
         assert!(checked >= 5, "{checked} pixels checked");
+    }
+}
+
+// ---------------------------------------------------------------- textures (issue 15 item 6)
+
+use meso_maps::{extract, Border, ExtractParams, HeightMap, Pyramid, Source};
+
+/// A 32×32 Gaussian height map as 16-bit PNG bytes, with its texel size and height scale.
+fn height_png() -> (Vec<u8>, f64, f64) {
+    let s = 0.05;
+    let map = meso_maps::fixtures::gaussian(32, 3.0 * s, 0.4 * s, 7, s).unwrap();
+    let (png, scale) = map.encode_png16().unwrap();
+    (png, s, scale)
+}
+
+fn upload(query: &str, body: &[u8]) -> Resp {
+    request(
+        "POST",
+        &format!("/api/texture?{query}"),
+        "application/octet-stream",
+        body,
+    )
+}
+
+fn height_query(s: f64, scale: f64) -> String {
+    format!("kind=height&name=rock.png&texel_size={s}&height_scale={scale}&max_lobes=3")
+}
+
+/// meso-maps' own extraction of the same bytes with the same parameters.
+fn own_pyramid(png: &[u8], s: f64, scale: f64) -> Pyramid {
+    let map = HeightMap::from_bytes(
+        std::path::Path::new("rock.png"),
+        png,
+        s,
+        scale,
+        Border::Wrap,
+    )
+    .unwrap();
+    let mut p = ExtractParams::default();
+    p.fit.max_lobes = 3;
+    extract(Source::Heights(&map), &p, &mut |_| {}).unwrap()
+}
+
+/// The texel's lobes as the server answers them: `(θ°, φ°, weight, η)`.
+fn texel_lobes(id: &str, level: usize, row: usize, col: usize) -> Vec<[f64; 4]> {
+    let r = get(&format!(
+        "/api/texture/{id}/texel?level={level}&row={row}&col={col}"
+    ));
+    assert_eq!(r.status, 200, "{}", r.text());
+    let v = r.json();
+    assert_eq!(v["level"], level);
+    v["lobes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| {
+            [
+                l["axis"][0].as_f64().unwrap(),
+                l["axis"][1].as_f64().unwrap(),
+                l["weight"].as_f64().unwrap(),
+                l["exponent"].as_f64().unwrap(),
+            ]
+        })
+        .collect()
+}
+
+/// Compare the server's lobes with a pyramid's texel (angles to the server's 1e-6° rounding).
+fn assert_same_lobes(got: &[[f64; 4]], pyr: &Pyramid, level: usize, row: usize, col: usize) {
+    let want = pyr.levels[level].texel_lobes(row, col).unwrap();
+    assert_eq!(got.len(), want.len(), "level {level} [{row}, {col}]");
+    assert!(!want.is_empty());
+    for (g, w) in got.iter().zip(want) {
+        let (t, p) = meso_core::frame::spherical_angles(w.axis);
+        let mut p = p.to_degrees();
+        if p < 0.0 {
+            p += 360.0;
+        }
+        assert!((g[0] - t.to_degrees()).abs() < 2e-6, "θ {g:?} vs {w:?}");
+        let dp = (g[1] - p).abs();
+        assert!(
+            dp < 2e-6 || (dp - 360.0).abs() < 2e-6 || t < 1e-9,
+            "φ {g:?} vs {w:?}"
+        );
+        // Equal up to JSON's decimal round trip (serde_json parses to within an ulp).
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-300);
+        assert!(close(g[2], w.weight), "weight {g:?} vs {w:?}");
+        assert!(close(g[3], w.exponent), "η {g:?} vs {w:?}");
+    }
+}
+
+#[test]
+fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
+    let (png, s, scale) = height_png();
+    let r = upload(&height_query(s, scale), &png);
+    assert_eq!(r.status, 200, "{}", r.text());
+    let info = r.json();
+    let id = info["id"].as_str().unwrap().to_owned();
+    assert_eq!(id.len(), 16);
+    assert_eq!(info["kind"], "height");
+    assert_eq!(info["name"], "rock.png");
+    assert_eq!(info["map_file"], "rock.map");
+    assert_eq!(info["width"], 32);
+    assert_eq!(info["max_lobes"], 3);
+    assert_eq!(info["horizon"], true);
+    let own = own_pyramid(&png, s, scale);
+    let levels = info["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), own.levels.len());
+    assert_eq!(levels.len(), 6, "32 → 16 → 8 → 4 → 2 → 1");
+    for (k, (l, o)) in levels.iter().zip(&own.levels).enumerate() {
+        assert_eq!(l["level"], k);
+        assert_eq!(l["cols"], o.cols);
+        assert_eq!(l["rows"], o.rows);
+        assert_eq!(l["lobes"], o.lobes.len());
+        let res = l["residual"]["mean"].as_f64().unwrap();
+        assert!(res.is_finite() && res >= 0.0, "{l}");
+    }
+    for (level, row, col) in [(0, 5, 7), (2, 1, 3), (3, 0, 2), (5, 0, 0)] {
+        assert_same_lobes(&texel_lobes(&id, level, row, col), &own, level, row, col);
+    }
+    // The same bytes and parameters again: answered from memory.
+    let again = upload(&height_query(s, scale), &png).json();
+    assert_eq!(again["id"], id.as_str());
+    assert_eq!(again["cached"], true);
+    assert_eq!(get(&format!("/api/texture/{id}")).json()["id"], id.as_str());
+    // Other parameters: another texture.
+    let other = upload(&format!("{}&normals=central", height_query(s, scale)), &png).json();
+    assert_ne!(other["id"], id.as_str());
+
+    // A texel is an ordinary material NDF: its NDF picture, slices and TOML.
+    let texel_material = json!({
+        "name": "rock texel",
+        "ndf": { "kind": "map", "texture": id, "level": 2, "texel": [1, 3] },
+        "transfer": { "kind": "phong", "exponent": 30, "specular": [1, 1, 1] }
+    });
+    let r = post_json(
+        "/api/ndf.png",
+        &json!({ "material": texel_material, "size": 128, "style": "disc" }),
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert_eq!(png_size(&r.body), (128, 128));
+    let r = post_json("/api/slices.png", &json!({ "material": texel_material }));
+    assert_eq!(r.status, 200);
+    let r = post_json("/api/toml", &texel_material);
+    assert_eq!(r.status, 200);
+    let text = r.text();
+    assert!(text.contains("kind = \"map\""), "{text}");
+    assert!(text.contains("file = \"rock.map\""), "{text}");
+    assert!(text.contains("texel = [1, 3]"), "{text}");
+    assert!(!text.contains(&id), "{text}");
+    // The texel's NDF differs from another texel's: the picture follows the texel.
+    let pic = |texel: [usize; 2]| {
+        let mut m = texel_material.clone();
+        m["ndf"]["texel"] = json!(texel);
+        m["ndf"]["level"] = json!(0);
+        post_json("/api/ndf.png", &json!({ "material": m, "size": 96 })).body
+    };
+    assert_ne!(pic([0, 0]), pic([9, 20]));
+    let mut bad = texel_material.clone();
+    bad["ndf"]["texel"] = json!([8, 0]); // level 2 is 8 × 8
+    let msg = post_json("/api/ndf.png", &json!({ "material": bad })).assert_error(400);
+    assert!(msg.contains("row"), "{msg}");
+    let mut bad = texel_material.clone();
+    bad["ndf"]["bogus"] = json!(1);
+    let msg = post_json("/api/toml", &bad).assert_error(400);
+    assert!(msg.contains("bogus"), "{msg}");
+
+    // The textured preview, with the editor's material for the facets.
+    for object in ["sphere", "plane"] {
+        let r = post_json(
+            "/api/texture/render",
+            &json!({ "texture": id, "material": material(),
+                     "view": { "object": object, "width": 96, "height": 80 } }),
+        );
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        assert_eq!(png_size(&r.body), (96, 80));
+        assert!(r.header("x-brdf-path").unwrap().contains("NDF-mapped"));
+    }
+    let msg = post_json(
+        "/api/texture/render",
+        &json!({ "texture": id, "material": material(), "repeat": 0 }),
+    )
+    .assert_error(400);
+    assert!(msg.contains("repeat"), "{msg}");
+}
+
+#[test]
+fn a_map_file_opens_with_its_stored_lobes() {
+    let (png, s, scale) = height_png();
+    let own = own_pyramid(&png, s, scale);
+    let bytes = own.to_bytes();
+    // What a map file holds (quantised as stored), read back by meso-maps itself.
+    let stored = Pyramid::from_bytes(std::path::Path::new("rock.map"), &bytes).unwrap();
+    let r = upload("kind=map&name=rock.map", &bytes);
+    assert_eq!(r.status, 200, "{}", r.text());
+    let info = r.json();
+    assert_eq!(info["kind"], "map");
+    assert_eq!(info["map_file"], "rock.map");
+    assert_eq!(
+        info["levels"].as_array().unwrap().len(),
+        stored.levels.len()
+    );
+    let id = info["id"].as_str().unwrap();
+    assert_same_lobes(&texel_lobes(id, 1, 2, 3), &stored, 1, 2, 3);
+    let msg = upload("kind=map&name=rock.map&max_lobes=2", &bytes).assert_error(400);
+    assert!(msg.contains("max_lobes"), "{msg}");
+    let msg = upload("kind=map&name=bad.map", &bytes[..bytes.len() / 2]).assert_error(400);
+    assert!(msg.contains("bad.map"), "{msg}");
+}
+
+#[test]
+fn bad_uploads_are_4xx_with_a_message() {
+    let (png, s, scale) = height_png();
+    let q = height_query(s, scale);
+    let msg = upload(&q, b"").assert_error(400);
+    assert!(msg.contains("empty"), "{msg}");
+    let msg = upload(&q, &png[..png.len() / 2]).assert_error(400);
+    assert!(msg.contains("rock.png"), "{msg}");
+    let msg = upload(&q, b"this is not an image at all").assert_error(400);
+    assert!(msg.contains("rock.png"), "{msg}");
+    let msg = upload("name=x.png", &png).assert_error(400);
+    assert!(msg.contains("kind"), "{msg}");
+    let msg = upload("kind=bump", &png).assert_error(400);
+    assert!(msg.contains("query"), "{msg}");
+    let msg = upload("kind=height&texel_size=1", &png).assert_error(400);
+    assert!(msg.contains("height_scale"), "{msg}");
+    let msg = upload(&format!("{q}&convention=gl"), &png).assert_error(400);
+    assert!(msg.contains("convention"), "{msg}");
+    let msg = upload("kind=normal&convention=up", &png).assert_error(400);
+    assert!(msg.contains("convention"), "{msg}");
+    // Wider than the editor's limit (read from the header, nothing extracted): 413.
+    let wide = HeightMap::from_fn(2049, 2, 1.0, Border::Wrap, |x, _| x)
+        .unwrap()
+        .encode_png16()
+        .unwrap()
+        .0;
+    let msg = upload(
+        "kind=height&name=wide.png&texel_size=1&height_scale=1",
+        &wide,
+    )
+    .assert_error(413);
+    assert!(msg.contains("2049") && msg.contains("2048"), "{msg}");
+    // Above the upload body limit: 413.
+    let big = vec![0u8; meso_serve::textures::MAX_TEXTURE_BYTES + 1];
+    let msg = upload(&q, &big).assert_error(413);
+    assert!(msg.contains("limit"), "{msg}");
+    // Not an upload type: 415 (a cross-origin form cannot send octet-stream without preflight).
+    let r = request("POST", &format!("/api/texture?{q}"), "text/plain", &png);
+    r.assert_error(415);
+    // Textures that are not open, texels out of range.
+    let msg = get("/api/texture/0123456789abcdef").assert_error(404);
+    assert!(msg.contains("not open"), "{msg}");
+    let id = upload(&q, &png).json()["id"].as_str().unwrap().to_owned();
+    let msg = get(&format!("/api/texture/{id}/texel?level=9&row=0&col=0")).assert_error(400);
+    assert!(msg.contains("level"), "{msg}");
+    let msg = get(&format!("/api/texture/{id}/texel?level=0&row=0&col=32")).assert_error(400);
+    assert!(msg.contains("column"), "{msg}");
+    let msg = get(&format!("/api/texture/{id}/texel?level=0&row=-1&col=0")).assert_error(400);
+    assert!(msg.contains("query"), "{msg}");
+    let m = json!({ "ndf": { "kind": "map", "texture": "ffffffffffffffff", "level": 0,
+                             "texel": [0, 0] },
+                    "transfer": { "kind": "lambert" } });
+    post_json("/api/ndf.png", &json!({ "material": m })).assert_error(404);
+}
+
+#[test]
+fn a_normal_map_opens() {
+    // A tilted plane's normal map: every texel the same normal, one lobe there.
+    let mut raw = Vec::new();
+    for _ in 0..16 * 16 {
+        raw.extend_from_slice(&[160u8, 128, 240]);
+    }
+    let mut png = Vec::new();
+    {
+        use image::ImageEncoder;
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&raw, 16, 16, image::ExtendedColorType::Rgb8)
+            .unwrap();
+    }
+    let r = upload("kind=normal&name=n.png&convention=gl&max_lobes=2", &png);
+    assert_eq!(r.status, 200, "{}", r.text());
+    let info = r.json();
+    assert_eq!(info["horizon"], false);
+    let id = info["id"].as_str().unwrap();
+    let lobes = texel_lobes(id, 0, 3, 3);
+    assert_eq!(lobes.len(), 1);
+    assert!(lobes[0][0] > 5.0 && lobes[0][0] < 20.0, "{lobes:?}");
+    let msg = post_json(
+        "/api/texture/render",
+        &json!({ "texture": id, "material": material(), "shadowing": true }),
+    )
+    .assert_error(400);
+    assert!(msg.contains("horizon"), "{msg}");
+}
+
+/// Issue 13: the editor's Open… takes mixture and radial NDFs.
+#[test]
+fn mixture_and_radial_materials_open() {
+    for text in [
+        "form = \"microfacet\"\n[ndf]\nkind = \"mixture\"\nlobes = [\n  \
+         { kind = \"ggx\", alpha = 0.08, weight = 0.7 },\n  \
+         { kind = \"beckmann\", alpha = 0.4, weight = 0.3 },\n]\n\
+         [transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\nf0 = [0.9, 0.6, 0.3]\n\
+         specular = [0.8, 0.8, 0.8]\n[diffuse]\nalbedo = [0.05, 0.05, 0.05]\n",
+        "[ndf]\nkind = \"radial\"\ntheta = [0, 10, 20, 40, 90]\n\
+         density = [8.0, 5.0, 2.0, 0.3, 0.0]\n[transfer]\nkind = \"phong\"\nexponent = 20\n",
+    ] {
+        let r = request("POST", "/api/parse", "application/toml", text.as_bytes());
+        assert_eq!(r.status, 200, "{}", r.text());
+        let m = r.json();
+        let back = post_json("/api/toml", &m);
+        assert_eq!(back.status, 200, "{}", back.text());
+        let again = request(
+            "POST",
+            "/api/parse",
+            "application/toml",
+            back.body.as_slice(),
+        );
+        assert_eq!(again.json(), m, "{}", back.text());
+        let r = render(&m, json!({ "width": 48, "height": 48 }));
+        assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+        let r = post_json("/api/ndf.png", &json!({ "material": m, "size": 96 }));
+        assert_eq!(r.status, 200);
     }
 }
