@@ -13,6 +13,8 @@
 //! * [`lm`] — a bounded dense Levenberg–Marquardt solver;
 //! * [`fit`] — the [`fit::BrdfModel`] trait and the fitting driver (several starts, coarse to fine,
 //!   linear per-channel amplitudes);
+//! * [`plots`] — the PNG plots of a fit (polar slices, spheres with the exposure from the data);
+//! * [`workflow`] — the whole `meso fit` workflow as one call returning a report value;
 //! * [`model`] — the lobe-sum model of the paper and the baselines (Blinn-Phong, Cook-Torrance,
 //!   GGX, Ashikhmin–Shirley, Lafortune).
 //!
@@ -40,5 +42,7 @@ pub mod merl;
 pub mod metric;
 pub mod model;
 pub mod nonparametric;
+pub mod plots;
 pub mod rusinkiewicz;
 pub mod samples;
+pub mod workflow;

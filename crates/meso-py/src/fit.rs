@@ -5,10 +5,11 @@
 use crate::arrays::{directions, rows, same_rows, Arr};
 use crate::error::{meso_err, require_exists, value_err};
 use crate::material::Material;
-use meso_measured::fit::{evaluate_fn, evaluate_samples_fn, FitErrors, FitOptions, LobeAxes};
-use meso_measured::job::{self, Data, FitSettings, Transfer};
+use meso_measured::fit::{FitErrors, LobeAxes};
+use meso_measured::job::{self, Data, Transfer};
 use meso_measured::metric::Metric;
 use meso_measured::samples::{Sample, SampleSet};
+use meso_measured::workflow::{self, FitReport, FitRequest};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::PathBuf;
@@ -107,77 +108,22 @@ fn options(
     })
 }
 
-/// What a fit produced, before it crosses into Python.
-struct Fitted {
-    text: String,
-    description: String,
-    model: String,
-    metric: Metric,
-    axes: LobeAxes,
-    /// The family kept, and every family tried with its selection error.
-    transfer: Transfer,
-    tried: Vec<job::Tried>,
-    /// The number of lobes kept.
-    lobes: usize,
-    engine: meso_measured::engine::EngineParams,
-    fitted: FitErrors,
-    fitted_count: usize,
-    held_out: Option<FitErrors>,
-    held_out_count: usize,
-    iterations: usize,
-    starts: usize,
-    seconds: f64,
-}
-
-/// Fit `data` as `meso fit` does (K lobes, the last of the progressive fits) and build the
-/// material text with the CLI's comment (`name` is the data as written there).
-fn run_fit(data: &Data, name: &str, o: &Options) -> Result<Fitted, String> {
-    let axes = o.axes.unwrap_or(if data.merl.is_some() {
-        LobeAxes::Normal
-    } else {
-        LobeAxes::Free
-    });
-    let opts = FitOptions {
+/// Fit `data` as `meso fit` does (the library's workflow, without the CLI's exact check and
+/// baselines) and build the material text with the CLI's comment (`name` is the data as written
+/// there).
+fn run_fit(data: &Data, name: &str, o: &Options) -> Result<FitReport, String> {
+    let request = FitRequest {
+        data_name: name,
+        lobes: o.k,
+        auto_lobes: o.auto_k,
+        candidates: &o.transfers,
         metric: o.metric,
-        axes,
-        ..FitOptions::default()
+        axes: o.axes,
+        per_channel: false,
+        baselines: false,
+        exact_cells: 0,
     };
-    let (transfer, fits, tried) = job::fit_best(o.k, o.auto_k, &o.transfers, &data.samples, &opts)
-        .map_err(|e| chain_message(&e))?;
-    let engine =
-        meso_measured::engine::fit_engine(&data.samples, &opts).map_err(|e| chain_message(&e))?;
-    let (lobes, r) = fits.last().ok_or("no lobe fit")?;
-    let eval = |wi, wo| lobes.eval(wi, wo);
-    let fitted = evaluate_fn(&data.samples, eval);
-    let held = &data.samples.held_out;
-    let held_out = (!held.is_empty()).then(|| evaluate_samples_fn(held, eval));
-    let settings = FitSettings {
-        data: name,
-        k: fits.len(),
-        metric: o.metric,
-        transfer,
-        axes,
-        channel: None,
-    };
-    let comment = job::material_comment(&settings, &data.description, r);
-    Ok(Fitted {
-        text: lobes.to_toml(&comment),
-        description: data.description.clone(),
-        model: r.model.clone(),
-        metric: o.metric,
-        axes,
-        transfer,
-        tried,
-        lobes: fits.len(),
-        engine,
-        fitted,
-        fitted_count: data.samples.len(),
-        held_out,
-        held_out_count: held.len(),
-        iterations: r.iterations,
-        starts: r.starts,
-        seconds: r.seconds,
-    })
+    workflow::run(data, &request, &mut |_| {}).map_err(|e| chain_message(&e))
 }
 
 pub(crate) fn errors_dict<'py>(
@@ -193,19 +139,23 @@ pub(crate) fn errors_dict<'py>(
 }
 
 /// The material and report of a fit; the material file written to `out` when given.
-fn finish(py: Python<'_>, f: Fitted, out: Option<PathBuf>) -> PyResult<(Material, Py<PyDict>)> {
-    let material = Material::from_text(&f.text)?;
+fn finish(py: Python<'_>, f: FitReport, out: Option<PathBuf>) -> PyResult<(Material, Py<PyDict>)> {
+    let [ch] = f.channels.as_slice() else {
+        return Err(meso_err("internal error: one pass of lobes expected"));
+    };
+    let (_, r) = ch.last();
+    let material = Material::from_text(&ch.text)?;
     if let Some(out) = &out {
-        meso_core::io::write_atomic(out, f.text.as_bytes())
+        meso_core::io::write_atomic(out, ch.text.as_bytes())
             .map_err(|e| meso_err(format!("{}: cannot write: {e}", out.display())))?;
     }
     let d = PyDict::new(py);
     d.set_item("description", &f.description)?;
-    d.set_item("lobes", f.lobes)?;
-    d.set_item("model", &f.model)?;
-    d.set_item("transfer", f.transfer.name())?;
+    d.set_item("lobes", ch.fits.len())?;
+    d.set_item("model", &r.model)?;
+    d.set_item("transfer", ch.transfer.name())?;
     let tried = PyDict::new(py);
-    for t in &f.tried {
+    for t in &ch.tried {
         tried.set_item(t.transfer.name(), t.error)?;
     }
     d.set_item("transfers_tried", tried)?;
@@ -226,10 +176,10 @@ fn finish(py: Python<'_>, f: Fitted, out: Option<PathBuf>) -> PyResult<(Material
         Some(h) => d.set_item("held_out", errors_dict(py, h, f.held_out_count)?)?,
         None => d.set_item("held_out", py.None())?,
     }
-    d.set_item("iterations", f.iterations)?;
-    d.set_item("starts", f.starts)?;
-    d.set_item("seconds", f.seconds)?;
-    d.set_item("toml", &f.text)?;
+    d.set_item("iterations", r.iterations)?;
+    d.set_item("starts", r.starts)?;
+    d.set_item("seconds", r.seconds)?;
+    d.set_item("toml", &ch.text)?;
     Ok((material, d.unbind()))
 }
 

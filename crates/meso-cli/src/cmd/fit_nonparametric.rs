@@ -50,7 +50,7 @@ pub fn run(a: &Args) -> Result<()> {
         report,
         "\nerrors per channel (r g b)            ngan-l2 (1/sr)             low-log"
     );
-    let row = super::fit::error_row;
+    let row = meso_measured::workflow::error_row;
     let _ = writeln!(
         report,
         "{}",
