@@ -31,13 +31,21 @@ fn in_plane(theta_i: f64, theta_o: f64) -> (DVec3, DVec3) {
 }
 
 /// Polar slices (in-plane, θi = 0°, 30°, 60°) of `ln(1 + Y cos θi)` for the data, the fitted
-/// closed form and the written material (exact), and rendered spheres of data and model, as
-/// PNG files in memory (paths in `dir`, [`PLOT_FILES`]).
+/// closed form `model` and the written material `exact`, and rendered spheres of data and model,
+/// as PNG files in memory, in the order of [`PLOT_FILES`].
+///
+/// # Errors
+/// A plot that cannot be drawn or encoded.
 pub fn plot_files(
     data: &Data,
     model: Brdf<'_>,
     exact: Brdf<'_>,
 ) -> Result<[Vec<u8>; 2], PlotError> {
+    Ok([slices_png(data, model, exact)?, spheres_png(data, model)?])
+}
+
+/// The polar slices of [`plot_files`].
+fn slices_png(data: &Data, model: Brdf<'_>, exact: Brdf<'_>) -> Result<Vec<u8>, PlotError> {
     let lm = |f: [f64; 3], ci: f64| (luminance(f) * ci).max(0.0).ln_1p();
     let mut sheet = Sheet::new(
         "in-plane slices: ln(1 + Y·cos θi), Y = luminance of the BRDF",
@@ -114,9 +122,12 @@ pub fn plot_files(
         let c = plot.render(420, 420)?;
         sheet.add(c, format!("θi = {ti_deg}°, in the plane of incidence"));
     }
-    let slices = sheet.render()?.to_png_bytes()?;
+    sheet.render()?.to_png_bytes()
+}
 
-    // Spheres under the same directional light, same exposure.
+/// The spheres of [`plot_files`]: data (MERL tables; a note for scattered samples) and model
+/// under the same directional light, with the same exposure taken from the data.
+fn spheres_png(data: &Data, model: Brdf<'_>) -> Result<Vec<u8>, PlotError> {
     let light = DVec3::new(-0.5, 0.55, 0.67).normalize();
     let size = 320usize;
     let render = |f: &(dyn Fn(DVec3, DVec3) -> Option<[f64; 3]> + Sync)| -> Vec<Option<[f64; 3]>> {
@@ -205,8 +216,7 @@ pub fn plot_files(
         }
     }
     sheet.add(to_canvas(&model_img)?, "fitted model");
-    let spheres = sheet.render()?.to_png_bytes()?;
-    Ok([slices, spheres])
+    sheet.render()?.to_png_bytes()
 }
 
 /// Linear → sRGB transfer.
