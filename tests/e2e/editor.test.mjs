@@ -10,6 +10,7 @@ import { createHash } from 'node:crypto';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
+import zlib from 'node:zlib';
 import { fileURLToPath } from 'node:url';
 import { chromium } from 'playwright-core';
 
@@ -527,11 +528,162 @@ test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the 
   assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
   assert.match(await page.textContent('#render-path'), /closed-form microfacet/);
   await shot('10-beckmann-opened');
-  // A kind the page does not edit is still refused, naming the ones it does.
+  // A kind the page does not edit opens as it is (shown, not edited), naming the ones it edits.
   const vmf = path.join(artifacts, 'open-vmf.toml');
   fs.writeFileSync(vmf, '[ndf]\nkind = "vmf"\nkappa = 20\n[transfer]\nkind = "lambert"\n');
   await page.setInputFiles('#file-input', vmf);
-  await page.waitForFunction(() => /vmf/.test(document.getElementById('error').textContent));
-  assert.match(await page.textContent('#error'), /ggx and beckmann/);
-  assert.equal((await material()).name, 'open-beckmann');
+  await page.waitForFunction(() => window.mesoEditor.state.material.name === 'open-vmf');
+  assert.equal(await page.isVisible('#readonly-section'), true);
+  assert.match(await page.textContent('#readonly-note'), /vmf.*GGX and Beckmann/s);
+  assert.equal(await page.inputValue('#ndf-kind'), 'vmf');
+});
+
+// A grey 8-bit PNG (no image library: zlib and a CRC table).
+function greyPng(w, h, f) {
+  const crcTable = Array.from({ length: 256 }, (_, n) => {
+    let c = n;
+    for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+    return c >>> 0;
+  });
+  const crc = (buf) => {
+    let c = 0xffffffff;
+    for (const b of buf) c = crcTable[(c ^ b) & 0xff] ^ (c >>> 8);
+    return (c ^ 0xffffffff) >>> 0;
+  };
+  const chunk = (type, data) => {
+    const len = Buffer.alloc(4); len.writeUInt32BE(data.length);
+    const td = Buffer.concat([Buffer.from(type, 'ascii'), data]);
+    const c = Buffer.alloc(4); c.writeUInt32BE(crc(td));
+    return Buffer.concat([len, td, c]);
+  };
+  const ihdr = Buffer.alloc(13);
+  ihdr.writeUInt32BE(w, 0); ihdr.writeUInt32BE(h, 4);
+  ihdr[8] = 8; ihdr[9] = 0; ihdr[10] = 0; ihdr[11] = 0; ihdr[12] = 0;
+  const raw = Buffer.alloc((w + 1) * h);
+  for (let y = 0; y < h; y++) {
+    raw[y * (w + 1)] = 0;
+    for (let x = 0; x < w; x++) raw[y * (w + 1) + 1 + x] = Math.max(0, Math.min(255, Math.round(f(x, y))));
+  }
+  return Buffer.concat([Buffer.from([0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a]), chunk('IHDR', ihdr),
+    chunk('IDAT', zlib.deflateSync(raw)), chunk('IEND', Buffer.alloc(0))]);
+}
+// Egg-crate bumps, 32 × 32, tileable.
+const bumpsPng = () => greyPng(32, 32, (x, y) => 128 + 110 * Math.sin(2 * Math.PI * x / 8) * Math.cos(2 * Math.PI * y / 16));
+
+test('Open texture…: a height map, a level and a clicked texel show its lobes, its NDF and the textured preview', async () => {
+  await ensureLoaded();
+  await page.selectOption('#preset', 'silk');
+  await page.waitForTimeout(300);
+  await waitForRender(0);
+  const silk = await material();
+  const file = path.join(artifacts, 'bumps.png');
+  fs.writeFileSync(file, bumpsPng());
+  await page.setInputFiles('#texture-input', file);
+  await page.waitForSelector('#texture-dialog[open]');
+  assert.equal(await page.inputValue('#tex-kind'), 'height');
+  assert.equal(await page.isVisible('#tex-convention'), false, 'no convention for a height map');
+  await page.fill('#tex-texel-size', '1');
+  await page.fill('#tex-height-scale', '6');
+  await page.fill('#tex-max-lobes', '3');
+  let n = await renders();
+  await page.click('#tex-open');
+  await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel === '5/0/0');
+  assert.equal(await page.isVisible('#texture-section'), true);
+  assert.equal(await page.isVisible('#lobe-section'), false);
+  assert.equal(await page.$$eval('#tex-level option', (o) => o.length), 6, '32 → 16 → 8 → 4 → 2 → 1');
+  assert.match(await page.textContent('#tex-info'), /height · 32×32 · 6 levels/);
+  // The preview is the textured object, with the material's facets.
+  await waitForRender(n);
+  await page.waitForFunction(() => /NDF-mapped/.test(window.mesoEditor.stats.lastPath));
+  assert.deepEqual((await material()).transfer, silk.transfer);
+
+  // Level 2 (8 × 8 texels, 4 × 4 cells each), then click texel [1, 2] on the image.
+  await page.selectOption('#tex-level', '2');
+  await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel.startsWith('2/'));
+  const ndfBefore = await page.getAttribute('#ndf-img', 'src');
+  const at = await page.evaluate(() => window.mesoEditor.texelClientPosition(2, 1, 2));
+  await page.mouse.click(at.x, at.y);
+  await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel === '2/1/2');
+  assert.equal(await page.inputValue('#tex-row'), '1');
+  assert.equal(await page.inputValue('#tex-col'), '2');
+  const m = await material();
+  assert.equal(m.ndf.kind, 'map');
+  assert.equal(m.ndf.level, 2);
+  assert.deepEqual(m.ndf.texel, [1, 2]);
+  // The lobe table is the API's answer for that texel.
+  const api = await page.evaluate(async (id) => (await fetch(`/api/texture/${id}/texel?level=2&row=1&col=2`)).json(), m.ndf.texture);
+  const rows = await page.$$eval('#texel-lobes tbody tr', (trs) => trs.map((tr) => [...tr.children].map((td) => td.textContent.trim())));
+  assert.ok(api.lobes.length >= 1);
+  assert.equal(rows.length, api.lobes.length);
+  api.lobes.forEach((l, i) => {
+    assert.equal(rows[i][1], l.axis[0].toFixed(2));
+    assert.equal(rows[i][2], l.axis[1].toFixed(2));
+    assert.equal(rows[i][3], l.weight.toFixed(4));
+    assert.equal(rows[i][4], l.exponent.toPrecision(4));
+  });
+  // The NDF picture is the texel's.
+  await page.waitForFunction((before) => {
+    const img = document.getElementById('ndf-img');
+    return img.getAttribute('src') !== before && img.complete && img.naturalWidth > 0;
+  }, ndfBefore);
+  await page.waitForTimeout(300);
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+  // The saved TOML names the map file and the texel, not the server's id.
+  const toml = await page.evaluate(() => window.mesoEditor.tomlText());
+  assert.match(toml, /kind = "map"/);
+  assert.match(toml, /file = "bumps\.map"/);
+  assert.match(toml, /texel = \[1, 2\]/);
+  await shot('11-texture-texel');
+
+  // Edit these lobes: the texel's lobes become an editable Phong-peak NDF.
+  await page.click('#btn-texel-edit');
+  await page.waitForFunction(() => window.mesoEditor.state.material.ndf.kind === 'phong-peaks');
+  assert.equal((await material()).ndf.lobes.length, api.lobes.length);
+  assert.equal(await page.isVisible('#texture-section'), false);
+  assert.equal(await page.isVisible('#lobe-section'), true);
+});
+
+test('Open… a heightmap material asks for its file; mixture and radial materials open', async () => {
+  await ensureLoaded();
+  const png = path.join(artifacts, 'bumps.png');
+  fs.writeFileSync(png, bumpsPng());
+  const toml = path.join(artifacts, 'open-heightmap.toml');
+  fs.writeFileSync(toml, '[ndf]\nkind = "heightmap"\nfile = "bumps.png"\ntexel_size = 1\nheight_scale = 6\nmax_lobes = 2\n'
+    + '[transfer]\nkind = "phong"\nexponent = 33\n');
+  await page.setInputFiles('#file-input', toml);
+  await page.waitForSelector('#texture-dialog[open]');
+  assert.match(await page.textContent('#tex-why'), /bumps\.png/);
+  assert.equal(await page.inputValue('#tex-max-lobes'), '2');
+  await page.setInputFiles('#texture-input', png);
+  await page.click('#tex-open');
+  await page.waitForFunction(() => window.mesoEditor.state.material.name === 'open-heightmap'
+    && document.getElementById('texel-lobes').dataset.texel === '5/0/0');
+  const m = await material();
+  assert.equal(m.transfer.exponent, 33);
+  assert.equal(m.ndf.kind, 'map');
+  assert.match(await page.textContent('#tex-info'), /2 lobes\/texel max/);
+  await page.click('#btn-texture-close');
+  assert.equal(await page.isVisible('#texture-section'), false);
+
+  // Issue 13: mixtures and radial NDFs open (shown as loaded, not refused).
+  for (const [name, text, kind] of [
+    ['open-mixture', 'form = "microfacet"\n[ndf]\nkind = "mixture"\nlobes = [\n  { kind = "ggx", alpha = 0.08, weight = 0.7 },\n'
+      + '  { kind = "beckmann", alpha = 0.4, weight = 0.3 },\n]\n[transfer]\nkind = "mirror"\nfresnel = "schlick"\nf0 = [0.9, 0.6, 0.3]\n', 'mixture'],
+    ['open-radial', '[ndf]\nkind = "radial"\ntheta = [0, 10, 20, 40, 90]\ndensity = [8.0, 5.0, 2.0, 0.3, 0.0]\n'
+      + '[transfer]\nkind = "phong"\nexponent = 20\n', 'radial'],
+  ]) {
+    const f = path.join(artifacts, `${name}.toml`);
+    fs.writeFileSync(f, text);
+    const n = await renders();
+    await page.setInputFiles('#file-input', f);
+    await page.waitForFunction((nm) => window.mesoEditor.state.material.name === nm, name);
+    assert.equal((await material()).ndf.kind, kind);
+    assert.equal(await page.isVisible('#readonly-section'), true);
+    await waitForRender(n);
+    await page.waitForTimeout(300);
+    assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+    const saved = await page.evaluate(() => window.mesoEditor.tomlText());
+    assert.match(saved, new RegExp(`kind = "${kind}"`));
+  }
+  await shot('12-radial-opened');
 });

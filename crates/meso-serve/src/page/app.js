@@ -30,6 +30,9 @@
     ],
     ndfScale: 'linear',
     sliceTheta: 45,
+    // The open texture (POST /api/texture): {id, info, file, image, level, row, col, lobes,
+    // previousNdf}; null when none is open.
+    texture: null,
   };
   let presets = [];
   const history = { undo: [], redo: [], committed: null };
@@ -60,9 +63,13 @@
   function restore(s) {
     state.material = JSON.parse(s);
     history.committed = s;
+    const n = state.material.ndf;
+    const ownTexel = isTexel(n) && state.texture && n.texture === state.texture.id;
+    if (state.texture && !ownTexel) closeTexture(false);
     state.selected = Math.max(0, Math.min(state.selected, lobes().length - 1));
     buildAll();
     changed();
+    if (ownTexel) pickTexel(n.level, n.texel[0], n.texel[1]);
   }
   function undo() { if (history.undo.length) { history.redo.push(snapshot()); restore(history.undo.pop()); updateHistoryButtons(); } }
   function redo() { if (history.redo.length) { history.undo.push(snapshot()); restore(history.redo.pop()); updateHistoryButtons(); } }
@@ -76,12 +83,15 @@
   const LOBE_KINDS = ['phong-peaks', 'deltas'];
   const ANALYTIC_KINDS = ['ggx', 'beckmann'];
   const isAnalytic = (kind) => ANALYTIC_KINDS.includes(kind === undefined ? (state.material.ndf || {}).kind : kind);
-  // The lobes of a lobe NDF; an analytic NDF has none (an empty list not attached to it, so that
-  // no `lobes` key reaches the server).
+  const isLobeKind = (kind) => LOBE_KINDS.includes(kind === undefined ? (state.material.ndf || {}).kind : kind);
+  // A texel of an open texture: {kind: 'map', texture: id, level, texel: [row, col]}.
+  const isTexel = (n) => !!(n && n.kind === 'map' && n.texture);
+  // The lobes of a lobe NDF; other NDFs (analytic, mixtures, radial, texture texels, …) have
+  // none here (an empty list not attached to them, so that no `lobes` key reaches the server).
   function lobes() {
     const m = state.material;
     if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
-    if (isAnalytic(m.ndf.kind)) return [];
+    if (!isLobeKind(m.ndf.kind)) return [];
     if (!Array.isArray(m.ndf.lobes)) m.ndf.lobes = [];
     return m.ndf.lobes;
   }
@@ -165,7 +175,9 @@
   let previewUrl = null;
   const stats = { renders: 0, lastMs: 0, lastPath: '', lastSide: 0 };
   function renderBody(side) {
+    const t = state.texture;
     return {
+      ...(t ? { texture: t.id } : {}),
       material: state.material,
       view: { object: state.view.object, width: side, height: side, spp: state.view.spp,
         exposure: state.view.exposure, tangent_deg: state.view.tangent_deg },
@@ -175,7 +187,7 @@
   }
   async function renderOnce(side, seq) {
     const t0 = performance.now();
-    const r = await api('/api/render', renderBody(side));
+    const r = await api(state.texture ? '/api/texture/render' : '/api/render', renderBody(side));
     const blob = await r.blob();
     if (seq < shownSeq) return 0;
     shownSeq = seq;
@@ -333,6 +345,15 @@
         ctx.stroke(); ctx.setLineDash([]); ctx.globalAlpha = 1;
       });
     }
+    // A texel's lobes (not editable): rings at their axes, sized by weight.
+    const tx = state.texture;
+    if (tx && tx.lobes && isTexel(state.material.ndf)) {
+      tx.lobes.forEach((l, i) => {
+        const [x, y] = axisToXY(l.axis[0], l.axis[1]);
+        ctx.beginPath(); ctx.arc(x, y, clamp(4 + 9 * Math.sqrt(l.weight), 4, 13), 0, 2 * Math.PI);
+        ctx.lineWidth = 2; ctx.strokeStyle = lobeColor(i); ctx.stroke();
+      });
+    }
     // Handles.
     ls.forEach((l, i) => {
       const [x, y] = axisToXY(l.axis[0], l.axis[1]);
@@ -434,7 +455,7 @@
   canvas.addEventListener('pointercancel', endDrag);
   canvas.addEventListener('dblclick', (e) => {
     const [x, y] = canvasXY(e);
-    if (isAnalytic()) return;
+    if (!isLobeKind()) return;
     if (Math.hypot(x - DISC.cx, y - DISC.cy) > DISC.r || hitHandle(x, y) >= 0) return;
     addLobe(xyToAxis(x, y));
   });
@@ -553,7 +574,7 @@
     lobeRows.forEach((r, i) => r.el.classList.toggle('selected', i === state.selected));
   }
   function addLobe(axis) {
-    if (isAnalytic()) return;
+    if (!isLobeKind()) return;
     const ls = lobes();
     if (ls.length >= 64) { showError('at most 64 lobes in the editor'); return; }
     const l = { axis: axis || [0, 0], weight: ls.length ? round(ls.reduce((a, x) => a + x.weight, 0) / ls.length, 4) : 1 };
@@ -715,12 +736,19 @@
   const alphaRows = [];
   function buildNdfControls() {
     const analytic = isAnalytic();
-    $('lobe-section').hidden = analytic;
+    const n = state.material.ndf;
+    $('lobe-section').hidden = !isLobeKind();
     $('analytic-section').hidden = !analytic;
+    $('texture-section').hidden = !(isTexel(n) && state.texture);
+    const other = !isLobeKind() && !analytic && !(isTexel(n) && state.texture);
+    $('readonly-section').hidden = !other;
+    if (other) {
+      $('readonly-note').textContent = `This NDF (kind = "${n.kind}") is shown as loaded: the pictures, the preview and Save use it `
+        + 'as it is; the editor edits Phong peaks, deltas, GGX and Beckmann (pick one above to start from a new NDF).';
+    }
     const box = $('alpha-controls'); box.textContent = '';
     alphaRows.length = 0;
     if (!analytic) return;
-    const n = state.material.ndf;
     const aniso = n.alpha === undefined;
     $('ndf-aniso').checked = aniso;
     const row = (label, key, field) => {
@@ -758,7 +786,17 @@
   function buildMaterialMisc() {
     const m = state.material;
     $('mat-name').value = m.name || '';
-    $('ndf-kind').value = m.ndf.kind;
+    // Kinds the editor shows but does not edit get an option of their own while loaded.
+    const sel = $('ndf-kind');
+    sel.querySelectorAll('option.loaded').forEach((o) => o.remove());
+    const kind = isTexel(m.ndf) ? 'map' : m.ndf.kind;
+    if (![...sel.options].some((o) => o.value === kind)) {
+      const o = document.createElement('option');
+      o.value = kind; o.className = 'loaded';
+      o.textContent = kind === 'map' ? 'Texture texel (map)' : `${kind} (as loaded)`;
+      sel.append(o);
+    }
+    sel.value = kind;
     $('form').value = m.form || 'multiple-surface';
     const d = m.diffuse && m.diffuse.albedo;
     $('diffuse-on').checked = !!d;
@@ -770,8 +808,10 @@
   $('ndf-kind').addEventListener('change', (e) => {
     const k = e.target.value;
     const old = state.material.ndf;
+    // Leaving a texture's texel closes the texture view.
+    if (state.texture) closeTexture(false);
     // Remember what is left behind, for the way back (undo has it too: it is in the history).
-    if (isAnalytic(old.kind)) ndfMemory.analytic = clone(old); else ndfMemory.lobes = clone(old);
+    if (isAnalytic(old.kind)) ndfMemory.analytic = clone(old); else if (isLobeKind(old.kind)) ndfMemory.lobes = clone(old);
     if (isAnalytic(k)) {
       // GGX ↔ Beckmann keeps α; from lobes, the roughness last used (α = 0.2 the first time).
       const from = isAnalytic(old.kind) ? old : ndfMemory.analytic;
@@ -779,8 +819,9 @@
     } else {
       // Between lobe kinds the lobes stay; from GGX/Beckmann, the lobes last used, or one peak
       // at the normal about as wide as the analytic NDF.
-      const from = !isAnalytic(old.kind) ? old.lobes
-        : (ndfMemory.lobes && ndfMemory.lobes.lobes) || [{ axis: [0, 0], weight: 1, exponent: peakExponent(meanAlpha(old)) }];
+      const from = isLobeKind(old.kind) ? old.lobes
+        : (ndfMemory.lobes && ndfMemory.lobes.lobes)
+          || [{ axis: [0, 0], weight: 1, exponent: isAnalytic(old.kind) ? peakExponent(meanAlpha(old)) : 100 }];
       const ls = clone(from);
       for (const l of ls) {
         if (k === 'deltas') delete l.exponent; else if (l.exponent === undefined) l.exponent = 400;
@@ -868,12 +909,16 @@
   });
 
   // ---------------------------------------------------------------- presets, open, save
+  // Load a material. Every NDF kind the server validates loads: lobe lists and GGX/Beckmann are
+  // edited, others (mixture, radial, …) shown as they are. A texel of a texture that is not open
+  // (undo after closing it) is refused.
   function loadMaterial(m, label) {
     if (!m.ndf) m.ndf = { kind: 'deltas', lobes: [{ axis: [0, 0], weight: 1 }] };
-    if (!LOBE_KINDS.includes(m.ndf.kind) && !isAnalytic(m.ndf.kind)) {
-      showError(`the editor edits phong-peaks, deltas, ggx and beckmann NDFs; ${label || 'this material'} has kind = "${m.ndf.kind}"`, 'file');
+    if (isTexel(m.ndf) && !(state.texture && state.texture.id === m.ndf.texture)) {
+      showError(`${label || 'this material'}: its NDF is a texel of a texture that is not open; open the texture first`, 'file');
       return false;
     }
+    if (state.texture && !isTexel(m.ndf)) closeTexture(false);
     state.material = clone(m);
     state.selected = 0;
     ndfMemory.lobes = null; ndfMemory.analytic = null;
@@ -893,7 +938,10 @@
       const r = await api('/api/parse', text);
       const m = await r.json();
       if (!m.name) m.name = f.name.replace(/\.toml$/i, '');
-      if (loadMaterial(m, f.name)) { $('preset').value = ''; showError('', 'file'); }
+      if (m.ndf && (m.ndf.kind === 'heightmap' || m.ndf.kind === 'map') && !m.ndf.texture) {
+        // The NDF lives in a file, which the server does not read: ask the browser for it.
+        askForTexture(m, f.name);
+      } else if (loadMaterial(m, f.name)) { $('preset').value = ''; showError('', 'file'); }
     } catch (err) {
       showError(`${f.name}: ${err.message}`, 'file');
     }
@@ -939,7 +987,7 @@
   function blendB() { const p = presets.find((x) => x.id === $('blend-b').value); return p && p.material; }
   // Blending mixes lobe lists: A must be Phong peaks or deltas.
   function blendRefuses() {
-    const refuse = isAnalytic();
+    const refuse = !isLobeKind();
     const note = $('blend-note');
     note.hidden = !refuse;
     if (refuse) note.textContent = `Blending mixes lobe lists: A must be Phong peaks or deltas (this NDF is ${state.material.ndf.kind}).`;
@@ -976,11 +1024,261 @@
     buildNdfControls();
     buildTransfer();
     drawDisc();
+    if (state.texture) drawTexture();
   }
+
+  // ---------------------------------------------------------------- textures
+  // Open texture… uploads a height map, normal map or map file (POST /api/texture; the server
+  // never reads a path), then a level and texel are picked on the image (or by row and column):
+  // the texel's lobes fill the table, its NDF becomes the material's (so the NDF and slice
+  // pictures are the texel's), and the preview shows the object shaded through the texture's NDF
+  // pyramid with the current facet BRDF (POST /api/texture/render).
+  const texDialog = $('texture-dialog');
+  let texFile = null;       // the file chosen for the dialog
+  let texPending = null;    // a material (heightmap/map TOML) waiting for its file
+  const IMAGE_EXT = /\.(png|jpe?g|tga|tiff?|exr)$/i;
+  function kindOfFile(name) {
+    if (/\.map$/i.test(name)) return 'map';
+    return /(^|[^a-z])(normal|nrm|nor)([^a-z]|$)/i.test(name) ? 'normal' : 'height';
+  }
+  function syncTexDialog() {
+    const k = $('tex-kind').value;
+    texDialog.querySelectorAll('.tex-height').forEach((e) => { e.hidden = k !== 'height'; });
+    texDialog.querySelectorAll('.tex-normal').forEach((e) => { e.hidden = k !== 'normal'; });
+    texDialog.querySelectorAll('.tex-image').forEach((e) => { e.hidden = k === 'map'; });
+  }
+  $('tex-kind').addEventListener('change', syncTexDialog);
+  function showTexDialog(file, why) {
+    texFile = file;
+    $('tex-file').textContent = file ? file.name : '';
+    $('tex-why').hidden = !why; $('tex-why').textContent = why || '';
+    $('tex-choose').hidden = !!file;
+    $('tex-open').disabled = !file;
+    syncTexDialog();
+    if (!texDialog.open) texDialog.showModal();
+  }
+  // A heightmap/map material from Open…: its parameters preset, its file asked for.
+  function askForTexture(m, label) {
+    const n = m.ndf;
+    texPending = { material: m, label };
+    $('tex-kind').value = n.kind === 'map' ? 'map' : 'height';
+    if (n.texel_size !== undefined) $('tex-texel-size').value = n.texel_size;
+    if (n.height_scale !== undefined) $('tex-height-scale').value = n.height_scale;
+    $('tex-max-lobes').value = n.max_lobes || 4;
+    showTexDialog(null, `${label}: its NDF comes from "${n.file}", which the server does not read. Choose that file to open it here.`);
+  }
+  $('btn-texture').addEventListener('click', () => { texPending = null; $('texture-input').click(); });
+  $('tex-choose').addEventListener('click', () => $('texture-input').click());
+  $('texture-input').addEventListener('change', (e) => {
+    const f = e.target.files[0];
+    e.target.value = '';
+    if (!f) return;
+    if (!texPending) $('tex-kind').value = kindOfFile(f.name);
+    showTexDialog(f, texPending ? $('tex-why').textContent : '');
+  });
+  $('tex-cancel').addEventListener('click', (e) => { e.preventDefault(); texDialog.close(); texPending = null; });
+  $('tex-open').addEventListener('click', async (e) => {
+    e.preventDefault();
+    const f = texFile;
+    if (!f) return;
+    const k = $('tex-kind').value;
+    const q = new URLSearchParams({ kind: k, name: f.name });
+    if (k !== 'map') q.set('max_lobes', $('tex-max-lobes').value);
+    if (k === 'height') { q.set('texel_size', $('tex-texel-size').value); q.set('height_scale', $('tex-height-scale').value); }
+    if (k === 'normal') q.set('convention', $('tex-convention').value);
+    const pend = texPending;
+    if (pend && pend.material.ndf.normals) q.set('normals', pend.material.ndf.normals);
+    if (pend && pend.material.ndf.border) q.set('border', pend.material.ndf.border);
+    $('tex-open').disabled = true; $('tex-status').textContent = 'extracting the NDF pyramid…';
+    try {
+      const r = await fetch(`/api/texture?${q}`, { method: 'POST', body: f, headers: { 'content-type': 'application/octet-stream' } });
+      const info = await r.json();
+      if (!r.ok) throw new Error(info.error || String(r.status));
+      texDialog.close();
+      texPending = null;
+      openTexture(info, f, pend);
+      showError('', 'file');
+    } catch (err) {
+      showError(`${f.name}: ${err.message}`, 'file');
+      texDialog.close();
+    } finally {
+      $('tex-open').disabled = false; $('tex-status').textContent = '';
+    }
+  });
+
+  function openTexture(info, file, pend) {
+    if (state.texture && state.texture.imageUrl) URL.revokeObjectURL(state.texture.imageUrl);
+    const base = pend ? pend.material : state.material;
+    const top = info.levels.length - 1;
+    const n = pend ? pend.material.ndf : {};
+    const level = Number.isInteger(n.level) ? clamp(n.level, 0, top) : top;
+    const texel = Array.isArray(n.texel) ? n.texel : [0, 0];
+    state.texture = { id: info.id, info, name: info.name, level, row: texel[0], col: texel[1], lobes: null, image: null, imageUrl: null,
+      previousNdf: pend ? null : clone(state.material.ndf) };
+    if (IMAGE_EXT.test(file.name)) {
+      const url = URL.createObjectURL(file);
+      const im = new Image();
+      im.onload = () => { if (state.texture && state.texture.imageUrl === url) { state.texture.image = im; drawTexture(); } };
+      im.src = url;
+      state.texture.imageUrl = url;
+    }
+    const m = clone(base);
+    if (pend && !m.name) m.name = pend.label.replace(/\.toml$/i, '');
+    m.ndf = { kind: 'map', texture: info.id, level, texel: [state.texture.row, state.texture.col] };
+    state.material = m;
+    $('tex-name').textContent = info.name;
+    const w = info.warnings.length ? ` · ⚠ ${info.warnings.join('; ')}` : '';
+    $('tex-info').textContent = `${info.kind} · ${info.width}×${info.height} · ${info.levels.length} levels · `
+      + `${info.max_lobes} lobes/texel max${info.horizon ? ' · horizon' : ''}${info.cached ? ' · from memory' : ` · ${Math.round(info.extract_ms)} ms`}${w}`;
+    const sel = $('tex-level'); sel.textContent = '';
+    info.levels.forEach((l) => {
+      const o = document.createElement('option'); o.value = l.level;
+      const res = l.residual.mean === null ? '—' : l.residual.mean.toFixed(3);
+      o.textContent = `${l.level} · ${l.cols}×${l.rows} · ${l.lobes_per_texel.toFixed(2)} lobes · residual ${res}`;
+      sel.append(o);
+    });
+    state.selected = 0;
+    ndfMemory.lobes = null; ndfMemory.analytic = null;
+    buildAll();
+    pickTexel(level, state.texture.row, state.texture.col);
+  }
+  function closeTexture(restore) {
+    const t = state.texture;
+    if (!t) return;
+    if (t.imageUrl) URL.revokeObjectURL(t.imageUrl);
+    state.texture = null;
+    if (restore && isTexel(state.material.ndf)) {
+      state.material.ndf = t.previousNdf && !isTexel(t.previousNdf) ? t.previousNdf
+        : { kind: 'phong-peaks', lobes: (t.lobes || [{ axis: [0, 0], weight: 1, exponent: 100 }]).map(clone) };
+      buildAll(); changed(); commit();
+    }
+  }
+  $('btn-texture-close').addEventListener('click', () => closeTexture(true));
+  $('btn-texel-edit').addEventListener('click', () => {
+    const t = state.texture;
+    if (!t || !t.lobes) return;
+    const ls = t.lobes.map((l) => ({ axis: l.axis.map((x) => round(x, 4)), weight: round(l.weight, 6), exponent: round(l.exponent, 4) }));
+    closeTexture(false);
+    state.material.ndf = { kind: 'phong-peaks', lobes: ls };
+    state.material.name = `${state.material.name || 'texel'} (texel lobes)`;
+    state.selected = 0;
+    buildAll(); changed(); commit();
+  });
+  const levelInfo = () => state.texture.info.levels[state.texture.level];
+  // Pick a texel: its lobes from GET /api/texture/{id}/texel, its NDF as the material's.
+  async function pickTexel(level, row, col) {
+    const t = state.texture;
+    if (!t) return;
+    const top = t.info.levels.length - 1;
+    t.level = clamp(level | 0, 0, top);
+    const li = levelInfo();
+    t.row = clamp(row | 0, 0, li.rows - 1); t.col = clamp(col | 0, 0, li.cols - 1);
+    $('tex-level').value = t.level; $('tex-row').value = t.row; $('tex-col').value = t.col;
+    $('tex-row').max = li.rows - 1; $('tex-col').max = li.cols - 1;
+    drawTexture();
+    try {
+      const r = await fetch(`/api/texture/${t.id}/texel?level=${t.level}&row=${t.row}&col=${t.col}`);
+      const v = await r.json();
+      if (!r.ok) throw new Error(v.error || String(r.status));
+      if (state.texture !== t || v.level !== t.level || v.row !== t.row || v.col !== t.col) return;
+      t.lobes = v.lobes;
+      showTexelLobes(v);
+      state.material.ndf = { kind: 'map', texture: t.id, level: t.level, texel: [t.row, t.col] };
+      showError('', 'texture');
+      changed(); commit();
+    } catch (err) {
+      showError(`texel: ${err.message}`, 'texture');
+    }
+  }
+  function showTexelLobes(v) {
+    const body = $('texel-lobes').querySelector('tbody'); body.textContent = '';
+    v.lobes.forEach((l, i) => {
+      const tr = document.createElement('tr');
+      const sw = document.createElement('td');
+      const dot = document.createElement('span'); dot.className = 'swatch'; dot.style.background = lobeColor(i);
+      sw.append(dot, ` ${i + 1}`);
+      tr.append(sw);
+      for (const x of [l.axis[0].toFixed(2), l.axis[1].toFixed(2), l.weight.toFixed(4), l.exponent.toPrecision(4)]) {
+        const td = document.createElement('td'); td.textContent = x; tr.append(td);
+      }
+      body.append(tr);
+    });
+    $('texel-caption').textContent = `level ${v.level} texel [${v.row}, ${v.col}] · cells rows ${v.cells.rows[0]}–${v.cells.rows[1] - 1}, `
+      + `cols ${v.cells.cols[0]}–${v.cells.cols[1] - 1} · ${v.lobes.length} lobe${v.lobes.length === 1 ? '' : 's'}`;
+    $('texel-lobes').dataset.texel = `${v.level}/${v.row}/${v.col}`;
+  }
+  $('tex-level').addEventListener('change', (e) => {
+    const t = state.texture; if (!t) return;
+    // Keep the same place of the map: the texel of the new level over the old one's first cell.
+    const from = levelInfo().span;
+    const lv = parseInt(e.target.value, 10);
+    const to = t.info.levels[lv].span;
+    pickTexel(lv, Math.floor(t.row * from / to), Math.floor(t.col * from / to));
+  });
+  for (const id of ['tex-row', 'tex-col']) {
+    $(id).addEventListener('change', () => {
+      const t = state.texture; if (!t) return;
+      pickTexel(t.level, parseInt($('tex-row').value, 10) || 0, parseInt($('tex-col').value, 10) || 0);
+    });
+  }
+  // The texture canvas: the image (map row 0 is the image's bottom row, docs/heightmaps.md),
+  // the level's texel grid when it is coarse enough to see, the picked texel outlined.
+  const texCanvas = $('tex-canvas');
+  const texCtx = texCanvas.getContext('2d');
+  function texRect() {
+    const t = state.texture; const l0 = t.info.levels[0];
+    const W = 320; const aspect = l0.cols / l0.rows;
+    const w = aspect >= 1 ? W : W * aspect; const h = aspect >= 1 ? W / aspect : W;
+    return { x: (W - w) / 2, y: (W - h) / 2, w, h, cols: l0.cols, rows: l0.rows };
+  }
+  function drawTexture() {
+    const t = state.texture;
+    const dpr = Math.min(2, window.devicePixelRatio || 1);
+    if (texCanvas.width !== 320 * dpr) { texCanvas.width = 320 * dpr; texCanvas.height = 320 * dpr; }
+    texCtx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    texCtx.clearRect(0, 0, 320, 320);
+    if (!t) return;
+    const r = texRect();
+    if (t.image) { texCtx.imageSmoothingEnabled = false; texCtx.drawImage(t.image, r.x, r.y, r.w, r.h); } else { texCtx.fillStyle = '#26282d'; texCtx.fillRect(r.x, r.y, r.w, r.h); }
+    const li = levelInfo();
+    const cw = r.w * li.span / r.cols; const ch = r.h * li.span / r.rows;
+    if (cw >= 5 && ch >= 5) {
+      texCtx.strokeStyle = 'rgba(255,255,255,0.18)'; texCtx.lineWidth = 1;
+      texCtx.beginPath();
+      for (let c = 1; c < li.cols; c++) { const x = r.x + c * cw; texCtx.moveTo(x, r.y); texCtx.lineTo(x, r.y + r.h); }
+      for (let q = 1; q < li.rows; q++) { const y = r.y + r.h - q * ch; texCtx.moveTo(r.x, y); texCtx.lineTo(r.x + r.w, y); }
+      texCtx.stroke();
+    }
+    const x0 = r.x + t.col * cw; const y1 = r.y + r.h - t.row * ch;
+    const x1 = Math.min(r.x + r.w, x0 + cw); const y0 = Math.max(r.y, y1 - ch);
+    texCtx.lineWidth = 2; texCtx.strokeStyle = '#000'; texCtx.strokeRect(x0 - 1, y0 - 1, x1 - x0 + 2, y1 - y0 + 2);
+    texCtx.strokeStyle = PALETTE[0]; texCtx.strokeRect(x0, y0, x1 - x0, y1 - y0);
+  }
+  // Client position of the centre of a texel of a level (for tests), and the texel under a click.
+  function texelCentre(level, row, col) {
+    const t = state.texture; const r = texRect(); const span = t.info.levels[level].span;
+    const cx = (Math.min((col + 0.5) * span, r.cols - 0.5)) / r.cols; const cy = (Math.min((row + 0.5) * span, r.rows - 0.5)) / r.rows;
+    return [r.x + cx * r.w, r.y + r.h - cy * r.h];
+  }
+  texCanvas.addEventListener('click', (e) => {
+    const t = state.texture; if (!t) return;
+    const b = texCanvas.getBoundingClientRect();
+    const x = (e.clientX - b.left) * 320 / b.width; const y = (e.clientY - b.top) * 320 / b.height;
+    const r = texRect();
+    const fx = (x - r.x) / r.w; const fy = (r.y + r.h - y) / r.h;
+    if (fx < 0 || fx >= 1 || fy < 0 || fy >= 1) return;
+    const span = levelInfo().span;
+    pickTexel(t.level, Math.floor(Math.floor(fy * r.rows) / span), Math.floor(Math.floor(fx * r.cols) / span));
+  });
 
   // Test and scripting hooks.
   window.mesoEditor = {
     state,
+    texelClientPosition(level, row, col) {
+      const [x, y] = texelCentre(level, row, col);
+      const b = texCanvas.getBoundingClientRect();
+      return { x: b.left + x * b.width / 320, y: b.top + y * b.height / 320 };
+    },
     handleClientPosition(i) {
       const l = lobes()[i];
       const [x, y] = axisToXY(l.axis[0], l.axis[1]);
