@@ -9,6 +9,12 @@
 //!   read with a size limit; [`open`] answers the payload only when the magic, format, key and
 //!   checksum all match, so a damaged, truncated or foreign file is a miss (rebuilt), never an
 //!   error.
+//! * The size: after every write the folder's entries (files named `<prefix>-<64 hex>.bin`,
+//!   nothing else is touched) are pruned to at most [`max_bytes`] in all (`$MESO_CACHE_MAX_BYTES`,
+//!   a size such as `500M` or `2G`; default [`DEFAULT_MAX_BYTES`], 2 GiB), least recently used
+//!   first: an entry's modification time is set to now when it is read ([`read`]), so the
+//!   oldest modification time is the entry used longest ago. The entry just written is kept even
+//!   when it alone exceeds the cap.
 
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -17,6 +23,22 @@ use std::path::{Path, PathBuf};
 pub const MAX_CACHE_BYTES: u64 = 4 << 30;
 /// The largest source file hashed for a key (1 GiB; larger files are not cached).
 pub const MAX_HASHED_BYTES: u64 = 1 << 30;
+
+/// The default cap on the cache folder's entries (2 GiB; module docs).
+pub const DEFAULT_MAX_BYTES: u64 = 2 << 30;
+/// The environment variable that sets the cap (a size: `meso_core::budget::parse_size`).
+pub const MAX_BYTES_VAR: &str = "MESO_CACHE_MAX_BYTES";
+
+/// The cap on the cache folder's entries in bytes: `$MESO_CACHE_MAX_BYTES` when set to a valid
+/// size, else [`DEFAULT_MAX_BYTES`] (an invalid value is ignored: the cache never fails a
+/// command).
+#[must_use]
+pub fn max_bytes() -> u64 {
+    std::env::var(MAX_BYTES_VAR)
+        .ok()
+        .and_then(|v| meso_core::budget::parse_size(v.trim()).ok())
+        .unwrap_or(DEFAULT_MAX_BYTES)
+}
 
 /// The cache folder (module docs), or `None` when the cache is off or no folder is known.
 #[must_use]
@@ -82,18 +104,87 @@ pub fn open<'a>(bytes: &'a [u8], magic: &[u8; 8], format: u32, key: &[u8; 32]) -
 }
 
 /// The bytes of the entry `prefix`-`key` in `dir`, if it can be read (not yet checked: see
-/// [`open`]).
+/// [`open`]). A read entry's modification time is set to now (its last use, for [`prune`]).
 #[must_use]
 pub fn read(dir: &Path, prefix: &str, key: &[u8; 32]) -> Option<Vec<u8>> {
-    meso_core::io::read_limited(&entry_path(dir, prefix, key), MAX_CACHE_BYTES).ok()
+    let path = entry_path(dir, prefix, key);
+    let bytes = meso_core::io::read_limited(&path, MAX_CACHE_BYTES).ok()?;
+    touch(&path);
+    Some(bytes)
 }
 
-/// Write the sealed entry `bytes` as `prefix`-`key` in `dir` (creating it), atomically.
+/// Set `path`'s modification time to now (failures ignored: the entry only looks older).
+fn touch(path: &Path) {
+    if let Ok(f) = std::fs::OpenOptions::new().append(true).open(path) {
+        let _ = f.set_modified(std::time::SystemTime::now());
+    }
+}
+
+/// Whether `name` is a cache entry's file name: `<prefix>-<64 hex digits>.bin`.
+fn is_entry_name(name: &str) -> bool {
+    let Some(stem) = name.strip_suffix(".bin") else {
+        return false;
+    };
+    let Some((prefix, hex)) = stem.rsplit_once('-') else {
+        return false;
+    };
+    !prefix.is_empty()
+        && prefix.bytes().all(|b| b.is_ascii_lowercase())
+        && hex.len() == 64
+        && hex.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
+/// Remove the least recently used entries of `dir` (oldest modification time first) until
+/// their total is at most `max_bytes`, never removing `keep`. Only files named like entries
+/// are counted or removed. Returns the number of entries removed.
+pub fn prune(dir: &Path, max_bytes: u64, keep: Option<&Path>) -> usize {
+    let Ok(rd) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut entries: Vec<(std::time::SystemTime, u64, PathBuf)> = rd
+        .filter_map(|e| {
+            let e = e.ok()?;
+            if !is_entry_name(e.file_name().to_str()?) {
+                return None;
+            }
+            let m = e.metadata().ok()?;
+            m.is_file().then(|| {
+                (
+                    m.modified().unwrap_or(std::time::UNIX_EPOCH),
+                    m.len(),
+                    e.path(),
+                )
+            })
+        })
+        .collect();
+    let mut total: u64 = entries.iter().map(|e| e.1).sum();
+    entries.sort();
+    let mut removed = 0;
+    for (_, len, path) in entries {
+        if total <= max_bytes {
+            break;
+        }
+        if Some(path.as_path()) == keep {
+            continue;
+        }
+        if std::fs::remove_file(&path).is_ok() {
+            total -= len;
+            removed += 1;
+        }
+    }
+    removed
+}
+
+/// Write the sealed entry `bytes` as `prefix`-`key` in `dir` (creating it), atomically, then
+/// [`prune`] the folder to [`max_bytes`] (keeping this entry).
 ///
 /// # Errors
 /// The folder cannot be created or the file written; callers ignore this (a cache that
 /// cannot be written only costs the next run the build).
 pub fn write(dir: &Path, prefix: &str, key: &[u8; 32], bytes: &[u8]) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    meso_core::io::write_atomic(&entry_path(dir, prefix, key), bytes)
+    let path = entry_path(dir, prefix, key);
+    meso_core::io::write_atomic(&path, bytes)?;
+    prune(dir, max_bytes(), Some(&path));
+    Ok(())
 }

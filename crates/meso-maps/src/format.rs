@@ -15,11 +15,20 @@ use std::path::{Path, PathBuf};
 
 /// The 8 magic bytes opening every map file.
 pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
-/// The format version written and read by this build (2: lobe weights are Eq. 1 area shares;
-/// version 1 stored projected-area shares).
-pub const VERSION: u32 = 2;
+mod v3;
+
+pub use v3::MAX_DEFLATE_RATIO;
+
+/// The format version written by this build: 3, quantised and compressed (`docs/map-format.md`).
+/// Versions 2 (uncompressed `f32`) and 3 are read; version 1 stored projected-area lobe weights
+/// and is refused.
+pub const VERSION: u32 = v3::VERSION_3;
+/// The previous version, still read (and written by [`Pyramid::write_v2_to`]).
+pub const VERSION_2: u32 = 2;
 const LOBE_BYTES: u64 = 20;
 const HORIZON_BYTES: u64 = 36;
+/// Bytes of a level's header (v2) or level-table entry (v3).
+const LEVEL_HEADER_BYTES: u64 = 36;
 
 fn put_u32(w: &mut dyn Write, v: u32) -> std::io::Result<()> {
     w.write_all(&v.to_le_bytes())
@@ -31,20 +40,37 @@ fn put_f32(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
     w.write_all(&(v as f32).to_le_bytes())
 }
 
-/// The estimated peak memory (bytes) of [`Pyramid::read`] on a map file of `file_bytes` bytes:
-/// the file itself and the pyramid, whose lobes (20 bytes in the file, 40 in memory) and
-/// horizon statistics (36 and 72) take twice their file size: 3× the file, measured 3.0×
-/// (`meso map info` on a 120 MB map: 359 MB peak RSS), estimated 4× for a margin.
+/// The estimated peak memory (bytes) of reading a map file of `file_bytes` bytes, before its
+/// header is read: for version 2 the file itself and the pyramid, whose lobes (20 bytes in the
+/// file, 40 in memory) and horizon statistics (36 and 72) take twice their file size: 3× the
+/// file, measured 3.0× (`meso map info` on a 120 MB map: 359 MB peak RSS), estimated 4× for a
+/// margin. A version-3 file inflates to more than this; its exact need (pyramid and streams,
+/// from the level table) is checked against the budget by [`Pyramid::from_bytes`] before any
+/// stream is inflated.
 #[must_use]
 pub fn read_bytes(file_bytes: u64) -> u64 {
     file_bytes.saturating_mul(4)
 }
 
 impl Pyramid {
-    /// Serialise into a writer (format of `docs/map-format.md`).
+    /// Serialise into a writer in the current format ([`VERSION`] 3, `docs/map-format.md`):
+    /// lobes and horizon statistics quantised to 16 bits, deflate-compressed.
+    ///
+    /// # Errors
+    /// The writer's errors, and `InvalidData` naming the problem when the pyramid holds a value
+    /// a map file cannot (non-finite or out-of-range lobes or horizon statistics).
     pub fn write_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
+        if let Some(why) = v3::unstorable(self) {
+            return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, why));
+        }
+        self.write_header(w, VERSION)?;
+        v3::write_levels(self, w)
+    }
+
+    /// The 48 bytes shared by versions 2 and 3.
+    fn write_header(&self, w: &mut dyn Write, version: u32) -> std::io::Result<()> {
         w.write_all(&MAGIC)?;
-        put_u32(w, VERSION)?;
+        put_u32(w, version)?;
         put_u32(w, self.width as u32)?;
         put_u32(w, self.height as u32)?;
         put_u32(w, self.levels[0].cols as u32)?;
@@ -64,7 +90,17 @@ impl Pyramid {
             0,
         ])?;
         put_u32(w, self.max_lobes as u32)?;
-        put_u32(w, self.levels.len() as u32)?;
+        put_u32(w, self.levels.len() as u32)
+    }
+
+    /// Serialise in the previous format, version 2 (uncompressed `f32`, 20 bytes per lobe and
+    /// 36 per texel of horizon statistics): kept to compare sizes and to test that version-2
+    /// files still read. Values are written as they are (a reader refuses non-finite ones).
+    ///
+    /// # Errors
+    /// The writer's errors.
+    pub fn write_v2_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
+        self.write_header(w, VERSION_2)?;
         for l in &self.levels {
             put_u32(w, l.cols as u32)?;
             put_u32(w, l.rows as u32)?;
@@ -101,20 +137,28 @@ impl Pyramid {
         Ok(())
     }
 
-    /// The file as bytes.
+    /// The map file as bytes (current format); empty when the pyramid holds a value a map
+    /// file cannot (see [`Pyramid::write_to`]), which every reader refuses.
     #[must_use]
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut v = Vec::new();
-        self.write_to(&mut v)
-            .expect("writing to memory cannot fail");
+        if self.write_to(&mut v).is_err() {
+            v.clear();
+        }
         v
     }
 
     /// Write the map file atomically (`meso_core::io::write_atomic_with`): on error no partial
-    /// file is left. The bytes are validated by the reader ([`Pyramid::from_bytes`]) first, so a
-    /// written map always reads back (a pyramid with NaN lobes, say from an extreme height
-    /// scale, is refused here rather than written).
+    /// file is left. The pyramid is checked first and the bytes are validated by the reader
+    /// ([`Pyramid::from_bytes`]), so a written map always reads back (a pyramid with NaN lobes,
+    /// say from an extreme height scale, is refused here rather than written).
     pub fn write(&self, path: &Path) -> Result<()> {
+        if let Some(why) = v3::unstorable(self) {
+            return Err(MapError::MapFormat {
+                path: path.to_path_buf(),
+                message: format!("not written: the map would be invalid ({why})"),
+            });
+        }
         let bytes = self.to_bytes();
         if let Err(e) = Pyramid::from_bytes(path, &bytes) {
             let why = match e {
@@ -158,7 +202,7 @@ impl Pyramid {
             return Err(r.err("not a meso map file (bad magic bytes)".into()));
         }
         let version = r.u32("version")?;
-        if version != VERSION {
+        if version != VERSION && version != VERSION_2 {
             return Err(MapError::MapVersion {
                 path: r.path.clone(),
                 found: version,
@@ -215,110 +259,11 @@ impl Pyramid {
                 "{nlev} levels, but a {cols}x{rows} grid has {expect}"
             )));
         }
-        let mut levels = Vec::with_capacity(nlev);
-        let (mut ec, mut er) = (cols, rows);
-        for k in 0..nlev {
-            let lc = r.u32("level cols")? as usize;
-            let lr = r.u32("level rows")? as usize;
-            let span = r.u32("level span")? as usize;
-            let nl = r.u32("level lobe count")? as usize;
-            if lc != ec || lr != er || span != 1 << k {
-                return Err(r.err(format!(
-                    "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
-                    1u64 << k
-                )));
-            }
-            let texels = lc * lr;
-            if nl > texels * max_lobes {
-                return Err(r.err(format!("level {k} claims {nl} lobes for {texels} texels")));
-            }
-            let need = texels as u64
-                + nl as u64 * LOBE_BYTES
-                + if has_h {
-                    texels as u64 * HORIZON_BYTES
-                } else {
-                    0
-                }
-                + 20;
-            if ((r.b.len() - r.pos) as u64) < need {
-                return Err(r.err(format!("truncated in level {k}")));
-            }
-            let residual = Residual {
-                mean: r.f64("residual")?,
-                max: r.f64("residual")?,
-                texels: r.u32("residual texels")?,
-            };
-            let counts = r.take(texels, "lobe counts")?;
-            let mut lobe_start = Vec::with_capacity(texels + 1);
-            lobe_start.push(0u32);
-            let mut sum = 0usize;
-            for &c in counts {
-                if c as usize > max_lobes {
-                    return Err(r.err(format!("level {k}: a texel has {c} lobes")));
-                }
-                sum += c as usize;
-                lobe_start.push(sum as u32);
-            }
-            if sum != nl {
-                return Err(r.err(format!(
-                    "level {k}: lobe counts add to {sum}, header says {nl}"
-                )));
-            }
-            let mut lobes = Vec::with_capacity(nl);
-            for _ in 0..nl {
-                let a = DVec3::new(r.f32("axis")?, r.f32("axis")?, r.f32("axis")?);
-                let weight = r.f32("weight")?;
-                let exponent = r.f32("exponent")?;
-                if !a.is_finite() || (a.length() - 1.0).abs() > 1e-3 {
-                    return Err(r.err(format!("level {k}: lobe axis {a} is not a unit vector")));
-                }
-                if !(weight.is_finite() && weight >= 0.0) {
-                    return Err(r.err(format!("level {k}: lobe weight {weight}")));
-                }
-                if !(exponent.is_finite() && (0.0..=ETA_MAX * 1.0001).contains(&exponent)) {
-                    return Err(r.err(format!("level {k}: lobe exponent {exponent}")));
-                }
-                lobes.push(PhongLobe {
-                    axis: a.normalize(),
-                    weight,
-                    exponent,
-                });
-            }
-            let horizon = if has_h {
-                let mut h = Vec::with_capacity(texels);
-                for _ in 0..texels {
-                    let weight = r.f32("horizon")?;
-                    let mean = [r.f32("h")?, r.f32("h")?, r.f32("h")?, r.f32("h")?];
-                    let var = [r.f32("h")?, r.f32("h")?, r.f32("h")?, r.f32("h")?];
-                    if !(weight.is_finite()
-                        && weight >= 0.0
-                        && mean.iter().chain(&var).all(|v| v.is_finite()))
-                    {
-                        return Err(r.err(format!("level {k}: bad horizon statistics")));
-                    }
-                    if var.iter().any(|v| *v < 0.0) {
-                        return Err(
-                            r.err(format!("level {k}: negative horizon variance {:?}", var))
-                        );
-                    }
-                    h.push(HorizonStats { weight, mean, var });
-                }
-                Some(h)
-            } else {
-                None
-            };
-            levels.push(Level {
-                cols: lc,
-                rows: lr,
-                span,
-                lobe_start,
-                lobes,
-                horizon,
-                residual,
-            });
-            ec = ec.div_ceil(2);
-            er = er.div_ceil(2);
-        }
+        let levels = if version == VERSION {
+            v3::read_levels(&mut r, cols, rows, nlev, max_lobes, has_h)?
+        } else {
+            read_levels_v2(&mut r, cols, rows, nlev, max_lobes, has_h)?
+        };
         if r.pos != r.b.len() {
             return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
         }
@@ -332,6 +277,121 @@ impl Pyramid {
             levels,
         })
     }
+}
+
+/// The levels of a version-2 file, after the common header.
+fn read_levels_v2(
+    r: &mut Reader<'_>,
+    cols: usize,
+    rows: usize,
+    nlev: usize,
+    max_lobes: usize,
+    has_h: bool,
+) -> Result<Vec<Level>> {
+    let mut levels = Vec::with_capacity(nlev);
+    let (mut ec, mut er) = (cols, rows);
+    for k in 0..nlev {
+        let lc = r.u32("level cols")? as usize;
+        let lr = r.u32("level rows")? as usize;
+        let span = r.u32("level span")? as usize;
+        let nl = r.u32("level lobe count")? as usize;
+        if lc != ec || lr != er || span != 1 << k {
+            return Err(r.err(format!(
+                "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
+                1u64 << k
+            )));
+        }
+        let texels = lc * lr;
+        if nl > texels * max_lobes {
+            return Err(r.err(format!("level {k} claims {nl} lobes for {texels} texels")));
+        }
+        let need = texels as u64
+            + nl as u64 * LOBE_BYTES
+            + if has_h {
+                texels as u64 * HORIZON_BYTES
+            } else {
+                0
+            }
+            + LEVEL_HEADER_BYTES
+            - 16;
+        if ((r.b.len() - r.pos) as u64) < need {
+            return Err(r.err(format!("truncated in level {k}")));
+        }
+        let residual = Residual {
+            mean: r.f64("residual")?,
+            max: r.f64("residual")?,
+            texels: r.u32("residual texels")?,
+        };
+        let counts = r.take(texels, "lobe counts")?;
+        let mut lobe_start = Vec::with_capacity(texels + 1);
+        lobe_start.push(0u32);
+        let mut sum = 0usize;
+        for &c in counts {
+            if c as usize > max_lobes {
+                return Err(r.err(format!("level {k}: a texel has {c} lobes")));
+            }
+            sum += c as usize;
+            lobe_start.push(sum as u32);
+        }
+        if sum != nl {
+            return Err(r.err(format!(
+                "level {k}: lobe counts add to {sum}, header says {nl}"
+            )));
+        }
+        let mut lobes = Vec::with_capacity(nl);
+        for _ in 0..nl {
+            let a = DVec3::new(r.f32("axis")?, r.f32("axis")?, r.f32("axis")?);
+            let weight = r.f32("weight")?;
+            let exponent = r.f32("exponent")?;
+            if !a.is_finite() || (a.length() - 1.0).abs() > 1e-3 {
+                return Err(r.err(format!("level {k}: lobe axis {a} is not a unit vector")));
+            }
+            if !(weight.is_finite() && weight >= 0.0) {
+                return Err(r.err(format!("level {k}: lobe weight {weight}")));
+            }
+            if !(exponent.is_finite() && (0.0..=ETA_MAX * 1.0001).contains(&exponent)) {
+                return Err(r.err(format!("level {k}: lobe exponent {exponent}")));
+            }
+            lobes.push(PhongLobe {
+                axis: a.normalize(),
+                weight,
+                exponent,
+            });
+        }
+        let horizon = if has_h {
+            let mut h = Vec::with_capacity(texels);
+            for _ in 0..texels {
+                let weight = r.f32("horizon")?;
+                let mean = [r.f32("h")?, r.f32("h")?, r.f32("h")?, r.f32("h")?];
+                let var = [r.f32("h")?, r.f32("h")?, r.f32("h")?, r.f32("h")?];
+                if !(weight.is_finite()
+                    && weight >= 0.0
+                    && mean.iter().chain(&var).all(|v| v.is_finite()))
+                {
+                    return Err(r.err(format!("level {k}: bad horizon statistics")));
+                }
+                if var.iter().any(|v| *v < 0.0) {
+                    return Err(r.err(format!("level {k}: negative horizon variance {:?}", var)));
+                }
+                h.push(HorizonStats { weight, mean, var });
+            }
+            Some(h)
+        } else {
+            None
+        };
+        levels.push(Level {
+            cols: lc,
+            rows: lr,
+            span,
+            lobe_start,
+            lobes,
+            horizon,
+            residual,
+        });
+        ec = ec.div_ceil(2);
+        er = er.div_ceil(2);
+    }
+    Ok(levels)
 }
 
 struct Reader<'a> {

@@ -1,29 +1,35 @@
 //! The on-disk cache of extracted pyramids (`[ndf] kind = "heightmap"` with
-//! `represent = "lobes"`, and `[texture]` materials of scene files): extracting a 1024² height
-//! map takes seconds, and the result is the same every time the same map is loaded with the
-//! same parameters, so it is kept in a file and read back by the next `meso render` or
-//! `meso brdf`.
+//! `represent = "lobes"`, and NDF-mapped `[texture]` materials of scene files over a height map
+//! or a normal map): extracting a 1024² map takes seconds, and the result is the same every
+//! time the same map is loaded with the same parameters, so it is kept in a file and read back
+//! by the next `meso render` or `meso brdf`.
 //!
 //! * The folder: that of the facet cache ([`crate::disk_cache::cache_dir`]: `$MESO_CACHE_DIR`,
-//!   `off` or empty to turn it off; else `$XDG_CACHE_HOME/meso`, else `$HOME/.cache/meso`).
-//! * The key: SHA-256 of the height map file's bytes, the texel size, height scale and border
-//!   of the map, every extraction parameter ([`ExtractParams`], lobe fit included), the map
-//!   format version ([`crate::format::VERSION`]), [`FORMAT`] and this crate's version.
+//!   `off` or empty to turn it off; else `$XDG_CACHE_HOME/meso`, else `$HOME/.cache/meso`),
+//!   pruned to `$MESO_CACHE_MAX_BYTES` (default 2 GiB) least recently used first
+//!   ([`crate::disk_cache::prune`]).
+//! * The key of a height map ([`key`]): SHA-256 of the file's bytes, the texel size, height
+//!   scale and border of the map, every extraction parameter ([`ExtractParams`], lobe fit
+//!   included), the map format version ([`crate::format::VERSION`]), [`FORMAT`] and this
+//!   crate's version. The key of a normal map ([`normal_key`]): the same with the green-channel
+//!   convention in place of the texel size, height scale and border, in a separate domain (a
+//!   file's bytes never give the same key as a height map and as a normal map).
 //! * The file `pyramid-<key>.bin`: the map file's bytes (`docs/map-format.md`) sealed by
 //!   [`crate::disk_cache`] (magic, format, key, SHA-256), written atomically. A damaged,
 //!   truncated or foreign file is ignored and rebuilt, never an error.
 //!
-//! A pyramid from [`pyramid_cached`] is always the one the map file stores (lobes and horizon
-//! statistics in `f32`), built or read back: the first run, the cached runs and a `.map`
-//! written by `meso extract` with the same parameters give the same pyramid, bit for bit.
+//! A pyramid from [`pyramid_cached`] or [`normal_pyramid_cached`] is always the one the map
+//! file stores (lobes and horizon statistics quantised, format 3), built or read back: the
+//! first run, the cached runs and a `.map` written by `meso extract` with the same parameters
+//! give the same pyramid, bit for bit.
 
-use crate::heightmap::Border;
+use crate::heightmap::{Border, NormalConvention};
 use crate::pyramid::{ExtractParams, Pyramid};
 use sha2::{Digest, Sha256};
 use std::path::Path;
 
 /// The cache entry format; bumped whenever what is stored or how it is built changes.
-pub const FORMAT: u32 = 1;
+pub const FORMAT: u32 = 2;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// Bytes of [`crate::disk_cache::header`]: magic, format, key.
@@ -56,6 +62,28 @@ pub fn key(
     h.finalize().into()
 }
 
+/// The cache key of a normal map file's bytes, its green-channel convention and the
+/// extraction parameters (module docs).
+#[must_use]
+pub fn normal_key(
+    file_bytes: &[u8],
+    convention: NormalConvention,
+    params: &ExtractParams,
+) -> [u8; 32] {
+    let mut h = Sha256::new();
+    h.update(b"meso normal-map pyramid ");
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(FORMAT.to_le_bytes());
+    h.update(crate::format::VERSION.to_le_bytes());
+    h.update([u8::from(convention == NormalConvention::Dx)]);
+    let p = format!("{params:?}");
+    h.update((p.len() as u64).to_le_bytes());
+    h.update(p.as_bytes());
+    h.update((file_bytes.len() as u64).to_le_bytes());
+    h.update(file_bytes);
+    h.finalize().into()
+}
+
 /// The path of the entry of `key` in `dir` (whether or not it exists).
 #[must_use]
 pub fn entry_path(dir: &Path, key: &[u8; 32]) -> std::path::PathBuf {
@@ -78,15 +106,14 @@ pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<Pyramid> {
     Pyramid::from_bytes(&entry_path(dir, key), map).ok()
 }
 
-/// Store `pyramid` under `key` in `dir` (creating it).
+/// Store `pyramid` under `key` in `dir` (creating it; then the folder is pruned).
 ///
 /// # Errors
-/// The folder cannot be created or the file written.
+/// The folder cannot be created or the file written, or the pyramid holds values a map file
+/// cannot (`InvalidData`).
 pub fn store(dir: &Path, key: &[u8; 32], pyramid: &Pyramid) -> std::io::Result<()> {
     let mut entry = crate::disk_cache::header(MAGIC, FORMAT, key);
-    pyramid
-        .write_to(&mut entry)
-        .expect("writing to memory cannot fail");
+    pyramid.write_to(&mut entry)?;
     crate::disk_cache::seal(&mut entry);
     crate::disk_cache::write(dir, PREFIX, key, &entry)
 }
@@ -105,10 +132,36 @@ pub fn pyramid_cached<E>(
     params: &ExtractParams,
     build: impl FnOnce() -> Result<Pyramid, E>,
 ) -> Result<(Pyramid, bool), E> {
+    cached(
+        file,
+        |bytes| key(bytes, texel_size, height_scale, border, params),
+        build,
+    )
+}
+
+/// [`pyramid_cached`] for a tangent-space normal map read with `convention` (key:
+/// [`normal_key`]).
+///
+/// # Errors
+/// `build`'s errors; the cache's own failures are misses, never errors.
+pub fn normal_pyramid_cached<E>(
+    file: &Path,
+    convention: NormalConvention,
+    params: &ExtractParams,
+    build: impl FnOnce() -> Result<Pyramid, E>,
+) -> Result<(Pyramid, bool), E> {
+    cached(file, |bytes| normal_key(bytes, convention, params), build)
+}
+
+fn cached<E>(
+    file: &Path,
+    key_of: impl FnOnce(&[u8]) -> [u8; 32],
+    build: impl FnOnce() -> Result<Pyramid, E>,
+) -> Result<(Pyramid, bool), E> {
     let dir = crate::disk_cache::cache_dir();
     let k = dir.as_ref().and_then(|_| {
         let bytes = crate::disk_cache::source_bytes(file)?;
-        Some(key(&bytes, texel_size, height_scale, border, params))
+        Some(key_of(&bytes))
     });
     if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
         if let Some(p) = load_entry(d, k) {
@@ -116,13 +169,12 @@ pub fn pyramid_cached<E>(
         }
     }
     let built = build()?;
-    // The entry is built in place: header, the map file's bytes, then the seal.
+    // The entry is built in place: header, the map file's bytes, then the seal. A pyramid the
+    // format cannot hold (non-finite values) is used as built and not cached.
     let mut entry = crate::disk_cache::header(MAGIC, FORMAT, k.as_ref().unwrap_or(&[0; 32]));
-    built
-        .write_to(&mut entry)
-        .expect("writing to memory cannot fail");
-    // What a map file holds; a pyramid the format cannot hold (non-finite values) is used as
-    // built and not cached.
+    if built.write_to(&mut entry).is_err() {
+        return Ok((built, false));
+    }
     let Ok(pyramid) = Pyramid::from_bytes(file, &entry[HEADER..]) else {
         return Ok((built, false));
     };

@@ -381,10 +381,11 @@ fn normal_mapped(
     box_filter: bool,
     maps: &MapsResolver,
 ) -> Result<Arc<dyn Shader>, String> {
-    let map = NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"))?;
-    let texels_per_uv = texels_per_uv(tex, map.width())?;
+    let load = || NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"));
     let surface = facet_material(doc, path.parent().unwrap_or(Path::new(".")), maps)?;
     if kind == "bump-mapped" {
+        let map = load()?;
+        let texels_per_uv = texels_per_uv(tex, map.width())?;
         return Ok(Arc::new(BumpMapped::from_normal_map(
             &map,
             &surface,
@@ -401,8 +402,14 @@ fn normal_mapped(
             })?;
         params.fit.max_lobes = k as usize;
     }
-    let pyramid = extract(Source::Normals(&map), &params, &mut |_| {})
-        .map_err(|e| format!("[texture] {}: {e}", file.display()))?;
+    // From the disk cache (keyed by the file's bytes, convention and parameters) or extracted
+    // and stored there: the normal map is only decoded to extract.
+    let (pyramid, _) =
+        meso_maps::pyramid_cache::normal_pyramid_cached(file, convention, &params, || {
+            extract(Source::Normals(&load()?), &params, &mut |_| {})
+                .map_err(|e| format!("[texture] {}: {e}", file.display()))
+        })?;
+    let texels_per_uv = texels_per_uv(tex, pyramid.width)?;
     Ok(Arc::new(
         NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(box_filter),
     ))

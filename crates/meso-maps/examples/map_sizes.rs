@@ -1,0 +1,130 @@
+//! Map-file sizes, format 2 against format 3 (docs/benchmarks.md, "Map file sizes"): extract
+//! a pyramid (K ≤ 4, default parameters) from a height map, a normal map or a generated 1024²
+//! height map written as a 16-bit PNG, write it in both formats and print the bytes, the ratio
+//! to the input file, each format-3 stream and the write and read times.
+//!
+//! ```text
+//! cargo run --release -p meso-maps --example map_sizes -- height FILE TEXEL_SIZE HEIGHT_SCALE
+//! cargo run --release -p meso-maps --example map_sizes -- normal FILE        # OpenGL convention
+//! cargo run --release -p meso-maps --example map_sizes -- generated OUT.png  # 1024² Gaussian
+//! ```
+use meso_maps::*;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage =
+        "usage: map_sizes height FILE TEXEL_SIZE HEIGHT_SCALE | normal FILE | generated OUT.png";
+    let (kind, file) = match args.as_slice() {
+        [k, f, ..] => (k.as_str(), PathBuf::from(f)),
+        _ => {
+            eprintln!("{usage}");
+            std::process::exit(2);
+        }
+    };
+    let params = ExtractParams::default();
+    let t = Instant::now();
+    let pyramid = match kind {
+        "height" | "generated" => {
+            let (s, h) = if kind == "height" {
+                let num = |i: usize| -> f64 {
+                    args.get(i).and_then(|v| v.parse().ok()).unwrap_or_else(|| {
+                        eprintln!("{usage}");
+                        std::process::exit(2)
+                    })
+                };
+                (num(2), num(3))
+            } else {
+                (0.01, write_generated(&file))
+            };
+            let map = HeightMap::load(&file, s, h, Border::Wrap).unwrap();
+            extract(Source::Heights(&map), &params, &mut |_| {}).unwrap()
+        }
+        "normal" => {
+            let map = NormalMap::load(&file, NormalConvention::Gl).unwrap();
+            extract(Source::Normals(&map), &params, &mut |_| {}).unwrap()
+        }
+        _ => {
+            eprintln!("{usage}");
+            std::process::exit(2);
+        }
+    };
+    let extract_s = t.elapsed().as_secs_f64();
+    let input = std::fs::metadata(&file).unwrap().len();
+    let mut v2 = Vec::new();
+    pyramid.write_v2_to(&mut v2).unwrap();
+    let t = Instant::now();
+    let v3 = pyramid.to_bytes();
+    let write_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let back = Pyramid::from_bytes(Path::new("<v3>"), &v3).unwrap();
+    let read3_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    Pyramid::from_bytes(Path::new("<v2>"), &v2).unwrap();
+    let read2_s = t.elapsed().as_secs_f64();
+    let lobes: usize = pyramid.levels.iter().map(|l| l.lobes.len()).sum();
+    let texels: usize = pyramid.levels.iter().map(Level::texels).sum();
+    println!(
+        "{}: {}x{}, {} levels, {texels} texels, {lobes} lobes (extracted in {extract_s:.1} s)",
+        file.display(),
+        pyramid.width,
+        pyramid.height,
+        pyramid.levels.len()
+    );
+    println!("input file        {input:>12} bytes");
+    println!(
+        "format 2          {:>12} bytes  {:>6.1}x input",
+        v2.len(),
+        v2.len() as f64 / input as f64
+    );
+    println!(
+        "format 3          {:>12} bytes  {:>6.2}x input  ({:.1}x smaller than format 2)",
+        v3.len(),
+        v3.len() as f64 / input as f64,
+        v2.len() as f64 / v3.len() as f64
+    );
+    println!(
+        "write v3 {write_s:.2} s, read v3 {read3_s:.2} s, read v2 {read2_s:.2} s; \
+         round trip: {} levels",
+        back.levels.len()
+    );
+    // The streams (docs/map-format.md): after the 48-byte header and the level table.
+    let names = [
+        "lobe counts",
+        "lobe axes",
+        "lobe weights",
+        "lobe exponents",
+        "horizon weights",
+        "horizon angles",
+    ];
+    let mut pos = 48 + 36 * pyramid.levels.len();
+    while pos < v3.len() {
+        let h = &v3[pos..pos + 20];
+        let raw = u64::from_le_bytes(h[4..12].try_into().unwrap());
+        let comp = u64::from_le_bytes(h[12..20].try_into().unwrap());
+        println!(
+            "  stream {:<16} filter {}  raw {raw:>10}  compressed {comp:>10}  ({:.1} bytes/texel)",
+            names[h[0] as usize],
+            h[1],
+            comp as f64 / texels as f64
+        );
+        pos += 20 + comp as usize;
+    }
+}
+
+/// Write the 1024² Gaussian random surface of `extract_bench` (correlation 4 samples) as a
+/// 16-bit grey PNG at `out`; returns the height scale that gives back its heights (texel 0.01).
+fn write_generated(out: &Path) -> f64 {
+    let map = fixtures::gaussian(1024, 4.0, 0.1, 3, 0.01).unwrap();
+    let h = map.heights();
+    let lo = h.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = h.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let px: Vec<u16> = h
+        .iter()
+        .map(|v| ((v - lo) / (hi - lo) * 65535.0).round() as u16)
+        .collect();
+    let img = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(1024, 1024, px).unwrap();
+    img.save(out).unwrap();
+    hi - lo
+}

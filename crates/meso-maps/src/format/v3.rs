@@ -1,0 +1,637 @@
+//! Map format version 3 (`docs/map-format.md`): the pyramid's values quantised to 16 bits and
+//! stored as deflate-compressed streams of byte planes (structure of arrays).
+//!
+//! * Lobe axis: octahedral coordinates, 2 × u16 (the best of the four nearest codes; angular
+//!   error ≤ 4.5·10⁻⁵ rad).
+//! * Lobe weight: u16 share of the texel's total; read back as `q / Σq` (the texel's weights
+//!   sum to 1, error ≤ 1/65 535 + rounding).
+//! * Lobe exponent η: u16 of `log2(1 + η) / log2(1 + ETA_MAX)` (relative error
+//!   ≤ 1.06·10⁻⁴·(1 + 1/η)).
+//! * Horizon statistics: the weight as f32, the four mean angles as u16 over [−π/2, π/2] and the
+//!   four standard deviations as u16 over [0, π/2] (angular error ≤ 2.4·10⁻⁵ rad).
+//!
+//! Each stream is one column after another, each column predicted (or not, whichever
+//! compresses smaller) from the previous texel of its level, split into byte planes and
+//! deflated. Reading bounds every stream's inflated size by the level table (and by deflate's
+//! 1032:1 limit) before inflating anything, and the whole pyramid's memory by the budget.
+
+use super::{Reader, LEVEL_HEADER_BYTES};
+use crate::error::Result;
+use crate::horizon::HorizonStats;
+use crate::limits::ETA_MAX;
+use crate::pyramid::{Level, Pyramid, Residual};
+use glam::DVec3;
+use meso_core::ndf::PhongLobe;
+use rayon::prelude::*;
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::io::{Read, Write};
+
+/// The format version of this module.
+pub const VERSION_3: u32 = 3;
+/// deflate's largest expansion: a stream may not claim more than this many bytes per
+/// compressed byte (plus [`RATIO_SLACK`]).
+pub const MAX_DEFLATE_RATIO: u64 = 1032;
+const RATIO_SLACK: u64 = 1024;
+/// Bytes of a stream header: id, filter, 2 reserved, raw length (u64), compressed length (u64).
+const STREAM_HEADER: usize = 20;
+/// Bytes in memory of one lobe (`PhongLobe`) and of one texel's horizon statistics.
+const LOBE_MEM: u64 = 40;
+const HORIZON_MEM: u64 = 72;
+const Q: f64 = 65535.0;
+
+/// The streams, in file order: name, per-lobe (else per-texel), columns, bytes per value.
+const STREAMS: [(&str, bool, usize, usize); 6] = [
+    ("lobe counts", false, 1, 1),
+    ("lobe axes", true, 2, 2),
+    ("lobe weights", true, 1, 2),
+    ("lobe exponents", true, 1, 2),
+    ("horizon weights", false, 1, 4),
+    ("horizon angles", false, 8, 2),
+];
+
+/// Where each level's texels and lobes start in the whole-pyramid arrays.
+struct Layout {
+    /// Per level: (first texel, texels).
+    levels: Vec<(usize, usize)>,
+    /// Lobe counts of every texel, all levels, finest first.
+    counts: Vec<u8>,
+    /// First lobe of every texel (global), plus the end.
+    start: Vec<usize>,
+}
+
+impl Layout {
+    fn new(levels: Vec<(usize, usize)>, counts: Vec<u8>) -> Layout {
+        let mut start = Vec::with_capacity(counts.len() + 1);
+        let mut s = 0usize;
+        start.push(0);
+        for &c in &counts {
+            s += c as usize;
+            start.push(s);
+        }
+        Layout {
+            levels,
+            counts,
+            start,
+        }
+    }
+    fn texels(&self) -> usize {
+        self.counts.len()
+    }
+    fn lobes(&self) -> usize {
+        *self.start.last().unwrap_or(&0)
+    }
+    /// The predictor index of each value of a column (per lobe or per texel): the same slot
+    /// of the previous texel in the level, or `None`.
+    fn for_each_pred(&self, per_lobe: bool, mut f: impl FnMut(usize, Option<usize>)) {
+        for &(t0, n) in &self.levels {
+            for t in t0..t0 + n {
+                if !per_lobe {
+                    f(t, (t > t0).then(|| t - 1));
+                    continue;
+                }
+                for j in 0..self.counts[t] as usize {
+                    let pred =
+                        (t > t0 && j < self.counts[t - 1] as usize).then(|| self.start[t - 1] + j);
+                    f(self.start[t] + j, pred);
+                }
+            }
+        }
+    }
+}
+
+/// Filter and split the `columns` (values of `bytes` bytes each) into byte planes.
+fn planes(
+    layout: &Layout,
+    per_lobe: bool,
+    columns: &[Vec<u32>],
+    bytes: usize,
+    delta: bool,
+) -> Vec<u8> {
+    let n = columns.first().map_or(0, Vec::len);
+    let mut out = vec![0u8; n * bytes * columns.len()];
+    let mask = if bytes == 4 {
+        u32::MAX
+    } else {
+        (1u32 << (8 * bytes)) - 1
+    };
+    for (c, col) in columns.iter().enumerate() {
+        let base = c * n * bytes;
+        layout.for_each_pred(per_lobe, |i, pred| {
+            let p = match (delta, pred) {
+                (true, Some(p)) => col[p],
+                _ => 0,
+            };
+            let v = col[i].wrapping_sub(p) & mask;
+            for b in 0..bytes {
+                out[base + b * n + i] = (v >> (8 * b)) as u8;
+            }
+        });
+    }
+    out
+}
+
+/// Undo [`planes`]: the columns' values.
+fn unplanes(
+    layout: &Layout,
+    per_lobe: bool,
+    raw: &[u8],
+    cols: usize,
+    bytes: usize,
+    delta: bool,
+) -> Vec<Vec<u32>> {
+    let n = if per_lobe {
+        layout.lobes()
+    } else {
+        layout.texels()
+    };
+    let mask = if bytes == 4 {
+        u32::MAX
+    } else {
+        (1u32 << (8 * bytes)) - 1
+    };
+    (0..cols)
+        .map(|c| {
+            let base = c * n * bytes;
+            let mut col = vec![0u32; n];
+            layout.for_each_pred(per_lobe, |i, pred| {
+                let mut v = 0u32;
+                for b in 0..bytes {
+                    v |= u32::from(raw[base + b * n + i]) << (8 * b);
+                }
+                let p = match (delta, pred) {
+                    (true, Some(p)) => col[p],
+                    _ => 0,
+                };
+                col[i] = v.wrapping_add(p) & mask;
+            });
+            col
+        })
+        .collect()
+}
+
+fn deflate(raw: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::DeflateEncoder::new(
+        Vec::with_capacity(raw.len() / 2),
+        flate2::Compression::default(),
+    );
+    e.write_all(raw).expect("writing to memory cannot fail");
+    e.finish().expect("writing to memory cannot fail")
+}
+
+/// Octahedral code of a unit vector: the best of the four nearest codes.
+fn oct_encode(a: DVec3) -> (u16, u16) {
+    let l1 = a.x.abs() + a.y.abs() + a.z.abs();
+    let (mut u, mut v) = (a.x / l1, a.y / l1);
+    if a.z < 0.0 {
+        (u, v) = ((1.0 - v.abs()) * u.signum(), (1.0 - u.abs()) * v.signum());
+    }
+    let (fu, fv) = ((u * 0.5 + 0.5) * Q, (v * 0.5 + 0.5) * Q);
+    let mut best = (0u16, 0u16);
+    let mut best_dot = f64::NEG_INFINITY;
+    for qu in [fu.floor(), fu.ceil()] {
+        for qv in [fv.floor(), fv.ceil()] {
+            let c = (qu.clamp(0.0, Q) as u16, qv.clamp(0.0, Q) as u16);
+            let d = oct_decode(c.0, c.1).dot(a);
+            if d > best_dot {
+                best_dot = d;
+                best = c;
+            }
+        }
+    }
+    best
+}
+
+/// The unit vector of an octahedral code.
+fn oct_decode(qu: u16, qv: u16) -> DVec3 {
+    let u = f64::from(qu) / Q * 2.0 - 1.0;
+    let v = f64::from(qv) / Q * 2.0 - 1.0;
+    let z = 1.0 - u.abs() - v.abs();
+    let (x, y) = if z < 0.0 {
+        ((1.0 - v.abs()) * u.signum(), (1.0 - u.abs()) * v.signum())
+    } else {
+        (u, v)
+    };
+    DVec3::new(x, y, z).normalize()
+}
+
+/// log2(1 + ETA_MAX): the exponent code's full scale.
+fn eta_scale() -> f64 {
+    (1.0 + ETA_MAX).log2()
+}
+
+fn eta_encode(eta: f64) -> u16 {
+    ((1.0 + eta.clamp(0.0, ETA_MAX)).log2() / eta_scale() * Q).round() as u16
+}
+
+fn eta_decode(q: u16) -> f64 {
+    if q == u16::MAX {
+        return ETA_MAX;
+    }
+    ((f64::from(q) / Q * eta_scale()).exp2() - 1.0).clamp(0.0, ETA_MAX)
+}
+
+fn angle_encode(x: f64, lo: f64, span: f64) -> u16 {
+    ((x - lo) / span * Q).round().clamp(0.0, Q) as u16
+}
+
+fn angle_decode(q: u16, lo: f64, span: f64) -> f64 {
+    lo + f64::from(q) / Q * span
+}
+
+/// Why `pyramid` cannot be stored (a value a map file cannot hold), or `None`.
+pub(super) fn unstorable(p: &Pyramid) -> Option<String> {
+    for (k, l) in p.levels.iter().enumerate() {
+        for t in 0..l.texels() {
+            let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+            let mut sum = 0.0;
+            for lobe in lobes {
+                let a = lobe.axis;
+                if !a.is_finite() || (a.length() - 1.0).abs() > 1e-3 {
+                    return Some(format!("level {k}: lobe axis {a} is not a unit vector"));
+                }
+                if !(lobe.weight.is_finite() && lobe.weight >= 0.0) {
+                    return Some(format!("level {k}: lobe weight {}", lobe.weight));
+                }
+                if !(lobe.exponent.is_finite() && (0.0..=ETA_MAX * 1.0001).contains(&lobe.exponent))
+                {
+                    return Some(format!("level {k}: lobe exponent {}", lobe.exponent));
+                }
+                sum += lobe.weight;
+            }
+            if !lobes.is_empty() && (sum.is_nan() || sum <= 0.0) {
+                return Some(format!("level {k}: a texel's lobe weights sum to {sum}"));
+            }
+        }
+        for s in l.horizon.iter().flatten() {
+            if !(s.weight.is_finite()
+                && s.weight >= 0.0
+                && s.mean.iter().chain(&s.var).all(|v| v.is_finite()))
+            {
+                return Some(format!("level {k}: bad horizon statistics"));
+            }
+            if s.var.iter().any(|v| *v < 0.0) {
+                return Some(format!("level {k}: negative horizon variance {:?}", s.var));
+            }
+            // Horizon angles lie in [0, π/2): their means in it, their variances ≤ (π/4)².
+            let eps = 1e-9;
+            if s.mean.iter().any(|m| m.abs() > FRAC_PI_2 + eps)
+                || s.var.iter().any(|v| v.sqrt() > FRAC_PI_2 + eps)
+            {
+                return Some(format!(
+                    "level {k}: horizon statistics outside [−π/2, π/2] ({:?}, {:?})",
+                    s.mean, s.var
+                ));
+            }
+        }
+    }
+    None
+}
+
+/// The raw (unfiltered) columns of stream `s` of `p`.
+fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
+    let lobes = || p.levels.iter().flat_map(|l| l.lobes.iter());
+    let horizon = || p.levels.iter().flat_map(|l| l.horizon.iter().flatten());
+    match s {
+        0 => vec![p
+            .levels
+            .iter()
+            .flat_map(|l| l.lobe_start.windows(2).map(|w| w[1] - w[0]))
+            .collect()],
+        1 => {
+            let codes: Vec<(u16, u16)> = lobes().map(|l| oct_encode(l.axis)).collect();
+            vec![
+                codes.iter().map(|c| u32::from(c.0)).collect(),
+                codes.iter().map(|c| u32::from(c.1)).collect(),
+            ]
+        }
+        2 => {
+            let mut col = Vec::new();
+            for l in &p.levels {
+                for w in l.lobe_start.windows(2) {
+                    let t = &l.lobes[w[0] as usize..w[1] as usize];
+                    let sum: f64 = t.iter().map(|x| x.weight).sum();
+                    col.extend(t.iter().map(|x| (x.weight / sum * Q).round() as u32));
+                }
+            }
+            vec![col]
+        }
+        3 => vec![lobes().map(|l| u32::from(eta_encode(l.exponent))).collect()],
+        4 => vec![horizon().map(|h| (h.weight as f32).to_bits()).collect()],
+        _ => {
+            let mut cols = Vec::with_capacity(8);
+            for d in 0..4 {
+                cols.push(
+                    horizon()
+                        .map(|h| u32::from(angle_encode(h.mean[d], -FRAC_PI_2, PI)))
+                        .collect(),
+                );
+            }
+            for d in 0..4 {
+                cols.push(
+                    horizon()
+                        .map(|h| u32::from(angle_encode(h.var[d].sqrt(), 0.0, FRAC_PI_2)))
+                        .collect(),
+                );
+            }
+            cols
+        }
+    }
+}
+
+/// Write the levels of `p` (after the common header) in format 3: the level table, then the
+/// streams. The caller has checked [`unstorable`].
+pub(super) fn write_levels(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()> {
+    let has_h = p.levels[0].horizon.is_some();
+    let mut levels = Vec::with_capacity(p.levels.len());
+    let mut t0 = 0;
+    for l in &p.levels {
+        w.write_all(&(l.cols as u32).to_le_bytes())?;
+        w.write_all(&(l.rows as u32).to_le_bytes())?;
+        w.write_all(&(l.span as u32).to_le_bytes())?;
+        w.write_all(&(l.lobes.len() as u32).to_le_bytes())?;
+        w.write_all(&l.residual.mean.to_le_bytes())?;
+        w.write_all(&l.residual.max.to_le_bytes())?;
+        w.write_all(&l.residual.texels.to_le_bytes())?;
+        levels.push((t0, l.texels()));
+        t0 += l.texels();
+    }
+    let counts: Vec<u8> = columns(p, 0)[0].iter().map(|&c| c as u8).collect();
+    let layout = Layout::new(levels, counts);
+    let n = if has_h { STREAMS.len() } else { 4 };
+    // Each stream with and without prediction, compressed in parallel; the smaller is kept.
+    let encoded: Vec<(u8, usize, Vec<u8>)> = (0..n)
+        .into_par_iter()
+        .map(|s| {
+            let (_, per_lobe, _, bytes) = STREAMS[s];
+            let cols = columns(p, s);
+            [false, true]
+                .into_par_iter()
+                .map(|delta| {
+                    let raw = planes(&layout, per_lobe, &cols, bytes, delta);
+                    (u8::from(delta), raw.len(), deflate(&raw))
+                })
+                .min_by_key(|e| e.2.len())
+                .expect("two candidates")
+        })
+        .collect();
+    for (s, (filter, raw_len, comp)) in encoded.iter().enumerate() {
+        w.write_all(&[s as u8, *filter, 0, 0])?;
+        w.write_all(&(*raw_len as u64).to_le_bytes())?;
+        w.write_all(&(comp.len() as u64).to_le_bytes())?;
+        w.write_all(comp)?;
+    }
+    Ok(())
+}
+
+/// Read the levels of a format-3 file after the common header (`docs/map-format.md`).
+pub(super) fn read_levels(
+    r: &mut Reader<'_>,
+    cols: usize,
+    rows: usize,
+    nlev: usize,
+    max_lobes: usize,
+    has_h: bool,
+) -> Result<Vec<Level>> {
+    if ((r.b.len() - r.pos) as u64) < nlev as u64 * LEVEL_HEADER_BYTES {
+        return Err(r.err("truncated in the level table".into()));
+    }
+    let mut table = Vec::with_capacity(nlev);
+    let (mut ec, mut er) = (cols, rows);
+    let (mut texels, mut lobes) = (0u64, 0u64);
+    for k in 0..nlev {
+        let lc = r.u32("level cols")? as usize;
+        let lr = r.u32("level rows")? as usize;
+        let span = r.u32("level span")? as usize;
+        let nl = r.u32("level lobe count")? as usize;
+        if lc != ec || lr != er || span != 1 << k {
+            return Err(r.err(format!(
+                "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
+                1u64 << k
+            )));
+        }
+        if nl > lc * lr * max_lobes {
+            return Err(r.err(format!(
+                "level {k} claims {nl} lobes for {} texels",
+                lc * lr
+            )));
+        }
+        let residual = Residual {
+            mean: r.f64("residual")?,
+            max: r.f64("residual")?,
+            texels: r.u32("residual texels")?,
+        };
+        table.push((lc, lr, span, nl, residual, texels as usize));
+        texels += (lc * lr) as u64;
+        lobes += nl as u64;
+        ec = ec.div_ceil(2);
+        er = er.div_ceil(2);
+    }
+    // The memory of the pyramid and of the largest inflated stream, before allocating any.
+    let raw_max = (lobes * 4).max(if has_h { texels * 16 } else { texels });
+    let need = r.b.len() as u64
+        + lobes * LOBE_MEM
+        + texels * (4 + if has_h { HORIZON_MEM } else { 0 })
+        + 2 * raw_max;
+    meso_core::budget::check(&r.path, "reading the map file", need)?;
+
+    let n_streams = if has_h { STREAMS.len() } else { 4 };
+    let mut raws = Vec::with_capacity(n_streams);
+    for (s, &(name, per_lobe, ncols, bytes)) in STREAMS.iter().enumerate().take(n_streams) {
+        let head = r.take(STREAM_HEADER, "a stream header")?;
+        let (id, filter) = (head[0], head[1]);
+        if id as usize != s || head[2] != 0 || head[3] != 0 || filter > 1 {
+            return Err(r.err(format!(
+                "stream {s} ({name}): bad header (id {id}, filter {filter})"
+            )));
+        }
+        let raw_len = u64::from_le_bytes(head[4..12].try_into().unwrap());
+        let comp_len = u64::from_le_bytes(head[12..20].try_into().unwrap());
+        let expect = if per_lobe { lobes } else { texels } * (ncols * bytes) as u64;
+        if raw_len != expect {
+            return Err(r.err(format!(
+                "stream {s} ({name}) claims {raw_len} bytes; the level table implies {expect}"
+            )));
+        }
+        if raw_len > comp_len.saturating_mul(MAX_DEFLATE_RATIO) + RATIO_SLACK {
+            return Err(r.err(format!(
+                "stream {s} ({name}) claims {raw_len} bytes from {comp_len} compressed bytes, \
+                 more than deflate's {MAX_DEFLATE_RATIO}:1 (a decompression bomb?)"
+            )));
+        }
+        if ((r.b.len() - r.pos) as u64) < comp_len {
+            return Err(r.err(format!("truncated in stream {s} ({name})")));
+        }
+        let comp = r.take(comp_len as usize, name)?;
+        let mut raw = Vec::with_capacity(raw_len as usize);
+        let mut d = flate2::read::DeflateDecoder::new(comp);
+        (&mut d)
+            .take(raw_len + 1)
+            .read_to_end(&mut raw)
+            .map_err(|e| {
+                r.err(format!(
+                    "stream {s} ({name}): corrupt compressed data ({e})"
+                ))
+            })?;
+        if raw.len() as u64 != raw_len {
+            return Err(r.err(format!(
+                "stream {s} ({name}) inflates to {}{} bytes, its header says {raw_len}",
+                if raw.len() as u64 > raw_len {
+                    "more than "
+                } else {
+                    ""
+                },
+                raw.len()
+            )));
+        }
+        if d.total_in() != comp_len {
+            return Err(r.err(format!(
+                "stream {s} ({name}): {} bytes after the end of the compressed data",
+                comp_len - d.total_in()
+            )));
+        }
+        raws.push((raw, filter == 1));
+    }
+
+    // Lobe counts first: they lay out every other stream.
+    let levels_at: Vec<(usize, usize)> = table.iter().map(|t| (t.5, t.0 * t.1)).collect();
+    let probe = Layout {
+        levels: levels_at.clone(),
+        counts: vec![0; texels as usize],
+        start: vec![0; texels as usize + 1],
+    };
+    let counts: Vec<u8> = unplanes(&probe, false, &raws[0].0, 1, 1, raws[0].1)
+        .swap_remove(0)
+        .into_iter()
+        .map(|c| c as u8)
+        .collect();
+    drop(probe);
+    for (k, t) in table.iter().enumerate() {
+        let c = &counts[t.5..t.5 + t.0 * t.1];
+        if let Some(&bad) = c.iter().find(|&&c| c as usize > max_lobes) {
+            return Err(r.err(format!("level {k}: a texel has {bad} lobes")));
+        }
+        let sum: usize = c.iter().map(|&c| c as usize).sum();
+        if sum != t.3 {
+            return Err(r.err(format!(
+                "level {k}: lobe counts add to {sum}, header says {}",
+                t.3
+            )));
+        }
+    }
+    let layout = Layout::new(levels_at, counts);
+    let axes = unplanes(&layout, true, &raws[1].0, 2, 2, raws[1].1);
+    raws[1].0 = Vec::new();
+    let weights = unplanes(&layout, true, &raws[2].0, 1, 2, raws[2].1).swap_remove(0);
+    raws[2].0 = Vec::new();
+    let etas = unplanes(&layout, true, &raws[3].0, 1, 2, raws[3].1).swap_remove(0);
+    raws[3].0 = Vec::new();
+    let (hw, ha) = if has_h {
+        (
+            unplanes(&layout, false, &raws[4].0, 1, 4, raws[4].1).swap_remove(0),
+            unplanes(&layout, false, &raws[5].0, 8, 2, raws[5].1),
+        )
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    drop(raws);
+
+    let mut levels = Vec::with_capacity(nlev);
+    for (k, &(lc, lr, span, nl, residual, t0)) in table.iter().enumerate() {
+        let n = lc * lr;
+        let mut lobe_start = Vec::with_capacity(n + 1);
+        let g0 = layout.start[t0];
+        lobe_start.extend(layout.start[t0..=t0 + n].iter().map(|&s| (s - g0) as u32));
+        let mut lobes_k = Vec::with_capacity(nl);
+        for t in t0..t0 + n {
+            let (a, b) = (layout.start[t], layout.start[t + 1]);
+            let sum: u32 = weights[a..b].iter().sum();
+            if b > a && sum == 0 {
+                return Err(r.err(format!(
+                    "level {k}: texel {} has lobes whose weights are all 0",
+                    t - t0
+                )));
+            }
+            for i in a..b {
+                lobes_k.push(PhongLobe {
+                    axis: oct_decode(axes[0][i] as u16, axes[1][i] as u16),
+                    weight: f64::from(weights[i]) / f64::from(sum),
+                    exponent: eta_decode(etas[i] as u16),
+                });
+            }
+        }
+        let horizon = if has_h {
+            let mut h = Vec::with_capacity(n);
+            for t in t0..t0 + n {
+                let weight = f64::from(f32::from_bits(hw[t]));
+                if !(weight.is_finite() && weight >= 0.0) {
+                    return Err(r.err(format!("level {k}: horizon weight {weight}")));
+                }
+                let mut s = HorizonStats {
+                    weight,
+                    ..HorizonStats::default()
+                };
+                for d in 0..4 {
+                    s.mean[d] = angle_decode(ha[d][t] as u16, -FRAC_PI_2, PI);
+                    let sd = angle_decode(ha[4 + d][t] as u16, 0.0, FRAC_PI_2);
+                    s.var[d] = sd * sd;
+                }
+                h.push(s);
+            }
+            Some(h)
+        } else {
+            None
+        };
+        levels.push(Level {
+            cols: lc,
+            rows: lr,
+            span,
+            lobe_start,
+            lobes: lobes_k,
+            horizon,
+            residual,
+        });
+    }
+    Ok(levels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn octahedral_codes_are_within_their_bound() {
+        let mut worst: f64 = 0.0;
+        for i in 0..200 {
+            for j in 0..100 {
+                let th = PI * (f64::from(j) + 0.5) / 100.0;
+                let ph = 2.0 * PI * f64::from(i) / 200.0;
+                let a = DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                let (u, v) = oct_encode(a);
+                worst = worst.max(oct_decode(u, v).angle_between(a));
+            }
+        }
+        for a in [DVec3::Z, -DVec3::Z, DVec3::X, -DVec3::Y] {
+            let (u, v) = oct_encode(a);
+            worst = worst.max(oct_decode(u, v).angle_between(a));
+        }
+        assert!(worst < 4.5e-5, "{worst}");
+    }
+
+    #[test]
+    fn exponent_and_angle_codes_are_within_their_bound() {
+        assert_eq!(eta_decode(eta_encode(ETA_MAX)), ETA_MAX);
+        assert_eq!(eta_decode(eta_encode(0.0)), 0.0);
+        let mut worst: f64 = 0.0;
+        let mut eta = 1.0;
+        while eta < ETA_MAX {
+            let back = eta_decode(eta_encode(eta));
+            worst = worst.max((back - eta).abs() / eta / (1.0 + 1.0 / eta));
+            eta *= 1.013;
+        }
+        assert!(worst < 1.06e-4, "{worst}");
+        for x in [-FRAC_PI_2, -0.3, 0.0, 1e-3, 1.2, FRAC_PI_2] {
+            let back = angle_decode(angle_encode(x, -FRAC_PI_2, PI), -FRAC_PI_2, PI);
+            assert!((back - x).abs() <= 0.5 * PI / Q + 1e-15, "{x} {back}");
+        }
+    }
+}
