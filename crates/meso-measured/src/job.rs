@@ -400,14 +400,23 @@ impl Lobes {
         }
     }
 
-    /// The meso material file, `comment` as `#` lines at the top.
+    /// The material of the fit ([`meso_core::material::MaterialSpec`]).
+    ///
+    /// # Errors
+    /// Parameters that make no NDF (a fit that diverged to non-finite numbers).
+    pub fn to_spec(&self) -> Result<meso_core::material::MaterialSpec, meso_core::NdfError> {
+        match self {
+            Lobes::Phong(p) => p.to_spec(),
+            Lobes::Microfacet(p) => p.to_spec(),
+            Lobes::GgxLobes(p) => p.to_spec(),
+        }
+    }
+
+    /// The meso material file ([`Lobes::to_spec`] written by `MaterialSpec::to_toml`),
+    /// `comment` as `#` lines at the top.
     #[must_use]
     pub fn to_toml(&self, comment: &str) -> String {
-        match self {
-            Lobes::Phong(p) => p.to_material_toml(comment),
-            Lobes::Microfacet(p) => p.to_material_toml(comment),
-            Lobes::GgxLobes(p) => p.to_material_toml(comment),
-        }
+        crate::model::material_file(self.to_spec(), comment)
     }
 
     /// A table of the lobes and the transfer and diffuse parameters (several lines, no final

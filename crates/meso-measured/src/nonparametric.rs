@@ -34,11 +34,10 @@ use crate::merl::{cell_angles, CellPosition, MerlTable, N_PHI_D, N_THETA_H};
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::convolution::isotropic_projected_area;
-use meso_core::material::Material;
+use meso_core::material::{Material, MaterialSpec};
 use meso_core::ndf::{Ndf, Radial};
 use meso_core::shading::{FastBrdf, Policy};
 use std::f64::consts::{FRAC_PI_2, PI};
-use std::fmt::Write;
 
 /// Fixed-point (power) iterations of the NDF per outer step.
 pub const POWER_ITERATIONS: usize = 12;
@@ -224,30 +223,21 @@ fn solve_dense(a: &mut [f64], b: &mut [f64], n: usize) -> Vec<f64> {
     x
 }
 
-/// The material file of a fit (TOML, with `comment` lines as `#` comments first).
+/// The material of a fit: the radial NDF under [`crate::model::mirror_material`].
 #[must_use]
-pub fn material_toml(fit: &NonParametric, comment: &str) -> String {
-    let mut s = String::new();
-    for l in comment.lines() {
-        let _ = writeln!(s, "# {l}");
-    }
-    s.push_str("form = \"microfacet\"\n\n[ndf]\nkind = \"radial\"\n");
-    let deg: Vec<String> = fit
-        .ndf
-        .theta()
-        .iter()
-        .map(|t| format!("{:?}", t.to_degrees()))
-        .collect();
-    let den: Vec<String> = fit.ndf.values().iter().map(|v| format!("{v:?}")).collect();
-    let _ = writeln!(s, "theta = [{}]", deg.join(", "));
-    let _ = writeln!(s, "density = [{}]", den.join(", "));
-    s.push('\n');
-    s.push_str(&crate::model::mirror_material_tail(
+pub fn material_spec(fit: &NonParametric) -> MaterialSpec {
+    crate::model::mirror_material(
+        Ndf::Radial(fit.ndf.clone()),
         fit.f0,
         fit.specular,
         fit.albedo,
-    ));
-    s
+    )
+}
+
+/// The material file of a fit (TOML, with `comment` lines as `#` comments first).
+#[must_use]
+pub fn material_toml(fit: &NonParametric, comment: &str) -> String {
+    material_spec(fit).to_toml_with_comment(comment)
 }
 
 /// The material of a fit.

@@ -56,8 +56,12 @@
 use crate::fit::{eval_model, fit_from, BrdfModel, FitError, FitOptions, FitResult};
 use crate::samples::SampleSet;
 use glam::DVec3;
-use meso_core::frame::{rad_to_deg, spherical_angles};
-use meso_core::ndf::PhongLobe;
+use meso_core::convolution::Accuracy;
+use meso_core::frame::{rad_to_deg, spherical_angles, spherical_direction_deg};
+use meso_core::material::{MaterialSpec, NdfSpec};
+use meso_core::ndf::{Ndf, PhongLobe, PhongPeaks};
+use meso_core::transfer::{PhongVariant, Transfer};
+use meso_core::NdfError;
 use std::f64::consts::PI;
 
 /// Largest number of lobes supported by [`LobeModel`].
@@ -119,30 +123,33 @@ impl LobeParams {
         [0, 1, 2].map(|c| self.albedo[c] / PI + self.specular[c] * s)
     }
 
-    /// The material as meso TOML (the `phong-peaks` NDF, the `phong` transfer and a `[diffuse]`
-    /// albedo; axes as `[theta_deg, phi_deg]`). `comment` lines (e.g. the fit report) are
-    /// prepended as `#` comments.
+    /// The material: the `phong-peaks` NDF ([`file_phong_peaks`]), the `phong` transfer and a
+    /// `[diffuse]` albedo, in the multiple-surface form.
+    ///
+    /// # Errors
+    /// Lobes that make no NDF (non-finite or negative weights or exponents).
+    pub fn to_spec(&self) -> Result<MaterialSpec, NdfError> {
+        Ok(MaterialSpec {
+            name: None,
+            ndf: NdfSpec::Inline(Ndf::PhongPeaks(file_phong_peaks(&self.lobes)?)),
+            transfer: Transfer::Phong {
+                exponent: self.transfer_exponent,
+                specular: self.specular,
+                variant: PhongVariant::Half,
+            },
+            diffuse: self.albedo,
+            form: None,
+            shadowing: None,
+            accuracy: Accuracy::default(),
+        })
+    }
+
+    /// The material as meso TOML ([`LobeParams::to_spec`] written by
+    /// [`MaterialSpec::to_toml_with_comment`]; axes as `[theta_deg, phi_deg]`). `comment` lines
+    /// (e.g. the fit report) are prepended as `#` comments.
     #[must_use]
     pub fn to_material_toml(&self, comment: &str) -> String {
-        use std::fmt::Write;
-        let mut s = String::new();
-        for l in comment.lines() {
-            let _ = writeln!(s, "# {l}");
-        }
-        s.push_str(&ndf_toml(&self.lobes));
-        s.push_str("\n[transfer]\nkind = \"phong\"\n");
-        let _ = writeln!(s, "exponent = {:?}", self.transfer_exponent);
-        let _ = writeln!(
-            s,
-            "specular = [{:?}, {:?}, {:?}]",
-            self.specular[0], self.specular[1], self.specular[2]
-        );
-        let _ = writeln!(
-            s,
-            "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
-            self.albedo[0], self.albedo[1], self.albedo[2]
-        );
-        s
+        super::material_file(self.to_spec(), comment)
     }
 }
 
@@ -180,24 +187,25 @@ pub(crate) fn encode_lobes(lobes: &[PhongLobe]) -> Vec<f64> {
     t
 }
 
-/// The `[ndf]` table of Phong peaks (axes as `[theta_deg, phi_deg]`).
-pub(crate) fn ndf_toml(lobes: &[PhongLobe]) -> String {
-    use std::fmt::Write;
-    let mut s = String::from("[ndf]\nkind = \"phong-peaks\"\nlobes = [\n");
-    for l in lobes {
-        let (t, p) = spherical_angles(l.axis);
-        let (t, mut p) = (rad_to_deg(t), rad_to_deg(p));
-        if t < 1e-9 {
-            p = 0.0;
-        }
-        let _ = writeln!(
-            s,
-            "  {{ axis = [{:?}, {:?}], weight = {:?}, exponent = {:?} }},",
-            t, p, l.weight, l.exponent
-        );
-    }
-    s.push_str("]\n");
-    s
+/// The Phong peaks as a material file holds them: each axis at the `[theta_deg, phi_deg]` it is
+/// written with (φ = 0 on the normal), so that the file reads back to exactly this NDF.
+///
+/// # Errors
+/// As [`PhongPeaks::new`].
+pub(crate) fn file_phong_peaks(lobes: &[PhongLobe]) -> Result<PhongPeaks, NdfError> {
+    PhongPeaks::new(
+        lobes
+            .iter()
+            .map(|l| {
+                let (t, p) = spherical_angles(l.axis);
+                let (t, mut p) = (rad_to_deg(t), rad_to_deg(p));
+                if t < 1e-9 {
+                    p = 0.0;
+                }
+                PhongLobe::new(spherical_direction_deg(t, p), l.weight, l.exponent)
+            })
+            .collect(),
+    )
 }
 
 impl LobeModel {

@@ -38,7 +38,9 @@
 use crate::fit::{fit_from, BrdfModel, FitError, FitOptions, FitResult};
 use crate::samples::SampleSet;
 use glam::DVec3;
-use meso_core::ndf::Distribution;
+use meso_core::material::MaterialSpec;
+use meso_core::ndf::{Distribution, Microfacet, Mixture, Ndf};
+use meso_core::NdfError;
 use std::f64::consts::PI;
 
 /// Most lobes of the model.
@@ -189,33 +191,31 @@ impl LobeGgxParams {
         w.iter().map(|x| x / t).collect()
     }
 
-    /// The material as meso TOML (module docs); `comment` lines are prepended as `#` comments.
-    #[must_use]
-    pub fn to_material_toml(&self, comment: &str) -> String {
-        use std::fmt::Write;
-        let mut s = String::new();
-        for l in comment.lines() {
-            let _ = writeln!(s, "# {l}");
-        }
-        s.push_str("form = \"microfacet\"\n\n[ndf]\nkind = \"mixture\"\nlobes = [\n");
-        for (l, w) in self.lobes.iter().zip(self.eq1_weights()) {
-            let kind = match l.distribution {
-                Distribution::Ggx => "ggx",
-                Distribution::Beckmann => "beckmann",
-            };
-            let _ = writeln!(
-                s,
-                "  {{ kind = \"{kind}\", alpha = {:?}, weight = {:?} }},",
-                l.alpha, w
-            );
-        }
-        s.push_str("]\n\n");
-        s.push_str(&super::mirror_material_tail(
+    /// The material (module docs): the lobes as a `mixture` NDF with the Eq. 1 weights
+    /// ([`LobeGgxParams::eq1_weights`]) under [`super::mirror_material`].
+    ///
+    /// # Errors
+    /// Lobes that make no NDF (an α outside `[1e-4, 10]`, non-finite weights).
+    pub fn to_spec(&self) -> Result<MaterialSpec, NdfError> {
+        let lobes = self
+            .lobes
+            .iter()
+            .zip(self.eq1_weights())
+            .map(|(l, w)| Microfacet::isotropic(l.distribution, l.alpha).map(|m| (m, w)))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(super::mirror_material(
+            Ndf::Mixture(Mixture::new(lobes)?),
             self.f0,
             self.specular,
             self.albedo,
-        ));
-        s
+        ))
+    }
+
+    /// The material as meso TOML ([`LobeGgxParams::to_spec`], module docs); `comment` lines are
+    /// prepended as `#` comments.
+    #[must_use]
+    pub fn to_material_toml(&self, comment: &str) -> String {
+        super::material_file(self.to_spec(), comment)
     }
 }
 

@@ -50,11 +50,13 @@
 //! material (quadrature of meso-core) next to the fitted one.
 
 use super::baselines::Microfacet;
-use super::lobes::{decode_lobes, encode_lobes, ndf_toml, peak_seeds, MAX_LOBES};
+use super::lobes::{decode_lobes, encode_lobes, file_phong_peaks, peak_seeds, MAX_LOBES};
 use crate::fit::{fit_from, BrdfModel, FitError, FitOptions, FitResult};
 use crate::samples::SampleSet;
 use glam::DVec3;
-use meso_core::ndf::PhongLobe;
+use meso_core::material::MaterialSpec;
+use meso_core::ndf::{Ndf, PhongLobe};
+use meso_core::NdfError;
 use std::f64::consts::PI;
 
 const AXIS_BOUND: f64 = 2.75;
@@ -186,23 +188,25 @@ impl LobeMicrofacetParams {
         })
     }
 
-    /// The material as meso TOML (module docs); `comment` lines are prepended as `#` comments.
-    #[must_use]
-    pub fn to_material_toml(&self, comment: &str) -> String {
-        use std::fmt::Write;
-        let mut s = String::new();
-        for l in comment.lines() {
-            let _ = writeln!(s, "# {l}");
-        }
-        s.push_str("form = \"microfacet\"\n\n");
-        s.push_str(&ndf_toml(&self.lobes));
-        s.push('\n');
-        s.push_str(&super::mirror_material_tail(
+    /// The material (module docs): the Phong peaks ([`file_phong_peaks`]) under
+    /// [`super::mirror_material`].
+    ///
+    /// # Errors
+    /// Lobes that make no NDF (non-finite or negative weights or exponents).
+    pub fn to_spec(&self) -> Result<MaterialSpec, NdfError> {
+        Ok(super::mirror_material(
+            Ndf::PhongPeaks(file_phong_peaks(&self.lobes)?),
             self.f0,
             self.specular,
             self.albedo,
-        ));
-        s
+        ))
+    }
+
+    /// The material as meso TOML ([`LobeMicrofacetParams::to_spec`], module docs); `comment`
+    /// lines are prepended as `#` comments.
+    #[must_use]
+    pub fn to_material_toml(&self, comment: &str) -> String {
+        super::material_file(self.to_spec(), comment)
     }
 }
 

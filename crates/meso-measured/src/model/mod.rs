@@ -18,6 +18,11 @@ pub use lobes_microfacet::{
 };
 
 use crate::fit::BrdfModel;
+use meso_core::convolution::{Accuracy, Form};
+use meso_core::material::{MaterialSpec, NdfSpec, ShadowingKind};
+use meso_core::ndf::Ndf;
+use meso_core::transfer::{Fresnel, Transfer};
+use meso_core::NdfError;
 
 /// All baseline models in the order of the benchmark table: Blinn-Phong, Cook-Torrance (Beckmann),
 /// GGX, Ashikhmin–Shirley, Lafortune with 1, 2, 3 lobes.
@@ -34,23 +39,43 @@ pub fn baselines() -> Vec<Box<dyn BrdfModel>> {
     ]
 }
 
-/// The `[transfer]` (Schlick mirror with `f0` and the `specular` scale), `[shadowing]` (Smith) and
-/// `[diffuse]` tables of a fitted microfacet material, each value clamped to `[0, 1]`: the tail
-/// every fitted microfacet material file shares (Phong-peak lobes, GGX lobes, the
-/// non-parametric NDF). Starts with `[transfer]`; the caller writes what comes before.
+/// The fitted microfacet material of `ndf`: `form = "microfacet"`, mirror facets with Schlick
+/// Fresnel `f0` and the `specular` scale, Smith masking–shadowing and a Lambert `albedo`, each
+/// colour clamped to `[0, 1]` — what every fitted microfacet material shares (Phong-peak lobes,
+/// GGX lobes, the non-parametric NDF). Written by [`MaterialSpec::to_toml`].
 #[must_use]
-pub fn mirror_material_tail(f0: [f64; 3], specular: [f64; 3], albedo: [f64; 3]) -> String {
-    use std::fmt::Write;
+pub fn mirror_material(
+    ndf: Ndf,
+    f0: [f64; 3],
+    specular: [f64; 3],
+    albedo: [f64; 3],
+) -> MaterialSpec {
     let c = |v: [f64; 3]| v.map(|x| x.clamp(0.0, 1.0));
-    let (f, k, a) = (c(f0), c(specular), c(albedo));
-    let mut s = String::from("[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\n");
-    let _ = writeln!(s, "f0 = [{:?}, {:?}, {:?}]", f[0], f[1], f[2]);
-    let _ = writeln!(s, "specular = [{:?}, {:?}, {:?}]", k[0], k[1], k[2]);
-    s.push_str("\n[shadowing]\nkind = \"smith\"\n");
-    let _ = writeln!(
-        s,
-        "\n[diffuse]\nalbedo = [{:?}, {:?}, {:?}]",
-        a[0], a[1], a[2]
-    );
-    s
+    MaterialSpec {
+        name: None,
+        ndf: NdfSpec::Inline(ndf),
+        transfer: Transfer::Mirror {
+            fresnel: Fresnel::Schlick { f0: c(f0) },
+            specular: c(specular),
+        },
+        diffuse: c(albedo),
+        form: Some(Form::Microfacet),
+        shadowing: Some(ShadowingKind::Smith),
+        accuracy: Accuracy::default(),
+    }
+}
+
+/// The material file of a fit: `spec` with `comment`'s lines as `#` comments first
+/// ([`MaterialSpec::to_toml_with_comment`]). Parameters that make no NDF (a fit that diverged to
+/// non-finite numbers) give the comment and a comment line saying why, a file the material
+/// parser refuses (no `[transfer]`).
+#[must_use]
+pub fn material_file(spec: Result<MaterialSpec, NdfError>, comment: &str) -> String {
+    match spec {
+        Ok(s) => s.to_toml_with_comment(comment),
+        Err(e) => format!("{comment}\nno material: {e}")
+            .lines()
+            .map(|l| format!("# {l}\n"))
+            .collect(),
+    }
 }
