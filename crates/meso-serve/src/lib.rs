@@ -575,8 +575,9 @@ async fn texture_render_route(
     req.render_request().check()?;
     let t = state.textures.require(&req.texture)?;
     let m = material_json::validate_with(&req.material, Some(&state.textures))?;
+    let store = state.textures.clone();
     let r = blocking(&state, move || {
-        preview::render_textured(&req, &t, &m.material)
+        preview::render_textured(&req, &store, &t, &m.material)
     })
     .await?;
     Ok(rendered_response(r))

@@ -529,6 +529,41 @@ mod tests {
         assert!(e.message.contains("bogus"), "{}", e.message);
     }
 
+    /// Height-map and map materials parse (their `[ndf]` table checked as meso-maps reads it,
+    /// the file only named), and are refused where they would be evaluated without a texture.
+    #[test]
+    fn file_ndfs_parse_but_do_not_validate_without_a_texture() {
+        let j = parse_toml(
+            "[ndf]\nkind = \"map\"\nfile = \"rock.map\"\nlevel = 2\ntexel = [1, 3]\n\
+             [transfer]\nkind = \"lambert\"\n",
+        )
+        .unwrap();
+        assert_eq!(j["ndf"]["texel"], json!([1, 3]));
+        let e = validate(&j).unwrap_err();
+        assert!(e.message.contains("POST /api/texture"), "{}", e.message);
+        for (text, key) in [
+            ("kind = \"map\"\nfile = \"a.map\"\nbogus = 1\n", "bogus"),
+            ("kind = \"map\"\nfile = \"a.map\"\ntexel = [1]\n", "texel"),
+            ("kind = \"map\"\nfile = \"a.map\"\nlevel = -1\n", "level"),
+            ("kind = \"heightmap\"\nfile = \"a.png\"\ntexel_size = 1\n", "height_scale"),
+            ("kind = \"heightmap\"\nfile = \"a.png\"\ntexel_size = 1\nheight_scale = 1\nmax_lobes = 9\n", "max_lobes"),
+        ] {
+            let e = parse_toml(&format!("[ndf]\n{text}[transfer]\nkind = \"lambert\"\n"))
+                .unwrap_err();
+            assert!(e.message.contains(key), "{text}: {}", e.message);
+        }
+        // A texture texel without the server's textures is refused too.
+        let m = json!({ "ndf": { "kind": "map", "texture": "0123456789abcdef", "level": 0,
+                                 "texel": [0, 0] },
+                        "transfer": { "kind": "lambert" } });
+        assert_eq!(validate(&m).unwrap_err().status.as_u16(), 400);
+        let store = crate::textures::TextureStore::new();
+        assert_eq!(
+            validate_with(&m, Some(&store)).unwrap_err().status.as_u16(),
+            404
+        );
+    }
+
     #[test]
     fn blend_scales_weights() {
         let a = json!({ "ndf": { "kind": "deltas", "lobes": [ { "axis": [0, 0], "weight": 2 } ] },

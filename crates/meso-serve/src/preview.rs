@@ -513,13 +513,15 @@ impl TexturedRequest {
 }
 
 /// Render the preview of an open texture (blocking): the object shaded through the texture's NDF
-/// pyramid with the facets of `material` (module docs of [`TexturedRequest`]).
+/// pyramid with the facets of `material` (module docs of [`TexturedRequest`]); the shader comes
+/// from `store`'s cache when the last textured preview used the same texture and facets.
 ///
 /// # Errors
 /// 400 for an invalid request (ranges, shadowing asked of a normal map), 500 if the scene
 /// cannot be built or encoded.
 pub fn render_textured(
     req: &TexturedRequest,
+    store: &crate::textures::TextureStore,
     texture: &crate::textures::Texture,
     material: &Material,
 ) -> Result<Rendered, ApiError> {
@@ -542,15 +544,17 @@ pub fn render_textured(
         )));
     }
     let texels_per_uv = pyr.levels[0].cols as f64 * req.repeat;
-    let shader = meso_render::NdfMapped::new(pyr, material, texels_per_uv, shadowing)
+    let (shader, cached) = store
+        .shader(texture, material, texels_per_uv, shadowing)
         .map_err(ApiError::bad_request)?;
     let path = format!(
-        "NDF-mapped {:?}: {} levels, box filter{}",
+        "NDF-mapped {:?}: {} levels, box filter{}{}",
         texture.name,
         shader.levels(),
-        if shadowing { ", horizon shadowing" } else { "" }
+        if shadowing { ", horizon shadowing" } else { "" },
+        if cached { "" } else { " (shader built)" }
     );
-    let img = render_shader(&rr, Arc::new(shader))?;
+    let img = render_shader(&rr, shader)?;
     let render_ms = t0.elapsed().as_secs_f64() * 1e3;
     let png = img
         .encode_png(req.view.exposure as f32)

@@ -937,17 +937,42 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
     let msg = post_json("/api/toml", &bad).assert_error(400);
     assert!(msg.contains("bogus"), "{msg}");
 
-    // The textured preview, with the editor's material for the facets.
-    for object in ["sphere", "plane"] {
+    // The textured preview, with the editor's material for the facets; the shader is built
+    // once for the texture and these facets, then reused (another view, another texel).
+    let mut paths = Vec::new();
+    let mut pngs = Vec::new();
+    for (object, texel) in [("sphere", [1, 3]), ("plane", [1, 3]), ("plane", [0, 0])] {
+        let mut m = material();
+        m["ndf"] = json!({ "kind": "map", "texture": id, "level": 2, "texel": texel });
         let r = post_json(
             "/api/texture/render",
-            &json!({ "texture": id, "material": material(),
+            &json!({ "texture": id, "material": m,
                      "view": { "object": object, "width": 96, "height": 80 } }),
         );
         assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
         assert_eq!(png_size(&r.body), (96, 80));
-        assert!(r.header("x-brdf-path").unwrap().contains("NDF-mapped"));
+        paths.push(r.header("x-brdf-path").unwrap().to_owned());
+        pngs.push(r.body);
     }
+    assert!(paths.iter().all(|p| p.contains("NDF-mapped")), "{paths:?}");
+    assert!(paths[0].contains("shader built"), "{paths:?}");
+    assert!(!paths[1].contains("shader built") && !paths[2].contains("shader built"));
+    assert_eq!(
+        pngs[1], pngs[2],
+        "the material's NDF does not shade a texture"
+    );
+    assert_ne!(pngs[0], pngs[1]);
+    // Other facets: another shader, another picture.
+    let mut lambert = material();
+    lambert["transfer"] = json!({ "kind": "lambert", "albedo": [0.8, 0.2, 0.2] });
+    let r = post_json(
+        "/api/texture/render",
+        &json!({ "texture": id, "material": lambert,
+                 "view": { "object": "plane", "width": 96, "height": 80 } }),
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    assert!(r.header("x-brdf-path").unwrap().contains("shader built"));
+    assert_ne!(r.body, pngs[1]);
     let msg = post_json(
         "/api/texture/render",
         &json!({ "texture": id, "material": material(), "repeat": 0 }),
