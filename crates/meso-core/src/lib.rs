@@ -11,7 +11,9 @@
 //! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form;
 //! * [`material`] — the TOML material format; [`importance`] — importance sampling of its BRDF;
 //! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output;
-//!   [`budget`] — the memory budget and fallible allocation.
+//! * [`linalg`], [`lm`] — small dense linear algebra and the one Levenberg–Marquardt solver
+//!   (generic over the parameter space, with box bounds or a retraction), used by every fitter;
+//! * [`budget`] — the memory budget and fallible allocation.
 //!
 //! ```
 //! use meso_core::{frame::spherical_direction_deg, material::Material};
@@ -37,6 +39,7 @@ pub mod grid;
 pub mod importance;
 pub mod io;
 pub mod linalg;
+pub mod lm;
 pub mod material;
 pub mod ndf;
 pub mod pairs;

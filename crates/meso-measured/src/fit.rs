@@ -29,10 +29,11 @@
 //! allocation only per chunk; each residual's Jacobian row is compact (`θ` and its own
 //! channel's amplitudes).
 
-use crate::lm::{self, LeastSquares, LmOptions};
 use crate::metric::Metric;
 use crate::samples::{Sample, SampleSet};
 use glam::DVec3;
+use meso_core::linalg::cholesky_solve;
+use meso_core::lm::{minimize_boxed, LmOptions, LmReport, VectorProblem};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -356,7 +357,7 @@ impl Problem<'_> {
     }
 }
 
-impl LeastSquares for Problem<'_> {
+impl VectorProblem for Problem<'_> {
     fn n_params(&self) -> usize {
         self.nt + 3 * self.nb
     }
@@ -513,7 +514,7 @@ fn nnls_small(m: &[f64], v: &[f64], nb: usize) -> Vec<f64> {
             }
             a[p * k + p] += 1e-12 * scale;
         }
-        if !lm::cholesky_solve(&mut a, &mut b, k) {
+        if !cholesky_solve(&mut a, &mut b, k) {
             return x;
         }
         let mut all_pos = true;
@@ -743,24 +744,24 @@ pub fn fit_from(
         rel_tolerance: 1e-7,
         ..LmOptions::default()
     };
-    let mut best: Option<lm::LmResult> = None;
+    let mut best: Option<(Vec<f64>, LmReport)> = None;
     for (_, p) in ranked.iter().take(opts.refine_starts.max(1)) {
-        let r = lm::minimize(&pc, p, &bounds, &short_opts);
-        iterations += r.iterations;
-        if best.as_ref().is_none_or(|b| r.cost < b.cost) {
+        let r = minimize_boxed(&pc, p, &bounds, &short_opts);
+        iterations += r.1.iterations;
+        if best.as_ref().is_none_or(|b| r.1.cost < b.1.cost) {
             best = Some(r);
         }
     }
     let mut best = best.expect("at least one start");
-    if best.iterations >= n_short && opts.coarse_iterations > n_short {
+    if best.1.iterations >= n_short && opts.coarse_iterations > n_short {
         let coarse_opts = LmOptions {
             max_iterations: opts.coarse_iterations - n_short,
             rel_tolerance: 1e-7,
             ..LmOptions::default()
         };
-        let r = lm::minimize(&pc, &best.params, &bounds, &coarse_opts);
-        iterations += r.iterations;
-        if r.cost <= best.cost {
+        let r = minimize_boxed(&pc, &best.0, &bounds, &coarse_opts);
+        iterations += r.1.iterations;
+        if r.1.cost <= best.1.cost {
             best = r;
         }
     }
@@ -776,9 +777,9 @@ pub fn fit_from(
         rel_tolerance: 1e-10,
         ..LmOptions::default()
     };
-    let r = lm::minimize(&pf, &best.params, &bounds, &fine_opts);
+    let (params, r) = minimize_boxed(&pf, &best.0, &bounds, &fine_opts);
     iterations += r.iterations;
-    let (theta, amps) = pf.split(&r.params);
+    let (theta, amps) = pf.split(&params);
     let theta = theta.to_vec();
     let errors = evaluate(model, &theta, &amps, data);
     let held_out =

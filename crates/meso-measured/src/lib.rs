@@ -10,7 +10,7 @@
 //! * [`metric`] — the cosine-weighted L2 of Ngan et al. 2005 and the log metric of Löw et al. 2012;
 //! * [`job`] — the core of `meso fit`: loading a data file, the lobe fits for either transfer;
 //! * [`engine`] — engine (glTF metallic–roughness) parameters from a GGX + Lambert fit;
-//! * [`lm`] — a bounded dense Levenberg–Marquardt solver;
+//! * the fits solve with meso-core's one Levenberg–Marquardt solver ([`meso_core::lm`]);
 //! * [`fit`] — the [`fit::BrdfModel`] trait and the fitting driver (several starts, coarse to fine,
 //!   linear per-channel amplitudes);
 //! * [`plots`] — the PNG plots of a fit (polar slices, spheres with the exposure from the data);
@@ -37,7 +37,6 @@ pub mod csv;
 pub mod engine;
 pub mod fit;
 pub mod job;
-pub mod lm;
 pub mod merl;
 pub mod metric;
 pub mod model;

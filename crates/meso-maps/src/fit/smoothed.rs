@@ -7,7 +7,7 @@ use super::em::{fast_exp_neg, Pt, L};
 use crate::limits::{ETA_MAX, MAX_LOBES};
 use crate::sphgrid::SphereGrid;
 use glam::DVec3;
-use meso_core::linalg::cholesky_solve;
+use meso_core::lm::{self, LmOptions};
 use meso_core::sg;
 use std::f64::consts::PI;
 
@@ -155,6 +155,9 @@ impl SgState {
 }
 
 thread_local! {
+    /// The LM solver's buffers, reused by every refinement on this thread.
+    static LM_WORKSPACE: std::cell::RefCell<lm::Workspace> =
+        std::cell::RefCell::new(lm::Workspace::new(4 * MAX_LOBES));
     /// Upper-hemisphere centres of the sample grid, per grid resolution.
     static SAMPLE_GRID: std::cell::RefCell<(usize, Vec<DVec3>)> =
         const { std::cell::RefCell::new((0, Vec::new())) };
@@ -262,65 +265,20 @@ impl<'a> Smoothed<'a> {
         obj
     }
 
-    /// Levenberg–Marquardt from `st`, at most `iters` steps, until a step lowers the objective
-    /// by less than the fraction `tol`; returns the objective.
+    /// Levenberg–Marquardt ([`meso_core::lm`]) from `st`, at most `iters` steps, until a step
+    /// lowers the objective by less than the fraction `tol` or none is found in 10 tries;
+    /// returns the objective.
     fn lm(&self, st: &mut SgState, iters: usize, tol: f64) -> f64 {
-        let k = st.k;
-        let np = 4 * k;
-        let mut jtj = [0.0; 16 * MAX_LOBES * MAX_LOBES];
-        let mut a = [0.0; 16 * MAX_LOBES * MAX_LOBES];
-        let mut jtr = [0.0; 4 * MAX_LOBES];
-        let mut d = [0.0; 4 * MAX_LOBES];
-        let mut mu = 1e-3;
-        let mut obj = self.eval(st, None);
-        for _ in 0..iters {
-            jtj[..np * np].fill(0.0);
-            jtr[..np].fill(0.0);
-            self.eval(st, Some((&mut jtj[..np * np], &mut jtr[..np])));
-            for i in 0..np {
-                for j in 0..i {
-                    jtj[j * np + i] = jtj[i * np + j];
-                }
-            }
-            let mut accepted = false;
-            for _ in 0..10 {
-                a[..np * np].copy_from_slice(&jtj[..np * np]);
-                for i in 0..np {
-                    d[i] = -jtr[i];
-                    a[i * np + i] += mu * jtj[i * np + i] + 1e-18;
-                }
-                if !cholesky_solve(&mut a[..np * np], &mut d[..np], np) {
-                    mu *= 4.0;
-                    continue;
-                }
-                let mut nst = st.clone();
-                for j in 0..k {
-                    let (t1, t2) = tangents(st.axes[j]);
-                    nst.sl[j] += d[4 * j].clamp(-3.0, 3.0);
-                    nst.lk[j] = (st.lk[j] + d[4 * j + 1].clamp(-1.5, 1.5))
-                        .clamp(KAPPA_MIN.ln(), KAPPA_MAX.ln());
-                    // Axis steps of at most 0.3 rad.
-                    let (s1, s2) = (d[4 * j + 2], d[4 * j + 3]);
-                    let step = (s1 * s1 + s2 * s2).sqrt();
-                    let scale = if step > 0.3 { 0.3 / step } else { 1.0 };
-                    nst.axes[j] = (st.axes[j] + (t1 * s1 + t2 * s2) * scale).normalize();
-                }
-                let o = self.eval(&nst, None);
-                if o < obj {
-                    let drop = (obj - o) / obj.max(1e-300);
-                    *st = nst;
-                    obj = o;
-                    mu = (mu / 3.0).max(1e-9);
-                    accepted = drop > tol;
-                    break;
-                }
-                mu *= 4.0;
-            }
-            if !accepted {
-                break;
-            }
-        }
-        obj
+        let opts = LmOptions {
+            max_iterations: iters,
+            rel_tolerance: tol,
+            small_steps_to_stop: 1,
+            initial_lambda: 1e-3,
+            lambda_min: 1e-9,
+            lambda_max: f64::INFINITY,
+            max_tries: 10,
+        };
+        LM_WORKSPACE.with(|ws| lm::minimize(self, st, &opts, &mut ws.borrow_mut()).cost)
     }
 
     /// Add a lobe of weight `share` (the others scaled by `1 − share`) where the data most
@@ -405,6 +363,44 @@ impl<'a> Smoothed<'a> {
             obj = o;
         }
         obj
+    }
+}
+
+/// The smoothed objective as a least-squares problem over lobe states: per lobe the weight
+/// logit, `ln κ` and the axis' offsets along its two tangents; a step is retracted onto the
+/// sphere (axis renormalised, at most 0.3 rad) with `ln κ` clamped to its range and the logit
+/// and `ln κ` steps limited.
+impl lm::LeastSquares for Smoothed<'_> {
+    type Point = SgState;
+    fn n_params(&self, st: &SgState) -> usize {
+        4 * st.k
+    }
+    fn cost(&self, st: &SgState) -> f64 {
+        self.eval(st, None)
+    }
+    fn normal_equations(&self, st: &SgState, jtj: &mut [f64], jtr: &mut [f64]) -> f64 {
+        let np = 4 * st.k;
+        let obj = self.eval(st, Some((jtj, jtr)));
+        for i in 0..np {
+            for j in 0..i {
+                jtj[j * np + i] = jtj[i * np + j];
+            }
+        }
+        obj
+    }
+    fn retract(&self, st: &SgState, d: &[f64], nst: &mut SgState) {
+        nst.clone_from(st);
+        for j in 0..st.k {
+            let (t1, t2) = tangents(st.axes[j]);
+            nst.sl[j] += d[4 * j].clamp(-3.0, 3.0);
+            nst.lk[j] =
+                (st.lk[j] + d[4 * j + 1].clamp(-1.5, 1.5)).clamp(KAPPA_MIN.ln(), KAPPA_MAX.ln());
+            // Axis steps of at most 0.3 rad.
+            let (s1, s2) = (d[4 * j + 2], d[4 * j + 3]);
+            let step = (s1 * s1 + s2 * s2).sqrt();
+            let scale = if step > 0.3 { 0.3 / step } else { 1.0 };
+            nst.axes[j] = (st.axes[j] + (t1 * s1 + t2 * s2) * scale).normalize();
+        }
     }
 }
 
