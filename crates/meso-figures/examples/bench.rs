@@ -11,7 +11,10 @@
 //! `cargo run --release -p meso-figures --example bench`
 
 use glam::DVec3;
+use meso_core::frame::spherical_direction_deg;
 use meso_core::material::Material;
+use meso_core::ndf::{DeltaSum, Ndf, WeightedNormal};
+use meso_core::transfer::{PhongVariant, Transfer};
 use meso_render::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -60,17 +63,25 @@ fn timed(f: &mut dyn FnMut() -> Image) -> (f64, f64, Image) {
     (best, (cpu_ms() - c0) / f64::from(n), img)
 }
 
+/// The Fig. 2d multiple surface: the normal with weight 0.4 and six normals at 19.3° every 60°
+/// with 0.1 each, under a Phong facet (η = 40).
 fn seven_normals() -> Material {
-    let mut s =
-        String::from("[ndf]\nkind = \"deltas\"\nlobes = [ { axis = [0, 0], weight = 0.4 },\n");
-    for k in 0..6 {
-        s.push_str(&format!(
-            "  {{ axis = [19.3, {}], weight = 0.1 }},\n",
-            60 * k
-        ));
-    }
-    s.push_str("]\n[transfer]\nkind = \"phong\"\nexponent = 40.0\nspecular = [1.0, 0.9, 0.8]\n");
-    Material::from_toml_str(&s).expect("valid material")
+    let mut normals = vec![WeightedNormal {
+        normal: spherical_direction_deg(0.0, 0.0),
+        weight: 0.4,
+    }];
+    normals.extend((0..6).map(|k| WeightedNormal {
+        normal: spherical_direction_deg(19.3, 60.0 * f64::from(k)),
+        weight: 0.1,
+    }));
+    Material::new(
+        Ndf::Deltas(DeltaSum::new(normals).expect("valid normals")),
+        Transfer::Phong {
+            exponent: 40.0,
+            specular: [1.0, 0.9, 0.8],
+            variant: PhongVariant::Half,
+        },
+    )
 }
 
 fn sphere(shader: Arc<dyn Shader>, size: u32) -> Scene {

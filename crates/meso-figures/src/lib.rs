@@ -26,7 +26,11 @@
 #![warn(missing_docs)]
 
 use glam::DVec3;
-use meso_core::material::Material;
+use meso_core::convolution::Accuracy;
+use meso_core::frame::spherical_direction_deg;
+use meso_core::material::{Material, MaterialSpec, NdfSpec};
+use meso_core::ndf::{DeltaSum, Ndf, PhongLobe, PhongPeaks, WeightedNormal};
+use meso_core::transfer::{PhongVariant, Transfer};
 use meso_maps::{extract, fixtures, ExtractParams, HeightMap, Pyramid, Source};
 use meso_plot::{Canvas, Sheet};
 use meso_render::{
@@ -104,44 +108,68 @@ pub struct MaterialDef {
 }
 
 impl MaterialDef {
-    /// The material file text (`docs/material-format.md`).
-    #[must_use]
-    pub fn toml(&self) -> String {
+    /// The material as meso-core's [`MaterialSpec`], at the precision of the figures' files:
+    /// angles rounded to 1e-4 degrees, weights to 1e-6, exponents to 1e-3.
+    ///
+    /// # Errors
+    /// Lobes that make no NDF (a bug in the definition).
+    pub fn to_spec(&self) -> Result<MaterialSpec, FigureError> {
+        let bad = |e: meso_core::NdfError| ferr(format!("built-in material {:?}: {e}", self.name));
+        let axis =
+            |l: &Lobe| spherical_direction_deg(rounded(l.theta_deg, 4), rounded(l.phi_deg, 4));
         let peaks = self.lobes.iter().any(|l| l.exponent.is_some());
-        let mut s = String::new();
-        let _ = writeln!(s, "name = {:?}", self.name);
-        let _ = writeln!(s, "[ndf]");
-        let _ = writeln!(
-            s,
-            "kind = \"{}\"",
-            if peaks { "phong-peaks" } else { "deltas" }
-        );
-        let _ = writeln!(s, "lobes = [");
-        for l in &self.lobes {
-            let _ = write!(
-                s,
-                "  {{ axis = [{:.4}, {:.4}], weight = {:.6}",
-                l.theta_deg, l.phi_deg, l.weight
-            );
-            if let Some(e) = l.exponent {
-                let _ = write!(s, ", exponent = {e:.3}");
-            }
-            let _ = writeln!(s, " }},");
-        }
-        let _ = writeln!(s, "]");
-        let _ = writeln!(s, "[transfer]\nkind = \"phong\"");
-        let _ = writeln!(s, "exponent = {:.3}", self.exponent);
-        let _ = writeln!(
-            s,
-            "specular = [{}, {}, {}]",
-            self.specular[0], self.specular[1], self.specular[2]
-        );
-        let _ = writeln!(
-            s,
-            "[diffuse]\nalbedo = [{}, {}, {}]",
-            self.diffuse[0], self.diffuse[1], self.diffuse[2]
-        );
-        s
+        let ndf = if peaks {
+            Ndf::PhongPeaks(
+                PhongPeaks::new(
+                    self.lobes
+                        .iter()
+                        .map(|l| {
+                            PhongLobe::new(
+                                axis(l),
+                                rounded(l.weight, 6),
+                                rounded(l.exponent.unwrap_or(0.0), 3),
+                            )
+                        })
+                        .collect(),
+                )
+                .map_err(bad)?,
+            )
+        } else {
+            Ndf::Deltas(
+                DeltaSum::new(
+                    self.lobes
+                        .iter()
+                        .map(|l| WeightedNormal {
+                            normal: axis(l),
+                            weight: rounded(l.weight, 6),
+                        })
+                        .collect(),
+                )
+                .map_err(bad)?,
+            )
+        };
+        Ok(MaterialSpec {
+            name: Some(self.name.clone()),
+            ndf: NdfSpec::Inline(ndf),
+            transfer: Transfer::Phong {
+                exponent: rounded(self.exponent, 3),
+                specular: self.specular,
+                variant: PhongVariant::Half,
+            },
+            diffuse: self.diffuse,
+            form: None,
+            shadowing: None,
+            accuracy: Accuracy::default(),
+        })
+    }
+
+    /// The material file text (`docs/material-format.md`): [`MaterialDef::to_spec`] written by
+    /// [`MaterialSpec::to_toml`].
+    ///
+    /// # Errors
+    /// As [`MaterialDef::to_spec`].
+    pub fn toml(&self) -> Result<String, FigureError> {
+        Ok(self.to_spec()?.to_toml())
     }
 
     /// The material, parsed from [`MaterialDef::toml`] (so the file and the picture agree).
@@ -149,7 +177,7 @@ impl MaterialDef {
     /// # Errors
     /// The material parser's message (a bug in the definition).
     pub fn material(&self) -> Result<Material, FigureError> {
-        Material::from_toml_str(&self.toml())
+        Material::from_toml_str(&self.toml()?)
             .map_err(|e| ferr(format!("built-in material {:?}: {e}", self.name)))
     }
 
@@ -174,6 +202,11 @@ impl MaterialDef {
             ..self.clone()
         }
     }
+}
+
+/// `x` rounded to `decimals` decimals, as `format!("{x:.decimals$}")` writes it.
+fn rounded(x: f64, decimals: usize) -> f64 {
+    format!("{x:.decimals$}").parse().unwrap_or(x)
 }
 
 /// Specular colour of the Figure 2 spheres.
@@ -655,7 +688,7 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
         let scene = sphere_scene(shader, size, spp, &lights)?;
         let img = render(&scene, &ropts, None);
         w.png(&format!("{stem}.png"), &img, 0.0)?;
-        w.bytes(&format!("{stem}.toml"), def.toml().as_bytes())?;
+        w.bytes(&format!("{stem}.toml"), def.toml()?.as_bytes())?;
         w.bytes(
             &format!("{stem}.scene.toml"),
             sphere_scene_toml(&format!("{stem}.toml"), size, spp, &lights).as_bytes(),
@@ -717,15 +750,26 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
     w.bytes("zoom_luminance.csv", csv.as_bytes())?;
     let (png, hscale) = heightmap_png(&map)?;
     w.bytes("zoom_heightmap.png", &png)?;
-    let mut mat = format!(
-        "name = \"zoom bump map, far-field (top-level) BRDF\"\n[ndf]\nkind = \"heightmap\"\n\
-         file = \"zoom_heightmap.png\"\ntexel_size = {}\nheight_scale = {hscale}\nmax_lobes = 4\n",
-        map.texel_size()
-    );
-    let full = surface_def.toml();
-    if let Some(pos) = full.find("[transfer]") {
-        mat.push_str(&full[pos..]);
+    // The bump map's far-field material: the height map's NDF under the surface's transfer.
+    let surface = surface_def.to_spec()?;
+    let mut mat = MaterialSpec {
+        name: Some("zoom bump map, far-field (top-level) BRDF".into()),
+        ndf: NdfSpec::External {
+            kind: "heightmap".into(),
+            table: Default::default(),
+            file: "zoom_heightmap.png".into(),
+        },
+        ..surface.clone()
+    };
+    if let NdfSpec::External { table, .. } = &mut mat.ndf {
+        table.insert("kind".into(), "heightmap".into());
+        table.insert("file".into(), "zoom_heightmap.png".into());
+        table.insert("texel_size".into(), map.texel_size().into());
+        table.insert("height_scale".into(), hscale.into());
+        table.insert("max_lobes".into(), 4i64.into());
     }
+    let mat = mat.to_toml();
+    let full = surface.to_toml();
     w.bytes("zoom_material.toml", mat.as_bytes())?;
     // The same bump map as a textured material for scene files, and each frame's scene, so
     // that `meso render zoom_KK.scene.toml` reproduces the frames (docs/scene-format.md).
@@ -776,7 +820,7 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
         builder
             .sphere(DVec3::new(x, 0.0, 0.0), 1.0, DVec3::Y, m)
             .map_err(|e| ferr(e.to_string()))?;
-        w.bytes(&format!("blend_t{t:.2}.toml"), def.toml().as_bytes())?;
+        w.bytes(&format!("blend_t{t:.2}.toml"), def.toml()?.as_bytes())?;
     }
     builder
         .light(key_light())
