@@ -197,13 +197,18 @@ pub(super) fn axis_value(a: &[f64]) -> Result<DVec3, String> {
     }
 }
 
-fn parse_lobes(
-    f: &mut Fields<'_>,
-    with_exponent: bool,
-) -> Result<Vec<(DVec3, f64, f64)>, MaterialError> {
+/// The `lobes` array of `f`: a non-empty list of at most `limit` tables (`what` names the lobes
+/// in the message), each as [`Fields`] named `… lobes[k]`; `missing` is the message when there
+/// is no `lobes` key.
+fn lobe_tables<'a>(
+    f: &mut Fields<'a>,
+    limit: usize,
+    what: &str,
+    missing: String,
+) -> Result<Vec<Fields<'a>>, MaterialError> {
     let name = f.name.clone();
     let Some(v) = f.get("lobes") else {
-        return err(format!("{name}: missing `lobes`"));
+        return err(missing);
     };
     let Some(arr) = v.as_array() else {
         return err(format!("{name} lobes: expected an array of tables"));
@@ -211,23 +216,34 @@ fn parse_lobes(
     if arr.is_empty() {
         return err(format!("{name} lobes: the list is empty"));
     }
-    let (limit, what) = if with_exponent {
-        (MAX_PHONG_LOBES, "phong-peaks lobes")
-    } else {
-        (MAX_DELTAS, "delta normals")
-    };
     if arr.len() > limit {
         return err(format!(
             "{name} lobes: {} {what} is above the limit of {limit}",
             arr.len()
         ));
     }
-    let mut out = Vec::with_capacity(arr.len());
-    for (k, item) in arr.iter().enumerate() {
-        let Some(t) = item.as_table() else {
-            return err(format!("{name} lobes[{}]: expected a table", k + 1));
-        };
-        let mut lf = Fields::new(format!("{name} lobes[{}]", k + 1), t);
+    arr.iter()
+        .enumerate()
+        .map(|(k, item)| match item.as_table() {
+            Some(t) => Ok(Fields::new(format!("{name} lobes[{}]", k + 1), t)),
+            None => err(format!("{name} lobes[{}]: expected a table", k + 1)),
+        })
+        .collect()
+}
+
+fn parse_lobes(
+    f: &mut Fields<'_>,
+    with_exponent: bool,
+) -> Result<Vec<(DVec3, f64, f64)>, MaterialError> {
+    let name = f.name.clone();
+    let (limit, what) = if with_exponent {
+        (MAX_PHONG_LOBES, "phong-peaks lobes")
+    } else {
+        (MAX_DELTAS, "delta normals")
+    };
+    let tables = lobe_tables(f, limit, what, format!("{name}: missing `lobes`"))?;
+    let mut out = Vec::with_capacity(tables.len());
+    for (k, mut lf) in tables.into_iter().enumerate() {
         let ax = axis(&mut lf, "axis")?
             .ok_or_else(|| MaterialError(format!("{name} lobes[{}]: missing `axis`", k + 1)))?;
         let w = lf.req_number("weight")?;
@@ -439,30 +455,16 @@ fn sub_ndf(name: &str, v: &toml::Value, depth: usize) -> Result<Ndf, MaterialErr
 /// (`alpha_x` and `alpha_y` instead of `alpha` for an anisotropic lobe).
 fn parse_mixture(f: &mut Fields<'_>) -> Result<Mixture, MaterialError> {
     let name = f.name.clone();
-    let Some(v) = f.get("lobes") else {
-        return err(format!(
+    let tables = lobe_tables(
+        f,
+        crate::ndf::mixture::MAX_MIXTURE_LOBES,
+        "mixture lobes",
+        format!(
             "{name}: a mixture needs `lobes = [ {{ kind = \"ggx\", alpha = 0.1, weight = 1 }}, … ]`"
-        ));
-    };
-    let Some(arr) = v.as_array() else {
-        return err(format!("{name} lobes: expected an array of tables"));
-    };
-    if arr.is_empty() {
-        return err(format!("{name} lobes: the list is empty"));
-    }
-    let limit = crate::ndf::mixture::MAX_MIXTURE_LOBES;
-    if arr.len() > limit {
-        return err(format!(
-            "{name} lobes: {} mixture lobes is above the limit of {limit}",
-            arr.len()
-        ));
-    }
-    let mut out = Vec::with_capacity(arr.len());
-    for (k, item) in arr.iter().enumerate() {
-        let Some(t) = item.as_table() else {
-            return err(format!("{name} lobes[{}]: expected a table", k + 1));
-        };
-        let mut lf = Fields::new(format!("{name} lobes[{}]", k + 1), t);
+        ),
+    )?;
+    let mut out = Vec::with_capacity(tables.len());
+    for (k, mut lf) in tables.into_iter().enumerate() {
         let dist = match lf.string("kind")? {
             Some("ggx") => Distribution::Ggx,
             Some("beckmann") => Distribution::Beckmann,
