@@ -137,3 +137,66 @@ fn with_warnings(input: Input) -> (Input, Vec<String>) {
     };
     (input, warnings)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::NormalConvention;
+
+    /// An upload (`load_bytes`) loads exactly as the same file does (`load`): the same map and
+    /// the same warnings, for a height map and a normal map in both conventions.
+    #[test]
+    fn bytes_load_as_the_file_does() {
+        let dir = std::env::temp_dir().join(format!("meso-input-bytes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let map = crate::fixtures::gaussian(24, 0.1, 0.02, 3, 0.05).unwrap();
+        let (png, scale) = map.encode_png16().unwrap();
+        let path = dir.join("h.png");
+        std::fs::write(&path, &png).unwrap();
+        let kind = InputKind::Heights {
+            texel_size: 0.05,
+            height_scale: scale,
+            border: Border::Wrap,
+        };
+        let (a, wa) = load(&path, kind, &ExtractParams::default()).unwrap();
+        let (b, wb) = load_bytes(&path, &png, kind).unwrap();
+        match (a, b) {
+            (Input::Heights(a), Input::Heights(b)) => assert_eq!(a, b),
+            _ => panic!("height maps expected"),
+        }
+        assert_eq!(wa, wb);
+        let mut raw = Vec::new();
+        for k in 0..16u32 * 8 {
+            raw.extend_from_slice(&[(k * 7 % 256) as u8, (k * 13 % 256) as u8, 200]);
+        }
+        let mut png = Vec::new();
+        {
+            use image::ImageEncoder;
+            image::codecs::png::PngEncoder::new(&mut png)
+                .write_image(&raw, 16, 8, image::ExtendedColorType::Rgb8)
+                .unwrap();
+        }
+        let path = dir.join("n.png");
+        std::fs::write(&path, &png).unwrap();
+        for conv in [NormalConvention::Gl, NormalConvention::Dx] {
+            let kind = InputKind::Normals(conv);
+            let (a, wa) = load(&path, kind, &ExtractParams::default()).unwrap();
+            let (b, wb) = load_bytes(&path, &png, kind).unwrap();
+            match (a, b) {
+                (Input::Normals(a), Input::Normals(b)) => assert_eq!(a, b),
+                _ => panic!("normal maps expected"),
+            }
+            assert_eq!(wa, wb);
+        }
+        let header = crate::heightmap::probe_bytes(&path, &png).unwrap();
+        assert_eq!((header.width, header.height, header.color), (16, 8, true));
+        assert_eq!(header, crate::probe(&path).unwrap());
+        assert!(load_bytes(&path, &png[..png.len() / 2], kind_of_normals()).is_err());
+        assert!(crate::heightmap::probe_bytes(&path, b"").is_err());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    fn kind_of_normals() -> InputKind {
+        InputKind::Normals(NormalConvention::Gl)
+    }
+}
