@@ -600,9 +600,20 @@ test('Open texture…: a height map, a level and a clicked texel show its lobes,
   // Level 2 (8 × 8 texels, 4 × 4 cells each), then click texel [1, 2] on the image.
   await page.selectOption('#tex-level', '2');
   await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel.startsWith('2/'));
+  await page.waitForTimeout(300);
   const ndfBefore = await page.getAttribute('#ndf-img', 'src');
+  // The NDF picture and the preview asked for that texel, and answered.
+  const forTexel = (route, extra) => page.waitForResponse((r) => {
+    if (!r.url().endsWith(route)) return false;
+    const b = JSON.parse(r.request().postData() || '{}');
+    return !!b.material && !!b.material.ndf && JSON.stringify(b.material.ndf.texel) === '[1,2]' && extra(b);
+  }, { timeout: 60000 });
+  const ndfReply = forTexel('/api/ndf.png', (b) => b.style === 'plot');
+  const renderReply = forTexel('/api/texture/render', (b) => !!b.texture);
   const at = await page.evaluate(() => window.mesoEditor.texelClientPosition(2, 1, 2));
   await page.mouse.click(at.x, at.y);
+  assert.equal((await ndfReply).status(), 200);
+  assert.equal((await renderReply).status(), 200);
   await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel === '2/1/2');
   assert.equal(await page.inputValue('#tex-row'), '1');
   assert.equal(await page.inputValue('#tex-col'), '2');
