@@ -29,13 +29,34 @@ use std::f64::consts::PI;
 /// Lanes of the f32 delta-sum kernel.
 pub const LANES: usize = 8;
 
-/// A chunk of up to [`LANES`] normals of a multiple surface, structure of arrays.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct DeltaChunk {
-    nx: [f32; LANES],
-    ny: [f32; LANES],
-    nz: [f32; LANES],
-    w: [f32; LANES],
+/// The weighted normals of a multiple surface as f32 structure-of-arrays, padded to a multiple
+/// of [`LANES`] (padding: normal `+z`, weight 0, which adds nothing): what the delta-sum
+/// kernels of meso-core and the renderer read, [`LANES`] at a time or the first `count`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LaneNormals {
+    /// Normal x, y, z (local frame, unit) and the weight of each normal (the Eq. 4 sum's).
+    pub nx: Vec<f32>,
+    /// See [`LaneNormals::nx`].
+    pub ny: Vec<f32>,
+    /// See [`LaneNormals::nx`].
+    pub nz: Vec<f32>,
+    /// See [`LaneNormals::nx`].
+    pub w: Vec<f32>,
+    /// The real normals (the rest is padding).
+    pub count: usize,
+}
+
+/// A material compiled to weighted normals under Phong facets (half vector) in the
+/// multiple-surface form, Eq. 4/11: `f = specular · Σ w_k (n_k·H)^η (n_k·i)⁺ / cos θi + ρ/π`.
+/// Delta sums are that exactly; Phong peaks by a node quadrature (< 1 %).
+#[derive(Clone, Copy, Debug)]
+pub struct PhongNormals<'a> {
+    /// The normals and their weights.
+    pub normals: &'a LaneNormals,
+    /// The facet exponent η.
+    pub exponent: f32,
+    /// The facet specular colour (RGB).
+    pub specular: [f32; 3],
 }
 
 /// [`FastBrdf::path`] of a Beckmann or GGX NDF (or a mixture of them) under mirror facets in the microfacet form with
@@ -260,26 +281,21 @@ fn catmull_rom(v: [f64; 4], t: f64) -> f64 {
         + (3.0 * v[1] - v[0] - 3.0 * v[2] + v[3]) * t3)
 }
 
-/// Pack weighted normals into f32 chunks of [`LANES`].
-fn chunk(nodes: &[(DVec3, f64)]) -> Vec<DeltaChunk> {
-    nodes
-        .chunks(LANES)
-        .map(|c| {
-            let mut ch = DeltaChunk {
-                nx: [0.0; LANES],
-                ny: [0.0; LANES],
-                nz: [1.0; LANES],
-                w: [0.0; LANES],
-            };
-            for (k, (n, w)) in c.iter().enumerate() {
-                ch.nx[k] = n.x as f32;
-                ch.ny[k] = n.y as f32;
-                ch.nz[k] = n.z as f32;
-                ch.w[k] = *w as f32;
-            }
-            ch
-        })
-        .collect()
+/// Pack weighted normals into padded f32 lanes ([`LaneNormals`]).
+fn chunk(nodes: &[(DVec3, f64)]) -> LaneNormals {
+    let padded = nodes.len().div_ceil(LANES) * LANES;
+    let lane = |f: &dyn Fn(&(DVec3, f64)) -> f64, pad: f32| -> Vec<f32> {
+        let mut v: Vec<f32> = nodes.iter().map(|n| f(n) as f32).collect();
+        v.resize(padded, pad);
+        v
+    };
+    LaneNormals {
+        nx: lane(&|n| n.0.x, 0.0),
+        ny: lane(&|n| n.0.y, 0.0),
+        nz: lane(&|n| n.0.z, 1.0),
+        w: lane(&|n| n.1, 0.0),
+        count: nodes.len(),
+    }
 }
 
 /// A fixed quadrature of Phong peaks by weighted nodes — the NDF as a dense multiple surface.
@@ -318,7 +334,7 @@ pub const MAX_NODES: usize = 512;
 #[derive(Clone, Debug)]
 enum Kind {
     DeltaPhong {
-        chunks: Vec<DeltaChunk>,
+        chunks: LaneNormals,
         exponent: f32,
         specular: [f32; 3],
     },
@@ -510,6 +526,39 @@ impl FastBrdf {
         self.policy
     }
 
+    /// The weighted normals under Phong facets when the plan is one ([`PhongNormals`]: delta
+    /// sums and, under [`Policy::Interactive`], Phong peaks by nodes), for kernels of other
+    /// crates (the renderer's stream kernel) to run on; `None` otherwise.
+    #[must_use]
+    pub fn phong_normals(&self) -> Option<PhongNormals<'_>> {
+        match &self.kind {
+            Kind::DeltaPhong {
+                chunks,
+                exponent,
+                specular,
+            } => Some(PhongNormals {
+                normals: chunks,
+                exponent: *exponent,
+                specular: *specular,
+            }),
+            _ => None,
+        }
+    }
+
+    /// The Beckmann or GGX NDF when the plan is the closed-form microfacet BRDF of one lobe
+    /// (mirror facets, microfacet form, Smith `Λ` in closed form: [`CLOSED_MICROFACET_PATH`]),
+    /// for kernels of other crates to specialise; `None` otherwise.
+    #[must_use]
+    pub fn closed_microfacet(&self) -> Option<&crate::ndf::microfacet::Microfacet> {
+        match &self.kind {
+            Kind::Mirror {
+                lambda: Some(Lambda::Closed(mf)),
+                ..
+            } => Some(mf),
+            _ => None,
+        }
+    }
+
     /// True when every evaluation runs the Eq. 2/8 quadrature (no closed form, table or kernel
     /// applies to the material): the slow case, which previews may want to replace.
     #[must_use]
@@ -535,14 +584,20 @@ impl FastBrdf {
                 let (hx, hy, hz) = (h.x as f32, h.y as f32, h.z as f32);
                 let (ix, iy, iz) = (i.x as f32, i.y as f32, i.z as f32);
                 let mut acc = 0.0f32;
-                for c in chunks {
+                let c = chunks;
+                for (((nx, ny), nz), w) in
+                    c.nx.chunks_exact(LANES)
+                        .zip(c.ny.chunks_exact(LANES))
+                        .zip(c.nz.chunks_exact(LANES))
+                        .zip(c.w.chunks_exact(LANES))
+                {
                     let mut lane = [0.0f32; LANES];
                     // Indexed over the SoA lanes: vectorised as written.
                     #[allow(clippy::needless_range_loop)]
                     for k in 0..LANES {
-                        let nh = (c.nx[k] * hx + c.ny[k] * hy + c.nz[k] * hz).max(0.0);
-                        let ni = (c.nx[k] * ix + c.ny[k] * iy + c.nz[k] * iz).max(0.0);
-                        lane[k] = c.w[k] * nh.powf(*exponent) * ni;
+                        let nh = (nx[k] * hx + ny[k] * hy + nz[k] * hz).max(0.0);
+                        let ni = (nx[k] * ix + ny[k] * iy + nz[k] * iz).max(0.0);
+                        lane[k] = w[k] * nh.powf(*exponent) * ni;
                     }
                     acc += lane.iter().sum::<f32>();
                 }

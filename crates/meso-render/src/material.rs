@@ -7,14 +7,19 @@
 //! shading frame: on a sphere the tangent runs along the parallels around the pole, on quads
 //! along `edge_u` (`docs/scene-format.md`).
 //!
-//! The hot case of the paper — a multiple surface (delta sum of ≤ a few dozen normals) with
-//! Phong (`N·H`) facets in the multiple-surface form (Eq. 4/11),
-//! `f(i, o) = Σ_k w_k · spec · max(0, N_k·H)^η · max(0, N_k·i) / cos θ_i + diffuse/π` —
-//! is evaluated here on flat f32 lanes with the renderer's branch-free [`fast_pow`]
-//! (relative error ≈ `1.5e-7·(1 + |η log2(N·H)|)`), eight normals per chunk. Every other
-//! material goes through [`FastBrdf::eval`] (exact sums, the Phong-peak node kernel, the
-//! collapsed mirror, or the fast quadrature; see `meso_core::shading`). Nothing allocates per
-//! call.
+//! The shader does not look at the material's kinds: it adapts meso-core's compiled plan. Two
+//! plans get an f32 kernel of the renderer's own:
+//! * weighted normals under Phong (`N·H`) facets in the multiple-surface form (Eq. 4/11) — the
+//!   hot case of the paper, a delta sum of a few dozen normals, and Phong peaks by their node
+//!   quadrature: `f(i, o) = Σ_k w_k · spec · max(0, N_k·H)^η · max(0, N_k·i) / cos θ_i +
+//!   diffuse/π`, on the plan's flat f32 lanes ([`FastBrdf::phong_normals`], not copied) with the
+//!   renderer's branch-free [`fast_pow`] (relative error ≈ `1.5e-7·(1 + |η log2(N·H)|)`), eight
+//!   normals per chunk;
+//! * one Beckmann or GGX lobe under Schlick mirror facets with Smith ([`MicrofacetLobe`], from
+//!   [`FastBrdf::closed_microfacet`]).
+//!
+//! Every other plan goes through [`FastBrdf::eval`] (exact sums, the collapsed mirror, or the
+//! fast quadrature; see `meso_core::shading`). Nothing allocates per call.
 //!
 //! ```
 //! use meso_core::material::Material;
@@ -29,30 +34,26 @@
 use crate::geometry::ShadingPoint;
 use crate::shader::{colour_pairs, fast_pow, lobe_pairs, pairs_one_by_one, LobeSlices, Shader};
 use glam::DVec3;
-use meso_core::convolution::Form;
 use meso_core::material::Material;
-use meso_core::ndf::Ndf;
 use meso_core::shading::FastBrdf;
-use meso_core::transfer::{PhongVariant, Transfer};
+use meso_core::transfer::Transfer;
 
 // `local_point` lives with the shading contract (`crate::shader`); re-exported here, where
 // callers have always found it.
 pub use crate::shader::local_point;
 
-/// Lanes of one chunk of the delta-sum kernel.
-const LANES: usize = 8;
+/// Lanes of one chunk of the delta-sum kernel (the plan's padding).
+const LANES: usize = meso_core::shading::LANES;
 
+/// The renderer's kernel for a compiled plan (the plan itself is meso-core's [`FastBrdf`]).
 #[derive(Clone, Debug)]
 enum Kind {
-    /// Delta sum × Phong (half vector), multiple-surface form.
+    /// Weighted normals under Phong facets ([`FastBrdf::phong_normals`]: delta sums, Phong
+    /// peaks by nodes): the normals are the plan's; only the per-normal exponent array of the
+    /// stream kernel and `ρ/π` are kept here.
     DeltaPhong {
-        /// The normals as flat arrays `[nx, ny, nz, w, η]`, padded to a multiple of [`LANES`]
-        /// (padding: `+z`, weight 0): the per-hit kernel reads them 8 lanes at a time, the
-        /// stream kernel the first `count`.
-        flat: [Vec<f32>; 5],
-        count: usize,
-        exponent: f32,
-        specular: [f32; 3],
+        /// `η` for each of the plan's `count` normals.
+        exponents: Vec<f32>,
         diffuse: [f32; 3],
     },
     /// The common material: a Beckmann or GGX NDF under Schlick mirror facets in the microfacet
@@ -87,20 +88,18 @@ pub struct MicrofacetLobe {
 }
 
 impl MicrofacetLobe {
-    /// The lobe of `material` when it is the common material (module docs), else `None`.
+    /// The lobe of a compiled plan when it is the common material (module docs: the plan's
+    /// closed-form microfacet BRDF of one lobe, [`FastBrdf::closed_microfacet`], with Schlick or
+    /// no Fresnel), else `None`.
     #[must_use]
-    pub fn of(material: &Material) -> Option<MicrofacetLobe> {
-        use meso_core::material::ShadowingKind;
+    pub fn of(plan: &FastBrdf) -> Option<MicrofacetLobe> {
         use meso_core::ndf::Distribution;
         use meso_core::transfer::Fresnel;
-        let (Ndf::Microfacet(mf), Transfer::Mirror { fresnel, specular }, Form::Microfacet) =
-            (&material.ndf, &material.transfer, material.form)
-        else {
+        let mf = plan.closed_microfacet()?;
+        let material = plan.material();
+        let Transfer::Mirror { fresnel, specular } = &material.transfer else {
             return None;
         };
-        if material.shadowing != ShadowingKind::Smith {
-            return None;
-        }
         let f0 = match fresnel {
             Fresnel::Schlick { f0 } => *f0,
             Fresnel::None => [1.0; 3],
@@ -264,49 +263,34 @@ pub struct MaterialShader {
 }
 
 impl MaterialShader {
-    /// Compile `material` for rendering (once per material; the result is shared by threads).
+    /// Compile `material` for rendering (once per material; the result is shared by threads):
+    /// meso-core's plan ([`FastBrdf::new`], the interactive policy), and the renderer's f32
+    /// kernel for the plans that have one (weighted normals under Phong facets, one Beckmann or
+    /// GGX lobe).
     #[must_use]
     pub fn new(material: &Material) -> MaterialShader {
         let brdf = FastBrdf::new(material);
-        let kind = match (&material.ndf, &material.transfer, material.form) {
-            (
-                Ndf::Deltas(d),
-                Transfer::Phong {
-                    exponent,
-                    specular,
-                    variant: PhongVariant::Half,
-                },
-                Form::MultipleSurface,
-            ) => {
-                let inv_pi = std::f64::consts::FRAC_1_PI;
-                let ns = d.normals();
-                let padded = ns.len().div_ceil(LANES) * LANES;
-                let lane = |f: &dyn Fn(usize) -> f32, pad: f32| -> Vec<f32> {
-                    (0..padded)
-                        .map(|k| if k < ns.len() { f(k) } else { pad })
-                        .collect()
-                };
-                let flat = [
-                    lane(&|k| ns[k].normal.x as f32, 0.0),
-                    lane(&|k| ns[k].normal.y as f32, 0.0),
-                    lane(&|k| ns[k].normal.z as f32, 1.0),
-                    lane(&|k| ns[k].weight as f32, 0.0),
-                    vec![*exponent as f32; padded],
-                ];
-                Kind::DeltaPhong {
-                    flat,
-                    count: ns.len(),
-                    exponent: *exponent as f32,
-                    specular: specular.map(|s| s as f32),
-                    diffuse: material.diffuse.map(|a| (a * inv_pi) as f32),
-                }
+        let kind = if let Some(p) = brdf.phong_normals() {
+            Kind::DeltaPhong {
+                exponents: vec![p.exponent; p.normals.count],
+                diffuse: material
+                    .diffuse
+                    .map(|a| (a * std::f64::consts::FRAC_1_PI) as f32),
             }
-            _ => match MicrofacetLobe::of(material) {
-                Some(l) => Kind::Microfacet(l),
-                None => Kind::General,
-            },
+        } else if let Some(l) = MicrofacetLobe::of(&brdf) {
+            Kind::Microfacet(l)
+        } else {
+            Kind::General
         };
         MaterialShader { brdf, kind }
+    }
+
+    /// The plan's weighted normals (for [`Kind::DeltaPhong`], built only from a plan that has
+    /// them).
+    fn phong(&self) -> meso_core::shading::PhongNormals<'_> {
+        self.brdf
+            .phong_normals()
+            .expect("DeltaPhong is built from a plan with weighted normals")
     }
 
     /// The compiled material.
@@ -341,13 +325,9 @@ impl Shader for MaterialShader {
             return [0.0; 3];
         }
         match &self.kind {
-            Kind::DeltaPhong {
-                flat,
-                exponent,
-                specular,
-                diffuse,
-                ..
-            } => {
+            Kind::DeltaPhong { diffuse, .. } => {
+                let p = self.phong();
+                let (n, specular) = (p.normals, p.specular);
                 let h = wi + wo;
                 let l = h.length();
                 if l < 1e-12 {
@@ -356,14 +336,13 @@ impl Shader for MaterialShader {
                 let h = h / l;
                 let (hx, hy, hz) = (h.x as f32, h.y as f32, h.z as f32);
                 let (ix, iy, iz) = (wi.x as f32, wi.y as f32, wi.z as f32);
-                let e = *exponent;
+                let e = p.exponent;
                 let mut acc = 0.0f32;
-                let [nx, ny, nz, w, _] = flat;
-                for (((nx, ny), nz), w) in nx
-                    .chunks_exact(LANES)
-                    .zip(ny.chunks_exact(LANES))
-                    .zip(nz.chunks_exact(LANES))
-                    .zip(w.chunks_exact(LANES))
+                for (((nx, ny), nz), w) in
+                    n.nx.chunks_exact(LANES)
+                        .zip(n.ny.chunks_exact(LANES))
+                        .zip(n.nz.chunks_exact(LANES))
+                        .zip(n.w.chunks_exact(LANES))
                 {
                     let mut lane = [0.0f32; LANES];
                     // Indexed over the SoA lanes: vectorised as written.
@@ -405,23 +384,18 @@ impl Shader for MaterialShader {
     fn eval_pairs(&self, wi: [&[f32]; 3], wo: [&[f32]; 3], out: [&mut [f32]; 3]) {
         let [o0, o1, o2] = out;
         match &self.kind {
-            Kind::DeltaPhong {
-                flat,
-                count,
-                specular,
-                diffuse,
-                ..
-            } => {
-                let n = *count;
+            Kind::DeltaPhong { exponents, diffuse } => {
+                let p = self.phong();
+                let (l, n) = (p.normals, p.normals.count);
                 let lobes = LobeSlices {
-                    nx: &flat[0][..n],
-                    ny: &flat[1][..n],
-                    nz: &flat[2][..n],
-                    weight: &flat[3][..n],
-                    exponent: &flat[4][..n],
+                    nx: &l.nx[..n],
+                    ny: &l.ny[..n],
+                    nz: &l.nz[..n],
+                    weight: &l.w[..n],
+                    exponent: exponents,
                 };
                 lobe_pairs(&lobes, true, wi, wo, o0);
-                colour_pairs(o0, o1, o2, *specular, *diffuse);
+                colour_pairs(o0, o1, o2, p.specular, *diffuse);
             }
             Kind::Microfacet(l) => l.eval_pairs(wi, wo, [o0, o1, o2]),
             Kind::General => pairs_one_by_one(wi, wo, [o0, o1, o2], |i, o| {
