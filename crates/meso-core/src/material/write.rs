@@ -21,10 +21,10 @@
 use super::parse::axis_value;
 use super::{Material, MaterialError, MaterialSpec, NdfSpec, ShadowingKind};
 use crate::convolution::{Accuracy, Form};
-use crate::frame::spherical_direction_deg;
+use crate::frame::deg_to_rad;
 use crate::ndf::{
-    Cylinder, DeltaSum, Distribution, Microfacet, Ndf, PhongLobe, PhongPeaks, Radial, Tabulated,
-    VonMisesFisher, WeightedNormal,
+    Cylinder, Distribution, Microfacet, Ndf, PhongLobe, PhongPeaks, Radial, Tabulated,
+    VonMisesFisher,
 };
 use crate::transfer::{Fresnel, PhongVariant, Transfer};
 use glam::DVec3;
@@ -247,14 +247,9 @@ fn write_ndf(s: &mut String, ndf: &Ndf) {
         Ndf::Deltas(d) => {
             let normals = d.normals();
             let w = weights(&normals.iter().map(|n| n.weight).collect::<Vec<_>>());
-            let stored = |normal: DVec3| {
-                DeltaSum::new(vec![WeightedNormal {
-                    normal,
-                    weight: 1.0,
-                }])
-                .ok()
-                .map(|d| d.normals()[0].normal)
-            };
+            // DeltaSum::new divides each normal by its length (its own constructor per axis
+            // would build a cap index each time: 100k normals would take a minute).
+            let stored = |v: DVec3| Some(v / v.length());
             s.push_str("lobes = [\n");
             for (n, w) in normals.iter().zip(w) {
                 let _ = writeln!(
@@ -302,29 +297,30 @@ fn write_ndf(s: &mut String, ndf: &Ndf) {
             // Harmonics::from_coeffs multiplies every coefficient by 1/(2√π c₀₀).
             let back = |v: &[f64]| {
                 let scale = 1.0 / (2.0 * std::f64::consts::PI.sqrt() * v[0]);
-                v.iter().map(|x| x * scale).collect::<Vec<_>>()
+                v.iter().zip(c).all(|(x, y)| x * scale == *y)
             };
             let _ = writeln!(s, "band = {}", h.lmax());
-            write_array(s, "coefficients", &prescaled(c, Scaling::Multiply, back));
+            let v = prescaled(c, Scaling::Multiply, TRIES, back);
+            write_array(s, "coefficients", &v);
         }
         Ndf::Tabulated(t) => {
             let g = t.grid();
             let back = |v: &[f64]| {
-                Tabulated::from_values(g, v.to_vec())
-                    .map_or_else(|_| Vec::new(), |t| t.values().to_vec())
+                Tabulated::from_values(g, v.to_vec()).is_ok_and(|b| b.values() == t.values())
             };
             let _ = writeln!(s, "n_z = {}\nn_phi = {}", g.n_z, g.n_phi);
-            write_array(s, "values", &prescaled(t.values(), Scaling::Multiply, back));
+            let v = prescaled(t.values(), Scaling::Multiply, TRIES, back);
+            write_array(s, "values", &v);
         }
         Ndf::Radial(r) => {
             let deg: Vec<f64> = r.theta().iter().map(|t| degrees_of(*t)).collect();
             let theta: Vec<f64> = deg.iter().map(|d| d.to_radians()).collect();
             let back = |v: &[f64]| {
-                Radial::new(theta.clone(), v.to_vec())
-                    .map_or_else(|_| Vec::new(), |r| r.values().to_vec())
+                Radial::new(theta.clone(), v.to_vec()).is_ok_and(|b| b.values() == r.values())
             };
             write_array(s, "theta", &deg);
-            write_array(s, "density", &prescaled(r.values(), Scaling::Divide, back));
+            let v = prescaled(r.values(), Scaling::Divide, TRIES, back);
+            write_array(s, "density", &v);
         }
     }
 }
@@ -401,30 +397,40 @@ enum Scaling {
 /// The lobe weights to write so that the NDF constructors' rescaling (sum, then divide by the
 /// sum) gives `w` exactly.
 fn weights(w: &[f64]) -> Vec<f64> {
-    prescaled(w, Scaling::Divide, |v| {
+    prescaled(w, Scaling::Divide, TRIES, |v| {
         let total: f64 = v.iter().sum();
-        v.iter().map(|x| x / total).collect()
+        v.iter().zip(w).all(|(x, y)| x / total == *y)
     })
 }
 
 /// Factors tried by [`prescaled`] on each side of 1 (a radial NDF's mass is computed with a
-/// relative error near 1e-14, about 50 ulps, hence the range).
+/// relative error near 1e-14, about 50 ulps, hence the range) …
 const TRIES: u32 = 400;
+/// … but at most this many numbers rescaled in all, so that long lists (100k delta weights,
+/// where a hit is rare anyway) stay quick to write.
+const MAX_WORK: usize = 400_000;
 
-/// Numbers `v` with `back(v) == w`, where `back` is the parser's rescaling of a list by a factor
-/// it computes from the list (`scaling`) and `w` is already rescaled (its factor is close to 1).
-/// Tries `w` itself, then `w` scaled by factors a few ulps from 1, each number nudged to the
-/// neighbour that the rescaling maps back onto its target. Returns `w` itself when no candidate
-/// reads back exactly (then the rescaled list differs from `w` in the last digits).
-fn prescaled(w: &[f64], scaling: Scaling, back: impl Fn(&[f64]) -> Vec<f64>) -> Vec<f64> {
-    if back(w) == w {
+/// Numbers `v` that read back as `w` (`reads_back(v)`: the parser's rescaling of a list by a
+/// factor it computes from the list, `scaling`, gives `w`), `w` being already rescaled (its
+/// factor is close to 1). Tries `w` itself, then `w` scaled by `tries` factors (fewer for long
+/// lists, [`MAX_WORK`]) on each side of 1, an ulp apart, each number nudged to the neighbour
+/// that the rescaling maps back onto its target. Returns `w` itself when no candidate reads back exactly (then the rescaled list
+/// differs from `w` in the last digits).
+fn prescaled(
+    w: &[f64],
+    scaling: Scaling,
+    tries: u32,
+    reads_back: impl Fn(&[f64]) -> bool,
+) -> Vec<f64> {
+    if reads_back(w) {
         return w.to_vec();
     }
     let eps = f64::EPSILON;
-    for k in 1..=TRIES {
+    let tries = tries.min(u32::try_from(MAX_WORK / w.len().max(1)).unwrap_or(u32::MAX));
+    for k in 1..=tries {
         for c in [1.0 + f64::from(k) * eps, 1.0 - f64::from(k) * eps / 2.0] {
             let v: Vec<f64> = w.iter().map(|&x| preimage(x, c, scaling)).collect();
-            if back(&v) == w {
+            if reads_back(&v) {
                 return v;
             }
         }
@@ -450,24 +456,25 @@ fn preimage(x: f64, c: f64, scaling: Scaling) -> f64 {
         .unwrap_or(guess)
 }
 
-/// Candidates for a number `x` that prints short: `x` rounded to 1, 2, … 17 significant digits,
-/// then `x` and its neighbours; sorted by printed length, duplicates removed.
-fn short_candidates(x: f64) -> Vec<f64> {
-    let mut c: Vec<f64> = (0..17)
-        .filter_map(|d| format!("{x:.d$e}").parse().ok())
-        .collect();
+/// `x` and its four neighbours on each side.
+fn neighbours(x: f64) -> Vec<f64> {
     let (mut up, mut down) = (x, x);
-    c.push(x);
+    let mut c = vec![x];
     for _ in 0..4 {
         (up, down) = (up.next_up(), down.next_down());
         c.extend([up, down]);
     }
-    c.retain(|v: &f64| v.is_finite());
-    c.sort_by_key(|v| num(*v).len());
-    let mut out: Vec<f64> = Vec::with_capacity(c.len());
-    for v in c {
-        if !out.contains(&v) {
-            out.push(v);
+    c
+}
+
+/// `x` rounded to 1, 2, … 17 significant digits, shortest first, duplicates removed.
+fn roundings(x: f64) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(17);
+    for d in 0..17 {
+        if let Ok(v) = format!("{x:.d$e}").parse::<f64>() {
+            if v.is_finite() && !out.contains(&v) {
+                out.push(v);
+            }
         }
     }
     out
@@ -477,59 +484,66 @@ fn short_candidates(x: f64) -> Vec<f64> {
 /// `to_radians` (what the parser does) is `theta`, else the nearest.
 fn degrees_of(theta: f64) -> f64 {
     let d = theta.to_degrees();
-    short_candidates(d)
-        .into_iter()
-        .find(|c| c.to_radians() == theta)
-        .unwrap_or(d)
+    let mut c = roundings(d);
+    c.extend(neighbours(d));
+    c.into_iter().find(|c| c.to_radians() == theta).unwrap_or(d)
 }
 
 /// The numbers to write for an axis stored as `a == stored(axis_value(numbers))`:
-/// `[theta_deg, phi_deg]` when a pair reads back exactly (the shortest), else the vector
-/// `[x, y, z]` (or a neighbour of it that reads back exactly), else `a` as a vector.
+/// `[theta_deg, phi_deg]` when a pair reads back exactly (the shortest such pair), else the
+/// vector `[x, y, z]`. The pairs tried first are the full-precision angles of `a` and their close
+/// neighbours (φ also a turn either way, as a file may say −30 or 330); only when one of them
+/// reads back are shorter roundings tried, so an axis that no degrees give costs little.
 fn axis_numbers(a: DVec3, stored: &dyn Fn(DVec3) -> Option<DVec3>) -> Vec<f64> {
     let reads_back = |n: &[f64]| axis_value(n).ok().and_then(stored) == Some(a);
-    // θ and φ from atan2 (well conditioned everywhere, unlike acos), φ in (-180, 180] and
-    // shifted by whole turns (a file may say -30 or 330).
+    // θ and φ from atan2 (well conditioned everywhere, unlike acos), φ in (-180, 180].
     let td = a.x.hypot(a.y).atan2(a.z).to_degrees();
     let pd = a.y.atan2(a.x).to_degrees();
-    let mut phis = vec![0.0];
-    for turn in [0.0, 360.0, -360.0, 720.0] {
-        phis.extend(short_candidates(pd + turn));
-    }
-    let mut best: Option<(usize, [f64; 2])> = None;
-    for th in short_candidates(td) {
-        if !(0.0..=180.0).contains(&th)
-            || (spherical_direction_deg(th, 0.0).z - a.z).abs() > 4.0 * f64::EPSILON
-        {
-            continue;
-        }
-        for &ph in &phis {
-            let len = num(th).len() + num(ph).len();
-            if best.is_some_and(|(l, _)| l <= len) {
-                continue;
-            }
-            if reads_back(&[th, ph]) {
-                best = Some((len, [th, ph]));
-            }
-        }
-    }
-    if let Some((_, b)) = best {
-        return b.to_vec();
-    }
-    let step = |x: f64, k: i32| match k {
-        -1 => x.next_down(),
-        1 => x.next_up(),
-        _ => x,
+    let turns = [0.0, 360.0, -360.0, 720.0];
+    // The sines and cosines `spherical_direction_deg` takes, to skip at little cost the pairs
+    // whose direction is not within a few ulps of `a` (normalising moves it by about one).
+    let trig = |d: f64| {
+        let (s, c) = deg_to_rad(d).sin_cos();
+        (d, s, c)
     };
-    for dx in [0, -1, 1] {
-        for dy in [0, -1, 1] {
-            for dz in [0, -1, 1] {
-                let v = [step(a.x, dx), step(a.y, dy), step(a.z, dz)];
-                if reads_back(&v) {
-                    return v.to_vec();
+    let close = |x: f64, y: f64| (x - y).abs() <= 4.0 * f64::EPSILON;
+    let thetas = |c: Vec<f64>| -> Vec<(f64, f64, f64)> {
+        c.into_iter()
+            .filter(|t| (0.0..=180.0).contains(t))
+            .map(trig)
+            .filter(|t| close(t.2, a.z))
+            .collect()
+    };
+    let phis = |c: &dyn Fn(f64) -> Vec<f64>| -> Vec<(f64, f64, f64)> {
+        let mut v = vec![trig(0.0)];
+        v.extend(turns.iter().flat_map(|t| c(pd + t)).map(trig));
+        v
+    };
+    let pairs = |ts: &[(f64, f64, f64)], ps: &[(f64, f64, f64)]| -> Vec<[f64; 2]> {
+        let mut out = Vec::new();
+        for &(th, st, _) in ts {
+            for &(ph, sp, cp) in ps {
+                if close(st * cp, a.x) && close(st * sp, a.y) {
+                    out.push([th, ph]);
                 }
             }
         }
+        out
+    };
+    let found = pairs(&thetas(neighbours(td)), &phis(&neighbours))
+        .into_iter()
+        .find(|p| reads_back(p));
+    let Some(mut best) = found else {
+        return a.to_array().to_vec();
+    };
+    let len = |p: &[f64; 2]| num(p[0]).len() + num(p[1]).len();
+    if len(&best) <= 10 {
+        return best.to_vec(); // already short, e.g. [0.0, 0.0] or [30.0, 90.0]
     }
-    a.to_array().to_vec()
+    for pair in pairs(&thetas(roundings(td)), &phis(&roundings)) {
+        if len(&pair) < len(&best) && reads_back(&pair) {
+            best = pair;
+        }
+    }
+    best.to_vec()
 }
