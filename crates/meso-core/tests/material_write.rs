@@ -704,3 +704,35 @@ fn rescaled_lists_of_any_ndf_read_back_within_rounding() {
         }
     }
 }
+
+/// Axes read from whole degrees are written as those degrees (φ in [0, 360)); the pole as
+/// `[0.0, 0.0]`.
+#[test]
+fn axes_from_degrees_are_written_as_those_degrees() {
+    let mut normals = vec![WeightedNormal {
+        normal: spherical_direction_deg(0.0, 123.0),
+        weight: 1.0,
+    }];
+    let mut expect = vec!["[0.0, 0.0]".to_owned()];
+    for t in (15..=165).step_by(15) {
+        for p in (0..360).step_by(30) {
+            normals.push(WeightedNormal {
+                normal: spherical_direction_deg(f64::from(t), f64::from(p)),
+                weight: 1.0,
+            });
+            expect.push(format!("[{t}.0, {p}.0]"));
+        }
+    }
+    let spec = MaterialSpec {
+        ndf: NdfSpec::Inline(Ndf::Deltas(DeltaSum::new(normals).unwrap())),
+        transfer: Transfer::Lambert { albedo: [0.5; 3] },
+        ..spec_of_kind("sphere", &mut rng(5))
+    };
+    let text = assert_round_trip(&spec);
+    let written: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.split("axis = ").nth(1))
+        .map(|l| &l[..l.find(']').unwrap() + 1])
+        .collect();
+    assert_eq!(written, expect);
+}

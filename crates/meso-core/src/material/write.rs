@@ -499,7 +499,12 @@ fn axis_numbers(a: DVec3, stored: &dyn Fn(DVec3) -> Option<DVec3>) -> Vec<f64> {
     // θ and φ from atan2 (well conditioned everywhere, unlike acos), φ in (-180, 180].
     let td = a.x.hypot(a.y).atan2(a.z).to_degrees();
     let pd = a.y.atan2(a.x).to_degrees();
-    let turns = [0.0, 360.0, -360.0, 720.0];
+    // φ in [0, 360) first, the way files usually give it.
+    let turns = if pd < 0.0 {
+        [360.0, 0.0, 720.0, -360.0]
+    } else {
+        [0.0, 360.0, -360.0, 720.0]
+    };
     // The sines and cosines `spherical_direction_deg` takes, to skip at little cost the pairs
     // whose direction is not within a few ulps of `a` (normalising moves it by about one).
     let trig = |d: f64| {
