@@ -14,9 +14,20 @@
 //!   themselves);
 //! * radial node angles as the shortest degrees that convert back to the stored radians.
 //!
-//! One limit: a radial node angle or an axis that no f64 number of degrees (or vector) produces —
-//! possible only for values not read from a file — is written to the nearest one, a last-digit
-//! difference. Every value read from a file, and every value built from degrees, is exact.
+//! Where no such numbers exist the writer writes the nearest ones and the value reads back
+//! within the last digits. The parser and the NDF constructors both rescale, so this happens:
+//! * for weights whose floating-point sum is not exactly 1 and densities whose computed
+//!   normalisation is not exactly 1 (in tests/material_write.rs, of 200 random NDFs each, exact:
+//!   phong-peaks and deltas 99 %, mixtures 96 %, tabulated 92 %, harmonics 100 %, radial 5 % —
+//!   its mass is computed to about 1e-14 — the rest within 1e-15 relative, radial 1e-9);
+//! * for an axis given as a vector whose computed length is not exactly 1 (about 1 in 5 random
+//!   unit vectors; within an ulp), and a radial node at radians no f64 number of degrees
+//!   gives (values not read from a file).
+//!
+//! An NDF that its constructor leaves as it is (weights summing to exactly 1, axes from degrees
+//! or of length exactly 1, …) reads back exactly, and so does every other part of a material.
+//! Making the NDF constructors' rescaling idempotent (keep numbers already normalised to within
+//! rounding) would make every NDF exact.
 
 use super::parse::axis_value;
 use super::{Material, MaterialError, MaterialSpec, NdfSpec, ShadowingKind};
