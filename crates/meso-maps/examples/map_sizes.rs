@@ -63,6 +63,27 @@ fn main() {
     let t = Instant::now();
     Pyramid::from_bytes(Path::new("<v2>"), &v2).unwrap();
     let read2_s = t.elapsed().as_secs_f64();
+    // What the quantisation moved (format 3 against the pyramid as extracted).
+    let (mut axis, mut weight, mut eta) = (0.0f64, 0.0f64, 0.0f64);
+    for (a, b) in pyramid.levels.iter().zip(&back.levels) {
+        assert_eq!(a.lobe_start, b.lobe_start);
+        for (x, y) in a.lobes.iter().zip(&b.lobes) {
+            axis = axis.max(x.axis.angle_between(y.axis));
+            weight = weight.max((x.weight - y.weight).abs());
+            eta = eta.max((x.exponent - y.exponent).abs() / x.exponent.max(1e-300));
+        }
+    }
+    let distinct: std::collections::HashSet<[u64; 3]> = pyramid.levels[0]
+        .lobes
+        .iter()
+        .map(|l| l.axis.to_array().map(f64::to_bits))
+        .collect();
+    println!(
+        "quantisation: axes within {axis:.2e} rad, weights {weight:.2e}, exponents {eta:.2e} \
+         relative; level 0 has {} distinct lobe axes among {}",
+        distinct.len(),
+        pyramid.levels[0].lobes.len()
+    );
     let lobes: usize = pyramid.levels.iter().map(|l| l.lobes.len()).sum();
     let texels: usize = pyramid.levels.iter().map(Level::texels).sum();
     println!(
