@@ -1,6 +1,6 @@
 //! The on-disk cache of height-map facet representations (`[ndf] kind = "heightmap"`,
 //! `represent = "facets"`, the default): the binned facet normals and their visibility
-//! ([`crate::resolver::facets_with_visibility`]) take seconds to minutes to build (every
+//! ([`crate::facet_ndf::facets_with_visibility`]) take seconds to minutes to build (every
 //! facet's horizon is marched in 32 azimuths) and are the same every time the same map is
 //! loaded with the same parameters, so they are kept in a file and read back by the next
 //! `meso brdf`, `meso render` or editor session.
@@ -20,10 +20,10 @@
 //! * Failing to create the folder or write the file only costs the next run the build; it is
 //!   not an error.
 
+use crate::facet_ndf::FacetVisibility;
 use crate::facets::NormalMode;
 use crate::heightmap::{Border, HeightMap};
 use crate::horizon::HorizonStats;
-use crate::resolver::FacetVisibility;
 use crate::visibility::BinnedVisibility;
 use glam::DVec3;
 use meso_core::ndf::{DeltaSum, Ndf, WeightedNormal};
@@ -161,7 +161,7 @@ pub const MAX_HASHED_BYTES: u64 = crate::disk_cache::MAX_HASHED_BYTES;
 
 /// The facets of the height map in `file` with their visibility, from the cache when it has
 /// them (the image is then not even decoded), else loaded with `load`, built with `build`
-/// (e.g. [`crate::resolver::facets_with_visibility`]) and stored. Returns whether the cache
+/// (e.g. [`crate::facet_ndf::facets_with_visibility`]) and stored. Returns whether the cache
 /// answered.
 ///
 /// # Errors

@@ -160,7 +160,7 @@ impl FacetNormals {
 
     /// Every facet as a delta of the core's delta-sum NDF (`Ndf::Deltas`, Eq. 3, weights the
     /// normalised true areas): the exact Eq. 1 density of the whole map, unmerged (for the
-    /// binned form with per-bin visibility see `crate::resolver::facets_with_visibility`).
+    /// binned form with per-bin visibility see `crate::facet_ndf::facets_with_visibility`).
     ///
     /// # Errors
     /// No facet with a positive weight.

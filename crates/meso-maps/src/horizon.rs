@@ -184,3 +184,14 @@ impl HorizonStats {
         x * x * (3.0 - 2.0 * x)
     }
 }
+
+/// The horizon masking–shadowing model of one texel: `G(i, o) = V(i)·V(o)` with
+/// [`HorizonStats::visibility`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HorizonVisibility(pub HorizonStats);
+
+impl meso_core::material::VisibilityModel for HorizonVisibility {
+    fn g(&self, i: DVec3, o: DVec3) -> f64 {
+        self.0.visibility(i) * self.0.visibility(o)
+    }
+}

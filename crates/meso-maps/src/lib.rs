@@ -27,6 +27,7 @@ pub mod baseline;
 pub mod disk_cache;
 pub mod error;
 pub mod facet_cache;
+pub mod facet_ndf;
 pub mod facets;
 pub mod fit;
 pub mod fixtures;
@@ -44,18 +45,19 @@ pub mod visibility;
 
 pub use baseline::{baseline_lobes, fit_baseline, Baseline, Lean};
 pub use error::{MapError, Result};
+pub use facet_ndf::{
+    facets_bytes, facets_with_visibility, facets_with_visibility_progress, FacetVisibility,
+};
 pub use facets::{FacetNormals, NormalMode};
 pub use fit::FitParams;
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
+pub use horizon::HorizonVisibility;
 pub use horizon::{HorizonMap, HorizonStats};
 pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_work, ExtractParams, Level, Method, Progress, Pyramid,
     PyramidInfo, Source,
 };
-pub use resolver::{
-    facets_bytes, facets_with_visibility, facets_with_visibility_progress, ExtractProgress,
-    FacetVisibility, HorizonVisibility, MapsResolver,
-};
+pub use resolver::{ExtractProgress, MapsResolver};
 pub use visibility::BinnedVisibility;
