@@ -133,7 +133,7 @@ fn texel_brdf(
 }
 
 /// Measured on 2026-12-02 (the bounds below are these figures rounded up): lobe axes within
-/// 2.51e-6 rad, weights within 1.48e-5, exponents within 1.08e-4 relative, horizon means and
+/// 2.51e-6 rad, weights within 1.13e-5, exponents within 1.08e-4 relative, horizon means and
 /// standard deviations within 1.92e-4 and 9.6e-5 rad (half a step of their 12-bit codes); the
 /// BRDF of 14 texels (every other level of a Gaussian and a woven map, horizon shadowing) at 36
 /// grid pairs and at the mirror pairs of their lobes within 1.90e-3 of its peak (Beckmann
@@ -153,6 +153,11 @@ fn quantisation_moves_lobes_and_brdf_by_the_stated_bounds() {
         let p = pyramid(map);
         let (f2, p2, f3, p3) = both(name, &p);
         compare(&p2, &p3, &mut w);
+        // A read map written again gives the same bytes (the cache and `meso extract` agree).
+        assert!(
+            p3.to_bytes() == p.to_bytes(),
+            "{name}: re-encoding changed the file"
+        );
         // Texels of every level: the corner and an inner one.
         for (k, l) in p2.levels.iter().enumerate().step_by(2) {
             for (row, col) in [(0, 0), (l.rows / 2, l.cols / 3)] {
@@ -179,7 +184,7 @@ fn quantisation_moves_lobes_and_brdf_by_the_stated_bounds() {
         brdf_worst[0], brdf_worst[1]
     );
     assert!(w.axis_rad < 2.6e-6, "{w:?}");
-    assert!(w.weight < 1.6e-5, "{w:?}");
+    assert!(w.weight < 1.2e-5, "{w:?}");
     assert!(w.eta_rel < 1.1e-4, "{w:?}");
     assert!(w.horizon_mean_rad < 1.95e-4, "{w:?}");
     assert!(w.horizon_sd_rad < 9.7e-5, "{w:?}");

@@ -606,10 +606,10 @@ mod pyramid {
         for (a, b) in p.levels.iter().zip(&q.levels) {
             assert_eq!(a.lobe_start, b.lobe_start);
             // Format 3 quantises (docs/map-format.md): axes to 2.9e-6 rad, weights to
-            // (1 + K)/2 / 65 535, exponents to 1.06e-4 (1 + 1/η) relative.
+            // 1/65 535, exponents to 1.06e-4 (1 + 1/η) relative.
             for (x, y) in a.lobes.iter().zip(&b.lobes) {
                 assert!(x.axis.angle_between(y.axis) < 2.9e-6);
-                assert!((y.weight - x.weight).abs() < 4.0 / 65535.0);
+                assert!((y.weight - x.weight).abs() < 1.0 / 65535.0);
                 assert!(rel(y.exponent, x.exponent) < 1.06e-4 * (1.0 + 1.0 / x.exponent));
             }
             assert_eq!(a.residual, b.residual);

@@ -3,8 +3,9 @@
 //!
 //! * Lobe axis: octahedral coordinates, 2 × 20 bits (the best of the four nearest codes;
 //!   angular error ≤ 2.9·10⁻⁶ rad).
-//! * Lobe weight: u16 share of the texel's total; read back as `q / Σq` (the texel's weights
-//!   sum to 1; error ≤ (1 + K)/2 / 65 535 for K lobes).
+//! * Lobe weight: u16 share of the texel's total, the codes of a texel adding to exactly
+//!   65 535 (largest remainders); read back as `q / Σq` (the texel's weights sum to 1; error
+//!   < 1/65 535).
 //! * Lobe exponent η: u16 of `log2(1 + η) / log2(1 + ETA_MAX)` (relative error
 //!   ≤ 1.06·10⁻⁴·(1 + 1/η)).
 //! * Horizon statistics: the weight as f32, the four mean angles as 12 bits over [0, π/2] and
@@ -259,6 +260,35 @@ fn angle_decode(q: u16, span: f64) -> f64 {
     f64::from(q.min(QH as u16)) / QH * span
 }
 
+/// The weight codes of one texel's lobes: `w / Σw · Q16` rounded, then the codes farthest
+/// above (below) their exact value lowered (raised) by one until they add to exactly Q16, so a
+/// code is within 1 of its exact value and decoding (`q / Σq`) then encoding gives the same
+/// codes back.
+fn weight_codes(w: &[f64]) -> Vec<u32> {
+    let sum: f64 = w.iter().sum();
+    let exact: Vec<f64> = w.iter().map(|x| x / sum * Q).collect();
+    let mut q: Vec<i64> = exact.iter().map(|x| x.round() as i64).collect();
+    let mut total: i64 = q.iter().sum();
+    while !q.is_empty() && total != Q as i64 {
+        let up = total < Q as i64;
+        // The code whose rounding went most the wrong way for the correction.
+        let i = (0..q.len())
+            .filter(|&i| if up { q[i] < Q as i64 } else { q[i] > 0 })
+            .max_by(|&a, &b| {
+                let (da, db) = (exact[a] - q[a] as f64, exact[b] - q[b] as f64);
+                if up {
+                    da.total_cmp(&db)
+                } else {
+                    db.total_cmp(&da)
+                }
+            })
+            .expect("a code can move");
+        q[i] += if up { 1 } else { -1 };
+        total += if up { 1 } else { -1 };
+    }
+    q.into_iter().map(|x| x as u32).collect()
+}
+
 /// Why `pyramid` cannot be stored (a value a map file cannot hold), or `None`.
 pub(super) fn unstorable(p: &Pyramid) -> Option<String> {
     for (k, l) in p.levels.iter().enumerate() {
@@ -331,8 +361,9 @@ fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
             for l in &p.levels {
                 for w in l.lobe_start.windows(2) {
                     let t = &l.lobes[w[0] as usize..w[1] as usize];
-                    let sum: f64 = t.iter().map(|x| x.weight).sum();
-                    col.extend(t.iter().map(|x| (x.weight / sum * Q).round() as u32));
+                    col.extend(weight_codes(
+                        &t.iter().map(|x| x.weight).collect::<Vec<_>>(),
+                    ));
                 }
             }
             vec![col]
@@ -652,6 +683,26 @@ mod tests {
             worst = worst.max(oct_decode(u, v).angle_between(a));
         }
         assert!(worst < 2.9e-6, "{worst}");
+    }
+
+    #[test]
+    fn weight_codes_add_up_and_read_back_to_themselves() {
+        for w in [
+            vec![1.0],
+            vec![0.5, 0.5],
+            vec![1.0 / 3.0; 3],
+            vec![0.1, 0.2, 0.3, 0.15, 0.25],
+            vec![1e-9, 1.0 - 1e-9],
+            vec![0.125; 8],
+        ] {
+            let q = weight_codes(&w);
+            assert_eq!(q.iter().sum::<u32>(), 65535, "{w:?}");
+            for (x, c) in w.iter().zip(&q) {
+                assert!((f64::from(*c) / Q - x).abs() < 1.0 / Q, "{w:?} {q:?}");
+            }
+            let back: Vec<f64> = q.iter().map(|&c| f64::from(c) / 65535.0).collect();
+            assert_eq!(weight_codes(&back), q);
+        }
     }
 
     #[test]
