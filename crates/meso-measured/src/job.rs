@@ -473,30 +473,28 @@ impl Lobes {
                     p.albedo[0], p.albedo[1], p.albedo[2]
                 );
             }
-            Lobes::Microfacet(p) => {
+            Lobes::Microfacet(LobeMicrofacetParams {
+                f0,
+                specular,
+                albedo,
+                ..
+            })
+            | Lobes::GgxLobes(LobeGgxParams {
+                f0,
+                specular,
+                albedo,
+                ..
+            }) => {
                 let _ = writeln!(
                     s,
                     "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], specular [{:.4}, {:.4}, {:.4}], \
                      Smith masking-shadowing",
-                    p.f0[0], p.f0[1], p.f0[2], p.specular[0], p.specular[1], p.specular[2]
+                    f0[0], f0[1], f0[2], specular[0], specular[1], specular[2]
                 );
                 let _ = write!(
                     s,
                     "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
-                    p.albedo[0], p.albedo[1], p.albedo[2]
-                );
-            }
-            Lobes::GgxLobes(p) => {
-                let _ = writeln!(
-                    s,
-                    "  transfer mirror, Schlick f0 [{:.4}, {:.4}, {:.4}], specular [{:.4}, {:.4}, {:.4}], \
-                     Smith masking-shadowing",
-                    p.f0[0], p.f0[1], p.f0[2], p.specular[0], p.specular[1], p.specular[2]
-                );
-                let _ = write!(
-                    s,
-                    "  diffuse albedo [{:.4}, {:.4}, {:.4}]",
-                    p.albedo[0], p.albedo[1], p.albedo[2]
+                    albedo[0], albedo[1], albedo[2]
                 );
             }
         }
