@@ -736,3 +736,53 @@ fn axes_from_degrees_are_written_as_those_degrees() {
         .collect();
     assert_eq!(written, expect);
 }
+
+/// The first-column kinds of the table under `heading` in docs/material-format.md.
+fn documented_kinds(docs: &str, heading: &str) -> Vec<String> {
+    let table = docs.split(heading).nth(1).expect("the heading");
+    let mut kinds = Vec::new();
+    for line in table.lines().skip_while(|l| !l.starts_with('|')) {
+        if !line.starts_with('|') {
+            break;
+        }
+        let first = line.split('|').nth(1).unwrap_or("");
+        kinds.extend(first.split('`').skip(1).step_by(2).map(str::to_owned));
+    }
+    kinds.retain(|k| k != "kind");
+    kinds
+}
+
+/// The other way round: every kind the docs list is one the parser knows (so a kind added to
+/// the parser and the docs but not to `NDF_KINDS` fails here, and through `NDF_KINDS` fails
+/// the generator test until the writer is checked for it).
+#[test]
+fn every_documented_kind_is_in_the_kinds_lists_and_known_to_the_parser() {
+    let docs = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/material-format.md"),
+    )
+    .unwrap();
+    let ndf = documented_kinds(&docs, "## `[ndf]` kinds");
+    assert!(ndf.len() >= 12, "{ndf:?}");
+    for k in &ndf {
+        assert!(
+            NDF_KINDS.contains(&k.as_str()),
+            "documented NDF kind {k} not in NDF_KINDS"
+        );
+        let text = format!("[ndf]\nkind = \"{k}\"\n[transfer]\nkind = \"lambert\"\n");
+        if let Err(e) = MaterialSpec::parse(&text, Path::new(".")) {
+            assert!(!e.0.contains("unknown NDF kind"), "{k}: {e}");
+        }
+    }
+    let transfer = documented_kinds(&docs, "## `[transfer]` kinds");
+    assert_eq!(transfer.len(), TRANSFER_KINDS.len(), "{transfer:?}");
+    for k in &transfer {
+        assert!(TRANSFER_KINDS.contains(&k.as_str()), "{k}");
+    }
+    // And the parser refuses what is not in the list, naming the list.
+    let e = MaterialSpec::parse(
+        "[ndf]\nkind = \"nope\"\n[transfer]\nkind = \"lambert\"\n",
+        Path::new("."),
+    )
+    .unwrap_err();
+    assert!(e.0.contains(&NDF_KINDS.join(", ")), "{e}");
+}
