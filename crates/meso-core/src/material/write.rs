@@ -80,7 +80,9 @@ impl MaterialSpec {
         match &self.ndf {
             NdfSpec::Inline(n) => write_ndf(&mut s, n),
             NdfSpec::External { table, .. } => {
-                for (k, v) in table {
+                // `kind` first, then the other keys as the table holds them.
+                let first = table.iter().filter(|(k, _)| *k == "kind");
+                for (k, v) in first.chain(table.iter().filter(|(k, _)| *k != "kind")) {
                     let _ = writeln!(s, "{} = {v}", toml_key(k));
                 }
             }
