@@ -4,7 +4,9 @@
 //! [`FastBrdf::with_policy`] compiles a [`Material`] into the cheapest evaluation that is exact
 //! or documented-approximate for it under a [`Policy`]: [`Policy::Accurate`] (`meso brdf`,
 //! Python) keeps only the closed forms and the Λ table (≤ [`LAMBDA_TABLE_TOLERANCE`]),
-//! [`Policy::Interactive`] ([`FastBrdf::new`]: the renderer, the editor) takes every row:
+//! [`Policy::Interactive`] ([`FastBrdf::new`]: the renderer, the editor's plots) takes every
+//! row, and [`Policy::Preview`] (the editor's rendered preview, which must answer while a slider
+//! moves) two cheaper ones beside them:
 //!
 //! | material | evaluation | error |
 //! |---|---|---|
@@ -14,13 +16,15 @@
 //! | mirror facets under Beckmann / GGX or a mixture of them (either form) | the closed-form microfacet BRDF (a mixture's `Λ = Σ c_k Λ_k`, [`crate::ndf::mixture`]) | exact |
 //! | mirror facets under any other NDF (either form; fitted lobe sums) | collapses onto `m = H`; Smith `Λ` from a table of the projected area, built once (97 1-D integrals for an isotropic NDF, 97 × 64 quadratures otherwise) | < [`LAMBDA_TABLE_TOLERANCE`] of `G₂` (isotropic), < [`LAMBDA_TABLE_TOLERANCE_ANISOTROPIC`] (tested) |
 //! | anything else | the Eq. 2/8 quadrature, at [`Accuracy::fast`] when interactive | ~1e-3 / exact |
+//! | Phong peaks × Phong (N·H) facets (preview) | the vMF closed form always (a cost per lobe) | a few per cent: docs/benchmarks.md |
+//! | anything the quadrature would take (preview; not a delta sum or cylinder) | [`PREVIEW_NORMALS`] normals drawn from the NDF by stratified sampling (a multiple surface with the same distribution), then the rows above | the sampling's noise: a preview |
 //!
 //! The renderer calls it per shading point and light, so nothing here allocates per call.
 
 use crate::convolution::{Accuracy, Form, SmithMasking};
 use crate::frame::{half_vector, Frame};
 use crate::material::{Material, ShadowingKind};
-use crate::ndf::{Ndf, PhongLobe};
+use crate::ndf::{DeltaSum, Ndf, PhongLobe, WeightedNormal};
 use crate::transfer::{PhongVariant, Transfer};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -330,6 +334,9 @@ fn lobe_nodes(lobes: &[PhongLobe], transfer_exponent: f64) -> Vec<(DVec3, f64)> 
 /// to the vMF closed form (broad lobes under a sharp transfer need many nodes).
 pub const MAX_NODES: usize = 512;
 
+/// Normals drawn from an NDF by [`Policy::Preview`] when it would otherwise need the quadrature.
+pub const PREVIEW_NORMALS: usize = 48;
+
 /// How a [`FastBrdf`] evaluates.
 #[derive(Clone, Debug)]
 enum Kind {
@@ -361,6 +368,10 @@ pub enum Policy {
     /// does (its own quadrature accuracy, f64). `meso brdf`'s default and Python's
     /// `Material.brdf`.
     Accurate,
+    /// The editor's rendered preview: [`Policy::Interactive`], but Phong peaks under Phong
+    /// facets always by the vMF closed form, and NDFs that would need the quadrature replaced by
+    /// [`PREVIEW_NORMALS`] normals sampled from them (module docs).
+    Preview,
     /// Renderers and interactive previews: [`Policy::Accurate`] plus the f32 kernel of delta
     /// sums, Phong peaks under Phong facets by a node quadrature (< 1 %) or the vMF closed
     /// form, and the quadrature at [`Accuracy::fast`] for the rest (~1e-3).
@@ -376,6 +387,8 @@ pub struct FastBrdf {
     kind: Kind,
     diffuse: [f64; 3],
     policy: Policy,
+    /// [`Policy::Preview`] replaced the NDF by sampled normals (the material holds them).
+    sampled: bool,
 }
 
 impl FastBrdf {
@@ -388,6 +401,9 @@ impl FastBrdf {
     /// Compile a material under a [`Policy`].
     #[must_use]
     pub fn with_policy(material: &Material, policy: Policy) -> FastBrdf {
+        if policy == Policy::Preview {
+            return Self::preview(material);
+        }
         let mut material = material.clone();
         let interactive = policy == Policy::Interactive;
         let kind = match (&material.ndf, &material.transfer, material.form) {
@@ -492,10 +508,85 @@ impl FastBrdf {
             material,
             kind,
             policy,
+            sampled: false,
         }
     }
 
-    /// The material this was compiled from.
+    /// [`Policy::Preview`] (module docs): the closed form for Phong peaks under Phong facets, the
+    /// interactive plan of [`PREVIEW_NORMALS`] sampled normals where that would be the
+    /// quadrature, the interactive plan otherwise.
+    fn preview(material: &Material) -> FastBrdf {
+        let tag = |mut f: FastBrdf, sampled: bool| {
+            f.policy = Policy::Preview;
+            f.sampled = sampled;
+            f
+        };
+        if let (
+            Ndf::PhongPeaks(p),
+            Transfer::Phong {
+                exponent,
+                specular,
+                variant: PhongVariant::Half,
+            },
+            Form::MultipleSurface,
+        ) = (&material.ndf, &material.transfer, material.form)
+        {
+            return FastBrdf {
+                diffuse: material.diffuse,
+                kind: Kind::PhongClosed {
+                    lobes: p.lobes().to_vec(),
+                    exponent: *exponent,
+                    specular: *specular,
+                },
+                material: material.clone(),
+                policy: Policy::Preview,
+                sampled: false,
+            };
+        }
+        let fast = Self::with_policy(material, Policy::Interactive);
+        if !fast.is_quadrature() || material.ndf.is_singular() {
+            return tag(fast, false);
+        }
+        let n = PREVIEW_NORMALS;
+        let normals: Vec<WeightedNormal> = (0..n)
+            .map(|k| {
+                // Stratified in the first coordinate, van der Corput in the second.
+                let u = [
+                    (k as f64 + 0.5) / n as f64,
+                    f64::from((k as u32).reverse_bits()) / 4_294_967_296.0,
+                ];
+                WeightedNormal {
+                    normal: material.ndf.sample(u),
+                    weight: 1.0,
+                }
+            })
+            .collect();
+        match DeltaSum::new(normals) {
+            Ok(d) => {
+                let mut m = material.clone();
+                m.ndf = Ndf::Deltas(d);
+                tag(Self::with_policy(&m, Policy::Interactive), true)
+            }
+            Err(_) => tag(fast, false),
+        }
+    }
+
+    /// A description of the evaluation path: [`FastBrdf::path`], prefixed by how many normals
+    /// were sampled from the NDF when [`Policy::Preview`] did that.
+    #[must_use]
+    pub fn description(&self) -> String {
+        if self.sampled {
+            format!(
+                "{PREVIEW_NORMALS} normals sampled from the NDF, {}",
+                self.path()
+            )
+        } else {
+            self.path().to_owned()
+        }
+    }
+
+    /// The material this was compiled from (under [`Policy::Preview`] with sampled normals: the
+    /// material with those normals as its NDF, [`FastBrdf::description`]).
     #[must_use]
     pub fn material(&self) -> &Material {
         &self.material
@@ -507,14 +598,14 @@ impl FastBrdf {
         match self.kind {
             Kind::DeltaPhong { .. } => "weighted normals, f32 Phong kernel (Eq. 4/11)",
             Kind::Deltas => "delta-sum (Eq. 4)",
-            Kind::PhongClosed { .. } => "Phong peaks, vMF closed form",
+            Kind::PhongClosed { .. } => "Phong peaks x Phong facets, vMF closed form",
             Kind::Mirror {
                 lambda: Some(Lambda::Closed(_) | Lambda::ClosedMixture(_)),
                 ..
             } => CLOSED_MICROFACET_PATH,
             Kind::Mirror { .. } => "mirror facets, collapsed at H",
             Kind::Quadrature => match self.policy {
-                Policy::Interactive => "quadrature (fast)",
+                Policy::Interactive | Policy::Preview => "quadrature (fast)",
                 Policy::Accurate => "quadrature (the material's accuracy)",
             },
         }

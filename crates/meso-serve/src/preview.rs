@@ -7,11 +7,12 @@
 //! so a 5° elevation grazes it). The sphere's pole is `+y`, so its tangent runs along the
 //! parallels (horizontal); the plane's and the cloth's tangent is `+x` (left to right).
 //!
-//! The material is compiled once per request ([`preview_brdf`]): Phong peaks under Phong (N·H)
-//! facets in the multiple-surface form use meso-core's von Mises–Fisher closed form (a cost per
-//! lobe; a few per cent from the exact convolution), other materials meso-core's [`FastBrdf`].
-//! When that has no fast path (its `path()` is the quadrature: Phong peaks under a Lambert,
-//! microfacet or reflect-Phong facet), the preview replaces the continuous NDF by
+//! The material is compiled once per request ([`preview_brdf`]) into meso-core's plan under its
+//! preview policy ([`FastBrdf::with_policy`], [`Policy::Preview`]; the preview chooses nothing
+//! itself): Phong peaks under Phong (N·H) facets in the multiple-surface form use the von
+//! Mises–Fisher closed form (a cost per lobe; a few per cent from the exact convolution), other
+//! materials the interactive plan. When that has no fast path (the quadrature: Phong peaks under
+//! a Lambert, microfacet or reflect-Phong facet), the plan replaces the continuous NDF by
 //! [`PREVIEW_NORMALS`] normals drawn from it by stratified sampling (a multiple surface with the
 //! same facet), evaluated exactly by the sum of Eq. 4. Mirror facets (on a continuous NDF, in
 //! either form) always have `FastBrdf`'s collapsed path, so they never reach the sampled normals
@@ -22,11 +23,8 @@
 
 use crate::error::ApiError;
 use glam::{DVec2, DVec3};
-use meso_core::convolution::{phong_closed_form, Form};
 use meso_core::material::Material;
-use meso_core::ndf::{DeltaSum, Ndf, PhongLobe, WeightedNormal};
-use meso_core::shading::FastBrdf;
-use meso_core::transfer::{PhongVariant, Transfer};
+use meso_core::shading::{FastBrdf, Policy};
 use meso_render::{
     render, Camera, ImageSettings, Light, Mesh, Projection, RenderOptions, SceneBuilder, Shader,
     ShadingPoint,
@@ -34,8 +32,8 @@ use meso_render::{
 use serde::Deserialize;
 use std::sync::{Arc, OnceLock};
 
-/// Normals drawn from a continuous NDF when the preview needs a multiple surface.
-pub const PREVIEW_NORMALS: usize = 48;
+/// Normals drawn from a continuous NDF when the preview needs a multiple surface (the plan's).
+pub use meso_core::shading::PREVIEW_NORMALS;
 /// Largest preview side in pixels.
 pub const MAX_SIDE: u32 = 1024;
 /// Smallest preview side in pixels.
@@ -198,50 +196,8 @@ impl RenderRequest {
     }
 }
 
-/// How the preview evaluates a material (see the module docs).
-#[derive(Clone, Debug)]
-pub enum PreviewBrdf {
-    /// meso-core's compiled evaluation.
-    Fast(Box<FastBrdf>),
-    /// Phong peaks under a Phong (N·H) facet in the multiple-surface form: the von Mises–Fisher
-    /// closed form of [`phong_closed_form`] (a few per cent from the quadrature; a cost per
-    /// lobe, not per quadrature node).
-    Closed {
-        /// The lobes (weights sum to 1).
-        lobes: Vec<PhongLobe>,
-        /// The facet's Phong exponent.
-        exponent: f64,
-        /// The facet's specular colour.
-        specular: [f64; 3],
-        /// The Lambert albedo of the material.
-        diffuse: [f64; 3],
-    },
-}
-
-impl PreviewBrdf {
-    /// The BRDF (RGB, 1/sr, no cosine) for unit local directions.
-    #[must_use]
-    pub fn eval(&self, i: DVec3, o: DVec3) -> [f64; 3] {
-        match self {
-            PreviewBrdf::Fast(f) => f.eval(i, o),
-            PreviewBrdf::Closed {
-                lobes,
-                exponent,
-                specular,
-                diffuse,
-            } => {
-                if i.z <= 0.0 || o.z <= 0.0 {
-                    return [0.0; 3];
-                }
-                let mut f = phong_closed_form(lobes, *exponent, *specular, i, o);
-                for (c, d) in f.iter_mut().zip(diffuse) {
-                    *c += d * std::f64::consts::FRAC_1_PI;
-                }
-                f
-            }
-        }
-    }
-}
+/// How the preview evaluates a material: meso-core's compiled plan (see the module docs).
+pub type PreviewBrdf = FastBrdf;
 
 /// The path name of meso-core's closed-form microfacet evaluation (in `x-brdf-path`): a GGX or
 /// Beckmann NDF under mirror facets in the microfacet form with Smith shadowing.
@@ -251,7 +207,7 @@ pub const ANALYTIC_PATH: &str = meso_core::shading::CLOSED_MICROFACET_PATH;
 /// form or sampled normals).
 #[must_use]
 pub fn plot_brdf(material: &Material) -> PreviewBrdf {
-    PreviewBrdf::Fast(Box::new(FastBrdf::new(material)))
+    FastBrdf::new(material)
 }
 
 /// A [`PreviewBrdf`] as a renderer shader, with the tangent rotated by a fixed angle.
@@ -292,62 +248,13 @@ impl Shader for BrdfShader {
     }
 }
 
-/// The van der Corput radical inverse in base 2.
-fn radical_inverse(i: u32) -> f64 {
-    f64::from(i.reverse_bits()) / 4_294_967_296.0
-}
-
-/// Compile a material for the preview; returns the evaluation and a description of its path.
+/// Compile a material for the preview ([`Policy::Preview`]); returns the evaluation and a
+/// description of its path.
 #[must_use]
 pub fn preview_brdf(material: &Material) -> (PreviewBrdf, String) {
-    if let (
-        Ndf::PhongPeaks(p),
-        Transfer::Phong {
-            exponent,
-            specular,
-            variant: PhongVariant::Half,
-        },
-        Form::MultipleSurface,
-    ) = (&material.ndf, &material.transfer, material.form)
-    {
-        return (
-            PreviewBrdf::Closed {
-                lobes: p.lobes().to_vec(),
-                exponent: *exponent,
-                specular: *specular,
-                diffuse: material.diffuse,
-            },
-            "Phong peaks x Phong facets, vMF closed form".to_owned(),
-        );
-    }
-    let fast = FastBrdf::new(material);
-    if !fast.is_quadrature() || material.ndf.is_singular() {
-        let p = fast.path().to_owned();
-        return (PreviewBrdf::Fast(Box::new(fast)), p);
-    }
-    let n = PREVIEW_NORMALS;
-    let normals: Vec<WeightedNormal> = (0..n)
-        .map(|k| {
-            let u = [(k as f64 + 0.5) / n as f64, radical_inverse(k as u32)];
-            WeightedNormal {
-                normal: material.ndf.sample(u),
-                weight: 1.0,
-            }
-        })
-        .collect();
-    match DeltaSum::new(normals) {
-        Ok(d) => {
-            let mut m = material.clone();
-            m.ndf = Ndf::Deltas(d);
-            let f = FastBrdf::new(&m);
-            let p = format!("{n} normals sampled from the NDF, {}", f.path());
-            (PreviewBrdf::Fast(Box::new(f)), p)
-        }
-        Err(_) => {
-            let p = fast.path().to_owned();
-            (PreviewBrdf::Fast(Box::new(fast)), p)
-        }
-    }
+    let f = FastBrdf::with_policy(material, Policy::Preview);
+    let path = f.description();
+    (f, path)
 }
 
 /// World direction of a light.
@@ -645,6 +552,7 @@ fn render_shader(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use meso_core::transfer::Transfer;
 
     #[test]
     fn light_directions() {
@@ -656,7 +564,7 @@ mod tests {
     #[test]
     fn rotation_moves_the_tangent() {
         let m = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
-        let s = BrdfShader::new(PreviewBrdf::Fast(Box::new(FastBrdf::new(&m))), 90.0);
+        let s = BrdfShader::new(FastBrdf::new(&m), 90.0);
         // A frame rotated by 90°: the world tangent +x is the rotated frame's −y.
         assert!((s.rotate(DVec3::X) - DVec3::new(0.0, -1.0, 0.0)).length() < 1e-12);
     }
