@@ -29,7 +29,7 @@ use sha2::{Digest, Sha256};
 use std::path::Path;
 
 /// The cache entry format; bumped whenever what is stored or how it is built changes.
-pub const FORMAT: u32 = 2;
+pub const FORMAT: u32 = 3;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// Bytes of [`crate::disk_cache::header`]: magic, format, key.
