@@ -24,7 +24,7 @@
 use crate::convolution::{Accuracy, Form, SmithMasking};
 use crate::frame::{half_vector, Frame};
 use crate::material::{Material, ShadowingKind};
-use crate::ndf::{DeltaSum, Ndf, PhongLobe, WeightedNormal};
+use crate::ndf::{DeltaSum, Ndf, PhongLobe, PhongPeaks, WeightedNormal};
 use crate::transfer::{PhongVariant, Transfer};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -285,6 +285,46 @@ fn catmull_rom(v: [f64; 4], t: f64) -> f64 {
         + (3.0 * v[1] - v[0] - 3.0 * v[2] + v[3]) * t3)
 }
 
+/// Phong peaks under Phong (N·H) facets in the multiple-surface form (the paper's materials):
+/// the peaks, the facet exponent and specular colour.
+fn phong_peaks_under_phong(m: &Material) -> Option<(&PhongPeaks, &f64, &[f64; 3])> {
+    match (&m.ndf, &m.transfer, m.form) {
+        (
+            Ndf::PhongPeaks(p),
+            Transfer::Phong {
+                exponent,
+                specular,
+                variant: PhongVariant::Half,
+            },
+            Form::MultipleSurface,
+        ) => Some((p, exponent, specular)),
+        _ => None,
+    }
+}
+
+/// The plan of Phong peaks under Phong facets: the weighted nodes of [`lobe_nodes`] when there
+/// are at most `max_nodes`, else the vMF closed form.
+fn peaks_kind(p: &PhongPeaks, exponent: f64, specular: [f64; 3], max_nodes: usize) -> Kind {
+    let nodes = if max_nodes > 0 {
+        lobe_nodes(p.lobes(), exponent)
+    } else {
+        Vec::new()
+    };
+    if !nodes.is_empty() && nodes.len() <= max_nodes {
+        Kind::DeltaPhong {
+            chunks: chunk(&nodes),
+            exponent: exponent as f32,
+            specular: specular.map(|s| s as f32),
+        }
+    } else {
+        Kind::PhongClosed {
+            lobes: p.lobes().to_vec(),
+            exponent,
+            specular,
+        }
+    }
+}
+
 /// Pack weighted normals into padded f32 lanes ([`LaneNormals`]).
 fn chunk(nodes: &[(DVec3, f64)]) -> LaneNormals {
     let padded = nodes.len().div_ceil(LANES) * LANES;
@@ -406,101 +446,83 @@ impl FastBrdf {
         }
         let mut material = material.clone();
         let interactive = policy == Policy::Interactive;
-        let kind = match (&material.ndf, &material.transfer, material.form) {
-            (
-                Ndf::Deltas(d),
-                Transfer::Phong {
-                    exponent,
-                    specular,
-                    variant: PhongVariant::Half,
-                },
-                Form::MultipleSurface,
-            ) if interactive => {
-                let nodes: Vec<(DVec3, f64)> =
-                    d.normals().iter().map(|n| (n.normal, n.weight)).collect();
-                let chunks = chunk(&nodes);
-                Kind::DeltaPhong {
-                    chunks,
-                    exponent: *exponent as f32,
-                    specular: specular.map(|s| s as f32),
-                }
-            }
-            (Ndf::Deltas(_), _, _) => Kind::Deltas,
-            (
-                Ndf::PhongPeaks(p),
-                Transfer::Phong {
-                    exponent,
-                    specular,
-                    variant: PhongVariant::Half,
-                },
-                Form::MultipleSurface,
-            ) if interactive => {
-                let nodes = lobe_nodes(p.lobes(), *exponent);
-                if nodes.len() <= MAX_NODES {
+        let peaks = phong_peaks_under_phong(&material).filter(|_| interactive);
+        let kind = if let Some((p, exponent, specular)) = peaks {
+            peaks_kind(p, *exponent, *specular, MAX_NODES)
+        } else {
+            match (&material.ndf, &material.transfer, material.form) {
+                (
+                    Ndf::Deltas(d),
+                    Transfer::Phong {
+                        exponent,
+                        specular,
+                        variant: PhongVariant::Half,
+                    },
+                    Form::MultipleSurface,
+                ) if interactive => {
+                    let nodes: Vec<(DVec3, f64)> =
+                        d.normals().iter().map(|n| (n.normal, n.weight)).collect();
+                    let chunks = chunk(&nodes);
                     Kind::DeltaPhong {
-                        chunks: chunk(&nodes),
+                        chunks,
                         exponent: *exponent as f32,
                         specular: specular.map(|s| s as f32),
                     }
-                } else {
-                    Kind::PhongClosed {
-                        lobes: p.lobes().to_vec(),
-                        exponent: *exponent,
-                        specular: *specular,
+                }
+                (Ndf::Deltas(_), _, _) => Kind::Deltas,
+                (Ndf::Microfacet(mf), Transfer::Mirror { .. }, form) => {
+                    // Beckmann and GGX: Smith Λ in closed form, and `∫ n (m·z) dω = 1/A` exactly
+                    // (`n = D/A` and `∫ D (m·z) dω = 1`), so nothing to tabulate or integrate.
+                    let lambda = (form == Form::Microfacet
+                        && material.shadowing == ShadowingKind::Smith)
+                        .then_some(Lambda::Closed(*mf));
+                    Kind::Mirror {
+                        projected_area: 1.0 / mf.area_ratio(),
+                        lambda,
                     }
                 }
-            }
-            (Ndf::Microfacet(mf), Transfer::Mirror { .. }, form) => {
-                // Beckmann and GGX: Smith Λ in closed form, and `∫ n (m·z) dω = 1/A` exactly
-                // (`n = D/A` and `∫ D (m·z) dω = 1`), so nothing to tabulate or integrate.
-                let lambda = (form == Form::Microfacet
-                    && material.shadowing == ShadowingKind::Smith)
-                    .then_some(Lambda::Closed(*mf));
-                Kind::Mirror {
-                    projected_area: 1.0 / mf.area_ratio(),
-                    lambda,
+                (Ndf::Mixture(mx), Transfer::Mirror { .. }, form) => {
+                    // Mixtures of Beckmann / GGX lobes: `Λ = Σ c_k Λ_k` and `P = Σ w_k / A_k`
+                    // in closed form ([`crate::ndf::mixture`]).
+                    let lambda = (form == Form::Microfacet
+                        && material.shadowing == ShadowingKind::Smith)
+                        .then(|| Lambda::ClosedMixture(mx.clone()));
+                    Kind::Mirror {
+                        projected_area: mx.projected_area(),
+                        lambda,
+                    }
                 }
-            }
-            (Ndf::Mixture(mx), Transfer::Mirror { .. }, form) => {
-                // Mixtures of Beckmann / GGX lobes: `Λ = Σ c_k Λ_k` and `P = Σ w_k / A_k`
-                // in closed form ([`crate::ndf::mixture`]).
-                let lambda = (form == Form::Microfacet
-                    && material.shadowing == ShadowingKind::Smith)
-                    .then(|| Lambda::ClosedMixture(mx.clone()));
-                Kind::Mirror {
-                    projected_area: mx.projected_area(),
-                    lambda,
-                }
-            }
-            (ndf, Transfer::Mirror { .. }, form) => {
-                let smith = form == Form::Microfacet && material.shadowing == ShadowingKind::Smith;
-                // Tilted Phong peaks above the horizon: per-lobe 1-D tables (exact, fast to
-                // build); otherwise the projected-area table.
-                let lobes = match ndf {
-                    Ndf::PhongPeaks(p) if !ndf.is_isotropic() => LobeLambda::new(p.lobes()),
-                    _ => None,
-                };
-                match lobes {
-                    Some(l) => Kind::Mirror {
-                        projected_area: l.projected_area,
-                        lambda: smith.then_some(Lambda::Lobes(l)),
-                    },
-                    None => {
-                        let sm = SmithMasking::new(ndf, material.accuracy);
-                        let lambda =
-                            smith.then(|| Lambda::Table(LambdaTable::new(&sm, ndf.is_isotropic())));
-                        Kind::Mirror {
-                            projected_area: sm.projected_area,
-                            lambda,
+                (ndf, Transfer::Mirror { .. }, form) => {
+                    let smith =
+                        form == Form::Microfacet && material.shadowing == ShadowingKind::Smith;
+                    // Tilted Phong peaks above the horizon: per-lobe 1-D tables (exact, fast to
+                    // build); otherwise the projected-area table.
+                    let lobes = match ndf {
+                        Ndf::PhongPeaks(p) if !ndf.is_isotropic() => LobeLambda::new(p.lobes()),
+                        _ => None,
+                    };
+                    match lobes {
+                        Some(l) => Kind::Mirror {
+                            projected_area: l.projected_area,
+                            lambda: smith.then_some(Lambda::Lobes(l)),
+                        },
+                        None => {
+                            let sm = SmithMasking::new(ndf, material.accuracy);
+                            let lambda = smith
+                                .then(|| Lambda::Table(LambdaTable::new(&sm, ndf.is_isotropic())));
+                            Kind::Mirror {
+                                projected_area: sm.projected_area,
+                                lambda,
+                            }
                         }
                     }
                 }
-            }
-            _ => {
-                if interactive {
-                    material.accuracy = Accuracy::fast();
+                _ => {
+                    if interactive {
+                        material.accuracy = Accuracy::fast();
+                    }
+                    Kind::Quadrature
                 }
-                Kind::Quadrature
             }
         };
         FastBrdf {
@@ -521,23 +543,10 @@ impl FastBrdf {
             f.sampled = sampled;
             f
         };
-        if let (
-            Ndf::PhongPeaks(p),
-            Transfer::Phong {
-                exponent,
-                specular,
-                variant: PhongVariant::Half,
-            },
-            Form::MultipleSurface,
-        ) = (&material.ndf, &material.transfer, material.form)
-        {
+        if let Some((p, exponent, specular)) = phong_peaks_under_phong(material) {
             return FastBrdf {
                 diffuse: material.diffuse,
-                kind: Kind::PhongClosed {
-                    lobes: p.lobes().to_vec(),
-                    exponent: *exponent,
-                    specular: *specular,
-                },
+                kind: peaks_kind(p, *exponent, *specular, 0),
                 material: material.clone(),
                 policy: Policy::Preview,
                 sampled: false,

@@ -338,20 +338,32 @@ pub struct Rendered {
     pub path: String,
 }
 
+impl Rendered {
+    /// The PNG of `img` at `exposure` stops, with its render time and path description.
+    fn encode(
+        img: &meso_render::Image,
+        exposure: f64,
+        render_ms: f64,
+        path: String,
+    ) -> Result<Rendered, ApiError> {
+        let png = img
+            .encode_png(exposure as f32)
+            .map_err(|e| ApiError::internal(format!("png: {e}")))?;
+        Ok(Rendered {
+            png,
+            render_ms,
+            path,
+        })
+    }
+}
+
 /// Render a preview (blocking; call from `spawn_blocking`).
 ///
 /// # Errors
 /// 400 for an invalid request, 500 if the scene cannot be built or encoded.
 pub fn render_preview(req: &RenderRequest, material: &Material) -> Result<Rendered, ApiError> {
     let (img, render_ms, path) = render_image(req, material)?;
-    let png = img
-        .encode_png(req.view.exposure as f32)
-        .map_err(|e| ApiError::internal(format!("png: {e}")))?;
-    Ok(Rendered {
-        png,
-        render_ms,
-        path,
-    })
+    Rendered::encode(&img, req.view.exposure, render_ms, path)
 }
 
 /// Render a preview to a linear image (before exposure and PNG encoding); returns the image, the
@@ -463,14 +475,7 @@ pub fn render_textured(
     );
     let img = render_shader(&rr, shader)?;
     let render_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let png = img
-        .encode_png(req.view.exposure as f32)
-        .map_err(|e| ApiError::internal(format!("png: {e}")))?;
-    Ok(Rendered {
-        png,
-        render_ms,
-        path,
-    })
+    Rendered::encode(&img, req.view.exposure, render_ms, path)
 }
 
 /// The preview scene of `req` (object, camera, lights) with `shader` on the object, rendered.
