@@ -312,7 +312,7 @@ impl Mesh {
         if let Some(len) = std::fs::metadata(path)
             .ok()
             .map(|m| m.len())
-            .filter(|&n| n <= crate::scene::MAX_OBJ_BYTES)
+            .filter(|&n| n <= crate::limits::MAX_OBJ_BYTES)
         {
             meso_core::budget::check(path, "loading the OBJ mesh", obj_bytes(len))
                 .map_err(|e| SceneError::Budget(e.to_string()))?;
@@ -326,7 +326,7 @@ impl Mesh {
             ignore_lines: true,
             ..Default::default()
         };
-        let bytes = meso_core::io::read_limited(path, crate::scene::MAX_OBJ_BYTES)
+        let bytes = meso_core::io::read_limited(path, crate::limits::MAX_OBJ_BYTES)
             .map_err(|e| err(format!("cannot read: {e}")))?;
         check_obj_indices(&bytes).map_err(|e| err(format!("broken OBJ: {e}")))?;
         // `mtllib` files are never opened: materials come from the scene, not the OBJ.

@@ -13,7 +13,8 @@
 //! * [`light`]: point, directional, linear, spherical and rectangular area lights, and an
 //!   importance-sampled [`EnvironmentMap`].
 //! * [`scene`]: [`Scene`] / [`SceneBuilder`], and the TOML scene format
-//!   (`docs/scene-format.md`) with a caller-supplied [`MaterialResolver`].
+//!   (`docs/scene-format.md`) with a caller-supplied [`MaterialResolver`]; [`limits`]: the
+//!   largest scene, mesh and environment-map files read.
 //! * [`render()`]: tiles in parallel (rayon), Owen-scrambled Sobol sampling, progress callback.
 //! * [`Image`]: linear EXR and tone-mapped sRGB PNG output.
 //!
@@ -52,6 +53,7 @@ pub mod error;
 pub mod geometry;
 pub mod image;
 pub mod light;
+pub mod limits;
 pub mod mapped;
 pub mod material;
 pub mod render;

@@ -295,7 +295,7 @@ impl EnvironmentMap {
         if !path.is_file() {
             return Err(err("file not found".into()));
         }
-        let bytes = meso_core::io::read_limited(path, crate::scene::MAX_ENVIRONMENT_BYTES)
+        let bytes = meso_core::io::read_limited(path, crate::limits::MAX_ENVIRONMENT_BYTES)
             .map_err(|e| err(format!("cannot read: {e}")))?;
         // The memory of decoding, from the header (before the pixels are decoded).
         {

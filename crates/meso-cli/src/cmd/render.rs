@@ -126,7 +126,7 @@ fn render_bytes(width: u32, height: u32, outputs: &[(PathBuf, Format)]) -> u64 {
 /// The image size the scene file asks for (its `[image]` table), read before the scene (and
 /// its materials, environment and meshes) is loaded; `None` when the file does not say.
 fn scene_image_size(scene: &Path) -> Option<(u32, u32)> {
-    let text = crate::util::read_text(scene, meso_render::scene::MAX_SCENE_BYTES).ok()?;
+    let text = crate::util::read_text(scene, meso_render::limits::MAX_SCENE_BYTES).ok()?;
     let t: toml::Table = text.parse().ok()?;
     let img = t.get("image")?.as_table()?;
     let dim = |k: &str| {

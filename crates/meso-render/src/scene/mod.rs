@@ -17,12 +17,7 @@ pub use builder::{validate_light, SceneBuilder};
 pub use file::{MaterialResolver, ResolveError};
 pub(crate) use query::{LeafSphere, Skip};
 
-/// Largest scene file read (bytes actually read): 16 MiB.
-pub const MAX_SCENE_BYTES: u64 = 16 << 20;
-/// Largest OBJ mesh file read (bytes actually read): 256 MiB.
-pub const MAX_OBJ_BYTES: u64 = 256 << 20;
-/// Largest environment-map image file read (bytes actually read): 256 MiB.
-pub const MAX_ENVIRONMENT_BYTES: u64 = 256 << 20;
+pub use crate::limits::{MAX_ENVIRONMENT_BYTES, MAX_OBJ_BYTES, MAX_SCENE_BYTES};
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
