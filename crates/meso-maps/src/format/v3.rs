@@ -32,7 +32,7 @@ use std::io::{Read, Write};
 /// The format version of this module.
 pub const VERSION_3: u32 = 3;
 /// deflate's largest expansion: a stream may not claim more than this many bytes per
-/// compressed byte (plus [`RATIO_SLACK`]).
+/// compressed byte (plus 1024 bytes of slack).
 pub const MAX_DEFLATE_RATIO: u64 = 1032;
 const RATIO_SLACK: u64 = 1024;
 /// Bytes of a stream header: id, filter, 2 reserved, raw length (u64), compressed length (u64).
