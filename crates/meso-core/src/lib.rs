@@ -8,7 +8,8 @@
 //!   coordinates), written once;
 //! * [`ndf`] — the NDF representations, each normalised as Eq. 1, evaluated and sampled;
 //! * [`transfer`] — facet BRDFs (Phong, Lambert, mirror, rough microfacet) with Fresnel;
-//! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form;
+//! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form; [`integrate`] —
+//!   the lobe-adapted quadrature of `∫ n(m) g(m) dω` it and the NDF statistics use;
 //! * [`material`] — the TOML material format; [`importance`] — importance sampling of its BRDF;
 //! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output;
 //! * [`linalg`], [`lm`] — small dense linear algebra and the one Levenberg–Marquardt solver
@@ -37,6 +38,7 @@ pub mod display;
 pub mod frame;
 pub mod grid;
 pub mod importance;
+pub mod integrate;
 pub mod io;
 pub mod linalg;
 pub mod lm;

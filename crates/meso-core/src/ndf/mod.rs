@@ -161,50 +161,6 @@ impl Ndf {
             other => other.eval(m),
         }
     }
-
-    /// `∫ n(m) g(m) dω` for any NDF: exact sums for deltas, a 1-D rule on the cylinder's circle,
-    /// and [`crate::convolution::integrate`] (lobe-adapted quadrature) otherwise. `N` values at once.
-    pub fn integrate<const N: usize>(
-        &self,
-        accuracy: crate::convolution::Accuracy,
-        hint: Option<crate::convolution::Peak>,
-        g: impl Fn(DVec3) -> [f64; N],
-    ) -> [f64; N] {
-        crate::convolution::integrate(self, accuracy, hint, g)
-    }
-
-    /// Normalisation integral, mean normal and covariance (3×3, about the mean), by quadrature.
-    #[must_use]
-    pub fn stats(&self) -> NdfStats {
-        let acc = crate::convolution::Accuracy::fine();
-        let r = self.integrate(acc, None, |m| {
-            [
-                1.0,
-                m.x,
-                m.y,
-                m.z,
-                m.x * m.x,
-                m.y * m.y,
-                m.z * m.z,
-                m.x * m.y,
-                m.x * m.z,
-                m.y * m.z,
-            ]
-        });
-        let total = r[0];
-        let mean = DVec3::new(r[1], r[2], r[3]) / total;
-        let second = DMat3::from_cols(
-            DVec3::new(r[4], r[7], r[8]),
-            DVec3::new(r[7], r[5], r[9]),
-            DVec3::new(r[8], r[9], r[6]),
-        ) * (1.0 / total);
-        let outer = DMat3::from_cols(mean * mean.x, mean * mean.y, mean * mean.z);
-        NdfStats {
-            integral: total,
-            mean_normal: mean,
-            covariance: second - outer,
-        }
-    }
 }
 
 /// Moments of an NDF.

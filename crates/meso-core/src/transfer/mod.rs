@@ -245,7 +245,7 @@ impl Transfer {
     /// Where in the space of facet normals `m` this transfer function peaks for the pair `(i, o)`
     /// and how sharply — the hint the lobe-adapted quadrature uses. `None` for smooth ones.
     #[must_use]
-    pub fn peak(&self, i: DVec3, o: DVec3) -> Option<crate::convolution::Peak> {
+    pub fn peak(&self, i: DVec3, o: DVec3) -> Option<crate::integrate::Peak> {
         let h = half_vector(i, o)?;
         let exponent = match *self {
             // (m·H)^η ≈ exp(−η β²/2); a Phong-peak warp cos^e(β/2) ≈ exp(−e β²/8) ⇒ e = 4η.
@@ -266,7 +266,7 @@ impl Transfer {
             }
             Transfer::Lambert { .. } | Transfer::Mirror { .. } => return None,
         };
-        (exponent > 8.0).then_some(crate::convolution::Peak {
+        (exponent > 8.0).then_some(crate::integrate::Peak {
             axis: h,
             exponent: exponent.min(1e7),
         })
