@@ -1,0 +1,115 @@
+//! [`BumpMapped`]: the bump-mapped ground truth, shaded texel by texel from the heights.
+
+use super::*;
+
+/// A bump-mapped material shaded texel by texel from a height map (see the module docs):
+/// the ground truth that [`NdfMapped`] filters.
+#[derive(Clone, Debug)]
+pub struct BumpMapped {
+    cols: usize,
+    rows: usize,
+    /// Two facet normals per cell (triangles A and B), row-major.
+    normals: Vec<[DVec3; 2]>,
+    /// Per-sample horizon angles when shadowing is on.
+    horizon: Option<HorizonMap>,
+    facet: Facet,
+    diffuse: [f32; 3],
+    texels_per_uv: f64,
+}
+
+impl BumpMapped {
+    /// A bump map of `map` with the facet transfer function and diffuse term of `surface` (its
+    /// NDF is ignored), `texels_per_uv` height-map cells per unit of texture coordinate, and
+    /// horizon shadowing of the light when `shadowing` is true.
+    ///
+    /// # Errors
+    /// A message when `texels_per_uv` is not a finite positive number.
+    pub fn new(
+        map: &HeightMap,
+        surface: &Material,
+        texels_per_uv: f64,
+        shadowing: bool,
+    ) -> Result<BumpMapped, String> {
+        check_scale(texels_per_uv)?;
+        let f = FacetNormals::from_heightmap(map, NormalMode::Triangles);
+        let normals = f.normals.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+        Ok(BumpMapped {
+            cols: f.cols,
+            rows: f.rows,
+            normals,
+            horizon: shadowing.then(|| HorizonMap::compute(map)),
+            facet: Facet::new(&surface.transfer),
+            diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
+            texels_per_uv,
+        })
+    }
+
+    /// A normal-mapped material shaded texel by texel: the normal of the texel under the
+    /// point (nearest texel, wrapped), with the facet transfer and diffuse term of `surface`
+    /// and `texels_per_uv` texels per unit of texture coordinate. A normal map has no heights,
+    /// hence no shadowing of the light by its bumps.
+    ///
+    /// # Errors
+    /// A message when `texels_per_uv` is not a finite positive number.
+    pub fn from_normal_map(
+        map: &NormalMap,
+        surface: &Material,
+        texels_per_uv: f64,
+    ) -> Result<BumpMapped, String> {
+        check_scale(texels_per_uv)?;
+        let f = FacetNormals::from_normal_map(map);
+        Ok(BumpMapped {
+            cols: f.cols,
+            rows: f.rows,
+            normals: f.normals.iter().map(|&n| [n, n]).collect(),
+            horizon: None,
+            facet: Facet::new(&surface.transfer),
+            diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
+            texels_per_uv,
+        })
+    }
+
+    /// The facet normal (local frame) at texture coordinates `(u, v)`: of the triangulated
+    /// height map, or of the normal map's texel.
+    #[must_use]
+    pub fn normal_at(&self, u: f64, v: f64) -> DVec3 {
+        let (x, y) = (u * self.texels_per_uv, v * self.texels_per_uv);
+        let (fx, fy) = (x.floor(), y.floor());
+        let j = (fx as i64).rem_euclid(self.cols as i64) as usize;
+        let i = (fy as i64).rem_euclid(self.rows as i64) as usize;
+        // Triangle A is the half with y − y_i < x − x_j.
+        let tri = usize::from(y - fy >= x - fx);
+        self.normals[i * self.cols + j][tri]
+    }
+
+    fn shadow(&self, u: f64, v: f64, wi: DVec3) -> f32 {
+        let Some(h) = &self.horizon else {
+            return 1.0;
+        };
+        let (x, y) = (u * self.texels_per_uv, v * self.texels_per_uv);
+        let j = (x.round() as i64).rem_euclid(h.width as i64) as usize;
+        let i = (y.round() as i64).rem_euclid(h.height as i64) as usize;
+        h.sample_stats(i, j).visibility(wi) as f32
+    }
+}
+
+impl Shader for BumpMapped {
+    fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return [0.0; 3];
+        }
+        let h = wi + wo;
+        let l = h.length();
+        if l < 1e-12 {
+            return [0.0; 3];
+        }
+        let m = self.normal_at(sp.uv.x, sp.uv.y);
+        let v = self.facet.lit(m, wi, wo, h / l);
+        let s = self.shadow(sp.uv.x, sp.uv.y, wi) / wi.z as f32;
+        [
+            v[0] * s + self.diffuse[0],
+            v[1] * s + self.diffuse[1],
+            v[2] * s + self.diffuse[2],
+        ]
+    }
+}
