@@ -160,6 +160,131 @@ pub(crate) fn stroke_series(canvas: &mut Canvas, pts: &[[f64; 2]], s: &Series, c
     }
 }
 
+/// The text scale for a plot whose own setting is `text_scale` (0: chosen from the area).
+#[must_use]
+pub(crate) fn resolve_text_scale(text_scale: u32, area: Rect) -> u32 {
+    if text_scale > 0 {
+        text_scale
+    } else {
+        auto_text_scale(area.w, area.h)
+    }
+}
+
+/// Spacing shared by the plots, in pixels, derived from the text scale.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Metrics {
+    /// Integer text scale.
+    pub ts: u32,
+    /// One unit: the text scale as a pixel count.
+    pub u: i32,
+    /// Outer padding of the area.
+    pub pad: i32,
+    /// Small gap between neighbouring elements.
+    pub gap: i32,
+    /// Cap height of text at scale `ts`.
+    pub cap: i32,
+}
+
+impl Metrics {
+    /// The metrics of a plot with text scale setting `text_scale` drawn into `area`.
+    #[must_use]
+    pub(crate) fn new(text_scale: u32, area: Rect) -> Metrics {
+        let ts = resolve_text_scale(text_scale, area);
+        let u = ts as i32;
+        Metrics {
+            ts,
+            u,
+            pad: 10 * u,
+            gap: 5 * u,
+            cap: (font::CAP_HEIGHT * ts) as i32,
+        }
+    }
+
+    /// The text scale of titles.
+    #[must_use]
+    pub(crate) fn title_scale(&self) -> u32 {
+        self.ts + 1
+    }
+
+    /// The height a title takes above the plot, its gap included (0 without a title).
+    #[must_use]
+    pub(crate) fn title_height(&self, title: &str) -> i32 {
+        if title.is_empty() {
+            0
+        } else {
+            (font::CAP_HEIGHT * self.title_scale()) as i32 + 3 * self.gap
+        }
+    }
+}
+
+/// One curve ready to stroke: its legend name, look and points already projected to the screen.
+pub(crate) struct Curve<'a> {
+    pub name: &'a str,
+    pub color: Option<Rgb>,
+    pub width: f64,
+    pub style: LineStyle,
+    pub markers: bool,
+    pub points: Vec<[f64; 2]>,
+}
+
+/// Stroke `curves` in order, clipped to `clip` (uncoloured curves take palette colours by
+/// index), and return their legend entries.
+pub(crate) fn draw_curves<'a>(
+    canvas: &mut Canvas,
+    clip: Rect,
+    curves: Vec<Curve<'a>>,
+    ts: u32,
+) -> Vec<LegendEntry<'a>> {
+    let saved = canvas.clip();
+    canvas.set_clip(Some(clip));
+    let mut legend = Vec::new();
+    for (i, cv) in curves.into_iter().enumerate() {
+        let c = cv.color.unwrap_or_else(|| color::palette(i));
+        let look = Series {
+            name: String::new(),
+            points: Vec::new(),
+            color: Some(c),
+            width: cv.width,
+            style: cv.style,
+            markers: cv.markers,
+        };
+        stroke_series(canvas, &cv.points, &look, c, ts);
+        legend.push(LegendEntry {
+            name: cv.name,
+            color: c,
+            style: cv.style,
+            markers: cv.markers,
+        });
+    }
+    canvas.set_clip(saved);
+    legend
+}
+
+/// Draw the title (at title scale, top-left corner at `title_at`, if not empty) and then,
+/// when `legend_at` is given, the legend with its top-right corner there.
+pub(crate) fn draw_title_and_legend(
+    canvas: &mut Canvas,
+    m: &Metrics,
+    title: &str,
+    title_at: (i32, i32),
+    legend_at: Option<(i32, i32)>,
+    legend: &[LegendEntry],
+) {
+    if !title.is_empty() {
+        font::draw_text(
+            canvas,
+            title_at.0,
+            title_at.1,
+            title,
+            m.title_scale(),
+            color::INK,
+        );
+    }
+    if let Some((right, top)) = legend_at {
+        draw_legend(canvas, right, top, legend, m.ts);
+    }
+}
+
 /// A 2-D line plot.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinePlot {
@@ -215,17 +340,39 @@ impl LinePlot {
 
     /// Draw into `area` of an existing canvas (the area is not cleared).
     pub fn draw(&self, canvas: &mut Canvas, area: Rect) -> Result<(), PlotError> {
-        let ts = if self.text_scale > 0 {
-            self.text_scale
-        } else {
-            auto_text_scale(area.w, area.h)
-        };
-        let u = ts as i32;
-        let ok_y = |y: f64| y.is_finite() && (!self.log_y || y > 0.0);
+        let m = Metrics::new(self.text_scale, area);
+        let (x0, x1, y0, y1) = self.data_range()?;
+        let (ymin, ymax, yticks) = self.y_axis(y0, y1);
+        let xticks = x_ticks(x0, x1);
+        let f = self.frame(area, &m, [x0, x1, ymin, ymax], &xticks, &yticks)?;
+        self.draw_grid(canvas, &f, &xticks, &yticks);
+        let legend = draw_curves(canvas, f.plot, self.curves(&f), m.ts);
+        draw_axes(canvas, &f, &m, &xticks, &yticks);
+        self.draw_axis_labels(canvas, &f, &m, area);
+        let legend_at = self.legend.then_some((f.right - m.gap, f.top + m.gap));
+        draw_title_and_legend(
+            canvas,
+            &m,
+            &self.title,
+            (f.left, area.y + m.pad),
+            legend_at,
+            &legend,
+        );
+        Ok(())
+    }
+
+    /// Whether `y` can be drawn on this plot's y axis.
+    fn ok_y(&self, y: f64) -> bool {
+        y.is_finite() && (!self.log_y || y > 0.0)
+    }
+
+    /// The x and y ranges `(x0, x1, y0, y1)`: the drawable data's (or the fixed ranges), an
+    /// empty x range widened.
+    fn data_range(&self) -> Result<(f64, f64, f64, f64), PlotError> {
         let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
         for s in &self.series {
             for p in &s.points {
-                if p[0].is_finite() && ok_y(p[1]) {
+                if p[0].is_finite() && self.ok_y(p[1]) {
                     x0 = x0.min(p[0]);
                     x1 = x1.max(p[0]);
                     y0 = y0.min(p[1]);
@@ -259,8 +406,13 @@ impl LinePlot {
             let d = if x0 == 0.0 { 1.0 } else { 0.5 * x0.abs() };
             (x0, x1) = (x0 - d, x1 + d);
         }
-        // Y axis ticks (labels) and range.
-        let (ymin, ymax, yticks): (f64, f64, Vec<(f64, String)>) = if self.log_y {
+        Ok((x0, x1, y0, y1))
+    }
+
+    /// The drawn y range and its labelled ticks: whole decades on a log axis, nice ticks on a
+    /// linear one (the data range extended to them unless the range is fixed).
+    fn y_axis(&self, y0: f64, y1: f64) -> (f64, f64, Ticks) {
+        if self.log_y {
             let decs = ticks::log_decades(y0, y1);
             let (a, b) = if self.y_range.is_some() {
                 (y0, y1)
@@ -287,47 +439,48 @@ impl LinePlot {
             } else {
                 (t.min, t.max)
             };
-            let vals: Vec<(f64, String)> = ticks::ticks_within(a, b, 5)
+            let vals: Ticks = ticks::ticks_within(a, b, 5)
                 .into_iter()
                 .map(|v| (v, ticks::format_tick(v, t.step)))
                 .collect();
             (a, b, vals)
-        };
-        let xstep = ticks::nice_ticks(x0, x1, 6).step;
-        let xticks: Vec<(f64, String)> = ticks::ticks_within(x0, x1, 6)
-            .into_iter()
-            .map(|v| (v, ticks::format_tick(v, xstep)))
-            .collect();
+        }
+    }
 
-        // Layout.
-        let pad = 10 * u;
-        let gap = 5 * u;
-        let tick_len = 4 * u;
-        let cap = (font::CAP_HEIGHT * ts) as i32;
-        let title_scale = ts + 1;
+    /// Place the axes in `area`, leaving room for the title, tick labels and axis labels;
+    /// `range` is `[x0, x1, ymin, ymax]`.
+    fn frame(
+        &self,
+        area: Rect,
+        m: &Metrics,
+        range: [f64; 4],
+        xticks: &Ticks,
+        yticks: &Ticks,
+    ) -> Result<Frame, PlotError> {
+        let tick_len = 4 * m.u;
         let ylab_w = yticks
             .iter()
-            .map(|(_, s)| font::text_width(s, ts) as i32)
+            .map(|(_, s)| font::text_width(s, m.ts) as i32)
             .max()
             .unwrap_or(0);
-        let mut left = area.x + pad + ylab_w + gap + tick_len;
+        let mut left = area.x + m.pad + ylab_w + m.gap + tick_len;
         if !self.y_label.is_empty() {
-            left += cap + 2 * gap;
+            left += m.cap + 2 * m.gap;
         }
-        let mut top = area.y + pad;
+        let mut top = area.y + m.pad;
         if !self.title.is_empty() {
-            top += (font::CAP_HEIGHT * title_scale) as i32 + 3 * gap;
+            top += m.title_height(&self.title);
         } else {
-            top += cap / 2;
+            top += m.cap / 2;
         }
         let last_x_label = xticks
             .last()
-            .map(|(_, s)| font::text_width(s, ts) as i32)
+            .map(|(_, s)| font::text_width(s, m.ts) as i32)
             .unwrap_or(0);
-        let right = area.right() - pad - (last_x_label / 2).max(gap);
-        let mut bottom = area.bottom() - pad - tick_len - gap - cap;
+        let right = area.right() - m.pad - (last_x_label / 2).max(m.gap);
+        let mut bottom = area.bottom() - m.pad - tick_len - m.gap - m.cap;
         if !self.x_label.is_empty() {
-            bottom -= cap + 2 * gap;
+            bottom -= m.cap + 2 * m.gap;
         }
         if right - left < 20 || bottom - top < 20 {
             return Err(PlotError::Invalid(format!(
@@ -335,141 +488,192 @@ impl LinePlot {
                 area.w, area.h
             )));
         }
-        let plot = Rect::new(left, top, (right - left) as u32, (bottom - top) as u32);
-        let (pl, pr) = (f64::from(left) + 0.5, f64::from(right) - 0.5);
-        let (pt, pb) = (f64::from(top) + 0.5, f64::from(bottom) - 0.5);
-        let sx = |x: f64| pl + (x - x0) / (x1 - x0) * (pr - pl);
-        let sy = |y: f64| {
-            let t = if self.log_y {
-                if y > 0.0 {
-                    (y / ymin).ln() / (ymax / ymin).ln()
-                } else {
-                    f64::NAN
-                }
-            } else {
-                (y - ymin) / (ymax - ymin)
-            };
-            pb - t * (pb - pt)
-        };
+        let [x0, x1, ymin, ymax] = range;
+        Ok(Frame {
+            left,
+            top,
+            right,
+            bottom,
+            plot: Rect::new(left, top, (right - left) as u32, (bottom - top) as u32),
+            x0,
+            x1,
+            ymin,
+            ymax,
+            log_y: self.log_y,
+            pl: f64::from(left) + 0.5,
+            pr: f64::from(right) - 0.5,
+            pt: f64::from(top) + 0.5,
+            pb: f64::from(bottom) - 0.5,
+        })
+    }
 
-        // Grid.
-        for (v, _) in &yticks {
-            let y = sy(*v).round() - 0.5;
-            canvas.line([pl, y + 1.0], [pr, y + 1.0], 1.0, color::GRID);
+    /// Grid lines at the ticks (and, on a log axis, faint lines at 2..9 of every decade).
+    fn draw_grid(&self, canvas: &mut Canvas, f: &Frame, xticks: &Ticks, yticks: &Ticks) {
+        for (v, _) in yticks {
+            let y = f.sy(*v).round() - 0.5;
+            canvas.line([f.pl, y + 1.0], [f.pr, y + 1.0], 1.0, color::GRID);
         }
         if self.log_y {
-            let decs = ticks::log_decades(ymin, ymax);
+            let decs = ticks::log_decades(f.ymin, f.ymax);
             for k in decs {
                 for m in 2..10 {
                     let v = f64::from(m) * 10f64.powi(k);
-                    if v > ymin && v < ymax {
-                        let y = sy(v).round() + 0.5;
-                        canvas.polyline_alpha(&[[pl, y], [pr, y]], 1.0, color::GRID, 0.45);
+                    if v > f.ymin && v < f.ymax {
+                        let y = f.sy(v).round() + 0.5;
+                        canvas.polyline_alpha(&[[f.pl, y], [f.pr, y]], 1.0, color::GRID, 0.45);
                     }
                 }
             }
         }
-        for (v, _) in &xticks {
-            let x = sx(*v).round() + 0.5;
-            canvas.line([x, pt], [x, pb], 1.0, color::GRID);
+        for (v, _) in xticks {
+            let x = f.sx(*v).round() + 0.5;
+            canvas.line([x, f.pt], [x, f.pb], 1.0, color::GRID);
         }
+    }
 
-        // Series, clipped to the plot rectangle.
-        let saved = canvas.clip();
-        canvas.set_clip(Some(plot));
-        let mut legend = Vec::new();
-        for (i, s) in self.series.iter().enumerate() {
-            let c = s.color.unwrap_or_else(|| color::palette(i));
-            let pts: Vec<[f64; 2]> = s
-                .points
-                .iter()
-                .map(|p| {
-                    if p[0].is_finite() && ok_y(p[1]) {
-                        [sx(p[0]), sy(p[1])]
-                    } else {
-                        [f64::NAN, f64::NAN]
-                    }
-                })
-                .collect();
-            stroke_series(canvas, &pts, s, c, ts);
-            legend.push(LegendEntry {
+    /// The series projected to the screen (undrawable points break the line).
+    fn curves(&self, f: &Frame) -> Vec<Curve<'_>> {
+        self.series
+            .iter()
+            .map(|s| Curve {
                 name: &s.name,
-                color: c,
+                color: s.color,
+                width: s.width,
                 style: s.style,
                 markers: s.markers,
-            });
-        }
-        canvas.set_clip(saved);
+                points: s
+                    .points
+                    .iter()
+                    .map(|p| {
+                        if p[0].is_finite() && self.ok_y(p[1]) {
+                            [f.sx(p[0]), f.sy(p[1])]
+                        } else {
+                            [f64::NAN, f64::NAN]
+                        }
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
 
-        // Axes: left and bottom lines, outward ticks, labels.
-        canvas.fill_rect(Rect::new(left - 1, top, 1, plot.h + 1), color::AXIS);
-        canvas.fill_rect(Rect::new(left - 1, bottom, plot.w + 1, 1), color::AXIS);
-        for (v, s) in &yticks {
-            let y = sy(*v).round() as i32;
-            canvas.fill_rect(
-                Rect::new(left - 1 - tick_len, y, tick_len as u32, 1),
-                color::AXIS,
-            );
-            font::draw_text_anchored(
-                canvas,
-                left - 1 - tick_len - gap,
-                y,
-                s,
-                ts,
-                color::INK_SOFT,
-                Anchor::MiddleRight,
-            );
-        }
-        for (v, s) in &xticks {
-            let x = sx(*v).round() as i32;
-            canvas.fill_rect(Rect::new(x, bottom + 1, 1, tick_len as u32), color::AXIS);
-            font::draw_text_anchored(
-                canvas,
-                x,
-                bottom + 1 + tick_len + gap,
-                s,
-                ts,
-                color::INK_SOFT,
-                Anchor::TopCenter,
-            );
-        }
+    /// The x label under the tick labels and the y label, rotated, left of them.
+    fn draw_axis_labels(&self, canvas: &mut Canvas, f: &Frame, m: &Metrics, area: Rect) {
+        let tick_len = 4 * m.u;
         if !self.x_label.is_empty() {
-            let y = bottom + 1 + tick_len + gap + cap + 2 * gap;
+            let y = f.bottom + 1 + tick_len + m.gap + m.cap + 2 * m.gap;
             font::draw_text_anchored(
                 canvas,
-                left + plot.w as i32 / 2,
+                f.left + f.plot.w as i32 / 2,
                 y,
                 &self.x_label,
-                ts,
+                m.ts,
                 color::INK,
                 Anchor::TopCenter,
             );
         }
         if !self.y_label.is_empty() {
-            let w = font::text_width(&self.y_label, ts) as i32;
+            let w = font::text_width(&self.y_label, m.ts) as i32;
             font::draw_text_vertical(
                 canvas,
-                area.x + pad,
-                top + plot.h as i32 / 2 - w / 2,
+                area.x + m.pad,
+                f.top + f.plot.h as i32 / 2 - w / 2,
                 &self.y_label,
-                ts,
+                m.ts,
                 color::INK,
             );
         }
-        if !self.title.is_empty() {
-            font::draw_text(
-                canvas,
-                left,
-                area.y + pad,
-                &self.title,
-                title_scale,
-                color::INK,
-            );
-        }
-        if self.legend {
-            draw_legend(canvas, right - gap, top + gap, &legend, ts);
-        }
-        Ok(())
+    }
+}
+
+/// Tick positions with their labels.
+type Ticks = Vec<(f64, String)>;
+
+/// Nice x ticks over `[x0, x1]` with their labels.
+fn x_ticks(x0: f64, x1: f64) -> Ticks {
+    let xstep = ticks::nice_ticks(x0, x1, 6).step;
+    ticks::ticks_within(x0, x1, 6)
+        .into_iter()
+        .map(|v| (v, ticks::format_tick(v, xstep)))
+        .collect()
+}
+
+/// Where a [`LinePlot`]'s axes lie on the canvas and how data maps onto them.
+struct Frame {
+    left: i32,
+    top: i32,
+    right: i32,
+    bottom: i32,
+    /// The axes rectangle (series are clipped to it).
+    plot: Rect,
+    x0: f64,
+    x1: f64,
+    ymin: f64,
+    ymax: f64,
+    log_y: bool,
+    /// Pixel-centre bounds of the axes: left, right, top, bottom.
+    pl: f64,
+    pr: f64,
+    pt: f64,
+    pb: f64,
+}
+
+impl Frame {
+    /// Screen x of data `x`.
+    fn sx(&self, x: f64) -> f64 {
+        self.pl + (x - self.x0) / (self.x1 - self.x0) * (self.pr - self.pl)
+    }
+
+    /// Screen y of data `y` (NaN for non-positive `y` on a log axis).
+    fn sy(&self, y: f64) -> f64 {
+        let t = if self.log_y {
+            if y > 0.0 {
+                (y / self.ymin).ln() / (self.ymax / self.ymin).ln()
+            } else {
+                f64::NAN
+            }
+        } else {
+            (y - self.ymin) / (self.ymax - self.ymin)
+        };
+        self.pb - t * (self.pb - self.pt)
+    }
+}
+
+/// The left and bottom axis lines with outward ticks and their labels.
+fn draw_axes(canvas: &mut Canvas, f: &Frame, m: &Metrics, xticks: &Ticks, yticks: &Ticks) {
+    let tick_len = 4 * m.u;
+    canvas.fill_rect(Rect::new(f.left - 1, f.top, 1, f.plot.h + 1), color::AXIS);
+    canvas.fill_rect(
+        Rect::new(f.left - 1, f.bottom, f.plot.w + 1, 1),
+        color::AXIS,
+    );
+    for (v, s) in yticks {
+        let y = f.sy(*v).round() as i32;
+        canvas.fill_rect(
+            Rect::new(f.left - 1 - tick_len, y, tick_len as u32, 1),
+            color::AXIS,
+        );
+        font::draw_text_anchored(
+            canvas,
+            f.left - 1 - tick_len - m.gap,
+            y,
+            s,
+            m.ts,
+            color::INK_SOFT,
+            Anchor::MiddleRight,
+        );
+    }
+    for (v, s) in xticks {
+        let x = f.sx(*v).round() as i32;
+        canvas.fill_rect(Rect::new(x, f.bottom + 1, 1, tick_len as u32), color::AXIS);
+        font::draw_text_anchored(
+            canvas,
+            x,
+            f.bottom + 1 + tick_len + m.gap,
+            s,
+            m.ts,
+            color::INK_SOFT,
+            Anchor::TopCenter,
+        );
     }
 }
 

@@ -6,7 +6,7 @@
 use crate::canvas::{arc_points, Canvas, Rect};
 use crate::color::{self, Rgb};
 use crate::font::{self, Anchor};
-use crate::plot::{auto_text_scale, draw_legend, stroke_series, LegendEntry, LineStyle, Series};
+use crate::plot::{draw_curves, draw_title_and_legend, Curve, LineStyle, Metrics};
 use crate::ticks;
 use crate::PlotError;
 use std::f64::consts::FRAC_PI_2;
@@ -130,12 +130,31 @@ impl PolarPlot {
 
     /// Draw into `area` of an existing canvas (the area is not cleared).
     pub fn draw(&self, canvas: &mut Canvas, area: Rect) -> Result<(), PlotError> {
-        let ts = if self.text_scale > 0 {
-            self.text_scale
-        } else {
-            auto_text_scale(area.w, area.h)
-        };
-        let u = ts as i32;
+        let m = Metrics::new(self.text_scale, area);
+        let rmax = self.radial_range()?;
+        let rticks: Vec<f64> = ticks::ticks_within(0.0, rmax, 4)
+            .into_iter()
+            .filter(|v| *v > 0.0)
+            .collect();
+        let f = self.frame(area, &m, rmax)?;
+        draw_polar_grid(canvas, &f, &rticks);
+        draw_angle_labels(canvas, &f, &m);
+        self.draw_radial_labels(canvas, &f, &m, &rticks);
+        self.draw_incident(canvas, &f, &m);
+        // Curves, clipped to the upper half-plane region.
+        let clip = Rect::new(area.x, area.y, area.w, (f.base + 1 - area.y).max(0) as u32);
+        let legend = draw_curves(canvas, clip, self.curves(&f), m.ts);
+        let title_at = (area.x + m.pad, area.y + m.pad);
+        let legend_at = self.legend.then_some((
+            area.right() - m.pad,
+            area.y + m.pad + m.title_height(&self.title),
+        ));
+        draw_title_and_legend(canvas, &m, &self.title, title_at, legend_at, &legend);
+        Ok(())
+    }
+
+    /// The outer radius value: `r_max`, or the data maximum rounded up to a nice number.
+    fn radial_range(&self) -> Result<f64, PlotError> {
         let vmax = self
             .series
             .iter()
@@ -143,38 +162,27 @@ impl PolarPlot {
             .filter(|p| p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0)
             .map(|p| p[1])
             .fold(f64::NAN, f64::max);
-        let rmax = match self.r_max {
-            Some(r) if r.is_finite() && r > 0.0 => r,
-            Some(r) => return Err(PlotError::Invalid(format!("r_max {r} must be positive"))),
-            None if vmax.is_finite() && vmax > 0.0 => ticks::nice_ticks(0.0, vmax, 4).max,
-            None => {
-                return Err(PlotError::NoData(format!(
-                    "polar plot '{}' has no positive finite values",
-                    self.title
-                )))
-            }
-        };
-        let rt = ticks::nice_ticks(0.0, rmax, 4);
-        let rticks: Vec<f64> = ticks::ticks_within(0.0, rmax, 4)
-            .into_iter()
-            .filter(|v| *v > 0.0)
-            .collect();
+        match self.r_max {
+            Some(r) if r.is_finite() && r > 0.0 => Ok(r),
+            Some(r) => Err(PlotError::Invalid(format!("r_max {r} must be positive"))),
+            None if vmax.is_finite() && vmax > 0.0 => Ok(ticks::nice_ticks(0.0, vmax, 4).max),
+            None => Err(PlotError::NoData(format!(
+                "polar plot '{}' has no positive finite values",
+                self.title
+            ))),
+        }
+    }
 
-        let pad = 10 * u;
-        let gap = 5 * u;
-        let cap = (font::CAP_HEIGHT * ts) as i32;
-        let title_scale = ts + 1;
-        let mut top = area.y + pad;
-        if !self.title.is_empty() {
-            top += (font::CAP_HEIGHT * title_scale) as i32 + 3 * gap;
-        }
-        let label_w = font::text_width("90°", ts) as i32;
-        top += cap + 2 * gap; // room for the 0° label
-        let mut base = area.bottom() - pad - gap - cap; // r tick labels under the baseline
+    /// Place the half disc in `area`, leaving room for the title and the labels.
+    fn frame(&self, area: Rect, m: &Metrics, rmax: f64) -> Result<PolarFrame, PlotError> {
+        let top = area.y + m.pad + m.title_height(&self.title);
+        let label_w = font::text_width("90°", m.ts) as i32;
+        let top = top + m.cap + 2 * m.gap; // room for the 0° label
+        let mut base = area.bottom() - m.pad - m.gap - m.cap; // r tick labels under the baseline
         if !self.r_label.is_empty() {
-            base -= cap + 2 * gap;
+            base -= m.cap + 2 * m.gap;
         }
-        let half_w = area.w as i32 / 2 - pad - label_w - 2 * gap;
+        let half_w = area.w as i32 / 2 - m.pad - label_w - 2 * m.gap;
         let radius = half_w.min(base - top);
         if radius < 20 {
             return Err(PlotError::Invalid(format!(
@@ -182,77 +190,41 @@ impl PolarPlot {
                 area.w, area.h
             )));
         }
-        let cx = f64::from(area.x) + f64::from(area.w) / 2.0;
-        let cy = f64::from(base) + 0.5;
-        let rr = f64::from(radius);
-        let to_screen = |theta: f64, r: f64| {
-            let s = r / rmax * rr;
-            [cx + s * theta.sin(), cy - s * theta.cos()]
-        };
+        Ok(PolarFrame {
+            base,
+            cx: f64::from(area.x) + f64::from(area.w) / 2.0,
+            cy: f64::from(base) + 0.5,
+            rr: f64::from(radius),
+            rmax,
+        })
+    }
 
-        // Grid: spokes every 15°, semicircles at the radial ticks.
-        for k in -6i32..=6 {
-            let t = f64::from(k) * 15f64.to_radians();
-            let alpha = if k % 2 == 0 { 1.0 } else { 0.5 };
-            canvas.polyline_alpha(&[[cx, cy], to_screen(t, rmax)], 1.0, color::GRID, alpha);
-        }
-        for v in &rticks {
-            let r = v / rmax * rr;
-            let c = if (v - rmax).abs() < 1e-9 * rmax {
-                color::AXIS
-            } else {
-                color::GRID
-            };
-            canvas.polyline(&arc_points([cx, cy], r, 0.0, std::f64::consts::PI), 1.0, c);
-        }
-        if rticks.last().is_none_or(|v| (v - rmax).abs() > 1e-9 * rmax) {
-            canvas.polyline(
-                &arc_points([cx, cy], rr, 0.0, std::f64::consts::PI),
-                1.0,
-                color::AXIS,
-            );
-        }
-        canvas.line([cx - rr - 0.5, cy], [cx + rr + 0.5, cy], 1.0, color::AXIS);
-
-        // Angle labels around the outside.
-        for k in -3i32..=3 {
-            let t = f64::from(k) * 30f64.to_radians();
-            let [x, y] = to_screen(t, rmax * (1.0 + f64::from(2 * gap) / rr));
-            let text = format!("{}°", (k * 30).abs());
-            let anchor = match k {
-                0 => Anchor::BottomCenter,
-                3 => Anchor::BottomLeft,
-                -3 => Anchor::BottomRight,
-                k if k > 0 => Anchor::BottomLeft,
-                _ => Anchor::BottomRight,
-            };
-            let (x, y) = (x.round() as i32, y.round() as i32);
-            let y = if k.abs() == 3 { cy as i32 - gap / 2 } else { y };
-            font::draw_text_anchored(canvas, x, y, &text, ts, color::INK_SOFT, anchor);
-        }
-        // Radial tick labels under the baseline, on both sides.
-        let y_lab = base + 1 + gap;
+    /// Radial tick labels (and small ticks) under the baseline on both sides, and the
+    /// radial axis caption under them.
+    fn draw_radial_labels(&self, canvas: &mut Canvas, f: &PolarFrame, m: &Metrics, rticks: &[f64]) {
+        let step = ticks::nice_ticks(0.0, f.rmax, 4).step;
+        let y_lab = f.base + 1 + m.gap;
         font::draw_text_anchored(
             canvas,
-            cx as i32,
+            f.cx as i32,
             y_lab,
             "0",
-            ts,
+            m.ts,
             color::INK_SOFT,
             Anchor::TopCenter,
         );
-        for v in &rticks {
-            let text = ticks::format_tick(*v, rt.step);
-            let d = (v / rmax * rr).round() as i32;
+        for v in rticks {
+            let text = ticks::format_tick(*v, step);
+            let d = (v / f.rmax * f.rr).round() as i32;
             for side in [-1, 1] {
-                let x = cx as i32 + side * d;
-                canvas.fill_rect(Rect::new(x, base + 1, 1, (2 * u) as u32), color::AXIS);
+                let x = f.cx as i32 + side * d;
+                canvas.fill_rect(Rect::new(x, f.base + 1, 1, (2 * m.u) as u32), color::AXIS);
                 font::draw_text_anchored(
                     canvas,
                     x,
                     y_lab,
                     &text,
-                    ts,
+                    m.ts,
                     color::INK_SOFT,
                     Anchor::TopCenter,
                 );
@@ -261,117 +233,156 @@ impl PolarPlot {
         if !self.r_label.is_empty() {
             font::draw_text_anchored(
                 canvas,
-                cx as i32,
-                y_lab + cap + 2 * gap,
+                f.cx as i32,
+                y_lab + m.cap + 2 * m.gap,
                 &self.r_label,
-                ts,
+                m.ts,
                 color::INK,
                 Anchor::TopCenter,
             );
         }
+    }
 
-        // Incident direction.
-        if let Some(ti) = self.incident.filter(|t| t.is_finite()) {
-            let ti = ti.clamp(-FRAC_PI_2, FRAC_PI_2);
-            let end = to_screen(ti, rmax);
-            let lw = f64::from(ts);
-            canvas.dashed_polyline(&[[cx, cy], end], lw, 6.0 * lw, 4.0 * lw, color::INK_SOFT);
-            // Arrow head pointing at the surface.
-            let (dx, dy) = ((cx - end[0]) / rr, (cy - end[1]) / rr);
-            let head = 7.0 * lw;
-            let tip = [cx - dx * 0.35 * rr, cy - dy * 0.35 * rr];
-            let back = [tip[0] - dx * head, tip[1] - dy * head];
-            let (nx, ny) = (-dy * head * 0.45, dx * head * 0.45);
-            canvas.polyline(
-                &[
-                    [back[0] + nx, back[1] + ny],
-                    tip,
-                    [back[0] - nx, back[1] - ny],
-                ],
-                1.5 * lw,
+    /// The incident direction: a dashed ray with an arrow head towards the surface and its
+    /// label.
+    fn draw_incident(&self, canvas: &mut Canvas, f: &PolarFrame, m: &Metrics) {
+        let Some(ti) = self.incident.filter(|t| t.is_finite()) else {
+            return;
+        };
+        let (cx, cy, rr) = (f.cx, f.cy, f.rr);
+        let ti = ti.clamp(-FRAC_PI_2, FRAC_PI_2);
+        let end = f.to_screen(ti, f.rmax);
+        let lw = f64::from(m.ts);
+        canvas.dashed_polyline(&[[cx, cy], end], lw, 6.0 * lw, 4.0 * lw, color::INK_SOFT);
+        // Arrow head pointing at the surface.
+        let (dx, dy) = ((cx - end[0]) / rr, (cy - end[1]) / rr);
+        let head = 7.0 * lw;
+        let tip = [cx - dx * 0.35 * rr, cy - dy * 0.35 * rr];
+        let back = [tip[0] - dx * head, tip[1] - dy * head];
+        let (nx, ny) = (-dy * head * 0.45, dx * head * 0.45);
+        canvas.polyline(
+            &[
+                [back[0] + nx, back[1] + ny],
+                tip,
+                [back[0] - nx, back[1] - ny],
+            ],
+            1.5 * lw,
+            color::INK_SOFT,
+        );
+        if !self.incident_label.is_empty() {
+            let p = f.to_screen(ti, f.rmax * 0.75);
+            let anchor = if ti < 0.0 {
+                Anchor::BottomRight
+            } else {
+                Anchor::BottomLeft
+            };
+            let off = if ti < 0.0 { -m.gap } else { m.gap };
+            font::draw_text_anchored(
+                canvas,
+                p[0] as i32 + off,
+                p[1] as i32 - m.gap,
+                &self.incident_label,
+                m.ts,
                 color::INK_SOFT,
+                anchor,
             );
-            if !self.incident_label.is_empty() {
-                let p = to_screen(ti, rmax * 0.75);
-                let anchor = if ti < 0.0 {
-                    Anchor::BottomRight
-                } else {
-                    Anchor::BottomLeft
-                };
-                let off = if ti < 0.0 { -gap } else { gap };
-                font::draw_text_anchored(
-                    canvas,
-                    p[0] as i32 + off,
-                    p[1] as i32 - gap,
-                    &self.incident_label,
-                    ts,
-                    color::INK_SOFT,
-                    anchor,
-                );
-            }
         }
+    }
 
-        // Curves, clipped to the upper half-plane region.
-        let saved = canvas.clip();
-        canvas.set_clip(Some(Rect::new(
-            area.x,
-            area.y,
-            area.w,
-            (base + 1 - area.y).max(0) as u32,
-        )));
-        let mut legend = Vec::new();
-        for (i, s) in self.series.iter().enumerate() {
-            let c = s.color.unwrap_or_else(|| color::palette(i));
-            let pts: Vec<[f64; 2]> = s
-                .points
-                .iter()
-                .map(|p| {
-                    if p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0 {
-                        to_screen(p[0].clamp(-FRAC_PI_2, FRAC_PI_2), p[1])
-                    } else {
-                        [f64::NAN, f64::NAN]
-                    }
-                })
-                .collect();
-            let as_series = Series {
-                name: String::new(),
-                points: Vec::new(),
-                color: Some(c),
+    /// The curves projected to the screen (non-finite or negative values break them).
+    fn curves(&self, f: &PolarFrame) -> Vec<Curve<'_>> {
+        self.series
+            .iter()
+            .map(|s| Curve {
+                name: &s.name,
+                color: s.color,
                 width: s.width,
                 style: s.style,
                 markers: s.markers,
-            };
-            stroke_series(canvas, &pts, &as_series, c, ts);
-            legend.push(LegendEntry {
-                name: &s.name,
-                color: c,
-                style: s.style,
-                markers: s.markers,
-            });
-        }
-        canvas.set_clip(saved);
+                points: s
+                    .points
+                    .iter()
+                    .map(|p| {
+                        if p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0 {
+                            f.to_screen(p[0].clamp(-FRAC_PI_2, FRAC_PI_2), p[1])
+                        } else {
+                            [f64::NAN, f64::NAN]
+                        }
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
+}
 
-        if !self.title.is_empty() {
-            font::draw_text(
-                canvas,
-                area.x + pad,
-                area.y + pad,
-                &self.title,
-                title_scale,
-                color::INK,
-            );
-        }
-        if self.legend {
-            let legend_top = area.y
-                + pad
-                + if self.title.is_empty() {
-                    0
-                } else {
-                    (font::CAP_HEIGHT * title_scale) as i32 + 3 * gap
-                };
-            draw_legend(canvas, area.right() - pad, legend_top, &legend, ts);
-        }
-        Ok(())
+/// Where a [`PolarPlot`]'s half disc lies on the canvas.
+struct PolarFrame {
+    /// Pixel row of the baseline.
+    base: i32,
+    /// Screen centre of the disc.
+    cx: f64,
+    cy: f64,
+    /// Radius in pixels.
+    rr: f64,
+    /// The value at the outer radius.
+    rmax: f64,
+}
+
+impl PolarFrame {
+    /// Screen position of the value `r` at angle `theta`.
+    fn to_screen(&self, theta: f64, r: f64) -> [f64; 2] {
+        let s = r / self.rmax * self.rr;
+        [self.cx + s * theta.sin(), self.cy - s * theta.cos()]
+    }
+}
+
+/// Grid: spokes every 15°, semicircles at the radial ticks, the outer arc and the baseline.
+fn draw_polar_grid(canvas: &mut Canvas, f: &PolarFrame, rticks: &[f64]) {
+    let (cx, cy, rr, rmax) = (f.cx, f.cy, f.rr, f.rmax);
+    for k in -6i32..=6 {
+        let t = f64::from(k) * 15f64.to_radians();
+        let alpha = if k % 2 == 0 { 1.0 } else { 0.5 };
+        canvas.polyline_alpha(&[[cx, cy], f.to_screen(t, rmax)], 1.0, color::GRID, alpha);
+    }
+    for v in rticks {
+        let r = v / rmax * rr;
+        let c = if (v - rmax).abs() < 1e-9 * rmax {
+            color::AXIS
+        } else {
+            color::GRID
+        };
+        canvas.polyline(&arc_points([cx, cy], r, 0.0, std::f64::consts::PI), 1.0, c);
+    }
+    if rticks.last().is_none_or(|v| (v - rmax).abs() > 1e-9 * rmax) {
+        canvas.polyline(
+            &arc_points([cx, cy], rr, 0.0, std::f64::consts::PI),
+            1.0,
+            color::AXIS,
+        );
+    }
+    canvas.line([cx - rr - 0.5, cy], [cx + rr + 0.5, cy], 1.0, color::AXIS);
+}
+
+/// Angle labels (0° to 90° either side) around the outside of the half disc.
+fn draw_angle_labels(canvas: &mut Canvas, f: &PolarFrame, m: &Metrics) {
+    for k in -3i32..=3 {
+        let t = f64::from(k) * 30f64.to_radians();
+        let [x, y] = f.to_screen(t, f.rmax * (1.0 + f64::from(2 * m.gap) / f.rr));
+        let text = format!("{}°", (k * 30).abs());
+        let anchor = match k {
+            0 => Anchor::BottomCenter,
+            3 => Anchor::BottomLeft,
+            -3 => Anchor::BottomRight,
+            k if k > 0 => Anchor::BottomLeft,
+            _ => Anchor::BottomRight,
+        };
+        let (x, y) = (x.round() as i32, y.round() as i32);
+        let y = if k.abs() == 3 {
+            f.cy as i32 - m.gap / 2
+        } else {
+            y
+        };
+        font::draw_text_anchored(canvas, x, y, &text, m.ts, color::INK_SOFT, anchor);
     }
 }
 
