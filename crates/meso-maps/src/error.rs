@@ -84,13 +84,16 @@ pub enum MapError {
         message: String,
     },
     /// A map file has a version this library does not read.
-    #[error("map file {path} has format version {found}; this build reads version {expected}")]
+    #[error(
+        "map file {path} has format version {found}; this build reads versions 2 and {expected} \
+         (re-extract it with `meso extract`)"
+    )]
     MapVersion {
         /// The file.
         path: PathBuf,
         /// Version in the file.
         found: u32,
-        /// Version supported.
+        /// The newest version supported (the one written; version 2 is read too).
         expected: u32,
     },
     /// A pyramid level or texel index is out of range.
