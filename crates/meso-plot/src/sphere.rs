@@ -159,8 +159,7 @@ pub fn hemisphere_map_range(
         });
     }
     let ts: u32 = if size >= 400 { 2 } else { 1 };
-    let u = ts as i32;
-    let margin = font::text_width("180°", ts) as i32 + 10 * u;
+    let margin = font::text_width("180°", ts) as i32 + 10 * ts as i32;
     let radius = f64::from(size) / 2.0 - f64::from(margin);
     let g = DiscGeometry {
         cx: f64::from(size) / 2.0,
@@ -168,8 +167,33 @@ pub fn hemisphere_map_range(
         radius,
         upper,
     };
-    // Sample f at every pixel whose centre is inside (or within half a pixel of) the disc.
-    let n = size as usize;
+    let (values, coverage) = sample_disc(&f, &g, size as usize);
+    let (min, max) = value_range(range, &values, map, scale)?;
+    let mut c = Canvas::new(size, size, color::PAPER);
+    paint_values(&mut c, &values, &coverage, size as usize, |v| {
+        map.map(v, min, max, scale)
+    });
+    draw_guides(&mut c, &g, map, ts);
+    // Hemisphere tag in the top-left corner.
+    let u = ts as i32;
+    let tag = if upper { "z > 0" } else { "z < 0" };
+    font::draw_text(&mut c, 4 * u, 4 * u, tag, ts, color::INK_SOFT);
+
+    Ok(SphereMap {
+        canvas: c,
+        min,
+        max,
+        map,
+        scale,
+        geometry: g,
+        text_scale: ts,
+    })
+}
+
+/// Sample `f` at every pixel of an `n`×`n` picture whose centre is inside (or within half a
+/// pixel of) the disc: the values (NaN outside) and each pixel's coverage by the disc.
+fn sample_disc(f: &impl Fn(DVec3) -> f64, g: &DiscGeometry, n: usize) -> (Vec<f64>, Vec<f32>) {
+    let radius = g.radius;
     let mut values = vec![f64::NAN; n * n];
     let mut coverage = vec![0f32; n * n];
     for y in 0..n {
@@ -189,36 +213,55 @@ pub fn hemisphere_map_range(
             }
         }
     }
-    let (min, max) = match range {
+    (values, coverage)
+}
+
+/// The colour map's value range: the given `range` (checked) or one chosen from the data.
+fn value_range(
+    range: Option<(f64, f64)>,
+    values: &[f64],
+    map: ColorMap,
+    scale: ValueScale,
+) -> Result<(f64, f64), PlotError> {
+    match range {
         Some((a, b)) if a.is_finite() && b.is_finite() && a < b => {
             if scale == ValueScale::Log && a <= 0.0 {
                 return Err(PlotError::Invalid(format!(
                     "log range [{a}, {b}] must be positive"
                 )));
             }
-            (a, b)
+            Ok((a, b))
         }
-        Some((a, b)) => return Err(PlotError::Invalid(format!("invalid range [{a}, {b}]"))),
-        None => auto_range(&values, map, scale)?,
-    };
+        Some((a, b)) => Err(PlotError::Invalid(format!("invalid range [{a}, {b}]"))),
+        None => auto_range(values, map, scale),
+    }
+}
 
-    let mut c = Canvas::new(size, size, color::PAPER);
+/// Blend every covered pixel's colour (`to_color` of its value, grey where it is not finite)
+/// onto the canvas, weighted by its coverage.
+fn paint_values(
+    c: &mut Canvas,
+    values: &[f64],
+    coverage: &[f32],
+    n: usize,
+    to_color: impl Fn(f64) -> Rgb,
+) {
     let missing: Rgb = color::hex(0x9A9A9A);
     for y in 0..n {
         for x in 0..n {
             let k = coverage[y * n + x];
             if k > 0.0 {
                 let v = values[y * n + x];
-                let col = if v.is_finite() {
-                    map.map(v, min, max, scale)
-                } else {
-                    missing
-                };
+                let col = if v.is_finite() { to_color(v) } else { missing };
                 c.blend(x as i32, y as i32, col, k);
             }
         }
     }
-    // Guides: θ = 30°, 60° circles and the φ axes, light over the data.
+}
+
+/// Guides over the data: θ = 30°, 60° circles with their labels, the φ axes with their
+/// ticks and labels, the pole mark and the outline.
+fn draw_guides(c: &mut Canvas, g: &DiscGeometry, map: ColorMap, ts: u32) {
     let centre = [g.cx, g.cy];
     // Light guides over dark maps, dark guides over maps with a light end or middle.
     let light_bg = matches!(map, ColorMap::BlueWhiteRed | ColorMap::Gray);
@@ -236,6 +279,16 @@ pub fn hemisphere_map_range(
             0.55,
         );
     }
+    draw_phi_axes(c, g, guide, ts);
+    // Small centre mark (the pole).
+    c.disc_alpha(centre, 1.5 * f64::from(ts), guide, 0.7);
+    draw_theta_labels(c, g, guide, halo, ts);
+    c.circle(centre, g.radius, f64::from(ts), color::AXIS);
+}
+
+/// The φ = 0°, 90°, 180°, 270° axes: a short inner mark, an outer tick and a label each.
+fn draw_phi_axes(c: &mut Canvas, g: &DiscGeometry, guide: Rgb, ts: u32) {
+    let radius = g.radius;
     let tick = 5.0 * f64::from(ts);
     for (k, label) in ["0°", "90°", "180°", "270°"].iter().enumerate() {
         let a = k as f64 * std::f64::consts::FRAC_PI_2;
@@ -267,11 +320,13 @@ pub fn hemisphere_map_range(
             2 => Anchor::MiddleRight,
             _ => Anchor::TopCenter,
         };
-        font::draw_text_anchored(&mut c, lx, ly, label, ts, color::INK_SOFT, anchor);
+        font::draw_text_anchored(c, lx, ly, label, ts, color::INK_SOFT, anchor);
     }
-    // Small centre mark (the pole).
-    c.disc_alpha(centre, 1.5 * f64::from(ts), guide, 0.7);
-    // θ labels on the circles, along φ = 45°, with a dark halo for contrast on any colour.
+}
+
+/// θ labels on the 30° and 60° circles, along φ = 45°, with a halo for contrast on any colour.
+fn draw_theta_labels(c: &mut Canvas, g: &DiscGeometry, guide: Rgb, halo: Rgb, ts: u32) {
+    let u = ts as i32;
     for deg in [30.0f64, 60.0] {
         let r = g.circle_radius(deg.to_radians());
         let a = 45f64.to_radians();
@@ -282,24 +337,10 @@ pub fn hemisphere_map_range(
         let text = format!("{}°", deg as i32);
         let (x0, y0) = font::anchored_origin(x as i32, y as i32, &text, ts, Anchor::BottomLeft);
         for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
-            font::draw_text(&mut c, x0 + dx * u, y0 + dy * u, &text, ts, halo);
+            font::draw_text(c, x0 + dx * u, y0 + dy * u, &text, ts, halo);
         }
-        font::draw_text(&mut c, x0, y0, &text, ts, guide);
+        font::draw_text(c, x0, y0, &text, ts, guide);
     }
-    c.circle(centre, radius, f64::from(ts), color::AXIS);
-    // Hemisphere tag in the top-left corner.
-    let tag = if upper { "z > 0" } else { "z < 0" };
-    font::draw_text(&mut c, 4 * u, 4 * u, tag, ts, color::INK_SOFT);
-
-    Ok(SphereMap {
-        canvas: c,
-        min,
-        max,
-        map,
-        scale,
-        geometry: g,
-        text_scale: ts,
-    })
 }
 
 fn auto_range(values: &[f64], map: ColorMap, scale: ValueScale) -> Result<(f64, f64), PlotError> {
