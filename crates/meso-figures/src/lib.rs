@@ -487,199 +487,250 @@ pub fn run(opts: &Options, log: &mut dyn FnMut(&str)) -> Result<Report, FigureEr
     let dir = opts.out.as_path();
     std::fs::create_dir_all(dir)
         .map_err(|e| ferr(format!("{}: cannot create directory: {e}", dir.display())))?;
-    let mut w = Writer {
-        dir,
-        report: Report::default(),
-    };
-    let size = opts.size.clamp(32, 4096);
-    let spp = opts.spp.clamp(1, 4096);
-    let ropts = RenderOptions::default();
-    let mut sheet = Sheet::new("meso - Fournier 1992, multiple surfaces", 4, 256, 256);
-
-    // Figures 2–4: spheres.
-    let t0 = Instant::now();
-    let spheres: Vec<(&str, String, MaterialDef)> = vec![
-        (
-            "fig2a_anisotropic",
-            "Fig. 2a anisotropic".into(),
-            anisotropic(),
-        ),
-        (
-            "fig2b_two_normals",
-            "Fig. 2b 2 normals".into(),
-            two_normals(),
-        ),
-        (
-            "fig2c_three_normals",
-            "Fig. 2c 3 normals".into(),
-            three_normals(),
-        ),
-        ("fig2d_seven_normals", String::new(), seven_normals()?),
-        ("fig3_velvet", "Fig. 3 velvet".into(), velvet()),
-        ("fig4_silk", "Fig. 4 silk".into(), silk()),
-    ];
-    for (stem, caption, def) in &spheres {
-        let t = Instant::now();
-        let material = def.material()?;
-        let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&material));
-        let lights: Vec<Light> = if stem.starts_with("fig2") {
-            vec![key_light()]
-        } else {
-            vec![cloth_light()]
-        };
-        let scene = sphere_scene(shader, size, spp, &lights)?;
-        let img = render(&scene, &ropts, None);
-        w.png(&format!("{stem}.png"), &img, 0.0)?;
-        w.bytes(&format!("{stem}.toml"), def.toml()?.as_bytes())?;
-        w.bytes(
-            &format!("{stem}.scene.toml"),
-            sphere_scene_toml(&format!("{stem}.toml"), size, spp, &lights).as_bytes(),
-        )?;
-        let caption = if caption.is_empty() {
-            format!("Fig. 2d {} normals", def.lobes.len())
-        } else {
-            caption.clone()
-        };
-        sheet.add(canvas(&img, 0.0)?, caption);
-        log(&format!(
-            "{stem}: {} lobes, {:.2} s",
-            def.lobes.len(),
-            t.elapsed().as_secs_f64()
-        ));
-    }
-    w.report
-        .timings
-        .push(("spheres".into(), t0.elapsed().as_secs_f64()));
-
-    // Zoom sequence.
-    let t0 = Instant::now();
-    let map = bump_map()?;
-    let pyr = pyramid(&map, 4)?;
-    let surface_def = bump_surface();
-    let surface = surface_def.material()?;
-    let texels_per_uv = map.cells_x() as f64;
-    let shader = Arc::new(
-        NdfMapped::new(&pyr, &surface, texels_per_uv, true).map_err(|e| ferr(e.to_string()))?,
-    );
-    let frames = opts.zoom_frames.max(6);
-    let zsize = (size * 3 / 5).max(32);
-    let mut csv = String::from("frame,camera_width,lod,mean_luminance\n");
-    for (k, &width) in zoom_widths(frames).iter().enumerate() {
-        let scene = plane_scene(shader.clone(), width, zsize, spp)?;
-        let img = render(&scene, &ropts, None);
-        let lum = mean_luminance(&img);
-        // The level at the image centre (the footprint is the same everywhere: orthographic).
-        let lod = scene
-            .intersect(&scene.camera.generate_ray(
-                f64::from(zsize) / 2.0,
-                f64::from(zsize) / 2.0,
-                zsize,
-                zsize,
-            ))
-            .map_or(f64::NAN, |sp| shader.lod(&sp));
-        let _ = writeln!(csv, "{k},{width:.4},{lod:.4},{lum:.6}");
-        w.report.zoom.push(ZoomFrame {
-            width,
-            lod,
-            mean_luminance: lum,
-        });
-        w.png(&format!("zoom_{k:02}.png"), &img, 0.0)?;
-        sheet.add(
-            canvas(&img, 0.0)?,
-            format!("zoom {k}: {width:.1} tiles, lod {lod:.1}"),
-        );
-    }
-    w.bytes("zoom_luminance.csv", csv.as_bytes())?;
-    let (png, hscale) = heightmap_png(&map)?;
-    w.bytes("zoom_heightmap.png", &png)?;
-    // The bump map's far-field material: the height map's NDF under the surface's transfer.
-    let surface = surface_def.to_spec()?;
-    let mut mat = MaterialSpec {
-        name: Some("zoom bump map, far-field (top-level) BRDF".into()),
-        ndf: NdfSpec::External {
-            kind: "heightmap".into(),
-            table: Default::default(),
-            file: "zoom_heightmap.png".into(),
+    let mut job = Job {
+        w: Writer {
+            dir,
+            report: Report::default(),
         },
-        ..surface.clone()
+        sheet: Sheet::new("meso - Fournier 1992, multiple surfaces", 4, 256, 256),
+        size: opts.size.clamp(32, 4096),
+        spp: opts.spp.clamp(1, 4096),
+        ropts: RenderOptions::default(),
     };
-    if let NdfSpec::External { table, .. } = &mut mat.ndf {
-        table.insert("kind".into(), "heightmap".into());
-        table.insert("file".into(), "zoom_heightmap.png".into());
-        table.insert("texel_size".into(), map.texel_size().into());
-        table.insert("height_scale".into(), hscale.into());
-        table.insert("max_lobes".into(), 4i64.into());
-    }
-    let mat = mat.to_toml();
-    let full = surface.to_toml();
-    w.bytes("zoom_material.toml", mat.as_bytes())?;
-    // The same bump map as a textured material for scene files, and each frame's scene, so
-    // that `meso render zoom_KK.scene.toml` reproduces the frames (docs/scene-format.md).
-    let mut textured = format!(
-        "name = \"zoom bump map, NDF-mapped\"\n[texture]\nkind = \"ndf-mapped\"\n\
-         file = \"zoom_heightmap.png\"\ntexel_size = {}\nheight_scale = {hscale}\nmax_lobes = 4\n\
-         texels_per_uv = {texels_per_uv}\nshadowing = true\n",
-        map.texel_size()
-    );
-    if let Some(pos) = full.find("[transfer]") {
-        textured.push_str(&full[pos..]);
-    }
-    w.bytes("zoom_textured.toml", textured.as_bytes())?;
-    for (k, &width) in zoom_widths(frames).iter().enumerate() {
-        w.bytes(
-            &format!("zoom_{k:02}.scene.toml"),
-            plane_scene_toml("zoom_textured.toml", width, zsize, spp).as_bytes(),
-        )?;
-    }
-    log(&format!(
-        "zoom: {frames} frames, {:.2} s",
-        t0.elapsed().as_secs_f64()
-    ));
-    w.report
-        .timings
-        .push(("zoom".into(), t0.elapsed().as_secs_f64()));
-
-    // NDF blend strip.
-    let t0 = Instant::now();
-    let (a, b) = (three_normals(), silk());
-    let steps = 7;
-    let cam = sphere_camera(2.2 * steps as f64)?;
-    let (sw, sh) = (size * 3, (size * 3 / steps as u32).max(16));
-    let mut builder = SceneBuilder::new(
-        cam,
-        ImageSettings {
-            width: sw,
-            height: sh,
-            spp,
-            background: BACKGROUND,
-        },
-    );
-    for k in 0..steps {
-        let t = k as f64 / (steps - 1) as f64;
-        let def = a.blend(&b, t);
-        let m = builder.material(Arc::new(MaterialShader::new(&def.material()?)));
-        let x = (k as f64 - (steps - 1) as f64 / 2.0) * 2.2;
-        builder
-            .sphere(DVec3::new(x, 0.0, 0.0), 1.0, DVec3::Y, m)
-            .map_err(|e| ferr(e.to_string()))?;
-        w.bytes(&format!("blend_t{t:.2}.toml"), def.toml()?.as_bytes())?;
-    }
-    builder
-        .light(key_light())
-        .map_err(|e| ferr(e.to_string()))?;
-    let scene = builder.build().map_err(|e| ferr(e.to_string()))?;
-    let img = render(&scene, &ropts, None);
-    w.png("blend_strip.png", &img, 0.0)?;
-    sheet.add(canvas(&img, 0.0)?, "NDF blend: 3 normals to silk");
-    log(&format!("blend strip: {:.2} s", t0.elapsed().as_secs_f64()));
-    w.report
-        .timings
-        .push(("blend".into(), t0.elapsed().as_secs_f64()));
-
-    let sheet_png = sheet
+    job.spheres(log)?;
+    job.zoom(opts.zoom_frames.max(6), log)?;
+    job.blend_strip(log)?;
+    let sheet_png = job
+        .sheet
         .render()
         .and_then(|c| c.to_png_bytes())
         .map_err(|e| ferr(format!("contact sheet: {e}")))?;
-    w.bytes("contact_sheet.png", &sheet_png)?;
-    Ok(w.report)
+    job.w.bytes("contact_sheet.png", &sheet_png)?;
+    Ok(job.w.report)
+}
+
+/// The state [`run`]'s steps share: the files written, the contact sheet and the settings.
+struct Job<'a> {
+    w: Writer<'a>,
+    sheet: Sheet,
+    /// Edge of the sphere pictures in pixels.
+    size: u32,
+    /// Samples per pixel.
+    spp: u32,
+    ropts: RenderOptions,
+}
+
+impl Job<'_> {
+    /// Figures 2–4: one sphere per material, with its material and scene files.
+    fn spheres(&mut self, log: &mut dyn FnMut(&str)) -> Result<(), FigureError> {
+        let (size, spp) = (self.size, self.spp);
+        let t0 = Instant::now();
+        let spheres: Vec<(&str, String, MaterialDef)> = vec![
+            (
+                "fig2a_anisotropic",
+                "Fig. 2a anisotropic".into(),
+                anisotropic(),
+            ),
+            (
+                "fig2b_two_normals",
+                "Fig. 2b 2 normals".into(),
+                two_normals(),
+            ),
+            (
+                "fig2c_three_normals",
+                "Fig. 2c 3 normals".into(),
+                three_normals(),
+            ),
+            ("fig2d_seven_normals", String::new(), seven_normals()?),
+            ("fig3_velvet", "Fig. 3 velvet".into(), velvet()),
+            ("fig4_silk", "Fig. 4 silk".into(), silk()),
+        ];
+        for (stem, caption, def) in &spheres {
+            let t = Instant::now();
+            let material = def.material()?;
+            let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&material));
+            let lights: Vec<Light> = if stem.starts_with("fig2") {
+                vec![key_light()]
+            } else {
+                vec![cloth_light()]
+            };
+            let scene = sphere_scene(shader, size, spp, &lights)?;
+            let img = render(&scene, &self.ropts, None);
+            self.w.png(&format!("{stem}.png"), &img, 0.0)?;
+            self.w
+                .bytes(&format!("{stem}.toml"), def.toml()?.as_bytes())?;
+            self.w.bytes(
+                &format!("{stem}.scene.toml"),
+                sphere_scene_toml(&format!("{stem}.toml"), size, spp, &lights).as_bytes(),
+            )?;
+            let caption = if caption.is_empty() {
+                format!("Fig. 2d {} normals", def.lobes.len())
+            } else {
+                caption.clone()
+            };
+            self.sheet.add(canvas(&img, 0.0)?, caption);
+            log(&format!(
+                "{stem}: {} lobes, {:.2} s",
+                def.lobes.len(),
+                t.elapsed().as_secs_f64()
+            ));
+        }
+        self.w
+            .report
+            .timings
+            .push(("spheres".into(), t0.elapsed().as_secs_f64()));
+        Ok(())
+    }
+
+    /// The zoom sequence over the NDF-mapped bump map: `frames` pictures, their luminance
+    /// table, and the files that reproduce them.
+    fn zoom(&mut self, frames: usize, log: &mut dyn FnMut(&str)) -> Result<(), FigureError> {
+        let spp = self.spp;
+        let t0 = Instant::now();
+        let map = bump_map()?;
+        let pyr = pyramid(&map, 4)?;
+        let surface_def = bump_surface();
+        let surface = surface_def.material()?;
+        let texels_per_uv = map.cells_x() as f64;
+        let shader = Arc::new(
+            NdfMapped::new(&pyr, &surface, texels_per_uv, true).map_err(|e| ferr(e.to_string()))?,
+        );
+        let zsize = (self.size * 3 / 5).max(32);
+        let mut csv = String::from("frame,camera_width,lod,mean_luminance\n");
+        for (k, &width) in zoom_widths(frames).iter().enumerate() {
+            let scene = plane_scene(shader.clone(), width, zsize, spp)?;
+            let img = render(&scene, &self.ropts, None);
+            let lum = mean_luminance(&img);
+            // The level at the image centre (the footprint is the same everywhere: orthographic).
+            let lod = scene
+                .intersect(&scene.camera.generate_ray(
+                    f64::from(zsize) / 2.0,
+                    f64::from(zsize) / 2.0,
+                    zsize,
+                    zsize,
+                ))
+                .map_or(f64::NAN, |sp| shader.lod(&sp));
+            let _ = writeln!(csv, "{k},{width:.4},{lod:.4},{lum:.6}");
+            self.w.report.zoom.push(ZoomFrame {
+                width,
+                lod,
+                mean_luminance: lum,
+            });
+            self.w.png(&format!("zoom_{k:02}.png"), &img, 0.0)?;
+            self.sheet.add(
+                canvas(&img, 0.0)?,
+                format!("zoom {k}: {width:.1} tiles, lod {lod:.1}"),
+            );
+        }
+        self.w.bytes("zoom_luminance.csv", csv.as_bytes())?;
+        self.zoom_files(&map, &surface_def, texels_per_uv, frames, zsize)?;
+        log(&format!(
+            "zoom: {frames} frames, {:.2} s",
+            t0.elapsed().as_secs_f64()
+        ));
+        self.w
+            .report
+            .timings
+            .push(("zoom".into(), t0.elapsed().as_secs_f64()));
+        Ok(())
+    }
+
+    /// The zoom sequence's height map, its far-field and textured materials and each frame's
+    /// scene file.
+    fn zoom_files(
+        &mut self,
+        map: &HeightMap,
+        surface_def: &MaterialDef,
+        texels_per_uv: f64,
+        frames: usize,
+        zsize: u32,
+    ) -> Result<(), FigureError> {
+        let (png, hscale) = heightmap_png(map)?;
+        self.w.bytes("zoom_heightmap.png", &png)?;
+        // The bump map's far-field material: the height map's NDF under the surface's transfer.
+        let surface = surface_def.to_spec()?;
+        let mut mat = MaterialSpec {
+            name: Some("zoom bump map, far-field (top-level) BRDF".into()),
+            ndf: NdfSpec::External {
+                kind: "heightmap".into(),
+                table: Default::default(),
+                file: "zoom_heightmap.png".into(),
+            },
+            ..surface.clone()
+        };
+        if let NdfSpec::External { table, .. } = &mut mat.ndf {
+            table.insert("kind".into(), "heightmap".into());
+            table.insert("file".into(), "zoom_heightmap.png".into());
+            table.insert("texel_size".into(), map.texel_size().into());
+            table.insert("height_scale".into(), hscale.into());
+            table.insert("max_lobes".into(), 4i64.into());
+        }
+        let mat = mat.to_toml();
+        let full = surface.to_toml();
+        self.w.bytes("zoom_material.toml", mat.as_bytes())?;
+        // The same bump map as a textured material for scene files, and each frame's scene, so
+        // that `meso render zoom_KK.scene.toml` reproduces the frames (docs/scene-format.md).
+        let mut textured = format!(
+            "name = \"zoom bump map, NDF-mapped\"\n[texture]\nkind = \"ndf-mapped\"\n\
+             file = \"zoom_heightmap.png\"\ntexel_size = {}\nheight_scale = {hscale}\nmax_lobes = 4\n\
+             texels_per_uv = {texels_per_uv}\nshadowing = true\n",
+            map.texel_size()
+        );
+        if let Some(pos) = full.find("[transfer]") {
+            textured.push_str(&full[pos..]);
+        }
+        self.w.bytes("zoom_textured.toml", textured.as_bytes())?;
+        for (k, &width) in zoom_widths(frames).iter().enumerate() {
+            self.w.bytes(
+                &format!("zoom_{k:02}.scene.toml"),
+                plane_scene_toml("zoom_textured.toml", width, zsize, self.spp).as_bytes(),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The NDF blend strip: seven spheres blending three normals into silk, with each step's
+    /// material file.
+    fn blend_strip(&mut self, log: &mut dyn FnMut(&str)) -> Result<(), FigureError> {
+        let (size, spp) = (self.size, self.spp);
+        let t0 = Instant::now();
+        let (a, b) = (three_normals(), silk());
+        let steps = 7;
+        let cam = sphere_camera(2.2 * steps as f64)?;
+        let (sw, sh) = (size * 3, (size * 3 / steps as u32).max(16));
+        let mut builder = SceneBuilder::new(
+            cam,
+            ImageSettings {
+                width: sw,
+                height: sh,
+                spp,
+                background: BACKGROUND,
+            },
+        );
+        for k in 0..steps {
+            let t = k as f64 / (steps - 1) as f64;
+            let def = a.blend(&b, t);
+            let m = builder.material(Arc::new(MaterialShader::new(&def.material()?)));
+            let x = (k as f64 - (steps - 1) as f64 / 2.0) * 2.2;
+            builder
+                .sphere(DVec3::new(x, 0.0, 0.0), 1.0, DVec3::Y, m)
+                .map_err(|e| ferr(e.to_string()))?;
+            self.w
+                .bytes(&format!("blend_t{t:.2}.toml"), def.toml()?.as_bytes())?;
+        }
+        builder
+            .light(key_light())
+            .map_err(|e| ferr(e.to_string()))?;
+        let scene = builder.build().map_err(|e| ferr(e.to_string()))?;
+        let img = render(&scene, &self.ropts, None);
+        self.w.png("blend_strip.png", &img, 0.0)?;
+        self.sheet
+            .add(canvas(&img, 0.0)?, "NDF blend: 3 normals to silk");
+        log(&format!("blend strip: {:.2} s", t0.elapsed().as_secs_f64()));
+        self.w
+            .report
+            .timings
+            .push(("blend".into(), t0.elapsed().as_secs_f64()));
+        Ok(())
+    }
 }
