@@ -189,10 +189,9 @@ impl ChiSquareTest {
     #[must_use]
     pub fn run_report(
         &self,
-        mut sample: impl FnMut(&mut Rng) -> Option<DVec3>,
+        sample: impl FnMut(&mut Rng) -> Option<DVec3>,
         pdf: impl Fn(DVec3) -> f64 + Sync,
     ) -> ChiSquareReport {
-        let (nt, np) = (self.n_theta, self.n_phi);
         let mut report = ChiSquareReport {
             statistic: 0.0,
             dof: 0,
@@ -203,16 +202,54 @@ impl ChiSquareTest {
             none_samples: 0,
             pooled_cells: 0,
             worst_cell: None,
-            observed: vec![0.0; nt * np],
+            observed: vec![0.0; self.n_theta * self.n_phi],
             expected: Vec::new(),
             failure: None,
         };
-        if nt == 0 || np == 0 || self.samples == 0 || self.cell_subdivisions == 0 {
-            report.failure = Some("empty grid, no samples or no sub-cells".into());
-            return report;
+        if let Err(why) = self.evaluate(&mut report, sample, pdf) {
+            report.failure = Some(why);
         }
+        report
+    }
 
+    /// The steps of [`run_report`](Self::run_report), filling `report`; `Err` is the
+    /// failure (the report keeps what the steps before it found).
+    fn evaluate(
+        &self,
+        report: &mut ChiSquareReport,
+        sample: impl FnMut(&mut Rng) -> Option<DVec3>,
+        pdf: impl Fn(DVec3) -> f64 + Sync,
+    ) -> Result<(), String> {
+        let (nt, np) = (self.n_theta, self.n_phi);
+        if nt == 0 || np == 0 || self.samples == 0 || self.cell_subdivisions == 0 {
+            return Err("empty grid, no samples or no sub-cells".into());
+        }
         // 1. Histogram the samples.
+        self.histogram(report, sample)?;
+        // 2. Expected counts.
+        self.expected_counts(report, &pdf)?;
+        // 3. Samples where the pdf is zero.
+        check_zero_pdf_cells(report, nt, np)?;
+        // The `None` outcome is one more category, expected `samples · (1 − ∫ pdf)`. When the
+        // pdf integrates to ~1 its expected count is ~0 and it is pooled like any tiny cell.
+        let n = self.samples as f64;
+        let none_expected = (n * (1.0 - report.pdf_integral)).max(0.0);
+        let none_observed = report.none_samples as f64;
+        // 4. Pool small cells (ascending expected count, as Mitsuba), accumulate the statistic.
+        let bins = self.pool(report, none_observed, none_expected);
+        score(report, &bins, nt, np)?;
+        // 5. Decide.
+        self.decide(report, none_observed, none_expected)
+    }
+
+    /// Step 1: draw the samples into `report.observed` (counting `None`s); a sample that is
+    /// not a unit vector fails the test.
+    fn histogram(
+        &self,
+        report: &mut ChiSquareReport,
+        mut sample: impl FnMut(&mut Rng) -> Option<DVec3>,
+    ) -> Result<(), String> {
+        let (nt, np) = (self.n_theta, self.n_phi);
         let mut rng = crate::rng(self.seed);
         for k in 0..self.samples {
             let Some(d) = sample(&mut rng) else {
@@ -221,20 +258,28 @@ impl ChiSquareTest {
             };
             let len = d.length();
             if !(d.is_finite() && (len - 1.0).abs() <= 1e-3) {
-                report.failure = Some(format!(
+                return Err(format!(
                     "sample {k} is not a unit vector: {d} (length {len})"
                 ));
-                return report;
             }
             let (i, j) = cell_of(d / len, nt, np);
             report.observed[i * np + j] += 1.0;
         }
+        Ok(())
+    }
 
-        // 2. Expected counts.
-        let integrals = cell_integrals(&pdf, nt, np, self.cell_subdivisions);
+    /// Step 2: the pdf's integral over every cell, the expected counts and the total; a
+    /// negative or non-finite cell integral fails the test.
+    fn expected_counts(
+        &self,
+        report: &mut ChiSquareReport,
+        pdf: &(impl Fn(DVec3) -> f64 + Sync),
+    ) -> Result<(), String> {
+        let (nt, np) = (self.n_theta, self.n_phi);
+        let integrals = cell_integrals(pdf, nt, np, self.cell_subdivisions);
         if let Some(c) = integrals.iter().position(|v| !v.is_finite() || *v < 0.0) {
             let (lo, hi) = cell_bounds(c, nt, np);
-            report.failure = Some(format!(
+            return Err(format!(
                 "the pdf integrates to {} (negative or not finite) over the cell θ ∈ [{:.2}°, {:.2}°], \
                  φ ∈ [{:.2}°, {:.2}°]",
                 integrals[c],
@@ -243,34 +288,23 @@ impl ChiSquareTest {
                 lo.1.to_degrees(),
                 hi.1.to_degrees()
             ));
-            return report;
         }
         report.pdf_integral = integrals.iter().sum();
         let n = self.samples as f64;
         report.expected = integrals.iter().map(|v| v * n).collect();
+        Ok(())
+    }
 
-        // 3. Samples where the pdf is zero.
-        for (c, (&o, &e)) in report.observed.iter().zip(&report.expected).enumerate() {
-            if e == 0.0 && o > 0.0 {
-                let (lo, hi) = cell_bounds(c, nt, np);
-                report.failure = Some(format!(
-                    "{o} samples fell in the cell θ ∈ [{:.2}°, {:.2}°], φ ∈ [{:.2}°, {:.2}°] where \
-                     the pdf integrates to 0 (if the pdf is positive there, raise cell_subdivisions)",
-                    lo.0.to_degrees(),
-                    hi.0.to_degrees(),
-                    lo.1.to_degrees(),
-                    hi.1.to_degrees()
-                ));
-                return report;
-            }
-        }
-        // The `None` outcome is one more category, expected `samples · (1 − ∫ pdf)`. When the
-        // pdf integrates to ~1 its expected count is ~0 and it is pooled like any tiny cell.
-        let none_expected = (n * (1.0 - report.pdf_integral)).max(0.0);
-        let none_observed = report.none_samples as f64;
-
-        // 4. Pool small cells (ascending expected count, as Mitsuba), accumulate the statistic.
-        let mut order: Vec<usize> = (0..nt * np).collect();
+    /// Step 4: the categories left after pooling the cells (and the `None` outcome) whose
+    /// expected count is below `min_expected`, as (observed, expected, cell), ascending in
+    /// expected count; counts the pooled cells in the report.
+    fn pool(
+        &self,
+        report: &mut ChiSquareReport,
+        none_observed: f64,
+        none_expected: f64,
+    ) -> Vec<(f64, f64, Option<usize>)> {
+        let mut order: Vec<usize> = (0..self.n_theta * self.n_phi).collect();
         order.sort_by(|&a, &b| report.expected[a].total_cmp(&report.expected[b]));
         let (mut pool_o, mut pool_e) = (0.0, 0.0);
         // Regular categories (observed, expected, cell), in ascending expected count.
@@ -279,6 +313,7 @@ impl ChiSquareTest {
             .iter()
             .map(|&c| (report.observed[c], report.expected[c], Some(c)))
             .chain(std::iter::once((none_observed, none_expected, None)));
+        let mut pooled = 0;
         for (o, e, cell) in categories {
             if e == 0.0 && o == 0.0 {
                 continue;
@@ -286,7 +321,7 @@ impl ChiSquareTest {
             if e < self.min_expected || (pool_o > 0.0 && pool_e < self.min_expected) {
                 pool_o += o;
                 pool_e += e;
-                report.pooled_cells += 1;
+                pooled += 1;
             } else {
                 bins.push((o, e, cell));
             }
@@ -302,48 +337,27 @@ impl ChiSquareTest {
                 bins[0].0 += pool_o;
                 bins[0].1 += pool_e;
                 bins[0].2 = None;
-                report.pooled_cells += 1;
+                pooled += 1;
             }
         }
-        let mut stat = 0.0;
-        let mut worst: Option<(f64, usize)> = None;
-        for &(o, e, cell) in &bins {
-            let contrib = (o - e) * (o - e) / e;
-            stat += contrib;
-            if let Some(c) = cell {
-                if worst.is_none_or(|(w, _)| contrib > w) {
-                    worst = Some((contrib, c));
-                }
-            }
-        }
-        let cells = bins.len();
-        report.statistic = stat;
-        report.worst_cell = worst.map(|(_, c)| {
-            let (lo, hi) = cell_bounds(c, nt, np);
-            CellResidual {
-                theta: (lo.0, hi.0),
-                phi: (lo.1, hi.1),
-                observed: report.observed[c],
-                expected: report.expected[c],
-            }
-        });
-        if cells < 2 {
-            report.failure = Some(format!(
-                "only {cells} cell(s) left after pooling: too few samples for this grid"
-            ));
-            return report;
-        }
-        report.dof = cells - 1;
-        report.p_value = crate::gamma::chi_square_sf(stat, report.dof);
+        report.pooled_cells += pooled;
+        bins
+    }
 
-        // 5. Decide.
+    /// Step 5: the normalization check (when asked for) and the p-value against the
+    /// threshold.
+    fn decide(
+        &self,
+        report: &ChiSquareReport,
+        none_observed: f64,
+        none_expected: f64,
+    ) -> Result<(), String> {
         if let Some(tol) = self.normalization_tolerance {
             if (report.pdf_integral - 1.0).abs() > tol {
-                report.failure = Some(format!(
+                return Err(format!(
                     "the pdf integrates to {:.6} over the sphere, not 1 (tolerance {tol})",
                     report.pdf_integral
                 ));
-                return report;
             }
         }
         if report.p_value.is_nan() || report.p_value < report.threshold {
@@ -358,10 +372,68 @@ impl ChiSquareTest {
                     1.0 - report.pdf_integral
                 );
             }
-            report.failure = Some(why);
+            return Err(why);
         }
-        report
+        Ok(())
     }
+}
+
+/// Step 3: fail when samples fell in a cell where the pdf integrates to zero.
+fn check_zero_pdf_cells(report: &ChiSquareReport, nt: usize, np: usize) -> Result<(), String> {
+    for (c, (&o, &e)) in report.observed.iter().zip(&report.expected).enumerate() {
+        if e == 0.0 && o > 0.0 {
+            let (lo, hi) = cell_bounds(c, nt, np);
+            return Err(format!(
+                "{o} samples fell in the cell θ ∈ [{:.2}°, {:.2}°], φ ∈ [{:.2}°, {:.2}°] where \
+                 the pdf integrates to 0 (if the pdf is positive there, raise cell_subdivisions)",
+                lo.0.to_degrees(),
+                hi.0.to_degrees(),
+                lo.1.to_degrees(),
+                hi.1.to_degrees()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Pearson's statistic over `bins`, the worst regular cell, the degrees of freedom and the
+/// p-value, into `report`; fewer than two categories fail the test.
+fn score(
+    report: &mut ChiSquareReport,
+    bins: &[(f64, f64, Option<usize>)],
+    nt: usize,
+    np: usize,
+) -> Result<(), String> {
+    let mut stat = 0.0;
+    let mut worst: Option<(f64, usize)> = None;
+    for &(o, e, cell) in bins {
+        let contrib = (o - e) * (o - e) / e;
+        stat += contrib;
+        if let Some(c) = cell {
+            if worst.is_none_or(|(w, _)| contrib > w) {
+                worst = Some((contrib, c));
+            }
+        }
+    }
+    let cells = bins.len();
+    report.statistic = stat;
+    report.worst_cell = worst.map(|(_, c)| {
+        let (lo, hi) = cell_bounds(c, nt, np);
+        CellResidual {
+            theta: (lo.0, hi.0),
+            phi: (lo.1, hi.1),
+            observed: report.observed[c],
+            expected: report.expected[c],
+        }
+    });
+    if cells < 2 {
+        return Err(format!(
+            "only {cells} cell(s) left after pooling: too few samples for this grid"
+        ));
+    }
+    report.dof = cells - 1;
+    report.p_value = crate::gamma::chi_square_sf(stat, report.dof);
+    Ok(())
 }
 
 /// The cell `(θ index, φ index)` of a unit direction.
