@@ -264,10 +264,20 @@ pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonPara
         )));
     }
     let theta: Vec<f64> = back.iter().map(|b| b.0).collect();
-    let mut albedo = [0.0f64; 3];
-    let (mut u, mut g) = ([0.0f64; 3], [0.0f64; 3]);
-    // 1. The NDF by power iteration on the back-scattering (channels summed), each channel's
-    //    smallest back-scattering value taken as its diffuse floor.
+    // 1. The NDF from the back-scattering alone.
+    let mut r = initial_ndf(&back, &theta)?;
+    // 2. and 3., alternated: the linear terms with the NDF held, then the NDF with them held.
+    for _ in 0..OUTER_ITERATIONS {
+        let (basis, lin) = linear_terms(&r, back.len(), data);
+        r = refit_nodes(&r, &basis, &lin, data)?;
+    }
+    let (_, lin) = linear_terms(&r, back.len(), data);
+    Ok(finish(r, &lin, back.len(), data))
+}
+
+/// Step 1: the NDF by power iteration on the back-scattering (channels summed), each
+/// channel's smallest back-scattering value taken as its diffuse floor.
+fn initial_ndf(back: &[(f64, [f64; 3])], theta: &[f64]) -> Result<Radial, NonParametricError> {
     let floor: Vec<f64> = (0..3)
         .map(|c| back.iter().map(|(_, f)| f[c]).fold(f64::INFINITY, f64::min))
         .collect();
@@ -283,7 +293,7 @@ pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonPara
     }
     let spec: Vec<f64> = spec.iter().map(|s| s.max(1e-6 * peak)).collect();
     let mut a: Vec<f64> = theta.iter().map(|t| t.cos()).collect();
-    let mut r = radial(&theta, &spec)?;
+    let mut r = radial(theta, &spec)?;
     for _ in 0..POWER_ITERATIONS {
         let d: Vec<f64> = theta
             .iter()
@@ -294,113 +304,142 @@ pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonPara
                 s * c * (2.0 * a - c).max(c)
             })
             .collect();
-        r = radial(&theta, &d)?;
-        a = projected_areas(&Ndf::Radial(r.clone()), &theta);
+        r = radial(theta, &d)?;
+        a = projected_areas(&Ndf::Radial(r.clone()), theta);
     }
-    let mut ndf = None;
-    for step in 0..=OUTER_ITERATIONS {
-        // 2. Fresnel, specular and diffuse by linear least squares on the fitted samples: the
-        //    basis X = D G₂ / (4 cos θi cos θo) from the plan of a white mirror material.
-        let unit = NonParametric {
-            ndf: r.clone(),
-            f0: [1.0; 3],
-            specular: [1.0; 3],
-            albedo: [0.0; 3],
-            specular_clamped: false,
-            fitted: FitErrors::default(),
-            held_out: None,
-            nodes: back.len(),
-        };
-        let plan = FastBrdf::with_policy(&material(&unit), Policy::Accurate);
-        let basis: Vec<(f64, f64, f64)> = data
+    Ok(r)
+}
+
+/// The linear terms of the fit, per channel: Lambert albedo and the Schlick split of the
+/// specular scale, `u + g (1 − cos θd)⁵`.
+struct Linear {
+    albedo: [f64; 3],
+    u: [f64; 3],
+    g: [f64; 3],
+}
+
+/// Per sample: the white mirror's value `X`, its Schlick part `X (1 − c)⁵` and the sample's
+/// weight times `cos² θi`.
+type Basis = Vec<(f64, f64, f64)>;
+
+/// The log metric linearised about the data: a residual δf in f weighs
+/// cos θi / (1 + f cos θi) in ln(1 + f cos θi).
+fn log_weight(s: &crate::samples::Sample, ch: usize, w: f64) -> f64 {
+    let l = 1.0 + s.rgb[ch].max(0.0) * s.wi.z;
+    w / (l * l)
+}
+
+/// Step 2: Fresnel, specular and diffuse by linear least squares on the fitted samples: the
+/// basis X = D G₂ / (4 cos θi cos θo) from the plan of a white mirror material with NDF `r`.
+fn linear_terms(r: &Radial, nodes: usize, data: &SampleSet) -> (Basis, Linear) {
+    let unit = NonParametric {
+        ndf: r.clone(),
+        f0: [1.0; 3],
+        specular: [1.0; 3],
+        albedo: [0.0; 3],
+        specular_clamped: false,
+        fitted: FitErrors::default(),
+        held_out: None,
+        nodes,
+    };
+    let plan = FastBrdf::with_policy(&material(&unit), Policy::Accurate);
+    let basis: Basis = data
+        .samples
+        .iter()
+        .map(|s| {
+            let x = plan.eval(s.wi, s.wo)[0];
+            let h = (s.wi + s.wo).normalize_or_zero();
+            let c = s.wi.dot(h).clamp(0.0, 1.0);
+            (x, x * (1.0 - c).powi(5), s.weight * s.wi.z * s.wi.z)
+        })
+        .collect();
+    let mut lin = Linear {
+        albedo: [0.0; 3],
+        u: [0.0; 3],
+        g: [0.0; 3],
+    };
+    for ch in 0..3 {
+        let rows: Vec<([f64; 3], f64, f64)> = data
             .samples
             .iter()
-            .map(|s| {
-                let x = plan.eval(s.wi, s.wo)[0];
-                let h = (s.wi + s.wo).normalize_or_zero();
-                let c = s.wi.dot(h).clamp(0.0, 1.0);
-                (x, x * (1.0 - c).powi(5), s.weight * s.wi.z * s.wi.z)
-            })
+            .zip(&basis)
+            .map(|(s, (x, xg, w))| ([1.0 / PI, *x, *xg], s.rgb[ch], log_weight(s, ch, *w)))
             .collect();
-        // The log metric linearised about the data: a residual δf in f weighs
-        // cos θi / (1 + f cos θi) in ln(1 + f cos θi).
-        let weight = |s: &crate::samples::Sample, ch: usize, w: f64| {
-            let l = 1.0 + s.rgb[ch].max(0.0) * s.wi.z;
-            w / (l * l)
-        };
+        let [rho, uu, gg] = nnls3(&rows);
+        lin.albedo[ch] = rho.min(1.0);
+        lin.u[ch] = uu;
+        lin.g[ch] = gg;
+    }
+    (basis, lin)
+}
+
+/// Step 3: the NDF's node values by linear least squares on every fitted sample (all
+/// channels), Fresnel, diffuse and G₂ held: f − ρ/π = S(θd) G₂/(4 cos θi cos θo) ·
+/// Σ_j D_j hat_j(θh), a tridiagonal system, non-negative by projected Gauss–Seidel.
+fn refit_nodes(
+    r: &Radial,
+    basis: &Basis,
+    lin: &Linear,
+    data: &SampleSet,
+) -> Result<Radial, NonParametricError> {
+    let (u, g, albedo) = (&lin.u, &lin.g, &lin.albedo);
+    let nodes: Vec<f64> = r.theta().to_vec();
+    let nn = nodes.len();
+    let ndf_now = Ndf::Radial(r.clone());
+    let p = isotropic_projected_area(&ndf_now, 1.0);
+    // Unknowns: the nn node values, then ρ_r, ρ_g, ρ_b (solved jointly: a broad NDF tail
+    // and the Lambert term trade against each other).
+    let dim = nn + 3;
+    let mut ata = vec![0.0f64; dim * dim];
+    let mut atb = vec![0.0f64; dim];
+    for (s, (x, _, w)) in data.samples.iter().zip(basis) {
+        let h = (s.wi + s.wo).normalize_or_zero();
+        let dh = r.eval(h) / p;
+        if dh.is_nan() || dh <= 0.0 || x.is_nan() || *x <= 0.0 {
+            continue;
+        }
+        let gfac = x / dh; // G₂ / (4 cos θi cos θo)
+        let th = (h.x * h.x + h.y * h.y).sqrt().atan2(h.z);
+        let j = nodes.partition_point(|&t| t <= th).clamp(1, nn - 1) - 1;
+        let t = ((th - nodes[j]) / (nodes[j + 1] - nodes[j])).clamp(0.0, 1.0);
+        let c = s.wi.dot(h).clamp(0.0, 1.0);
         for ch in 0..3 {
-            let rows: Vec<([f64; 3], f64, f64)> = data
-                .samples
-                .iter()
-                .zip(&basis)
-                .map(|(s, (x, xg, w))| ([1.0 / PI, *x, *xg], s.rgb[ch], weight(s, ch, *w)))
-                .collect();
-            let [rho, uu, gg] = nnls3(&rows);
-            albedo[ch] = rho.min(1.0);
-            u[ch] = uu;
-            g[ch] = gg;
-        }
-        if step == OUTER_ITERATIONS {
-            ndf = Some(r);
-            break;
-        }
-        // 3. The NDF's node values by linear least squares on every fitted sample (all
-        //    channels), Fresnel, diffuse and G₂ held: f − ρ/π = S(θd) G₂/(4 cos θi cos θo) ·
-        //    Σ_j D_j hat_j(θh), a tridiagonal system, non-negative by projected Gauss–Seidel.
-        let nodes: Vec<f64> = r.theta().to_vec();
-        let nn = nodes.len();
-        let ndf_now = Ndf::Radial(r.clone());
-        let p = isotropic_projected_area(&ndf_now, 1.0);
-        // Unknowns: the nn node values, then ρ_r, ρ_g, ρ_b (solved jointly: a broad NDF tail
-        // and the Lambert term trade against each other).
-        let dim = nn + 3;
-        let mut ata = vec![0.0f64; dim * dim];
-        let mut atb = vec![0.0f64; dim];
-        for (s, (x, _, w)) in data.samples.iter().zip(&basis) {
-            let h = (s.wi + s.wo).normalize_or_zero();
-            let dh = r.eval(h) / p;
-            if dh.is_nan() || dh <= 0.0 || x.is_nan() || *x <= 0.0 {
-                continue;
-            }
-            let gfac = x / dh; // G₂ / (4 cos θi cos θo)
-            let th = (h.x * h.x + h.y * h.y).sqrt().atan2(h.z);
-            let j = nodes.partition_point(|&t| t <= th).clamp(1, nn - 1) - 1;
-            let t = ((th - nodes[j]) / (nodes[j + 1] - nodes[j])).clamp(0.0, 1.0);
-            let c = s.wi.dot(h).clamp(0.0, 1.0);
-            for ch in 0..3 {
-                let sc = (u[ch] + g[ch] * (1.0 - c).powi(5)) * gfac;
-                let row = [(j, sc * (1.0 - t)), (j + 1, sc * t), (nn + ch, 1.0 / PI)];
-                let ww = weight(s, ch, *w);
-                for &(a, va) in &row {
-                    atb[a] += ww * va * s.rgb[ch];
-                    for &(b, vb) in &row {
-                        ata[a * dim + b] += ww * va * vb;
-                    }
+            let sc = (u[ch] + g[ch] * (1.0 - c).powi(5)) * gfac;
+            let row = [(j, sc * (1.0 - t)), (j + 1, sc * t), (nn + ch, 1.0 / PI)];
+            let ww = log_weight(s, ch, *w);
+            for &(a, va) in &row {
+                atb[a] += ww * va * s.rgb[ch];
+                for &(b, vb) in &row {
+                    ata[a * dim + b] += ww * va * vb;
                 }
             }
         }
-        // A small ridge towards the current values keeps nodes without data where they are.
-        let ridge = 1e-9 * (0..dim).map(|k| ata[k * dim + k]).fold(0.0, f64::max);
-        let prior: Vec<f64> = r
-            .values()
-            .iter()
-            .map(|x| x / p)
-            .chain(albedo.iter().copied())
-            .collect();
-        for k in 0..dim {
-            ata[k * dim + k] += ridge;
-            atb[k] += ridge * prior[k];
-        }
-        let sol = solve_dense(&mut ata, &mut atb, dim);
-        let v: Vec<f64> = sol[..nn]
-            .iter()
-            .map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 })
-            .collect();
-        // The solved D carries the specular scale: renormalise it and move its scale into u, g.
-        let next = Radial::new(nodes, v).map_err(|e| NonParametricError::Data(e.to_string()))?;
-        r = next;
     }
-    let ndf = ndf.expect("at least one outer iteration");
+    // A small ridge towards the current values keeps nodes without data where they are.
+    let ridge = 1e-9 * (0..dim).map(|k| ata[k * dim + k]).fold(0.0, f64::max);
+    let prior: Vec<f64> = r
+        .values()
+        .iter()
+        .map(|x| x / p)
+        .chain(albedo.iter().copied())
+        .collect();
+    for k in 0..dim {
+        ata[k * dim + k] += ridge;
+        atb[k] += ridge * prior[k];
+    }
+    let sol = solve_dense(&mut ata, &mut atb, dim);
+    let v: Vec<f64> = sol[..nn]
+        .iter()
+        .map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 })
+        .collect();
+    // The solved D carries the specular scale: renormalise it and move its scale into u, g.
+    Radial::new(nodes, v).map_err(|e| NonParametricError::Data(e.to_string()))
+}
+
+/// The fitted material from the final NDF and linear terms (the specular scale `u + g`
+/// clamped to 1), with its errors on the fitted and held-out samples.
+fn finish(ndf: Radial, lin: &Linear, nodes: usize, data: &SampleSet) -> NonParametric {
+    let (u, g) = (&lin.u, &lin.g);
     let mut clamped = false;
     let mut f0 = [0.0; 3];
     let mut specular = [0.0; 3];
@@ -416,11 +455,11 @@ pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonPara
         ndf,
         f0,
         specular,
-        albedo,
+        albedo: lin.albedo,
         specular_clamped: clamped,
         fitted: FitErrors::default(),
         held_out: None,
-        nodes: back.len(),
+        nodes,
     };
     let plan = FastBrdf::with_policy(&material(&out), Policy::Accurate);
     let eval = |wi: DVec3, wo: DVec3| plan.eval(wi, wo);
@@ -428,7 +467,7 @@ pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonPara
     if !data.held_out.is_empty() {
         out.held_out = Some(evaluate_samples_fn(&data.held_out, eval));
     }
-    Ok(out)
+    out
 }
 
 #[cfg(test)]
