@@ -14,7 +14,8 @@
 //! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output;
 //! * [`linalg`], [`lm`] — small dense linear algebra and the one Levenberg–Marquardt solver
 //!   (generic over the parameter space, with box bounds or a retraction), used by every fitter;
-//! * [`budget`] — the memory budget and fallible allocation.
+//! * [`budget`] — the memory budget and fallible allocation; [`fastmath`] — `pow`, `exp`, `ln`
+//!   without libm for every inner loop.
 //!
 //! ```
 //! use meso_core::{frame::spherical_direction_deg, material::Material};
@@ -35,6 +36,7 @@
 pub mod budget;
 pub mod convolution;
 pub mod display;
+pub mod fastmath;
 pub mod frame;
 pub mod grid;
 pub mod importance;

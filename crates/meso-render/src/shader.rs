@@ -12,6 +12,8 @@
 
 use crate::geometry::{MaterialId, ShadingPoint};
 use glam::{DVec2, DVec3};
+pub use meso_core::fastmath::{fast_exp, fast_pow};
+use meso_core::fastmath::{fast_pow_impl, madd};
 use meso_core::frame::Frame;
 use std::f64::consts::FRAC_1_PI;
 
@@ -610,125 +612,9 @@ unsafe fn eval_many_avx2(l: &PhongLobes, wo: DVec3, wi: &[DVec3], out: &mut [[f3
     l.eval_many_impl::<true>(wo, wi, out);
 }
 
-/// `x^y` for `x ≥ 0`, `y ≥ 0` in f32 without libm calls (branch-free, vectorisable):
-/// `exp2(y · log2 x)` with `log2` from the `atanh` series on the mantissa reduced to
-/// `[√½, √2)` and `exp2` from a degree-7 polynomial on `[−½, ½]`. Relative error about
-/// `1.5e-7 · (1 + |y log2 x|)` (the f32 rounding of the exponent dominates). `0^y = 0` for `y > 0` (up to a denormal-size value) and `x^0 = 1`.
-#[inline(always)]
-#[must_use]
-pub fn fast_pow(x: f32, y: f32) -> f32 {
-    fast_pow_impl::<false>(x, y)
-}
-
-/// `a·b + c`, fused when `FMA` (see [`PhongLobes`]' kernel).
-#[inline(always)]
-fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
-    if FMA {
-        a.mul_add(b, c)
-    } else {
-        a * b + c
-    }
-}
-
-/// `e^x` in f32 without libm calls (branch-free, vectorisable): [`fast_pow`]'s `exp2` on
-/// `x·log2 e`; relative error about `1.5e-7 · (1 + |x|)`; 0 below `e^−87`.
-#[inline(always)]
-#[must_use]
-pub fn fast_exp(x: f32) -> f32 {
-    exp2_impl::<false>(x * std::f32::consts::LOG2_E)
-}
-
-/// `2^z` for `z` clamped to `[−126, 126]`: degree-7 polynomial on the fraction.
-#[inline(always)]
-fn exp2_impl<const FMA: bool>(z: f32) -> f32 {
-    let z = z.clamp(-126.0, 126.0);
-    // exp2(z) = 2^i · 2^f, i = round(z), f in [-1/2, 1/2]. Rounding by the 1.5·2^23 trick
-    // (exact for |z| < 2^22) keeps the conversion in the vector registers.
-    const MAGIC: f32 = 12_582_912.0;
-    let t = z + MAGIC;
-    let i = (t.to_bits() as i32).wrapping_sub(MAGIC.to_bits() as i32);
-    let f = z - (t - MAGIC);
-    let mut q = 0.000_015_252_73;
-    for c in [
-        0.000_154_035_3,
-        0.001_333_355_8,
-        0.009_618_129,
-        0.055_504_11,
-        0.240_226_5,
-        std::f32::consts::LN_2,
-        1.0,
-    ] {
-        q = madd::<FMA>(q, f, c);
-    }
-    q * f32::from_bits(((i + 127) << 23) as u32)
-}
-
-/// [`fast_pow`], with fused multiply-adds in the polynomials when `FMA`.
-#[inline(always)]
-fn fast_pow_impl<const FMA: bool>(x: f32, y: f32) -> f32 {
-    let x = x.max(1e-30);
-    // log2 x = e + log2 m, m in [sqrt(1/2), sqrt(2)).
-    let bits = x.to_bits() as i32;
-    let mut e = ((bits >> 23) & 0xff) - 127;
-    let mut mbits = (bits & 0x007f_ffff) | 0x3f80_0000;
-    // If m >= sqrt 2, halve it and bump the exponent.
-    let big = (mbits > 0x3fb5_04f3) as i32;
-    e += big;
-    mbits -= big << 23;
-    let m = f32::from_bits(mbits as u32);
-    let s = (m - 1.0) / (m + 1.0);
-    let s2 = s * s;
-    // 2/ln2 · (s + s³/3 + s⁵/5 + s⁷/7 + s⁹/9)
-    let p = s * madd::<FMA>(
-        s2,
-        madd::<FMA>(
-            s2,
-            madd::<FMA>(s2, madd::<FMA>(s2, 0.320_598_9, 0.412_198_6), 0.577_078),
-            0.961_796_7,
-        ),
-        2.885_39,
-    );
-    let l = e as f32 + p;
-    exp2_impl::<FMA>(y * l)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fast_pow_matches_powf() {
-        for k in 0..2000 {
-            let x = (k as f32 + 0.5) / 2000.0;
-            for y in [0.0f32, 0.5, 1.0, 2.0, 7.3, 30.0, 100.0, 500.0] {
-                let a = fast_pow(x, y);
-                let b = x.powf(y);
-                if b > 1e-30 {
-                    let z = (y * x.log2()).abs();
-                    assert!(
-                        ((a - b) / b).abs() < 1.5e-7 * (1.0 + z) + 2e-7,
-                        "{x}^{y}: {a} vs {b}"
-                    );
-                } else {
-                    assert!(a < 1e-29);
-                }
-            }
-        }
-        // The fused variant (used by the AVX2 + FMA kernel) is as accurate.
-        for k in 0..500 {
-            let x = (k as f32 + 0.5) / 500.0;
-            for y in [0.5f32, 7.3, 100.0] {
-                let b = x.powf(y);
-                if b > 1e-30 {
-                    let z = (y * x.log2()).abs();
-                    let a = fast_pow_impl::<true>(x, y);
-                    assert!(((a - b) / b).abs() < 1.5e-7 * (1.0 + z) + 2e-7, "{x}^{y}");
-                }
-            }
-        }
-        assert!(fast_pow(0.0, 3.0) < 1e-30);
-        assert_eq!(fast_pow(1.0, 123.0), 1.0);
-    }
 
     #[test]
     fn phong_lobes_sum_matches_scalar_formula() {

@@ -4,6 +4,7 @@
 
 use crate::limits::{ETA_MAX, MAX_LOBES};
 use glam::DVec3;
+use meso_core::fastmath::{fast_exp_neg, fast_ln};
 use std::f64::consts::PI;
 
 #[inline]
@@ -84,49 +85,6 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
             eta: eta_from_mean_t(sums[j].2 / sums[j].1).min(1e4),
         })
         .collect()
-}
-
-/// `ln x` for finite `x > 0` to ~1e-9 absolute: exponent split, mantissa folded into
-/// `[√½, √2)`, then the atanh series `2(s + s³/3 + … + s⁹/9)` with `s = (m−1)/(m+1)`. EM's inner
-/// loop spends most of its time in `ln` and `exp`; libm's full-precision versions are not needed.
-#[inline]
-fn fast_ln(x: f64) -> f64 {
-    let bits = x.to_bits();
-    let mut e = ((bits >> 52) & 0x7ff) as i64 - 1023;
-    let mut m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
-    if e == -1023 {
-        // Subnormal: rare (x < 2.2e-308); fall back.
-        return x.ln();
-    }
-    if m > std::f64::consts::SQRT_2 {
-        m *= 0.5;
-        e += 1;
-    }
-    let s = (m - 1.0) / (m + 1.0);
-    let s2 = s * s;
-    let p = s * (2.0 + s2 * (2.0 / 3.0 + s2 * (0.4 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0)))));
-    e as f64 * std::f64::consts::LN_2 + p
-}
-
-/// `exp y` for `y ≤ 0` to ~1e-9 relative (0 below −700): `2^k · e^r`, `|r| ≤ ln2/2`, degree-8
-/// Taylor polynomial for `e^r`.
-#[inline]
-pub(super) fn fast_exp_neg(y: f64) -> f64 {
-    if y < -700.0 {
-        return 0.0;
-    }
-    // Nearest integer to y·log₂e (≤ 0) by truncation, one instruction (`round` is a libm call).
-    let ki = (y * std::f64::consts::LOG2_E - 0.5) as i64;
-    let k = ki as f64;
-    let r = y - k * std::f64::consts::LN_2;
-    let p = 1.0
-        + r * (1.0
-            + r * (0.5
-                + r * (1.0 / 6.0
-                    + r * (1.0 / 24.0
-                        + r * (1.0 / 120.0
-                            + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
-    p * f64::from_bits(((ki + 1023) as u64) << 52)
 }
 
 /// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
@@ -250,25 +208,3 @@ pub(super) fn split_heaviest(lobes: &[L]) -> Vec<L> {
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fast_ln_and_exp_match_libm() {
-        let mut x: f64 = 1e-300;
-        while x < 1e3 {
-            assert!(
-                (fast_ln(x) - x.ln()).abs() < 1e-9 * (1.0 + x.ln().abs()),
-                "ln {x}"
-            );
-            x *= 1.37;
-        }
-        let mut y: f64 = 0.0;
-        while y > -745.0 {
-            let e = y.exp();
-            assert!((fast_exp_neg(y) - e).abs() <= 1e-9 * e + 1e-300, "exp {y}");
-            y -= 0.173;
-        }
-    }
-}

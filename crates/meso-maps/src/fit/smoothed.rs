@@ -3,10 +3,11 @@
 //! form, and Levenberg–Marquardt over axes, `ln κ` and weight logits from the EM lobes and from
 //! a greedy start.
 
-use super::em::{fast_exp_neg, Pt, L};
+use super::em::{Pt, L};
 use crate::limits::{ETA_MAX, MAX_LOBES};
 use crate::sphgrid::SphereGrid;
 use glam::DVec3;
+use meso_core::fastmath::fast_exp_neg;
 use meso_core::lm::{self, LmOptions};
 use meso_core::sg;
 use std::f64::consts::PI;
