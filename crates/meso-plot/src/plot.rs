@@ -227,6 +227,41 @@ pub(crate) struct Curve<'a> {
     pub points: Vec<[f64; 2]>,
 }
 
+impl<'a> Curve<'a> {
+    /// A curve named `name` with the look `(color, width, style, markers)`, its `points`
+    /// projected by `project` (`None`, a point that is not drawn, breaks the line).
+    pub(crate) fn project(
+        name: &'a str,
+        look: (Option<Rgb>, f64, LineStyle, bool),
+        points: &[[f64; 2]],
+        project: impl Fn(&[f64; 2]) -> Option<[f64; 2]>,
+    ) -> Curve<'a> {
+        let (color, width, style, markers) = look;
+        Curve {
+            name,
+            color,
+            width,
+            style,
+            markers,
+            points: points
+                .iter()
+                .map(|p| project(p).unwrap_or([f64::NAN, f64::NAN]))
+                .collect(),
+        }
+    }
+}
+
+/// A new `width`×`height` paper-coloured canvas with `draw` drawn over all of it.
+pub(crate) fn render_on_paper(
+    width: u32,
+    height: u32,
+    draw: impl FnOnce(&mut Canvas, Rect) -> Result<(), PlotError>,
+) -> Result<Canvas, PlotError> {
+    let mut c = Canvas::try_new(width, height, color::PAPER)?;
+    draw(&mut c, Rect::new(0, 0, width, height))?;
+    Ok(c)
+}
+
 /// Stroke `curves` in order, clipped to `clip` (uncoloured curves take palette colours by
 /// index), and return their legend entries.
 pub(crate) fn draw_curves<'a>(
@@ -333,9 +368,7 @@ impl LinePlot {
 
     /// Render on a new white `width`×`height` canvas.
     pub fn render(&self, width: u32, height: u32) -> Result<Canvas, PlotError> {
-        let mut c = Canvas::try_new(width, height, color::PAPER)?;
-        self.draw(&mut c, Rect::new(0, 0, width, height))?;
-        Ok(c)
+        render_on_paper(width, height, |c, area| self.draw(c, area))
     }
 
     /// Draw into `area` of an existing canvas (the area is not cleared).
@@ -535,23 +568,11 @@ impl LinePlot {
     fn curves(&self, f: &Frame) -> Vec<Curve<'_>> {
         self.series
             .iter()
-            .map(|s| Curve {
-                name: &s.name,
-                color: s.color,
-                width: s.width,
-                style: s.style,
-                markers: s.markers,
-                points: s
-                    .points
-                    .iter()
-                    .map(|p| {
-                        if p[0].is_finite() && self.ok_y(p[1]) {
-                            [f.sx(p[0]), f.sy(p[1])]
-                        } else {
-                            [f64::NAN, f64::NAN]
-                        }
-                    })
-                    .collect(),
+            .map(|s| {
+                let look = (s.color, s.width, s.style, s.markers);
+                Curve::project(&s.name, look, &s.points, |p| {
+                    (p[0].is_finite() && self.ok_y(p[1])).then(|| [f.sx(p[0]), f.sy(p[1])])
+                })
             })
             .collect()
     }

@@ -6,7 +6,7 @@
 use crate::canvas::{arc_points, Canvas, Rect};
 use crate::color::{self, Rgb};
 use crate::font::{self, Anchor};
-use crate::plot::{draw_curves, draw_title_and_legend, Curve, LineStyle, Metrics};
+use crate::plot::{draw_curves, draw_title_and_legend, render_on_paper, Curve, LineStyle, Metrics};
 use crate::ticks;
 use crate::PlotError;
 use std::f64::consts::FRAC_PI_2;
@@ -123,9 +123,7 @@ impl PolarPlot {
 
     /// Render on a new white `width`×`height` canvas.
     pub fn render(&self, width: u32, height: u32) -> Result<Canvas, PlotError> {
-        let mut c = Canvas::try_new(width, height, color::PAPER)?;
-        self.draw(&mut c, Rect::new(0, 0, width, height))?;
-        Ok(c)
+        render_on_paper(width, height, |c, area| self.draw(c, area))
     }
 
     /// Draw into `area` of an existing canvas (the area is not cleared).
@@ -293,23 +291,12 @@ impl PolarPlot {
     fn curves(&self, f: &PolarFrame) -> Vec<Curve<'_>> {
         self.series
             .iter()
-            .map(|s| Curve {
-                name: &s.name,
-                color: s.color,
-                width: s.width,
-                style: s.style,
-                markers: s.markers,
-                points: s
-                    .points
-                    .iter()
-                    .map(|p| {
-                        if p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0 {
-                            f.to_screen(p[0].clamp(-FRAC_PI_2, FRAC_PI_2), p[1])
-                        } else {
-                            [f64::NAN, f64::NAN]
-                        }
-                    })
-                    .collect(),
+            .map(|s| {
+                let look = (s.color, s.width, s.style, s.markers);
+                Curve::project(&s.name, look, &s.points, |p| {
+                    (p[0].is_finite() && p[1].is_finite() && p[1] >= 0.0)
+                        .then(|| f.to_screen(p[0].clamp(-FRAC_PI_2, FRAC_PI_2), p[1]))
+                })
             })
             .collect()
     }
