@@ -46,7 +46,7 @@ pub struct FitRequest<'a> {
     pub axes: Option<LobeAxes>,
     /// Fit each channel with its own lobes (three grey materials).
     pub per_channel: bool,
-    /// Also fit every baseline model ([`crate::model::baselines`]).
+    /// Also fit every baseline model ([`crate::model::baselines()`]).
     pub baselines: bool,
     /// Number of cells on which the written material is evaluated exactly (meso-core's
     /// quadrature); 0 skips that check.

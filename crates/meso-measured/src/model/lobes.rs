@@ -123,7 +123,7 @@ impl LobeParams {
         [0, 1, 2].map(|c| self.albedo[c] / PI + self.specular[c] * s)
     }
 
-    /// The material: the `phong-peaks` NDF ([`file_phong_peaks`]), the `phong` transfer and a
+    /// The material: the `phong-peaks` NDF (axes snapped to the degrees the file holds), the `phong` transfer and a
     /// `[diffuse]` albedo, in the multiple-surface form.
     ///
     /// # Errors

@@ -188,7 +188,7 @@ impl LobeMicrofacetParams {
         })
     }
 
-    /// The material (module docs): the Phong peaks ([`file_phong_peaks`]) under
+    /// The material (module docs): the Phong peaks (axes snapped to the degrees the file holds) under
     /// [`super::mirror_material`].
     ///
     /// # Errors
