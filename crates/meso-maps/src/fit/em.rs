@@ -207,4 +207,3 @@ pub(super) fn split_heaviest(lobes: &[L]) -> Vec<L> {
     }
     out
 }
-
