@@ -392,20 +392,7 @@ pub fn extract(
     params: &ExtractParams,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Pyramid> {
-    if params.fit.max_lobes == 0 || params.fit.max_lobes > MAX_LOBES {
-        return Err(MapError::InvalidParameter {
-            name: "max_lobes",
-            value: params.fit.max_lobes.to_string(),
-            reason: "must be between 1 and 8",
-        });
-    }
-    if !(params.fit.min_gain.is_finite() && params.fit.min_gain >= 0.0) {
-        return Err(MapError::InvalidParameter {
-            name: "min_gain",
-            value: params.fit.min_gain.to_string(),
-            reason: "must be a finite number ≥ 0",
-        });
-    }
+    check_params(params)?;
     let (cells_x, cells_y, per_cell, samples) = match source {
         Source::Heights(m) => (
             m.cells_x(),
@@ -420,15 +407,7 @@ pub fn extract(
     };
     let (prep_work, level_work) = extract_work(cells_x, cells_y, per_cell, samples, params);
     let work_total = (prep_work + level_work.iter().sum::<u64>()).max(1);
-    let texels_total: u64 = {
-        let (mut c, mut r, mut t) = (cells_x, cells_y, 0u64);
-        for _ in 0..level_work.len() {
-            t += (c * r) as u64;
-            c = c.div_ceil(2);
-            r = r.div_ceil(2);
-        }
-        t
-    };
+    let texels_total = pyramid_texels(cells_x, cells_y, level_work.len());
     let mut report = |levels_done: usize, texels_done: u64, work_done: u64| {
         progress(Progress {
             levels_done,
@@ -472,126 +451,29 @@ pub fn extract(
     let mut prev_start: Vec<u32> = Vec::new();
     let mut done = 0u64;
     let (mut cols, mut rows) = (facets.cols, facets.rows);
-    for k in 0..nlev {
-        let span = 1usize << k;
-        let prev_cols = if k == 0 { 0 } else { levels[k - 1].cols };
-        let prev_rows = if k == 0 { 0 } else { levels[k - 1].rows };
-        let prev_h = if k == 0 {
-            None
-        } else {
-            levels[k - 1].horizon.as_ref()
-        };
-        struct RowOut {
-            entries: Vec<Entry>,
-            ecount: Vec<u32>,
-            lobes: Vec<PhongLobe>,
-            lcount: Vec<u32>,
-            horizon: Vec<HorizonStats>,
-        }
-        let em_cap = (params.fit.level_em_points / (cols * rows).max(1))
-            .clamp(64, params.fit.max_em_points.max(64));
-        let thorough = cols * rows <= params.fit.thorough_texels;
-        let smooth = cols * rows <= params.fit.smooth_texels;
-        let rows_out: Vec<RowOut> = (0..rows)
-            .into_par_iter()
-            .map(|r| {
-                let mut out = RowOut {
-                    entries: Vec::new(),
-                    ecount: Vec::with_capacity(cols),
-                    lobes: Vec::new(),
-                    lcount: Vec::with_capacity(cols),
-                    horizon: Vec::new(),
-                };
-                let mut merged = Vec::new();
-                let mut singles = Vec::new();
-                let mut scratch = Vec::new();
-                let mut lobes = Vec::new();
-                for c in 0..cols {
-                    if k == 0 {
-                        singles.clear();
-                        for (n, w) in facets.footprint(r, r + 1, c, c + 1) {
-                            singles.push(Entry::new(n, w));
-                        }
-                        merge_entries(&[&singles], &mut merged);
-                        if let Some(h) = &horizon {
-                            out.horizon.push(h.sample_stats(r, c));
-                        }
-                    } else {
-                        let mut lists: [&[Entry]; 4] = [&[]; 4];
-                        let mut hs = HorizonStats::default();
-                        let mut n = 0;
-                        for cr in 2 * r..(2 * r + 2).min(prev_rows) {
-                            for cc in 2 * c..(2 * c + 2).min(prev_cols) {
-                                let t = cr * prev_cols + cc;
-                                lists[n] = &prev_entries
-                                    [prev_start[t] as usize..prev_start[t + 1] as usize];
-                                n += 1;
-                                if let Some(ph) = prev_h {
-                                    hs.merge(&ph[t]);
-                                }
-                            }
-                        }
-                        merge_entries(&lists[..n], &mut merged);
-                        if prev_h.is_some() {
-                            out.horizon.push(hs);
-                        }
-                    }
-                    match params.method {
-                        Method::Lobes => fit_lobes_with(
-                            &merged,
-                            &params.fit,
-                            em_cap,
-                            thorough,
-                            smooth,
-                            &mut scratch,
-                            &mut lobes,
-                        ),
-                        Method::Baseline(b) => {
-                            let pts: Vec<(glam::DVec3, f64)> =
-                                merged.iter().map(|e| (e.mean(), e.w)).collect();
-                            lobes.clear();
-                            lobes.extend(crate::baseline::baseline_lobes(b, &pts));
-                        }
-                    }
-                    out.entries.extend_from_slice(&merged);
-                    out.ecount.push(merged.len() as u32);
-                    out.lobes.extend_from_slice(&lobes);
-                    out.lcount.push(lobes.len() as u32);
-                }
-                out
-            })
-            .collect();
-        let mut entries = Vec::with_capacity(rows_out.iter().map(|r| r.entries.len()).sum());
-        let mut estart = Vec::with_capacity(cols * rows + 1);
-        let mut lobes = Vec::with_capacity(rows_out.iter().map(|r| r.lobes.len()).sum());
-        let mut lstart = Vec::with_capacity(cols * rows + 1);
-        let mut hz = Vec::new();
-        estart.push(0u32);
-        lstart.push(0u32);
-        for ro in rows_out {
-            for (ec, lc) in ro.ecount.iter().zip(&ro.lcount) {
-                estart.push(estart.last().unwrap() + ec);
-                lstart.push(lstart.last().unwrap() + lc);
-            }
-            entries.extend_from_slice(&ro.entries);
-            lobes.extend_from_slice(&ro.lobes);
-            hz.extend_from_slice(&ro.horizon);
-        }
-        let mut level = Level {
+    for (k, &work) in level_work.iter().enumerate() {
+        let ctx = LevelFit {
             cols,
-            rows,
-            span,
-            lobe_start: lstart,
-            lobes,
-            horizon: horizon.as_ref().map(|_| hz),
-            residual: Residual::default(),
+            facets: &facets,
+            horizon: horizon.as_ref(),
+            prev: levels.last(),
+            prev_entries: &prev_entries,
+            prev_start: &prev_start,
+            params,
+            em_cap: (params.fit.level_em_points / (cols * rows).max(1))
+                .clamp(64, params.fit.max_em_points.max(64)),
+            thorough: cols * rows <= params.fit.thorough_texels,
+            smooth: cols * rows <= params.fit.smooth_texels,
         };
+        let rows_out: Vec<RowOut> = (0..rows).into_par_iter().map(|r| ctx.row(r)).collect();
+        let (mut level, entries, estart) =
+            assemble_level(k, cols, rows, rows_out, horizon.is_some());
         level.residual = level_residual(&level, &facets, params.residual_texels);
         levels.push(level);
         prev_entries = entries;
         prev_start = estart;
         done += (cols * rows) as u64;
-        work_done += level_work[k];
+        work_done += work;
         report(
             k + 1,
             done,
@@ -609,6 +491,192 @@ pub fn extract(
         max_lobes: params.fit.max_lobes,
         levels,
     })
+}
+
+/// The checks of [`extract`]'s parameters.
+fn check_params(params: &ExtractParams) -> Result<()> {
+    if params.fit.max_lobes == 0 || params.fit.max_lobes > MAX_LOBES {
+        return Err(MapError::InvalidParameter {
+            name: "max_lobes",
+            value: params.fit.max_lobes.to_string(),
+            reason: "must be between 1 and 8",
+        });
+    }
+    if !(params.fit.min_gain.is_finite() && params.fit.min_gain >= 0.0) {
+        return Err(MapError::InvalidParameter {
+            name: "min_gain",
+            value: params.fit.min_gain.to_string(),
+            reason: "must be a finite number ≥ 0",
+        });
+    }
+    Ok(())
+}
+
+/// Texels of all `levels` levels of a pyramid over `cols × rows` cells.
+fn pyramid_texels(cols: usize, rows: usize, levels: usize) -> u64 {
+    let (mut c, mut r, mut t) = (cols, rows, 0u64);
+    for _ in 0..levels {
+        t += (c * r) as u64;
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+    }
+    t
+}
+
+/// One row of texels of a level, as [`LevelFit::row`] fits it.
+struct RowOut {
+    entries: Vec<Entry>,
+    ecount: Vec<u32>,
+    lobes: Vec<PhongLobe>,
+    lcount: Vec<u32>,
+    horizon: Vec<HorizonStats>,
+}
+
+/// What fitting a level reads: the facets (level 0) or the previous level's merged entries
+/// and horizon statistics, and the fit's settings for this level's size.
+struct LevelFit<'a> {
+    cols: usize,
+    facets: &'a FacetNormals,
+    horizon: Option<&'a HorizonMap>,
+    prev: Option<&'a Level>,
+    prev_entries: &'a [Entry],
+    prev_start: &'a [u32],
+    params: &'a ExtractParams,
+    em_cap: usize,
+    thorough: bool,
+    smooth: bool,
+}
+
+impl LevelFit<'_> {
+    /// The merged entries, lobes and horizon statistics of row `r`'s texels.
+    fn row(&self, r: usize) -> RowOut {
+        let cols = self.cols;
+        let mut out = RowOut {
+            entries: Vec::new(),
+            ecount: Vec::with_capacity(cols),
+            lobes: Vec::new(),
+            lcount: Vec::with_capacity(cols),
+            horizon: Vec::new(),
+        };
+        let mut merged = Vec::new();
+        let mut singles = Vec::new();
+        let mut scratch = Vec::new();
+        let mut lobes = Vec::new();
+        for c in 0..cols {
+            match self.prev {
+                None => {
+                    singles.clear();
+                    for (n, w) in self.facets.footprint(r, r + 1, c, c + 1) {
+                        singles.push(Entry::new(n, w));
+                    }
+                    merge_entries(&[&singles], &mut merged);
+                    if let Some(h) = self.horizon {
+                        out.horizon.push(h.sample_stats(r, c));
+                    }
+                }
+                Some(prev) => self.merge_children(prev, r, c, &mut merged, &mut out.horizon),
+            }
+            self.fit_texel(&merged, &mut scratch, &mut lobes);
+            out.entries.extend_from_slice(&merged);
+            out.ecount.push(merged.len() as u32);
+            out.lobes.extend_from_slice(&lobes);
+            out.lcount.push(lobes.len() as u32);
+        }
+        out
+    }
+
+    /// Texel `(r, c)` of this level from its (up to four) children in `prev`: their entries
+    /// merged into `merged`, their horizon statistics merged onto `horizon`.
+    fn merge_children(
+        &self,
+        prev: &Level,
+        r: usize,
+        c: usize,
+        merged: &mut Vec<Entry>,
+        horizon: &mut Vec<HorizonStats>,
+    ) {
+        let prev_h = prev.horizon.as_ref();
+        let mut lists: [&[Entry]; 4] = [&[]; 4];
+        let mut hs = HorizonStats::default();
+        let mut n = 0;
+        for cr in 2 * r..(2 * r + 2).min(prev.rows) {
+            for cc in 2 * c..(2 * c + 2).min(prev.cols) {
+                let t = cr * prev.cols + cc;
+                lists[n] = &self.prev_entries
+                    [self.prev_start[t] as usize..self.prev_start[t + 1] as usize];
+                n += 1;
+                if let Some(ph) = prev_h {
+                    hs.merge(&ph[t]);
+                }
+            }
+        }
+        merge_entries(&lists[..n], merged);
+        if prev_h.is_some() {
+            horizon.push(hs);
+        }
+    }
+
+    /// The lobes of one texel's merged entries, by the extraction's method.
+    fn fit_texel(
+        &self,
+        merged: &[Entry],
+        scratch: &mut Vec<(glam::DVec3, f64)>,
+        lobes: &mut Vec<PhongLobe>,
+    ) {
+        match self.params.method {
+            Method::Lobes => fit_lobes_with(
+                merged,
+                &self.params.fit,
+                self.em_cap,
+                self.thorough,
+                self.smooth,
+                scratch,
+                lobes,
+            ),
+            Method::Baseline(b) => {
+                let pts: Vec<(glam::DVec3, f64)> = merged.iter().map(|e| (e.mean(), e.w)).collect();
+                lobes.clear();
+                lobes.extend(crate::baseline::baseline_lobes(b, &pts));
+            }
+        }
+    }
+}
+
+/// Level `k` (`cols × rows` texels) from its rows, and its entries with per-texel offsets (the
+/// next level's input).
+fn assemble_level(
+    k: usize,
+    cols: usize,
+    rows: usize,
+    rows_out: Vec<RowOut>,
+    has_horizon: bool,
+) -> (Level, Vec<Entry>, Vec<u32>) {
+    let mut entries = Vec::with_capacity(rows_out.iter().map(|r| r.entries.len()).sum());
+    let mut estart = Vec::with_capacity(cols * rows + 1);
+    let mut lobes = Vec::with_capacity(rows_out.iter().map(|r| r.lobes.len()).sum());
+    let mut lstart = Vec::with_capacity(cols * rows + 1);
+    let mut hz = Vec::new();
+    estart.push(0u32);
+    lstart.push(0u32);
+    for ro in rows_out {
+        for (ec, lc) in ro.ecount.iter().zip(&ro.lcount) {
+            estart.push(estart.last().unwrap() + ec);
+            lstart.push(lstart.last().unwrap() + lc);
+        }
+        entries.extend_from_slice(&ro.entries);
+        lobes.extend_from_slice(&ro.lobes);
+        hz.extend_from_slice(&ro.horizon);
+    }
+    let level = Level {
+        cols,
+        rows,
+        span: 1usize << k,
+        lobe_start: lstart,
+        lobes,
+        horizon: has_horizon.then_some(hz),
+        residual: Residual::default(),
+    };
+    (level, entries, estart)
 }
 
 /// Cells covered by texel `(r, c)` of a level with footprint side `span`.
