@@ -52,6 +52,40 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     let tex = texture
         .as_table()
         .ok_or_else(|| named("[texture]: expected a table".into()))?;
+    check_texture_keys(tex).map_err(named)?;
+    let kind = texture_kind(tex).map_err(named)?;
+    let box_filter = box_filter(tex, kind).map_err(named)?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let string = |key: &str| tex_string(tex, key).map_err(named);
+    if let Some(m) = string("map")? {
+        if tex.contains_key("file") || tex.contains_key("normal_map") {
+            return Err(named(
+                "[texture]: `map` (a map file), `file` (a height map) and `normal_map` exclude \
+                 each other"
+                    .into(),
+            ));
+        }
+        return map_mapped(kind, tex, &doc, dir, &dir.join(m), box_filter, maps)
+            .map(Some)
+            .map_err(named);
+    }
+    let shader = match (string("file")?, string("normal_map")?) {
+        (Some(f), None) => height_textured(kind, tex, &doc, dir, &dir.join(f), box_filter, maps),
+        (None, Some(n)) => normal_textured(kind, tex, &doc, path, &dir.join(n), box_filter, maps),
+        (Some(_), Some(_)) => {
+            Err("[texture]: `file` (a height map) and `normal_map` exclude each other".into())
+        }
+        (None, None) => Err(
+            "[texture]: missing `file = \"…\"` (a height map), `normal_map = \"…\"` or \
+             `map = \"…\"` (a map file)"
+                .into(),
+        ),
+    };
+    shader.map(Some).map_err(named)
+}
+
+/// Refuse keys a `[texture]` table does not know.
+fn check_texture_keys(tex: &toml::Table) -> Result<(), String> {
     for k in tex.keys() {
         if !(HEIGHTMAP_KEYS.contains(&k.as_str())
             || [
@@ -65,109 +99,98 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
             ]
             .contains(&k.as_str()))
         {
-            return Err(named(format!(
+            return Err(format!(
                 "[texture]: unknown key `{k}` (known: kind, file, normal_map, map, convention, \
                  texel_size, height_scale, texels_per_uv, shadowing, filter, max_lobes, border, \
                  normals)"
-            )));
-        }
-    }
-    let kind = match tex.get("kind").map(|k| k.as_str()) {
-        Some(Some(k @ ("ndf-mapped" | "bump-mapped"))) => k,
-        Some(Some(k)) => {
-            return Err(named(format!(
-                "[texture] kind: unknown \"{k}\" (known: ndf-mapped, bump-mapped)"
-            )))
-        }
-        Some(None) => return Err(named("[texture] kind: expected a string".into())),
-        None => return Err(named("[texture]: missing `kind`".into())),
-    };
-    let box_filter = box_filter(tex, kind).map_err(named)?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let string = |key: &str| match tex.get(key).map(|f| f.as_str()) {
-        Some(Some(f)) => Ok(Some(f)),
-        Some(None) => Err(named(format!("[texture] {key}: expected a string"))),
-        None => Ok(None),
-    };
-    if let Some(m) = string("map")? {
-        if tex.contains_key("file") || tex.contains_key("normal_map") {
-            return Err(named(
-                "[texture]: `map` (a map file), `file` (a height map) and `normal_map` exclude \
-                 each other"
-                    .into(),
             ));
         }
-        return map_mapped(kind, tex, &doc, dir, &dir.join(m), box_filter, maps)
-            .map(Some)
-            .map_err(named);
     }
-    let file = match (string("file")?, string("normal_map")?) {
-        (Some(f), None) => dir.join(f),
-        (None, Some(n)) => {
-            for k in ["texel_size", "height_scale", "border", "normals"] {
-                if tex.contains_key(k) {
-                    return Err(named(format!(
-                        "[texture] {k}: applies to height maps (`file`), not to `normal_map`"
-                    )));
-                }
-            }
-            if tex.get("shadowing").and_then(toml::Value::as_bool) == Some(true) {
-                return Err(named(
-                    "[texture] shadowing: a normal map has no heights to shadow with".into(),
-                ));
-            }
-            let convention = match string("convention")? {
-                None | Some("gl") => NormalConvention::Gl,
-                Some("dx") => NormalConvention::Dx,
-                Some(o) => {
-                    return Err(named(format!(
-                        "[texture] convention: unknown \"{o}\" (known: gl, dx)"
-                    )))
-                }
-            };
-            return normal_mapped(
-                kind,
-                tex,
-                &doc,
-                path,
-                &dir.join(n),
-                convention,
-                box_filter,
-                maps,
-            )
-            .map(Some)
-            .map_err(named);
+    Ok(())
+}
+
+/// The `[texture]` table's `kind`: `"ndf-mapped"` or `"bump-mapped"`.
+fn texture_kind(tex: &toml::Table) -> Result<&str, String> {
+    match tex.get("kind").map(|k| k.as_str()) {
+        Some(Some(k @ ("ndf-mapped" | "bump-mapped"))) => Ok(k),
+        Some(Some(k)) => Err(format!(
+            "[texture] kind: unknown \"{k}\" (known: ndf-mapped, bump-mapped)"
+        )),
+        Some(None) => Err("[texture] kind: expected a string".into()),
+        None => Err("[texture]: missing `kind`".into()),
+    }
+}
+
+/// The string value of `key` in the `[texture]` table, if present.
+fn tex_string<'a>(tex: &'a toml::Table, key: &str) -> Result<Option<&'a str>, String> {
+    match tex.get(key).map(|f| f.as_str()) {
+        Some(Some(f)) => Ok(Some(f)),
+        Some(None) => Err(format!("[texture] {key}: expected a string")),
+        None => Ok(None),
+    }
+}
+
+/// A `[texture]` with `normal_map = FILE`: its checks (no height-map keys, no shadowing, the
+/// convention), then [`normal_mapped`].
+#[allow(clippy::too_many_arguments)]
+fn normal_textured(
+    kind: &str,
+    tex: &toml::Table,
+    doc: &toml::Table,
+    path: &Path,
+    file: &Path,
+    box_filter: bool,
+    maps: &MapsResolver,
+) -> Result<Arc<dyn Shader>, String> {
+    for k in ["texel_size", "height_scale", "border", "normals"] {
+        if tex.contains_key(k) {
+            return Err(format!(
+                "[texture] {k}: applies to height maps (`file`), not to `normal_map`"
+            ));
         }
-        (Some(_), Some(_)) => {
-            return Err(named(
-                "[texture]: `file` (a height map) and `normal_map` exclude each other".into(),
-            ))
-        }
-        (None, None) => {
-            return Err(named(
-                "[texture]: missing `file = \"…\"` (a height map), `normal_map = \"…\"` or \
-                 `map = \"…\"` (a map file)"
-                    .into(),
+    }
+    if tex.get("shadowing").and_then(toml::Value::as_bool) == Some(true) {
+        return Err("[texture] shadowing: a normal map has no heights to shadow with".into());
+    }
+    let convention = match tex_string(tex, "convention")? {
+        None | Some("gl") => NormalConvention::Gl,
+        Some("dx") => NormalConvention::Dx,
+        Some(o) => {
+            return Err(format!(
+                "[texture] convention: unknown \"{o}\" (known: gl, dx)"
             ))
         }
     };
-    if is_map_file(&file) {
-        return Err(named(format!(
+    normal_mapped(kind, tex, doc, path, file, convention, box_filter, maps)
+}
+
+/// A `[texture]` with `file = HEIGHTS`: bump-mapped from the heights, or NDF-mapped through the
+/// pyramid (from the resolver's memory, the disk cache, or extracted).
+#[allow(clippy::too_many_arguments)]
+fn height_textured(
+    kind: &str,
+    tex: &toml::Table,
+    doc: &toml::Table,
+    dir: &Path,
+    file: &Path,
+    box_filter: bool,
+    maps: &MapsResolver,
+) -> Result<Arc<dyn Shader>, String> {
+    if is_map_file(file) {
+        return Err(format!(
             "[texture] file: {} is a meso map file (`meso extract`), not a height map: give it \
              as `map = \"…\"` (without `height_scale`)",
             file.display()
-        )));
+        ));
     }
     if tex.contains_key("convention") {
-        return Err(named(
-            "[texture] convention: applies to `normal_map`, not to a height map".into(),
-        ));
+        return Err("[texture] convention: applies to `normal_map`, not to a height map".into());
     }
     let shadowing = match tex.get("shadowing") {
         None => true,
         Some(v) => v
             .as_bool()
-            .ok_or_else(|| named("[texture] shadowing: expected true or false".into()))?,
+            .ok_or_else(|| "[texture] shadowing: expected true or false".to_string())?,
     };
     // The height-map keys as a `kind = "heightmap"` table, for meso-maps' loader.
     let mut map_table: toml::Table = tex
@@ -176,30 +199,27 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         .map(|(k, v)| (k.clone(), v.clone()))
         .collect();
     map_table.insert("kind".into(), toml::Value::String("heightmap".into()));
-    let texture_err =
-        |e: meso_core::material::MaterialError| named(e.0.replace("[ndf]", "[texture]"));
-    let surface = facet_material(&doc, dir, maps).map_err(named)?;
-    let shader: Arc<dyn Shader> = match kind {
+    let texture_err = |e: meso_core::material::MaterialError| e.0.replace("[ndf]", "[texture]");
+    let surface = facet_material(doc, dir, maps)?;
+    Ok(match kind {
         "bump-mapped" => {
-            let map = MapsResolver::heightmap(&map_table, &file).map_err(texture_err)?;
-            let texels_per_uv = texels_per_uv(tex, map.cells_x()).map_err(named)?;
-            Arc::new(BumpMapped::new(&map, &surface, texels_per_uv, shadowing).map_err(named)?)
+            let map = MapsResolver::heightmap(&map_table, file).map_err(texture_err)?;
+            let texels_per_uv = texels_per_uv(tex, map.cells_x())?;
+            Arc::new(BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?)
         }
         _ => {
             // From the resolver's memory, the disk cache or extracted (`MapsResolver`): the
             // height map itself is only decoded to extract.
             let pyramid = maps
-                .heightmap_pyramid(&map_table, &file)
+                .heightmap_pyramid(&map_table, file)
                 .map_err(texture_err)?;
-            let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols).map_err(named)?;
+            let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
             Arc::new(
-                NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)
-                    .map_err(named)?
+                NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)?
                     .with_box_filter(box_filter),
             )
         }
-    };
-    Ok(Some(shader))
+    })
 }
 
 /// Whether `file` opens with the magic bytes of a map file (`meso_maps::format::MAGIC`).
