@@ -291,20 +291,9 @@ fn read_levels_v2(
     let mut levels = Vec::with_capacity(nlev);
     let (mut ec, mut er) = (cols, rows);
     for k in 0..nlev {
-        let lc = r.u32("level cols")? as usize;
-        let lr = r.u32("level rows")? as usize;
-        let span = r.u32("level span")? as usize;
-        let nl = r.u32("level lobe count")? as usize;
-        if lc != ec || lr != er || span != 1 << k {
-            return Err(r.err(format!(
-                "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
-                1u64 << k
-            )));
-        }
+        let nl = r.level_header(k, ec, er, max_lobes)?;
+        let (lc, lr, span) = (ec, er, 1usize << k);
         let texels = lc * lr;
-        if nl > texels * max_lobes {
-            return Err(r.err(format!("level {k} claims {nl} lobes for {texels} texels")));
-        }
         let need = texels as u64
             + nl as u64 * LOBE_BYTES
             + if has_h {
@@ -401,6 +390,29 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
+    /// The header of level `k` (texels along x and y, span, lobe count), checked against the
+    /// expected `ec × er` texels, span `2^k` and at most `max_lobes` per texel (both formats);
+    /// returns the lobe count.
+    fn level_header(&mut self, k: usize, ec: usize, er: usize, max_lobes: usize) -> Result<usize> {
+        let lc = self.u32("level cols")? as usize;
+        let lr = self.u32("level rows")? as usize;
+        let span = self.u32("level span")? as usize;
+        let nl = self.u32("level lobe count")? as usize;
+        if lc != ec || lr != er || span != 1 << k {
+            return Err(self.err(format!(
+                "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
+                1u64 << k
+            )));
+        }
+        if nl > lc * lr * max_lobes {
+            return Err(self.err(format!(
+                "level {k} claims {nl} lobes for {} texels",
+                lc * lr
+            )));
+        }
+        Ok(nl)
+    }
+
     fn err(&self, message: String) -> MapError {
         MapError::MapFormat {
             path: self.path.clone(),

@@ -168,7 +168,6 @@ impl ImageHeader {
 /// # Errors
 /// The file cannot be read, is not an image meso reads, or is too large.
 pub fn probe(path: &Path) -> Result<ImageHeader> {
-    use image::ImageDecoder;
     let io = |e: std::io::Error| MapError::Io {
         path: path.to_path_buf(),
         source: e,
@@ -183,6 +182,12 @@ pub fn probe(path: &Path) -> Result<ImageHeader> {
         return Err(decode_err(path, "unknown image format"));
     }
     let d = r.into_decoder().map_err(|e| decode_err(path, e))?;
+    header_of(path, &d, file_bytes)
+}
+
+/// The [`ImageHeader`] of an opened decoder (the size limits checked), for [`probe`] and
+/// [`probe_bytes`].
+fn header_of(path: &Path, d: &impl image::ImageDecoder, file_bytes: u64) -> Result<ImageHeader> {
     let (w, h) = d.dimensions();
     check_dims(path, w as u64, h as u64)?;
     let ct = d.color_type();
@@ -203,7 +208,6 @@ pub fn probe(path: &Path) -> Result<ImageHeader> {
 /// # Errors
 /// Empty bytes, an unknown or broken header, an image above the size limits.
 pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
-    use image::ImageDecoder;
     if bytes.is_empty() {
         return Err(MapError::Empty {
             path: name.to_path_buf(),
@@ -215,17 +219,7 @@ pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
     r.set_format(image::ImageFormat::from_path(name).unwrap_or(image::ImageFormat::Png));
     let r = r.with_guessed_format().map_err(|e| decode_err(name, e))?;
     let d = r.into_decoder().map_err(|e| decode_err(name, e))?;
-    let (w, h) = d.dimensions();
-    check_dims(name, w as u64, h as u64)?;
-    let ct = d.color_type();
-    Ok(ImageHeader {
-        width: w as u64,
-        height: h as u64,
-        bytes_per_pixel: ct.bytes_per_pixel() as u64,
-        color: ct.has_color(),
-        eight_bit: ct.bytes_per_pixel() / ct.channel_count().max(1) == 1,
-        file_bytes: bytes.len() as u64,
-    })
+    header_of(name, &d, bytes.len() as u64)
 }
 
 /// An allocation error of loading `path`.

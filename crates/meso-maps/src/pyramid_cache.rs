@@ -45,21 +45,11 @@ pub fn key(
     border: Border,
     params: &ExtractParams,
 ) -> [u8; 32] {
-    let mut h = Sha256::new();
-    h.update(b"meso pyramid ");
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update(FORMAT.to_le_bytes());
-    h.update(crate::format::VERSION.to_le_bytes());
-    h.update(texel_size.to_le_bytes());
-    h.update(height_scale.to_le_bytes());
-    h.update([u8::from(border == Border::Clamp)]);
-    // Every field of the parameters, the fit's included (floats print exactly).
-    let p = format!("{params:?}");
-    h.update((p.len() as u64).to_le_bytes());
-    h.update(p.as_bytes());
-    h.update((file_bytes.len() as u64).to_le_bytes());
-    h.update(file_bytes);
-    h.finalize().into()
+    let mut fields = Vec::with_capacity(17);
+    fields.extend(texel_size.to_le_bytes());
+    fields.extend(height_scale.to_le_bytes());
+    fields.push(u8::from(border == Border::Clamp));
+    hash_key(b"meso pyramid ", &fields, params, file_bytes)
 }
 
 /// The cache key of a normal map file's bytes, its green-channel convention and the
@@ -70,12 +60,20 @@ pub fn normal_key(
     convention: NormalConvention,
     params: &ExtractParams,
 ) -> [u8; 32] {
+    let fields = [u8::from(convention == NormalConvention::Dx)];
+    hash_key(b"meso normal-map pyramid ", &fields, params, file_bytes)
+}
+
+/// SHA-256 of `tag`, this build's version and formats, the source's own `fields`, every field
+/// of the parameters (the fit's included; floats print exactly) and the file's bytes: the one
+/// layout of [`key`] and [`normal_key`].
+fn hash_key(tag: &[u8], fields: &[u8], params: &ExtractParams, file_bytes: &[u8]) -> [u8; 32] {
     let mut h = Sha256::new();
-    h.update(b"meso normal-map pyramid ");
+    h.update(tag);
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
     h.update(FORMAT.to_le_bytes());
     h.update(crate::format::VERSION.to_le_bytes());
-    h.update([u8::from(convention == NormalConvention::Dx)]);
+    h.update(fields);
     let p = format!("{params:?}");
     h.update((p.len() as u64).to_le_bytes());
     h.update(p.as_bytes());

@@ -22,6 +22,19 @@ struct Fields<'a> {
     used: Vec<&'static str>,
 }
 
+/// The `weight` of lobe `k` (0-based) of the `name` lobes array: a finite number ≥ 0.
+fn lobe_weight(lf: &mut Fields<'_>, name: &str, k: usize) -> Result<f64, MaterialError> {
+    let w = lf.req_number("weight")?;
+    if !(w.is_finite() && w >= 0.0) {
+        return err(format!(
+            "{name} lobes[{}] weight: must be a finite number >= 0, got {}",
+            k + 1,
+            Num(w)
+        ));
+    }
+    Ok(w)
+}
+
 impl<'a> Fields<'a> {
     fn new(name: impl Into<String>, table: &'a toml::Table) -> Fields<'a> {
         Fields {
@@ -246,14 +259,7 @@ fn parse_lobes(
     for (k, mut lf) in tables.into_iter().enumerate() {
         let ax = axis(&mut lf, "axis")?
             .ok_or_else(|| MaterialError(format!("{name} lobes[{}]: missing `axis`", k + 1)))?;
-        let w = lf.req_number("weight")?;
-        if !(w.is_finite() && w >= 0.0) {
-            return err(format!(
-                "{name} lobes[{}] weight: must be a finite number >= 0, got {}",
-                k + 1,
-                Num(w)
-            ));
-        }
+        let w = lobe_weight(&mut lf, &name, k)?;
         let e = if with_exponent {
             let e = lf.req_number("exponent")?;
             if !(e.is_finite() && (0.0..=MAX_EXPONENT).contains(&e)) {
@@ -477,14 +483,7 @@ fn parse_mixture(f: &mut Fields<'_>) -> Result<Mixture, MaterialError> {
             None => return err(format!("{name} lobes[{}]: missing `kind`", k + 1)),
         };
         let (ax, ay) = alphas(&mut lf)?;
-        let w = lf.req_number("weight")?;
-        if !(w.is_finite() && w >= 0.0) {
-            return err(format!(
-                "{name} lobes[{}] weight: must be a finite number >= 0, got {}",
-                k + 1,
-                Num(w)
-            ));
-        }
+        let w = lobe_weight(&mut lf, &name, k)?;
         lf.finish()?;
         let mf = Microfacet::new(dist, ax, ay)
             .map_err(|e| MaterialError(format!("{name} lobes[{}]: {e}", k + 1)))?;

@@ -452,22 +452,8 @@ pub(super) fn read_levels(
     let (mut ec, mut er) = (cols, rows);
     let (mut texels, mut lobes) = (0u64, 0u64);
     for k in 0..nlev {
-        let lc = r.u32("level cols")? as usize;
-        let lr = r.u32("level rows")? as usize;
-        let span = r.u32("level span")? as usize;
-        let nl = r.u32("level lobe count")? as usize;
-        if lc != ec || lr != er || span != 1 << k {
-            return Err(r.err(format!(
-                "level {k} is {lc}x{lr} span {span}; expected {ec}x{er} span {}",
-                1u64 << k
-            )));
-        }
-        if nl > lc * lr * max_lobes {
-            return Err(r.err(format!(
-                "level {k} claims {nl} lobes for {} texels",
-                lc * lr
-            )));
-        }
+        let nl = r.level_header(k, ec, er, max_lobes)?;
+        let (lc, lr, span) = (ec, er, 1usize << k);
         let residual = Residual {
             mean: r.f64("residual")?,
             max: r.f64("residual")?,
