@@ -93,7 +93,7 @@ function mesoRender(name, width, material) {
 const mean = (a) => a.reduce((s, v) => s + v, 0) / a.length;
 const mae = (a, b) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
 
-let browser, page, info;
+let browser, page, info, asset;
 let levels = 0;
 const results = [];
 let calib = 1;
@@ -122,18 +122,26 @@ before(async () => {
     '/three.core.js': path.join(here, 'node_modules/three/build/three.core.js'),
     '/page.mjs': path.join(here, 'page.mjs'),
   };
+  // three.js's own loaders (GLTFLoader, KTX2Loader and what they import) from its examples folder.
+  const addons = path.join(here, 'node_modules/three/examples/jsm');
+  const types = { '.png': 'image/png', '.gltf': 'model/gltf+json', '.bin': 'application/octet-stream', '.ktx2': 'image/ktx2', '.js': 'text/javascript', '.mjs': 'text/javascript' };
   await page.route('http://meso.test/**', (route) => {
     const p = new URL(route.request().url()).pathname;
     if (p === '/') {
-      return route.fulfill({ contentType: 'text/html', body: '<!doctype html><script type="importmap">{"imports":{"three":"/three.module.js"}}</script><script type="module" src="/page.mjs"></script>' });
+      return route.fulfill({ contentType: 'text/html', body: '<!doctype html><script type="importmap">{"imports":{"three":"/three.module.js","three/addons/":"/addons/"}}</script><script type="module" src="/page.mjs"></script>' });
     }
-    const f = files[p] || (p.startsWith('/exp/') ? path.join(expDir, path.basename(p)) : null);
+    let f = files[p] || (p.startsWith('/exp/') ? path.join(expDir, path.basename(p)) : null);
+    if (!f && p.startsWith('/addons/')) {
+      f = path.join(addons, path.normalize(p.slice('/addons/'.length)));
+      if (!f.startsWith(addons)) f = null;
+    }
     if (!f || !fs.existsSync(f)) return route.fulfill({ status: 404, body: 'not found' });
-    return route.fulfill({ body: fs.readFileSync(f), contentType: f.endsWith('.png') ? 'image/png' : 'text/javascript' });
+    return route.fulfill({ body: fs.readFileSync(f), contentType: types[path.extname(f)] || 'application/octet-stream' });
   });
   await page.goto('http://meso.test/');
   await page.waitForFunction(() => window.ready === true, null, { timeout: 60000 });
   info = await page.evaluate((n) => window.loadMaps(n), levels);
+  asset = await page.evaluate(() => window.loadAsset());
 });
 
 after(async () => { if (browser) await browser.close(); });
@@ -146,6 +154,21 @@ test('three.js has WebGL2 in headless Chromium and the export has a full mip cha
   assert.ok(info.webgl2);
   assert.ok(info.msPatchable, 'three.js multiple-scattering line found (the single-scattering patch applies)');
   assert.equal(levels, Math.log2(N) + 1);
+});
+
+test('the exported glTF as three.js loads it: material, tangent frame, full KTX2 chains', () => {
+  // GLTFLoader's reading of scene.gltf and KTX2Loader's of the two chains (independent readers).
+  console.log(`# glTF plane: min tangent·∂p/∂u ${asset.tangentAlongU.toFixed(6)}, min bitangent·(−∂p/∂v) ${asset.bitangentUp.toFixed(6)}; ` +
+    `metalness ${asset.metalness}, roughness ${asset.roughness}, colour ${asset.color.map((c) => c.toFixed(4)).join(' ')}, ` +
+    `normalScale ${asset.normalScale.join(' ')}; KTX2 levels ${asset.levels.join(', ')}`);
+  assert.ok(asset.hasTangents, 'the plane carries TANGENT');
+  assert.ok(asset.tangentAlongU > 0.9999, 'tangent along +u');
+  assert.ok(asset.bitangentUp > 0.9999, 'bitangent w·(n × t) up the image (−v): green = +Y, the glTF convention');
+  assert.equal(asset.metalness, 1);
+  assert.equal(asset.roughness, 1);
+  for (const c of asset.color.slice(0, 3)) assert.ok(Math.abs(c - BASE) < 1e-6, `base colour ${c}`);
+  assert.deepEqual(asset.normalScale, [1, 1], 'GLTFLoader keeps normalScale (1, 1) for meshes with tangents');
+  assert.deepEqual(asset.levels, [levels, levels], 'KTX2Loader reads the full chains');
 });
 
 test('flat plane: three.js and meso agree radiometrically (calibration)', async () => {
@@ -181,10 +204,12 @@ for (const d of DISTANCES) {
     const ref = mesoRender(`ref_d${d}`, width, 'reference.toml');
     const a = (await three('exported', width)).map((v) => v * calib);
     const b = (await three('standard', width)).map((v) => v * calib);
+    const g = (await three('gltf', width)).map((v) => v * calib);
     const a2 = await three('exported', width, { singleScatter: false });
     const b2 = await three('standard', width, { singleScatter: false });
     const r = {
-      d, ref: mean(ref), exported: mean(a), standard: mean(b),
+      d, ref: mean(ref), exported: mean(a), standard: mean(b), gltf: mean(g), maeGltf: mae(g, ref) / mean(ref),
+      gltfVsExported: mae(g, a) / mean(a),
       maeExported: mae(a, ref) / mean(ref), maeStandard: mae(b, ref) / mean(ref),
       shipped: { exported: mean(a2), standard: mean(b2), maeExported: mae(a2, ref) / mean(ref), maeStandard: mae(b2, ref) / mean(ref) },
     };
@@ -193,7 +218,7 @@ for (const d of DISTANCES) {
       const dir = process.env.ENGINE_FIGURES;
       fs.mkdirSync(dir, { recursive: true });
       const stops = -3;   // radiance 8 → white, the same for every picture
-      for (const [n, img] of [['reference', ref], ['exported', a], ['standard', b]]) {
+      for (const [n, img] of [['reference', ref], ['exported', a], ['standard', b], ['gltf', g]]) {
         fs.writeFileSync(path.join(dir, `d${d}_${n}.png`), srgb8(128, 128, img, stops));
       }
     }
@@ -201,6 +226,11 @@ for (const d of DISTANCES) {
       `pixel error (MAE / mean ref) exported ${(100 * r.maeExported).toFixed(1)} % standard ${(100 * r.maeStandard).toFixed(1)} %`);
     assert.ok(Math.abs(r.exported - r.ref) < Math.abs(r.standard - r.ref), 'mean luminance closer with the exported maps');
     assert.ok(r.maeExported < r.maeStandard, 'pixel error smaller with the exported maps');
+    // The asset as an engine loads it (GLTFLoader + KTX2Loader, vertex tangents) shades as the PNG chains do.
+    console.log(`# d = ${d}, glTF + KTX2: mean ${r.gltf.toFixed(4)}, pixel error ${(100 * r.maeGltf).toFixed(1)} %, ` +
+      `against the PNG chains ${(100 * r.gltfVsExported).toFixed(2)} %`);
+    assert.ok(r.gltfVsExported < 0.01, 'glTF + KTX2 render equals the PNG-chain render within 1 % per pixel');
+    assert.ok(Math.abs(r.gltf - r.ref) < Math.abs(r.standard - r.ref) && r.maeGltf < r.maeStandard, 'glTF + KTX2 closer than standard mips');
     const s2 = r.shipped;
     console.log(`# d = ${d}, three.js as shipped (multiple-scattering compensation): exported ${s2.exported.toFixed(4)} standard ${s2.standard.toFixed(4)}; ` +
       `pixel error exported ${(100 * s2.maeExported).toFixed(1)} % standard ${(100 * s2.maeStandard).toFixed(1)} %`);
@@ -211,10 +241,11 @@ for (const d of DISTANCES) {
 
 test('summary table', () => {
   fs.writeFileSync(path.join(art, 'results.json'), JSON.stringify({ spp: SPP, calib, results }, null, 1));
-  console.log('# | d | texels / pixel | reference | exported | standard | error exported | error standard |');
+  console.log('# | d | texels / pixel | reference | exported | standard | error exported | error standard | glTF + KTX2 | error glTF | glTF vs PNG chains |');
   for (const r of results) {
     console.log(`# | ${r.d} | ${r.d} × ${(r.d / Math.cos(Math.PI / 6)).toFixed(1)} | ${r.ref.toFixed(3)} | ${r.exported.toFixed(3)} (${(100 * (r.exported / r.ref - 1)).toFixed(1)} %) | ` +
-      `${r.standard.toFixed(3)} (${(100 * (r.standard / r.ref - 1)).toFixed(1)} %) | ${(100 * r.maeExported).toFixed(1)} % | ${(100 * r.maeStandard).toFixed(1)} % |`);
+      `${r.standard.toFixed(3)} (${(100 * (r.standard / r.ref - 1)).toFixed(1)} %) | ${(100 * r.maeExported).toFixed(1)} % | ${(100 * r.maeStandard).toFixed(1)} % | ` +
+      `${r.gltf.toFixed(3)} | ${(100 * r.maeGltf).toFixed(1)} % | ${(100 * r.gltfVsExported).toFixed(2)} % |`);
   }
   console.log('# three.js as shipped: | d | exported | standard | error exported | error standard |');
   for (const r of results) {

@@ -1,5 +1,7 @@
 // Runs in headless Chromium: three.js renders of the exported plane into a float render target.
 import * as THREE from 'three';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { KTX2Loader } from 'three/addons/loaders/KTX2Loader.js';
 
 const W = 128, H = 128;
 const renderer = new THREE.WebGLRenderer({ antialias: false, alpha: false });
@@ -29,7 +31,10 @@ function texture(levels, generate) {
 
 // The plane z = 0 (normal +z); uv = (x, −y) / uvScale: three.js and glTF put uv (0, 0) at the image's
 // top-left with v growing down the image, meso's scene uv grows up it (docs/conventions.md).
-function plane(uvScale, half, offset = [0, 0]) {
+// `tangents`: a glTF TANGENT attribute as meso's asset writes it (+u = +x, w = +1, so the bitangent
+// n × t = +y points up the image); without it three.js derives the frame from screen-space uv
+// derivatives.
+function plane(uvScale, half, offset = [0, 0], tangents = false) {
   const g = new THREE.BufferGeometry();
   const p = [-half, -half, 0, half, -half, 0, half, half, 0, -half, half, 0];
   const uv = [];
@@ -37,6 +42,7 @@ function plane(uvScale, half, offset = [0, 0]) {
   g.setAttribute('position', new THREE.Float32BufferAttribute(p, 3));
   g.setAttribute('normal', new THREE.Float32BufferAttribute([0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1], 3));
   g.setAttribute('uv', new THREE.Float32BufferAttribute(uv, 2));
+  if (tangents) g.setAttribute('tangent', new THREE.Float32BufferAttribute([1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1], 4));
   g.setIndex([0, 1, 2, 0, 2, 3]);
   return g;
 }
@@ -70,12 +76,70 @@ window.loadMaps = async (levels) => {
   return { webgl2: renderer.capabilities.isWebGL2 !== false, renderer: gl.getParameter(gl.RENDERER), revision: THREE.REVISION, msPatchable };
 };
 
+// The exported asset as an engine reads it: `scene.gltf` through three.js's GLTFLoader (its material,
+// its plane's tangent frame), then the fitted chains from `normal.ktx2` and `metallic_roughness.ktx2`
+// through KTX2Loader (core glTF images are PNG or JPEG, one level: the chains ship as KTX2 beside the
+// asset), with the glTF sampler's wrap and filters. Returns what the test checks.
+let asset = null;
+window.loadAsset = async () => {
+  const gltf = await new GLTFLoader().loadAsync('http://meso.test/exp/scene.gltf');
+  let mesh = null;
+  gltf.scene.traverse((o) => { if (o.isMesh && o.name === 'plane') mesh = o; });
+  if (!mesh) throw new Error('scene.gltf: no mesh named "plane"');
+  const g = mesh.geometry, mat = mesh.material;
+  // The plane's tangent frame against its uv: the tangent along +u, the bitangent w·(n × t) along −v
+  // (up the image), from each triangle's edges.
+  const P = g.attributes.position, U = g.attributes.uv, T = g.attributes.tangent, N = g.attributes.normal;
+  const idx = g.index.array;
+  let tangentAlongU = 1, bitangentUp = 1;
+  for (let f = 0; f < idx.length; f += 3) {
+    const [a, b, c] = [idx[f], idx[f + 1], idx[f + 2]];
+    const e1 = new THREE.Vector3().fromBufferAttribute(P, b).sub(new THREE.Vector3().fromBufferAttribute(P, a));
+    const e2 = new THREE.Vector3().fromBufferAttribute(P, c).sub(new THREE.Vector3().fromBufferAttribute(P, a));
+    const [du1, dv1] = [U.getX(b) - U.getX(a), U.getY(b) - U.getY(a)];
+    const [du2, dv2] = [U.getX(c) - U.getX(a), U.getY(c) - U.getY(a)];
+    const r = 1 / (du1 * dv2 - du2 * dv1);
+    const dpdu = e1.clone().multiplyScalar(dv2).addScaledVector(e2, -dv1).multiplyScalar(r).normalize();
+    const dpdv = e2.clone().multiplyScalar(du1).addScaledVector(e1, -du2).multiplyScalar(r).normalize();
+    const t = new THREE.Vector3().fromBufferAttribute(T, a);
+    const n = new THREE.Vector3().fromBufferAttribute(N, a);
+    const bt = n.clone().cross(t).multiplyScalar(T.getW(a));
+    tangentAlongU = Math.min(tangentAlongU, t.dot(dpdu));
+    bitangentUp = Math.min(bitangentUp, -bt.dot(dpdv));
+  }
+  const ktx2 = new KTX2Loader().setTranscoderPath('/no-transcoder/').detectSupport(renderer);
+  const chain = async (file, like) => {
+    const t = await ktx2.loadAsync(`http://meso.test/exp/${file}`);
+    t.wrapS = like.wrapS; t.wrapT = like.wrapT;
+    t.magFilter = like.magFilter; t.minFilter = like.minFilter;
+    t.flipY = like.flipY; t.anisotropy = 1;
+    t.needsUpdate = true;
+    return t;
+  };
+  const normal = await chain('normal.ktx2', mat.normalMap);
+  const mr = await chain('metallic_roughness.ktx2', mat.roughnessMap);
+  asset = mat.clone();
+  asset.normalMap = normal;
+  asset.roughnessMap = mr;
+  asset.metalnessMap = mr;
+  ktx2.dispose();
+  return {
+    tangentAlongU, bitangentUp, hasTangents: T !== undefined,
+    metalness: mat.metalness, roughness: mat.roughness, color: mat.color.toArray(),
+    normalScale: mat.normalScale.toArray(),
+    levels: [normal.mipmaps.length, mr.mipmaps.length],
+    pngLevels: [mat.normalMap.mipmaps.length, mat.roughnessMap.mipmaps.length],
+  };
+};
+
 // mode: 'flat' (no maps, constant roughness), 'exported' (meso's normal + roughness chains),
-// 'standard' (level-0 normal map with three.js' generated mips, constant roughness).
+// 'standard' (level-0 normal map with three.js' generated mips, constant roughness), 'gltf' (the asset's
+// own material with the KTX2 chains, on a plane with the asset's tangent convention).
 window.renderView = (o) => {
   const scene = new THREE.Scene();
-  const mat = new THREE.MeshStandardMaterial({ metalness: 1, roughness: Math.sqrt(o.alpha) });
-  mat.color.setRGB(o.baseColor, o.baseColor, o.baseColor, THREE.LinearSRGBColorSpace);
+  const gltf = o.mode === 'gltf';
+  const mat = gltf ? asset.clone() : new THREE.MeshStandardMaterial({ metalness: 1, roughness: Math.sqrt(o.alpha) });
+  if (!gltf) mat.color.setRGB(o.baseColor, o.baseColor, o.baseColor, THREE.LinearSRGBColorSpace);
   if (o.mode === 'exported') {
     mat.normalMap = maps.exportedNormal;
     mat.roughnessMap = maps.exportedMR;     // G = √α; metalness stays the constant 1
@@ -84,8 +148,10 @@ window.renderView = (o) => {
     mat.normalMap = maps.originalNormal;
   }
   if (o.singleScatter) singleScatter(mat);
-  if (mat.normalMap) mat.normalScale.set(1, -1);   // v grows down the image: green = −∂p/∂v (GLTFLoader does the same)
-  scene.add(new THREE.Mesh(plane(o.uvScale, 40, o.uvOffset), mat));
+  // Without tangents, v grows down the image: green = −∂p/∂v (GLTFLoader does the same for meshes without
+  // TANGENT); the glTF mode keeps the loader's normalScale and uses the vertex tangents.
+  if (mat.normalMap && !gltf) mat.normalScale.set(1, -1);
+  scene.add(new THREE.Mesh(plane(o.uvScale, 40, o.uvOffset, gltf), mat));
   const light = new THREE.DirectionalLight(0xffffff, o.irradiance);
   light.position.set(...o.lightDir);
   light.target.position.set(0, 0, 0);
