@@ -224,11 +224,7 @@ pub fn direction_pairs(nbar: DVec3, width: f64) -> Vec<(DVec3, DVec3)> {
 /// [`frame`] of `nbar`) instead of [`HALF_PHIS_DEG`]; the anisotropic fit uses
 /// [`ANISO_HALF_PHIS_DEG`].
 #[must_use]
-pub fn direction_pairs_with(
-    nbar: DVec3,
-    width: f64,
-    half_phis_deg: &[f64],
-) -> Vec<(DVec3, DVec3)> {
+pub fn direction_pairs_with(nbar: DVec3, width: f64, half_phis_deg: &[f64]) -> Vec<(DVec3, DVec3)> {
     let (t, b) = frame(nbar);
     let dir = |theta: f64, phi: f64| {
         (t * (theta.sin() * phi.cos()) + b * (theta.sin() * phi.sin()) + nbar * theta.cos())
@@ -492,11 +488,7 @@ pub fn moment_start(fine: &[FineTexel], nbar: DVec3, iso_alpha: f64) -> (f64, f6
         a2 += t.alpha * t.alpha;
     }
     let n = fine.len().max(1) as f64;
-    let (sxx, syy, sxy) = (
-        sxx / n + a2 / (2.0 * n),
-        syy / n + a2 / (2.0 * n),
-        sxy / n,
-    );
+    let (sxx, syy, sxy) = (sxx / n + a2 / (2.0 * n), syy / n + a2 / (2.0 * n), sxy / n);
     let psi = 0.5 * (2.0 * sxy).atan2(sxx - syy);
     let mean = 0.5 * (sxx + syy);
     let dev = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
@@ -626,9 +618,8 @@ mod tests {
                     let dth = 2.0 * u * PI / 2.0 / nt as f64;
                     for j in 0..np {
                         let ph = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
-                        let h = ft * (th.sin() * ph.cos())
-                            + fb * (th.sin() * ph.sin())
-                            + n * th.cos();
+                        let h =
+                            ft * (th.sin() * ph.cos()) + fb * (th.sin() * ph.sin()) + n * th.cos();
                         s += lobe.d(h) * th.cos() * th.sin() * dth * (2.0 * PI / np as f64);
                     }
                 }
@@ -710,9 +701,18 @@ mod tests {
             let target: Vec<f64> = pairs.iter().map(|&(l, v)| truth.shaded(l, v)).collect();
             // Fine texels whose moments point roughly the right way (the start only).
             let fine = [
-                FineTexel { normal: n, alpha: ab },
-                FineTexel { normal: (n + truth.tangent * 0.3).normalize(), alpha: ab },
-                FineTexel { normal: (n - truth.tangent * 0.3).normalize(), alpha: ab },
+                FineTexel {
+                    normal: n,
+                    alpha: ab,
+                },
+                FineTexel {
+                    normal: (n + truth.tangent * 0.3).normalize(),
+                    alpha: ab,
+                },
+                FineTexel {
+                    normal: (n - truth.tangent * 0.3).normalize(),
+                    alpha: ab,
+                },
             ];
             let fit = fit_aniso_on(&fine, &target, n, &pairs);
             let dpsi = (fit.angle - psi).rem_euclid(PI);

@@ -145,7 +145,9 @@ pub fn anisotropy_strength(alpha_t: f64, alpha_b: f64) -> f64 {
     if alpha_b >= 1.0 {
         return 0.0;
     }
-    ((alpha_t - alpha_b) / (1.0 - alpha_b)).clamp(0.0, 1.0).sqrt()
+    ((alpha_t - alpha_b) / (1.0 - alpha_b))
+        .clamp(0.0, 1.0)
+        .sqrt()
 }
 
 /// Summary of one level's fit, relative errors in % of the supersampled BRDF peak.
@@ -359,9 +361,18 @@ pub fn build_level_with(base: &BaseMaps, k: usize, anisotropic: bool) -> MipLeve
         errors: texels.iter().map(|t| t.error).collect(),
         errors_plain: texels.iter().map(|t| t.plain).collect(),
         aniso: anisotropic.then(|| AnisoLevel {
-            alpha_t: texels.iter().map(|t| t.aniso.map_or(t.alpha, |a| a.0)).collect(),
-            angles: texels.iter().map(|t| t.aniso.map_or(0.0, |a| a.1)).collect(),
-            errors_iso: texels.iter().map(|t| t.aniso.map_or(t.error, |a| a.2)).collect(),
+            alpha_t: texels
+                .iter()
+                .map(|t| t.aniso.map_or(t.alpha, |a| a.0))
+                .collect(),
+            angles: texels
+                .iter()
+                .map(|t| t.aniso.map_or(0.0, |a| a.1))
+                .collect(),
+            errors_iso: texels
+                .iter()
+                .map(|t| t.aniso.map_or(t.error, |a| a.2))
+                .collect(),
         }),
     }
 }

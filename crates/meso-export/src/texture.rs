@@ -165,7 +165,10 @@ mod tests {
         // Image row 0 is map row 1 (isotropic: strength 0).
         assert_eq!(px[2], 0);
         let (dt, db, dpsi) = decode_anisotropy(mr[4 + 1], [px[4], px[5], px[6]]);
-        assert!((db - 0.1).abs() < 0.004 && (dt - 0.5).abs() < 0.01, "{dt} {db}");
+        assert!(
+            (db - 0.1).abs() < 0.004 && (dt - 0.5).abs() < 0.01,
+            "{dt} {db}"
+        );
         assert!((dpsi - 0.3).abs() < 0.01, "{dpsi}");
         let (dt, db, dpsi) = decode_anisotropy(mr[1], [px[0], px[1], px[2]]);
         assert!((dt - db).abs() < 1e-12 && (db - 0.04).abs() < 0.002);

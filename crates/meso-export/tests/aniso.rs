@@ -121,7 +121,12 @@ fn mean(v: &[f64]) -> f64 {
 /// over anisotropic texels, share of texels with α_t/α_b > 1.5)`.
 fn level_numbers(l: &MipLevel, truth: f64) -> (f64, f64, f64, f64, f64) {
     let a = l.aniso.as_ref().unwrap();
-    let ratios: Vec<f64> = a.alpha_t.iter().zip(&l.alphas).map(|(t, b)| t / b).collect();
+    let ratios: Vec<f64> = a
+        .alpha_t
+        .iter()
+        .zip(&l.alphas)
+        .map(|(t, b)| t / b)
+        .collect();
     let mut worst: f64 = 0.0;
     let mut aniso = 0;
     for (k, &r) in ratios.iter().enumerate() {
@@ -289,7 +294,10 @@ fn written_anisotropy_decodes_to_the_fitted_values() {
     assert_eq!(ext["anisotropyRotation"], 0.0);
     let t = ext["anisotropyTexture"]["index"].as_u64().unwrap() as usize;
     let img = doc["textures"][t]["source"].as_u64().unwrap() as usize;
-    assert_eq!(doc["images"][img]["uri"], export::anisotropy_png(0).as_str());
+    assert_eq!(
+        doc["images"][img]["uri"],
+        export::anisotropy_png(0).as_str()
+    );
     // Every mesh primitive carries TANGENT (the direction needs a frame).
     for m in doc["meshes"].as_array().unwrap() {
         assert!(m["primitives"][0]["attributes"]["TANGENT"].is_u64());
@@ -311,13 +319,7 @@ fn the_isotropic_default_is_untouched() {
     let gltf = &ex.files.iter().find(|(n, _)| n == export::GLTF).unwrap().1;
     assert!(!String::from_utf8_lossy(gltf).contains("anisotropy"));
     // The isotropic chain is the plain α fit, level by level.
-    let base = meso_export::BaseMaps::new(
-        N,
-        N,
-        inputs.normals.clone(),
-        vec![0.05; N * N],
-    )
-    .unwrap();
+    let base = meso_export::BaseMaps::new(N, N, inputs.normals.clone(), vec![0.05; N * N]).unwrap();
     let l3 = meso_export::mips::build_level(&base, 3);
     assert_eq!(l3.alphas, ex.levels[3].alphas);
 }
