@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Independent checks of `meso export`: installs ktx-parse and gltf-validator (npm), builds the
-# meso binary, runs export.test.mjs with node's test runner. Inputs and outputs land in
-# tests/export/artifacts/. Last line: `e2e: N passed, M failed` (summed by scripts/test.sh).
+# meso binary (debug; a binary given in $MESO_BIN is used as it is), runs export.test.mjs with
+# node's test runner. Inputs and outputs land in tests/export/artifacts/. Last line: `e2e: N
+# passed, M failed` (summed by scripts/test.sh).
 set -uo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
@@ -18,10 +19,13 @@ if [ ! -d node_modules/ktx-parse ] || [ ! -d node_modules/gltf-validator ]; then
   npm ci --no-audit --no-fund || npm install --no-audit --no-fund || fail "npm install"
 fi
 
-(cd "$root" && cargo build -p meso-cli) || fail "cargo build -p meso-cli"
-target="${CARGO_TARGET_DIR:-$root/target}"
-case "$target" in /*) ;; *) target="$root/$target" ;; esac
-export MESO_BIN="${MESO_BIN:-$target/debug/meso}"
+# MESO_BIN set by the caller (e.g. a release build): use that binary, build nothing.
+if [ -z "${MESO_BIN:-}" ]; then
+  (cd "$root" && cargo build -p meso-cli) || fail "cargo build -p meso-cli"
+  target="${CARGO_TARGET_DIR:-$root/target}"
+  case "$target" in /*) ;; *) target="$root/$target" ;; esac
+  export MESO_BIN="$target/debug/meso"
+fi
 
 node --test --test-concurrency=1 --test-reporter=tap export.test.mjs 2>&1 | tee artifacts/tap.txt
 status=${PIPESTATUS[0]}

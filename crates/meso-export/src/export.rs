@@ -2,7 +2,7 @@
 //! all-or-nothing.
 
 use crate::ggx::roughness_to_alpha;
-use crate::mips::{build_chain, BaseMaps, LevelStats, MipLevel};
+use crate::mips::{build_chain, build_chain_aniso, BaseMaps, LevelStats, MipLevel};
 use crate::{gltf, ktx2, texture, ExportError};
 use glam::DVec3;
 use meso_maps::{HeightMap, NormalMap};
@@ -12,6 +12,9 @@ use std::path::{Path, PathBuf};
 pub const NORMAL_KTX2: &str = "normal.ktx2";
 /// File name of the metallicRoughness KTX2 (RGBA8 UNORM, G = roughness, B = metallic).
 pub const ROUGHNESS_KTX2: &str = "metallic_roughness.ktx2";
+/// File name of the KHR_materials_anisotropy KTX2 (RGBA8 UNORM, RG = direction, B =
+/// strength; only with [`Inputs::anisotropic`]).
+pub const ANISOTROPY_KTX2: &str = "anisotropy.ktx2";
 /// File name of the glTF JSON.
 pub const GLTF: &str = "scene.gltf";
 /// File name of the glTF binary buffer.
@@ -30,6 +33,13 @@ pub fn normal_png(k: usize) -> String {
 #[must_use]
 pub fn roughness_png(k: usize) -> String {
     format!("metallic_roughness_mip{k}.png")
+}
+
+/// File name of the PNG of anisotropy mip level `k` (RGB: R, G = direction, B = strength;
+/// only with [`Inputs::anisotropic`]).
+#[must_use]
+pub fn anisotropy_png(k: usize) -> String {
+    format!("anisotropy_mip{k}.png")
 }
 
 /// File name of the grey inspection PNG of roughness level `k` (`round(255·√α)`, for viewing).
@@ -132,6 +142,13 @@ pub fn export_bytes(width: u64, height: u64) -> u64 {
 /// docs/limits.md), with a 10 % margin.
 pub const EXPORT_BYTES_PER_TEXEL: u64 = 176;
 
+/// Extra peak bytes per level-0 texel of an anisotropic export ([`Inputs::anisotropic`]):
+/// level 0's α_t, directions and isotropic errors (24), the smaller levels' (8), the per-texel
+/// results while fitting (8), the RGBA8 levels, PNG and KTX2 files of the anisotropy chain
+/// (15): 55 B counted, 64 B with a margin (measured: the peak RSS of a 1024² export grows by
+/// 16 MB with the option, docs/benchmarks.md).
+pub const ANISO_EXTRA_BYTES_PER_TEXEL: u64 = 64;
+
 /// Peak bytes of [`load_roughness`] for an image with this header: the file, the decoded
 /// image, its float RGB conversion and the α values.
 #[must_use]
@@ -162,6 +179,21 @@ pub fn check_budget(
     roughness_map: Option<&Path>,
     base_color: Option<&Path>,
 ) -> Result<(), ExportError> {
+    check_budget_for(map, heights, roughness_map, base_color, false)
+}
+
+/// [`check_budget`] for an export that is anisotropic or not ([`Inputs::anisotropic`]: adds
+/// [`ANISO_EXTRA_BYTES_PER_TEXEL`] per texel).
+///
+/// # Errors
+/// As [`check_budget`].
+pub fn check_budget_for(
+    map: &Path,
+    heights: bool,
+    roughness_map: Option<&Path>,
+    base_color: Option<&Path>,
+    anisotropic: bool,
+) -> Result<(), ExportError> {
     use meso_core::budget::check;
     if let Some(h) = header(map)? {
         let load = if heights {
@@ -169,7 +201,16 @@ pub fn check_budget(
         } else {
             h.normal_map_bytes()
         };
-        let estimate = load.saturating_add(export_bytes(h.width, h.height));
+        let extra = if anisotropic {
+            h.width
+                .saturating_mul(h.height)
+                .saturating_mul(ANISO_EXTRA_BYTES_PER_TEXEL)
+        } else {
+            0
+        };
+        let estimate = load
+            .saturating_add(export_bytes(h.width, h.height))
+            .saturating_add(extra);
         let task = format!("exporting {} × {} texels", h.width, h.height);
         check(map, &task, estimate)?;
     }
@@ -287,6 +328,11 @@ pub struct Inputs {
     pub base_color: Option<BaseColor>,
     /// Linear base colour factor (RGBA, `[0, 1]`).
     pub base_color_factor: [f64; 4],
+    /// Fit anisotropic GGX lobes (`α_t`, `α_b`, direction; [`crate::ggx::fit_aniso`]) and
+    /// write them the KHR_materials_anisotropy way: the metallicRoughness G channel carries
+    /// `√α_b`, [`ANISOTROPY_KTX2`] and [`anisotropy_png`] the direction and strength, and the
+    /// glTF material uses the extension. `false` (the default of the constructors): isotropic α.
+    pub anisotropic: bool,
 }
 
 impl Inputs {
@@ -301,6 +347,7 @@ impl Inputs {
             metallic: 0.0,
             base_color: None,
             base_color_factor: [0.8, 0.8, 0.8, 1.0],
+            anisotropic: false,
         }
     }
     /// Inputs from a height map (normals by [`normals_from_heightmap`]) with a constant α.
@@ -314,6 +361,7 @@ impl Inputs {
             metallic: 0.0,
             base_color: None,
             base_color_factor: [0.8, 0.8, 0.8, 1.0],
+            anisotropic: false,
         }
     }
 }
@@ -333,9 +381,16 @@ pub struct Export {
 ///
 /// # Errors
 /// [`ExportError::Invalid`] for inconsistent inputs (empty map, α or metallic outside `[0, 1]`,
-/// bad normals).
+/// bad normals, an anisotropic export of a 1 × 1 map, which has no coarser level to fit).
 pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
     let (w, h) = (inputs.width, inputs.height);
+    if inputs.anisotropic && w * h == 1 {
+        return Err(ExportError::Invalid(
+            "anisotropic export of a 1 × 1 map: a single texel has only level 0, whose \
+             roughness is the isotropic input; there is no coarser level to fit"
+                .to_string(),
+        ));
+    }
     if !(0.0..=1.0).contains(&inputs.metallic) {
         return Err(ExportError::Invalid(format!(
             "metallic {} is outside [0, 1]",
@@ -354,7 +409,11 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
         Roughness::Map(v) => v.clone(),
     };
     let base = BaseMaps::new(w, h, inputs.normals.clone(), alphas)?;
-    let levels = build_chain(&base);
+    let levels = if inputs.anisotropic {
+        build_chain_aniso(&base)
+    } else {
+        build_chain(&base)
+    };
     let stats: Vec<LevelStats> = levels.iter().enumerate().map(|(k, l)| l.stats(k)).collect();
     let orient = || {
         vec![
@@ -368,7 +427,20 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
     let mut files = Vec::new();
     let mut nlev = Vec::new();
     let mut rlev = Vec::new();
+    let mut alev = Vec::new();
     for (k, l) in levels.iter().enumerate() {
+        if let Some(a) = &l.aniso {
+            let t = texture::anisotropy_rgba8(l.width, l.height, &l.alphas, &a.alpha_t, &a.angles);
+            files.push((
+                anisotropy_png(k),
+                texture::encode_png(l.width, l.height, 3, &texture::rgba_to_rgb(&t))?,
+            ));
+            alev.push(ktx2::Level {
+                width: l.width as u32,
+                height: l.height as u32,
+                data: t,
+            });
+        }
         let n = texture::normals_rgba8(l.width, l.height, &l.normals);
         let r = texture::metallic_roughness_rgba8(l.width, l.height, &l.alphas, inputs.metallic);
         files.push((
@@ -411,6 +483,16 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
             key_values: orient(),
         })?,
     ));
+    if inputs.anisotropic {
+        files.push((
+            ANISOTROPY_KTX2.to_string(),
+            ktx2::write(&ktx2::Texture {
+                format: ktx2::Format::Rgba8Unorm,
+                levels: alev,
+                key_values: orient(),
+            })?,
+        ));
+    }
     if let Some(bc) = &inputs.base_color {
         files.push((BASE_COLOR_PNG.to_string(), bc.png.clone()));
     }
@@ -421,6 +503,7 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
             .base_color
             .as_ref()
             .map(|_| BASE_COLOR_PNG.to_string()),
+        anisotropy: inputs.anisotropic.then(|| anisotropy_png(0)),
     };
     let meshes = [
         ("sphere", gltf::uv_sphere(1.0, 64, 32, 2.0)),
@@ -440,15 +523,22 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
 }
 
 /// The per-level statistics as CSV:
-/// `level,width,height,mean_alpha,mean_error_pct,max_error_pct,plain_mip_error_pct`.
+/// `level,width,height,mean_alpha,mean_error_pct,max_error_pct,plain_mip_error_pct`, and for
+/// an anisotropic export also `mean_alpha_t,mean_strength,iso_fit_error_pct,iso_fit_max_error_pct`
+/// (then `mean_alpha` is the mean `α_b` and the errors before them the anisotropic lobe's).
 #[must_use]
 pub fn errors_csv(stats: &[LevelStats]) -> String {
+    let aniso = stats.iter().any(|l| l.aniso.is_some());
     let mut s = String::from(
-        "level,width,height,mean_alpha,mean_error_pct,max_error_pct,plain_mip_error_pct\n",
+        "level,width,height,mean_alpha,mean_error_pct,max_error_pct,plain_mip_error_pct",
     );
+    if aniso {
+        s += ",mean_alpha_t,mean_strength,iso_fit_error_pct,iso_fit_max_error_pct";
+    }
+    s += "\n";
     for l in stats {
         s += &format!(
-            "{},{},{},{:.5},{:.3},{:.3},{:.3}\n",
+            "{},{},{},{:.5},{:.3},{:.3},{:.3}",
             l.level,
             l.width,
             l.height,
@@ -457,6 +547,13 @@ pub fn errors_csv(stats: &[LevelStats]) -> String {
             l.max_error_pct,
             l.mean_plain_error_pct
         );
+        if let Some(a) = &l.aniso {
+            s += &format!(
+                ",{:.5},{:.4},{:.3},{:.3}",
+                a.mean_alpha_t, a.mean_strength, a.mean_iso_error_pct, a.max_iso_error_pct
+            );
+        }
+        s += "\n";
     }
     s
 }

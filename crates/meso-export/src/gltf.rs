@@ -8,6 +8,10 @@
 //! * The core textures reference PNG mip 0 (a core glTF 2.0 image is PNG or JPEG; plain RGBA8
 //!   KTX2 is not Basis Universal, so `KHR_texture_basisu` does not apply). The KTX2 files with
 //!   the fitted mip chains ship next to the asset for engines that load them directly.
+//! * With an anisotropy texture the material carries `KHR_materials_anisotropy`
+//!   (`anisotropyStrength = 1`, `anisotropyRotation = 0`, the texture's direction taken as it
+//!   is in the mesh's tangent frame), listed in `extensionsUsed` (not required: a viewer without
+//!   it shows the isotropic α_b).
 
 use serde_json::{json, Value};
 
@@ -20,6 +24,9 @@ pub struct MaterialTextures {
     pub metallic_roughness: String,
     /// The base colour map (sRGB PNG), or `None` for a constant base colour.
     pub base_color: Option<String>,
+    /// The KHR_materials_anisotropy texture (PNG, RG = direction, B = strength), or `None`
+    /// for an isotropic material (no extension used).
+    pub anisotropy: Option<String>,
 }
 
 /// Triangle mesh data for one primitive.
@@ -176,22 +183,33 @@ pub fn asset(
     });
     if let Some(bc) = &tex.base_color {
         images.push(json!({"uri": bc, "mimeType": "image/png"}));
-        pbr["baseColorTexture"] = json!({"index": 2});
+        pbr["baseColorTexture"] = json!({"index": images.len() - 1});
+    }
+    let mut material = json!({
+        "name": "meso",
+        "pbrMetallicRoughness": pbr,
+        "normalTexture": {"index": 0, "scale": 1.0}
+    });
+    if let Some(an) = &tex.anisotropy {
+        images.push(json!({"uri": an, "mimeType": "image/png"}));
+        material["extensions"] = json!({
+            "KHR_materials_anisotropy": {
+                "anisotropyStrength": 1.0,
+                "anisotropyRotation": 0.0,
+                "anisotropyTexture": {"index": images.len() - 1}
+            }
+        });
     }
     let textures: Vec<Value> = (0..images.len())
         .map(|i| json!({"sampler": 0, "source": i}))
         .collect();
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("meso export ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
         "nodes": nodes,
         "meshes": gl_meshes,
-        "materials": [{
-            "name": "meso",
-            "pbrMetallicRoughness": pbr,
-            "normalTexture": {"index": 0, "scale": 1.0}
-        }],
+        "materials": [material],
         "textures": textures,
         "images": images,
         // LINEAR, LINEAR_MIPMAP_LINEAR, REPEAT.
@@ -200,6 +218,9 @@ pub fn asset(
         "bufferViews": views,
         "accessors": accessors
     });
+    if tex.anisotropy.is_some() {
+        doc["extensionsUsed"] = json!(["KHR_materials_anisotropy"]);
+    }
     (bin, doc)
 }
 

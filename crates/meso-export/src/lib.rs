@@ -22,7 +22,7 @@ pub mod mips;
 pub mod texture;
 
 pub use export::{build, write, Export, Inputs, Roughness};
-pub use mips::{BaseMaps, LevelStats, MipLevel};
+pub use mips::{AnisoLevel, AnisoStats, BaseMaps, LevelStats, MipLevel};
 
 use std::path::PathBuf;
 

@@ -13,6 +13,10 @@
 //!   difference between one GGX lobe about its renormalised normal and the average of the
 //!   footprint's level-0 lobes (each about its own normal, with its own base α), on the fixed
 //!   direction set of [`crate::ggx::direction_pairs`] — what a supersampled render sees.
+//! * **Anisotropic roughness** ([`build_chain_aniso`], optional): the same target and error, on
+//!   the direction set with half-vector azimuths every 45° ([`crate::ggx::ANISO_HALF_PHIS_DEG`]),
+//!   fitted by one anisotropic GGX lobe ([`crate::ggx::fit_aniso`]): `alphas` then hold `α_b`
+//!   (the smaller width) and [`MipLevel::aniso`] the larger width `α_t` and its direction.
 
 use crate::ggx::{self, FineTexel};
 use crate::ExportError;
@@ -101,6 +105,49 @@ pub struct MipLevel {
     /// Per-texel relative error of the standard mip (the base α — the footprint's mean α —
     /// about the averaged normal, no added variance) on the same direction set, for comparison.
     pub errors_plain: Vec<f64>,
+    /// The anisotropic part of the fit, when the chain was built by [`build_chain_aniso`]
+    /// (then `alphas` are the widths `α_b` across the direction and `errors` the anisotropic
+    /// lobe's errors).
+    pub aniso: Option<AnisoLevel>,
+}
+
+/// The anisotropic part of one level ([`build_chain_aniso`]), map row order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AnisoLevel {
+    /// GGX widths `α_t ≥ α_b` along the direction `angles` (level 0: the base α).
+    pub alpha_t: Vec<f64>,
+    /// Direction of `α_t`, radians in `[0, π)` counter-clockwise from +x towards +y (up the
+    /// image) in the texture's tangent frame (level 0: 0).
+    pub angles: Vec<f64>,
+    /// Per-texel relative error `rms / peak` of the *isotropic* fit on the same (45°)
+    /// direction set, for comparison with `errors` (0 at level 0).
+    pub errors_iso: Vec<f64>,
+}
+
+/// Means over one level of the anisotropic fit ([`LevelStats::aniso`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AnisoStats {
+    /// Mean `α_t` (the larger width).
+    pub mean_alpha_t: f64,
+    /// Mean KHR_materials_anisotropy strength `s = √((α_t − α_b)/(1 − α_b))` (unquantised).
+    pub mean_strength: f64,
+    /// Mean error of the isotropic fit on the same direction set, % of each texel's peak.
+    pub mean_iso_error_pct: f64,
+    /// Largest per-texel error of the isotropic fit on the same direction set, % of the peak.
+    pub max_iso_error_pct: f64,
+}
+
+/// KHR_materials_anisotropy's strength `s` for widths `alpha_t ≥ alpha_b`: the spec's
+/// `α_t = mix(α_b, 1, s²)` solved for `s`, `s = √((α_t − α_b)/(1 − α_b))` clamped to `[0, 1]`
+/// (0 when `α_b ≥ 1`).
+#[must_use]
+pub fn anisotropy_strength(alpha_t: f64, alpha_b: f64) -> f64 {
+    if alpha_b >= 1.0 {
+        return 0.0;
+    }
+    ((alpha_t - alpha_b) / (1.0 - alpha_b))
+        .clamp(0.0, 1.0)
+        .sqrt()
 }
 
 /// Summary of one level's fit, relative errors in % of the supersampled BRDF peak.
@@ -120,6 +167,9 @@ pub struct LevelStats {
     pub max_error_pct: f64,
     /// Mean error of the standard mip (mean base α, no added variance), % of the peak.
     pub mean_plain_error_pct: f64,
+    /// The anisotropic fit's means, for a chain built by [`build_chain_aniso`] (then
+    /// `mean_alpha` is the mean `α_b` and the errors above are the anisotropic lobe's).
+    pub aniso: Option<AnisoStats>,
 }
 
 impl MipLevel {
@@ -135,6 +185,18 @@ impl MipLevel {
             mean_error_pct: 100.0 * self.errors.iter().sum::<f64>() / n,
             max_error_pct: 100.0 * self.errors.iter().copied().fold(0.0, f64::max),
             mean_plain_error_pct: 100.0 * self.errors_plain.iter().sum::<f64>() / n,
+            aniso: self.aniso.as_ref().map(|a| AnisoStats {
+                mean_alpha_t: a.alpha_t.iter().sum::<f64>() / n,
+                mean_strength: a
+                    .alpha_t
+                    .iter()
+                    .zip(&self.alphas)
+                    .map(|(&t, &b)| anisotropy_strength(t, b))
+                    .sum::<f64>()
+                    / n,
+                mean_iso_error_pct: 100.0 * a.errors_iso.iter().sum::<f64>() / n,
+                max_iso_error_pct: 100.0 * a.errors_iso.iter().copied().fold(0.0, f64::max),
+            }),
         }
     }
 }
@@ -190,16 +252,23 @@ pub fn average_normal(fine: &[FineTexel]) -> DVec3 {
     }
 }
 
-/// Fit one texel of a coarse level: `(normal, α, error, plain error)`.
-fn fit_texel(fine: &[FineTexel]) -> (DVec3, f64, f64, f64) {
-    let nbar = average_normal(fine);
-    let width = ggx::footprint_width(fine, nbar);
-    let pairs = ggx::direction_pairs(nbar, width);
-    // The supersampled average, in parallel over large footprints.
-    let target = if fine.len() > 4096 {
+/// One fitted texel of a coarse level.
+struct TexelFit {
+    normal: DVec3,
+    /// α (isotropic) or α_b (anisotropic).
+    alpha: f64,
+    error: f64,
+    plain: f64,
+    /// `(α_t, angle, isotropic error)` of the anisotropic fit.
+    aniso: Option<(f64, f64, f64)>,
+}
+
+/// The supersampled average of `fine`'s lobes on `pairs`, in parallel over large footprints.
+fn target_of(fine: &[FineTexel], pairs: &[(DVec3, DVec3)]) -> Vec<f64> {
+    if fine.len() > 4096 {
         fine.par_chunks(1024)
             .map(|c| {
-                let mut v = ggx::average_shaded(c, &pairs);
+                let mut v = ggx::average_shaded(c, pairs);
                 v.iter_mut().for_each(|x| *x *= c.len() as f64);
                 v
             })
@@ -214,18 +283,55 @@ fn fit_texel(fine: &[FineTexel]) -> (DVec3, f64, f64, f64) {
             .map(|x| x / fine.len() as f64)
             .collect()
     } else {
-        ggx::average_shaded(fine, &pairs)
-    };
-    let fit = ggx::fit_alpha_on(&target, nbar, &pairs);
-    let mean_alpha = fine.iter().map(|t| t.alpha).sum::<f64>() / fine.len() as f64;
-    let plain = ggx::rms_error(&target, nbar, mean_alpha, &pairs);
-    let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
-    (nbar, fit.alpha, rel(fit.rms), rel(plain))
+        ggx::average_shaded(fine, pairs)
+    }
 }
 
-/// Build level `k` of both chains from the level-0 maps.
+/// Fit one texel of a coarse level, isotropic or (with `anisotropic`) anisotropic.
+fn fit_texel(fine: &[FineTexel], anisotropic: bool) -> TexelFit {
+    let nbar = average_normal(fine);
+    let width = ggx::footprint_width(fine, nbar);
+    let pairs = if anisotropic {
+        ggx::direction_pairs_with(nbar, width, &ggx::ANISO_HALF_PHIS_DEG)
+    } else {
+        ggx::direction_pairs(nbar, width)
+    };
+    let target = target_of(fine, &pairs);
+    let mean_alpha = fine.iter().map(|t| t.alpha).sum::<f64>() / fine.len() as f64;
+    let plain = ggx::rms_error(&target, nbar, mean_alpha, &pairs);
+    if anisotropic {
+        let fit = ggx::fit_aniso_on(fine, &target, nbar, &pairs);
+        let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
+        TexelFit {
+            normal: nbar,
+            alpha: fit.alpha_b,
+            error: rel(fit.rms),
+            plain: rel(plain),
+            aniso: Some((fit.alpha_t, fit.angle, rel(fit.iso_rms))),
+        }
+    } else {
+        let fit = ggx::fit_alpha_on(&target, nbar, &pairs);
+        let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
+        TexelFit {
+            normal: nbar,
+            alpha: fit.alpha,
+            error: rel(fit.rms),
+            plain: rel(plain),
+            aniso: None,
+        }
+    }
+}
+
+/// Build level `k` of both chains from the level-0 maps (isotropic roughness).
 #[must_use]
 pub fn build_level(base: &BaseMaps, k: usize) -> MipLevel {
+    build_level_with(base, k, false)
+}
+
+/// Build level `k` of the chains, with anisotropic roughness when `anisotropic` (level 0 is
+/// then the base α in both widths, direction 0).
+#[must_use]
+pub fn build_level_with(base: &BaseMaps, k: usize, anisotropic: bool) -> MipLevel {
     let (wk, hk) = level_size(base.width, base.height, k);
     if k == 0 {
         let n = base.width * base.height;
@@ -236,19 +342,38 @@ pub fn build_level(base: &BaseMaps, k: usize) -> MipLevel {
             alphas: base.alphas.clone(),
             errors: vec![0.0; n],
             errors_plain: vec![0.0; n],
+            aniso: anisotropic.then(|| AnisoLevel {
+                alpha_t: base.alphas.clone(),
+                angles: vec![0.0; n],
+                errors_iso: vec![0.0; n],
+            }),
         };
     }
-    let texels: Vec<(DVec3, f64, f64, f64)> = (0..wk * hk)
+    let texels: Vec<TexelFit> = (0..wk * hk)
         .into_par_iter()
-        .map(|t| fit_texel(&footprint(base, wk, hk, t / wk, t % wk)))
+        .map(|t| fit_texel(&footprint(base, wk, hk, t / wk, t % wk), anisotropic))
         .collect();
     MipLevel {
         width: wk,
         height: hk,
-        normals: texels.iter().map(|t| t.0).collect(),
-        alphas: texels.iter().map(|t| t.1).collect(),
-        errors: texels.iter().map(|t| t.2).collect(),
-        errors_plain: texels.iter().map(|t| t.3).collect(),
+        normals: texels.iter().map(|t| t.normal).collect(),
+        alphas: texels.iter().map(|t| t.alpha).collect(),
+        errors: texels.iter().map(|t| t.error).collect(),
+        errors_plain: texels.iter().map(|t| t.plain).collect(),
+        aniso: anisotropic.then(|| AnisoLevel {
+            alpha_t: texels
+                .iter()
+                .map(|t| t.aniso.map_or(t.alpha, |a| a.0))
+                .collect(),
+            angles: texels
+                .iter()
+                .map(|t| t.aniso.map_or(0.0, |a| a.1))
+                .collect(),
+            errors_iso: texels
+                .iter()
+                .map(|t| t.aniso.map_or(t.error, |a| a.2))
+                .collect(),
+        }),
     }
 }
 
@@ -257,6 +382,14 @@ pub fn build_level(base: &BaseMaps, k: usize) -> MipLevel {
 pub fn build_chain(base: &BaseMaps) -> Vec<MipLevel> {
     (0..level_count(base.width, base.height))
         .map(|k| build_level(base, k))
+        .collect()
+}
+
+/// The full chains with anisotropic roughness ([`ggx::fit_aniso`]), level 0 down to 1 × 1.
+#[must_use]
+pub fn build_chain_aniso(base: &BaseMaps) -> Vec<MipLevel> {
+    (0..level_count(base.width, base.height))
+        .map(|k| build_level_with(base, k, true))
         .collect()
 }
 

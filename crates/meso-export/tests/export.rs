@@ -73,6 +73,7 @@ fn two_known_normals_against_brute_force() {
             metallic: 0.0,
             base_color: None,
             base_color_factor: [1.0; 4],
+            anisotropic: false,
         };
         let ex = export::build(&inputs).unwrap();
         let l1 = &ex.levels[1];
@@ -163,6 +164,7 @@ fn alpha_grows_with_the_lost_variance_and_flat_maps_keep_alpha() {
         metallic: 0.0,
         base_color: None,
         base_color_factor: [1.0; 4],
+        anisotropic: false,
     })
     .unwrap();
     assert_eq!(ex.levels.len(), 5);
@@ -195,6 +197,7 @@ fn export_round_trip_through_independent_readers() {
         metallic: 0.5,
         base_color: None,
         base_color_factor: [0.5, 0.5, 0.5, 1.0],
+        anisotropic: false,
     })
     .unwrap();
     export::write(&ex, &dir).unwrap();
@@ -278,6 +281,7 @@ fn bad_inputs_and_unwritable_targets() {
         metallic: 0.0,
         base_color: None,
         base_color_factor: [1.0; 4],
+        anisotropic: false,
     };
     let e = export::build(&inputs).unwrap_err().to_string();
     assert!(e.contains("0 × 0"), "{e}");

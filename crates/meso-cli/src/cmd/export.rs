@@ -1,6 +1,7 @@
-//! `meso export MAP --out DIR [--alpha A | --roughness-map R] [--base-color C]` — engine-ready
-//! maps: fitted GGX roughness and normal mip chains as KTX2 (plus a PNG per level) and a glTF
-//! 2.0 preview asset (docs/export.md). `--lobes PYRAMID.map` adds the pyramid's lobes as
+//! `meso export MAP --out DIR [--alpha A | --roughness-map R] [--base-color C] [--anisotropic]`
+//! — engine-ready maps: fitted GGX roughness and normal mip chains as KTX2 (plus a PNG per level)
+//! and a glTF 2.0 preview asset (docs/export.md); `--anisotropic` fits anisotropic GGX lobes
+//! and writes them as a KHR_materials_anisotropy chain. `--lobes PYRAMID.map` adds the pyramid's lobes as
 //! textures with the WGSL and GLSL functions that evaluate them (`meso_export::lobes`).
 
 use anyhow::{bail, Context, Result};
@@ -47,6 +48,12 @@ pub struct Args {
     /// Base colour image (sRGB) for the glTF material; a constant grey without it.
     #[arg(long)]
     pub base_color: Option<PathBuf>,
+    /// Fit anisotropic GGX lobes (α_t, α_b and the direction of α_t per texel) instead of one
+    /// α, and write them the KHR_materials_anisotropy way: metallicRoughness G = √α_b,
+    /// anisotropy.ktx2 / anisotropy_mip<k>.png with RG = direction, B = strength, and the
+    /// extension in scene.gltf (docs/export.md).
+    #[arg(long)]
+    pub anisotropic: bool,
     /// A lobe pyramid (`.map` file of `meso extract`) of the same map: also write its lobes
     /// as `lobes<k>_mip<l>.png` (RGBA16, one per lobe slot and level) and the shader functions
     /// `meso_lobes.wgsl` and `meso_lobes.glsl` that evaluate them (docs/export.md).
@@ -56,11 +63,12 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    export::check_budget(
+    export::check_budget_for(
         &a.map,
         a.texel_size.is_some(),
         a.roughness_map.as_deref(),
         a.base_color.as_deref(),
+        a.anisotropic,
     )?;
     let mut inputs = match (a.texel_size, a.height_scale) {
         (Some(s), Some(h)) => {
@@ -103,6 +111,7 @@ pub fn run(a: Args) -> Result<()> {
         inputs.base_color = Some(bc);
     }
     inputs.metallic = a.metallic;
+    inputs.anisotropic = a.anisotropic;
     let mut ex = export::build(&inputs).with_context(|| a.map.display().to_string())?;
     if let Some(p) = &a.lobes {
         let pyr = meso_maps::Pyramid::read(p)?;
@@ -126,18 +135,42 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     let files = export::write(&ex, &a.out)?;
-    println!("level  size        mean α   fit error % of peak (mean / max)   standard mip %");
-    for s in &ex.stats {
+    if a.anisotropic {
         println!(
-            "{:>5}  {:>4} × {:<4}  {:.4}   {:>8.3} / {:<8.3}                {:>8.3}",
-            s.level,
-            s.width,
-            s.height,
-            s.mean_alpha,
-            s.mean_error_pct,
-            s.max_error_pct,
-            s.mean_plain_error_pct
+            "level  size        mean α_b  mean α_t  strength   aniso fit error % (mean / max)   \
+             iso fit %   standard mip %"
         );
+    } else {
+        println!("level  size        mean α   fit error % of peak (mean / max)   standard mip %");
+    }
+    for s in &ex.stats {
+        if let Some(an) = &s.aniso {
+            println!(
+                "{:>5}  {:>4} × {:<4}  {:.4}    {:.4}    {:.4}    {:>8.3} / {:<8.3}              \
+                 {:>8.3}    {:>8.3}",
+                s.level,
+                s.width,
+                s.height,
+                s.mean_alpha,
+                an.mean_alpha_t,
+                an.mean_strength,
+                s.mean_error_pct,
+                s.max_error_pct,
+                an.mean_iso_error_pct,
+                s.mean_plain_error_pct
+            );
+        } else {
+            println!(
+                "{:>5}  {:>4} × {:<4}  {:.4}   {:>8.3} / {:<8.3}                {:>8.3}",
+                s.level,
+                s.width,
+                s.height,
+                s.mean_alpha,
+                s.mean_error_pct,
+                s.max_error_pct,
+                s.mean_plain_error_pct
+            );
+        }
     }
     eprintln!("{}: {} files", a.out.display(), files.len());
     Ok(())
