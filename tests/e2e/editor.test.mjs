@@ -219,9 +219,9 @@ test('loading presets replaces the material; cloth under a grazing light', async
 
 test('blending two materials mixes the lobe sets', async () => {
   await ensureLoaded();
-  await page.selectOption('#preset', 'silk');
+  await page.selectOption('#preset', 'satin');
   await page.waitForTimeout(200);
-  const silk = await material();
+  const satin = await material();
   await page.click('#blend-set-a');
   await page.selectOption('#blend-b', 'velvet');
   const n = await renders();
@@ -232,7 +232,7 @@ test('blending two materials mixes the lobe sets', async () => {
   await waitForRender(n);
   const m = await material();
   assert.equal(m.ndf.kind, 'phong-peaks');
-  assert.equal(m.ndf.lobes.length, silk.ndf.lobes.length + 9);
+  assert.equal(m.ndf.lobes.length, satin.ndf.lobes.length + 12);
   const sum = m.ndf.lobes.reduce((a, l) => a + l.weight, 0);
   assert.ok(Math.abs(sum - 1) < 1e-3, `weights sum to ${sum}`);
   await page.waitForTimeout(300);
@@ -303,7 +303,7 @@ const nextRender = (pred) => page.waitForRequest((r) => {
 
 test('a mirror facet: select it, set its specular colour, the request and the preview follow', async () => {
   await ensureLoaded();
-  await page.selectOption('#preset', 'silk');
+  await page.selectOption('#preset', 'satin');
   await page.waitForTimeout(300);
   await waitForRender(0);
   // No diffuse base: the picture is the specular lobe alone.
@@ -396,11 +396,11 @@ test('a mirror facet: select it, set its specular colour, the request and the pr
 
 test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the switch, open', async () => {
   await ensureLoaded();
-  await page.selectOption('#preset', 'silk');
+  await page.selectOption('#preset', 'satin');
   await page.waitForTimeout(300);
   await waitForRender(0);
-  const silk = await material();
-  assert.equal(silk.ndf.kind, 'phong-peaks');
+  const satin = await material();
+  assert.equal(satin.ndf.kind, 'phong-peaks');
   assert.equal(await page.isVisible('#analytic-section'), false);
   const h0 = await previewHash();
 
@@ -410,7 +410,7 @@ test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the 
   await page.selectOption('#ndf-kind', 'ggx');
   let sent = (await req).postDataJSON().material;
   assert.deepEqual(sent.ndf, { kind: 'ggx', alpha: 0.2 });
-  assert.deepEqual(sent.transfer, silk.transfer, 'the facet BRDF is kept');
+  assert.deepEqual(sent.transfer, satin.transfer, 'the facet BRDF is kept');
   await waitForRender(n);
   assert.equal(await page.isVisible('#lobe-section'), false);
   assert.equal(await page.isVisible('#analytic-section'), true);
@@ -443,7 +443,7 @@ test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the 
   req = nextRender((m) => m.transfer.kind === 'mirror' && m.form === 'microfacet');
   await page.click('#btn-classic');
   sent = (await req).postDataJSON().material;
-  assert.deepEqual(sent.transfer, { kind: 'mirror', specular: silk.transfer.specular });
+  assert.deepEqual(sent.transfer, { kind: 'mirror', specular: satin.transfer.specular });
   await waitForRender(n);
   assert.equal(await page.isVisible('#classic-offer'), false);
   assert.equal(await page.inputValue('#transfer-kind'), 'mirror');
@@ -489,13 +489,13 @@ test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the 
   assert.equal(r.status, 200);
   assert.deepEqual((await r.json()).ndf, edited.ndf);
 
-  // Undo back across the switch: silk's lobes come back; redo returns to the edited GGX.
+  // Undo back across the switch: satin's lobes come back; redo returns to the edited GGX.
   let undos = 0;
   while ((await material()).ndf.kind !== 'phong-peaks' && undos < 10) { await page.click('#btn-undo'); undos++; }
   m = await material();
-  assert.deepEqual(m, silk, `after ${undos} undos`);
+  assert.deepEqual(m, satin, `after ${undos} undos`);
   assert.equal(await page.isVisible('#lobe-section'), true);
-  assert.equal(await page.locator('#lobes .lobe').count(), silk.ndf.lobes.length);
+  assert.equal(await page.locator('#lobes .lobe').count(), satin.ndf.lobes.length);
   for (let k = 0; k < undos; k++) await page.click('#btn-redo');
   assert.deepEqual(await material(), edited);
   assert.equal(await page.isVisible('#analytic-section'), true);
@@ -503,7 +503,7 @@ test('GGX and Beckmann NDFs: pick, roughness, anisotropy, save, undo across the 
 
   // Switching the kind back and forth remembers both: the lobes, then the two alphas.
   await page.selectOption('#ndf-kind', 'phong-peaks');
-  assert.deepEqual((await material()).ndf, silk.ndf);
+  assert.deepEqual((await material()).ndf, satin.ndf);
   await page.selectOption('#ndf-kind', 'beckmann');
   assert.deepEqual((await material()).ndf, { kind: 'beckmann', alpha_x: alpha, alpha_y: 0.05 });
   await page.waitForTimeout(300);
