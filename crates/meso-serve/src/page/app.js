@@ -1306,7 +1306,7 @@
       const sel = $('preset');
       for (const p of presets) { const o = document.createElement('option'); o.value = p.id; o.textContent = p.label; o.title = p.description; sel.append(o); }
       buildBlendOptions();
-      const first = presets.find((p) => p.id === 'satin') || presets[0];
+      const first = presets.find((p) => p.id === 'silk') || presets[0];
       if (first) { sel.value = first.id; state.material = clone(first.material); buildAll(); history.committed = snapshot(); }
     } catch (e) {
       showError(`cannot load presets: ${e.message}`);
