@@ -11,6 +11,7 @@
 //! * [`convolution`] — Eq. 2/8 by quadrature, Eq. 4 exactly, and a closed form; [`integrate`] —
 //!   the lobe-adapted quadrature of `∫ n(m) g(m) dω` it and the NDF statistics use;
 //! * [`material`] — the TOML material format; [`importance`] — importance sampling of its BRDF;
+//!   [`catalogue`] — the paper's materials (Fig. 2a–d, velvet, silk), defined once;
 //! * [`grid`], [`quadrature`], [`sh`] — numerical building blocks; [`io`] — atomic file output;
 //! * [`linalg`], [`lm`] — small dense linear algebra and the one Levenberg–Marquardt solver
 //!   (generic over the parameter space, with box bounds or a retraction), used by every fitter;
@@ -34,6 +35,7 @@
 #![warn(missing_docs)]
 
 pub mod budget;
+pub mod catalogue;
 pub mod convolution;
 pub mod display;
 pub mod fastmath;

@@ -11,10 +11,6 @@
 //! `cargo run --release -p meso-figures --example bench`
 
 use glam::DVec3;
-use meso_core::frame::spherical_direction_deg;
-use meso_core::material::Material;
-use meso_core::ndf::{DeltaSum, Ndf, WeightedNormal};
-use meso_core::transfer::{PhongVariant, Transfer};
 use meso_render::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -61,27 +57,6 @@ fn timed(f: &mut dyn FnMut() -> Image) -> (f64, f64, Image) {
         n += 1;
     }
     (best, (cpu_ms() - c0) / f64::from(n), img)
-}
-
-/// The Fig. 2d multiple surface: the normal with weight 0.4 and six normals at 19.3° every 60°
-/// with 0.1 each, under a Phong facet (η = 40).
-fn seven_normals() -> Material {
-    let mut normals = vec![WeightedNormal {
-        normal: spherical_direction_deg(0.0, 0.0),
-        weight: 0.4,
-    }];
-    normals.extend((0..6).map(|k| WeightedNormal {
-        normal: spherical_direction_deg(19.3, 60.0 * f64::from(k)),
-        weight: 0.1,
-    }));
-    Material::new(
-        Ndf::Deltas(DeltaSum::new(normals).expect("valid normals")),
-        Transfer::Phong {
-            exponent: 40.0,
-            specular: [1.0, 0.9, 0.8],
-            variant: PhongVariant::Half,
-        },
-    )
 }
 
 fn sphere(shader: Arc<dyn Shader>, size: u32) -> Scene {
@@ -131,7 +106,9 @@ fn mean_rel(a: &Image, b: &Image) -> f64 {
 
 fn main() {
     let opts = RenderOptions::default();
-    let mat = seven_normals();
+    // The Fig. 2d multiple surface (meso_core::catalogue): seven normals under a Phong facet.
+    let seven = meso_core::catalogue::seven_normals();
+    let mat = seven.material();
     let ms = MaterialShader::new(&mat);
     println!("MaterialShader path: {}", ms.path());
     let s1 = sphere(Arc::new(ms), 1024);
@@ -140,13 +117,13 @@ fn main() {
         meso_core::ndf::Ndf::Deltas(d) => d
             .normals()
             .iter()
-            .map(|n| (n.normal, n.weight, 40.0))
+            .map(|n| (n.normal, n.weight, seven.exponent))
             .collect(),
         _ => unreachable!("deltas"),
     };
     // PhongLobes has no max(0, N·i)/cos θi factor: a different BRDF, the same loop size.
     let s2 = sphere(
-        Arc::new(PhongLobes::new(&lobes, [1.0, 0.9, 0.8]).expect("lobes")),
+        Arc::new(PhongLobes::new(&lobes, seven.specular.map(|c| c as f32)).expect("lobes")),
         1024,
     );
     let (t2, _) = best_ms(10, &mut || render(&s2, &opts, None));

@@ -5,7 +5,9 @@
 //!
 //! * **Figure 2** — a sphere with an anisotropic surface (normals along the great circle ⊥
 //!   the bitangent: the NDF of a cylinder bump), and multiple surfaces of 2, 3 and 7 normals;
-//!   the 7 are the lobe axes of the top level of the NDF pyramid of a half-cylinder bump map.
+//!   the 7 are the lobe axes of the top level of the NDF pyramid of a half-cylinder bump map
+//!   ([`cylinder_map`]; tests/catalogue.rs extracts it again and requires the catalogue's
+//!   numbers).
 //! * **Figures 3 and 4** — the same sphere as velvet (normals near the horizon: grazing sheen)
 //!   and as silk (normals spread across the thread direction), under the same light, from
 //!   near the viewer ([`cloth_light`]), which shows the velvet's bright rim.
@@ -14,6 +16,9 @@
 //! * **Blend** — a strip of spheres whose NDF goes from one lobe set to another, weights
 //!   `(1 − t)` and `t`.
 //! * **Contact sheet** — every picture, labelled (`meso_plot::Sheet`).
+//!
+//! The materials of Figures 2–4 are those of [`meso_core::catalogue`] (the one definition the
+//! editor's presets, the tests and the benchmarks use too), as [`MaterialDef`]s.
 //!
 //! Every material is written as a TOML file next to its PNG, with a scene file that `meso
 //! render` accepts, so each picture can be re-rendered and edited. All files are written with
@@ -28,6 +33,7 @@
 mod material_def;
 
 use glam::DVec3;
+use meso_core::catalogue;
 use meso_core::material::{MaterialSpec, NdfSpec};
 use meso_maps::{extract, fixtures, ExtractParams, HeightMap, Pyramid, Source};
 use meso_plot::{Canvas, Sheet};
@@ -51,60 +57,6 @@ fn ferr(msg: impl Into<String>) -> FigureError {
 
 pub use material_def::{Lobe, MaterialDef};
 
-/// Specular colour of the Figure 2 spheres.
-const FIG2_SPECULAR: [f64; 3] = [0.95, 0.9, 0.8];
-/// Diffuse albedo of the Figure 2 spheres (enough to show the shape).
-const FIG2_DIFFUSE: [f64; 3] = [0.06, 0.07, 0.09];
-
-/// Figure 2, anisotropic: 33 normals every 5° along the half great circle in the
-/// tangent–normal plane (θ from −80° to 80°) — the NDF of a cylinder bump whose axis is the
-/// bitangent (Eq. 15, `half`), sampled — with equal weights (a cylinder's normals are uniform
-/// in angle).
-#[must_use]
-pub fn anisotropic() -> MaterialDef {
-    let lobes = (-16..=16)
-        .map(|k| {
-            let a = 5.0 * f64::from(k);
-            Lobe::delta(a.abs(), if a < 0.0 { 180.0 } else { 0.0 }, 1.0)
-        })
-        .collect();
-    MaterialDef {
-        name: "anisotropic (cylinder NDF)".into(),
-        lobes,
-        exponent: 150.0,
-        specular: FIG2_SPECULAR,
-        diffuse: FIG2_DIFFUSE,
-    }
-}
-
-/// Figure 2, two normals tilted ±20° along the tangent.
-#[must_use]
-pub fn two_normals() -> MaterialDef {
-    MaterialDef {
-        name: "2 normals".into(),
-        lobes: vec![Lobe::delta(20.0, 0.0, 1.0), Lobe::delta(20.0, 180.0, 1.0)],
-        exponent: 80.0,
-        specular: FIG2_SPECULAR,
-        diffuse: FIG2_DIFFUSE,
-    }
-}
-
-/// Figure 2, three normals 25° from the surface normal, 120° apart.
-#[must_use]
-pub fn three_normals() -> MaterialDef {
-    MaterialDef {
-        name: "3 normals".into(),
-        lobes: vec![
-            Lobe::delta(25.0, 90.0, 1.0),
-            Lobe::delta(25.0, 210.0, 1.0),
-            Lobe::delta(25.0, 330.0, 1.0),
-        ],
-        exponent: 80.0,
-        specular: FIG2_SPECULAR,
-        diffuse: FIG2_DIFFUSE,
-    }
-}
-
 /// The half-cylinder bump map of Figure 2: 64×64 samples, texel 1/64, cylinders of period 16
 /// texels along the map's y (rows), so their normals spread in the x–z plane.
 ///
@@ -125,71 +77,6 @@ pub fn pyramid(map: &HeightMap, max_lobes: usize) -> Result<Pyramid, FigureError
     // bump maps and biases the top-level lobes); the maps here are small.
     p.fit.max_em_points = 1 << 14;
     extract(Source::Heights(map), &p, &mut |_| {}).map_err(|e| ferr(e.to_string()))
-}
-
-/// Figure 2, seven normals: the lobe axes and weights of the top level (the whole map) of the
-/// pyramid of [`cylinder_map`], fitted with up to 7 lobes.
-///
-/// # Errors
-/// Extraction failures.
-pub fn seven_normals() -> Result<MaterialDef, FigureError> {
-    let pyr = pyramid(&cylinder_map()?, 7)?;
-    let lobes = pyr
-        .top()
-        .lobes
-        .iter()
-        .map(|l| Lobe::from_axis(l.axis, l.weight, None))
-        .collect();
-    Ok(MaterialDef {
-        name: format!(
-            "{} normals (filtered cylinder bumps)",
-            pyr.top().lobes.len()
-        ),
-        lobes,
-        exponent: 80.0,
-        specular: FIG2_SPECULAR,
-        diffuse: FIG2_DIFFUSE,
-    })
-}
-
-/// Figure 3, velvet: 12 normals 78° from the surface normal (fibres standing up, their sides
-/// facing every azimuth) with broad red Phong facets over a dark red base: the highlight
-/// sits at grazing angles, near the silhouette.
-#[must_use]
-pub fn velvet() -> MaterialDef {
-    MaterialDef {
-        name: "velvet".into(),
-        lobes: (0..12)
-            .map(|k| Lobe::delta(78.0, 30.0 * f64::from(k), 1.0))
-            .collect(),
-        exponent: 6.0,
-        specular: [0.9, 0.18, 0.3],
-        diffuse: [0.1, 0.008, 0.02],
-    }
-}
-
-/// Figure 4, silk: threads along the tangent; 9 normals spread ±60° across them (in the
-/// bitangent–normal plane, weight 0.72) and 5 spread ±20° along them (weft, 0.28); sharp
-/// golden facets.
-#[must_use]
-pub fn silk() -> MaterialDef {
-    let mut lobes: Vec<Lobe> = (-4..=4)
-        .map(|k| {
-            let a = 15.0 * f64::from(k);
-            Lobe::delta(a.abs(), if a < 0.0 { 270.0 } else { 90.0 }, 0.08)
-        })
-        .collect();
-    lobes.extend((-2..=2).map(|k| {
-        let a = 10.0 * f64::from(k);
-        Lobe::delta(a.abs(), if a < 0.0 { 180.0 } else { 0.0 }, 0.056)
-    }));
-    MaterialDef {
-        name: "silk".into(),
-        lobes,
-        exponent: 50.0,
-        specular: [1.0, 0.8, 0.45],
-        diffuse: [0.1, 0.05, 0.012],
-    }
 }
 
 /// The key light of the sphere figures: directional, from the upper left front, irradiance
@@ -529,22 +416,29 @@ impl Job<'_> {
             (
                 "fig2a_anisotropic",
                 "Fig. 2a anisotropic".into(),
-                anisotropic(),
+                catalogue::anisotropic(),
             ),
             (
                 "fig2b_two_normals",
                 "Fig. 2b 2 normals".into(),
-                two_normals(),
+                catalogue::two_normals(),
             ),
             (
                 "fig2c_three_normals",
                 "Fig. 2c 3 normals".into(),
-                three_normals(),
+                catalogue::three_normals(),
             ),
-            ("fig2d_seven_normals", String::new(), seven_normals()?),
-            ("fig3_velvet", "Fig. 3 velvet".into(), velvet()),
-            ("fig4_silk", "Fig. 4 silk".into(), silk()),
-        ];
+            (
+                "fig2d_seven_normals",
+                String::new(),
+                catalogue::seven_normals(),
+            ),
+            ("fig3_velvet", "Fig. 3 velvet".into(), catalogue::velvet()),
+            ("fig4_silk", "Fig. 4 silk".into(), catalogue::silk()),
+        ]
+        .into_iter()
+        .map(|(stem, caption, m)| (stem, caption, MaterialDef::from(&m)))
+        .collect();
         for (stem, caption, def) in &spheres {
             let t = Instant::now();
             let material = def.material()?;
@@ -694,7 +588,10 @@ impl Job<'_> {
     fn blend_strip(&mut self, log: &mut dyn FnMut(&str)) -> Result<(), FigureError> {
         let (size, spp) = (self.size, self.spp);
         let t0 = Instant::now();
-        let (a, b) = (three_normals(), silk());
+        let (a, b) = (
+            MaterialDef::from(&catalogue::three_normals()),
+            MaterialDef::from(&catalogue::silk()),
+        );
         let steps = 7;
         let cam = sphere_camera(2.2 * steps as f64)?;
         let (sw, sh) = (size * 3, (size * 3 / steps as u32).max(16));

@@ -3,11 +3,10 @@
 
 use crate::{ferr, FigureError};
 use glam::DVec3;
-use meso_core::convolution::Accuracy;
+use meso_core::catalogue::{phong_spec, MultipleSurface};
 use meso_core::frame::spherical_direction_deg;
-use meso_core::material::{Material, MaterialSpec, NdfSpec};
+use meso_core::material::{Material, MaterialSpec};
 use meso_core::ndf::{DeltaSum, Ndf, PhongLobe, PhongPeaks, WeightedNormal};
-use meso_core::transfer::{PhongVariant, Transfer};
 
 /// One lobe of a built-in material: axis `[θ, φ]` in degrees in the local frame, weight, and
 /// exponent (Phong peaks only).
@@ -45,6 +44,25 @@ impl Lobe {
             phi_deg: phi,
             weight,
             exponent,
+        }
+    }
+}
+
+impl From<&MultipleSurface> for MaterialDef {
+    /// A multiple surface of [`meso_core::catalogue`] (its normals as delta lobes, same
+    /// degrees and weights, same facets): [`MaterialDef::to_spec`] of it is the catalogue's
+    /// [`MultipleSurface::spec`].
+    fn from(m: &MultipleSurface) -> MaterialDef {
+        MaterialDef {
+            name: m.name.clone(),
+            lobes: m
+                .normals
+                .iter()
+                .map(|n| Lobe::delta(n.theta_deg, n.phi_deg, n.weight))
+                .collect(),
+            exponent: m.exponent,
+            specular: m.specular,
+            diffuse: m.diffuse,
         }
     }
 }
@@ -106,19 +124,13 @@ impl MaterialDef {
                 .map_err(bad)?,
             )
         };
-        Ok(MaterialSpec {
-            name: Some(self.name.clone()),
-            ndf: NdfSpec::Inline(ndf),
-            transfer: Transfer::Phong {
-                exponent: rounded(self.exponent, 3),
-                specular: self.specular,
-                variant: PhongVariant::Half,
-            },
-            diffuse: self.diffuse,
-            form: None,
-            shadowing: None,
-            accuracy: Accuracy::default(),
-        })
+        Ok(phong_spec(
+            &self.name,
+            ndf,
+            rounded(self.exponent, 3),
+            self.specular,
+            self.diffuse,
+        ))
     }
 
     /// The material file text (`docs/material-format.md`): [`MaterialDef::to_spec`] written by

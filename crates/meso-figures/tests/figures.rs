@@ -2,7 +2,8 @@
 //! under the key light) and, under the cloth light from near the viewer, shows the velvet's
 //! sheen: brighter than the centre of the disc.
 
-use meso_figures::{cloth_light, key_light, sphere_scene, velvet};
+use meso_core::catalogue::velvet;
+use meso_figures::{cloth_light, key_light, sphere_scene};
 use meso_render::{render, MaterialShader, RenderOptions, Shader};
 use std::sync::Arc;
 
@@ -10,7 +11,7 @@ use std::sync::Arc;
 /// key light's `N·L` is about −0.5, and at the centre of the disc.
 fn limb_and_centre(lights: &[meso_render::Light]) -> (f32, f32) {
     let size = 64u32;
-    let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&velvet().material().unwrap()));
+    let shader: Arc<dyn Shader> = Arc::new(MaterialShader::new(&velvet().material()));
     let scene = sphere_scene(shader, size, 1, lights).unwrap();
     let img = render(&scene, &RenderOptions::default(), None);
     // Orthographic, 2.4 world units across: world (0.672, −0.672) is pixel (49.9, 49.9).

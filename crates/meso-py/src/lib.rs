@@ -20,6 +20,7 @@ mod fit_nonparametric;
 mod maps;
 mod material;
 mod render;
+mod writer;
 
 use pyo3::prelude::*;
 
@@ -40,5 +41,6 @@ fn _meso(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit_samples, m)?)?;
     m.add_function(wrap_pyfunction!(fit_nonparametric::fit_nonparametric, m)?)?;
+    m.add_function(wrap_pyfunction!(writer::material_toml, m)?)?;
     Ok(())
 }

@@ -286,8 +286,12 @@ impl Ndf {
         base_dir: Option<PathBuf>,
         keys: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<Ndf> {
+        // A Lambert facet, as `from_toml` adds to a bare `[ndf]` table: it does not change the NDF.
         let kwargs = pyo3::types::PyDict::new(py);
         kwargs.set_item("ndf", keys)?;
+        let lambert = pyo3::types::PyDict::new(py);
+        lambert.set_item("kind", "lambert")?;
+        kwargs.set_item("transfer", lambert)?;
         let text: String = py
             .import("meso")?
             .getattr("material_toml")?

@@ -8,18 +8,9 @@ use meso_core::material::Material;
 use meso_render::*;
 use std::sync::Arc;
 
+/// Fig. 2d's multiple surface of seven normals (`meso_core::catalogue`).
 fn seven_normals() -> Material {
-    let mut s =
-        String::from("[ndf]\nkind = \"deltas\"\nlobes = [ { axis = [0, 0], weight = 0.4 },\n");
-    for k in 0..6 {
-        s.push_str(&format!(
-            "  {{ axis = [19.3, {}], weight = 0.1 }},\n",
-            60 * k
-        ));
-    }
-    s.push_str("]\n[transfer]\nkind = \"phong\"\nexponent = 40.0\nspecular = [1.0, 0.9, 0.8]\n");
-    s.push_str("[diffuse]\nalbedo = [0.2, 0.1, 0.05]\n");
-    Material::from_toml_str(&s).expect("valid material")
+    meso_core::catalogue::seven_normals().material()
 }
 
 fn ggx() -> Material {

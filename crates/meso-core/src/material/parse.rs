@@ -628,7 +628,16 @@ impl MaterialSpec {
         let doc: toml::Table = text.parse().map_err(|e: toml::de::Error| {
             MaterialError(format!("not valid TOML: {}", e.message()))
         })?;
-        let mut top = Fields::new("material", &doc);
+        MaterialSpec::from_table(&doc, dir)
+    }
+
+    /// [`MaterialSpec::parse`] of a document already read as a TOML table (e.g. built from
+    /// another language's values): the same validation, the same messages.
+    ///
+    /// # Errors
+    /// A [`MaterialError`] naming the table, the key and the problem.
+    pub fn from_table(doc: &toml::Table, dir: &Path) -> Result<MaterialSpec, MaterialError> {
+        let mut top = Fields::new("material", doc);
         let name = top.string("name")?.map(str::to_owned);
         let form = match top.string("form")? {
             None => None,

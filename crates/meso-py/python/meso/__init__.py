@@ -19,8 +19,7 @@ numbers, and ``FileNotFoundError`` for missing inputs.
 
 from __future__ import annotations
 
-import math
-from typing import Any, Optional, Sequence
+from typing import Optional, Sequence
 
 from ._meso import (  # noqa: F401  (re-exported)
     Level,
@@ -35,6 +34,7 @@ from ._meso import (  # noqa: F401  (re-exported)
     fit,
     fit_nonparametric,
     fit_samples,
+    material_toml as _material_toml,
     render,
     set_memory_budget,
 )
@@ -58,24 +58,6 @@ __all__ = [
 ]
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        if isinstance(v, float) and not math.isfinite(v):
-            raise ValueError(f"{v!r}: not a finite number")
-        return repr(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
-    if isinstance(v, Sequence):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if hasattr(v, "tolist"):  # numpy scalars and arrays
-        return _toml_value(v.tolist())
-    raise TypeError(f"{v!r}: cannot be written in a material file")
-
-
 def material_toml(
     ndf: Optional[dict] = None,
     transfer: Optional[dict] = None,
@@ -89,17 +71,11 @@ def material_toml(
     ``ndf`` and ``transfer`` are dicts of the ``[ndf]`` and ``[transfer]`` tables
     (``{"kind": "beckmann", "alpha": 0.1}``), ``diffuse`` the Lambert albedo (RGB),
     ``form`` ``"multiple-surface"`` or ``"microfacet"``, ``shadowing`` the ``[shadowing]`` table.
+    The tables are validated as a material file is (``transfer`` is required; ``MesoError``
+    otherwise) and the text is written by meso's one material writer
+    (``MaterialSpec::to_toml``): it reads back to the same material, with weights normalised
+    as meso reads them.
     """
-    lines = []
-    if name is not None:
-        lines.append(f"name = {_toml_value(name)}")
-    if form is not None:
-        lines.append(f"form = {_toml_value(form)}")
-    for table, values in (("ndf", ndf), ("transfer", transfer), ("shadowing", shadowing)):
-        if values is not None:
-            lines.append(f"[{table}]")
-            lines.extend(f"{k} = {_toml_value(v)}" for k, v in values.items())
-    if diffuse is not None:
-        lines.append("[diffuse]")
-        lines.append(f"albedo = {_toml_value(list(diffuse))}")
-    return "\n".join(lines) + "\n"
+    return _material_toml(
+        ndf=ndf, transfer=transfer, diffuse=diffuse, form=form, shadowing=shadowing, name=name
+    )

@@ -192,3 +192,13 @@ def fit_samples(
 ) -> tuple[Material, dict[str, Any]]:
     """``fit`` on (N, 3) arrays: ``wi`` towards the light, ``wo`` towards the viewer (local frame),
     ``values`` RGB BRDF in 1/sr."""
+
+def material_toml(
+    ndf: Optional[dict[str, Any]] = None,
+    transfer: Optional[dict[str, Any]] = None,
+    diffuse: Optional[Any] = None,
+    form: Optional[str] = None,
+    shadowing: Optional[dict[str, Any]] = None,
+    name: Optional[str] = None,
+) -> str:
+    """A material file from its tables, validated and written by ``MaterialSpec::to_toml``."""

@@ -4,15 +4,20 @@ use glam::DVec3;
 use meso_render::*;
 use std::sync::Arc;
 
-/// Seven normals tilted around the surface normal (a "cylinder bump" NDF like the paper's).
+/// Fig. 2d's seven normals (`meso_core::catalogue::seven_normals`: the filtered bump map of a
+/// cylinder) as Phong lobes of the catalogue's exponent, weights normalised to sum 1.
 pub fn seven_lobes() -> PhongLobes {
-    let mut lobes = vec![(DVec3::Z, 0.4, 40.0)];
-    for k in 0..6 {
-        let a = std::f64::consts::PI * f64::from(k) / 3.0;
-        let n = DVec3::new(0.35 * a.cos(), 0.35 * a.sin(), 1.0).normalize();
-        lobes.push((n, 0.1, 20.0 + 5.0 * f64::from(k)));
-    }
-    PhongLobes::new(&lobes, [1.0, 0.9, 0.8]).expect("seven valid lobes")
+    let m = meso_core::catalogue::seven_normals();
+    let total: f64 = m.normals.iter().map(|n| n.weight).sum();
+    let lobes: Vec<(DVec3, f64, f64)> = m
+        .normals
+        .iter()
+        .map(|n| {
+            let axis = meso_core::frame::spherical_direction_deg(n.theta_deg, n.phi_deg);
+            (axis, n.weight / total, m.exponent)
+        })
+        .collect();
+    PhongLobes::new(&lobes, m.specular.map(|c| c as f32)).expect("seven valid lobes")
 }
 
 /// A `size × size` sphere with the 7-lobe shader under 4 point lights, 1 spp.
