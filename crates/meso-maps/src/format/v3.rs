@@ -483,17 +483,25 @@ pub(super) fn read_levels(
     has_h: bool,
 ) -> Result<Vec<Level>> {
     let (table, texels, lobes) = read_table(r, cols, rows, nlev, max_lobes)?;
-    // The memory of the pyramid and of the largest inflated stream, before allocating any.
-    let raw_max = (lobes * 6).max(if has_h { texels * 16 } else { texels });
-    let need = r.b.len() as u64 + pyramid_bytes(&table, has_h) + 2 * raw_max;
+    let n_streams = if has_h { STREAMS.len() } else { 4 };
+    let expect = |s: usize| {
+        (if STREAMS[s].1 { lobes } else { texels }) * (STREAMS[s].2 * STREAMS[s].3) as u64
+    };
+    // The memory of reading, before allocating any: the file, the pyramid, every inflated
+    // stream and every decoded column (4 bytes a value) with the lobe layout (9 bytes a
+    // texel), as if all were held at once (an upper bound: the streams are freed as they are
+    // decoded).
+    let raw: u64 = (0..n_streams).map(expect).sum();
+    let decoded: u64 = (1..n_streams)
+        .map(|s| (if STREAMS[s].1 { lobes } else { texels }) * 4 * STREAMS[s].2 as u64)
+        .sum::<u64>()
+        + 9 * texels;
+    let need = r.b.len() as u64 + pyramid_bytes(&table, has_h) + raw + decoded;
     meso_core::budget::check(&r.path, "reading the map file", need)?;
 
-    let n_streams = if has_h { STREAMS.len() } else { 4 };
     let mut raws = Vec::with_capacity(n_streams);
     for s in 0..n_streams {
-        let expect =
-            if STREAMS[s].1 { lobes } else { texels } * (STREAMS[s].2 * STREAMS[s].3) as u64;
-        raws.push(read_stream(r, s, expect)?);
+        raws.push(read_stream(r, s, expect(s))?);
     }
     let levels_at: Vec<(usize, usize)> = table.iter().map(|t| (t.t0, t.texels())).collect();
     let counts = read_counts(r, &table, &levels_at, texels as usize, &raws[0], max_lobes)?;
