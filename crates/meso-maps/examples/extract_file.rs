@@ -13,7 +13,10 @@ use std::path::Path;
 
 fn main() {
     let a: Vec<String> = std::env::args().collect();
-    assert!(a.len() >= 5, "usage: extract_file HEIGHTS TEXEL_SIZE HEIGHT_SCALE OUT.map [f64]");
+    assert!(
+        a.len() >= 5,
+        "usage: extract_file HEIGHTS TEXEL_SIZE HEIGHT_SCALE OUT.map [f64]"
+    );
     let params = ExtractParams {
         compact_texels: if a.get(5).is_some_and(|s| s == "f64") {
             usize::MAX

@@ -357,7 +357,7 @@ mod tests {
         let l = PhongLobe {
             axis: DVec3::new(0.3, -0.4, 0.7).normalize(),
             weight: 0.123_456_789,
-            exponent: 4321.123_456,
+            exponent: 4_321.123_456,
         };
         let back = Lobe32::from_phong(&l).to_phong();
         assert!((back.axis.length() - 1.0).abs() < 1e-15);

@@ -109,7 +109,10 @@ const FIT_WORK_THOROUGH: u64 = 45;
 /// the level-0 fits (row buffers and their flat copies), the coarser levels, and writing the map
 /// (the file's bytes and the reader's check of them). `meso extract` on rough 16-bit maps
 /// measured 735–755 bytes per cell (peak RSS, triangles, 512² and 1024²; docs/limits.md):
-/// with the per-sample term the estimate is 890, a 20% margin.
+/// with the per-sample term the estimate is 890, a 20% margin. Since the compact levels
+/// (2026-12-02) the peak is 458 bytes per cell of heap at 256² and 354 of RSS at 1024², so the
+/// estimate is a looser upper bound (`crates/meso-maps/tests/extract_memory.rs` requires it to
+/// cover the heap peak and stay within 3× of it).
 pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
 /// Extra peak memory of [`extract`] per cell for each further normal of the cell (triangles: 2).
 pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
@@ -713,7 +716,7 @@ impl LevelFit<'_> {
                 Some(prev) => self.merge_children(prev, r, c, &mut buf, &mut out.horizon),
             }
             self.fit_texel(&buf.merged, &mut scratch, &mut lobes);
-            if (r * cols + c) % self.residual_stride == 0 {
+            if (r * cols + c).is_multiple_of(self.residual_stride) {
                 out.residual.push(self.residual(r, c, &lobes));
             }
             if self.keep_entries {

@@ -417,8 +417,7 @@ pub(super) fn write_levels(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()
     // One stream at a time (its columns, both byte-plane layouts and their deflated bytes are
     // all that is held beside the pyramid), compressed with and without prediction in
     // parallel; the smaller is kept.
-    for s in 0..n {
-        let (_, per_lobe, _, bytes, bits) = STREAMS[s];
+    for (s, &(_, per_lobe, _, bytes, bits)) in STREAMS.iter().enumerate().take(n) {
         let cols = columns(p, s);
         let encode = |delta: bool| {
             let raw = planes(&layout, per_lobe, &cols, (bytes, bits), delta);
