@@ -246,8 +246,8 @@ pub fn pack(pyramid: &Pyramid) -> LobeTextures {
             let ir = rows - 1 - r;
             for c in 0..cols {
                 let t = r * cols + c;
-                let lobes = &lev.lobes[lev.lobe_start[t] as usize..lev.lobe_start[t + 1] as usize];
-                for (s, l) in lobes.iter().enumerate() {
+                let (a, b) = (lev.lobe_start[t] as usize, lev.lobe_start[t + 1] as usize);
+                for (s, l) in lev.lobes.range(a, b).enumerate() {
                     let q = to_u16(encode(l.axis, l.exponent, l.weight));
                     let o = (ir * cols + c) * 4;
                     slots[s][o..o + 4].copy_from_slice(&q);

@@ -140,7 +140,7 @@ fn main() {
                 }
                 let truth = num / n;
                 let lobes = lev.texel_lobes(r, c).expect("texel");
-                let lq = phong_peaks_average(lobes, &|m| s.spec(m, wi, h), (400, 96));
+                let lq = phong_peaks_average(&lobes, &|m| s.spec(m, wi, h), (400, 96));
                 let uv = DVec2::new(
                     (c as f64 + 0.5) * span as f64 / tpu,
                     (r as f64 + 0.5) * span as f64 / tpu,

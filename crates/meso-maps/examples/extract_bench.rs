@@ -73,7 +73,7 @@ fn main() {
             let mut p = ExtractParams::default();
             p.fit.max_lobes = k;
             let pyr = extract(Source::Heights(map), &p, &mut |_| {}).unwrap();
-            let ndf = Ndf::PhongPeaks(PhongPeaks::new(pyr.top().lobes.clone()).unwrap());
+            let ndf = Ndf::PhongPeaks(PhongPeaks::new(pyr.top().lobes.iter().collect()).unwrap());
             println!(
                 "{name:<10} K={k:<7} {:<23.4} {:<29.4} {}",
                 pyr.top().residual.mean,

@@ -4,7 +4,8 @@
 //!
 //! ```text
 //! cargo build --release -p meso-maps --example extract_mem
-//! /usr/bin/time -v ./target/release/examples/extract_mem
+//! /usr/bin/time -v ./target/release/examples/extract_mem          # 1024²
+//! /usr/bin/time -v ./target/release/examples/extract_mem 4096     # any side
 //! ```
 use meso_maps::*;
 
@@ -22,7 +23,11 @@ fn mem() -> (f64, f64) {
 }
 
 fn main() {
-    let map = fixtures::gaussian(1024, 4.0, 0.1, 3, 0.01).unwrap();
+    // The side (default 1024; 4096 and 8192 for docs/benchmarks.md's large maps).
+    let n: usize = std::env::args()
+        .nth(1)
+        .map_or(1024, |s| s.parse().expect("a side in samples"));
+    let map = fixtures::gaussian(n, 4.0, 0.1, 3, 0.01).unwrap();
     let (peak, rss) = mem();
     println!("after generating the map: peak {peak:.0} MB, resident {rss:.0} MB");
     let t = std::time::Instant::now();
@@ -38,18 +43,22 @@ fn main() {
     let lobes: usize = pyr.levels.iter().map(|l| l.lobes.len()).sum();
     let texels: usize = pyr.levels.iter().map(Level::texels).sum();
     let mb = |b: usize| b as f64 / 1e6;
-    let lobe_mem = lobes * std::mem::size_of::<meso_core::ndf::PhongLobe>();
-    let horizon_mem = texels * std::mem::size_of::<HorizonStats>();
+    let lobe_mem: usize = pyr.levels.iter().map(|l| l.lobes.bytes()).sum();
+    let horizon_mem: usize = pyr
+        .levels
+        .iter()
+        .map(|l| l.horizon.as_ref().map_or(0, Horizons::bytes))
+        .sum();
     let start_mem = (texels + pyr.levels.len()) * 4;
+    let compact = pyr.levels.iter().filter(|l| l.lobes.is_compact()).count();
     println!(
-        "pyramid: {lobes} lobes x {} B = {:.0} MB, {texels} texels of horizon statistics x {} B = \
-         {:.0} MB, lobe starts {:.0} MB: {:.0} MB in all",
-        std::mem::size_of::<meso_core::ndf::PhongLobe>(),
+        "pyramid: {lobes} lobes = {:.0} MB, {texels} texels of horizon statistics = {:.0} MB, \
+         lobe starts {:.0} MB: {:.0} MB in all ({compact} of {} levels in f32)",
         mb(lobe_mem),
-        std::mem::size_of::<HorizonStats>(),
         mb(horizon_mem),
         mb(start_mem),
-        mb(lobe_mem + horizon_mem + start_mem)
+        mb(lobe_mem + horizon_mem + start_mem),
+        pyr.levels.len()
     );
     drop(map);
     let bytes = pyr.to_bytes();

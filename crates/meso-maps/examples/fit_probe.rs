@@ -114,7 +114,7 @@ fn main() {
                     }
                     let truth = num / cnt;
                     let lq = phong_peaks_average(
-                        lev.texel_lobes(r, c).unwrap(),
+                        &lev.texel_lobes(r, c).unwrap(),
                         &|m| spec(eta, m, wi, h),
                         (200, 64),
                     );

@@ -48,7 +48,7 @@ fn main() {
     for (name, map) in &maps {
         let pyr = extract(Source::Heights(map), &ExtractParams::default(), &mut |_| {}).unwrap();
         let top = pyr.top();
-        let ndf = Ndf::PhongPeaks(PhongPeaks::new(top.lobes.clone()).unwrap());
+        let ndf = Ndf::PhongPeaks(PhongPeaks::new(top.lobes.iter().collect()).unwrap());
         let hz = top.texel_horizon(0, 0).unwrap().unwrap();
         // The horizon model of a texel, as `meso brdf` gets it from a map (`[shadowing] kind =
         // "horizon"`).

@@ -123,7 +123,7 @@ impl Pyramid {
                 put_f32(w, lobe.exponent)?;
             }
             if let Some(h) = &l.horizon {
-                for s in h {
+                for s in h.iter() {
                     put_f32(w, s.weight)?;
                     for d in 0..4 {
                         put_f32(w, s.mean[d])?;
@@ -160,7 +160,7 @@ impl Pyramid {
             });
         }
         let bytes = self.to_bytes();
-        if let Err(e) = Pyramid::from_bytes(path, &bytes) {
+        if let Err(e) = Pyramid::check_bytes(path, &bytes) {
             let why = match e {
                 MapError::MapFormat { message, .. } => message,
                 e => e.to_string(),
@@ -197,86 +197,144 @@ impl Pyramid {
             pos: 0,
             path: path.to_path_buf(),
         };
-        let magic = r.take(8, "magic")?;
-        if magic != MAGIC {
-            return Err(r.err("not a meso map file (bad magic bytes)".into()));
-        }
-        let version = r.u32("version")?;
-        if version != VERSION && version != VERSION_2 {
-            return Err(MapError::MapVersion {
-                path: r.path.clone(),
-                found: version,
-                expected: VERSION,
-            });
-        }
-        let width = r.u32("width")? as usize;
-        let height = r.u32("height")? as usize;
-        let cols = r.u32("cols")? as usize;
-        let rows = r.u32("rows")? as usize;
-        for (name, v) in [
-            ("width", width),
-            ("height", height),
-            ("cols", cols),
-            ("rows", rows),
-        ] {
-            if v == 0 || v as u64 > MAX_DIMENSION {
-                return Err(r.err(format!("{name} = {v} outside 1..={MAX_DIMENSION}")));
-            }
-        }
-        if (width as u64) * (height as u64) > MAX_TEXELS || cols > width || rows > height {
-            return Err(r.err(format!(
-                "sizes {width}x{height} samples / {cols}x{rows} cells exceed the limits"
-            )));
-        }
-        let texel_size = r.f64("texel_size")?;
-        if !(texel_size.is_finite() && texel_size > 0.0) {
-            return Err(r.err(format!("texel_size {texel_size} is not > 0")));
-        }
-        let flags = r.take(4, "flags")?;
-        let border = match flags[0] {
-            0 => Border::Wrap,
-            1 => Border::Clamp,
-            b => return Err(r.err(format!("unknown border code {b}"))),
-        };
-        let normal_mode = match flags[1] {
-            0 => NormalMode::Triangles,
-            1 => NormalMode::CentralDifferences,
-            b => return Err(r.err(format!("unknown normal mode code {b}"))),
-        };
-        let has_h = match flags[2] {
-            0 => false,
-            1 => true,
-            b => return Err(r.err(format!("bad horizon flag {b}"))),
-        };
-        let max_lobes = r.u32("max_lobes")? as usize;
-        if max_lobes == 0 || max_lobes > MAX_LOBES {
-            return Err(r.err(format!("max_lobes {max_lobes} outside 1..={MAX_LOBES}")));
-        }
-        let nlev = r.u32("level count")? as usize;
-        let expect = level_count(cols, rows);
-        if nlev != expect {
-            return Err(r.err(format!(
-                "{nlev} levels, but a {cols}x{rows} grid has {expect}"
-            )));
-        }
-        let levels = if version == VERSION {
-            v3::read_levels(&mut r, cols, rows, nlev, max_lobes, has_h)?
+        let h = read_header(&mut r)?;
+        let levels = if h.version == VERSION {
+            v3::read_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?
         } else {
-            read_levels_v2(&mut r, cols, rows, nlev, max_lobes, has_h)?
+            read_levels_v2(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?
         };
         if r.pos != r.b.len() {
             return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
         }
         Ok(Pyramid {
-            width,
-            height,
-            texel_size,
-            border,
-            normal_mode,
-            max_lobes,
+            width: h.width,
+            height: h.height,
+            texel_size: h.texel_size,
+            border: h.border,
+            normal_mode: h.normal_mode,
+            max_lobes: h.max_lobes,
             levels,
         })
     }
+
+    /// Check a map file's bytes as [`Pyramid::from_bytes`] does — every check, the same
+    /// errors — without building the pyramid: a format-3 file's streams are inflated and
+    /// decoded one at a time and dropped (what [`Pyramid::write`] runs on the bytes it is about
+    /// to write, at a fraction of a second pyramid's memory).
+    ///
+    /// # Errors
+    /// As [`Pyramid::from_bytes`].
+    pub fn check_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+        let mut r = Reader {
+            b: bytes,
+            pos: 0,
+            path: path.to_path_buf(),
+        };
+        let h = read_header(&mut r)?;
+        if h.version == VERSION {
+            v3::check_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+        } else {
+            read_levels_v2(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+        }
+        if r.pos != r.b.len() {
+            return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
+        }
+        Ok(())
+    }
+}
+
+/// The common header of versions 2 and 3, checked.
+struct Header {
+    version: u32,
+    width: usize,
+    height: usize,
+    cols: usize,
+    rows: usize,
+    texel_size: f64,
+    border: Border,
+    normal_mode: NormalMode,
+    has_h: bool,
+    max_lobes: usize,
+    nlev: usize,
+}
+
+/// Read and check the common header (magic, version, sizes, flags, `max_lobes`, level count).
+fn read_header(r: &mut Reader<'_>) -> Result<Header> {
+    let magic = r.take(8, "magic")?;
+    if magic != MAGIC {
+        return Err(r.err("not a meso map file (bad magic bytes)".into()));
+    }
+    let version = r.u32("version")?;
+    if version != VERSION && version != VERSION_2 {
+        return Err(MapError::MapVersion {
+            path: r.path.clone(),
+            found: version,
+            expected: VERSION,
+        });
+    }
+    let width = r.u32("width")? as usize;
+    let height = r.u32("height")? as usize;
+    let cols = r.u32("cols")? as usize;
+    let rows = r.u32("rows")? as usize;
+    for (name, v) in [
+        ("width", width),
+        ("height", height),
+        ("cols", cols),
+        ("rows", rows),
+    ] {
+        if v == 0 || v as u64 > MAX_DIMENSION {
+            return Err(r.err(format!("{name} = {v} outside 1..={MAX_DIMENSION}")));
+        }
+    }
+    if (width as u64) * (height as u64) > MAX_TEXELS || cols > width || rows > height {
+        return Err(r.err(format!(
+            "sizes {width}x{height} samples / {cols}x{rows} cells exceed the limits"
+        )));
+    }
+    let texel_size = r.f64("texel_size")?;
+    if !(texel_size.is_finite() && texel_size > 0.0) {
+        return Err(r.err(format!("texel_size {texel_size} is not > 0")));
+    }
+    let flags = r.take(4, "flags")?;
+    let border = match flags[0] {
+        0 => Border::Wrap,
+        1 => Border::Clamp,
+        b => return Err(r.err(format!("unknown border code {b}"))),
+    };
+    let normal_mode = match flags[1] {
+        0 => NormalMode::Triangles,
+        1 => NormalMode::CentralDifferences,
+        b => return Err(r.err(format!("unknown normal mode code {b}"))),
+    };
+    let has_h = match flags[2] {
+        0 => false,
+        1 => true,
+        b => return Err(r.err(format!("bad horizon flag {b}"))),
+    };
+    let max_lobes = r.u32("max_lobes")? as usize;
+    if max_lobes == 0 || max_lobes > MAX_LOBES {
+        return Err(r.err(format!("max_lobes {max_lobes} outside 1..={MAX_LOBES}")));
+    }
+    let nlev = r.u32("level count")? as usize;
+    let expect = level_count(cols, rows);
+    if nlev != expect {
+        return Err(r.err(format!(
+            "{nlev} levels, but a {cols}x{rows} grid has {expect}"
+        )));
+    }
+    Ok(Header {
+        version,
+        width,
+        height,
+        cols,
+        rows,
+        texel_size,
+        border,
+        normal_mode,
+        has_h,
+        max_lobes,
+        nlev,
+    })
 }
 
 /// The levels of a version-2 file, after the common header.
@@ -327,7 +385,8 @@ fn read_levels_v2(
                 "level {k}: lobe counts add to {sum}, header says {nl}"
             )));
         }
-        let mut lobes = Vec::with_capacity(nl);
+        let compact = texels >= crate::compact::COMPACT_TEXELS;
+        let mut lobes = crate::compact::Lobes::new(Vec::with_capacity(nl), compact);
         for _ in 0..nl {
             let a = DVec3::new(r.f32("axis")?, r.f32("axis")?, r.f32("axis")?);
             let weight = r.f32("weight")?;
@@ -364,7 +423,7 @@ fn read_levels_v2(
                 }
                 h.push(HorizonStats { weight, mean, var });
             }
-            Some(h)
+            Some(crate::compact::Horizons::new(h, compact))
         } else {
             None
         };

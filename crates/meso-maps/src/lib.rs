@@ -24,6 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod baseline;
+pub mod compact;
 pub mod disk_cache;
 pub mod error;
 pub mod facet_cache;
@@ -44,6 +45,7 @@ pub mod sphgrid;
 pub mod visibility;
 
 pub use baseline::{baseline_lobes, fit_baseline, Baseline, Lean};
+pub use compact::{Horizon32, HorizonIter, Horizons, Lobe32, LobeIter, Lobes, COMPACT_TEXELS};
 pub use error::{MapError, Result};
 pub use facet_ndf::{
     facets_bytes, facets_with_visibility, facets_with_visibility_progress, FacetVisibility,

@@ -11,8 +11,9 @@
 //!   `crate::fit::ndf_l2_error` over all its texels, or a strided sample of
 //!   `residual_texels` of them on large levels.
 
+use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
 use crate::error::{MapError, Result};
-use crate::facets::{FacetNormals, NormalMode};
+use crate::facets::{FacetNormals, FacetSource, NormalMode};
 use crate::fit::{fit_lobes_with, merge_entries, ndf_l2_error, Entry, FitParams, MAX_LOBES};
 use crate::heightmap::{Border, HeightMap, NormalMap};
 use crate::horizon::{HorizonMap, HorizonStats};
@@ -40,6 +41,11 @@ pub struct ExtractParams {
     pub residual_texels: usize,
     /// What to store per texel: fitted lobes (default) or a single-lobe baseline.
     pub method: Method,
+    /// Levels with at least this many texels keep their lobes and horizon statistics in `f32`
+    /// (half the memory; [`crate::compact`]), smaller ones in `f64` (default
+    /// [`COMPACT_TEXELS`]; `usize::MAX` keeps every level in `f64`, 0 none). The fit itself
+    /// always runs in `f64`, and each level is fitted from the `f64` data of the one below.
+    pub compact_texels: usize,
 }
 
 /// What [`extract`] stores per texel.
@@ -60,6 +66,7 @@ impl Default for ExtractParams {
             normal_mode: NormalMode::Triangles,
             residual_texels: 64,
             method: Method::Lobes,
+            compact_texels: COMPACT_TEXELS,
         }
     }
 }
@@ -102,7 +109,10 @@ const FIT_WORK_THOROUGH: u64 = 45;
 /// the level-0 fits (row buffers and their flat copies), the coarser levels, and writing the map
 /// (the file's bytes and the reader's check of them). `meso extract` on rough 16-bit maps
 /// measured 735–755 bytes per cell (peak RSS, triangles, 512² and 1024²; docs/limits.md):
-/// with the per-sample term the estimate is 890, a 20% margin.
+/// with the per-sample term the estimate is 890, a 20% margin. Since the compact levels
+/// (2026-12-02) the peak is 458 bytes per cell of heap at 256² and 354 of RSS at 1024², so the
+/// estimate is a looser upper bound (`crates/meso-maps/tests/extract_memory.rs` requires it to
+/// cover the heap peak and stay within 3× of it).
 pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
 /// Extra peak memory of [`extract`] per cell for each further normal of the cell (triangles: 2).
 pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
@@ -193,24 +203,63 @@ pub struct Level {
     pub span: usize,
     /// `lobe_start[t]..lobe_start[t+1]` indexes `lobes` for texel `t = row·cols + col`.
     pub lobe_start: Vec<u32>,
-    /// All lobes of the level (local frame, normal +z; weights of a texel sum to 1).
-    pub lobes: Vec<PhongLobe>,
-    /// Horizon statistics per texel (height maps only).
-    pub horizon: Option<Vec<HorizonStats>>,
+    /// All lobes of the level (local frame, normal +z; weights of a texel sum to 1), in `f64`
+    /// or, on big levels, `f32` ([`crate::compact`]); read as [`PhongLobe`]s.
+    pub lobes: Lobes,
+    /// Horizon statistics per texel (height maps only), in `f64` or `f32` like the lobes.
+    pub horizon: Option<Horizons>,
     /// Fit residual.
     pub residual: Residual,
 }
 
 impl Level {
-    /// The lobes of texel `(row, col)`.
-    pub fn texel_lobes(&self, row: usize, col: usize) -> Result<&[PhongLobe]> {
+    /// The lobes of texel `(row, col)` in `f64` (on an `f32` level, the weights renormalised to
+    /// sum to 1 in `f64`).
+    pub fn texel_lobes(&self, row: usize, col: usize) -> Result<Vec<PhongLobe>> {
         let t = self.index(row, col)?;
-        Ok(&self.lobes[self.lobe_start[t] as usize..self.lobe_start[t + 1] as usize])
+        Ok(self.lobes_of(t))
+    }
+    /// The lobes of texel `t = row·cols + col` (as [`Level::texel_lobes`]).
+    ///
+    /// # Panics
+    /// `t ≥ texels()`.
+    #[must_use]
+    pub fn lobes_of(&self, t: usize) -> Vec<PhongLobe> {
+        let (a, b) = (self.lobe_start[t] as usize, self.lobe_start[t + 1] as usize);
+        let mut out: Vec<PhongLobe> = self.lobes.range(a, b).collect();
+        if self.lobes.is_compact() {
+            let s: f64 = out.iter().map(|l| l.weight).sum();
+            if s > 0.0 {
+                for l in &mut out {
+                    l.weight /= s;
+                }
+            }
+        }
+        out
     }
     /// The horizon statistics of texel `(row, col)` (`None` for normal maps).
     pub fn texel_horizon(&self, row: usize, col: usize) -> Result<Option<HorizonStats>> {
         let t = self.index(row, col)?;
-        Ok(self.horizon.as_ref().map(|h| h[t]))
+        Ok(self.horizon.as_ref().map(|h| h.get(t)))
+    }
+    /// Keep the lobes and horizon statistics in `f32` ([`crate::compact`]); a no-op on a
+    /// level already compact.
+    pub fn compact(&mut self) {
+        if let Lobes::F64(v) = &mut self.lobes {
+            let v = std::mem::take(v);
+            self.lobes = Lobes::new(v, true);
+        }
+        if let Some(Horizons::F64(v)) = &mut self.horizon {
+            let v = std::mem::take(v);
+            self.horizon = Some(Horizons::new(v, true));
+        }
+    }
+    /// Bytes the level's lobes, lobe starts and horizon statistics occupy.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        self.lobes.bytes()
+            + self.lobe_start.len() * 4
+            + self.horizon.as_ref().map_or(0, Horizons::bytes)
     }
     fn index(&self, row: usize, col: usize) -> Result<usize> {
         if row >= self.rows {
@@ -341,6 +390,14 @@ impl Pyramid {
             count: self.levels.len(),
         })
     }
+    /// Keep the levels of at least `min_texels` texels in `f32` ([`Level::compact`]).
+    pub fn compact(&mut self, min_texels: usize) {
+        for l in &mut self.levels {
+            if l.texels() >= min_texels {
+                l.compact();
+            }
+        }
+    }
     /// A summary: sizes, lobe counts and residuals per level.
     #[must_use]
     pub fn info(&self) -> PyramidInfo {
@@ -423,9 +480,12 @@ pub fn extract(
         what: "the NDF pyramid".into(),
         source: e,
     };
-    let (facets, horizon, width, height, texel_size, border) = match source {
+    // The facets are computed from the map cell by cell when a level reads them (level 0's
+    // fits, level 1's merges and the residuals), never stored; the horizon angles only serve
+    // level 0 and are freed after it.
+    let (facets, mut horizon, width, height, texel_size, border) = match source {
         Source::Heights(m) => (
-            FacetNormals::try_from_heightmap(m, params.normal_mode).map_err(oom)?,
+            FacetSource::Heights(m, params.normal_mode),
             Some(HorizonMap::compute(m)),
             m.width(),
             m.height(),
@@ -433,7 +493,7 @@ pub fn extract(
             m.border(),
         ),
         Source::Normals(n) => (
-            FacetNormals::from_normal_map(n),
+            FacetSource::Normals(n),
             None,
             n.width(),
             n.height(),
@@ -441,44 +501,78 @@ pub fn extract(
             Border::Wrap,
         ),
     };
-    let nlev = level_count(facets.cols, facets.rows);
+    let has_horizon = horizon.is_some();
+    let nlev = level_count(facets.cols(), facets.rows());
     debug_assert_eq!(nlev, level_work.len());
     let mut work_done = prep_work;
     report(0, 0, work_done);
     let mut levels: Vec<Level> = Vec::with_capacity(nlev);
-    // Entries of the previous level, flat, with per-texel offsets.
-    let mut prev_entries: Vec<Entry> = Vec::new();
-    let mut prev_start: Vec<u32> = Vec::new();
+    // What the next level reads of this one, beside the level itself: its entries (none for
+    // level 0: level 1 merges its children's entries from the facets again, as level 0 did)
+    // and, when the level is stored in f32, its horizon statistics in f64.
+    let mut prev = Carry::default();
     let mut done = 0u64;
-    let (mut cols, mut rows) = (facets.cols, facets.rows);
+    let (mut cols, mut rows) = (facets.cols(), facets.rows());
     for (k, &work) in level_work.iter().enumerate() {
+        let texels = cols * rows;
+        let compact = texels >= params.compact_texels;
+        let last = k + 1 == nlev;
+        let prev_horizon = match (levels.last(), &horizon) {
+            (None, _) => PrevHorizon::None,
+            (Some(_), Some(map)) if k == 1 => PrevHorizon::Samples(map),
+            (Some(l), _) => match (&prev.horizon, &l.horizon) {
+                (Some(h), _) => PrevHorizon::Stats(h),
+                (None, Some(h)) => PrevHorizon::Level(h),
+                (None, None) => PrevHorizon::None,
+            },
+        };
         let ctx = LevelFit {
             cols,
-            facets: &facets,
-            horizon: horizon.as_ref(),
+            facets,
+            horizon: if k == 0 { horizon.as_ref() } else { None },
             prev: levels.last(),
-            prev_entries: &prev_entries,
-            prev_start: &prev_start,
+            prev_entries: &prev.entries,
+            prev_start: &prev.start,
+            prev_horizon,
+            keep_entries: k > 0 && !last,
+            residual_stride: texels.div_ceil(params.residual_texels.max(1)).max(1),
             params,
-            em_cap: (params.fit.level_em_points / (cols * rows).max(1))
+            em_cap: (params.fit.level_em_points / texels.max(1))
                 .clamp(64, params.fit.max_em_points.max(64)),
-            thorough: cols * rows <= params.fit.thorough_texels,
-            smooth: cols * rows <= params.fit.smooth_texels,
+            thorough: texels <= params.fit.thorough_texels,
+            smooth: texels <= params.fit.smooth_texels,
         };
-        let rows_out: Vec<RowOut> = (0..rows).into_par_iter().map(|r| ctx.row(r)).collect();
-        let (mut level, entries, estart) =
-            assemble_level(k, cols, rows, rows_out, horizon.is_some());
-        level.residual = level_residual(&level, &facets, params.residual_texels);
+        let max_per_texel = params
+            .fit
+            .max_lobes
+            .min(per_cell.saturating_mul(1usize << (2 * k.min(8))));
+        let mut acc = LevelBuilder::new(
+            texels,
+            max_per_texel,
+            has_horizon,
+            compact,
+            compact && has_horizon && !last && k > 0,
+        )
+        .map_err(oom)?;
+        // Rows in batches: each batch's rows fitted in parallel and appended at once, so that
+        // no more than a batch's row buffers exist beside the level.
+        for r0 in (0..rows).step_by(ROW_BATCH) {
+            let batch: Vec<RowOut> = (r0..(r0 + ROW_BATCH).min(rows))
+                .into_par_iter()
+                .map(|r| ctx.row(r))
+                .collect();
+            acc.extend(batch);
+        }
+        let (level, carry) = acc.finish(k, cols, rows);
         levels.push(level);
-        prev_entries = entries;
-        prev_start = estart;
-        done += (cols * rows) as u64;
+        prev = carry;
+        if k >= 1 {
+            // Level 1 has read the samples' horizon angles.
+            horizon = None;
+        }
+        done += texels as u64;
         work_done += work;
-        report(
-            k + 1,
-            done,
-            if k + 1 == nlev { work_total } else { work_done },
-        );
+        report(k + 1, done, if last { work_total } else { work_done });
         cols = cols.div_ceil(2);
         rows = rows.div_ceil(2);
     }
@@ -492,6 +586,9 @@ pub fn extract(
         levels,
     })
 }
+
+/// Rows of a level fitted in parallel before they are appended to the level.
+const ROW_BATCH: usize = 64;
 
 /// The checks of [`extract`]'s parameters.
 fn check_params(params: &ExtractParams) -> Result<()> {
@@ -530,25 +627,71 @@ struct RowOut {
     lobes: Vec<PhongLobe>,
     lcount: Vec<u32>,
     horizon: Vec<HorizonStats>,
+    /// The NDF residual of the row's texels that the level's residual samples, in order.
+    residual: Vec<f64>,
 }
 
-/// What fitting a level reads: the facets (level 0) or the previous level's merged entries
-/// and horizon statistics, and the fit's settings for this level's size.
+/// Where a level reads the horizon statistics of its children, in `f64`.
+#[derive(Clone, Copy)]
+enum PrevHorizon<'a> {
+    /// No horizon statistics (a normal map), or level 0 (which reads the samples' angles).
+    None,
+    /// Level 1: level 0's statistics are the samples' own ([`HorizonMap::sample_stats`]).
+    Samples(&'a HorizonMap),
+    /// The previous level's statistics kept in `f64` beside its `f32` copy.
+    Stats(&'a [HorizonStats]),
+    /// The previous level's own (`f64`) statistics.
+    Level(&'a Horizons),
+}
+
+impl PrevHorizon<'_> {
+    /// Texel `(r, c)` of a previous level of `cols` columns, or `None`.
+    #[inline]
+    fn get(&self, r: usize, c: usize, cols: usize) -> Option<HorizonStats> {
+        match self {
+            PrevHorizon::None => None,
+            PrevHorizon::Samples(m) => Some(m.sample_stats(r, c)),
+            PrevHorizon::Stats(v) => Some(v[r * cols + c]),
+            PrevHorizon::Level(h) => Some(h.get(r * cols + c)),
+        }
+    }
+}
+
+/// What fitting a level reads: the facets (levels 0 and 1) or the previous level's merged
+/// entries, the previous level's horizon statistics, and the fit's settings for this level's
+/// size.
 struct LevelFit<'a> {
     cols: usize,
-    facets: &'a FacetNormals,
+    facets: FacetSource<'a>,
+    /// The samples' horizon angles (level 0 only).
     horizon: Option<&'a HorizonMap>,
     prev: Option<&'a Level>,
+    /// The previous level's entries; empty when the previous level is level 0 (its entries
+    /// are merged from the facets again).
     prev_entries: &'a [Entry],
     prev_start: &'a [u32],
+    prev_horizon: PrevHorizon<'a>,
+    /// Whether the next level reads this level's entries (not level 0's, not the top's).
+    keep_entries: bool,
+    /// Texels `0, s, 2s, …` get their NDF residual measured.
+    residual_stride: usize,
     params: &'a ExtractParams,
     em_cap: usize,
     thorough: bool,
     smooth: bool,
 }
 
+/// A texel's scratch buffers: its merged entries and those of its (up to four) children.
+#[derive(Default)]
+struct Scratch {
+    merged: Vec<Entry>,
+    singles: Vec<Entry>,
+    children: [Vec<Entry>; 4],
+}
+
 impl LevelFit<'_> {
-    /// The merged entries, lobes and horizon statistics of row `r`'s texels.
+    /// The merged entries, lobes, horizon statistics and sampled residuals of row `r`'s
+    /// texels.
     fn row(&self, r: usize) -> RowOut {
         let cols = self.cols;
         let mut out = RowOut {
@@ -557,61 +700,93 @@ impl LevelFit<'_> {
             lobes: Vec::new(),
             lcount: Vec::with_capacity(cols),
             horizon: Vec::new(),
+            residual: Vec::new(),
         };
-        let mut merged = Vec::new();
-        let mut singles = Vec::new();
+        let mut buf = Scratch::default();
         let mut scratch = Vec::new();
         let mut lobes = Vec::new();
         for c in 0..cols {
             match self.prev {
                 None => {
-                    singles.clear();
-                    for (n, w) in self.facets.footprint(r, r + 1, c, c + 1) {
-                        singles.push(Entry::new(n, w));
-                    }
-                    merge_entries(&[&singles], &mut merged);
+                    self.cell_entries(r, c, &mut buf.singles, &mut buf.merged);
                     if let Some(h) = self.horizon {
                         out.horizon.push(h.sample_stats(r, c));
                     }
                 }
-                Some(prev) => self.merge_children(prev, r, c, &mut merged, &mut out.horizon),
+                Some(prev) => self.merge_children(prev, r, c, &mut buf, &mut out.horizon),
             }
-            self.fit_texel(&merged, &mut scratch, &mut lobes);
-            out.entries.extend_from_slice(&merged);
-            out.ecount.push(merged.len() as u32);
+            self.fit_texel(&buf.merged, &mut scratch, &mut lobes);
+            if (r * cols + c).is_multiple_of(self.residual_stride) {
+                out.residual.push(self.residual(r, c, &lobes));
+            }
+            if self.keep_entries {
+                out.entries.extend_from_slice(&buf.merged);
+                out.ecount.push(buf.merged.len() as u32);
+            }
             out.lobes.extend_from_slice(&lobes);
             out.lcount.push(lobes.len() as u32);
         }
         out
     }
 
+    /// The relative NDF L2 error of texel `(r, c)`'s lobes against its footprint's facets.
+    fn residual(&self, r: usize, c: usize, lobes: &[PhongLobe]) -> f64 {
+        let span = self.prev.map_or(1, |p| 2 * p.span);
+        let (r0, r1, c0, c1) = footprint_bounds(self.facets.rows(), self.facets.cols(), span, r, c);
+        ndf_l2_error(self.facets.footprint(r0, r1, c0, c1), |g, out| {
+            crate::fit::lobe_bin_mass(lobes, g, out)
+        })
+    }
+
+    /// The entries of level-0 cell `(r, c)`: its facets merged per bin.
+    fn cell_entries(&self, r: usize, c: usize, singles: &mut Vec<Entry>, out: &mut Vec<Entry>) {
+        singles.clear();
+        for (n, w) in self.facets.footprint(r, r + 1, c, c + 1) {
+            singles.push(Entry::new(n, w));
+        }
+        merge_entries(&[singles], out);
+    }
+
     /// Texel `(r, c)` of this level from its (up to four) children in `prev`: their entries
-    /// merged into `merged`, their horizon statistics merged onto `horizon`.
+    /// (stored, or for level 0's children merged from the facets again) merged into
+    /// `buf.merged`, their horizon statistics merged onto `horizon`.
     fn merge_children(
         &self,
         prev: &Level,
         r: usize,
         c: usize,
-        merged: &mut Vec<Entry>,
+        buf: &mut Scratch,
         horizon: &mut Vec<HorizonStats>,
     ) {
-        let prev_h = prev.horizon.as_ref();
-        let mut lists: [&[Entry]; 4] = [&[]; 4];
+        let from_facets = self.prev_start.is_empty();
         let mut hs = HorizonStats::default();
+        let mut has_h = false;
+        let mut ts = [0usize; 4];
         let mut n = 0;
         for cr in 2 * r..(2 * r + 2).min(prev.rows) {
             for cc in 2 * c..(2 * c + 2).min(prev.cols) {
-                let t = cr * prev.cols + cc;
-                lists[n] = &self.prev_entries
-                    [self.prev_start[t] as usize..self.prev_start[t + 1] as usize];
+                if from_facets {
+                    self.cell_entries(cr, cc, &mut buf.singles, &mut buf.children[n]);
+                }
+                ts[n] = cr * prev.cols + cc;
                 n += 1;
-                if let Some(ph) = prev_h {
-                    hs.merge(&ph[t]);
+                if let Some(h) = self.prev_horizon.get(cr, cc, prev.cols) {
+                    hs.merge(&h);
+                    has_h = true;
                 }
             }
         }
-        merge_entries(&lists[..n], merged);
-        if prev_h.is_some() {
+        let mut lists: [&[Entry]; 4] = [&[]; 4];
+        for (i, list) in lists.iter_mut().enumerate().take(n) {
+            *list = if from_facets {
+                &buf.children[i]
+            } else {
+                let t = ts[i];
+                &self.prev_entries[self.prev_start[t] as usize..self.prev_start[t + 1] as usize]
+            };
+        }
+        merge_entries(&lists[..n], &mut buf.merged);
+        if has_h {
             horizon.push(hs);
         }
     }
@@ -642,41 +817,110 @@ impl LevelFit<'_> {
     }
 }
 
-/// Level `k` (`cols × rows` texels) from its rows, and its entries with per-texel offsets (the
-/// next level's input).
-fn assemble_level(
-    k: usize,
-    cols: usize,
-    rows: usize,
-    rows_out: Vec<RowOut>,
-    has_horizon: bool,
-) -> (Level, Vec<Entry>, Vec<u32>) {
-    let mut entries = Vec::with_capacity(rows_out.iter().map(|r| r.entries.len()).sum());
-    let mut estart = Vec::with_capacity(cols * rows + 1);
-    let mut lobes = Vec::with_capacity(rows_out.iter().map(|r| r.lobes.len()).sum());
-    let mut lstart = Vec::with_capacity(cols * rows + 1);
-    let mut hz = Vec::new();
-    estart.push(0u32);
-    lstart.push(0u32);
-    for ro in rows_out {
-        for (ec, lc) in ro.ecount.iter().zip(&ro.lcount) {
-            estart.push(estart.last().unwrap() + ec);
-            lstart.push(lstart.last().unwrap() + lc);
-        }
-        entries.extend_from_slice(&ro.entries);
-        lobes.extend_from_slice(&ro.lobes);
-        hz.extend_from_slice(&ro.horizon);
+/// What a level hands to the next beside itself: its entries, flat, with per-texel offsets
+/// `start` (empty when the next level does not read them), and its horizon statistics in
+/// `f64` when the level keeps them in `f32`.
+#[derive(Default)]
+struct Carry {
+    entries: Vec<Entry>,
+    start: Vec<u32>,
+    horizon: Option<Vec<HorizonStats>>,
+}
+
+/// A level being assembled from its rows, batch by batch.
+struct LevelBuilder {
+    carry: Carry,
+    lobes: Lobes,
+    lstart: Vec<u32>,
+    horizon: Option<Horizons>,
+    residual: Vec<f64>,
+}
+
+impl LevelBuilder {
+    /// Room for `texels` texels of at most `max_per_texel` lobes each (reserved, not touched),
+    /// stored in `f32` when `compact`, with an `f64` copy of the horizon statistics when
+    /// `carry_horizon`; or the failed allocation.
+    fn new(
+        texels: usize,
+        max_per_texel: usize,
+        has_horizon: bool,
+        compact: bool,
+        carry_horizon: bool,
+    ) -> std::result::Result<LevelBuilder, meso_core::budget::AllocError> {
+        use meso_core::budget::try_with_capacity;
+        let mut lstart = try_with_capacity(texels + 1)?;
+        lstart.push(0u32);
+        let n = texels.saturating_mul(max_per_texel.max(1));
+        Ok(LevelBuilder {
+            carry: Carry {
+                horizon: if carry_horizon {
+                    Some(try_with_capacity(texels)?)
+                } else {
+                    None
+                },
+                ..Carry::default()
+            },
+            lobes: if compact {
+                Lobes::F32(try_with_capacity(n)?)
+            } else {
+                Lobes::F64(try_with_capacity(n)?)
+            },
+            lstart,
+            horizon: match (has_horizon, compact) {
+                (false, _) => None,
+                (true, true) => Some(Horizons::F32(try_with_capacity(texels)?)),
+                (true, false) => Some(Horizons::F64(try_with_capacity(texels)?)),
+            },
+            residual: Vec::new(),
+        })
     }
-    let level = Level {
-        cols,
-        rows,
-        span: 1usize << k,
-        lobe_start: lstart,
-        lobes,
-        horizon: has_horizon.then_some(hz),
-        residual: Residual::default(),
-    };
-    (level, entries, estart)
+
+    /// Append a batch of rows (in order), freeing their buffers.
+    fn extend(&mut self, rows: Vec<RowOut>) {
+        for ro in rows {
+            if !ro.ecount.is_empty() {
+                let e = &mut self.carry;
+                if e.start.is_empty() {
+                    e.start.push(0u32);
+                }
+                for ec in &ro.ecount {
+                    e.start.push(e.start.last().unwrap() + ec);
+                }
+                e.entries.extend_from_slice(&ro.entries);
+            }
+            for lc in &ro.lcount {
+                self.lstart.push(self.lstart.last().unwrap() + lc);
+            }
+            self.lobes.extend_from_slice(&ro.lobes);
+            if let Some(h) = &mut self.horizon {
+                h.extend_from_slice(&ro.horizon);
+            }
+            if let Some(h) = &mut self.carry.horizon {
+                h.extend_from_slice(&ro.horizon);
+            }
+            self.residual.extend_from_slice(&ro.residual);
+        }
+    }
+
+    /// Level `k` (`cols × rows` texels) with its residual, and what the next level reads.
+    fn finish(mut self, k: usize, cols: usize, rows: usize) -> (Level, Carry) {
+        self.lobes.shrink_to_fit();
+        let errs = &self.residual;
+        let level = Level {
+            cols,
+            rows,
+            span: 1usize << k,
+            lobe_start: self.lstart,
+            lobes: self.lobes,
+            horizon: self.horizon,
+            residual: Residual {
+                mean: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
+                max: errs.iter().copied().fold(0.0, f64::max),
+                texels: errs.len() as u32,
+            },
+        };
+        (level, self.carry)
+    }
 }
 
 /// Cells covered by texel `(r, c)` of a level with footprint side `span`.
@@ -687,35 +931,21 @@ pub fn footprint_cells(
     r: usize,
     c: usize,
 ) -> (usize, usize, usize, usize) {
-    (
-        r * span,
-        ((r + 1) * span).min(facets.rows),
-        c * span,
-        ((c + 1) * span).min(facets.cols),
-    )
+    footprint_bounds(facets.rows, facets.cols, span, r, c)
 }
 
-fn level_residual(level: &Level, facets: &FacetNormals, max_texels: usize) -> Residual {
-    let n = level.texels();
-    let stride = n.div_ceil(max_texels.max(1)).max(1);
-    let errs: Vec<f64> = (0..n)
-        .step_by(stride)
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|t| {
-            let (r, c) = (t / level.cols, t % level.cols);
-            let (r0, r1, c0, c1) = footprint_cells(facets, level.span, r, c);
-            let lobes =
-                &level.lobes[level.lobe_start[t] as usize..level.lobe_start[t + 1] as usize];
-            ndf_l2_error(facets.footprint(r0, r1, c0, c1), |g, out| {
-                crate::fit::lobe_bin_mass(lobes, g, out)
-            })
-        })
-        .collect();
-    let texels = errs.len() as u32;
-    Residual {
-        mean: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
-        max: errs.iter().copied().fold(0.0, f64::max),
-        texels,
-    }
+/// [`footprint_cells`] on a grid of `rows × cols` cells.
+fn footprint_bounds(
+    rows: usize,
+    cols: usize,
+    span: usize,
+    r: usize,
+    c: usize,
+) -> (usize, usize, usize, usize) {
+    (
+        r * span,
+        ((r + 1) * span).min(rows),
+        c * span,
+        ((c + 1) * span).min(cols),
+    )
 }

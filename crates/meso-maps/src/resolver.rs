@@ -510,7 +510,7 @@ pub fn texel_ndf(
     let horizon = lv
         .texel_horizon(row, col)
         .map_err(|e| MaterialError(format!("[ndf] texel: {e}")))?;
-    resolved(lobes, horizon, &what)
+    resolved(&lobes, horizon, &what)
 }
 
 impl NdfResolver for MapsResolver {
@@ -533,7 +533,7 @@ impl NdfResolver for MapsResolver {
                 let horizon = top
                     .texel_horizon(0, 0)
                     .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
-                resolved(lobes, horizon, &format!("[ndf] {}", file.display()))
+                resolved(&lobes, horizon, &format!("[ndf] {}", file.display()))
             }
             "map" => self.resolve_map(table, file),
             other => merr(format!(

@@ -47,7 +47,7 @@ fn level_errors(
                     let truth = t / n;
                     let lobes = lev.texel_lobes(r, c).unwrap();
                     let fit =
-                        phong_peaks_average(lobes, &|m| facet_shading(eta, m, wi, h), (400, 96));
+                        phong_peaks_average(&lobes, &|m| facet_shading(eta, m, wi, h), (400, 96));
                     err += (fit - truth).abs();
                     sum += truth;
                 }

@@ -66,8 +66,9 @@ fn compare(a: &Pyramid, b: &Pyramid, w: &mut Worst) {
                 .max((x.exponent - y.exponent).abs() / x.exponent.max(1e-300));
         }
         for t in 0..la.texels() {
-            let ws: f64 = lb.lobes[lb.lobe_start[t] as usize..lb.lobe_start[t + 1] as usize]
-                .iter()
+            let ws: f64 = lb
+                .lobes
+                .range(lb.lobe_start[t] as usize, lb.lobe_start[t + 1] as usize)
                 .map(|l| l.weight)
                 .sum();
             assert!(
@@ -364,11 +365,86 @@ fn damaged_and_bomb_files_are_refused_naming_the_file() {
 
     // A pyramid with a NaN is refused by the writer, and nothing is written.
     let mut nan = p.clone();
-    nan.levels[0].lobes[0].exponent = f64::NAN;
+    let mut bad = nan.levels[0].lobes.get(0);
+    bad.exponent = f64::NAN;
+    nan.levels[0].lobes.set(0, bad);
     let out = tmp("nan.map");
     let _ = std::fs::remove_file(&out);
     let e = nan.write(&out).unwrap_err().to_string();
     assert!(e.contains("not written") && e.contains("exponent"), "{e}");
     assert!(!out.exists());
     assert!(nan.to_bytes().is_empty());
+}
+
+/// The compact (`f32`) levels against the `f64` path (`ExtractParams::compact_texels`): the
+/// same texels and lobe counts, residuals identical (measured on the `f64` fits), lobes and
+/// horizon statistics within one `f32` rounding (axes 1.2e-7 rad, weights — renormalised per
+/// texel by `texel_lobes` — 2.5e-7, exponents and horizon statistics 6e-8 relative), and the
+/// map files they write within one code step of each other with identical level tables.
+#[test]
+fn compact_levels_match_the_f64_path_within_f32_rounding() {
+    let map = fixtures::gaussian(64, 3.0, 0.15, 11, 0.1).unwrap();
+    let with = |compact_texels| {
+        let p = ExtractParams {
+            compact_texels,
+            ..ExtractParams::default()
+        };
+        extract(Source::Heights(&map), &p, &mut |_| {}).unwrap()
+    };
+    let full = with(usize::MAX);
+    let comp = with(0);
+    // By default (levels of ≥ 256² texels compact) a 64² map stays in f64.
+    assert_eq!(with(meso_maps::COMPACT_TEXELS), full);
+    assert!(full.levels.iter().all(|l| !l.lobes.is_compact()));
+    assert!(comp
+        .levels
+        .iter()
+        .all(|l| l.lobes.is_compact() && matches!(l.horizon, Some(meso_maps::Horizons::F32(_)))));
+    let rel = |a: f64, b: f64| (a - b).abs() / a.abs().max(1e-300);
+    for (a, b) in full.levels.iter().zip(&comp.levels) {
+        assert_eq!(a.lobe_start, b.lobe_start);
+        assert_eq!(a.residual, b.residual);
+        assert!(2 * b.bytes() <= a.bytes() + 4 * a.lobe_start.len());
+        for t in 0..a.texels() {
+            let (r, c) = (t / a.cols, t % a.cols);
+            let (la, lb) = (a.texel_lobes(r, c).unwrap(), b.texel_lobes(r, c).unwrap());
+            for (x, y) in la.iter().zip(&lb) {
+                assert!(x.axis.angle_between(y.axis) < 1.2e-7, "{x:?} {y:?}");
+                assert!((x.weight - y.weight).abs() < 2.5e-7, "{x:?} {y:?}");
+                assert!(rel(x.exponent, y.exponent) <= 6e-8, "{x:?} {y:?}");
+            }
+            let s: f64 = lb.iter().map(|l| l.weight).sum();
+            assert!((s - 1.0).abs() < 1e-12);
+            let (ha, hb) = (
+                a.texel_horizon(r, c).unwrap().unwrap(),
+                b.texel_horizon(r, c).unwrap().unwrap(),
+            );
+            assert_eq!(ha.weight, hb.weight);
+            for d in 0..4 {
+                assert!(rel(ha.mean[d], hb.mean[d]) <= 6e-8 || ha.mean[d] == 0.0);
+                assert!(rel(ha.var[d], hb.var[d]) <= 6e-8 || ha.var[d] == 0.0);
+            }
+        }
+    }
+    // The files: the same level table (sizes, lobe counts, residuals), values within a code.
+    let (fa, fb) = (full.to_bytes(), comp.to_bytes());
+    let table = 48 + 36 * full.levels.len();
+    assert_eq!(fa[..table], fb[..table]);
+    let (ra, rb) = (
+        Pyramid::from_bytes(Path::new("f64.map"), &fa).unwrap(),
+        Pyramid::from_bytes(Path::new("f32.map"), &fb).unwrap(),
+    );
+    let mut w = Worst::default();
+    compare(&ra, &rb, &mut w);
+    eprintln!("format 3 of the f32 levels against the f64 ones: {w:?}");
+    assert!(w.axis_rad < 6e-6, "{w:?}");
+    assert!(w.weight < 2.0 / 65535.0, "{w:?}");
+    assert!(w.eta_rel < 2.2e-4, "{w:?}");
+    assert!(w.horizon_mean_rad < 4e-4, "{w:?}");
+    assert!(w.horizon_sd_rad < 2e-4, "{w:?}");
+    // A compact pyramid read back and written again gives the same bytes.
+    let mut rc = Pyramid::from_bytes(Path::new("f32.map"), &fb).unwrap();
+    rc.compact(0);
+    assert!(rc.levels.iter().all(|l| l.lobes.is_compact()));
+    assert_eq!(rc.to_bytes(), fb);
 }

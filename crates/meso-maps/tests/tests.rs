@@ -558,7 +558,7 @@ mod pyramid {
         assert!(lobes.len() >= 3, "{} lobes", lobes.len());
         // Eq. 15: the cylinder's normals lie on the great circle y = 0 (axis along y).
         let mut spread = 0.0f64;
-        for l in lobes {
+        for l in &lobes {
             assert!(
                 l.axis.y.abs() < 1e-6,
                 "axis {:?} off the great circle",
@@ -760,7 +760,7 @@ mod brdf {
             ),
         ] {
             let p = pyr(&map, 7);
-            let fit = lobes_ndf(p.top().texel_lobes(0, 0).unwrap());
+            let fit = lobes_ndf(&p.top().texel_lobes(0, 0).unwrap());
             let exact = facets_ndf(&map);
             // Errors relative to the largest value of the set (a peaked BRDF's far tail is
             // reported, not bounded: see docs/heightmaps.md).

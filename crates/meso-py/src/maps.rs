@@ -303,9 +303,9 @@ impl Level {
         for t in 0..l.rows * l.cols {
             let m = map_texel(l, t);
             let (a, b) = (l.lobe_start[m] as usize, l.lobe_start[m + 1] as usize);
-            for (j, lobe) in l.lobes[a..b].iter().enumerate().take(k) {
+            for (j, lobe) in l.lobes.range(a, b).enumerate().take(k) {
                 let at = (t * k + j) * N;
-                v[at..at + N].copy_from_slice(&f(lobe));
+                v[at..at + N].copy_from_slice(&f(&lobe));
             }
         }
         Ok(PyArray1::from_vec(py, v))

@@ -19,13 +19,13 @@
 //! budget.
 
 use super::{Reader, LEVEL_HEADER_BYTES};
+use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
 use crate::error::{MapError, Result};
 use crate::horizon::HorizonStats;
 use crate::limits::ETA_MAX;
 use crate::pyramid::{Level, Pyramid, Residual};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
-use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
 use std::io::{Read, Write};
 
@@ -37,7 +37,8 @@ pub const MAX_DEFLATE_RATIO: u64 = 1032;
 const RATIO_SLACK: u64 = 1024;
 /// Bytes of a stream header: id, filter, 2 reserved, raw length (u64), compressed length (u64).
 const STREAM_HEADER: usize = 20;
-/// Bytes in memory of one lobe (`PhongLobe`) and of one texel's horizon statistics.
+/// Bytes in memory of one `f64` lobe (`PhongLobe`) and of one texel's `f64` horizon statistics
+/// (half on the levels kept in `f32`, `crate::compact`).
 const LOBE_MEM: u64 = 40;
 const HORIZON_MEM: u64 = 72;
 const Q: f64 = 65535.0;
@@ -293,9 +294,9 @@ fn weight_codes(w: &[f64]) -> Vec<u32> {
 pub(super) fn unstorable(p: &Pyramid) -> Option<String> {
     for (k, l) in p.levels.iter().enumerate() {
         for t in 0..l.texels() {
-            let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+            let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
             let mut sum = 0.0;
-            for lobe in lobes {
+            for lobe in l.lobes.range(a, b) {
                 let a = lobe.axis;
                 if !a.is_finite() || (a.length() - 1.0).abs() > 1e-3 {
                     return Some(format!("level {k}: lobe axis {a} is not a unit vector"));
@@ -309,11 +310,11 @@ pub(super) fn unstorable(p: &Pyramid) -> Option<String> {
                 }
                 sum += lobe.weight;
             }
-            if !lobes.is_empty() && (sum.is_nan() || sum <= 0.0) {
+            if b > a && (sum.is_nan() || sum <= 0.0) {
                 return Some(format!("level {k}: a texel's lobe weights sum to {sum}"));
             }
         }
-        for s in l.horizon.iter().flatten() {
+        for s in l.horizon.iter().flat_map(Horizons::iter) {
             if !(s.weight.is_finite()
                 && s.weight >= 0.0
                 && s.mean.iter().chain(&s.var).all(|v| v.is_finite()))
@@ -342,7 +343,11 @@ pub(super) fn unstorable(p: &Pyramid) -> Option<String> {
 /// The raw (unfiltered) columns of stream `s` of `p`.
 fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
     let lobes = || p.levels.iter().flat_map(|l| l.lobes.iter());
-    let horizon = || p.levels.iter().flat_map(|l| l.horizon.iter().flatten());
+    let horizon = || {
+        p.levels
+            .iter()
+            .flat_map(|l| l.horizon.iter().flat_map(Horizons::iter))
+    };
     match s {
         0 => vec![p
             .levels
@@ -360,10 +365,8 @@ fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
             let mut col = Vec::new();
             for l in &p.levels {
                 for w in l.lobe_start.windows(2) {
-                    let t = &l.lobes[w[0] as usize..w[1] as usize];
-                    col.extend(weight_codes(
-                        &t.iter().map(|x| x.weight).collect::<Vec<_>>(),
-                    ));
+                    let t = l.lobes.range(w[0] as usize, w[1] as usize);
+                    col.extend(weight_codes(&t.map(|x| x.weight).collect::<Vec<_>>()));
                 }
             }
             vec![col]
@@ -411,32 +414,65 @@ pub(super) fn write_levels(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()
     let counts: Vec<u8> = columns(p, 0)[0].iter().map(|&c| c as u8).collect();
     let layout = Layout::new(levels, counts);
     let n = if has_h { STREAMS.len() } else { 4 };
-    // Each stream with and without prediction, compressed in parallel; the smaller is kept.
-    let encoded: Vec<(u8, usize, Vec<u8>)> = (0..n)
-        .into_par_iter()
-        .map(|s| {
-            let (_, per_lobe, _, bytes, bits) = STREAMS[s];
-            let cols = columns(p, s);
-            [false, true]
-                .into_par_iter()
-                .map(|delta| {
-                    let raw = planes(&layout, per_lobe, &cols, (bytes, bits), delta);
-                    (u8::from(delta), raw.len(), deflate(&raw))
-                })
-                .min_by_key(|e| e.2.len())
-                .expect("two candidates")
-        })
-        .collect();
-    for (s, (filter, raw_len, comp)) in encoded.iter().enumerate() {
-        w.write_all(&[s as u8, *filter, 0, 0])?;
-        w.write_all(&(*raw_len as u64).to_le_bytes())?;
+    // One stream at a time (its columns, both byte-plane layouts and their deflated bytes are
+    // all that is held beside the pyramid), compressed with and without prediction in
+    // parallel; the smaller is kept.
+    for (s, &(_, per_lobe, _, bytes, bits)) in STREAMS.iter().enumerate().take(n) {
+        let cols = columns(p, s);
+        let encode = |delta: bool| {
+            let raw = planes(&layout, per_lobe, &cols, (bytes, bits), delta);
+            (u8::from(delta), raw.len(), deflate(&raw))
+        };
+        let (plain, pred) = rayon::join(|| encode(false), || encode(true));
+        drop(cols);
+        let (filter, raw_len, comp) = if pred.2.len() < plain.2.len() {
+            pred
+        } else {
+            plain
+        };
+        w.write_all(&[s as u8, filter, 0, 0])?;
+        w.write_all(&(raw_len as u64).to_le_bytes())?;
         w.write_all(&(comp.len() as u64).to_le_bytes())?;
-        w.write_all(comp)?;
+        w.write_all(&comp)?;
     }
     Ok(())
 }
 
-/// Read the levels of a format-3 file after the common header (`docs/map-format.md`).
+/// One entry of a format-3 level table, with where the level starts among all texels.
+#[derive(Clone, Copy)]
+struct TableEntry {
+    cols: usize,
+    rows: usize,
+    span: usize,
+    lobes: usize,
+    residual: Residual,
+    /// Index of the level's first texel among the pyramid's texels.
+    t0: usize,
+}
+
+impl TableEntry {
+    fn texels(&self) -> usize {
+        self.cols * self.rows
+    }
+    /// Whether the level is kept in `f32` in memory ([`COMPACT_TEXELS`]).
+    fn compact(&self) -> bool {
+        self.texels() >= COMPACT_TEXELS
+    }
+}
+
+/// The decoded columns of streams 1–5: octahedral axis codes (u, v), weight codes, exponent
+/// codes, horizon weights (`f32` bits) and the 8 horizon angle codes.
+struct Columns {
+    axes: Vec<Vec<u32>>,
+    weights: Vec<u32>,
+    etas: Vec<u32>,
+    hw: Vec<u32>,
+    ha: Vec<Vec<u32>>,
+}
+
+/// Read the levels of a format-3 file after the common header (`docs/map-format.md`): the
+/// level table, the memory budget, the streams inflated, the lobe counts checked, the columns
+/// decoded, the levels built.
 pub(super) fn read_levels(
     r: &mut Reader<'_>,
     cols: usize,
@@ -445,6 +481,63 @@ pub(super) fn read_levels(
     max_lobes: usize,
     has_h: bool,
 ) -> Result<Vec<Level>> {
+    let (table, texels, lobes) = read_table(r, cols, rows, nlev, max_lobes)?;
+    let n_streams = if has_h { STREAMS.len() } else { 4 };
+    let expect = |s: usize| {
+        (if STREAMS[s].1 { lobes } else { texels }) * (STREAMS[s].2 * STREAMS[s].3) as u64
+    };
+    // The memory of reading, before allocating any: the file, the pyramid, every inflated
+    // stream and every decoded column (4 bytes a value) with the lobe layout (9 bytes a
+    // texel), as if all were held at once (an upper bound: the streams are freed as they are
+    // decoded).
+    let raw: u64 = (0..n_streams).map(expect).sum();
+    let decoded: u64 = (1..n_streams)
+        .map(|s| (if STREAMS[s].1 { lobes } else { texels }) * 4 * STREAMS[s].2 as u64)
+        .sum::<u64>()
+        + 9 * texels;
+    let need = r.b.len() as u64 + pyramid_bytes(&table, has_h) + raw + decoded;
+    meso_core::budget::check(&r.path, "reading the map file", need)?;
+
+    let mut raws = Vec::with_capacity(n_streams);
+    for s in 0..n_streams {
+        raws.push(read_stream(r, s, expect(s))?);
+    }
+    let levels_at: Vec<(usize, usize)> = table.iter().map(|t| (t.t0, t.texels())).collect();
+    let counts = read_counts(r, &table, &levels_at, texels as usize, &raws[0], max_lobes)?;
+    let layout = Layout::new(levels_at, counts);
+    let columns = decode_columns(r, &layout, raws, has_h)?;
+    table
+        .iter()
+        .enumerate()
+        .map(|(k, t)| build_level(r, k, t, &layout, &columns, has_h))
+        .collect()
+}
+
+/// The memory (bytes) of the pyramid a level table describes: per lobe 40 bytes (`f64`) or 20
+/// (`f32` levels), per texel a lobe start (4) and with horizon statistics 72 or 36.
+fn pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
+    table
+        .iter()
+        .map(|t| {
+            let (lobe, hz) = if t.compact() {
+                (LOBE_MEM / 2, HORIZON_MEM / 2)
+            } else {
+                (LOBE_MEM, HORIZON_MEM)
+            };
+            t.lobes as u64 * lobe + t.texels() as u64 * (4 + if has_h { hz } else { 0 })
+        })
+        .sum()
+}
+
+/// The level table (checked against `cols × rows` and `max_lobes`), with the pyramid's total
+/// texels and lobes.
+fn read_table(
+    r: &mut Reader<'_>,
+    cols: usize,
+    rows: usize,
+    nlev: usize,
+    max_lobes: usize,
+) -> Result<(Vec<TableEntry>, u64, u64)> {
     if ((r.b.len() - r.pos) as u64) < nlev as u64 * LEVEL_HEADER_BYTES {
         return Err(r.err("truncated in the level table".into()));
     }
@@ -453,198 +546,301 @@ pub(super) fn read_levels(
     let (mut texels, mut lobes) = (0u64, 0u64);
     for k in 0..nlev {
         let nl = r.level_header(k, ec, er, max_lobes)?;
-        let (lc, lr, span) = (ec, er, 1usize << k);
         let residual = Residual {
             mean: r.f64("residual")?,
             max: r.f64("residual")?,
             texels: r.u32("residual texels")?,
         };
-        table.push((lc, lr, span, nl, residual, texels as usize));
-        texels += (lc * lr) as u64;
+        table.push(TableEntry {
+            cols: ec,
+            rows: er,
+            span: 1usize << k,
+            lobes: nl,
+            residual,
+            t0: texels as usize,
+        });
+        texels += (ec * er) as u64;
         lobes += nl as u64;
         ec = ec.div_ceil(2);
         er = er.div_ceil(2);
     }
-    // The memory of the pyramid and of the largest inflated stream, before allocating any.
-    let raw_max = (lobes * 6).max(if has_h { texels * 16 } else { texels });
-    let need = r.b.len() as u64
-        + lobes * LOBE_MEM
-        + texels * (4 + if has_h { HORIZON_MEM } else { 0 })
-        + 2 * raw_max;
-    meso_core::budget::check(&r.path, "reading the map file", need)?;
+    Ok((table, texels, lobes))
+}
 
-    let n_streams = if has_h { STREAMS.len() } else { 4 };
-    let mut raws = Vec::with_capacity(n_streams);
-    for (s, &(name, per_lobe, ncols, bytes, _)) in STREAMS.iter().enumerate().take(n_streams) {
-        let head = r.take(STREAM_HEADER, "a stream header")?;
-        let (id, filter) = (head[0], head[1]);
-        if id as usize != s || head[2] != 0 || head[3] != 0 || filter > 1 {
-            return Err(r.err(format!(
-                "stream {s} ({name}): bad header (id {id}, filter {filter})"
-            )));
-        }
-        let raw_len = u64::from_le_bytes(head[4..12].try_into().unwrap());
-        let comp_len = u64::from_le_bytes(head[12..20].try_into().unwrap());
-        let expect = if per_lobe { lobes } else { texels } * (ncols * bytes) as u64;
-        if raw_len != expect {
-            return Err(r.err(format!(
-                "stream {s} ({name}) claims {raw_len} bytes; the level table implies {expect}"
-            )));
-        }
-        if raw_len
-            > comp_len
-                .saturating_mul(MAX_DEFLATE_RATIO)
-                .saturating_add(RATIO_SLACK)
-        {
-            return Err(r.err(format!(
-                "stream {s} ({name}) claims {raw_len} bytes from {comp_len} compressed bytes, \
-                 more than deflate's {MAX_DEFLATE_RATIO}:1 (a decompression bomb?)"
-            )));
-        }
-        if ((r.b.len() - r.pos) as u64) < comp_len {
-            return Err(r.err(format!("truncated in stream {s} ({name})")));
-        }
-        let comp = r.take(comp_len as usize, name)?;
-        let mut raw = Vec::with_capacity(raw_len as usize);
-        let mut d = flate2::read::DeflateDecoder::new(comp);
-        (&mut d)
-            .take(raw_len + 1)
-            .read_to_end(&mut raw)
-            .map_err(|e| {
-                r.err(format!(
-                    "stream {s} ({name}): corrupt compressed data ({e})"
-                ))
-            })?;
-        if raw.len() as u64 != raw_len {
-            return Err(r.err(format!(
-                "stream {s} ({name}) inflates to {}{} bytes, its header says {raw_len}",
-                if raw.len() as u64 > raw_len {
-                    "more than "
-                } else {
-                    ""
-                },
-                raw.len()
-            )));
-        }
-        if d.total_in() != comp_len {
-            return Err(r.err(format!(
-                "stream {s} ({name}): {} bytes after the end of the compressed data",
-                comp_len - d.total_in()
-            )));
-        }
-        raws.push((raw, filter == 1));
+/// Stream `s`: its header checked (id, reserved bytes, filter, the raw length `expect` the
+/// table implies, deflate's largest ratio, the file's end), its bytes inflated and checked
+/// against the header. Returns the raw bytes and whether they are filtered.
+fn read_stream(r: &mut Reader<'_>, s: usize, expect: u64) -> Result<(Vec<u8>, bool)> {
+    let name = STREAMS[s].0;
+    let head = r.take(STREAM_HEADER, "a stream header")?;
+    let (id, filter) = (head[0], head[1]);
+    if id as usize != s || head[2] != 0 || head[3] != 0 || filter > 1 {
+        return Err(r.err(format!(
+            "stream {s} ({name}): bad header (id {id}, filter {filter})"
+        )));
     }
+    let raw_len = u64::from_le_bytes(head[4..12].try_into().unwrap());
+    let comp_len = u64::from_le_bytes(head[12..20].try_into().unwrap());
+    if raw_len != expect {
+        return Err(r.err(format!(
+            "stream {s} ({name}) claims {raw_len} bytes; the level table implies {expect}"
+        )));
+    }
+    if raw_len
+        > comp_len
+            .saturating_mul(MAX_DEFLATE_RATIO)
+            .saturating_add(RATIO_SLACK)
+    {
+        return Err(r.err(format!(
+            "stream {s} ({name}) claims {raw_len} bytes from {comp_len} compressed bytes, \
+             more than deflate's {MAX_DEFLATE_RATIO}:1 (a decompression bomb?)"
+        )));
+    }
+    if ((r.b.len() - r.pos) as u64) < comp_len {
+        return Err(r.err(format!("truncated in stream {s} ({name})")));
+    }
+    let comp = r.take(comp_len as usize, name)?;
+    let mut raw = Vec::with_capacity(raw_len as usize);
+    let mut d = flate2::read::DeflateDecoder::new(comp);
+    (&mut d)
+        .take(raw_len + 1)
+        .read_to_end(&mut raw)
+        .map_err(|e| {
+            r.err(format!(
+                "stream {s} ({name}): corrupt compressed data ({e})"
+            ))
+        })?;
+    if raw.len() as u64 != raw_len {
+        return Err(r.err(format!(
+            "stream {s} ({name}) inflates to {}{} bytes, its header says {raw_len}",
+            if raw.len() as u64 > raw_len {
+                "more than "
+            } else {
+                ""
+            },
+            raw.len()
+        )));
+    }
+    if d.total_in() != comp_len {
+        return Err(r.err(format!(
+            "stream {s} ({name}): {} bytes after the end of the compressed data",
+            comp_len - d.total_in()
+        )));
+    }
+    Ok((raw, filter == 1))
+}
 
-    // Lobe counts first: they lay out every other stream.
-    let levels_at: Vec<(usize, usize)> = table.iter().map(|t| (t.5, t.0 * t.1)).collect();
+/// The columns of stream `s` from its raw bytes, or the error naming a value wider than the
+/// stream's bits.
+fn decode(
+    r: &Reader<'_>,
+    layout: &Layout,
+    s: usize,
+    raw: &(Vec<u8>, bool),
+) -> Result<Vec<Vec<u32>>> {
+    unplanes(layout, s, &raw.0, raw.1).map_err(|v| MapError::MapFormat {
+        path: r.path.clone(),
+        message: format!(
+            "stream {s} ({}): stored value {v} is wider than its {} bits",
+            STREAMS[s].0, STREAMS[s].4
+        ),
+    })
+}
+
+/// The lobe counts (stream 0), which lay out every other stream: each at most `max_lobes`,
+/// each level's adding up to its table entry.
+fn read_counts(
+    r: &Reader<'_>,
+    table: &[TableEntry],
+    levels_at: &[(usize, usize)],
+    texels: usize,
+    raw: &(Vec<u8>, bool),
+    max_lobes: usize,
+) -> Result<Vec<u8>> {
     let probe = Layout {
-        levels: levels_at.clone(),
-        counts: vec![0; texels as usize],
-        start: vec![0; texels as usize + 1],
+        levels: levels_at.to_vec(),
+        counts: vec![0; texels],
+        start: vec![0; texels + 1],
     };
-    let decode = |layout: &Layout, s: usize, raw: &[u8], delta: bool| {
-        unplanes(layout, s, raw, delta).map_err(|v| MapError::MapFormat {
-            path: r.path.clone(),
-            message: format!(
-                "stream {s} ({}): stored value {v} is wider than its {} bits",
-                STREAMS[s].0, STREAMS[s].4
-            ),
-        })
-    };
-    let counts: Vec<u8> = decode(&probe, 0, &raws[0].0, raws[0].1)?
+    let counts: Vec<u8> = decode(r, &probe, 0, raw)?
         .swap_remove(0)
         .into_iter()
         .map(|c| c as u8)
         .collect();
     drop(probe);
     for (k, t) in table.iter().enumerate() {
-        let c = &counts[t.5..t.5 + t.0 * t.1];
+        let c = &counts[t.t0..t.t0 + t.texels()];
         if let Some(&bad) = c.iter().find(|&&c| c as usize > max_lobes) {
             return Err(r.err(format!("level {k}: a texel has {bad} lobes")));
         }
         let sum: usize = c.iter().map(|&c| c as usize).sum();
-        if sum != t.3 {
+        if sum != t.lobes {
             return Err(r.err(format!(
                 "level {k}: lobe counts add to {sum}, header says {}",
-                t.3
+                t.lobes
             )));
         }
     }
-    let layout = Layout::new(levels_at, counts);
-    let axes = decode(&layout, 1, &raws[1].0, raws[1].1)?;
-    raws[1].0 = Vec::new();
-    let weights = decode(&layout, 2, &raws[2].0, raws[2].1)?.swap_remove(0);
-    raws[2].0 = Vec::new();
-    let etas = decode(&layout, 3, &raws[3].0, raws[3].1)?.swap_remove(0);
-    raws[3].0 = Vec::new();
+    Ok(counts)
+}
+
+/// Streams 1–5 decoded, each stream's raw bytes freed once decoded.
+fn decode_columns(
+    r: &Reader<'_>,
+    layout: &Layout,
+    mut raws: Vec<(Vec<u8>, bool)>,
+    has_h: bool,
+) -> Result<Columns> {
+    let mut next = |s: usize| {
+        let c = decode(r, layout, s, &raws[s]);
+        raws[s].0 = Vec::new();
+        c
+    };
+    let axes = next(1)?;
+    let weights = next(2)?.swap_remove(0);
+    let etas = next(3)?.swap_remove(0);
     let (hw, ha) = if has_h {
-        (
-            decode(&layout, 4, &raws[4].0, raws[4].1)?.swap_remove(0),
-            decode(&layout, 5, &raws[5].0, raws[5].1)?,
-        )
+        (next(4)?.swap_remove(0), next(5)?)
     } else {
         (Vec::new(), Vec::new())
     };
-    drop(raws);
+    Ok(Columns {
+        axes,
+        weights,
+        etas,
+        hw,
+        ha,
+    })
+}
 
-    let mut levels = Vec::with_capacity(nlev);
-    for (k, &(lc, lr, span, nl, residual, t0)) in table.iter().enumerate() {
-        let n = lc * lr;
-        let mut lobe_start = Vec::with_capacity(n + 1);
-        let g0 = layout.start[t0];
-        lobe_start.extend(layout.start[t0..=t0 + n].iter().map(|&s| (s - g0) as u32));
-        let mut lobes_k = Vec::with_capacity(nl);
-        for t in t0..t0 + n {
-            let (a, b) = (layout.start[t], layout.start[t + 1]);
-            let sum: u32 = weights[a..b].iter().sum();
-            if b > a && sum == 0 {
-                return Err(r.err(format!(
-                    "level {k}: texel {} has lobes whose weights are all 0",
-                    t - t0
-                )));
-            }
-            for i in a..b {
-                lobes_k.push(PhongLobe {
-                    axis: oct_decode(axes[0][i], axes[1][i]),
-                    weight: f64::from(weights[i]) / f64::from(sum),
-                    exponent: eta_decode(etas[i] as u16),
-                });
+/// The sum of a texel's weight codes (texel `t` of level `k`), which must not be 0 when it
+/// has lobes.
+fn weight_sum(r: &Reader<'_>, k: usize, t: usize, codes: &[u32]) -> Result<u32> {
+    let sum: u32 = codes.iter().sum();
+    if !codes.is_empty() && sum == 0 {
+        return Err(r.err(format!(
+            "level {k}: texel {t} has lobes whose weights are all 0"
+        )));
+    }
+    Ok(sum)
+}
+
+/// A horizon weight from its `f32` bits (level `k`): finite and ≥ 0.
+fn horizon_weight(r: &Reader<'_>, k: usize, bits: u32) -> Result<f64> {
+    let weight = f64::from(f32::from_bits(bits));
+    if !(weight.is_finite() && weight >= 0.0) {
+        return Err(r.err(format!("level {k}: horizon weight {weight}")));
+    }
+    Ok(weight)
+}
+
+/// Check the levels of a format-3 file after the common header as [`read_levels`] does, without
+/// building them: the level table, then each stream inflated, decoded, checked and dropped
+/// before the next (the lobe counts, every stream's width, each texel's weight codes, the
+/// horizon weights). Its memory: the lobe layout (9 bytes per texel) and one stream, raw and
+/// decoded.
+pub(super) fn check_levels(
+    r: &mut Reader<'_>,
+    cols: usize,
+    rows: usize,
+    nlev: usize,
+    max_lobes: usize,
+    has_h: bool,
+) -> Result<()> {
+    let (table, texels, lobes) = read_table(r, cols, rows, nlev, max_lobes)?;
+    let expect =
+        |s: usize| if STREAMS[s].1 { lobes } else { texels } * (STREAMS[s].2 * STREAMS[s].3) as u64;
+    let levels_at: Vec<(usize, usize)> = table.iter().map(|t| (t.t0, t.texels())).collect();
+    let raw = read_stream(r, 0, expect(0))?;
+    let counts = read_counts(r, &table, &levels_at, texels as usize, &raw, max_lobes)?;
+    drop(raw);
+    let layout = Layout::new(levels_at, counts);
+    for s in 1..if has_h { STREAMS.len() } else { 4 } {
+        let raw = read_stream(r, s, expect(s))?;
+        let cols = decode(r, &layout, s, &raw)?;
+        drop(raw);
+        for (k, e) in table.iter().enumerate() {
+            for t in e.t0..e.t0 + e.texels() {
+                match s {
+                    2 => {
+                        let (a, b) = (layout.start[t], layout.start[t + 1]);
+                        weight_sum(r, k, t - e.t0, &cols[0][a..b])?;
+                    }
+                    4 => {
+                        horizon_weight(r, k, cols[0][t])?;
+                    }
+                    _ => break,
+                }
             }
         }
-        let horizon = if has_h {
-            let mut h = Vec::with_capacity(n);
-            for t in t0..t0 + n {
-                let weight = f64::from(f32::from_bits(hw[t]));
-                if !(weight.is_finite() && weight >= 0.0) {
-                    return Err(r.err(format!("level {k}: horizon weight {weight}")));
-                }
-                let mut s = HorizonStats {
-                    weight,
-                    ..HorizonStats::default()
-                };
-                for d in 0..4 {
-                    let (qm, qs) = (ha[d][t], ha[4 + d][t]);
-                    s.mean[d] = angle_decode(qm as u16, MEAN_SPAN);
-                    let sd = angle_decode(qs as u16, SD_SPAN);
-                    s.var[d] = sd * sd;
-                }
-                h.push(s);
-            }
-            Some(h)
-        } else {
-            None
-        };
-        levels.push(Level {
-            cols: lc,
-            rows: lr,
-            span,
-            lobe_start,
-            lobes: lobes_k,
-            horizon,
-            residual,
-        });
     }
-    Ok(levels)
+    Ok(())
+}
+
+/// Level `k` from the decoded columns: its lobes (a texel's weights normalised by their
+/// codes' sum, which must not be 0) and horizon statistics (a weight that is negative or not
+/// finite refused), in `f32` on big levels ([`TableEntry::compact`]).
+fn build_level(
+    r: &Reader<'_>,
+    k: usize,
+    e: &TableEntry,
+    layout: &Layout,
+    c: &Columns,
+    has_h: bool,
+) -> Result<Level> {
+    let (n, t0) = (e.texels(), e.t0);
+    let mut lobe_start = Vec::with_capacity(n + 1);
+    let g0 = layout.start[t0];
+    lobe_start.extend(layout.start[t0..=t0 + n].iter().map(|&s| (s - g0) as u32));
+    let mut lobes = if e.compact() {
+        Lobes::F32(Vec::with_capacity(e.lobes))
+    } else {
+        Lobes::F64(Vec::with_capacity(e.lobes))
+    };
+    for t in t0..t0 + n {
+        let (a, b) = (layout.start[t], layout.start[t + 1]);
+        let sum = weight_sum(r, k, t - t0, &c.weights[a..b])?;
+        for i in a..b {
+            lobes.push(PhongLobe {
+                axis: oct_decode(c.axes[0][i], c.axes[1][i]),
+                weight: f64::from(c.weights[i]) / f64::from(sum),
+                exponent: eta_decode(c.etas[i] as u16),
+            });
+        }
+    }
+    let horizon = if has_h {
+        let mut h = if e.compact() {
+            Horizons::F32(Vec::with_capacity(n))
+        } else {
+            Horizons::F64(Vec::with_capacity(n))
+        };
+        for t in t0..t0 + n {
+            let weight = horizon_weight(r, k, c.hw[t])?;
+            let mut s = HorizonStats {
+                weight,
+                ..HorizonStats::default()
+            };
+            for d in 0..4 {
+                let (qm, qs) = (c.ha[d][t], c.ha[4 + d][t]);
+                s.mean[d] = angle_decode(qm as u16, MEAN_SPAN);
+                let sd = angle_decode(qs as u16, SD_SPAN);
+                s.var[d] = sd * sd;
+            }
+            h.extend_from_slice(&[s]);
+        }
+        Some(h)
+    } else {
+        None
+    };
+    Ok(Level {
+        cols: e.cols,
+        rows: e.rows,
+        span: e.span,
+        lobe_start,
+        lobes,
+        horizon,
+        residual: e.residual,
+    })
 }
 
 #[cfg(test)]

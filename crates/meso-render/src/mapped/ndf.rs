@@ -180,7 +180,7 @@ fn projected_shares(pyramid: &Pyramid) -> Vec<Vec<f64>> {
                     continue;
                 }
                 let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
-                for (lobe, &mj) in l0.lobes[ca..cb].iter().zip(&base[ca..cb]) {
+                for (lobe, &mj) in l0.lobes.range(ca, cb).zip(&base[ca..cb]) {
                     let m = lobe.axis;
                     if mj <= 0.0 {
                         continue;
@@ -188,7 +188,7 @@ fn projected_shares(pyramid: &Pyramid) -> Vec<Vec<f64>> {
                     // Log responsibilities (log-sum-exp: sharp lobes underflow).
                     logr.clear();
                     let mut best = f64::NEG_INFINITY;
-                    for p in &l.lobes[pa..pb] {
+                    for p in l.lobes.range(pa, pb) {
                         let x = 0.5 * (1.0 + p.axis.dot(m));
                         let v = if x > 0.0 && p.weight > 0.0 {
                             p.weight.ln() + (p.exponent + 2.0).ln() + 0.5 * p.exponent * x.ln()
@@ -202,7 +202,11 @@ fn projected_shares(pyramid: &Pyramid) -> Vec<Vec<f64>> {
                         // Opposite every lobe: the nearest axis takes it.
                         let near = (pa..pb)
                             .max_by(|&x, &y| {
-                                l.lobes[x].axis.dot(m).total_cmp(&l.lobes[y].axis.dot(m))
+                                l.lobes
+                                    .get(x)
+                                    .axis
+                                    .dot(m)
+                                    .total_cmp(&l.lobes.get(y).axis.dot(m))
                             })
                             .unwrap_or(pa);
                         mass[near] += mj;
@@ -326,8 +330,13 @@ impl NdfMapped {
             if general {
                 node_start.push(0u32);
             }
+            let mut src = Vec::new();
             for t in 0..l.texels() {
-                let src = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+                src.clear();
+                src.extend(
+                    l.lobes
+                        .range(l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize),
+                );
                 // Each lobe's share of the texel's projected area (see `projected_shares`)
                 // and its own projected area E[m_z⁺] per unit of weight.
                 let share = &shares[k][l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
@@ -395,7 +404,11 @@ impl NdfMapped {
                 lobes,
                 node_start,
                 nodes,
-                horizon: if shadowing { l.horizon.clone() } else { None },
+                horizon: if shadowing {
+                    l.horizon.as_ref().map(meso_maps::Horizons::to_vec)
+                } else {
+                    None
+                },
             });
         }
         if levels.is_empty() {

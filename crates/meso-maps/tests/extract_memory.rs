@@ -1,0 +1,100 @@
+//! The memory estimates of the extraction and of reading a map file against what is really
+//! allocated: this test binary counts every heap byte (a counting global allocator) and
+//! requires the peak of `extract` + `Pyramid::write` on a 256² height map, and of
+//! `Pyramid::read`, to stay under the budget's estimates (`extract_bytes`, the reader's
+//! check) while using at least a third of them (an estimate that is an upper bound, not a
+//! blanket). One test per binary: the counter sees only this test's allocations.
+
+use meso_maps::{extract, extract_bytes, fixtures, ExtractParams, Pyramid, Source};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+
+struct Counting;
+
+static NOW: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc(l) };
+        if !p.is_null() {
+            let now = NOW.fetch_add(l.size(), Relaxed) + l.size();
+            PEAK.fetch_max(now, Relaxed);
+        }
+        p
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) };
+        NOW.fetch_sub(l.size(), Relaxed);
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        let q = unsafe { System.realloc(p, l, new) };
+        if !q.is_null() {
+            if new >= l.size() {
+                let now = NOW.fetch_add(new - l.size(), Relaxed) + new - l.size();
+                PEAK.fetch_max(now, Relaxed);
+            } else {
+                NOW.fetch_sub(l.size() - new, Relaxed);
+            }
+        }
+        q
+    }
+}
+
+#[global_allocator]
+static A: Counting = Counting;
+
+/// Bytes allocated at the peak since the last call, above what was allocated then.
+fn peak_since(reset: &mut usize) -> usize {
+    let p = PEAK.load(Relaxed).saturating_sub(*reset);
+    *reset = NOW.load(Relaxed);
+    PEAK.store(*reset, Relaxed);
+    p
+}
+
+#[test]
+fn extraction_and_reading_stay_within_their_estimates() {
+    let n = 256;
+    let map = fixtures::gaussian(n, 4.0, 0.1, 3, 0.01).unwrap();
+    let dir = std::env::temp_dir().join(format!("meso-maps-mem-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g.map");
+    let mut base = 0;
+    peak_since(&mut base);
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    pyr.write(&path).unwrap();
+    let used = peak_since(&mut base) as u64;
+    let est = extract_bytes(n, n, 2, n * n);
+    eprintln!("extract + write: {used} bytes at the peak, estimate {est}");
+    assert!(used <= est, "extraction used {used} bytes, estimated {est}");
+    assert!(
+        3 * used >= est,
+        "estimate {est} is more than 3 × the {used} bytes used"
+    );
+    drop(pyr);
+
+    // Reading: the reader's estimate (the file's bytes, the pyramid, twice the largest inflated
+    // stream), checked against the budget before anything is allocated, is at least what it
+    // allocates with the file, and within 3 × of it.
+    let bytes = std::fs::read(&path).unwrap();
+    peak_since(&mut base);
+    let back = Pyramid::from_bytes(&path, &bytes).unwrap();
+    let used = peak_since(&mut base) as u64 + bytes.len() as u64;
+    drop(back);
+    eprintln!("read: {used} bytes at the peak with the file");
+    meso_core::budget::set_budget(used - 1);
+    let refused = Pyramid::from_bytes(&path, &bytes).unwrap_err().to_string();
+    assert!(
+        refused.contains("g.map") && refused.contains("memory"),
+        "{refused}"
+    );
+    meso_core::budget::set_budget(3 * used);
+    let back = Pyramid::from_bytes(&path, &bytes).unwrap();
+    assert_eq!(back.levels.len(), 9);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
