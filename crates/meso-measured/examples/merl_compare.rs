@@ -4,18 +4,23 @@
 //!
 //! ```text
 //! cargo run --release -p meso-measured --example merl_compare -- \
-//!     --ngan ngan_cooktorrance.fit [--samples N] [--metric log|ngan] A.binary [B.binary ...]
+//!     --ngan ngan_cooktorrance.fit [--samples N] [--metric both|log|ngan] [--ggx-same-metric] \
+//!     A.binary [B.binary ...]
 //! ```
 //!
 //! For each MERL binary (the material's name is the file stem):
 //!
 //! * **meso** — what `meso fit DATA --lobes auto` does with its defaults: [`job::load`] with
-//!   `--samples 30000` fitted cells, Löw log metric (`--metric ngan`: Ngan's L2, as
-//!   `meso fit --metric ngan`), lobe axes on the normal (MERL data), every
+//!   `--samples 30000` fitted cells, both metrics at once ([`Metric::Both`]; `--metric log|ngan`:
+//!   one metric, as `meso fit --metric log|ngan`), lobe axes on the normal (MERL data), every
 //!   transfer family of `--transfer auto` fitted with up to [`job::AUTO_LOBES_MAX`] lobes and cut by
 //!   [`job::auto_lobes`], the family with the lowest held-out error kept ([`job::fit_best`]);
 //! * **GGX + Lambert** — the `ggx` baseline ([`model::Microfacet::GGX`]) fitted by the same
-//!   machinery to the same cells in the same metric (the one meso minimises);
+//!   machinery to the same cells, twice: in the Löw log metric alone (scored in log) and in Ngan's
+//!   L2 alone (scored in L2), so that each column holds the GGX fit best in that metric. It is also
+//!   fitted in meso's metric and scored in both (the column "GGX+L in meso's metric", and a
+//!   summary row). `--ggx-same-metric`: the main columns use that fit, as before (the only one
+//!   when meso fitted one metric);
 //! * **Ngan CT** — the published fit of Ngan, Durand & Matusik 2005 as distributed by
 //!   bsdfbenchmark/bbm (`fits/ngan_cooktorrance.fit`), evaluated as bbm's `NganCookTorrance`
 //!   (include/bsdfmodel/ngan.h) plus its Lambertian: see [`NganCt::eval`].
@@ -164,6 +169,8 @@ struct Row {
     material: String,
     meso: (f64, f64),
     ggx: (f64, f64),
+    /// GGX + Lambert fitted in meso's metric, scored in both.
+    ggx_same: (f64, f64),
     ngan: Option<(f64, f64)>,
 }
 
@@ -178,7 +185,8 @@ fn mark(a: f64, b: f64) -> &'static str {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut ngan_path: Option<PathBuf> = None;
     let mut target = 30_000usize;
-    let mut metric = Metric::LowLog;
+    let mut metric = Metric::Both;
+    let mut ggx_own_metric = true;
     let mut files = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -186,12 +194,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--ngan" => ngan_path = Some(args.next().ok_or("--ngan needs a file")?.into()),
             "--samples" => target = args.next().ok_or("--samples needs N")?.parse()?,
             "--metric" => {
-                let m = args.next().ok_or("--metric needs log or ngan")?;
-                metric = Metric::from_name(&m).ok_or(format!("--metric {m}: log or ngan"))?;
+                let m = args.next().ok_or("--metric needs both, log or ngan")?;
+                metric = Metric::from_name(&m).ok_or(format!("--metric {m}: both, log or ngan"))?;
             }
+            "--ggx-same-metric" => ggx_own_metric = false,
             "-h" | "--help" => {
                 println!(
-                    "merl_compare --ngan ngan_cooktorrance.fit [--samples N] [--metric log|ngan] A.binary [B.binary ...]"
+                    "merl_compare --ngan ngan_cooktorrance.fit [--samples N] [--metric both|log|ngan] [--ggx-same-metric] A.binary [B.binary ...]"
                 );
                 return Ok(());
             }
@@ -208,23 +217,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let candidates = auto_candidates();
     let names: Vec<&str> = candidates.iter().map(|t| t.name()).collect();
     println!(
-        "meso: `meso fit DATA --lobes auto{}` (families tried: {}; {} fitted cells; {} minimised by \
-         meso and GGX + Lambert). Errors: mean over r, g, b on held-out cells no fit and no choice \
-         saw.",
-        if metric == Metric::LowLog {
-            ""
-        } else {
-            " --metric ngan"
-        },
+        "meso: `meso fit DATA --lobes auto --metric {}` (families tried: {}; {} fitted cells; {} \
+         minimised by meso; GGX + Lambert fitted {}). Errors: mean over r, g, b on held-out cells \
+         no fit and no choice saw.",
+        metric.cli_name(),
         names.join(", "),
         target,
-        metric.name()
+        metric.name(),
+        if ggx_own_metric {
+            "twice, in each metric alone, each scored in its own metric".to_string()
+        } else {
+            format!("in {}", metric.name())
+        }
     );
     println!();
     println!(
-        "| material | meso family, K | log: meso | log: GGX+L | log: Ngan CT | L2: meso | L2: GGX+L | L2: Ngan CT | log vs GGX / Ngan | L2 vs GGX / Ngan | cells scored | time (s) |"
+        "| material | meso family, K | log: meso | log: GGX+L | log: Ngan CT | L2: meso | L2: GGX+L | L2: Ngan CT | log vs GGX / Ngan | L2 vs GGX / Ngan | GGX+L in meso's metric: log, L2 | cells scored | time (s) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut rows = Vec::new();
     let mut failed: Vec<String> = Vec::new();
     for path in &files {
@@ -270,12 +280,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             job::fit_best(job::AUTO_LOBES_MAX, true, &candidates, &fitset, &opts)?;
         let (lobes, _) = fits.last().ok_or("no lobe fit")?;
         let meso = score(&evaluate_samples_fn(&scored, |wi, wo| lobes.eval(wi, wo)));
+        // GGX + Lambert fitted twice, in each metric alone, and scored in the metric it
+        // minimised: the strongest fair baseline in each column.
         let ggx_model = model::Microfacet::GGX;
-        let g = meso_measured::fit::fit(&ggx_model, &fitset, &opts)?;
-        let ggx = score(&evaluate_samples_fn(&scored, |wi, wo| {
-            let mut scratch = [0.0; 4];
-            eval_model(&ggx_model, &g.theta, &g.amps, wi, wo, &mut scratch)
-        }));
+        let ggx_in = |m: Metric| -> Result<(f64, f64), Box<dyn std::error::Error>> {
+            let o = FitOptions { metric: m, ..opts };
+            let g = meso_measured::fit::fit(&ggx_model, &fitset, &o)?;
+            Ok(score(&evaluate_samples_fn(&scored, |wi, wo| {
+                let mut scratch = [0.0; 4];
+                eval_model(&ggx_model, &g.theta, &g.amps, wi, wo, &mut scratch)
+            })))
+        };
+        let ggx_same = ggx_in(metric)?;
+        let ggx = if ggx_own_metric {
+            (ggx_in(Metric::LowLog)?.0, ggx_in(Metric::NganL2)?.1)
+        } else {
+            ggx_same
+        };
         let ngan_fit = ngan.iter().find(|(n, _)| *n == material).map(|(_, p)| *p);
         let ngan_score =
             ngan_fit.map(|p| score(&evaluate_samples_fn(&scored, |wi, wo| p.eval(wi, wo))));
@@ -285,7 +306,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             None => ("—".into(), "—".into(), "—", "—"),
         };
         println!(
-            "| {material} | {} {} | {} | {} | {} | {} | {} | {} | {} / {} | {} / {} | {} | {:.1} |",
+            "| {material} | {} {} | {} | {} | {} | {} | {} | {} | {} / {} | {} / {} | {}, {} | {} | {:.1} |",
             family.name(),
             fits.len(),
             f(meso.0),
@@ -298,6 +319,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ml,
             mark(meso.1, ggx.1),
             m2,
+            f(ggx_same.0),
+            f(ggx_same.1),
             scored.len(),
             t0.elapsed().as_secs_f64()
         );
@@ -305,6 +328,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             material,
             meso,
             ggx,
+            ggx_same,
             ngan: ngan_score,
         });
     }
@@ -334,10 +358,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         pct(n_l2, nn)
     );
     println!(
-        "| fresh GGX + Lambert | {g_log} of {n} ({:.0} %) | {g_l2} of {n} ({:.0} %) |",
+        "| fresh GGX + Lambert{} | {g_log} of {n} ({:.0} %) | {g_l2} of {n} ({:.0} %) |",
+        if ggx_own_metric {
+            ", fitted in each metric alone"
+        } else {
+            ""
+        },
         pct(g_log, n),
         pct(g_l2, n)
     );
+    if ggx_own_metric {
+        let s_log = count(&|r| r.meso.0 < r.ggx_same.0, &all);
+        let s_l2 = count(&|r| r.meso.1 < r.ggx_same.1, &all);
+        println!(
+            "| fresh GGX + Lambert, fitted in {} as meso | {s_log} of {n} ({:.0} %) | {s_l2} of {n} ({:.0} %) |",
+            metric.name(),
+            pct(s_log, n),
+            pct(s_l2, n)
+        );
+    }
     let lost: Vec<String> = rows
         .iter()
         .filter(|r| {

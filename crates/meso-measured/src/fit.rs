@@ -29,7 +29,7 @@
 //! allocation only per chunk; each residual's Jacobian row is compact (`θ` and its own
 //! channel's amplitudes).
 
-use crate::metric::Metric;
+use crate::metric::{Metric, Objective};
 use crate::samples::{Sample, SampleSet};
 use glam::DVec3;
 use meso_core::linalg::cholesky_solve;
@@ -183,8 +183,8 @@ pub fn evaluate_samples_fn(
                 let f = f(s.wi, s.wo);
                 let ci = s.wi.z;
                 for (c, (&fc, &dc)) in f.iter().zip(&s.rgb).enumerate() {
-                    let a = Metric::NganL2.residual(fc, dc, ci);
-                    let b = Metric::LowLog.residual(fc, dc, ci);
+                    let a = crate::metric::l2_residual(fc, dc, ci);
+                    let b = crate::metric::log_residual(fc, dc, ci);
                     acc[c] += s.weight * a * a;
                     acc[3 + c] += s.weight * b * b;
                 }
@@ -342,7 +342,7 @@ pub struct FitResult {
 struct Problem<'a> {
     model: &'a dyn BrdfModel,
     data: &'a [Sample],
-    metric: Metric,
+    objective: Objective,
     nt: usize,
     nb: usize,
 }
@@ -373,7 +373,7 @@ impl VectorProblem for Problem<'_> {
                 for s in chunk {
                     let f = eval_model(self.model, theta, &amps, s.wi, s.wo, &mut scratch);
                     for (&fc, &dc) in f.iter().zip(&s.rgb) {
-                        let r = self.metric.residual(fc, dc, s.wi.z);
+                        let r = self.objective.residual(fc, dc, s.wi.z);
                         acc += s.weight * r * r;
                     }
                 }
@@ -443,8 +443,8 @@ impl VectorProblem for Problem<'_> {
                     let sw = s.weight.sqrt();
                     for (c, idx) in index.iter().enumerate() {
                         let f: f64 = (0..nb).map(|j| amps[j][c] * b0[j]).sum();
-                        let r = sw * self.metric.residual(f, s.rgb[c], s.wi.z);
-                        let dr = sw * self.metric.d_residual(f, s.wi.z);
+                        let r = sw * self.objective.residual(f, s.rgb[c], s.wi.z);
+                        let dr = sw * self.objective.d_residual(f, s.rgb[c], s.wi.z);
                         cost += r * r;
                         for k in 0..nt {
                             let d = &db[k * nb..(k + 1) * nb];
@@ -712,10 +712,12 @@ pub fn fit_from(
         bounds.extend(ab.iter().copied());
     }
     let coarse = data.stratified(opts.coarse_samples);
+    // One objective for both stages: its weights come from all the fitted samples.
+    let objective = opts.metric.objective(&data.samples);
     let pc = Problem {
         model,
         data: &coarse.samples,
-        metric: opts.metric,
+        objective,
         nt,
         nb,
     };
@@ -768,7 +770,7 @@ pub fn fit_from(
     let pf = Problem {
         model,
         data: &data.samples,
-        metric: opts.metric,
+        objective,
         nt,
         nb,
     };

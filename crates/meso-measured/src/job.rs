@@ -301,7 +301,9 @@ pub struct Tried {
     /// The family.
     pub transfer: Transfer,
     /// Mean over r, g, b of the error in the metric minimised (1/sr for Ngan's L2, dimensionless
-    /// for the log metric).
+    /// for the log metric and for [`Metric::Both`](crate::metric::Metric::Both), whose error is
+    /// [`Objective::error`](crate::metric::Objective::error) with the weights of the fitted
+    /// samples).
     pub error: f64,
     /// Whether `error` is on held-out samples (false: on the fitted ones, when none are held out).
     pub held_out: bool,
@@ -321,10 +323,7 @@ pub fn selection_error(
     } else {
         (crate::fit::evaluate_samples_fn(&data.held_out, eval), true)
     };
-    let v = match metric {
-        crate::metric::Metric::NganL2 => e.ngan_l2,
-        crate::metric::Metric::LowLog => e.low_log,
-    };
+    let v = metric.objective(&data.samples).error(&e);
     ((v[0] + v[1] + v[2]) / 3.0, held_out)
 }
 
@@ -587,10 +586,7 @@ pub fn material_comment(s: &FitSettings<'_>, description: &str, r: &FitResult) -
         "meso fit {} --lobes {} --metric {} --transfer {} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
         s.data,
         s.k,
-        match s.metric {
-            crate::metric::Metric::NganL2 => "ngan",
-            crate::metric::Metric::LowLog => "log",
-        },
+        s.metric.cli_name(),
         s.transfer.name(),
         s.axes.name(),
         if s.channel.is_some() { " --per-channel-lobes" } else { "" },

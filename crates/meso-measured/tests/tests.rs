@@ -866,3 +866,54 @@ fn hold_out_and_angular_resolution() {
     };
     assert_eq!(coarse_cells.angular_resolution(), 0.1);
 }
+
+/// `Metric::Both` minimises `E_log²/S_log² + E_L2²/S_L2²`, so at its minimum neither metric can be
+/// worse than in the fit that minimised the *other* metric alone (if it were, that fit would
+/// have a lower blended cost): the blended fit's log error ≤ the L2 fit's log error, and its L2
+/// error ≤ the log fit's L2 error. Data: a sharp and a broad Cook–Torrance lobe, which one GGX
+/// lobe cannot match, so the metrics disagree. Also checks that they do disagree (the test
+/// would pass trivially if all three fits were the same).
+#[test]
+fn both_metric_fit_is_no_worse_in_either_metric_than_the_other_metrics_fit() {
+    let ct = model::Microfacet::COOK_TORRANCE;
+    let sharp = (
+        vec![0.04f64.ln(), 0.3],
+        vec![[0.02, 0.05, 0.1], [0.6, 0.5, 0.4]],
+    );
+    let broad = (
+        vec![0.35f64.ln(), 0.1],
+        vec![[0.1, 0.1, 0.1], [0.3, 0.3, 0.3]],
+    );
+    let data = samples_of(
+        |i, o| {
+            let mut s = [0.0; 4];
+            let a = eval_model(&ct, &sharp.0, &sharp.1, i, o, &mut s);
+            let b = eval_model(&ct, &broad.0, &broad.1, i, o, &mut s);
+            [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+        },
+        8_000,
+    );
+    let ggx = model::Microfacet::GGX;
+    let run = |metric| {
+        let opts = FitOptions {
+            metric,
+            ..FitOptions::default()
+        };
+        let r = fit(&ggx, &data, &opts).unwrap();
+        let m = |v: [f64; 3]| v.iter().map(|x| x * x).sum::<f64>();
+        (m(r.errors.low_log), m(r.errors.ngan_l2))
+    };
+    let (log_fit, l2_fit, both) = (run(Metric::LowLog), run(Metric::NganL2), run(Metric::Both));
+    // The single-metric fits disagree: each is clearly worse in the other's metric.
+    assert!(l2_fit.0 > 1.2 * log_fit.0, "{log_fit:?} {l2_fit:?}");
+    assert!(log_fit.1 > 1.2 * l2_fit.1, "{log_fit:?} {l2_fit:?}");
+    // (squared errors summed over channels; a tolerance for the LM's convergence)
+    assert!(
+        both.0 <= l2_fit.0 * 1.001,
+        "log: both {both:?}, l2 fit {l2_fit:?}"
+    );
+    assert!(
+        both.1 <= log_fit.1 * 1.001,
+        "L2: both {both:?}, log fit {log_fit:?}"
+    );
+}

@@ -1,4 +1,4 @@
-//! `meso fit DATA --lobes K [--metric ngan|log] [--transfer auto|phong|microfacet|ggx-lobes] [--axes auto|normal|free]
+//! `meso fit DATA --lobes K [--metric both|ngan|log] [--transfer auto|phong|microfacet|ggx-lobes] [--axes auto|normal|free]
 //! [--per-channel-lobes] [--baselines] [--plot DIR] --out MATERIAL.toml` — fit a measured BRDF with
 //! a sum of Phong peaks (Fournier 1992, §3.3) and write it as a meso material.
 
@@ -23,6 +23,9 @@ pub enum MetricArg {
     Ngan,
     /// Log metric of Löw et al. 2012, `ln(1 + f cos θi)`.
     Log,
+    /// Both at once, each relative to the error of the trivial model `f = 0` (the default:
+    /// the fit that wins in both metrics, docs/measured.md "Both metrics").
+    Both,
 }
 
 /// The facet transfer function of the lobe model.
@@ -73,7 +76,7 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["lobes", "transfer", "axes"])]
     pub nonparametric: bool,
     /// Metric minimised.
-    #[arg(long, value_enum, default_value = "log")]
+    #[arg(long, value_enum, default_value = "both")]
     pub metric: MetricArg,
     /// Facet transfer function and lobe family: `auto` (the default) fits all three and keeps
     /// the best on held-out data.
@@ -178,6 +181,7 @@ pub fn run(a: Args) -> Result<()> {
         metric: match a.metric {
             MetricArg::Ngan => Metric::NganL2,
             MetricArg::Log => Metric::LowLog,
+            MetricArg::Both => Metric::Both,
         },
         axes: match a.axes {
             AxesArg::Auto => None,

@@ -483,11 +483,9 @@ pub fn fit_ggx_lobes_progressive(
     } else {
         candidates
     };
+    let objective = opts.metric.objective(&data.samples);
     let score = |r: &FitResult| {
-        let v = match opts.metric {
-            crate::metric::Metric::NganL2 => r.errors.ngan_l2,
-            crate::metric::Metric::LowLog => r.errors.low_log,
-        };
+        let v = objective.error(&r.errors);
         v[0] + v[1] + v[2]
     };
     let mut out: Vec<(LobeGgxModel, FitResult)> = Vec::new();
