@@ -81,11 +81,12 @@ fn options(
         },
     };
     let metric = match metric {
+        "both" => Metric::Both,
         "log" => Metric::LowLog,
         "ngan" => Metric::NganL2,
         m => {
             return Err(value_err(format!(
-                "metric = {m:?}: expected \"log\" or \"ngan\""
+                "metric = {m:?}: expected \"both\", \"log\" or \"ngan\""
             )))
         }
     };
@@ -194,7 +195,7 @@ fn finish(py: Python<'_>, f: FitReport, out: Option<PathBuf>) -> PyResult<(Mater
 /// closed form on the fitted and the held-out samples (`held_out` is None without any). `out`:
 /// also write the material file (atomically), the CLI's bytes but for the fit time in its comment.
 #[pyfunction]
-#[pyo3(signature = (data, lobes = None, transfer = "auto", metric = "log", axes = "auto", out = None, samples = 30_000))]
+#[pyo3(signature = (data, lobes = None, transfer = "auto", metric = "both", axes = "auto", out = None, samples = 30_000))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
@@ -230,7 +231,7 @@ pub fn fit(
 /// viewer) `(N, 3)` directions in the local frame, `values` `(N, 3)` RGB BRDF values in 1/sr.
 /// Samples below the horizon are dropped; with 200 or more, every 10th is held out.
 #[pyfunction]
-#[pyo3(signature = (wi, wo, values, lobes = None, transfer = "auto", metric = "log", axes = "auto", out = None))]
+#[pyo3(signature = (wi, wo, values, lobes = None, transfer = "auto", metric = "both", axes = "auto", out = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit_samples<'py>(
     py: Python<'py>,

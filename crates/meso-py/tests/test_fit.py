@@ -110,6 +110,19 @@ def test_report_matches_cli_stdout(data, tmp_path):
     assert f"data: {path} — {report['description']}" in r.stdout
 
 
+def test_default_metric_is_the_clis(data, tmp_path):
+    # meso.fit and `meso fit` share the default metric (both at once, docs/measured.md), and the
+    # same fit: the held-out errors printed by the CLI equal the report's.
+    path, *_ = data
+    _, report = meso.fit(path, lobes=1, transfer="phong")
+    assert report["metric"] == "both"
+    r = run_cli("fit", path, "--lobes", 1, "--transfer", "phong", "--out", tmp_path / "d.toml")
+    held = [float(x) for x in re.search(r"held out, not fitted \(\d+ samples\)\s+(.*)", r.stdout).group(1).split()]
+    np.testing.assert_allclose(held, report["held_out"]["ngan_l2"] + report["held_out"]["low_log"], atol=6e-6)
+    with pytest.raises(ValueError, match="expected \"both\", \"log\" or \"ngan\""):
+        meso.fit(path, lobes=1, metric="l1")
+
+
 def test_fit_reproduces_the_data(data):
     path, wi, wo, f = data
     material, report = meso.fit(path, lobes=LOBES)

@@ -160,7 +160,7 @@ def fit(
     data: _Path,
     lobes: Union[int, str] = 3,
     transfer: str = "auto",
-    metric: str = "log",
+    metric: str = "both",
     axes: str = "auto",
     out: Optional[_Path] = None,
     samples: int = 30000,
@@ -186,7 +186,7 @@ def fit_samples(
     values: _Array,
     lobes: Union[int, str] = 3,
     transfer: str = "auto",
-    metric: str = "log",
+    metric: str = "both",
     axes: str = "auto",
     out: Optional[_Path] = None,
 ) -> tuple[Material, dict[str, Any]]:

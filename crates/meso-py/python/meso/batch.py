@@ -142,7 +142,7 @@ OPERATIONS: Dict[str, Operation] = {
         {
             "lobes": ("lobes", 3),
             "transfer": (str, "auto"),
-            "metric": (str, "log"),
+            "metric": (str, "both"),
             "axes": (str, "auto"),
             "samples": (int, 30000),
         },
