@@ -38,7 +38,9 @@ const LOBE_NODES: usize = 257;
 /// ([`crate::convolution::axial_projected_area`]) tabulated at `u = t|t|` (dense about 0, where a
 /// sharp lobe's `I_k` bends) and read by Catmull–Rom. Exact but for the lobes' mass below the
 /// horizon (≤ [`LOBE_HORIZON_MASS`] each, `cos^{η+2}(β/2)` for a lobe whose axis is `β` above
-/// it), which the quadrature does not count.
+/// it), which the quadrature does not count. A lobe whose axis is the normal is symmetric about
+/// it, so its table is the same rule over the upper hemisphere only: exact however much of it the
+/// horizon cuts (a broad sheen lobe at the normal beside sharp tilted ones, the editor's satin).
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct LobeLambda {
     /// Per lobe: axis, `w_k / P`, and `I_k` at the nodes.
@@ -48,12 +50,16 @@ pub(super) struct LobeLambda {
 }
 
 impl LobeLambda {
-    /// The tables of `lobes`, or `None` when a lobe reaches below the horizon.
+    /// The tables of `lobes`, or `None` when a lobe not at the normal reaches below the horizon.
     pub(super) fn new(lobes: &[PhongLobe]) -> Option<LobeLambda> {
         let mut out = Vec::new();
         for l in lobes.iter().filter(|l| l.weight > 0.0) {
+            // At the normal: the horizon is the lobe's own equator, cut exactly by the rule.
+            let upright = l.axis.z >= 1.0 - 1e-12;
             let beta = std::f64::consts::FRAC_PI_2 - l.axis.z.clamp(-1.0, 1.0).acos();
-            if beta <= 0.0 || (0.5 * beta).cos().powf(l.exponent + 2.0) > LOBE_HORIZON_MASS {
+            if !upright
+                && (beta <= 0.0 || (0.5 * beta).cos().powf(l.exponent + 2.0) > LOBE_HORIZON_MASS)
+            {
                 return None;
             }
             let norm = PhongLobe::normalization(l.exponent);
@@ -62,7 +68,7 @@ impl LobeLambda {
                 .into_par_iter()
                 .map(|j| {
                     let t = -1.0 + 2.0 * j as f64 / (LOBE_NODES - 1) as f64;
-                    crate::convolution::axial_projected_area(density, t * t.abs(), true)
+                    crate::convolution::axial_projected_area(density, t * t.abs(), !upright)
                 })
                 .collect();
             out.push((l.axis, l.weight, table));

@@ -594,6 +594,9 @@ mod tests {
             "{ axis = [0.0, 0.0], weight = 0.5, exponent = 12.0 }, { axis = [0.0, 0.0], weight = 0.5, exponent = 300.0 }",
             "{ axis = [25.0, 40.0], weight = 0.6, exponent = 60.0 }, { axis = [10.0, 200.0], weight = 0.4, exponent = 2000.0 }",
             "{ axis = [40.0, 0.0], weight = 0.5, exponent = 12.0 }, { axis = [0.0, 0.0], weight = 0.5, exponent = 300.0 }",
+            // The editor's satin: sharp lobes tilted to 45° and a broad one at the normal that
+            // the horizon cuts (its table over the upper hemisphere; it took the 2-D table before).
+            "{ axis = [0.0, 90.0], weight = 1.0, exponent = 900.0 }, { axis = [15.0, 90.0], weight = 0.8322, exponent = 900.0 }, { axis = [15.0, 270.0], weight = 0.8322, exponent = 900.0 }, { axis = [30.0, 90.0], weight = 0.4797, exponent = 900.0 }, { axis = [30.0, 270.0], weight = 0.4797, exponent = 900.0 }, { axis = [45.0, 90.0], weight = 0.1915, exponent = 900.0 }, { axis = [45.0, 270.0], weight = 0.1915, exponent = 900.0 }, { axis = [0.0, 0.0], weight = 0.8, exponent = 12.0 }",
         ];
         let mut rng = 0x2545_f491_4f6c_dd1du64;
         let mut uniform = move || {
@@ -613,7 +616,10 @@ mod tests {
                 "{}",
                 plan.path()
             );
-            let mut worst = 0.0f64;
+            // Up to 85° from the normal; beyond, the 2-D quadrature of sharp lobes is itself
+            // uncertain to ~1e-3 (docs/measured.md, "Fast evaluation of fitted materials").
+            const GRAZING_85: f64 = 0.087_155_742_747_658_17; // cos 85°
+            let (mut worst, mut worst_85) = (0.0f64, 0.0f64);
             for _ in 0..4000 {
                 let mut dir = || {
                     let (u, v) = (uniform(), uniform());
@@ -625,7 +631,11 @@ mod tests {
                 for c in 0..3 {
                     let spec = exact[c] - m.diffuse[c] / PI;
                     if spec > 1e-9 {
-                        worst = worst.max((fast[c] - exact[c]).abs() / spec);
+                        let e = (fast[c] - exact[c]).abs() / spec;
+                        worst = worst.max(e);
+                        if i.z.min(o.z) >= GRAZING_85 {
+                            worst_85 = worst_85.max(e);
+                        }
                     }
                 }
             }
@@ -643,12 +653,31 @@ mod tests {
             } else {
                 LAMBDA_TABLE_TOLERANCE_ANISOTROPIC
             };
-            // The second material has lobes above the horizon, the third one reaching below.
-            assert_eq!(lobes, l.contains("25.0"), "{l}: {}", plan.path());
-            eprintln!(
-                "{l}: worst relative error of the specular part {worst:.2e} (allowed {tol:.0e})"
+            // The third and fifth materials have lobe tables (lobes above the horizon, or at the
+            // normal); the fourth has a tilted lobe reaching below it.
+            assert_eq!(
+                lobes,
+                l.contains("25.0") || l.contains("45.0"),
+                "{l}: {}",
+                plan.path()
             );
-            assert!(worst <= tol, "{l}: worst relative error {worst:.2e}");
+            eprintln!(
+                "{l}: worst relative error of the specular part {worst:.2e}, {worst_85:.2e} up to 85° (allowed {tol:.0e})"
+            );
+            if l.contains("45.0") {
+                // Satin: the lobe tables' bound up to 85°, the 2-D table's bound (the path it
+                // took before) everywhere. Measured 6.3e-4 and 1.37e-3 (at θi = 89.6°).
+                assert!(
+                    worst_85 <= tol,
+                    "{l}: worst relative error {worst_85:.2e} up to 85°"
+                );
+                assert!(
+                    worst <= LAMBDA_TABLE_TOLERANCE_ANISOTROPIC,
+                    "{l}: worst relative error {worst:.2e}"
+                );
+            } else {
+                assert!(worst <= tol, "{l}: worst relative error {worst:.2e}");
+            }
         }
     }
 
