@@ -50,7 +50,7 @@ pub struct Args {
     pub base_color: Option<PathBuf>,
     /// Fit anisotropic GGX lobes (α_t, α_b and the direction of α_t per texel) instead of one
     /// α, and write them the KHR_materials_anisotropy way: metallicRoughness G = √α_b,
-    /// anisotropy.ktx2 / anisotropy_mip<k>.png with RG = direction, B = strength, and the
+    /// `anisotropy.ktx2` / `anisotropy_mip<k>.png` with RG = direction, B = strength, and the
     /// extension in scene.gltf (docs/export.md).
     #[arg(long)]
     pub anisotropic: bool,
