@@ -8,14 +8,12 @@ import { execFileSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
-import { chromium } from 'playwright-core';
 import { grey16, srgb8 } from './png.mjs';
-import { readExr } from './exr.mjs';
+import { meso, mean, mae, openPage, mesoRender as render } from './harness.mjs';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const art = path.join(here, 'artifacts');
 const expDir = path.join(art, 'export');
-const meso = process.env.MESO_BIN || path.join(here, '../../target/release/meso');
 const N = 256;                      // height map size
 const TEXEL = 1 / N;                // one map copy per world unit (uv_scale 1)
 const HEIGHT = 0.0125;              // full code range: RMS slope ≈ 0.15 per axis
@@ -48,30 +46,6 @@ function heightMap() {
   return Uint16Array.from(h, (v) => Math.round(65535 * (v - lo) / (hi - lo)));
 }
 
-function sceneToml(width, material) {
-  return `[camera]
-kind = "orthographic"
-position = [${view.eye.join(', ')}]
-look_at = [0.0, 0.0, 0.0]
-up = [${view.up.join(', ')}]
-width = ${width}
-[image]
-width = 128
-height = 128
-spp = ${SPP}
-[[object]]
-kind = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 0.0, 1.0]
-tangent = [1.0, 0.0, 0.0]
-uv_scale = 1.0
-material = "${material}"
-[[light]]
-kind = "directional"
-direction = [${view.lightDir.join(', ')}]
-irradiance = [${view.irradiance}, ${view.irradiance}, ${view.irradiance}]
-`;
-}
 const transfer = `[transfer]
 kind = "microfacet"
 distribution = "ggx"
@@ -80,18 +54,7 @@ fresnel = "schlick"
 f0 = [${BASE}, ${BASE}, ${BASE}]
 `;
 
-function mesoRender(name, width, material) {
-  const scene = path.join(art, `scene_${name}.toml`);
-  fs.writeFileSync(scene, sceneToml(width, material));
-  const out = path.join(art, `${name}.exr`);
-  execFileSync(meso, ['render', scene, '-o', out], { stdio: ['ignore', 'ignore', 'inherit'] });
-  const img = readExr(fs.readFileSync(out));
-  const { R, G, B } = img.channels;
-  return Array.from(R, (r, i) => 0.2126 * r + 0.7152 * G[i] + 0.0722 * B[i]);
-}
-
-const mean = (a) => a.reduce((s, v) => s + v, 0) / a.length;
-const mae = (a, b) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
+const mesoRender = (name, width, material) => render(art, name, view, width, material, SPP);
 
 let browser, page, info, asset;
 let levels = 0;
@@ -108,38 +71,7 @@ before(async () => {
   fs.writeFileSync(path.join(art, 'reference.toml'),
     `[texture]\nkind = "bump-mapped"\nnormal_map = "export/normal_mip0.png"\nconvention = "gl"\n${transfer}`);
 
-  browser = await chromium.launch({
-    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-    headless: true,
-    args: ['--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-      '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-  });
-  page = await browser.newPage();
-  page.on('pageerror', (e) => console.error('page error:', e));
-  page.on('console', (m) => { if (m.type() === 'error' || m.type() === 'warning') console.error('page:', m.text()); });
-  const files = {
-    '/three.module.js': path.join(here, 'node_modules/three/build/three.module.js'),
-    '/three.core.js': path.join(here, 'node_modules/three/build/three.core.js'),
-    '/page.mjs': path.join(here, 'page.mjs'),
-  };
-  // three.js's own loaders (GLTFLoader, KTX2Loader and what they import) from its examples folder.
-  const addons = path.join(here, 'node_modules/three/examples/jsm');
-  const types = { '.png': 'image/png', '.gltf': 'model/gltf+json', '.bin': 'application/octet-stream', '.ktx2': 'image/ktx2', '.js': 'text/javascript', '.mjs': 'text/javascript' };
-  await page.route('http://meso.test/**', (route) => {
-    const p = new URL(route.request().url()).pathname;
-    if (p === '/') {
-      return route.fulfill({ contentType: 'text/html', body: '<!doctype html><script type="importmap">{"imports":{"three":"/three.module.js","three/addons/":"/addons/"}}</script><script type="module" src="/page.mjs"></script>' });
-    }
-    let f = files[p] || (p.startsWith('/exp/') ? path.join(expDir, path.basename(p)) : null);
-    if (!f && p.startsWith('/addons/')) {
-      f = path.join(addons, path.normalize(p.slice('/addons/'.length)));
-      if (!f.startsWith(addons)) f = null;
-    }
-    if (!f || !fs.existsSync(f)) return route.fulfill({ status: 404, body: 'not found' });
-    return route.fulfill({ body: fs.readFileSync(f), contentType: types[path.extname(f)] || 'application/octet-stream' });
-  });
-  await page.goto('http://meso.test/');
-  await page.waitForFunction(() => window.ready === true, null, { timeout: 60000 });
+  ({ browser, page } = await openPage({ exp: expDir }));
   info = await page.evaluate((n) => window.loadMaps(n), levels);
   asset = await page.evaluate(() => window.loadAsset());
 });

@@ -52,12 +52,27 @@ function plane(uvScale, half, offset = [0, 0], tangents = false) {
 // `singleScatter` that one line is replaced by 1 so both shade the same model; without, three.js as shipped.
 const MS_LINE = 'material.multiScatteringCompensation = 1.0 + material.specularColorBlended * ( 1.0 / EssMs - 1.0 );';
 const msPatchable = THREE.ShaderChunk.lights_fragment_begin.includes(MS_LINE);
-function singleScatter(mat) {
+// KHR_materials_anisotropy in three.js takes the anisotropy tangent and bitangent from the geometric
+// tangent frame `tbn`, not orthogonal to the normal-mapped `normal`; its anisotropic D then peaks
+// about the geometric normal whatever the normal map says (a tilted texel shades like a flat one,
+// even at strength 0). With `anisoFrame` the two lines are replaced by the frame meso's fit assumes:
+// the direction projected onto the shading normal's tangent plane, the bitangent normal × tangent.
+const ANISO_LINES = 'material.anisotropyT = tbn[ 0 ] * anisotropyV.x + tbn[ 1 ] * anisotropyV.y;\n\tmaterial.anisotropyB = tbn[ 1 ] * anisotropyV.x - tbn[ 0 ] * anisotropyV.y;';
+const ANISO_FIXED = 'vec3 mesoT = tbn[ 0 ] * anisotropyV.x + tbn[ 1 ] * anisotropyV.y;\n\tmaterial.anisotropyT = normalize( mesoT - dot( mesoT, normal ) * normal );\n\tmaterial.anisotropyB = cross( normal, material.anisotropyT );';
+const anisoPatchable = THREE.ShaderChunk.lights_physical_fragment.includes(ANISO_LINES);
+function patch(mat, { singleScatter, anisoFrame }) {
+  if (!singleScatter && !anisoFrame) return;
   mat.onBeforeCompile = (shader) => {
-    shader.fragmentShader = shader.fragmentShader.replace('#include <lights_fragment_begin>',
-      THREE.ShaderChunk.lights_fragment_begin.replace(MS_LINE, 'material.multiScatteringCompensation = vec3( 1.0 );'));
+    if (singleScatter) {
+      shader.fragmentShader = shader.fragmentShader.replace('#include <lights_fragment_begin>',
+        THREE.ShaderChunk.lights_fragment_begin.replace(MS_LINE, 'material.multiScatteringCompensation = vec3( 1.0 );'));
+    }
+    if (anisoFrame) {
+      shader.fragmentShader = shader.fragmentShader.replace('#include <lights_physical_fragment>',
+        THREE.ShaderChunk.lights_physical_fragment.replace(ANISO_LINES, ANISO_FIXED));
+    }
   };
-  mat.customProgramCacheKey = () => 'meso-single-scatter';
+  mat.customProgramCacheKey = () => `meso-${singleScatter ? 'ss' : 'ms'}-${anisoFrame ? 'frame' : 'tbn'}`;
 }
 
 let maps = null;
@@ -73,16 +88,18 @@ window.loadMaps = async (levels) => {
     originalNormal: texture([await bitmap('http://meso.test/exp/normal_mip0.png')], true),
   };
   const gl = renderer.getContext();
-  return { webgl2: renderer.capabilities.isWebGL2 !== false, renderer: gl.getParameter(gl.RENDERER), revision: THREE.REVISION, msPatchable };
+  return { webgl2: renderer.capabilities.isWebGL2 !== false, renderer: gl.getParameter(gl.RENDERER), revision: THREE.REVISION, msPatchable, anisoPatchable };
 };
 
 // The exported asset as an engine reads it: `scene.gltf` through three.js's GLTFLoader (its material,
 // its plane's tangent frame), then the fitted chains from `normal.ktx2` and `metallic_roughness.ktx2`
-// through KTX2Loader (core glTF images are PNG or JPEG, one level: the chains ship as KTX2 beside the
-// asset), with the glTF sampler's wrap and filters. Returns what the test checks.
-let asset = null;
-window.loadAsset = async () => {
-  const gltf = await new GLTFLoader().loadAsync('http://meso.test/exp/scene.gltf');
+// (and `anisotropy.ktx2` when the material has KHR_materials_anisotropy) through KTX2Loader (core glTF
+// images are PNG or JPEG, one level: the chains ship as KTX2 beside the asset), with the glTF
+// sampler's wrap and filters. `dir`: the export's folder under http://meso.test/; `key`: the name
+// renderView's `asset` option picks it by. Returns what the tests check.
+const assets = {};
+window.loadAsset = async (dir = 'exp', key = 'main') => {
+  const gltf = await new GLTFLoader().loadAsync(`http://meso.test/${dir}/scene.gltf`);
   let mesh = null;
   gltf.scene.traverse((o) => { if (o.isMesh && o.name === 'plane') mesh = o; });
   if (!mesh) throw new Error('scene.gltf: no mesh named "plane"');
@@ -109,7 +126,7 @@ window.loadAsset = async () => {
   }
   const ktx2 = new KTX2Loader().setTranscoderPath('/no-transcoder/').detectSupport(renderer);
   const chain = async (file, like) => {
-    const t = await ktx2.loadAsync(`http://meso.test/exp/${file}`);
+    const t = await ktx2.loadAsync(`http://meso.test/${dir}/${file}`);
     t.wrapS = like.wrapS; t.wrapT = like.wrapT;
     t.magFilter = like.magFilter; t.minFilter = like.minFilter;
     t.flipY = like.flipY; t.anisotropy = 1;
@@ -118,27 +135,36 @@ window.loadAsset = async () => {
   };
   const normal = await chain('normal.ktx2', mat.normalMap);
   const mr = await chain('metallic_roughness.ktx2', mat.roughnessMap);
-  asset = mat.clone();
+  const asset = mat.clone();
   asset.normalMap = normal;
   asset.roughnessMap = mr;
   asset.metalnessMap = mr;
+  const levels = [normal.mipmaps.length, mr.mipmaps.length];
+  const anisotropic = mat.anisotropyMap != null;
+  if (anisotropic) {
+    asset.anisotropyMap = await chain('anisotropy.ktx2', mat.anisotropyMap);
+    levels.push(asset.anisotropyMap.mipmaps.length);
+  }
+  assets[key] = asset;
   ktx2.dispose();
   return {
     tangentAlongU, bitangentUp, hasTangents: T !== undefined,
     metalness: mat.metalness, roughness: mat.roughness, color: mat.color.toArray(),
-    normalScale: mat.normalScale.toArray(),
-    levels: [normal.mipmaps.length, mr.mipmaps.length],
+    normalScale: mat.normalScale.toArray(), levels,
     pngLevels: [mat.normalMap.mipmaps.length, mat.roughnessMap.mipmaps.length],
+    physical: mat.isMeshPhysicalMaterial === true, anisotropic,
+    anisotropy: mat.anisotropy ?? 0, anisotropyRotation: mat.anisotropyRotation ?? 0,
   };
 };
 
 // mode: 'flat' (no maps, constant roughness), 'exported' (meso's normal + roughness chains),
 // 'standard' (level-0 normal map with three.js' generated mips, constant roughness), 'gltf' (the asset's
-// own material with the KTX2 chains, on a plane with the asset's tangent convention).
+// own material with the KTX2 chains, on a plane with the asset's tangent convention; `o.asset` names
+// which loaded asset, default 'main').
 window.renderView = (o) => {
   const scene = new THREE.Scene();
   const gltf = o.mode === 'gltf';
-  const mat = gltf ? asset.clone() : new THREE.MeshStandardMaterial({ metalness: 1, roughness: Math.sqrt(o.alpha) });
+  const mat = gltf ? assets[o.asset || 'main'].clone() : new THREE.MeshStandardMaterial({ metalness: 1, roughness: Math.sqrt(o.alpha) });
   if (!gltf) mat.color.setRGB(o.baseColor, o.baseColor, o.baseColor, THREE.LinearSRGBColorSpace);
   if (o.mode === 'exported') {
     mat.normalMap = maps.exportedNormal;
@@ -147,7 +173,7 @@ window.renderView = (o) => {
   } else if (o.mode === 'standard') {
     mat.normalMap = maps.originalNormal;
   }
-  if (o.singleScatter) singleScatter(mat);
+  patch(mat, { singleScatter: o.singleScatter, anisoFrame: o.anisoFrame });
   // Without tangents, v grows down the image: green = −∂p/∂v (GLTFLoader does the same for meshes without
   // TANGENT); the glTF mode keeps the loader's normalScale and uses the vertex tangents.
   if (mat.normalMap && !gltf) mat.normalScale.set(1, -1);

@@ -4,7 +4,8 @@
 # against meso's supersampled bump-mapped render (docs/engine.md). Installs what is missing, builds the
 # meso binary (release: the reference renders take 1024 spp), runs engine.test.mjs with node's test
 # runner, and lobes.test.mjs (meso-export's GLSL lobe function run in WebGL 2 and its WGSL in
-# WebGPU, against the CPU reference). Inputs, renders and results.json land in tests/engine/artifacts/; ENGINE_FIGURES=DIR also
+# WebGPU, against the CPU reference), and aniso.test.mjs (`meso export --anisotropic` through GLTFLoader's
+# KHR_materials_anisotropy on grooves). Inputs, renders and results.json land in tests/engine/artifacts/; ENGINE_FIGURES=DIR also
 # writes the pictures. Last line: `e2e: N passed, M failed` (summed by scripts/test.sh).
 set -uo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -35,7 +36,7 @@ target="${CARGO_TARGET_DIR:-$root/target}"
 case "$target" in /*) ;; *) target="$root/$target" ;; esac
 export MESO_BIN="${MESO_BIN:-$target/release/meso}"
 
-node --test --test-concurrency=1 --test-reporter=tap engine.test.mjs lobes.test.mjs 2>&1 | tee artifacts/tap.txt
+node --test --test-concurrency=1 --test-reporter=tap engine.test.mjs lobes.test.mjs aniso.test.mjs 2>&1 | tee artifacts/tap.txt
 status=${PIPESTATUS[0]}
 passed=$(grep -E '^# pass ' artifacts/tap.txt | tail -1 | awk '{print $3}')
 failed=$(grep -E '^# fail ' artifacts/tap.txt | tail -1 | awk '{print $3}')
