@@ -51,7 +51,9 @@ pub struct Args {
     /// Fit anisotropic GGX lobes (α_t, α_b and the direction of α_t per texel) instead of one
     /// α, and write them the KHR_materials_anisotropy way: metallicRoughness G = √α_b,
     /// `anisotropy.ktx2` / `anisotropy_mip<k>.png` with RG = direction, B = strength, and the
-    /// extension in scene.gltf (docs/export.md).
+    /// extension in scene.gltf (docs/export.md). The lobes assume an anisotropy frame
+    /// orthogonal to the normal-mapped normal; three.js r187 builds it from the geometric
+    /// tangents and loses the normal map's tilt (docs/engine.md): there, use the isotropic export.
     #[arg(long)]
     pub anisotropic: bool,
     /// A lobe pyramid (`.map` file of `meso extract`) of the same map: also write its lobes
