@@ -64,18 +64,17 @@ fn a_ggx_material_is_recovered_with_its_ndf_fresnel_and_albedo() {
     let table = table_of(&m);
     let d = data(&table);
     let r = fit(&table, &d).unwrap();
-    // Measured: within 0.5 % up to 45°, 1.4 % at 60° (few fitted cells there); f0 and the
-    // specular scale within 2.1 %, the albedo within 1 %.
-    let e = ndf_error(&Ndf::Radial(r.ndf.clone()), |t| ggx(0.15, t), 45.0);
-    assert!(e < 0.01, "NDF off GGX by {e:.4} (relative, θ ≤ 45°)");
+    // Measured: the NDF within 0.22 % up to 45° and 0.24 % up to 60°, f0 within 0.05 %, the
+    // specular scale within 0.18 %, the albedo within 0.02 %, from the GGX start (the
+    // power-iteration start alone settled 0.9 % / 1.4 % off the NDF and 2.1 % off f0).
     let e = ndf_error(&Ndf::Radial(r.ndf.clone()), |t| ggx(0.15, t), 60.0);
-    assert!(e < 0.02, "NDF off GGX by {e:.4} (relative, θ ≤ 60°)");
+    assert!(e < 0.01, "NDF off GGX by {e:.4} (relative, θ ≤ 60°)");
     for c in 0..3 {
         let want_f0 = [0.9, 0.6, 0.3][c];
         let want_rho = [0.05, 0.1, 0.2][c];
-        assert!((r.f0[c] - want_f0).abs() < 0.03 * want_f0, "f0 {:?}", r.f0);
+        assert!((r.f0[c] - want_f0).abs() < 0.01 * want_f0, "f0 {:?}", r.f0);
         assert!(
-            (r.specular[c] - 0.8).abs() < 0.03 * 0.8,
+            (r.specular[c] - 0.8).abs() < 0.01 * 0.8,
             "specular {:?}",
             r.specular
         );
@@ -117,6 +116,12 @@ fn a_radial_material_with_a_long_tail_is_recovered() {
     let table = table_of(&m);
     let d = data(&table);
     let r = fit(&table, &d).unwrap();
+    eprintln!(
+        "tail fit: start {}, f0 {:?}, albedo {:?}",
+        r.start.name(),
+        r.f0,
+        r.albedo
+    );
     // `shape` integrates to 1 in the microfacet convention up to the tail's horizon cut.
     let truth = Ndf::Radial(r.ndf.clone());
     let scale = {

@@ -28,10 +28,11 @@ pub fn run(a: &Args) -> Result<()> {
     let _ = writeln!(report, "data: {}", data.description);
     let _ = writeln!(
         report,
-        "non-parametric NDF: {} back-scattering θh bins (θd = 0) up to {}°, rms angle {:.3}°",
+        "non-parametric NDF: {} back-scattering θh bins (θd = 0) up to {}°, rms angle {:.3}° (kept start: {})",
         r.nodes,
         meso_measured::nonparametric::MAX_THETA_H_DEG,
-        r.ndf.rms_theta().to_degrees()
+        r.ndf.rms_theta().to_degrees(),
+        r.start.name()
     );
     let _ = writeln!(
         report,
