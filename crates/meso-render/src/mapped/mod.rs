@@ -102,9 +102,7 @@ use meso_core::frame::Frame;
 use meso_core::material::Material;
 use meso_core::sg;
 use meso_core::transfer::{PhongVariant, Transfer};
-use meso_maps::{
-    FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMap, NormalMode, Pyramid,
-};
+use meso_maps::{FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMap, NormalMode};
 use std::f64::consts::FRAC_1_PI;
 
 /// The facet transfer function, with fast paths for Phong (half vector) and Lambert.

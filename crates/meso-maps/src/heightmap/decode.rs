@@ -1,0 +1,225 @@
+//! Reading image files for height and normal maps: the header without the pixels
+//! ([`probe`], [`probe_bytes`], [`ImageHeader`] with the memory estimates of loading), the size
+//! limits ([`MAX_DIMENSION`], [`MAX_TEXELS`]) and decoding with those limits checked from the
+//! header before anything is decoded or allocated, and against the memory budget
+//! (`meso_core::budget`) for files.
+//!
+//! # Conventions
+//! * Errors name the file (or `<memory>` for maps built in memory).
+//! * Bytes without a format the content says are read as the format `name`'s extension gives,
+//!   PNG when it gives none.
+
+use crate::error::{MapError, Result};
+use std::path::Path;
+
+/// Largest accepted width or height of an image, in samples.
+pub const MAX_DIMENSION: u64 = 65_536;
+/// Largest accepted number of samples (width × height) of an image: 4096².
+pub const MAX_TEXELS: u64 = 16_777_216;
+
+pub(super) fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
+    if w == 0 || h == 0 {
+        return Err(MapError::Empty {
+            path: path.to_path_buf(),
+            width: w,
+            height: h,
+        });
+    }
+    if w > MAX_DIMENSION || h > MAX_DIMENSION || w.saturating_mul(h) > MAX_TEXELS {
+        return Err(MapError::TooLarge {
+            path: path.to_path_buf(),
+            width: w,
+            height: h,
+            max_dim: MAX_DIMENSION,
+            max_texels: MAX_TEXELS,
+        });
+    }
+    Ok(())
+}
+
+pub(super) fn decode_err(path: &Path, e: impl std::fmt::Display) -> MapError {
+    MapError::Decode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// What an image file's header says, read without decoding the pixels: enough to budget the
+/// memory of loading it ([`ImageHeader::height_map_bytes`], [`ImageHeader::normal_map_bytes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageHeader {
+    /// Width in pixels.
+    pub width: u64,
+    /// Height in pixels.
+    pub height: u64,
+    /// Bytes per decoded pixel (1 for 8-bit grey, 6 for 16-bit RGB, 16 for float RGBA, …).
+    pub bytes_per_pixel: u64,
+    /// Whether the image has colour channels.
+    pub color: bool,
+    /// Whether the samples are 8-bit.
+    pub eight_bit: bool,
+    /// Size of the file in bytes.
+    pub file_bytes: u64,
+}
+
+impl ImageHeader {
+    /// Number of pixels.
+    #[must_use]
+    pub fn pixels(&self) -> u64 {
+        self.width.saturating_mul(self.height)
+    }
+
+    /// Peak memory (bytes) of loading the image as a height map
+    /// ([`HeightMap::load`](super::HeightMap::load)): the file, the decoded image, the codes and
+    /// heights (f64), a colour image's float conversion, and the four buffers of 8-bit
+    /// dequantisation.
+    #[must_use]
+    pub fn height_map_bytes(&self) -> u64 {
+        let per_pixel = self.bytes_per_pixel
+            + 16
+            + if self.color { 12 } else { 0 }
+            + if self.eight_bit { 32 } else { 0 };
+        self.file_bytes + self.pixels().saturating_mul(per_pixel)
+    }
+
+    /// Peak memory (bytes) of loading the image as a normal map
+    /// ([`NormalMap::load`](super::NormalMap::load)): the file, the decoded image, its float RGB
+    /// conversion and two arrays of normals (f64).
+    #[must_use]
+    pub fn normal_map_bytes(&self) -> u64 {
+        self.file_bytes + self.pixels().saturating_mul(self.bytes_per_pixel + 12 + 48)
+    }
+}
+
+/// Read an image file's header (size, sample format) without decoding its pixels, and check the
+/// size limits ([`MAX_DIMENSION`], [`MAX_TEXELS`]).
+///
+/// # Errors
+/// The file cannot be read, is not an image meso reads, or is too large.
+pub fn probe(path: &Path) -> Result<ImageHeader> {
+    let io = |e: std::io::Error| MapError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let file_bytes = std::fs::metadata(path).map_err(io)?.len();
+    let mut r = image::ImageReader::open(path).map_err(io)?;
+    if r.format().is_none() {
+        r.set_format(image::ImageFormat::Png);
+    }
+    let r = r.with_guessed_format().map_err(io)?;
+    if r.format().is_none() {
+        return Err(decode_err(path, "unknown image format"));
+    }
+    let d = r.into_decoder().map_err(|e| decode_err(path, e))?;
+    header_of(path, &d, file_bytes)
+}
+
+/// The [`ImageHeader`] of an opened decoder (the size limits checked), for [`probe`] and
+/// [`probe_bytes`].
+fn header_of(path: &Path, d: &impl image::ImageDecoder, file_bytes: u64) -> Result<ImageHeader> {
+    let (w, h) = d.dimensions();
+    check_dims(path, w as u64, h as u64)?;
+    let ct = d.color_type();
+    Ok(ImageHeader {
+        width: w as u64,
+        height: h as u64,
+        bytes_per_pixel: ct.bytes_per_pixel() as u64,
+        color: ct.has_color(),
+        eight_bit: ct.bytes_per_pixel() / ct.channel_count().max(1) == 1,
+        file_bytes,
+    })
+}
+
+/// [`probe`] for the bytes of an image file (`name` chooses the format when the content does not
+/// say, and names the source in errors): the header read without decoding the pixels, the size
+/// limits checked.
+///
+/// # Errors
+/// Empty bytes, an unknown or broken header, an image above the size limits.
+pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
+    if bytes.is_empty() {
+        return Err(MapError::Empty {
+            path: name.to_path_buf(),
+            width: 0,
+            height: 0,
+        });
+    }
+    let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
+    r.set_format(image::ImageFormat::from_path(name).unwrap_or(image::ImageFormat::Png));
+    let r = r.with_guessed_format().map_err(|e| decode_err(name, e))?;
+    let d = r.into_decoder().map_err(|e| decode_err(name, e))?;
+    header_of(name, &d, bytes.len() as u64)
+}
+
+/// An allocation error of loading `path`.
+pub(super) fn oom(path: &Path, e: meso_core::budget::AllocError) -> MapError {
+    MapError::OutOfMemory {
+        what: path.display().to_string(),
+        source: e,
+    }
+}
+
+/// Read the header, check the size limits, then decode (with decoder limits set as well).
+fn open_image(path: &Path) -> Result<image::DynamicImage> {
+    let io = |e: std::io::Error| MapError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let bytes = std::fs::read(path).map_err(io)?;
+    decode_bytes(path, &bytes)
+}
+
+/// [`open_image`] after checking the memory of loading it (`estimate` from its header) against
+/// the budget (`meso_core::budget`).
+pub(super) fn open_image_budgeted(
+    path: &Path,
+    task: &str,
+    estimate: impl Fn(&ImageHeader) -> u64,
+) -> Result<image::DynamicImage> {
+    // Regular files only (a FIFO cannot be read twice); a header the probe cannot read is left
+    // to the decoder, whose errors say more.
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        if let Ok(header) = probe(path) {
+            meso_core::budget::check(path, task, estimate(&header))?;
+        }
+    }
+    open_image(path)
+}
+
+pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicImage> {
+    if bytes.is_empty() {
+        return Err(MapError::Empty {
+            path: path.to_path_buf(),
+            width: 0,
+            height: 0,
+        });
+    }
+    // PNG: the size is in the IHDR chunk at a fixed offset; check it before the decoder reads on.
+    if bytes.len() >= 24 && bytes[..8] == [0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A] {
+        let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap_or([0; 4]));
+        let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap_or([0; 4]));
+        check_dims(path, w as u64, h as u64)?;
+    }
+    let reader = || {
+        let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
+        r.set_format(image::ImageFormat::from_path(path).unwrap_or(image::ImageFormat::Png));
+        let r = r.with_guessed_format().map_err(|e| decode_err(path, e))?;
+        if r.format().is_none() {
+            return Err(decode_err(path, "unknown image format"));
+        }
+        Ok(r)
+    };
+    let (w, h) = reader()?
+        .into_dimensions()
+        .map_err(|e| decode_err(path, e))?;
+    check_dims(path, w as u64, h as u64)?;
+    let mut r = reader()?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_DIMENSION as u32);
+    limits.max_image_height = Some(MAX_DIMENSION as u32);
+    limits.max_alloc = Some(MAX_TEXELS * 16 + (1 << 20));
+    r.limits(limits);
+    let img = r.decode().map_err(|e| decode_err(path, e))?;
+    check_dims(path, img.width() as u64, img.height() as u64)?;
+    Ok(img)
+}

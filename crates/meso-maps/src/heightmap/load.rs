@@ -1,0 +1,175 @@
+//! A [`HeightMap`] from an image (a file, or its bytes) and back: the codes scaled to heights,
+//! colour images converted to luminance (with a warning, and a louder one when the image looks
+//! like a normal map), 8-bit terraces dequantised, and the map written as a 16-bit grey PNG.
+//!
+//! # Conventions
+//! * Integer images: `h = code / max_code · H` (`max_code` = 255 or 65535); float images (EXR):
+//!   `h = value · H`, with `H` the height scale.
+//! * Map row 0 (y = 0) is the image's **bottom** row: loading reverses the image's rows and
+//!   [`HeightMap::encode_png16`] writes them back in image order (see the parent module).
+
+use super::decode::{decode_bytes, decode_err, oom, open_image_budgeted, ImageHeader};
+use super::terraces::TERRACE_FRACTION;
+use super::{Border, HeightMap};
+use crate::error::{positive, MapError, Result};
+use std::path::Path;
+
+impl HeightMap {
+    /// Load a grey PNG (8/16-bit), 16-bit TIFF or float EXR height map with texel size `S` and
+    /// height scale `H` (both in the same length unit, > 0). See the module docs for the scale.
+    pub fn load(
+        path: &Path,
+        texel_size: f64,
+        height_scale: f64,
+        border: Border,
+    ) -> Result<HeightMap> {
+        positive("texel_size", texel_size)?;
+        positive("height_scale", height_scale)?;
+        let img = open_image_budgeted(
+            path,
+            "loading the height map",
+            ImageHeader::height_map_bytes,
+        )?;
+        Self::from_image(img, texel_size, height_scale, border).map_err(|e| match e {
+            MapError::OutOfMemory { source, .. } => oom(path, source),
+            e => e,
+        })
+    }
+
+    /// Like [`HeightMap::load`], from the bytes of an image file (`name` chooses the format
+    /// when the content does not say).
+    pub fn from_bytes(
+        name: &Path,
+        bytes: &[u8],
+        texel_size: f64,
+        height_scale: f64,
+        border: Border,
+    ) -> Result<HeightMap> {
+        positive("texel_size", texel_size)?;
+        positive("height_scale", height_scale)?;
+        let img = decode_bytes(name, bytes)?;
+        Self::from_image(img, texel_size, height_scale, border)
+    }
+
+    fn from_image(
+        img: image::DynamicImage,
+        texel_size: f64,
+        height_scale: f64,
+        border: Border,
+    ) -> Result<HeightMap> {
+        use image::DynamicImage as D;
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let mut warnings = Vec::new();
+        if img.color().has_color() {
+            let rgb = img.to_rgb32f();
+            let n = (w * h) as f64;
+            let mean = rgb.pixels().fold([0.0f64; 3], |a, p| {
+                [
+                    a[0] + p.0[0] as f64,
+                    a[1] + p.0[1] as f64,
+                    a[2] + p.0[2] as f64,
+                ]
+            });
+            let mean = mean.map(|c| c / n);
+            if (mean[0] - 0.5).abs() < 0.1 && (mean[1] - 0.5).abs() < 0.1 && mean[2] > 0.7 {
+                warnings.push(format!(
+                    "this looks like a tangent-space normal map (mean colour {:.2}, {:.2}, {:.2}), \
+                     not a height map: give it as a normal map instead",
+                    mean[0], mean[1], mean[2]
+                ));
+            } else {
+                warnings.push(
+                    "colour image used as a height map: converted to luminance (prefer a grey image)"
+                        .into(),
+                );
+            }
+        }
+        let eight_bit = matches!(
+            img.color(),
+            image::ColorType::L8
+                | image::ColorType::La8
+                | image::ColorType::Rgb8
+                | image::ColorType::Rgba8
+        );
+        let codes: Vec<f64> = match img {
+            D::ImageLuma8(b) => b.pixels().map(|p| p.0[0] as f64 / 255.0).collect(),
+            D::ImageLumaA8(b) => b.pixels().map(|p| p.0[0] as f64 / 255.0).collect(),
+            D::ImageLuma16(b) => b.pixels().map(|p| p.0[0] as f64 / 65535.0).collect(),
+            D::ImageLumaA16(b) => b.pixels().map(|p| p.0[0] as f64 / 65535.0).collect(),
+            D::ImageRgb32F(b) => b.pixels().map(|p| p.0[0] as f64).collect(),
+            D::ImageRgba32F(b) => b.pixels().map(|p| p.0[0] as f64).collect(),
+            D::ImageRgb16(_) | D::ImageRgba16(_) => img
+                .to_luma16()
+                .pixels()
+                .map(|p| p.0[0] as f64 / 65535.0)
+                .collect(),
+            other => other
+                .to_luma8()
+                .pixels()
+                .map(|p| p.0[0] as f64 / 255.0)
+                .collect(),
+        };
+        // Image row 0 is the top; meso's +y is up in the image, so row 0 of the map (y = 0) is
+        // the image's bottom row.
+        let mut heights = meso_core::budget::try_with_capacity(codes.len()).map_err(|e| {
+            MapError::OutOfMemory {
+                what: "<image>".into(),
+                source: e,
+            }
+        })?;
+        for r in (0..h).rev() {
+            heights.extend(codes[r * w..(r + 1) * w].iter().map(|v| v * height_scale));
+        }
+        let mut map = HeightMap::from_heights(w, h, heights, texel_size, border)?;
+        if eight_bit {
+            let step = height_scale / 255.0;
+            let (flat, one_code) = map.terrace_stats(step);
+            // Terraces: plateaus joined by one-code steps. Genuinely flat ground (tiles, a
+            // plinth) has plateaus without the steps and is left alone.
+            if flat > TERRACE_FRACTION && one_code > TERRACE_FRACTION {
+                map.dequantize(step);
+                warnings.push(format!(
+                    "8-bit heights: {:.1}% of the grid cells were exactly flat and {:.1}% one code \
+                     high (quantisation terraces); dequantised by smoothing within ±½ code \
+                     ({:.1}% flat now)",
+                    100.0 * flat,
+                    100.0 * one_code,
+                    100.0 * map.flat_cell_fraction()
+                ));
+            }
+        }
+        map.warnings = warnings;
+        Ok(map)
+    }
+
+    /// The map as a 16-bit grey PNG in image orientation (the last row of the map, largest y, is
+    /// the image's top row), heights mapped linearly from `[min, max]` onto `[0, 65535]`.
+    /// Returns the bytes and the height scale `max − min` to load it back with
+    /// ([`HeightMap::load`]; heights come back shifted by `−min`).
+    ///
+    /// # Errors
+    /// An encoder failure (none is expected for a valid map).
+    pub fn encode_png16(&self) -> Result<(Vec<u8>, f64)> {
+        use image::ImageEncoder;
+        let (lo, hi) = self.range();
+        let scale = (hi - lo).max(1e-12);
+        let mut raw = Vec::with_capacity(self.heights.len() * 2);
+        for r in (0..self.height).rev() {
+            for h in &self.heights[r * self.width..(r + 1) * self.width] {
+                let c = (((h - lo) / scale) * 65535.0).round().clamp(0.0, 65535.0) as u16;
+                // `write_image` takes 16-bit samples in native byte order.
+                raw.extend_from_slice(&c.to_ne_bytes());
+            }
+        }
+        let mut out = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(
+                &raw,
+                self.width as u32,
+                self.height as u32,
+                image::ExtendedColorType::L16,
+            )
+            .map_err(|e| decode_err(Path::new("<memory>"), e))?;
+        Ok((out, scale))
+    }
+}

@@ -1,0 +1,153 @@
+//! Building an [`NdfMapped`] from a pyramid: per level and texel, its lobes as spherical
+//! Gaussians weighted by their share of the texel's projected area over their own
+//! ([`SgLobe`]), and for Lambert and general facets their nodes weighted by projected area
+//! ([`Node`]).
+//!
+//! # Conventions
+//! * A texel with no lobe facing up shades as the flat surface (one lobe of
+//!   `meso_maps::limits::ETA_MAX` on the normal; one node on the normal).
+//! * Each texel's node weights sum to 1.
+
+use super::lobes::{lobe_nodes, Node, SgLobe};
+use super::shares::{peak_projected_area, projected_shares};
+use super::{NdfMapped, NodeLevel};
+use crate::mapped::{check_scale, Facet};
+use glam::DVec3;
+use meso_core::material::Material;
+use meso_core::sg;
+use meso_maps::Pyramid;
+use std::f64::consts::FRAC_1_PI;
+
+impl NdfMapped {
+    /// The filtered material of `pyramid` with the facet transfer and diffuse term of
+    /// `surface` (its NDF is ignored), `texels_per_uv` level-0 cells per unit of texture
+    /// coordinate, and horizon shadowing of the light when `shadowing` is true (needs a
+    /// pyramid extracted from a height map).
+    ///
+    /// # Errors
+    /// A message for a bad `texels_per_uv`, or shadowing asked of a pyramid without horizon
+    /// statistics (normal maps).
+    pub fn new(
+        pyramid: &Pyramid,
+        surface: &Material,
+        texels_per_uv: f64,
+        shadowing: bool,
+    ) -> Result<NdfMapped, String> {
+        check_scale(texels_per_uv)?;
+        let facet = Facet::new(&surface.transfer);
+        // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
+        let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
+        let mut levels = Vec::with_capacity(pyramid.levels.len());
+        let shares = projected_shares(pyramid);
+        for (k, l) in pyramid.levels.iter().enumerate() {
+            if shadowing && l.horizon.is_none() {
+                return Err(format!(
+                    "level {k} of the pyramid has no horizon statistics (a normal map?): \
+                     shadowing needs a height map"
+                ));
+            }
+            let mut lobe_start = Vec::with_capacity(l.texels() + 1);
+            let mut lobes = Vec::with_capacity(l.lobes.len());
+            let mut node_start = Vec::new();
+            let mut nodes = Vec::new();
+            let mut tmp = Vec::new();
+            lobe_start.push(0u32);
+            if general {
+                node_start.push(0u32);
+            }
+            let mut src = Vec::new();
+            for t in 0..l.texels() {
+                src.clear();
+                src.extend(
+                    l.lobes
+                        .range(l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize),
+                );
+                // Each lobe's share of the texel's projected area (see `projected_shares`)
+                // and its own projected area E[m_z⁺] per unit of weight.
+                let share = &shares[k][l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+                let mut any = false;
+                for (p, &sh) in src.iter().zip(share) {
+                    let e = peak_projected_area(p.axis.z, p.exponent);
+                    if sh <= 0.0 || e <= 1e-12 {
+                        continue;
+                    }
+                    any = true;
+                    let kappa = sg::kappa_same_mean_cos(p.exponent);
+                    let norm = sg::normaliser_2pi(kappa);
+                    lobes.push(SgLobe::new(p.axis, p.exponent, kappa, sh / e * norm));
+                }
+                if !any {
+                    // No lobe faces up: shade as the flat surface.
+                    let kappa = sg::kappa_same_mean_cos(meso_maps::limits::ETA_MAX);
+                    lobes.push(SgLobe::new(
+                        DVec3::Z,
+                        meso_maps::limits::ETA_MAX,
+                        kappa,
+                        sg::normaliser_2pi(kappa)
+                            / sg::phong_peak_mean_cos(meso_maps::limits::ETA_MAX),
+                    ));
+                }
+                lobe_start.push(lobes.len() as u32);
+                if general {
+                    // Each lobe's nodes weighted by their projected area, scaled to the lobe's
+                    // share.
+                    let before = nodes.len();
+                    for (p, &sh) in src.iter().zip(share) {
+                        tmp.clear();
+                        lobe_nodes(p.axis, 1.0, p.exponent, &mut tmp);
+                        for n in &mut tmp {
+                            n.w *= n.n.z.max(0.0);
+                        }
+                        let total: f64 = tmp.iter().map(|n| n.w).sum();
+                        if sh > 0.0 && total > 0.0 {
+                            nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
+                                n: n.n,
+                                w: n.w / total * sh,
+                            }));
+                        }
+                    }
+                    let total: f64 = nodes[before..].iter().map(|n| n.w).sum();
+                    if total > 0.0 {
+                        for n in &mut nodes[before..] {
+                            n.w /= total;
+                        }
+                    } else {
+                        nodes.truncate(before);
+                        nodes.push(Node {
+                            n: DVec3::Z,
+                            w: 1.0,
+                        });
+                    }
+                    node_start.push(nodes.len() as u32);
+                }
+            }
+            levels.push(NodeLevel {
+                cols: l.cols,
+                rows: l.rows,
+                span: l.span as f64,
+                lobe_start,
+                lobes,
+                node_start,
+                nodes,
+                horizon: if shadowing {
+                    l.horizon.as_ref().map(meso_maps::Horizons::to_vec)
+                } else {
+                    None
+                },
+            });
+        }
+        if levels.is_empty() {
+            return Err("the pyramid has no levels".into());
+        }
+        Ok(NdfMapped {
+            levels,
+            facet,
+            diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
+            texels_per_uv,
+            shadowing,
+            footprint_scale: 1.0,
+            sharp_magnification: false,
+            box_filter: true,
+        })
+    }
+}

@@ -1,0 +1,196 @@
+//! [`NdfMapped`]: the NDF-mapped material, shaded from the pyramid's filtered lobes (module docs
+//! of [`crate::mapped`]).
+//!
+//! This module holds the material (its per-level tables, options and the [`Shader`] entry
+//! points, which blend the taps' per-texel responses); the sub-modules hold its parts:
+//!
+//! * `build` — [`NdfMapped::new`]: the per-level tables from a pyramid;
+//! * `shares` — each lobe's share of its texel's projected area, from the level-0 normals;
+//! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
+//!   Phong facets, and the 7-node form of a lobe for other facets;
+//! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
+//!   magnification).
+//!
+//! # Conventions
+//! * Texels are indexed row-major per level (`row · cols + col`), wrapped periodically;
+//!   positions are in level-0 cells (`uv · texels_per_uv`).
+//! * A texel's lobes are `lobes[lobe_start[t]..lobe_start[t + 1]]`, its nodes (Lambert and
+//!   general facets) `nodes[node_start[t]..node_start[t + 1]]`.
+
+use super::*;
+
+mod build;
+mod filter;
+mod lobes;
+mod shares;
+
+use lobes::{phong_texel, Node, SgLobe};
+
+/// One level of the filtered pyramid.
+#[derive(Clone, Debug)]
+struct NodeLevel {
+    cols: usize,
+    rows: usize,
+    span: f64,
+    /// Per texel, its lobes `lobes[lobe_start[t]..lobe_start[t + 1]]`.
+    lobe_start: Vec<u32>,
+    lobes: Vec<SgLobe>,
+    /// Nodes for a general facet transfer (empty otherwise).
+    node_start: Vec<u32>,
+    nodes: Vec<Node>,
+    horizon: Option<Vec<HorizonStats>>,
+}
+
+/// A material reading an NDF pyramid (see the module docs): the filtered bump map.
+#[derive(Clone, Debug)]
+pub struct NdfMapped {
+    levels: Vec<NodeLevel>,
+    facet: Facet,
+    diffuse: [f32; 3],
+    texels_per_uv: f64,
+    shadowing: bool,
+    footprint_scale: f64,
+    sharp_magnification: bool,
+    box_filter: bool,
+}
+
+impl NdfMapped {
+    /// Number of pyramid levels in use.
+    #[must_use]
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Use only levels `0..=max_level` (coarser footprints read `max_level`). For a tileable
+    /// map any level whose texels cover whole periods describes the far field; capping skips
+    /// coarse levels whose lobe fit is worse (compare their residuals in `meso map info`).
+    #[must_use]
+    pub fn with_max_level(mut self, max_level: usize) -> NdfMapped {
+        self.levels.truncate(max_level.saturating_add(1).max(1));
+        self
+    }
+
+    /// Below level 0 (footprints under √2 cells) read the cells overlapping a box narrower than
+    /// the bilinear tent, down to the single cell under the point (see the module docs), so
+    /// that supersampling converges to the bump map's cell averages; the default keeps the
+    /// bilinear filter there, which shows magnified cells smoothly instead of as squares.
+    #[must_use]
+    pub fn with_sharp_magnification(mut self, sharp: bool) -> NdfMapped {
+        self.sharp_magnification = sharp;
+        self
+    }
+
+    /// Filter with a box the size of the sample's footprint (the bounding box of its
+    /// ray-differential parallelogram): the texels it overlaps, weighted by overlap, on the
+    /// level whose texels are a quarter to half its longer side (blended with the next coarser
+    /// level, so zooming stays continuous) — the default, closer to the supersampled bump map
+    /// on busy maps (see the module docs, "Steep maps"). `false`: the trilinear filter, 8 taps
+    /// per shading call instead of up to 52.
+    #[must_use]
+    pub fn with_box_filter(mut self, on: bool) -> NdfMapped {
+        self.box_filter = on;
+        self
+    }
+
+    /// Multiply the ray-differential footprint by `scale` (> 0; default 1) before choosing the
+    /// level of detail (for experiments; the renderer already fits the footprint to each
+    /// sample's share of the pixel).
+    #[must_use]
+    pub fn with_footprint_scale(mut self, scale: f64) -> NdfMapped {
+        if scale.is_finite() && scale > 0.0 {
+            self.footprint_scale = scale;
+        }
+        self
+    }
+    /// The facets' response `E[f_μ(i, o; m) (m·i)⁺]` of texel `t` of level `l` (scalar for
+    /// Phong and Lambert facets, whose colour is applied by the caller).
+    #[inline]
+    fn texel(&self, l: &NodeLevel, t: usize, wi: DVec3, wo: DVec3, h: DVec3) -> [f64; 3] {
+        match self.facet {
+            Facet::Phong { exponent, .. } => {
+                let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+                let eta = f64::from(exponent);
+                [
+                    phong_texel(lobes, wi, h, eta, sg::kappa_transfer(eta)),
+                    0.0,
+                    0.0,
+                ]
+            }
+            Facet::Lambert { .. } => {
+                let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
+                let mut a = 0.0;
+                for nd in nodes {
+                    if nd.n.dot(wo) > 0.0 {
+                        a += nd.w * nd.n.dot(wi).max(0.0);
+                    }
+                }
+                [a, 0.0, 0.0]
+            }
+            Facet::General(_) => {
+                let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
+                let mut a = [0.0f64; 3];
+                for nd in nodes {
+                    let v = self.facet.lit(nd.n, wi, wo, h);
+                    for c in 0..3 {
+                        a[c] += nd.w * f64::from(v[c]);
+                    }
+                }
+                a
+            }
+        }
+    }
+}
+
+impl Shader for NdfMapped {
+    fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
+        let mut out = [[0.0f32; 3]; 1];
+        self.eval_many(sp, wo, &[wi], &mut out);
+        out[0]
+    }
+
+    fn eval_many(&self, sp: &ShadingPoint, wo: DVec3, wi: &[DVec3], out: &mut [[f32; 3]]) {
+        for o in out.iter_mut() {
+            *o = [0.0; 3];
+        }
+        if wo.z <= 0.0 {
+            return;
+        }
+        let colour: [f64; 3] = match self.facet {
+            Facet::Phong { specular, .. } => specular.map(f64::from),
+            Facet::Lambert { albedo_pi } => albedo_pi.map(f64::from),
+            Facet::General(_) => [1.0; 3],
+        };
+        let scalar = !matches!(self.facet, Facet::General(_));
+        let (taps, ntaps) = self.taps(sp);
+        for (k, &i) in wi.iter().enumerate() {
+            let s = i + wo;
+            let len = s.length();
+            if i.z <= 0.0 || len <= 1e-12 {
+                continue;
+            }
+            let h = s / len;
+            let mut acc = [0.0f64; 3];
+            let mut vis = 0.0f64;
+            for &(lev, t, w) in &taps[..ntaps] {
+                let l = &self.levels[lev];
+                let v = self.texel(l, t, i, wo, h);
+                if scalar {
+                    acc[0] += w * v[0];
+                } else {
+                    for c in 0..3 {
+                        acc[c] += w * v[c];
+                    }
+                }
+                if let Some(hz) = &l.horizon {
+                    vis += w * hz[t].visibility(i);
+                }
+            }
+            let v = if self.shadowing { vis } else { 1.0 };
+            let s = v / i.z;
+            for c in 0..3 {
+                let a = if scalar { acc[0] * colour[c] } else { acc[c] };
+                out[k][c] = (a * s) as f32 + self.diffuse[c];
+            }
+        }
+    }
+}
