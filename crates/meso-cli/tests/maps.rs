@@ -125,6 +125,12 @@ fn extract_info_brdf_and_gonio() {
     ok(&info);
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(text.contains("map 64x64 samples"), "{text}");
+    // Issue #11 item 4: each level's shading error, recorded in the file, in % of the peak.
+    assert!(
+        text.contains("shading error mean/max (% of peak)"),
+        "{text}"
+    );
+    assert!(!text.contains("not recorded"), "{text}");
     assert_eq!(
         text.lines()
             .filter(|l| l.starts_with(char::is_numeric))

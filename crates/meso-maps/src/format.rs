@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
 mod v3;
 
-pub use v3::MAX_DEFLATE_RATIO;
+pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 
 /// The format version written by this build: 3, quantised and compressed (`docs/map-format.md`).
 /// Versions 2 (uncompressed `f32`) and 3 are read; version 1 stored projected-area lobe weights
@@ -64,7 +64,8 @@ impl Pyramid {
             return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, why));
         }
         self.write_header(w, VERSION)?;
-        v3::write_levels(self, w)
+        v3::write_levels(self, w)?;
+        v3::write_shading(self, w)
     }
 
     /// The 48 bytes shared by versions 2 and 3.
@@ -199,7 +200,14 @@ impl Pyramid {
         };
         let h = read_header(&mut r)?;
         let levels = if h.version == VERSION {
-            v3::read_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?
+            let mut levels = v3::read_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+            if let Some(sh) = v3::read_shading(&mut r, h.nlev)? {
+                for (l, (m, x)) in levels.iter_mut().zip(sh) {
+                    l.residual.shading_mean = Some(m);
+                    l.residual.shading_max = Some(x);
+                }
+            }
+            levels
         } else {
             read_levels_v2(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?
         };
@@ -233,6 +241,7 @@ impl Pyramid {
         let h = read_header(&mut r)?;
         if h.version == VERSION {
             v3::check_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+            v3::read_shading(&mut r, h.nlev)?;
         } else {
             read_levels_v2(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
         }
@@ -368,6 +377,8 @@ fn read_levels_v2(
             mean: r.f64("residual")?,
             max: r.f64("residual")?,
             texels: r.u32("residual texels")?,
+            shading_mean: None,
+            shading_max: None,
         };
         let counts = r.take(texels, "lobe counts")?;
         let mut lobe_start = Vec::with_capacity(texels + 1);

@@ -181,15 +181,24 @@ pub fn extract_work(
     (prep, out)
 }
 
-/// The NDF fit residual of one level.
+/// The fit residuals of one level, measured on a sample of its texels (`texels` of them,
+/// evenly strided): the binned NDF error and the shading error.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Residual {
-    /// Mean relative NDF L2 error over the measured texels.
+    /// Mean relative NDF L2 error over the measured texels ([`crate::fit::ndf_l2_error`]).
     pub mean: f64,
     /// Largest relative NDF L2 error among them.
     pub max: f64,
     /// Number of texels measured.
     pub texels: u32,
+    /// Mean shading error over the measured texels, as a fraction of each texel's peak
+    /// ([`crate::fit::shading_error`]: the lobes against the footprint's normals, both seen
+    /// through a facet kernel of the fit's `smooth_exponent`, RMS over the half vectors;
+    /// 0.01 = 1 %). `None` for map files that did not record it (format 2, and format-3 files
+    /// written before it was recorded).
+    pub shading_mean: Option<f64>,
+    /// Largest shading error among the measured texels (fraction of its peak); `None` as above.
+    pub shading_max: Option<f64>,
 }
 
 /// One level of the pyramid.
@@ -347,7 +356,7 @@ impl std::fmt::Display for PyramidInfo {
         )?;
         writeln!(
             f,
-            "level  texels       span  lobes     lobes/texel  lobe-count histogram  residual mean/max (n)"
+            "level  texels       span  lobes     lobes/texel  lobe-count histogram  residual mean/max (n)  shading error mean/max (% of peak)"
         )?;
         for (k, l) in self.levels.iter().enumerate() {
             let hist: Vec<String> = l
@@ -357,17 +366,22 @@ impl std::fmt::Display for PyramidInfo {
                 .filter(|(_, c)| **c > 0)
                 .map(|(n, c)| format!("{n}:{c}"))
                 .collect();
+            let shading = match (l.residual.shading_mean, l.residual.shading_max) {
+                (Some(m), Some(x)) => format!("{:.2}/{:.2}", 100.0 * m, 100.0 * x),
+                _ => "not recorded".to_string(),
+            };
             writeln!(
                 f,
-                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:.4}/{:.4} ({})",
+                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:<22} {shading}",
                 format!("{}x{}", l.cols, l.rows),
                 l.span,
                 l.lobes,
                 l.lobes as f64 / (l.cols * l.rows) as f64,
                 hist.join(" "),
-                l.residual.mean,
-                l.residual.max,
-                l.residual.texels
+                format!(
+                    "{:.4}/{:.4} ({})",
+                    l.residual.mean, l.residual.max, l.residual.texels
+                ),
             )?;
         }
         Ok(())
@@ -627,8 +641,9 @@ struct RowOut {
     lobes: Vec<PhongLobe>,
     lcount: Vec<u32>,
     horizon: Vec<HorizonStats>,
-    /// The NDF residual of the row's texels that the level's residual samples, in order.
-    residual: Vec<f64>,
+    /// The NDF residual and shading error of the row's texels that the level's residual
+    /// samples, in order.
+    residual: Vec<(f64, f64)>,
 }
 
 /// Where a level reads the horizon statistics of its children, in `f64`.
@@ -717,7 +732,10 @@ impl LevelFit<'_> {
             }
             self.fit_texel(&buf.merged, &mut scratch, &mut lobes);
             if (r * cols + c).is_multiple_of(self.residual_stride) {
-                out.residual.push(self.residual(r, c, &lobes));
+                out.residual.push((
+                    self.residual(r, c, &lobes),
+                    crate::fit::shading_error(&buf.merged, &lobes, self.shading_exponent()),
+                ));
             }
             if self.keep_entries {
                 out.entries.extend_from_slice(&buf.merged);
@@ -727,6 +745,17 @@ impl LevelFit<'_> {
             out.lcount.push(lobes.len() as u32);
         }
         out
+    }
+
+    /// The kernel exponent of the shading error: the fit's `smooth_exponent`, or
+    /// [`crate::fit::SHADING_KERNEL_EXPONENT`] when that is 0.
+    fn shading_exponent(&self) -> f64 {
+        let l = self.params.fit.smooth_exponent;
+        if l.is_finite() && l > 0.0 {
+            l
+        } else {
+            crate::fit::SHADING_KERNEL_EXPONENT
+        }
     }
 
     /// The relative NDF L2 error of texel `(r, c)`'s lobes against its footprint's facets.
@@ -833,7 +862,7 @@ struct LevelBuilder {
     lobes: Lobes,
     lstart: Vec<u32>,
     horizon: Option<Horizons>,
-    residual: Vec<f64>,
+    residual: Vec<(f64, f64)>,
 }
 
 impl LevelBuilder {
@@ -914,9 +943,13 @@ impl LevelBuilder {
             lobes: self.lobes,
             horizon: self.horizon,
             residual: Residual {
-                mean: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
-                max: errs.iter().copied().fold(0.0, f64::max),
+                mean: errs.iter().map(|e| e.0).sum::<f64>() / errs.len().max(1) as f64,
+                max: errs.iter().map(|e| e.0).fold(0.0, f64::max),
                 texels: errs.len() as u32,
+                shading_mean: Some(
+                    errs.iter().map(|e| e.1).sum::<f64>() / errs.len().max(1) as f64,
+                ),
+                shading_max: Some(errs.iter().map(|e| e.1).fold(0.0, f64::max)),
             },
         };
         (level, self.carry)

@@ -6,7 +6,7 @@
 use glam::DVec3;
 use meso_core::frame::spherical_direction_deg as dir;
 use meso_core::material::MaterialSpec;
-use meso_maps::format::{VERSION, VERSION_2};
+use meso_maps::format::{SHADING_TAG, VERSION, VERSION_2};
 use meso_maps::{extract, fixtures, ExtractParams, MapError, MapsResolver, Pyramid, Source};
 use std::path::{Path, PathBuf};
 
@@ -57,7 +57,9 @@ fn compare(a: &Pyramid, b: &Pyramid, w: &mut Worst) {
     assert_eq!(a.levels.len(), b.levels.len());
     for (la, lb) in a.levels.iter().zip(&b.levels) {
         assert_eq!(la.lobe_start, lb.lobe_start);
-        assert_eq!(la.residual, lb.residual);
+        // The NDF residual of the level table (format 2 does not record the shading error).
+        let ndf = |r: &meso_maps::pyramid::Residual| (r.mean, r.max, r.texels);
+        assert_eq!(ndf(&la.residual), ndf(&lb.residual));
         for (x, y) in la.lobes.iter().zip(&lb.lobes) {
             w.axis_rad = w.axis_rad.max(x.axis.angle_between(y.axis));
             w.weight = w.weight.max((x.weight - y.weight).abs());
@@ -217,17 +219,65 @@ fn version_2_files_still_read_and_are_larger() {
     assert!(e.to_string().contains("trailing"), "{e}");
 }
 
-/// Offsets of the streams of a format-3 file: (header offset, compressed length).
+/// Offsets of the streams of a format-3 file: (header offset, compressed length). The file
+/// ends after them, or after the shading-error trailer (tag and 16 bytes a level).
 fn streams(bytes: &[u8], levels: usize) -> Vec<(usize, usize)> {
     let mut pos = 48 + 36 * levels;
     let mut out = Vec::new();
-    while pos < bytes.len() {
+    while pos < bytes.len() && bytes[pos..pos + 4] != SHADING_TAG {
         let comp = u64::from_le_bytes(bytes[pos + 12..pos + 20].try_into().unwrap()) as usize;
         out.push((pos, comp));
         pos += 20 + comp;
     }
+    if pos < bytes.len() {
+        pos += 4 + 16 * levels;
+    }
     assert_eq!(pos, bytes.len());
     out
+}
+
+/// Issue #11 item 4: the level table's residuals and each level's shading error read back from
+/// a format-3 file exactly; a format-3 file without the shading-error trailer (as written
+/// before it existed) still reads, with the shading error not recorded; a truncated trailer is
+/// refused.
+#[test]
+fn shading_error_trailer_round_trips_and_older_files_still_read() {
+    let p = pyramid(&fixtures::gaussian(32, 2.0, 0.3, 5, 0.1).unwrap());
+    for l in &p.levels {
+        let (m, x) = (
+            l.residual.shading_mean.unwrap(),
+            l.residual.shading_max.unwrap(),
+        );
+        assert!(m.is_finite() && m >= 0.0 && x >= m && x < 1.0, "{m} {x}");
+    }
+    assert!(p.top().residual.shading_mean.unwrap() > 0.0);
+    let bytes = p.to_bytes();
+    let back = Pyramid::from_bytes(Path::new("new.map"), &bytes).unwrap();
+    for (a, b) in p.levels.iter().zip(&back.levels) {
+        assert_eq!(a.residual, b.residual);
+    }
+    // The same file without the trailer: an older format-3 file.
+    let nlev = p.levels.len();
+    let old = &bytes[..bytes.len() - 4 - 16 * nlev];
+    assert_eq!(&bytes[old.len()..old.len() + 4], &SHADING_TAG);
+    let r = Pyramid::from_bytes(Path::new("old.map"), old).unwrap();
+    for (a, b) in back.levels.iter().zip(&r.levels) {
+        assert_eq!(
+            (a.residual.mean, a.residual.max),
+            (b.residual.mean, b.residual.max)
+        );
+        assert_eq!(
+            (b.residual.shading_mean, b.residual.shading_max),
+            (None, None)
+        );
+        assert_eq!(a.lobes, b.lobes);
+    }
+    assert!(r.info().to_string().contains("not recorded"));
+    Pyramid::check_bytes(Path::new("old.map"), old).unwrap();
+    let e = Pyramid::from_bytes(Path::new("cut.map"), &bytes[..bytes.len() - 3])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("truncated"), "{e}");
 }
 
 fn deflate(raw: &[u8]) -> Vec<u8> {

@@ -143,12 +143,32 @@ pub fn run(a: Args) -> Result<()> {
     phases.time("write", || pyr.write(&a.out))?;
     let top = pyr.top();
     note!(
-        "{}: {} levels, top level {} lobes (NDF residual {:.4}); {}",
+        "{}: {} levels, top level {} lobes (NDF residual {:.4}, shading error {:.2} % of peak); {}",
         a.out.display(),
         pyr.levels.len(),
         top.lobes.len(),
         top.residual.mean,
+        100.0 * top.residual.shading_mean.unwrap_or(0.0),
         phases.summary()
+    );
+    // Per level: the shading error (mean/max over the sampled texels, % of each texel's peak;
+    // `meso map info` prints it too, with the NDF residual).
+    let per_level: Vec<String> = pyr
+        .levels
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            format!(
+                "{k}: {:.2}/{:.2}",
+                100.0 * l.residual.shading_mean.unwrap_or(0.0),
+                100.0 * l.residual.shading_max.unwrap_or(0.0)
+            )
+        })
+        .collect();
+    note!(
+        "shading error per level, mean/max % of peak (facet kernel exp({}(h·m − 1))): {}",
+        params.fit.smooth_exponent,
+        per_level.join(", ")
     );
     Ok(())
 }

@@ -42,9 +42,25 @@
 //!   smoothed objective above the EM fit's; it can raise the binned L2 residual below (which
 //!   rewards detail finer than any facet BRDF sees).
 //!
+//! * **The K chain** ([`FitParams::k_chain`], opt-in; issue #11 item 4). Everything above is the
+//!   *single* fit at one `max_lobes`; its objective can rise with `max_lobes` (EM's choice of K
+//!   and the refinement's starts change with it). The lobes returned for `max_lobes` = K are the
+//!   end of a chain: at K = 1 the single fit; at each K ≥ 2 the candidates are the chain's fit
+//!   at K − 1, the single fit at K, and — when that does not gain — the fit at K − 1 plus one
+//!   lobe (smoothed levels: `smoothed`'s lobe where the data most exceed the fit, LM-polished;
+//!   otherwise `split_heaviest`, EM-polished). The lowest [`fit_objective`] wins; a candidate
+//!   with more lobes than the chain's fit must lower it by the gain (`min_gain` nats, or
+//!   `SMOOTH_MIN_DROP` of the smoothed objective). So the objective never rises with
+//!   `max_lobes` and is never above the single fit's at the same `max_lobes`. The objective is
+//!   the fit's own: the smoothed L2 objective where the refinement runs, minus the mean
+//!   log-likelihood of the EM points elsewhere. The single fits at K = 1, 2, … share their EM
+//!   chain, the LM polish of each distinct EM fit and the greedy states (computed once:
+//!   `Single`, `smoothed::Refiner`), so the chain costs the candidates it adds and little more.
+//!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
-//! the footprint's normals.
+//! the footprint's normals; and by [`shading_error`], the error a user can read: both seen
+//! through a facet kernel, RMS over half vectors as a fraction of the peak.
 //!
 //! # Layout
 //! The public fit API (entries, parameters, [`fit_lobes`]) lives here; the maximum-likelihood
@@ -60,7 +76,7 @@ use crate::sphgrid::SphereGrid;
 use em::{em, eta_from_mean_t, kmeans_init, log_t, loglik, split_heaviest, Pt, L};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
-use smoothed::{refine_smoothed, SMOOTH_MAX_POINTS};
+use smoothed::{rms_of_peak, Refiner, SMOOTH_MAX_POINTS, SMOOTH_MIN_DROP};
 
 // The lobe bounds live in `crate::limits` (other crates read them there); re-exported here.
 pub use crate::limits::{AXIS_MIN_Z, ETA_MAX, ETA_MIN, MAX_LOBES};
@@ -172,6 +188,13 @@ pub struct FitParams {
     /// Levels with at most this many texels get the smoothed refinement (default 1024; it
     /// costs ≈ 1 ms per texel, so the big fine levels keep the EM fit).
     pub smooth_texels: usize,
+    /// Whether the lobes come from the K chain (module docs, "The K chain"): the fit's
+    /// objective never rises with `max_lobes`. Default `false`, the single fit at `max_lobes`
+    /// (one of the chain's candidates): on the steep stone-wall render test
+    /// (`crates/meso-render/tests/steep.rs`) the chain's lower smoothed objective shaded worse
+    /// (Phong 20, box, 8 texels/px 3.15 % against the 3 % bound; Lambert, trilinear, 4 texels/px
+    /// 15.3 % against 14 %), so it stays opt-in until its objective matches shading.
+    pub k_chain: bool,
 }
 
 impl Default for FitParams {
@@ -185,6 +208,7 @@ impl Default for FitParams {
             thorough_texels: 64,
             smooth_exponent: 40.0,
             smooth_texels: 1024,
+            k_chain: false,
         }
     }
 }
@@ -224,6 +248,10 @@ pub fn fit_lobes(entries: &[Entry], params: &FitParams, out: &mut Vec<PhongLobe>
 /// EM for `em_iterations`; otherwise K is chosen after 5 EM iterations per start and the chosen
 /// K polished with at most 10 more (the cheap path of the big, fine pyramid levels). `smooth`
 /// adds the smoothed refinement (module docs) when `params.smooth_exponent > 0`.
+///
+/// With `params.k_chain` the lobes come from the K chain (module docs, "The K chain"): their
+/// [`fit_objective`] never rises with `params.max_lobes`, and is never above that of the single
+/// fit at `params.max_lobes` (what `k_chain = false` returns).
 pub fn fit_lobes_with(
     entries: &[Entry],
     params: &FitParams,
@@ -239,111 +267,375 @@ pub fn fit_lobes_with(
         return;
     }
     let kmax = params.max_lobes.clamp(1, MAX_LOBES);
-    if entries.len() <= kmax {
+    let n = entries.len();
+    if n == 1 {
+        out.extend(exact_lobes(entries, total));
+        return;
+    }
+    fill_em_points(entries, params, max_points, pts);
+    let pts: &[Pt] = pts;
+    let sdata = smooth_points(entries, pts, smooth, params);
+    let mut single = Single::new(pts, params, thorough, sdata.as_deref());
+    if !params.k_chain {
+        out.extend(if n <= kmax {
+            exact_lobes(entries, total)
+        } else {
+            single.fit(kmax)
+        });
+        return;
+    }
+    // The chain: the fit at K is the best (lowest objective) of the fit at K − 1, the single
+    // fit at K, and the fit at K − 1 plus one lobe; a candidate with more lobes must lower the
+    // objective by the gain (`min_gain` nats, or SMOOTH_MIN_DROP of the smoothed objective).
+    let mut cur = single.fit(1);
+    let mut o = single.objective(&cur);
+    for k in 2..=kmax.min(n) {
+        let prev = cur.clone();
+        let cand = if n <= k {
+            exact_lobes(entries, total)
+        } else {
+            single.fit(k)
+        };
+        let oc = single.objective(&cand);
+        let gained = oc < o - single.gain(o);
+        if oc <= o {
+            cur = cand;
+            o = oc;
+        }
+        if !gained && n > k && !single.delta && pts.len() > 4 * k {
+            let cand = single.plus_one(&prev, k);
+            let oc = single.objective(&cand);
+            if oc < o - single.gain(o) {
+                cur = cand;
+                o = oc;
+            }
+        }
+    }
+    out.extend(cur);
+}
+
+/// The objective the K chain never lets grow, of `lobes` (weights summing to 1) fitted to
+/// `entries` by [`fit_lobes_with`] with the same `params`, `max_points` and `smooth`: with the
+/// smoothed refinement (`smooth` and `params.smooth_exponent > 0`) the smoothed L2 objective
+/// `Σ_h (∫ n_fit(m) K(h·m) dm − Σ_n w_n K(h·m_n))²` (module docs; dimensionless, the normals'
+/// weights normalised to 1), otherwise minus the mean log-likelihood (nats per unit weight) of
+/// the EM points. Footprints of one entry get 0 (their fit is exact at every K).
+#[must_use]
+pub fn fit_objective(
+    entries: &[Entry],
+    params: &FitParams,
+    max_points: usize,
+    smooth: bool,
+    lobes: &[PhongLobe],
+) -> f64 {
+    let total: f64 = entries.iter().map(|e| e.w).sum();
+    if entries.len() < 2 || total <= 0.0 {
+        return 0.0;
+    }
+    let mut pts = Vec::new();
+    fill_em_points(entries, params, max_points, &mut pts);
+    let sdata = smooth_points(entries, &pts, smooth, params);
+    let single = Single::new(&pts, params, true, sdata.as_deref());
+    single.objective(lobes)
+}
+
+/// Exponent λ of the facet kernel `exp(λ(h·m − 1))` of [`shading_error`] when the fit's
+/// `smooth_exponent` is 0 (the default `smooth_exponent`: ≈ 9° wide, about a Phong facet of
+/// exponent 40 or a Beckmann facet of roughness α = √(2/λ) ≈ 0.22).
+pub const SHADING_KERNEL_EXPONENT: f64 = 40.0;
+
+/// Resolution of the equal-area grid the entries are merged onto for [`shading_error`] (4096
+/// bins of ≈ 3.2°, a third of the kernel's width; each bin keeps its summed normals).
+pub const SHADING_GRID_RES: usize = 64;
+
+/// The shading error of `lobes` (weights summing to 1) against the merged normals `entries`,
+/// as a fraction of the peak (0.01 = 1 %): both NDFs seen through the facet kernel
+/// `K(h·m) = exp(λ(h·m − 1))` of exponent `lambda` (> 0; ≈ `1/√λ` rad wide, what a facet BRDF
+/// of that width shades of the NDF at half vector `h`), the RMS of the difference over the
+/// half vectors of an equal-area grid of spacing ≈ the kernel's width (the upper-hemisphere
+/// ones within reach of the normals), divided by the largest blurred value of the normals.
+/// Each Phong peak is taken as the spherical Gaussian of the same mean cosine (the renderer's
+/// `NdfMapped` substitution, as the smoothed refinement does), so the blur is exact in closed
+/// form; the normals are merged onto a [`SHADING_GRID_RES`]² grid first. 0 for no entries.
+#[must_use]
+pub fn shading_error(entries: &[Entry], lobes: &[PhongLobe], lambda: f64) -> f64 {
+    if entries.is_empty() || lobes.is_empty() || !(lambda.is_finite() && lambda > 0.0) {
+        return 0.0;
+    }
+    let grid = SphereGrid {
+        res: SHADING_GRID_RES,
+    };
+    let pts: Vec<Pt> = if entries.len() <= 256 {
+        entries.iter().map(|e| (e.mean(), e.w)).collect()
+    } else {
+        let mut bins = vec![(DVec3::ZERO, 0.0f64); grid.bins()];
         for e in entries {
+            let b = &mut bins[grid.bin(e.mean().normalize_or(DVec3::Z))];
+            b.0 += e.m;
+            b.1 += e.w;
+        }
+        bins.into_iter()
+            .filter(|b| b.1 > 0.0)
+            .map(|(m, w)| (m / w, w))
+            .collect()
+    };
+    rms_of_peak(&pts, &to_l(lobes), lambda)
+}
+
+/// Every entry its own lobe: axis = its mean direction, exponent from its spread (exact).
+fn exact_lobes(entries: &[Entry], total: f64) -> Vec<PhongLobe> {
+    entries
+        .iter()
+        .map(|e| {
             let mean = e.mean();
             let a = mean.normalize();
             let (axis, exponent) = bounded(a, eta_from_mean_t(log_t(a, mean)));
-            out.push(PhongLobe {
+            PhongLobe {
                 axis,
                 weight: e.w / total,
                 exponent,
-            });
-        }
-        return;
-    }
-    // Strided subset for EM.
+            }
+        })
+        .collect()
+}
+
+/// The EM points: a strided subset of at most `max_points` (≤ `params.max_em_points`, ≥ 8)
+/// entries' mean vectors and weights.
+fn fill_em_points(entries: &[Entry], params: &FitParams, max_points: usize, pts: &mut Vec<Pt>) {
     let cap = max_points.min(params.max_em_points).max(8);
     let stride = entries.len().div_ceil(cap);
     pts.clear();
     pts.extend(entries.iter().step_by(stride).map(|e| (e.mean(), e.w)));
-    let pts: &[Pt] = pts;
-    let ptotal: f64 = pts.iter().map(|p| p.1).sum();
-    let iters = params.em_iterations.max(3);
-    // With the full point budget (small levels) every EM runs `em_iterations`; on budget-capped
-    // levels, selection runs short EM (5 iterations) and the chosen K is polished with ≤ 10 more.
-    let full = thorough;
-    let sel_iters = if full { iters } else { iters.min(5) };
-    // K = 1: mean direction, then the fixed point and the closed-form η.
-    let a = pts.iter().map(|p| p.0 * p.1).sum::<DVec3>();
-    let a = if a.length_squared() > 0.0 {
-        a.normalize()
+}
+
+/// The data of the smoothed objective (`None` without the refinement): up to
+/// SMOOTH_MAX_POINTS entries (a strided subset of `max_em_points` aliases with periodic maps),
+/// or the EM points when they are all the entries.
+fn smooth_points(
+    entries: &[Entry],
+    pts: &[Pt],
+    smooth: bool,
+    params: &FitParams,
+) -> Option<Vec<Pt>> {
+    if !(smooth && params.smooth_exponent > 0.0) {
+        return None;
+    }
+    Some(if entries.len() > pts.len() {
+        let stride = entries.len().div_ceil(SMOOTH_MAX_POINTS);
+        entries
+            .iter()
+            .step_by(stride)
+            .map(|e| (e.mean(), e.w))
+            .collect()
     } else {
-        DVec3::Z
-    };
-    let mut lobes = vec![L {
-        a,
-        w: 1.0,
-        eta: 0.0,
-    }];
-    let mut ll = em(
-        pts,
-        &mut lobes,
-        ptotal,
-        if full { iters } else { iters.min(10) },
-    );
-    // Nearly identical normals: one delta-like lobe, nothing to gain from more.
-    if lobes.len() == 1 && lobes[0].eta >= ETA_MAX {
-        out.extend(to_phong(&lobes));
-        return;
-    }
-    let small = pts.len() <= 4 * kmax;
-    let mut improved = false;
-    for k in 2..=kmax {
-        let mut best: Option<(f64, Vec<L>)> = None;
-        // Thorough fits try both starts at every K, the cheap path both at K = 2 and k-means
-        // after; small footprints (no EM) only k-means (a split start needs EM to move).
-        let starts: &[usize] = if small {
-            &[0]
-        } else if full || k == 2 {
-            &[0, 1]
+        pts.to_vec()
+    })
+}
+
+fn to_l(lobes: &[PhongLobe]) -> Vec<L> {
+    lobes
+        .iter()
+        .map(|l| L {
+            a: l.axis,
+            w: l.weight,
+            eta: l.exponent,
+        })
+        .collect()
+}
+
+/// The maximum-likelihood EM chain of the single fit for one value of its `small` flag: the
+/// lobes after considering K = 1, 2, … (index K − 1) and the K at which they were last changed.
+struct EmChain {
+    states: Vec<(Vec<L>, usize)>,
+    ll: f64,
+    stopped: bool,
+}
+
+/// The single fit (the fitter before the K chain: EM with K grown by `min_gain`, then the
+/// smoothed refinement) at any K, with what different K share computed once. `fit(k)` is
+/// exactly the single fit with `max_lobes = k`.
+struct Single<'a> {
+    pts: &'a [Pt],
+    ptotal: f64,
+    full: bool,
+    iters: usize,
+    sel_iters: usize,
+    min_gain: f64,
+    /// Nearly identical normals: one delta-like lobe at every K.
+    delta: bool,
+    chains: [EmChain; 2],
+    /// EM fits polished after the choice of K, by id.
+    polished: Vec<(usize, Vec<L>)>,
+    refiner: Option<Refiner<'a>>,
+    smooth_exponent: f64,
+}
+
+impl<'a> Single<'a> {
+    fn new(
+        pts: &'a [Pt],
+        params: &FitParams,
+        thorough: bool,
+        sdata: Option<&'a [Pt]>,
+    ) -> Single<'a> {
+        let ptotal: f64 = pts.iter().map(|p| p.1).sum();
+        let iters = params.em_iterations.max(3);
+        // With the full point budget (small levels) every EM runs `em_iterations`; on
+        // budget-capped levels, selection runs short EM (5 iterations) and the chosen K is
+        // polished with ≤ 10 more.
+        let full = thorough;
+        let sel_iters = if full { iters } else { iters.min(5) };
+        // K = 1: mean direction, then the fixed point and the closed-form η.
+        let a = pts.iter().map(|p| p.0 * p.1).sum::<DVec3>();
+        let a = if a.length_squared() > 0.0 {
+            a.normalize()
         } else {
-            &[0]
+            DVec3::Z
         };
-        for &start in starts {
-            let mut trial = if start == 0 {
-                kmeans_init(pts, k)
+        let mut lobes = vec![L {
+            a,
+            w: 1.0,
+            eta: 0.0,
+        }];
+        let ll = em(
+            pts,
+            &mut lobes,
+            ptotal,
+            if full { iters } else { iters.min(10) },
+        );
+        let delta = lobes.len() == 1 && lobes[0].eta >= ETA_MAX;
+        let chain = || EmChain {
+            states: vec![(lobes.clone(), 1)],
+            ll,
+            stopped: false,
+        };
+        Single {
+            pts,
+            ptotal,
+            full,
+            iters,
+            sel_iters,
+            min_gain: params.min_gain,
+            delta,
+            chains: [chain(), chain()],
+            polished: Vec::new(),
+            refiner: sdata.map(|d| Refiner::new(d, params.smooth_exponent)),
+            smooth_exponent: params.smooth_exponent,
+        }
+    }
+
+    /// The chain's objective of final lobes ([`fit_objective`]).
+    fn objective(&self, lobes: &[PhongLobe]) -> f64 {
+        match &self.refiner {
+            Some(r) => r.sm.objective_of(&to_l(lobes)),
+            None => -loglik(self.pts, &to_l(lobes), self.ptotal),
+        }
+    }
+
+    /// The drop of the objective below `o` that justifies one more lobe.
+    fn gain(&self, o: f64) -> f64 {
+        match &self.refiner {
+            Some(_) => SMOOTH_MIN_DROP * o.abs(),
+            None => self.min_gain,
+        }
+    }
+
+    /// The EM chain of flag `small` up to K = `k`.
+    fn extend(&mut self, small: bool, k: usize) {
+        let (pts, ptotal, full, sel_iters) = (self.pts, self.ptotal, self.full, self.sel_iters);
+        let ch = &mut self.chains[usize::from(small)];
+        while ch.states.len() < k {
+            let kk = ch.states.len() + 1;
+            let (lobes, last) = ch.states.last().unwrap().clone();
+            if ch.stopped {
+                ch.states.push((lobes, last));
+                continue;
+            }
+            let mut best: Option<(f64, Vec<L>)> = None;
+            // Thorough fits try both starts at every K, the cheap path both at K = 2 and
+            // k-means after; small footprints (no EM) only k-means (a split start needs EM to
+            // move).
+            let starts: &[usize] = if small {
+                &[0]
+            } else if full || kk == 2 {
+                &[0, 1]
             } else {
-                split_heaviest(&lobes)
+                &[0]
             };
-            // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
-            let l2 = if small {
-                loglik(pts, &trial, ptotal)
-            } else {
-                em(pts, &mut trial, ptotal, sel_iters)
-            };
-            if trial.len() == k && best.as_ref().is_none_or(|b| l2 > b.0) {
-                best = Some((l2, trial));
+            for &start in starts {
+                let mut trial = if start == 0 {
+                    kmeans_init(pts, kk)
+                } else {
+                    split_heaviest(&lobes)
+                };
+                // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
+                let l2 = if small {
+                    loglik(pts, &trial, ptotal)
+                } else {
+                    em(pts, &mut trial, ptotal, sel_iters)
+                };
+                if trial.len() == kk && best.as_ref().is_none_or(|b| l2 > b.0) {
+                    best = Some((l2, trial));
+                }
+            }
+            match best {
+                Some((l2, trial)) if l2 - ch.ll > self.min_gain => {
+                    ch.ll = l2;
+                    ch.states.push((trial, kk));
+                }
+                _ => {
+                    ch.stopped = true;
+                    ch.states.push((lobes, last));
+                }
             }
         }
-        match best {
-            Some((l2, trial)) if l2 - ll > params.min_gain => {
-                lobes = trial;
-                ll = l2;
-                improved = true;
+    }
+
+    /// The single fit with `max_lobes = k` (final, bounded lobes).
+    fn fit(&mut self, k: usize) -> Vec<PhongLobe> {
+        if self.delta {
+            return to_phong(&self.chains[0].states[0].0);
+        }
+        let small = self.pts.len() <= 4 * k;
+        self.extend(small, k);
+        let (lobes, last) = self.chains[usize::from(small)].states[k - 1].clone();
+        let id = usize::from(small) * (MAX_LOBES + 1) + last;
+        let improved = last > 1;
+        let lobes = if improved && !small && self.iters > self.sel_iters {
+            if let Some(p) = self.polished.iter().find(|p| p.0 == id) {
+                p.1.clone()
+            } else {
+                let mut l = lobes;
+                em(
+                    self.pts,
+                    &mut l,
+                    self.ptotal,
+                    (self.iters - self.sel_iters).min(10),
+                );
+                self.polished.push((id, l.clone()));
+                l
             }
-            _ => break,
+        } else {
+            lobes
+        };
+        let lobes = match &mut self.refiner {
+            Some(r) if self.smooth_exponent > 0.0 => r.refine(id, &lobes, k),
+            _ => lobes,
+        };
+        to_phong(&lobes)
+    }
+
+    /// The chain's own candidate at K = `k`: the fit at K − 1 (`prev`) plus one lobe, polished
+    /// on the chain's objective (smoothed: a lobe where the data most exceed the fit, LM;
+    /// otherwise the heaviest lobe split in two, EM).
+    fn plus_one(&self, prev: &[PhongLobe], k: usize) -> Vec<PhongLobe> {
+        let lobes = to_l(prev);
+        match &self.refiner {
+            Some(r) => to_phong(&r.plus_one(&lobes, k)),
+            None => {
+                let mut l = split_heaviest(&lobes);
+                em(self.pts, &mut l, self.ptotal, self.sel_iters);
+                to_phong(&l)
+            }
         }
     }
-    if improved && !small && iters > sel_iters {
-        em(pts, &mut lobes, ptotal, (iters - sel_iters).min(10));
-    }
-    if smooth && params.smooth_exponent > 0.0 {
-        // The smoothed objective sees up to SMOOTH_MAX_POINTS entries (a strided subset of
-        // `max_em_points` aliases with periodic maps).
-        let data: Vec<Pt>;
-        let data = if entries.len() > pts.len() {
-            let stride = entries.len().div_ceil(SMOOTH_MAX_POINTS);
-            data = entries
-                .iter()
-                .step_by(stride)
-                .map(|e| (e.mean(), e.w))
-                .collect();
-            &data[..]
-        } else {
-            pts
-        };
-        refine_smoothed(data, &mut lobes, params.smooth_exponent, kmax);
-    }
-    out.extend(to_phong(&lobes));
 }

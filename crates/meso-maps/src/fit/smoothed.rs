@@ -93,7 +93,7 @@ fn tangents(a: DVec3) -> (DVec3, DVec3) {
 /// Lobe parameters of the smoothed fit: axes, `ln κ`, softmax logits of the weights (so the
 /// weights always sum to 1).
 #[derive(Clone)]
-struct SgState {
+pub(super) struct SgState {
     k: usize,
     axes: [DVec3; MAX_LOBES],
     lk: [f64; MAX_LOBES],
@@ -167,7 +167,7 @@ thread_local! {
 /// The smoothed objective of one footprint (module docs): the sample half vectors `hs` (centres
 /// of an equal-area grid with spacing ≈ the kernel's width, upper hemisphere, within reach of the
 /// data) and the data smoothed by the kernel at them.
-struct Smoothed<'a> {
+pub(super) struct Smoothed<'a> {
     lambda: f64,
     pts: &'a [Pt],
     total: f64,
@@ -227,6 +227,15 @@ impl<'a> Smoothed<'a> {
             hs,
             target,
         }
+    }
+
+    /// The objective of `lobes` (weights summing to 1): each Phong peak as the spherical
+    /// Gaussian of the same mean cosine.
+    pub(super) fn objective_of(&self, lobes: &[L]) -> f64 {
+        if lobes.is_empty() || lobes.len() > MAX_LOBES {
+            return f64::INFINITY;
+        }
+        self.eval(&SgState::from_lobes(lobes), None)
     }
 
     /// Sum of squared residuals; with `jac`, also `JᵀJ` (lower triangle) and `Jᵀr` added in.
@@ -405,36 +414,136 @@ impl lm::LeastSquares for Smoothed<'_> {
     }
 }
 
-/// Refine the EM fit `lobes` on the smoothed L2 objective (module docs) unless it is already
-/// within [`SMOOTH_KEEP`]: LM from the EM lobes and from a greedy start (up to `kmax` lobes);
-/// the lobes of the lower objective are kept.
-pub(super) fn refine_smoothed(pts: &[Pt], lobes: &mut Vec<L>, lambda: f64, kmax: usize) {
-    let sm = Smoothed::new(pts, lambda);
-    if lobes.is_empty() || sm.hs.len() < 4 * kmax {
-        return;
-    }
-    let mut a = SgState::from_lobes(lobes);
-    let energy: f64 = sm.target.iter().map(|t| t * t).sum();
-    // The EM fit is kept unless it is off by more than SMOOTH_KEEP (relative L2): the
-    // refinement models the peaks as spherical Gaussians and ignores detail finer than the
-    // kernel, which a sharper facet BRDF than the kernel would see.
-    if sm.eval(&a, None) <= SMOOTH_KEEP * SMOOTH_KEEP * energy {
-        return;
-    }
-    let oa = sm.polish(&mut a, SMOOTH_START_ITERATIONS);
-    // The greedy start only when the EM start leaves more than SMOOTH_GOOD (relative L2).
-    let mut best = if oa <= SMOOTH_GOOD * SMOOTH_GOOD * energy {
-        a
-    } else {
-        let (b, ob) = sm.greedy(kmax, SMOOTH_START_ITERATIONS, SMOOTH_MIN_DROP);
-        if ob < oa {
-            b
-        } else {
-            a
+/// Where a final Levenberg–Marquardt polish started: the polished EM lobes of a given id, or
+/// the greedy state of a given number of lobes less one.
+#[derive(Clone, Copy, PartialEq)]
+enum Start {
+    Em(usize),
+    Greedy(usize),
+}
+
+/// The smoothed refinement of the EM fits of one footprint at every K (module docs), with what
+/// different K share computed once: the smoothed data, the LM polish of each distinct EM fit,
+/// the greedy states (the greedy start with `kmax = K` is a prefix of the one with a larger
+/// `kmax`) and the final polish of each distinct start. [`Refiner::refine`] returns exactly
+/// what refining those EM lobes alone with `kmax = K` would.
+pub(super) struct Refiner<'a> {
+    pub(super) sm: Smoothed<'a>,
+    energy: f64,
+    polished: Vec<(usize, SgState, f64)>,
+    greedy: Vec<(SgState, f64)>,
+    greedy_done: bool,
+    finals: Vec<(Start, Vec<L>)>,
+}
+
+impl<'a> Refiner<'a> {
+    pub(super) fn new(pts: &'a [Pt], lambda: f64) -> Refiner<'a> {
+        let sm = Smoothed::new(pts, lambda);
+        let energy = sm.target.iter().map(|t| t * t).sum();
+        Refiner {
+            sm,
+            energy,
+            polished: Vec::new(),
+            greedy: Vec::new(),
+            greedy_done: false,
+            finals: Vec::new(),
         }
-    };
-    sm.lm(&mut best, SMOOTH_ITERATIONS, SMOOTH_TOL);
-    *lobes = best.to_lobes();
+    }
+
+    /// Refine the EM fit `lobes` (identified by `em_id`: equal ids, equal lobes) on the smoothed
+    /// L2 objective unless it is already within [`SMOOTH_KEEP`]: LM from the EM lobes and from
+    /// a greedy start (up to `kmax` lobes); the lobes of the lower objective are returned.
+    pub(super) fn refine(&mut self, em_id: usize, lobes: &[L], kmax: usize) -> Vec<L> {
+        if lobes.is_empty() || self.sm.hs.len() < 4 * kmax {
+            return lobes.to_vec();
+        }
+        // The EM fit is kept unless it is off by more than SMOOTH_KEEP (relative L2): the
+        // refinement models the peaks as spherical Gaussians and ignores detail finer than the
+        // kernel, which a sharper facet BRDF than the kernel would see.
+        let a = SgState::from_lobes(lobes);
+        if self.sm.eval(&a, None) <= SMOOTH_KEEP * SMOOTH_KEEP * self.energy {
+            return lobes.to_vec();
+        }
+        let oa = if let Some(p) = self.polished.iter().find(|p| p.0 == em_id) {
+            p.2
+        } else {
+            let mut a = a;
+            let o = self.sm.polish(&mut a, SMOOTH_START_ITERATIONS);
+            self.polished.push((em_id, a, o));
+            o
+        };
+        // The greedy start only when the EM start leaves more than SMOOTH_GOOD (relative L2).
+        let start = if oa <= SMOOTH_GOOD * SMOOTH_GOOD * self.energy {
+            Start::Em(em_id)
+        } else {
+            let g = self.greedy_at(kmax);
+            if self.greedy[g].1 < oa {
+                Start::Greedy(g)
+            } else {
+                Start::Em(em_id)
+            }
+        };
+        if let Some(f) = self.finals.iter().find(|f| f.0 == start) {
+            return f.1.clone();
+        }
+        let mut best = match start {
+            Start::Em(id) => self.polished.iter().find(|p| p.0 == id).unwrap().1.clone(),
+            Start::Greedy(g) => self.greedy[g].0.clone(),
+        };
+        self.sm.lm(&mut best, SMOOTH_ITERATIONS, SMOOTH_TOL);
+        let out = best.to_lobes();
+        self.finals.push((start, out.clone()));
+        out
+    }
+
+    /// The greedy fit with at most `kmax` lobes ([`Smoothed::greedy`]), as an index into
+    /// `self.greedy` (states of 1, 2, … lobes, computed as far as needed).
+    fn greedy_at(&mut self, kmax: usize) -> usize {
+        if self.greedy.is_empty() {
+            let (st, o) = self.sm.greedy(1, SMOOTH_START_ITERATIONS, SMOOTH_MIN_DROP);
+            self.greedy.push((st, o));
+        }
+        while self.greedy.len() < kmax && !self.greedy_done {
+            let (st, obj) = self.greedy.last().unwrap().clone();
+            let mut next = st.clone();
+            self.sm.add_lobe(&mut next, 1.0 / (st.k + 1) as f64);
+            let o = self
+                .sm
+                .lm(&mut next, SMOOTH_START_ITERATIONS, SMOOTH_TOL_START);
+            if o > obj * (1.0 - SMOOTH_MIN_DROP) {
+                self.greedy_done = true;
+                break;
+            }
+            self.greedy.push((next, o));
+        }
+        self.greedy.len().min(kmax) - 1
+    }
+
+    /// The K-chain's own candidate (parent module docs): `lobes` (the fit at K − 1) plus one
+    /// lobe of weight `1/k` where the data most exceed them, LM-polished on the smoothed
+    /// objective.
+    pub(super) fn plus_one(&self, lobes: &[L], k: usize) -> Vec<L> {
+        let mut st = SgState::from_lobes(lobes);
+        if st.k >= MAX_LOBES {
+            return lobes.to_vec();
+        }
+        self.sm.add_lobe(&mut st, 1.0 / k as f64);
+        self.sm
+            .lm(&mut st, SMOOTH_START_ITERATIONS, SMOOTH_TOL_START);
+        st.to_lobes()
+    }
+}
+
+/// The shading error of `lobes` against the points `pts` under the kernel of exponent
+/// `lambda` (parent module's [`super::shading_error`]): RMS over the sample half vectors of
+/// [`Smoothed`] of the kernel-blurred difference, over the largest blurred value of the points.
+pub(super) fn rms_of_peak(pts: &[Pt], lobes: &[L], lambda: f64) -> f64 {
+    let sm = Smoothed::new(pts, lambda);
+    let peak = sm.target.iter().copied().fold(0.0, f64::max);
+    if sm.hs.is_empty() || peak <= 0.0 || lobes.is_empty() {
+        return 0.0;
+    }
+    (sm.objective_of(lobes) / sm.hs.len() as f64).sqrt() / peak
 }
 
 /// Relative smoothed L2 error of the EM fit up to which it is kept as it is.
@@ -454,7 +563,7 @@ const SMOOTH_ITERATIONS: usize = 30;
 const SMOOTH_TOL: f64 = 1e-5;
 /// The greedy start adds a lobe only when it lowers the smoothed objective by more than this
 /// fraction.
-const SMOOTH_MIN_DROP: f64 = 0.02;
+pub(super) const SMOOTH_MIN_DROP: f64 = 0.02;
 
 #[cfg(test)]
 mod tests {
