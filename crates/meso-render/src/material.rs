@@ -105,6 +105,9 @@ impl MicrofacetLobe {
             Fresnel::None => [1.0; 3],
             _ => return None,
         };
+        if let Distribution::StudentT { .. } = mf.distribution {
+            return None; // the f32 lanes have GGX and Beckmann only
+        }
         let (ax, ay) = (mf.alpha_x, mf.alpha_y);
         Some(MicrofacetLobe {
             ggx: mf.distribution == Distribution::Ggx,

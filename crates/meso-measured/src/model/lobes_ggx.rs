@@ -80,6 +80,14 @@ fn lobe_d(dist: Distribution, alpha: f64, cos2: f64, tan2: f64) -> (f64, f64) {
             let e = tan2 / a2;
             ((-e).exp() / (PI * a2 * cos2 * cos2), 2.0 * e - 2.0)
         }
+        Distribution::StudentT { gamma } => {
+            let e = tan2 / a2;
+            let g1 = gamma - 1.0;
+            (
+                (-gamma * (e / g1).ln_1p()).exp() / (PI * a2 * cos2 * cos2),
+                2.0 * gamma * e / (g1 + e) - 2.0,
+            )
+        }
     }
 }
 
@@ -105,6 +113,8 @@ fn lobe_lambda(dist: Distribution, alpha: f64, tan2: f64) -> (f64, f64) {
             let sp = PI.sqrt();
             (0.5 * (e / (nu * sp) - libm::erfc(nu)), 0.5 * e / (sp * nu))
         }
+        Distribution::StudentT { gamma } => meso_core::ndf::student_t::StudentT::new(gamma)
+            .lambda_and_dlnalpha(1.0 / (a2 * tan2).sqrt()),
     }
 }
 
@@ -138,7 +148,7 @@ pub fn mixture_specular(lobes: &[GgxLobe], wi: DVec3, wo: DVec3) -> Option<(f64,
 }
 
 /// K Beckmann / GGX lobes on the normal with the microfacet mirror transfer (module docs).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LobeGgxModel {
     /// The distribution of each lobe (their count is K).
     pub distributions: Vec<Distribution>,
@@ -411,6 +421,8 @@ impl BrdfModel for LobeGgxModel {
                     match d {
                         Distribution::Ggx => 4.0,
                         Distribution::Beckmann => 2.0,
+                        // The core `(1 + e/(γ−1))^(−γ) ≈ e^(−γe/(γ−1))`.
+                        Distribution::StudentT { gamma } => 2.0 * gamma / (gamma - 1.0),
                     },
                 )
             })
