@@ -84,11 +84,22 @@ fn weights(r: &mut Pcg64, n: usize) -> Vec<f64> {
 }
 
 fn distribution(r: &mut Pcg64) -> Distribution {
-    if r.random::<bool>() {
-        Distribution::Ggx
-    } else {
-        Distribution::Beckmann
+    match r.random_range(0..3) {
+        0 => Distribution::Ggx,
+        1 => Distribution::Beckmann,
+        _ => student_t(r),
     }
+}
+
+/// A Student-t distribution with γ anywhere in its range (the ends included).
+fn student_t(r: &mut Pcg64) -> Distribution {
+    use meso_core::ndf::student_t::{MAX_GAMMA, MIN_GAMMA};
+    let gamma = match r.random_range(0..5) {
+        0 => MIN_GAMMA,
+        1 => MAX_GAMMA,
+        _ => log_uniform(r, MIN_GAMMA, MAX_GAMMA),
+    };
+    Distribution::StudentT { gamma }
 }
 
 fn microfacet(r: &mut Pcg64) -> Microfacet {
@@ -157,13 +168,13 @@ fn ndf_of_kind(kind: &str, r: &mut Pcg64) -> NdfSpec {
                 VonMisesFisher::new(axis(r), kappa).unwrap(),
             ))
         }
-        "beckmann" | "ggx" => {
+        "beckmann" | "ggx" | "student-t" => {
             let mut m = microfacet(r);
             m = Microfacet::new(
-                if kind == "ggx" {
-                    Distribution::Ggx
-                } else {
-                    Distribution::Beckmann
+                match kind {
+                    "ggx" => Distribution::Ggx,
+                    "beckmann" => Distribution::Beckmann,
+                    _ => student_t(r),
                 },
                 m.alpha_x,
                 m.alpha_y,

@@ -38,11 +38,18 @@ fn continuous() -> Vec<(&'static str, Ndf)> {
             Ndf::Microfacet(Microfacet::new(Distribution::Ggx, 0.3, 0.5).unwrap()),
         ),
         (
+            "student-t",
+            Ndf::Microfacet(
+                Microfacet::new(Distribution::StudentT { gamma: 3.0 }, 0.35, 0.2).unwrap(),
+            ),
+        ),
+        (
             "mixture",
             Ndf::Mixture(
                 Mixture::isotropic(&[
                     (Distribution::Ggx, 0.1, 0.6),
                     (Distribution::Beckmann, 0.45, 0.4),
+                    (Distribution::StudentT { gamma: 1.8 }, 0.25, 0.2),
                 ])
                 .unwrap(),
             ),

@@ -5,14 +5,15 @@
 //! ```text
 //! cargo run --release -p meso-measured --example merl_table -- [--metric low-log|ngan-l2] \
 //!     [--target N] [--axes normal|free] [--no-cap] \
-//!     [--models phong,microfacet,ggx-lobes,baselines,ggx-baseline] \
+//!     [--models phong,microfacet,ggx-lobes,ggx-lobes-t,baselines,ggx-baseline] \
 //!     A.binary [B.binary ...]
 //! ```
 //!
 //! Fits use a stratified subsample of `N` cells (default 30 000, θi, θo < 80°); the errors are
 //! reported on *all* valid cells with θi, θo < 80°, and (Löw log and Ngan L2) on the 30 000
 //! held-out cells (valid cells not fitted). `ggx-baseline` fits only the GGX baseline of
-//! `baselines`. `--axes` and `--no-cap` set
+//! `baselines`; `ggx-lobes-t` fits the GGX lobe mixtures with a Student-t candidate too
+//! (`GGX_BECKMANN_OR_STUDENT_T`, γ fitted). `--axes` and `--no-cap` set
 //! [`FitOptions::axes`] and [`FitOptions::resolution_cap`] (defaults: the library's).
 //! Each lobe fit's sharpest lobe (η, tilt) is printed too.
 
@@ -80,7 +81,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--models" => models = args.next().ok_or("--models needs a value")?,
             "-h" | "--help" => {
                 println!(
-                    "usage: merl_table [--metric low-log|ngan-l2] [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,ggx-lobes,baselines,ggx-baseline] FILE.binary..."
+                    "usage: merl_table [--metric low-log|ngan-l2] [--target N] [--axes normal|free] [--no-cap] [--models phong,microfacet,ggx-lobes,ggx-lobes-t,baselines,ggx-baseline] FILE.binary..."
                 );
                 return Ok(());
             }
@@ -141,13 +142,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 eprintln!("{}", p.to_material_toml(&format!("{name} {}", r.model)));
             }
         }
-        if has("ggx-lobes") {
-            let fits = model::fit_ggx_lobes_progressive(
-                3,
-                &model::lobes_ggx::GGX_OR_BECKMANN,
-                &data,
-                &opts,
-            )?;
+        for (key, candidates) in [
+            ("ggx-lobes", &model::lobes_ggx::GGX_OR_BECKMANN[..]),
+            (
+                "ggx-lobes-t",
+                &model::lobes_ggx::GGX_BECKMANN_OR_STUDENT_T[..],
+            ),
+        ] {
+            if !has(key) {
+                continue;
+            }
+            let fits = model::fit_ggx_lobes_progressive(3, candidates, &data, &opts)?;
             for (m, r) in &fits {
                 let p = m.params(r);
                 let sharpest = p

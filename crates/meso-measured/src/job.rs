@@ -434,9 +434,9 @@ impl Lobes {
                     s,
                     "  {:>4}  {:<8}  {:>9.5}  {:>9.4}  {:>12.4}",
                     j + 1,
-                    match l.distribution {
-                        meso_core::ndf::Distribution::Ggx => "ggx",
-                        meso_core::ndf::Distribution::Beckmann => "beckmann",
+                    match l.distribution.gamma() {
+                        Some(g) => format!("t(γ={g:.2})"),
+                        None => l.distribution.name().to_owned(),
                     },
                     l.alpha,
                     l.d_weight,

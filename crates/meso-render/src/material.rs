@@ -105,6 +105,9 @@ impl MicrofacetLobe {
             Fresnel::None => [1.0; 3],
             _ => return None,
         };
+        if let Distribution::StudentT { .. } = mf.distribution {
+            return None; // the f32 lanes have GGX and Beckmann only
+        }
         let (ax, ay) = (mf.alpha_x, mf.alpha_y);
         Some(MicrofacetLobe {
             ggx: mf.distribution == Distribution::Ggx,
@@ -479,6 +482,45 @@ mod tests {
                 worst < tol,
                 "{kind} {ax} {ay}: worst relative error {worst:.2e}"
             );
+        }
+    }
+
+    /// A Student-t lobe (no f32 lane of its own) is not taken for Beckmann: it goes to the
+    /// general path, which matches the core.
+    #[test]
+    fn a_student_t_lobe_keeps_off_the_microfacet_lane() {
+        let m = Material::from_toml_str(
+            "form = \"microfacet\"\n[ndf]\nkind = \"student-t\"\ngamma = 3.5\nalpha = 0.2\n\
+             [transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\nf0 = [0.9, 0.5, 0.04]\n",
+        )
+        .unwrap();
+        let shader = MaterialShader::new(&m);
+        assert!(
+            !matches!(shader.kind, Kind::Microfacet(_)),
+            "{}",
+            shader.path()
+        );
+        let core = FastBrdf::with_policy(&m, meso_core::shading::Policy::Accurate);
+        for (t, p) in [(10.0f64, 190.0f64), (40.0, 170.0), (70.0, 200.0)] {
+            let i = DVec3::new(0.3f64.sin(), 0.0, 0.3f64.cos());
+            let (t, p) = (t.to_radians(), p.to_radians());
+            let o = DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
+            let want = core.eval(i, o);
+            let (wi, wo) = (
+                i.to_array().map(|x| [x as f32]),
+                o.to_array().map(|x| [x as f32]),
+            );
+            let (mut r, mut g, mut b) = ([0.0f32], [0.0f32], [0.0f32]);
+            shader.eval_pairs(
+                [&wi[0], &wi[1], &wi[2]],
+                [&wo[0], &wo[1], &wo[2]],
+                [&mut r, &mut g, &mut b],
+            );
+            let got = [r[0], g[0], b[0]];
+            for c in 0..3 {
+                let e = (f64::from(got[c]) - want[c]).abs() / want[c].max(1e-6);
+                assert!(e < 1e-3, "{got:?} vs {want:?}");
+            }
         }
     }
 

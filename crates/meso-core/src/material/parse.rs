@@ -298,6 +298,7 @@ pub const NDF_KINDS: &[&str] = &[
     "vmf",
     "beckmann",
     "ggx",
+    "student-t",
     "mixture",
     "harmonics",
     "tabulated",
@@ -359,11 +360,11 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
                 .ok_or_else(|| MaterialError(format!("{name}: missing `kappa`")))?;
             Ndf::VonMisesFisher(VonMisesFisher::new(ax, kappa).map_err(ndf_err)?)
         }
-        "beckmann" | "ggx" => {
-            let dist = if kind == "ggx" {
-                Distribution::Ggx
-            } else {
-                Distribution::Beckmann
+        "beckmann" | "ggx" | "student-t" => {
+            let dist = match kind {
+                "ggx" => Distribution::Ggx,
+                "beckmann" => Distribution::Beckmann,
+                _ => student_t(&mut f, name)?,
             };
             let (ax, ay) = alphas(&mut f)?;
             Ndf::Microfacet(Microfacet::new(dist, ax, ay).map_err(ndf_err)?)
@@ -458,7 +459,8 @@ fn sub_ndf(name: &str, v: &toml::Value, depth: usize) -> Result<Ndf, MaterialErr
 }
 
 /// `kind = "mixture"`: `lobes = [ { kind = "ggx" | "beckmann", alpha = …, weight = … }, … ]`
-/// (`alpha_x` and `alpha_y` instead of `alpha` for an anisotropic lobe).
+/// (`alpha_x` and `alpha_y` instead of `alpha` for an anisotropic lobe; `kind = "student-t"`
+/// with its `gamma = …`).
 fn parse_mixture(f: &mut Fields<'_>) -> Result<Mixture, MaterialError> {
     let name = f.name.clone();
     let tables = lobe_tables(
@@ -474,9 +476,11 @@ fn parse_mixture(f: &mut Fields<'_>) -> Result<Mixture, MaterialError> {
         let dist = match lf.string("kind")? {
             Some("ggx") => Distribution::Ggx,
             Some("beckmann") => Distribution::Beckmann,
+            Some("student-t") => student_t(&mut lf, &format!("{name} lobes[{}]", k + 1))?,
             Some(other) => {
                 return err(format!(
-                    "{name} lobes[{}] kind: unknown lobe kind \"{other}\" (known: ggx, beckmann)",
+                    "{name} lobes[{}] kind: unknown lobe kind \"{other}\" (known: ggx, beckmann, \
+                     student-t)",
                     k + 1
                 ))
             }
@@ -493,6 +497,23 @@ fn parse_mixture(f: &mut Fields<'_>) -> Result<Mixture, MaterialError> {
         return err(format!("{name} lobes: the weights sum to zero"));
     }
     Mixture::new(out).map_err(ndf_err)
+}
+
+/// `gamma = …` of a Student-t distribution (`where` names the table in errors).
+fn student_t(f: &mut Fields<'_>, place: &str) -> Result<Distribution, MaterialError> {
+    use crate::ndf::student_t::{MAX_GAMMA, MIN_GAMMA};
+    let why = "(the area ratio ∫ D dω diverges as gamma → 1.5; 2 is GGX, large values approach \
+               Beckmann)";
+    match f.number("gamma")? {
+        None => err(format!(
+            "{place}: a student-t distribution needs `gamma = …` in [{MIN_GAMMA}, {MAX_GAMMA}] {why}"
+        )),
+        Some(g) if !(g.is_finite() && (MIN_GAMMA..=MAX_GAMMA).contains(&g)) => err(format!(
+            "{place} gamma: must be a finite number in [{MIN_GAMMA}, {MAX_GAMMA}] {why}, got {}",
+            Num(g)
+        )),
+        Some(gamma) => Ok(Distribution::StudentT { gamma }),
+    }
 }
 
 fn alphas(f: &mut Fields<'_>) -> Result<(f64, f64), MaterialError> {
@@ -595,9 +616,11 @@ fn parse_transfer(t: &toml::Table) -> Result<Transfer, MaterialError> {
             let dist = match f.string("distribution")?.unwrap_or("ggx") {
                 "ggx" => Distribution::Ggx,
                 "beckmann" => Distribution::Beckmann,
+                "student-t" => student_t(&mut f, "[transfer]")?,
                 other => {
                     return err(format!(
-                        "[transfer] distribution: unknown \"{other}\" (known: beckmann, ggx)"
+                        "[transfer] distribution: unknown \"{other}\" (known: beckmann, ggx, \
+                         student-t)"
                     ))
                 }
             };

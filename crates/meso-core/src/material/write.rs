@@ -213,13 +213,18 @@ fn write_array(s: &mut String, key: &str, v: &[f64]) {
     s.push_str("]\n");
 }
 
-/// `alpha = a` or `alpha_x = a, alpha_y = b` (without the separator before).
+/// `alpha = a` or `alpha_x = a, alpha_y = b` (without the separator before), preceded by
+/// `gamma = g` and the separator for a Student t.
 fn alphas(m: &Microfacet, sep: &str) -> String {
+    let gamma = match m.distribution {
+        Distribution::StudentT { gamma } => format!("gamma = {}{sep}", num(gamma)),
+        _ => String::new(),
+    };
     if m.alpha_x == m.alpha_y {
-        format!("alpha = {}", num(m.alpha_x))
+        format!("{gamma}alpha = {}", num(m.alpha_x))
     } else {
         format!(
-            "alpha_x = {}{sep}alpha_y = {}",
+            "{gamma}alpha_x = {}{sep}alpha_y = {}",
             num(m.alpha_x),
             num(m.alpha_y)
         )
@@ -227,10 +232,7 @@ fn alphas(m: &Microfacet, sep: &str) -> String {
 }
 
 fn distribution_name(d: Distribution) -> &'static str {
-    match d {
-        Distribution::Ggx => "ggx",
-        Distribution::Beckmann => "beckmann",
-    }
+    d.name()
 }
 
 fn write_ndf(s: &mut String, ndf: &Ndf) {

@@ -1,4 +1,5 @@
-//! The anisotropic Beckmann and GGX (Trowbridge–Reitz) microfacet distributions.
+//! The anisotropic Beckmann, GGX (Trowbridge–Reitz) and Student-t (STD, [`super::student_t`])
+//! microfacet distributions.
 //!
 //! In the microfacet convention a distribution `D(m)` (1/sr) lives on the upper hemisphere and is
 //! normalised by *projected* area: `∫ D(m) (m·z) dω = 1`. meso's NDFs follow Eq. 1 instead, a
@@ -14,21 +15,58 @@
 //! slope distribution, by Gauss–Legendre quadrature after a substitution that removes the end-point
 //! singularity (relative error < 1e-10 in the tests).
 //!
-//! Both have closed-form Smith `Λ` (Walter et al. 2007; Heitz 2014) with the anisotropic roughness
+//! All three have closed-form Smith `Λ` (Walter et al. 2007; Heitz 2014; the Student t's through
+//! the incomplete beta function, [`super::student_t`]) with the anisotropic roughness
 //! `α(φ) = √(cos²φ α_x² + sin²φ α_y²)` along the projected direction.
 
+use super::student_t::StudentT;
 use crate::quadrature::gauss_legendre;
 use glam::DVec3;
 use std::f64::consts::PI;
 
 /// Which microfacet distribution.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Distribution {
     /// Beckmann: Gaussian slopes.
     Beckmann,
     /// GGX / Trowbridge–Reitz: Cauchy-like slopes with long tails.
     Ggx,
+    /// Student-t slopes (STD, [`super::student_t`]) of shape `gamma` (dimensionless, in
+    /// [[`MIN_GAMMA`](super::student_t::MIN_GAMMA), [`MAX_GAMMA`](super::student_t::MAX_GAMMA)]):
+    /// tails between GGX's (γ = 2) and Beckmann's (γ → ∞), or longer than GGX's (γ < 2).
+    #[serde(rename = "student-t")]
+    StudentT {
+        /// The shape γ.
+        gamma: f64,
+    },
+}
+
+impl Distribution {
+    /// The name in material files: `"beckmann"`, `"ggx"` or `"student-t"`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Distribution::Beckmann => "beckmann",
+            Distribution::Ggx => "ggx",
+            Distribution::StudentT { .. } => "student-t",
+        }
+    }
+
+    /// γ of a Student-t distribution, `None` for the others.
+    #[must_use]
+    pub fn gamma(self) -> Option<f64> {
+        match self {
+            Distribution::StudentT { gamma } => Some(gamma),
+            _ => None,
+        }
+    }
+
+    /// The same family (ignoring γ).
+    #[must_use]
+    pub fn same_family(self, other: Distribution) -> bool {
+        std::mem::discriminant(&self) == std::mem::discriminant(&other)
+    }
 }
 
 /// An anisotropic Beckmann or GGX distribution with roughness `α_x` (along the tangent, +x) and
@@ -43,6 +81,8 @@ pub struct Microfacet {
     pub alpha_y: f64,
     /// Area ratio `A = ∫ D dω` (microsurface area per unit macro area).
     area_ratio: f64,
+    /// The Student-t constants (γ = 2 for the other distributions, unused).
+    student: StudentT,
 }
 
 /// Beckmann's Smith `Λ = ½(e^{−a²}/(a√π) − erfc a)` for `a = 1/(α tan θ)`; 0 for `a > 6`,
@@ -63,7 +103,9 @@ impl Microfacet {
     /// A distribution with the given roughnesses.
     ///
     /// # Errors
-    /// When an α is not finite or outside `[1e-4, 10]`.
+    /// When an α is not finite or outside `[1e-4, 10]`, or a Student t's γ is not finite or
+    /// outside [[`MIN_GAMMA`](super::student_t::MIN_GAMMA),
+    /// [`MAX_GAMMA`](super::student_t::MAX_GAMMA)].
     pub fn new(
         distribution: Distribution,
         alpha_x: f64,
@@ -76,11 +118,24 @@ impl Microfacet {
                 )));
             }
         }
+        let mut gamma = 2.0;
+        if let Distribution::StudentT { gamma: g } = distribution {
+            use super::student_t::{MAX_GAMMA, MIN_GAMMA};
+            if !(g.is_finite() && (MIN_GAMMA..=MAX_GAMMA).contains(&g)) {
+                return Err(crate::NdfError::Invalid(format!(
+                    "student-t gamma must be in [{MIN_GAMMA}, {MAX_GAMMA}] (the area ratio \
+                     ∫ D dω diverges as gamma → 1.5; gamma = 2 is GGX, large gamma Beckmann), \
+                     got {g}"
+                )));
+            }
+            gamma = g;
+        }
         let mut m = Microfacet {
             distribution,
             alpha_x,
             alpha_y,
             area_ratio: 1.0,
+            student: StudentT::new(gamma),
         };
         m.area_ratio = m.compute_area_ratio();
         Ok(m)
@@ -124,7 +179,11 @@ impl Microfacet {
                         }
                         // r² = u/(1−u); u = 1 − v²: integrand 2√(v² + (1−v²) a²).
                         Distribution::Ggx => 2.0 * (t * t + (1.0 - t * t) * a2).sqrt(),
+                        Distribution::StudentT { .. } => 0.0,
                     };
+            }
+            if let Distribution::StudentT { .. } = self.distribution {
+                s = self.student.area_ratio_along(a2, &xs, &ws);
             }
             total += s;
         }
@@ -173,9 +232,16 @@ impl Microfacet {
             return 0.0;
         }
         let a2 = self.alpha2_along(w);
+        self.lambda_of(a2 * tan2)
+    }
+
+    /// `Λ` from `α(φ)² tan²θ` (> 0).
+    #[inline]
+    fn lambda_of(&self, a2tan2: f64) -> f64 {
         match self.distribution {
-            Distribution::Ggx => 0.5 * (-1.0 + (1.0 + a2 * tan2).sqrt()),
-            Distribution::Beckmann => beckmann_lambda(1.0 / (a2 * tan2).sqrt()),
+            Distribution::Ggx => 0.5 * (-1.0 + (1.0 + a2tan2).sqrt()),
+            Distribution::Beckmann => beckmann_lambda(1.0 / a2tan2.sqrt()),
+            Distribution::StudentT { .. } => self.student.lambda(1.0 / a2tan2.sqrt()),
         }
     }
 
@@ -186,6 +252,7 @@ impl Microfacet {
         match self.distribution {
             Distribution::Beckmann => (-e).exp() / (PI * axay * cos2 * cos2),
             Distribution::Ggx => 1.0 / (PI * axay * cos2 * cos2 * (1.0 + e) * (1.0 + e)),
+            Distribution::StudentT { .. } => self.student.shape(e) / (PI * axay * cos2 * cos2),
         }
     }
 
@@ -222,11 +289,7 @@ impl Microfacet {
         if tan2 == 0.0 {
             return 0.0;
         }
-        let a2 = self.alpha_x * self.alpha_y;
-        match self.distribution {
-            Distribution::Ggx => 0.5 * (-1.0 + (1.0 + a2 * tan2).sqrt()),
-            Distribution::Beckmann => beckmann_lambda(1.0 / (a2 * tan2).sqrt()),
-        }
+        self.lambda_of(self.alpha_x * self.alpha_y * tan2)
     }
 
     /// Sample `m` with density `D(m)(m·z)` (the standard projected-area sampling); its pdf is
@@ -239,6 +302,7 @@ impl Microfacet {
         let r2 = match self.distribution {
             Distribution::Beckmann => -(1.0 - u[0]).max(1e-300).ln(),
             Distribution::Ggx => u[0] / (1.0 - u[0]).max(1e-300),
+            Distribution::StudentT { .. } => self.student.sample_u(u[0]),
         };
         let r = r2.sqrt();
         let sx = ax * r * psi.cos();

@@ -12,8 +12,8 @@
 //! | [`Ndf::Sphere`] | Eq. 14 | 1/(4π) | exact |
 //! | [`Ndf::Cylinder`] | Eq. 15 | δ(m·a)/(2π) (singular, a great circle) | uniform on the circle |
 //! | [`Ndf::VonMisesFisher`] | — | κ e^{κ(μ·m−1)} / (2π(1−e^{−2κ})) | exact |
-//! | [`Ndf::Microfacet`] | — | Beckmann / GGX `D(m)/A` | `D(m)(m·z)` |
-//! | [`Ndf::Mixture`] | Eq. 7 | Σ wₖ Dₖ(m)/Aₖ (Beckmann / GGX lobes) | `D(m)(m·z)` |
+//! | [`Ndf::Microfacet`] | — | Beckmann / GGX / Student-t `D(m)/A` | `D(m)(m·z)` |
+//! | [`Ndf::Mixture`] | Eq. 7 | Σ wₖ Dₖ(m)/Aₖ (Beckmann / GGX / Student-t lobes) | `D(m)(m·z)` |
 //! | [`Ndf::Radial`] | §3.3 | isotropic, linear in `θ_m` between nodes (non-parametric, measured) | band means |
 //!
 //! For the relation to the microfacet convention `∫ D(m)(m·z) dω = 1` see [`microfacet`].
@@ -25,6 +25,7 @@ pub mod microfacet;
 pub mod mixture;
 pub mod phong;
 pub mod radial;
+pub mod student_t;
 pub mod tabulated;
 pub mod vmf;
 
@@ -83,10 +84,7 @@ impl Ndf {
             Ndf::Sphere(_) => "sphere",
             Ndf::Cylinder(_) => "cylinder",
             Ndf::VonMisesFisher(_) => "vmf",
-            Ndf::Microfacet(m) => match m.distribution {
-                Distribution::Beckmann => "beckmann",
-                Distribution::Ggx => "ggx",
-            },
+            Ndf::Microfacet(m) => m.distribution.name(),
             Ndf::Mixture(_) => "mixture",
             Ndf::Radial(_) => "radial",
         }

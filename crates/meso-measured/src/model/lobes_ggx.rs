@@ -33,12 +33,20 @@
 //! With K = 1 the model is GGX + Lambert
 //! (Schlick, height-correlated Smith).
 //!
+//! **Student-t lobes** ([`Distribution::StudentT`], STD: Ribardière et al. 2017) add their shape
+//! γ as one more parameter each, `ln(γ − 3/2)`, after the logits, with γ in
+//! [[`GAMMA_MIN`], [`GAMMA_MAX`]] (γ = 2 is GGX, large γ Beckmann): the tails are fitted
+//! rather than chosen. Their `D` and `∂ ln D/∂γ` are closed forms, their Smith `Λ` meso-core's
+//! closed form ([`meso_core::ndf::student_t`]) with `∂Λ/∂γ` by central differences. In a model's
+//! `distributions` the γ of a Student-t lobe is only its starting value.
+//!
 //! The lobes stay on the normal whatever [`crate::fit::LobeAxes`] says (the model is isotropic).
 
 use crate::fit::{fit_from, BrdfModel, FitError, FitOptions, FitResult};
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::material::MaterialSpec;
+use meso_core::ndf::student_t::StudentT;
 use meso_core::ndf::{Distribution, Microfacet, Mixture, Ndf};
 use meso_core::NdfError;
 use std::f64::consts::PI;
@@ -50,15 +58,29 @@ pub const ALPHA_MIN: f64 = 0.001;
 /// Largest roughness fitted.
 pub const ALPHA_MAX: f64 = 1.5;
 const LOGIT: (f64, f64) = (-12.0, 12.0);
+/// Smallest Student-t γ fitted.
+pub const GAMMA_MIN: f64 = 1.55;
+/// Largest Student-t γ fitted (the lobe is then within a few % of Beckmann's).
+pub const GAMMA_MAX: f64 = 50.0;
+/// γ is fitted as `ln(γ − GAMMA_SHIFT)`.
+const GAMMA_SHIFT: f64 = 1.5;
 
 /// The lobe distributions `meso fit --transfer ggx-lobes` tries for each new lobe
 /// ([`fit_ggx_lobes_progressive`]): GGX, and Beckmann where it fits better.
 pub const GGX_OR_BECKMANN: [Distribution; 2] = [Distribution::Ggx, Distribution::Beckmann];
 
+/// [`GGX_OR_BECKMANN`] and a Student-t lobe (γ fitted, starting from 3 and the values of
+/// [`fit_ggx_lobes_progressive`]).
+pub const GGX_BECKMANN_OR_STUDENT_T: [Distribution; 3] = [
+    Distribution::Ggx,
+    Distribution::Beckmann,
+    Distribution::StudentT { gamma: 3.0 },
+];
+
 /// One fitted lobe.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GgxLobe {
-    /// Beckmann or GGX.
+    /// Beckmann, GGX or Student-t (with its γ).
     pub distribution: Distribution,
     /// Roughness α.
     pub alpha: f64,
@@ -80,13 +102,22 @@ fn lobe_d(dist: Distribution, alpha: f64, cos2: f64, tan2: f64) -> (f64, f64) {
             let e = tan2 / a2;
             ((-e).exp() / (PI * a2 * cos2 * cos2), 2.0 * e - 2.0)
         }
+        Distribution::StudentT { gamma } => {
+            let e = tan2 / a2;
+            let g1 = gamma - 1.0;
+            (
+                (-gamma * (e / g1).ln_1p()).exp() / (PI * a2 * cos2 * cos2),
+                2.0 * gamma * e / (g1 + e) - 2.0,
+            )
+        }
     }
 }
 
 /// Smith `Λ` of an isotropic lobe for a direction with `tan² θ = tan2`, and `∂Λ/∂ ln α` —
-/// the formulas of [`meso_core::ndf::Microfacet::lambda_isotropic`].
+/// the formulas of [`meso_core::ndf::Microfacet::lambda_isotropic`] (`t`: the constants of a
+/// Student-t lobe's γ, made here when not given).
 #[inline]
-fn lobe_lambda(dist: Distribution, alpha: f64, tan2: f64) -> (f64, f64) {
+fn lobe_lambda(dist: Distribution, alpha: f64, tan2: f64, t: Option<&StudentT>) -> (f64, f64) {
     if tan2 <= 0.0 {
         return (0.0, 0.0);
     }
@@ -105,7 +136,19 @@ fn lobe_lambda(dist: Distribution, alpha: f64, tan2: f64) -> (f64, f64) {
             let sp = PI.sqrt();
             (0.5 * (e / (nu * sp) - libm::erfc(nu)), 0.5 * e / (sp * nu))
         }
+        Distribution::StudentT { gamma } => {
+            let a = 1.0 / (a2 * tan2).sqrt();
+            match t {
+                Some(t) => t.lambda_and_dlnalpha(a),
+                None => StudentT::new(gamma).lambda_and_dlnalpha(a),
+            }
+        }
     }
+}
+
+/// The parameter of γ, `ln(γ − 3/2)` (γ clamped to the fitted range).
+fn gamma_theta(gamma: f64) -> f64 {
+    (gamma.clamp(GAMMA_MIN, GAMMA_MAX) - GAMMA_SHIFT).ln()
 }
 
 #[inline]
@@ -131,14 +174,15 @@ pub fn mixture_specular(lobes: &[GgxLobe], wi: DVec3, wo: DVec3) -> Option<(f64,
     let (mut d, mut li, mut lo) = (0.0, 0.0, 0.0);
     for l in lobes {
         d += l.d_weight * lobe_d(l.distribution, l.alpha, ch2, th2).0;
-        li += l.d_weight * lobe_lambda(l.distribution, l.alpha, ti2).0;
-        lo += l.d_weight * lobe_lambda(l.distribution, l.alpha, to2).0;
+        let t = l.distribution.gamma().map(StudentT::new);
+        li += l.d_weight * lobe_lambda(l.distribution, l.alpha, ti2, t.as_ref()).0;
+        lo += l.d_weight * lobe_lambda(l.distribution, l.alpha, to2, t.as_ref()).0;
     }
     Some((d / ((1.0 + li + lo) * 4.0 * wi.z * wo.z), wi.dot(h)))
 }
 
 /// K Beckmann / GGX lobes on the normal with the microfacet mirror transfer (module docs).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LobeGgxModel {
     /// The distribution of each lobe (their count is K).
     pub distributions: Vec<Distribution>,
@@ -242,6 +286,20 @@ impl LobeGgxModel {
         self.distributions.len()
     }
 
+    /// The Student-t lobes' indices (their γ parameters follow the logits in this order).
+    fn student_lobes(&self) -> impl Iterator<Item = usize> + '_ {
+        self.distributions
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.gamma().is_some())
+            .map(|(j, _)| j)
+    }
+
+    /// Number of Student-t lobes.
+    fn n_student(&self) -> usize {
+        self.student_lobes().count()
+    }
+
     fn decode(&self, theta: &[f64]) -> Vec<GgxLobe> {
         let k = self.k();
         let mut c: Vec<f64> = (0..k)
@@ -250,9 +308,18 @@ impl LobeGgxModel {
         let mx = c.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         c.iter_mut().for_each(|x| *x = (*x - mx).exp());
         let t: f64 = c.iter().sum();
+        let mut q = 2 * k - 1;
         (0..k)
             .map(|j| GgxLobe {
-                distribution: self.distributions[j],
+                distribution: match self.distributions[j] {
+                    Distribution::StudentT { .. } => {
+                        q += 1;
+                        Distribution::StudentT {
+                            gamma: GAMMA_SHIFT + theta[q - 1].exp(),
+                        }
+                    }
+                    d => d,
+                },
                 alpha: (-0.5 * theta[j]).exp(),
                 d_weight: c[j] / t,
             })
@@ -271,6 +338,14 @@ impl LobeGgxModel {
         let w0 = p.lobes[0].d_weight.max(1e-9);
         for l in &p.lobes[1..k] {
             t.push((l.d_weight.max(1e-9) / w0).ln().clamp(LOGIT.0, LOGIT.1));
+        }
+        for j in self.student_lobes() {
+            let g = p.lobes[j]
+                .distribution
+                .gamma()
+                .or(self.distributions[j].gamma())
+                .unwrap_or(2.0);
+            t.push(gamma_theta(g));
         }
         t
     }
@@ -309,7 +384,7 @@ impl LobeGgxModel {
         grad: Option<&mut [f64]>,
     ) {
         let k = self.k();
-        let nt = 2 * k - 1;
+        let nt = 2 * k - 1 + self.n_student();
         out[0] = 1.0 / PI;
         out[1] = 0.0;
         out[2] = 0.0;
@@ -330,12 +405,28 @@ impl LobeGgxModel {
         let (ch2, th2) = (h.z * h.z, tan2_of(h.z));
         let (ti2, to2) = (tan2_of(wi.z), tan2_of(wo.z));
         let mut per = [[0.0f64; 6]; MAX_GGX_LOBES]; // D, dlnD, Λi, dΛi, Λo, dΛo
+                                                    // Student-t lobes: ∂ ln D/∂γ, ∂Λi/∂γ, ∂Λo/∂γ.
+        let mut per_t = [[0.0f64; 3]; MAX_GGX_LOBES];
+        let want_grad = grad.is_some();
         let (mut d, mut li, mut lo) = (0.0, 0.0, 0.0);
         for (j, l) in lobes.iter().enumerate() {
+            let t = l.distribution.gamma().map(StudentT::new);
             let (dj, dd) = lobe_d(l.distribution, l.alpha, ch2, th2);
-            let (lij, dli) = lobe_lambda(l.distribution, l.alpha, ti2);
-            let (loj, dlo) = lobe_lambda(l.distribution, l.alpha, to2);
+            let (lij, dli) = lobe_lambda(l.distribution, l.alpha, ti2, t.as_ref());
+            let (loj, dlo) = lobe_lambda(l.distribution, l.alpha, to2, t.as_ref());
             per[j] = [dj, dd, lij, dli, loj, dlo];
+            if let (Some(g), true) = (l.distribution.gamma(), want_grad) {
+                let (g1, e) = (g - 1.0, th2 / (l.alpha * l.alpha));
+                let dlnd = -(e / g1).ln_1p() + g * e / (g1 * (g1 + e));
+                let h = 1e-5 * g;
+                let (tp, tm) = (StudentT::new(g + h), StudentT::new(g - h));
+                let dl = |tan2: f64| {
+                    let lp = lobe_lambda(l.distribution, l.alpha, tan2, Some(&tp)).0;
+                    let lm = lobe_lambda(l.distribution, l.alpha, tan2, Some(&tm)).0;
+                    (lp - lm) / (2.0 * h)
+                };
+                per_t[j] = [dlnd, dl(ti2), dl(to2)];
+            }
             d += l.d_weight * dj;
             li += l.d_weight * lij;
             lo += l.d_weight * loj;
@@ -366,20 +457,22 @@ impl LobeGgxModel {
             let p = per[i];
             put(k + i - 1, dx(c * (p[0] - d), c * (p[2] - li + p[4] - lo)));
         }
+        // θ = ln(γ − 3/2): ∂/∂θ = (γ − 3/2) ∂/∂γ.
+        for (n, j) in self.student_lobes().enumerate() {
+            let l = lobes[j];
+            let s = l.distribution.gamma().unwrap_or(2.0) - GAMMA_SHIFT;
+            let (p, pt) = (per[j], per_t[j]);
+            let c = l.d_weight * s;
+            put(2 * k - 1 + n, dx(c * p[0] * pt[0], c * (pt[1] + pt[2])));
+        }
     }
 }
 
 impl BrdfModel for LobeGgxModel {
     fn name(&self) -> String {
-        let all_ggx = self.distributions.iter().all(|d| *d == Distribution::Ggx);
-        let all_beck = self
-            .distributions
-            .iter()
-            .all(|d| *d == Distribution::Beckmann);
-        let fam = if all_ggx {
-            "ggx"
-        } else if all_beck {
-            "beckmann"
+        let first = self.distributions[0];
+        let fam = if self.distributions.iter().all(|d| d.same_family(first)) {
+            first.name()
         } else {
             "mixed"
         };
@@ -390,6 +483,10 @@ impl BrdfModel for LobeGgxModel {
         let k = self.k();
         let mut v: Vec<String> = (0..k).map(|j| format!("ln_inv_alpha2_{j}")).collect();
         v.extend((1..k).map(|j| format!("logit{j}")));
+        v.extend(
+            self.student_lobes()
+                .map(|j| format!("ln_gamma_minus_1.5_{j}")),
+        );
         v
     }
 
@@ -411,6 +508,8 @@ impl BrdfModel for LobeGgxModel {
                     match d {
                         Distribution::Ggx => 4.0,
                         Distribution::Beckmann => 2.0,
+                        // The core `(1 + e/(γ−1))^(−γ) ≈ e^(−γe/(γ−1))`.
+                        Distribution::StudentT { gamma } => 2.0 * gamma / (gamma - 1.0),
                     },
                 )
             })
@@ -426,22 +525,39 @@ impl BrdfModel for LobeGgxModel {
         let s = (-2.0 * ALPHA_MAX.ln(), -2.0 * ALPHA_MIN.ln());
         let mut v = vec![s; k];
         v.extend(std::iter::repeat_n(LOGIT, k - 1));
+        v.extend(std::iter::repeat_n(
+            (gamma_theta(GAMMA_MIN), gamma_theta(GAMMA_MAX)),
+            self.n_student(),
+        ));
         v
     }
 
     fn initial_guesses(&self) -> Vec<Vec<f64>> {
         let k = self.k();
         let grid: &[f64] = &[0.01, 0.03, 0.08, 0.2, 0.5];
+        // Student-t lobes: their own starting γ, and light and heavy tails.
+        let gammas: &[Option<f64>] = if self.n_student() > 0 {
+            &[None, Some(2.0), Some(10.0)]
+        } else {
+            &[None]
+        };
         let mut out = Vec::new();
-        for (s, &a0) in grid.iter().enumerate() {
-            let mut t: Vec<f64> = (0..k)
-                .map(|j| {
-                    let a = (a0 * 3f64.powi(j as i32)).clamp(ALPHA_MIN, ALPHA_MAX);
-                    -2.0 * a.ln()
-                })
-                .collect();
-            t.extend(std::iter::repeat_n(-1.0 + 0.1 * s as f64, k - 1));
-            out.push(t);
+        for &g in gammas {
+            for (s, &a0) in grid.iter().enumerate() {
+                let mut t: Vec<f64> = (0..k)
+                    .map(|j| {
+                        let a = (a0 * 3f64.powi(j as i32)).clamp(ALPHA_MIN, ALPHA_MAX);
+                        -2.0 * a.ln()
+                    })
+                    .collect();
+                t.extend(std::iter::repeat_n(-1.0 + 0.1 * s as f64, k - 1));
+                for j in self.student_lobes() {
+                    t.push(gamma_theta(
+                        g.or(self.distributions[j].gamma()).unwrap_or(2.0),
+                    ));
+                }
+                out.push(t);
+            }
         }
         out
     }
@@ -465,7 +581,9 @@ impl BrdfModel for LobeGgxModel {
 
 /// Fit lobe mixtures with 1, 2, …, `k` lobes progressively. Each new lobe is tried with every
 /// distribution in `candidates` (`[Ggx]`: GGX lobes only; `[Ggx, Beckmann]`: each lobe is the
-/// one that fits better, by the error of the metric minimised on the fitted samples); each size
+/// one that fits better, by the error of the metric minimised on the fitted samples; a
+/// Student-t candidate, [`GGX_BECKMANN_OR_STUDENT_T`], fits its γ too, the new lobe starting
+/// from the candidate's γ, 2 and 10); each size
 /// starts from the model's grid and from the previous fit with one more lobe at each of several
 /// roughnesses (with a small and a moderate weight), so that adding a lobe does not make the fit
 /// worse. Returns every model fitted with its result.
@@ -500,16 +618,25 @@ pub fn fit_ggx_lobes_progressive(
             let mut starts = m.initial_guesses();
             if let Some((pm, r)) = out.last() {
                 let prev = pm.params(r);
+                let news: Vec<Distribution> = match distribution {
+                    Distribution::StudentT { gamma } => [gamma, 2.0, 10.0]
+                        .iter()
+                        .map(|&gamma| Distribution::StudentT { gamma })
+                        .collect(),
+                    d => vec![d],
+                };
                 for a in [0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.5] {
                     for w in [0.01, 0.2] {
-                        let mut p = prev.clone();
-                        p.lobes.iter_mut().for_each(|l| l.d_weight *= 1.0 - w);
-                        p.lobes.push(GgxLobe {
-                            distribution,
-                            alpha: a,
-                            d_weight: w,
-                        });
-                        starts.push(m.theta_of(&p));
+                        for &distribution in &news {
+                            let mut p = prev.clone();
+                            p.lobes.iter_mut().for_each(|l| l.d_weight *= 1.0 - w);
+                            p.lobes.push(GgxLobe {
+                                distribution,
+                                alpha: a,
+                                d_weight: w,
+                            });
+                            starts.push(m.theta_of(&p));
+                        }
                     }
                 }
             }
@@ -540,7 +667,12 @@ mod tests {
                 GgxLobe {
                     distribution: Distribution::Beckmann,
                     alpha: 0.35,
-                    d_weight: 0.4,
+                    d_weight: 0.3,
+                },
+                GgxLobe {
+                    distribution: Distribution::StudentT { gamma: 2.7 },
+                    alpha: 0.15,
+                    d_weight: 0.1,
                 },
             ],
             f0: [0.9, 0.6, 0.3],
@@ -584,14 +716,23 @@ mod tests {
     #[test]
     fn gradient_matches_finite_differences() {
         let m = LobeGgxModel {
-            distributions: vec![Distribution::Ggx, Distribution::Beckmann, Distribution::Ggx],
+            distributions: vec![
+                Distribution::Ggx,
+                Distribution::StudentT { gamma: 3.0 },
+                Distribution::Beckmann,
+                Distribution::StudentT { gamma: 3.0 },
+            ],
         };
         let theta = vec![
             -2.0 * 0.05f64.ln(),
+            -2.0 * 0.12f64.ln(),
             -2.0 * 0.3f64.ln(),
             -2.0 * 0.9f64.ln(),
             0.3,
+            -0.2,
             -0.7,
+            gamma_theta(1.8),
+            gamma_theta(6.0),
         ];
         let nt = theta.len();
         for (ti, pi, to, po) in [
