@@ -195,7 +195,7 @@ fn fit_bounds(
     }
     let mut sums = Vec::new();
     for (basis, limit) in model.amplitude_sums() {
-        if basis.iter().any(|&j| j >= nb || ab[j].0 != 0.0) || !(limit >= 0.0) {
+        if basis.iter().any(|&j| j >= nb || ab[j].0 != 0.0) || limit.is_nan() || limit < 0.0 {
             return Err(bad(format!(
                 "amplitude sum limit over {basis:?} ≤ {limit}: needs basis lobes with lower bound 0 and a limit ≥ 0"
             )));
