@@ -23,21 +23,28 @@ pub fn cholesky_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
             a[i * n + j] = s / d;
         }
     }
+    cholesky_substitute(a, b, n);
+    true
+}
+
+/// Solve `L Lᵀ x = b` in place (`b` becomes `x`) with the factor `L` that [`cholesky_solve`]
+/// leaves in the lower triangle of its `a` (row-major `n × n`): further right-hand sides of a
+/// system already factored.
+pub fn cholesky_substitute(l: &[f64], b: &mut [f64], n: usize) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
-            s -= a[i * n + k] * b[k];
+            s -= l[i * n + k] * b[k];
         }
-        b[i] = s / a[i * n + i];
+        b[i] = s / l[i * n + i];
     }
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
-            s -= a[k * n + i] * b[k];
+            s -= l[k * n + i] * b[k];
         }
-        b[i] = s / a[i * n + i];
+        b[i] = s / l[i * n + i];
     }
-    true
 }
 
 #[cfg(test)]

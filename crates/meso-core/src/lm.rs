@@ -37,6 +37,11 @@ pub trait LeastSquares {
     fn held(&self, _p: &Self::Point, _j: usize, _jtr_j: f64) -> bool {
         false
     }
+    /// Correct the step `delta` (solved from the damped normal equations, whose Cholesky factor
+    /// is `factor`, row-major lower triangle) for constraints it would break, before
+    /// [`LeastSquares::retract`]; `held` are the parameters held this iteration. None by
+    /// default; [`Boxed`] keeps its [`SumLimit`]s this way.
+    fn limit_step(&self, _p: &Self::Point, _factor: &[f64], _delta: &mut [f64], _held: &[bool]) {}
 }
 
 /// Options of [`minimize`]. The default is the measured-BRDF fitter's.
@@ -181,6 +186,7 @@ pub fn minimize<P: LeastSquares>(
                 }
             }
             if cholesky_solve(m, delta, n) {
+                problem.limit_step(p, m, delta, held);
                 problem.retract(p, delta, &mut trial);
                 let c = problem.cost(&trial);
                 evaluations += 1;
@@ -222,15 +228,74 @@ pub trait VectorProblem {
     fn normal_equations(&self, p: &[f64], jtj: &mut [f64], jtr: &mut [f64]) -> f64;
 }
 
-/// A [`VectorProblem`] inside box bounds `lo ≤ p ≤ hi`: steps are added and projected onto the
-/// box, and a parameter on a bound whose descent direction points outwards is held (the active
-/// set).
+/// A limit on a sum of parameters, `Σ_{j ∈ indices} p_j ≤ limit`, for parameters that are also
+/// non-negative (their box's lower bound 0): e.g. the Schlick amplitudes `u = s·f0` and
+/// `g = s·(1 − f0)` of a mirror whose specular scale `s = u + g` may not exceed 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SumLimit {
+    /// The parameters summed.
+    pub indices: Vec<usize>,
+    /// The largest sum allowed.
+    pub limit: f64,
+}
+
+impl SumLimit {
+    /// Whether `p` keeps the limit (to a relative 1e-12).
+    #[must_use]
+    pub fn holds(&self, p: &[f64]) -> bool {
+        let sum: f64 = self.indices.iter().map(|&j| p[j]).sum();
+        sum <= self.limit * (1.0 + 1e-12)
+    }
+
+    /// Scale `p`'s entries at [`SumLimit::indices`] down by one factor so that their sum is the
+    /// limit (unchanged when within it): the point that keeps their proportions, e.g. a mirror's
+    /// `f0` when its specular scale is brought down to 1.
+    pub fn scale_into(&self, p: &mut [f64]) {
+        let sum: f64 = self.indices.iter().map(|&j| p[j]).sum();
+        if sum > self.limit && sum > 0.0 {
+            let f = self.limit / sum;
+            for &j in &self.indices {
+                p[j] *= f;
+            }
+        }
+    }
+
+    /// Project `p`'s entries at [`SumLimit::indices`] onto `{x ≥ 0, Σ x ≤ limit}` (the nearest
+    /// point in the Euclidean sense; unchanged when the sum is within the limit).
+    pub fn project(&self, p: &mut [f64]) {
+        let sum: f64 = self.indices.iter().map(|&j| p[j].max(0.0)).sum();
+        if sum <= self.limit {
+            return;
+        }
+        // The simplex projection: subtract the τ that brings the positive parts' sum to the limit.
+        let mut v: Vec<f64> = self.indices.iter().map(|&j| p[j]).collect();
+        v.sort_by(|a, b| b.total_cmp(a));
+        let (mut acc, mut tau) = (0.0, 0.0);
+        for (k, x) in v.iter().enumerate() {
+            acc += x;
+            let t = (acc - self.limit) / (k + 1) as f64;
+            if *x - t > 0.0 {
+                tau = t;
+            }
+        }
+        for &j in &self.indices {
+            p[j] = (p[j] - tau).max(0.0);
+        }
+    }
+}
+
+/// A [`VectorProblem`] inside box bounds `lo ≤ p ≤ hi` and sum limits ([`SumLimit`]): steps are
+/// added and projected onto the box and then onto each limit, and a parameter on a bound whose
+/// descent direction points outwards is held (the active set); a step that would break a limit
+/// is first solved again with that limit as an equality ([`LeastSquares::limit_step`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Boxed<'a, P> {
     /// The problem.
     pub problem: &'a P,
     /// `(lo, hi)` per parameter.
     pub bounds: &'a [(f64, f64)],
+    /// Limits on sums of parameters (none for a plain box).
+    pub sums: &'a [SumLimit],
 }
 
 impl<P: VectorProblem> LeastSquares for Boxed<'_, P> {
@@ -248,10 +313,57 @@ impl<P: VectorProblem> LeastSquares for Boxed<'_, P> {
         for ((o, (x, d)), &(lo, hi)) in out.iter_mut().zip(p.iter().zip(delta)).zip(self.bounds) {
             *o = (x + d).clamp(lo, hi);
         }
+        for s in self.sums {
+            s.project(out);
+        }
     }
     fn held(&self, p: &Vec<f64>, j: usize, jtr_j: f64) -> bool {
         let (lo, hi) = self.bounds[j];
         (p[j] <= lo && jtr_j > 0.0) || (p[j] >= hi && jtr_j < 0.0)
+    }
+    /// The limits that `p + δ` would break become equalities of the step: `δ` is replaced by
+    /// the minimiser of the same damped quadratic model on them (`δ − M⁻¹Aᵀ(AM⁻¹Aᵀ)⁻¹(A(p + δ)
+    /// − limit)`, `M` the damped matrix, `A` the limits' rows over the free parameters), so the
+    /// step is a descent step inside the limits (a Euclidean projection of the free step is not,
+    /// with a scaled `M`). Allocates only when a limit is broken.
+    fn limit_step(&self, p: &Vec<f64>, factor: &[f64], delta: &mut [f64], held: &[bool]) {
+        let n = delta.len();
+        let over = |l: &SumLimit| l.indices.iter().map(|&j| p[j] + delta[j]).sum::<f64>() - l.limit;
+        let active: Vec<&SumLimit> = self.sums.iter().filter(|l| over(l) > 0.0).collect();
+        if active.is_empty() {
+            return;
+        }
+        let k = active.len();
+        let mut z = vec![0.0; k * n];
+        for (c, l) in active.iter().enumerate() {
+            let zc = &mut z[c * n..(c + 1) * n];
+            for &j in &l.indices {
+                if !held[j] {
+                    zc[j] = 1.0;
+                }
+            }
+            crate::linalg::cholesky_substitute(factor, zc, n);
+        }
+        let mut s = vec![0.0; k * k];
+        let mut r: Vec<f64> = active.iter().map(|l| over(l)).collect();
+        for (a, l) in active.iter().enumerate() {
+            for b in 0..k {
+                s[a * k + b] = l
+                    .indices
+                    .iter()
+                    .filter(|&&j| !held[j])
+                    .map(|&j| z[b * n + j])
+                    .sum();
+            }
+        }
+        if !cholesky_solve(&mut s, &mut r, k) {
+            return;
+        }
+        for (c, mu) in r.iter().enumerate() {
+            for (d, zj) in delta.iter_mut().zip(&z[c * n..(c + 1) * n]) {
+                *d -= zj * mu;
+            }
+        }
     }
 }
 
@@ -266,6 +378,22 @@ pub fn minimize_boxed<P: VectorProblem>(
     bounds: &[(f64, f64)],
     opts: &LmOptions,
 ) -> (Vec<f64>, LmReport) {
+    minimize_limited(problem, p0, bounds, &[], opts)
+}
+
+/// [`minimize_boxed`] with limits on sums of parameters ([`SumLimit`]; `p0` is projected onto
+/// them too).
+///
+/// # Panics
+/// If `p0` or `bounds` do not have the problem's number of parameters, or a limit names a
+/// parameter that does not exist.
+pub fn minimize_limited<P: VectorProblem>(
+    problem: &P,
+    p0: &[f64],
+    bounds: &[(f64, f64)],
+    sums: &[SumLimit],
+    opts: &LmOptions,
+) -> (Vec<f64>, LmReport) {
     let mut p: Vec<f64> = p0
         .iter()
         .zip(bounds)
@@ -274,8 +402,15 @@ pub fn minimize_boxed<P: VectorProblem>(
     let n = problem.n_params();
     assert_eq!(p0.len(), n);
     assert_eq!(bounds.len(), n);
+    for s in sums {
+        s.project(&mut p);
+    }
     let r = minimize(
-        &Boxed { problem, bounds },
+        &Boxed {
+            problem,
+            bounds,
+            sums,
+        },
         &mut p,
         opts,
         &mut Workspace::new(n),
@@ -286,6 +421,93 @@ pub fn minimize_boxed<P: VectorProblem>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sum_limit_projects_onto_the_simplex() {
+        let l = SumLimit {
+            indices: vec![0, 2],
+            limit: 1.0,
+        };
+        // Within the limit: unchanged.
+        let mut p = [0.3, 9.0, 0.6];
+        l.project(&mut p);
+        assert_eq!(p, [0.3, 9.0, 0.6]);
+        // Over it: the nearest point of the segment u + g = 1 (equal shares of the excess).
+        let mut p = [0.8, 9.0, 0.6];
+        l.project(&mut p);
+        assert!(
+            (p[0] - 0.6).abs() < 1e-12 && (p[2] - 0.4).abs() < 1e-12,
+            "{p:?}"
+        );
+        assert_eq!(p[1], 9.0);
+        // Far over on one side: the corner (1, 0).
+        let mut p = [2.0, 0.0, 0.1];
+        l.project(&mut p);
+        assert!((p[0] - 1.0).abs() < 1e-12 && p[2] == 0.0, "{p:?}");
+        // Brute force: the projection is the closest feasible point of a fine grid.
+        for &(a, b) in &[(0.9, 0.7), (1.4, -0.2), (0.55, 0.55), (3.0, 2.5)] {
+            let mut p = [a, 0.0, b];
+            l.project(&mut p);
+            let d = |x: f64, y: f64| (x - a).powi(2) + (y - b).powi(2);
+            let mut best = f64::INFINITY;
+            for i in 0..=1000 {
+                for j in 0..=(1000 - i) {
+                    best = best.min(d(i as f64 / 1000.0, j as f64 / 1000.0));
+                }
+            }
+            assert!(d(p[0], p[2]) <= best + 1e-6, "({a}, {b}) -> {p:?}");
+        }
+    }
+
+    /// `½(w₀(x − 1)² + w₁(y − 1)²)`: its unconstrained optimum (1, 1) lies outside `x + y ≤ 1`.
+    struct Pull([f64; 2]);
+    impl VectorProblem for Pull {
+        fn n_params(&self) -> usize {
+            2
+        }
+        fn cost(&self, p: &[f64]) -> f64 {
+            0.5 * (self.0[0] * (p[0] - 1.0).powi(2) + self.0[1] * (p[1] - 1.0).powi(2))
+        }
+        fn normal_equations(&self, p: &[f64], jtj: &mut [f64], jtr: &mut [f64]) -> f64 {
+            jtj.copy_from_slice(&[self.0[0], 0.0, 0.0, self.0[1]]);
+            jtr[0] = self.0[0] * (p[0] - 1.0);
+            jtr[1] = self.0[1] * (p[1] - 1.0);
+            self.cost(p)
+        }
+    }
+
+    #[test]
+    fn limited_minimum_is_on_the_limit() {
+        let limit = [SumLimit {
+            indices: vec![0, 1],
+            limit: 1.0,
+        }];
+        let b = [(0.0, 1.0), (0.0, 1.0)];
+        let o = LmOptions::default();
+        let (p, _) = minimize_limited(&Pull([1.0, 1.0]), &[0.1, 0.0], &b, &limit, &o);
+        assert!(
+            (p[0] - 0.5).abs() < 1e-6 && (p[1] - 0.5).abs() < 1e-6,
+            "{p:?}"
+        );
+        // Without the limit, the box alone: (1, 1).
+        let (p, _) = minimize_boxed(&Pull([1.0, 1.0]), &[0.1, 0.0], &b, &o);
+        assert!(
+            (p[0] - 1.0).abs() < 1e-6 && (p[1] - 1.0).abs() < 1e-6,
+            "{p:?}"
+        );
+        // Unequal weights, started on the limit: the minimum on x + y = 1 is where
+        // w₀(x − 1) = w₁(y − 1), x = 1 − μ/w₀ with μ = 1/(1/w₀ + 1/w₁). A free step projected onto
+        // the limit in the Euclidean sense is not a descent step of the scaled problem (without
+        // `limit_step` this stayed at the start).
+        let w = [1.0, 100.0];
+        let (p, _) = minimize_limited(&Pull(w), &[0.5, 0.5], &b, &limit, &o);
+        let mu = 1.0 / (1.0 / w[0] + 1.0 / w[1]);
+        let want = [1.0 - mu / w[0], 1.0 - mu / w[1]];
+        assert!(
+            (p[0] - want[0]).abs() < 1e-6 && (p[1] - want[1]).abs() < 1e-6,
+            "{p:?} vs {want:?}"
+        );
+    }
 
     /// Rosenbrock as least squares: r = (10(y − x²), 1 − x).
     struct Rosen;
@@ -386,6 +608,7 @@ mod tests {
             &Boxed {
                 problem: &Rosen,
                 bounds: &b,
+                sums: &[],
             },
             &mut p,
             &opts,
@@ -399,6 +622,7 @@ mod tests {
             &Boxed {
                 problem: &Rosen,
                 bounds: &b,
+                sums: &[],
             },
             &mut q,
             &LmOptions {

@@ -6,7 +6,9 @@ use super::amplitudes::solve_amplitudes;
 use super::problem::{pack, Problem};
 use super::{evaluate, evaluate_samples, BrdfModel, FitError, FitOptions, FitResult, LobeAxes};
 use crate::samples::SampleSet;
-use meso_core::lm::{minimize_boxed, LmOptions, LmReport, VectorProblem};
+use meso_core::lm::{
+    minimize_boxed, minimize_limited, LmOptions, LmReport, SumLimit, VectorProblem,
+};
 use std::time::Instant;
 
 fn check_data(data: &SampleSet) -> Result<(), FitError> {
@@ -56,6 +58,7 @@ pub fn fit_from(
     let FitBounds {
         theta: tb,
         all: bounds,
+        sums,
         resolution,
     } = fit_bounds(model, data, opts, starts)?;
     let (nt, nb) = (model.n_nonlinear(), model.n_basis());
@@ -82,8 +85,19 @@ pub fn fit_from(
         rel_tolerance: 1e-10,
         ..LmOptions::default()
     };
-    let (params, r) = minimize_boxed(&pf, &best.0, &bounds, &fine_opts);
+    let (mut params, r) = minimize_boxed(&pf, &best.0, &bounds, &fine_opts);
     iterations += r.iterations;
+    // Amplitude sums over their limits (a mirror brighter than 1): bring them down keeping their
+    // proportions (what writing the material did) and continue under the limits, so the result
+    // is never worse than that clamped fit.
+    if sums.iter().any(|l| !l.holds(&params)) {
+        for l in &sums {
+            l.scale_into(&mut params);
+        }
+        let (p, r) = minimize_limited(&pf, &params, &bounds, &sums, &fine_opts);
+        params = p;
+        iterations += r.iterations;
+    }
     let (theta, amps) = pf.split(&params);
     let theta = theta.to_vec();
     let errors = evaluate(model, &theta, &amps, data);
@@ -112,6 +126,9 @@ struct FitBounds {
     theta: Vec<(f64, f64)>,
     /// Bounds of all parameters, `[θ, A_r, A_g, A_b]`.
     all: Vec<(f64, f64)>,
+    /// The model's amplitude sum limits ([`BrdfModel::amplitude_sums`]) for each channel, as
+    /// indices into all parameters.
+    sums: Vec<SumLimit>,
     /// The angular resolution that capped the sharpness ([`FitResult::resolution`]).
     resolution: Option<f64>,
 }
@@ -176,9 +193,24 @@ fn fit_bounds(
     for _ in 0..3 {
         bounds.extend(ab.iter().copied());
     }
+    let mut sums = Vec::new();
+    for (basis, limit) in model.amplitude_sums() {
+        if basis.iter().any(|&j| j >= nb || ab[j].0 != 0.0) || limit.is_nan() || limit < 0.0 {
+            return Err(bad(format!(
+                "amplitude sum limit over {basis:?} ≤ {limit}: needs basis lobes with lower bound 0 and a limit ≥ 0"
+            )));
+        }
+        for c in 0..3 {
+            sums.push(SumLimit {
+                indices: basis.iter().map(|&j| nt + c * nb + j).collect(),
+                limit,
+            });
+        }
+    }
     Ok(FitBounds {
         theta: tb,
         all: bounds,
+        sums,
         resolution,
     })
 }

@@ -98,6 +98,15 @@ pub trait BrdfModel: Sync {
         vec![(0.0, f64::INFINITY); self.n_basis()]
     }
 
+    /// Limits on sums of basis amplitudes, the same for the three channels: `(basis indices,
+    /// limit)` for `Σ_j A[c][j] ≤ limit` (the amplitudes' lower bounds must be 0). The fit
+    /// keeps them (projected Levenberg–Marquardt, [`meso_core::lm::SumLimit`]), so the fitted
+    /// closed form is the material written: e.g. the mirror models' Schlick amplitudes
+    /// `u = s·f0`, `g = s·(1 − f0)` under `s = u + g ≤ 1`. Default: none.
+    fn amplitude_sums(&self) -> Vec<(Vec<usize>, f64)> {
+        Vec::new()
+    }
+
     /// Indices into `θ` of lobe-axis coordinates whose value 0 puts the lobe axis on the surface
     /// normal (the tangent-plane point `(ax, ay, 1)` of the lobe models). [`LobeAxes::Normal`]
     /// holds them at 0. Default: none.

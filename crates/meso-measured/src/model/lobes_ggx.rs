@@ -520,6 +520,12 @@ impl BrdfModel for LobeGgxModel {
         vec![(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
     }
 
+    /// The mirror's specular scale `s = u + g ≤ 1` (the written material's bound), kept by the
+    /// fit rather than clamped afterwards.
+    fn amplitude_sums(&self) -> Vec<(Vec<usize>, f64)> {
+        vec![(vec![1, 2], 1.0)]
+    }
+
     fn bounds(&self) -> Vec<(f64, f64)> {
         let k = self.k();
         let s = (-2.0 * ALPHA_MAX.ln(), -2.0 * ALPHA_MIN.ln());

@@ -295,6 +295,12 @@ impl BrdfModel for LobeMicrofacetModel {
         vec![(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
     }
 
+    /// The mirror's specular scale `s = u + g ≤ 1` (the written material's bound), kept by the
+    /// fit rather than clamped afterwards.
+    fn amplitude_sums(&self) -> Vec<(Vec<usize>, f64)> {
+        vec![(vec![1, 2], 1.0)]
+    }
+
     fn bounds(&self) -> Vec<(f64, f64)> {
         let mut v = Vec::new();
         for _ in 0..self.k {
