@@ -47,9 +47,71 @@ pub fn cholesky_substitute(l: &[f64], b: &mut [f64], n: usize) {
     }
 }
 
+/// Solve the square system `a x = b` by Gaussian elimination with partial pivoting, in place
+/// (`a` row-major `n × n`, destroyed; `b` becomes `x`): for systems that are not positive
+/// definite (the KKT systems of constrained least squares). A pivot below `1e-13` times the
+/// largest entry of `a` counts as singular: its unknown is set to 0 and the result is `false`.
+pub fn gauss_solve(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
+    let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let tiny = 1e-13 * scale;
+    let mut regular = scale.is_finite() && scale > 0.0;
+    for col in 0..n {
+        let piv = (col..n)
+            .max_by(|&x, &y| a[x * n + col].abs().total_cmp(&a[y * n + col].abs()))
+            .unwrap_or(col);
+        if piv != col {
+            for k in 0..n {
+                a.swap(col * n + k, piv * n + k);
+            }
+            b.swap(col, piv);
+        }
+        let d = a[col * n + col];
+        if d.abs() <= tiny {
+            regular = false;
+            continue;
+        }
+        for r in col + 1..n {
+            let f = a[r * n + col] / d;
+            if f != 0.0 {
+                for k in col..n {
+                    a[r * n + k] -= f * a[col * n + k];
+                }
+                b[r] -= f * b[col];
+            }
+        }
+    }
+    for r in (0..n).rev() {
+        let d = a[r * n + r];
+        if d.abs() <= tiny {
+            b[r] = 0.0;
+            continue;
+        }
+        let mut acc = b[r];
+        for k in r + 1..n {
+            acc -= a[r * n + k] * b[k];
+        }
+        b[r] = acc / d;
+    }
+    regular && b.iter().all(|v| v.is_finite())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gauss_solves_indefinite_systems_and_reports_singular_ones() {
+        // A KKT matrix: [[2, 0, 1], [0, 2, 1], [1, 1, 0]] (min x² + y² with x + y = 1).
+        let mut a = vec![2.0, 0.0, 1.0, 0.0, 2.0, 1.0, 1.0, 1.0, 0.0];
+        let mut b = vec![0.0, 0.0, 1.0];
+        assert!(gauss_solve(&mut a, &mut b, 3));
+        assert!(
+            (b[0] - 0.5).abs() < 1e-15 && (b[1] - 0.5).abs() < 1e-15 && (b[2] + 1.0).abs() < 1e-15
+        );
+        let mut a = vec![1.0, 2.0, 2.0, 4.0];
+        let mut b = vec![1.0, 2.0];
+        assert!(!gauss_solve(&mut a, &mut b, 2));
+    }
 
     #[test]
     fn cholesky_solves() {

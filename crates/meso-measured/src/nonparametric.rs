@@ -23,7 +23,8 @@
 //! 2. **Fresnel, specular, diffuse:** with `D` and `G₂` known the model is linear in
 //!    `(ρ, u, g)` per channel: weighted least squares on the fitted cells in the Löw log metric
 //!    linearised about the data (weights: the cells' measure × `(cos θi / (1 + f cos θi))²`),
-//!    non-negative (the best of the feasible active sets).
+//!    with `0 ≤ ρ ≤ 1`, `u, g ≥ 0` and `u + g ≤ 1`, solved exactly
+//!    ([`meso_core::lm::linear_least_squares_limited`]).
 //! 3. Steps 1–2 alternate [`OUTER_ITERATIONS`] times (`ρ` enters the back-scattering).
 //! 4. The alternation holds Smith's `G₂` from the NDF of the step before, so it can settle on
 //!    a self-consistent NDF that is not the best fit: from the power-iteration start, a GGX
@@ -33,14 +34,18 @@
 //!    GGX lobe ([`crate::model::lobes_ggx`], K = 1, Löw log metric), and keeps the one with the
 //!    lower Löw log error on the fitted samples ([`NonParametric::start`] says which).
 //!
-//! `s = u + g` and `f0 = u/(u + g)` are written as the mirror's `specular` and `f0`; where
-//! `u + g > 1` both are scaled to `s = 1` (as the lobe models do) and the report says so.
+//! `s = u + g` and `f0 = u/(u + g)` are written as the mirror's `specular` and `f0`. Step 2
+//! keeps `s ≤ 1` as a constraint of its solve (as the lobe models keep it in theirs,
+//! [`meso_core::lm::SumLimit`]), so the written material is the fitted one; the report says
+//! when the limit is active.
 
 use crate::fit::{evaluate_samples_fn, FitErrors};
 use crate::merl::{cell_angles, CellPosition, MerlTable, N_PHI_D, N_THETA_H};
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::convolution::isotropic_projected_area;
+use meso_core::linalg::gauss_solve;
+use meso_core::lm::{linear_least_squares_limited, SumLimit};
 use meso_core::material::{Material, MaterialSpec};
 use meso_core::ndf::{Ndf, Radial};
 use meso_core::shading::{FastBrdf, Policy};
@@ -65,9 +70,9 @@ pub struct NonParametric {
     pub specular: [f64; 3],
     /// Lambert albedo per channel, in [0, 1].
     pub albedo: [f64; 3],
-    /// True when `u + g > 1` on some channel and both were scaled down (the written material is
-    /// dimmer there than the fitted form).
-    pub specular_clamped: bool,
+    /// True when the specular scale `u + g` sits at its limit 1 on some channel: the data asked
+    /// for more and the fit's constraint held it (the written material is the fitted one).
+    pub specular_at_limit: bool,
     /// Errors of the written material on the fitted samples.
     pub fitted: FitErrors,
     /// Errors of the written material on the held-out samples (`None` when none are held out).
@@ -158,99 +163,27 @@ fn projected_areas(ndf: &Ndf, theta: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-/// Least squares `min Σ w (x·a − y)²` over `x ≥ 0` for 3 unknowns: the unconstrained solution
-/// of every active set, the feasible one with the smallest residual.
-fn nnls3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
-    // Normal equations.
-    let mut ata = [[0.0f64; 3]; 3];
+/// The linear terms `(ρ, u, g)` of one channel: least squares `min Σ w (x·a − y)²` over
+/// `0 ≤ ρ ≤ 1`, `u, g ≥ 0` and `u + g ≤ 1` (the mirror's specular scale may not exceed 1), solved
+/// exactly by [`meso_core::lm::linear_least_squares_limited`] (the limit is a constraint of
+/// the solve, not a clamp afterwards).
+fn linear3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
+    let mut ata = [0.0f64; 9];
     let mut aty = [0.0f64; 3];
     for (a, y, w) in rows {
         for r in 0..3 {
             aty[r] += w * a[r] * y;
             for c in 0..3 {
-                ata[r][c] += w * a[r] * a[c];
+                ata[r * 3 + c] += w * a[r] * a[c];
             }
         }
     }
-    let resid = |x: &[f64; 3]| -> f64 {
-        rows.iter()
-            .map(|(a, y, w)| {
-                let e = a[0] * x[0] + a[1] * x[1] + a[2] * x[2] - y;
-                w * e * e
-            })
-            .sum()
-    };
-    let mut best = ([0.0; 3], resid(&[0.0; 3]));
-    for mask in 1u32..8 {
-        let idx: Vec<usize> = (0..3).filter(|k| mask & (1 << k) != 0).collect();
-        let n = idx.len();
-        // Solve the n × n subsystem.
-        let mut m = vec![0.0f64; n * n];
-        let mut rhs = vec![0.0f64; n];
-        for (r, &i) in idx.iter().enumerate() {
-            for (c, &j) in idx.iter().enumerate() {
-                m[r * n + c] = ata[i][j];
-            }
-            rhs[r] = aty[i];
-        }
-        if (0..n).any(|k| m[k * n + k] <= 0.0) {
-            continue;
-        }
-        let sub = solve_dense(&mut m, &mut rhs, n);
-        let mut x = [0.0; 3];
-        for (r, &i) in idx.iter().enumerate() {
-            x[i] = sub[r];
-        }
-        if x.iter().all(|v| *v >= 0.0) {
-            let e = resid(&x);
-            if e < best.1 {
-                best = (x, e);
-            }
-        }
-    }
-    best.0
-}
-
-/// Solve the dense `n × n` system `a x = b` (row-major, overwritten) by Gaussian elimination
-/// with partial pivoting; a singular pivot gives 0 for that unknown.
-fn solve_dense(a: &mut [f64], b: &mut [f64], n: usize) -> Vec<f64> {
-    for col in 0..n {
-        let piv = (col..n)
-            .max_by(|&x, &y| a[x * n + col].abs().total_cmp(&a[y * n + col].abs()))
-            .unwrap_or(col);
-        if piv != col {
-            for k in 0..n {
-                a.swap(col * n + k, piv * n + k);
-            }
-            b.swap(col, piv);
-        }
-        let d = a[col * n + col];
-        if d.abs() < 1e-300 {
-            continue;
-        }
-        for r in col + 1..n {
-            let f = a[r * n + col] / d;
-            if f != 0.0 {
-                for k in col..n {
-                    a[r * n + k] -= f * a[col * n + k];
-                }
-                b[r] -= f * b[col];
-            }
-        }
-    }
-    let mut x = vec![0.0; n];
-    for r in (0..n).rev() {
-        let d = a[r * n + r];
-        if d.abs() < 1e-300 {
-            continue;
-        }
-        let mut acc = b[r];
-        for k in r + 1..n {
-            acc -= a[r * n + k] * x[k];
-        }
-        x[r] = acc / d;
-    }
-    x
+    let limit = [SumLimit {
+        indices: vec![1, 2],
+        limit: 1.0,
+    }];
+    let x = linear_least_squares_limited(&ata, &aty, &[1.0, f64::INFINITY, f64::INFINITY], &limit);
+    [x[0], x[1], x[2]]
 }
 
 /// The material of a fit: the radial NDF under [`crate::model::mirror_material`].
@@ -402,7 +335,7 @@ fn linear_terms(r: &Radial, nodes: usize, data: &SampleSet) -> (Basis, Linear) {
         f0: [1.0; 3],
         specular: [1.0; 3],
         albedo: [0.0; 3],
-        specular_clamped: false,
+        specular_at_limit: false,
         fitted: FitErrors::default(),
         held_out: None,
         nodes,
@@ -431,8 +364,8 @@ fn linear_terms(r: &Radial, nodes: usize, data: &SampleSet) -> (Basis, Linear) {
             .zip(&basis)
             .map(|(s, (x, xg, w))| ([1.0 / PI, *x, *xg], s.rgb[ch], log_weight(s, ch, *w)))
             .collect();
-        let [rho, uu, gg] = nnls3(&rows);
-        lin.albedo[ch] = rho.min(1.0);
+        let [rho, uu, gg] = linear3(&rows);
+        lin.albedo[ch] = rho;
         lin.u[ch] = uu;
         lin.g[ch] = gg;
     }
@@ -493,8 +426,9 @@ fn refit_nodes(
         ata[k * dim + k] += ridge;
         atb[k] += ridge * prior[k];
     }
-    let sol = solve_dense(&mut ata, &mut atb, dim);
-    let v: Vec<f64> = sol[..nn]
+    // A singular pivot (cannot happen with the ridge) leaves its unknown at 0.
+    gauss_solve(&mut ata, &mut atb, dim);
+    let v: Vec<f64> = atb[..nn]
         .iter()
         .map(|x| if x.is_finite() { x.max(0.0) } else { 0.0 })
         .collect();
@@ -502,17 +436,17 @@ fn refit_nodes(
     Radial::new(nodes, v).map_err(|e| NonParametricError::Data(e.to_string()))
 }
 
-/// The fitted material from the final NDF and linear terms (the specular scale `u + g`
-/// clamped to 1), with its errors on the fitted and held-out samples.
+/// The fitted material from the final NDF and linear terms (whose specular scale `u + g` the
+/// linear solve kept ≤ 1), with its errors on the fitted and held-out samples.
 fn finish(ndf: Radial, lin: &Linear, nodes: usize, data: &SampleSet) -> NonParametric {
     let (u, g) = (&lin.u, &lin.g);
-    let mut clamped = false;
+    let mut at_limit = false;
     let mut f0 = [0.0; 3];
     let mut specular = [0.0; 3];
     for c in 0..3 {
         let s = u[c] + g[c];
-        if s > 1.0 {
-            clamped = true;
+        if s >= 1.0 - 1e-9 {
+            at_limit = true;
         }
         specular[c] = s.min(1.0);
         f0[c] = if s > 0.0 { u[c] / s } else { 0.0 };
@@ -522,7 +456,7 @@ fn finish(ndf: Radial, lin: &Linear, nodes: usize, data: &SampleSet) -> NonParam
         f0,
         specular,
         albedo: lin.albedo,
-        specular_clamped: clamped,
+        specular_at_limit: at_limit,
         fitted: FitErrors::default(),
         held_out: None,
         nodes,
@@ -542,7 +476,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn nnls_recovers_non_negative_solutions_and_clamps_negative_ones() {
+    fn linear_terms_are_non_negative_and_keep_the_specular_limit() {
         let rows: Vec<([f64; 3], f64, f64)> = (0..50)
             .map(|k| {
                 let x = f64::from(k) / 50.0;
@@ -550,7 +484,7 @@ mod tests {
                 (a, 0.2 + 0.5 * x + 0.1 * x * x, 1.0)
             })
             .collect();
-        let s = nnls3(&rows);
+        let s = linear3(&rows);
         assert!(
             (s[0] - 0.2).abs() < 1e-9 && (s[1] - 0.5).abs() < 1e-9 && (s[2] - 0.1).abs() < 1e-9
         );
@@ -561,7 +495,23 @@ mod tests {
                 ([1.0, x, x * x], 1.0 - x, 1.0)
             })
             .collect();
-        let s = nnls3(&rows);
+        let s = linear3(&rows);
         assert!(s.iter().all(|v| *v >= 0.0), "{s:?}");
+        // y = 0.1 + 0.9 x + 0.6 x²: u + g = 1.5 unconstrained; held on u + g = 1, and the
+        // answer beats the old clamp (the unconstrained u, g scaled to sum 1).
+        let rows: Vec<([f64; 3], f64, f64)> = (0..50)
+            .map(|k| {
+                let x = f64::from(k) / 50.0;
+                ([1.0, x, x * x], 0.1 + 0.9 * x + 0.6 * x * x, 1.0)
+            })
+            .collect();
+        let s = linear3(&rows);
+        assert!((s[1] + s[2] - 1.0).abs() < 1e-12, "{s:?}");
+        let cost = |p: [f64; 3]| -> f64 {
+            rows.iter()
+                .map(|(a, y, w)| w * (a[0] * p[0] + a[1] * p[1] + a[2] * p[2] - y).powi(2))
+                .sum()
+        };
+        assert!(cost(s) < cost([0.1, 0.6, 0.4]), "{s:?}");
     }
 }

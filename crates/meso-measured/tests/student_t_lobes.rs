@@ -88,10 +88,18 @@ fn recovery_error(got: &LobeGgxParams, truth: &Material) -> (f64, String) {
         }
     };
     for ((ga, gw, gd), (wa, ww, wd)) in have.iter().zip(&want) {
-        if !gd.same_family(*wd) {
+        // A Student-t lobe with γ = 2 is a GGX lobe (the same D and Λ): on noiseless data the
+        // two tie to rounding, and which one the fit keeps is decided by rounding.
+        let gamma_of = |d: &Distribution| match d {
+            Distribution::Ggx => Some(2.0),
+            _ => d.gamma(),
+        };
+        let ggx_like =
+            |d: &Distribution| matches!(d, Distribution::Ggx | Distribution::StudentT { .. });
+        if !(gd.same_family(*wd) || ggx_like(gd) && ggx_like(wd)) {
             return (f64::INFINITY, format!("distributions {have:?} vs {want:?}"));
         }
-        if let (Some(gg), Some(wg)) = (gd.gamma(), wd.gamma()) {
+        if let (Some(gg), Some(wg)) = (gamma_of(gd), gamma_of(wd)) {
             check("gamma", gg, wg);
         }
         check("alpha", *ga, *wa);
@@ -160,7 +168,13 @@ fn a_student_t_and_a_ggx_lobe_round_trip_with_the_mixed_family() {
         t0.elapsed().as_secs_f64(),
         r.held_out.map(|h| h.low_log)
     );
-    assert_eq!(m.name(), "lobes-2-mixed");
+    // "lobes-2-student-t" when the GGX lobe came back as a Student-t lobe with γ = 2 (a tie,
+    // checked by `assert_recovered`).
+    assert!(
+        ["lobes-2-mixed", "lobes-2-student-t"].contains(&m.name().as_str()),
+        "{}",
+        m.name()
+    );
     assert_recovered(&got, &truth, 0.01);
 }
 

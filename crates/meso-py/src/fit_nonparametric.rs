@@ -15,7 +15,7 @@ use std::path::PathBuf;
 /// derived from it, Schlick `f0`, the mirror `specular` scale and a Lambert albedo fitted
 /// alongside (docs/measured.md, "Non-parametric NDF"). Returns `(material, report)`; `report`
 /// holds `description`, `nodes` (θh bins used), `rms_theta_deg`, `f0`, `specular`, `albedo`,
-/// `specular_clamped`, `start` (`"power-iteration"` or `"ggx"`: the start of the kept fit), the
+/// `specular_at_limit`, `start` (`"power-iteration"` or `"ggx"`: the start of the kept fit), the
 /// errors per channel (`ngan_l2` in 1/sr, `low_log`) on the `fitted` and
 /// `held_out` cells (None without any), and `toml`, the material file. `out`: also write the
 /// file (atomically).
@@ -74,7 +74,7 @@ pub fn fit_nonparametric(
     d.set_item("f0", r.f0.to_vec())?;
     d.set_item("specular", r.specular.to_vec())?;
     d.set_item("albedo", r.albedo.to_vec())?;
-    d.set_item("specular_clamped", r.specular_clamped)?;
+    d.set_item("specular_at_limit", r.specular_at_limit)?;
     d.set_item("start", r.start.name())?;
     d.set_item("fitted", errors_dict(py, &r.fitted, n_fit)?)?;
     match &r.held_out {

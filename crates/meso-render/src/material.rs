@@ -128,7 +128,8 @@ impl MicrofacetLobe {
     #[inline(always)]
     fn lambda<const GGX: bool>(a2: f32) -> f32 {
         if GGX {
-            0.5 * ((1.0 + a2).sqrt() - 1.0)
+            // ½(√(1+a²) − 1) as ½a²/(1 + √(1+a²)): no cancellation near the normal.
+            0.5 * a2 / (1.0 + (1.0 + a2).sqrt())
         } else {
             // Λ = ½(e^{−ν²}/(ν√π) − erfc ν), ν = 1/a, with erfc from Abramowitz & Stegun
             // 7.1.26 (absolute error ≤ 1.5e-7) sharing the exponential.

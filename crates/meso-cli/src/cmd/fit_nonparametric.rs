@@ -41,10 +41,10 @@ pub fn run(a: &Args) -> Result<()> {
         fmt3(r.specular, 4)
     );
     let _ = writeln!(report, "  diffuse albedo [{}]", fmt3(r.albedo, 4));
-    if r.specular_clamped {
+    if r.specular_at_limit {
         let _ = writeln!(
             report,
-            "  note: the fitted specular exceeded 1 on some channel and was scaled to 1"
+            "  note: the specular scale is at its limit 1 on some channel (the fit held it there)"
         );
     }
     let _ = writeln!(

@@ -121,7 +121,11 @@ impl Microfacet {
                 let a = 1.0 / (alpha * tan);
                 0.5 * (-libm::erfc(a) + (-a * a).exp() / (a * PI.sqrt()))
             }
-            MicrofacetKind::Ggx => 0.5 * (-1.0 + (1.0 + alpha * alpha * tan * tan).sqrt()),
+            MicrofacetKind::Ggx => {
+                // ½(√(1+x) − 1) as ½x/(1 + √(1+x)): no cancellation near the normal.
+                let x = alpha * alpha * tan * tan;
+                0.5 * x / (1.0 + (1.0 + x).sqrt())
+            }
         }
     }
 }

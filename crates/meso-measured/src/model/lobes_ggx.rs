@@ -125,7 +125,8 @@ fn lobe_lambda(dist: Distribution, alpha: f64, tan2: f64, t: Option<&StudentT>) 
     match dist {
         Distribution::Ggx => {
             let r = (1.0 + a2 * tan2).sqrt();
-            (0.5 * (r - 1.0), 0.5 * a2 * tan2 / r)
+            // ½(r − 1) as ½x/(1 + r): no cancellation near the normal.
+            (0.5 * a2 * tan2 / (1.0 + r), 0.5 * a2 * tan2 / r)
         }
         Distribution::Beckmann => {
             let nu = 1.0 / (a2 * tan2).sqrt();
