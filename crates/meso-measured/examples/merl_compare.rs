@@ -5,6 +5,7 @@
 //! ```text
 //! cargo run --release -p meso-measured --example merl_compare -- \
 //!     --ngan ngan_cooktorrance.fit [--samples N] [--metric both|log|ngan] [--ggx-same-metric] \
+//!     [--student-t] \
 //!     A.binary [B.binary ...]
 //! ```
 //!
@@ -20,7 +21,8 @@
 //!   L2 alone (scored in L2), so that each column holds the GGX fit best in that metric. It is also
 //!   fitted in meso's metric and scored in both (the column "GGX+L in meso's metric", and a
 //!   summary row). `--ggx-same-metric`: the main columns use that fit, as before (the only one
-//!   when meso fitted one metric);
+//!   when meso fitted one metric); `--student-t`: `student-t-lobes` joins the families tried
+//!   (an experiment: `meso fit --transfer auto` does not try it);
 //! * **Ngan CT** — the published fit of Ngan, Durand & Matusik 2005 as distributed by
 //!   bsdfbenchmark/bbm (`fits/ngan_cooktorrance.fit`), evaluated as bbm's `NganCookTorrance`
 //!   (include/bsdfmodel/ngan.h) plus its Lambertian: see [`NganCt::eval`].
@@ -50,6 +52,8 @@ fn auto_candidates() -> Vec<Transfer> {
     for t in all {
         match t {
             Transfer::Microfacet | Transfer::Phong | Transfer::GgxLobes => {}
+            // Not in `Transfer::ALL`; `--student-t` adds it to the candidates.
+            Transfer::StudentTLobes => unreachable!("not an auto family"),
         }
     }
     all.to_vec()
@@ -187,6 +191,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut target = 30_000usize;
     let mut metric = Metric::Both;
     let mut ggx_own_metric = true;
+    let mut student_t = false;
     let mut files = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -198,9 +203,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 metric = Metric::from_name(&m).ok_or(format!("--metric {m}: both, log or ngan"))?;
             }
             "--ggx-same-metric" => ggx_own_metric = false,
+            "--student-t" => student_t = true,
             "-h" | "--help" => {
                 println!(
-                    "merl_compare --ngan ngan_cooktorrance.fit [--samples N] [--metric both|log|ngan] [--ggx-same-metric] A.binary [B.binary ...]"
+                    "merl_compare --ngan ngan_cooktorrance.fit [--samples N] [--metric both|log|ngan] [--ggx-same-metric] [--student-t] A.binary [B.binary ...]"
                 );
                 return Ok(());
             }
@@ -214,7 +220,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if files.is_empty() {
         return Err("no MERL file given (merl_compare --help)".into());
     }
-    let candidates = auto_candidates();
+    let mut candidates = auto_candidates();
+    if student_t {
+        candidates.push(Transfer::StudentTLobes);
+    }
     let names: Vec<&str> = candidates.iter().map(|t| t.name()).collect();
     println!(
         "meso: `meso fit DATA --lobes auto --metric {}` (families tried: {}; {} fitted cells; {} \

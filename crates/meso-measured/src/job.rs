@@ -239,26 +239,41 @@ pub enum Transfer {
     /// tails; each lobe GGX or Beckmann, whichever fits better) instead of Phong peaks
     /// ([`model::LobeGgxModel`]); K = 1 is GGX + Lambert or Beckmann + Lambert.
     GgxLobes,
+    /// [`Transfer::GgxLobes`] with a third candidate per lobe, a Student-t lobe whose tail
+    /// exponent γ is fitted too ([`model::lobes_ggx::GGX_BECKMANN_OR_STUDENT_T`]): tails between
+    /// Beckmann's (γ → ∞) and heavier than GGX's (γ = 2). Not among `--transfer auto`'s families
+    /// ([`Transfer::ALL`]): docs/measured.md, "Student-t lobes", gives its cost and its results.
+    StudentTLobes,
 }
 
 impl Transfer {
     /// Every family, in the order `--transfer auto` tries them.
     pub const ALL: [Transfer; 3] = [Transfer::Microfacet, Transfer::Phong, Transfer::GgxLobes];
 
-    /// The name `meso fit --transfer` takes (`phong`, `microfacet`, `ggx-lobes`).
+    /// Every family there is: [`Transfer::ALL`] and [`Transfer::StudentTLobes`].
+    pub const EVERY: [Transfer; 4] = [
+        Transfer::Microfacet,
+        Transfer::Phong,
+        Transfer::GgxLobes,
+        Transfer::StudentTLobes,
+    ];
+
+    /// The name `meso fit --transfer` takes (`phong`, `microfacet`, `ggx-lobes`,
+    /// `student-t-lobes`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Transfer::Phong => "phong",
             Transfer::Microfacet => "microfacet",
             Transfer::GgxLobes => "ggx-lobes",
+            Transfer::StudentTLobes => "student-t-lobes",
         }
     }
 
     /// The family named `s` ([`Transfer::name`]).
     #[must_use]
     pub fn from_name(s: &str) -> Option<Transfer> {
-        Transfer::ALL.into_iter().find(|t| t.name() == s)
+        Transfer::EVERY.into_iter().find(|t| t.name() == s)
     }
 }
 
@@ -546,8 +561,13 @@ pub fn fit_lobes(
             .into_iter()
             .map(|(m, r)| (Lobes::Microfacet(m.params(&r)), r))
             .collect(),
-        Transfer::GgxLobes => {
-            model::fit_ggx_lobes_progressive(k, &model::lobes_ggx::GGX_OR_BECKMANN, data, opts)?
+        Transfer::GgxLobes | Transfer::StudentTLobes => {
+            let candidates: &[meso_core::ndf::Distribution] = if transfer == Transfer::GgxLobes {
+                &model::lobes_ggx::GGX_OR_BECKMANN
+            } else {
+                &model::lobes_ggx::GGX_BECKMANN_OR_STUDENT_T
+            };
+            model::fit_ggx_lobes_progressive(k, candidates, data, opts)?
                 .into_iter()
                 .map(|(m, r)| (Lobes::GgxLobes(m.params(&r)), r))
                 .collect()
@@ -623,6 +643,15 @@ pub fn material_comment(s: &FitSettings<'_>, description: &str, r: &FitResult) -
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_family_is_named_and_auto_leaves_out_the_student_t_lobes() {
+        for t in Transfer::EVERY {
+            assert_eq!(Transfer::from_name(t.name()), Some(t));
+        }
+        assert!(!Transfer::ALL.contains(&Transfer::StudentTLobes));
+        assert_eq!(Transfer::from_name("gaussian"), None);
+    }
 
     fn csv_file(name: &str, text: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("meso-job-{}", std::process::id()));

@@ -75,7 +75,7 @@ fn options(
             Some(t) => vec![t],
             None => {
                 return Err(value_err(format!(
-                "transfer = {t:?}: expected \"auto\", \"phong\", \"microfacet\" or \"ggx-lobes\""
+                "transfer = {t:?}: expected \"auto\", \"phong\", \"microfacet\", \"ggx-lobes\" or \"student-t-lobes\""
             )))
             }
         },

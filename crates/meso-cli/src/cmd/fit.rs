@@ -42,6 +42,10 @@ pub enum TransferArg {
     /// Mirror facets as `microfacet`, under a mixture of GGX lobes on the normal (long tails)
     /// instead of Phong peaks: `[ndf] kind = "mixture"`; K = 1 is GGX + Lambert.
     GgxLobes,
+    /// As `ggx-lobes`, each lobe GGX, Beckmann or Student-t with its tail exponent γ fitted
+    /// (tails heavier than GGX's to Beckmann's); several times the cost of `ggx-lobes`, not
+    /// tried by `auto` (docs/measured.md, "Student-t lobes").
+    StudentTLobes,
 }
 
 /// Where the lobe axes may go.
@@ -177,6 +181,7 @@ pub fn run(a: Args) -> Result<()> {
             TransferArg::Phong => &[Transfer::Phong],
             TransferArg::Microfacet => &[Transfer::Microfacet],
             TransferArg::GgxLobes => &[Transfer::GgxLobes],
+            TransferArg::StudentTLobes => &[Transfer::StudentTLobes],
         },
         metric: match a.metric {
             MetricArg::Ngan => Metric::NganL2,

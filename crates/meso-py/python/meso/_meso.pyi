@@ -167,6 +167,7 @@ def fit(
 ) -> tuple[Material, dict[str, Any]]:
     """``meso fit DATA --lobes K``: the fitted material and a report (description, lobes, model,
     ``transfer`` kept of ``"phong"``, ``"microfacet"``, ``"ggx-lobes"`` (``"auto"`` tries all three),
+    or ``"student-t-lobes"`` when asked for (GGX, Beckmann or Student-t lobes, γ fitted; not in auto),
     ``fitted``/``held_out`` errors per channel: ``ngan_l2`` in 1/sr and ``low_log``, the TOML);
     ``out`` also writes the material file."""
 
