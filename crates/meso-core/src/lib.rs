@@ -16,7 +16,7 @@
 //! * [`linalg`], [`lm`] — small dense linear algebra and the one Levenberg–Marquardt solver
 //!   (generic over the parameter space, with box bounds or a retraction), used by every fitter;
 //! * [`budget`] — the memory budget and fallible allocation; [`fastmath`] — `pow`, `exp`, `ln`
-//!   without libm for every inner loop.
+//!   without libm for every inner loop; [`special`] — `ln Γ`, the one copy in the workspace.
 //!
 //! ```
 //! use meso_core::{frame::spherical_direction_deg, material::Material};
@@ -53,6 +53,7 @@ pub mod quadrature;
 pub mod sg;
 pub mod sh;
 pub mod shading;
+pub mod special;
 pub mod transfer;
 pub mod visibility;
 

@@ -2,6 +2,8 @@
 //! χ², the closed-form Smith Λ and projected area against the quadratures, and the material's
 //! BRDF (closed form against the explicit formula, reciprocity, white furnace, `FastBrdf`).
 
+mod common;
+
 use glam::DVec3;
 use meso_core::convolution::{isotropic_projected_area, Accuracy, SmithMasking};
 use meso_core::frame::{half_vector, spherical_direction_deg};
@@ -41,24 +43,13 @@ fn mixtures() -> Vec<(&'static str, Mixture)> {
     ]
 }
 
-const MATERIAL: &str = r#"
-form = "microfacet"
-[ndf]
-kind = "mixture"
-lobes = [
-  { kind = "ggx", alpha = 0.08, weight = 0.7 },
-  { kind = "beckmann", alpha = 0.4, weight = 0.3 },
-]
-[transfer]
-kind = "mirror"
-fresnel = "schlick"
-f0 = [0.9, 0.6, 0.3]
-specular = [0.8, 0.8, 0.8]
-[shadowing]
-kind = "smith"
-[diffuse]
-albedo = [0.05, 0.05, 0.05]
-"#;
+/// The material of the closed-form test: a GGX and a Beckmann lobe.
+fn material_toml() -> String {
+    common::mirror_mixture_toml(&[
+        "{ kind = \"ggx\", alpha = 0.08, weight = 0.7 }",
+        "{ kind = \"beckmann\", alpha = 0.4, weight = 0.3 }",
+    ])
+}
 
 #[test]
 fn a_mixture_integrates_to_one_and_its_d_is_normalised_by_projected_area() {
@@ -162,7 +153,7 @@ fn closed_form_smith_of_a_mixture_matches_the_quadratures() {
 
 #[test]
 fn the_mixture_material_is_the_closed_form_microfacet_brdf() {
-    let m = Material::from_toml_str(MATERIAL).unwrap();
+    let m = Material::from_toml_str(&material_toml()).unwrap();
     let Ndf::Mixture(mx) = &m.ndf else {
         panic!("not a mixture")
     };
@@ -178,14 +169,7 @@ fn the_mixture_material_is_the_closed_form_microfacet_brdf() {
     ] {
         let i = spherical_direction_deg(ti, pi);
         let o = spherical_direction_deg(to, po);
-        let h = half_vector(i, o).unwrap();
-        let c = i.dot(h);
-        let g2 = 1.0 / (1.0 + mx.lambda(i) + mx.lambda(o));
-        let f0 = [0.9, 0.6, 0.3];
-        let want: [f64; 3] = [0, 1, 2].map(|k| {
-            let fr = f0[k] + (1.0 - f0[k]) * (1.0 - c).powi(5);
-            0.05 / std::f64::consts::PI + 0.8 * fr * mx.d(h) * g2 / (4.0 * i.z * o.z)
-        });
+        let want = common::closed_form_brdf(mx, i, o);
         let exact = m.brdf(i, o);
         let fa = fast.eval(i, o);
         let back = fast.eval(o, i);

@@ -3,9 +3,11 @@
 //! Beckmann, the closed-form Smith Λ against the numerical projected area, the sampler by χ²
 //! (alone and in a mixture), the mixture's closed plan, and the material file's errors.
 
+mod common;
+
 use glam::DVec3;
 use meso_core::convolution::{isotropic_projected_area, Accuracy, SmithMasking};
-use meso_core::frame::{half_vector, spherical_direction_deg};
+use meso_core::frame::spherical_direction_deg;
 use meso_core::material::Material;
 use meso_core::ndf::{Distribution, Microfacet, Mixture, Ndf};
 use meso_core::quadrature::{gauss_legendre, integrate_sphere};
@@ -303,28 +305,17 @@ fn the_sampler_passes_chi_square_and_a_wrong_gamma_fails() {
     assert!(r.is_err(), "a wrong γ passed");
 }
 
-const MATERIAL: &str = r#"
-form = "microfacet"
-[ndf]
-kind = "mixture"
-lobes = [
-  { kind = "student-t", gamma = 3.5, alpha = 0.08, weight = 0.6 },
-  { kind = "ggx", alpha = 0.4, weight = 0.4 },
-]
-[transfer]
-kind = "mirror"
-fresnel = "schlick"
-f0 = [0.9, 0.6, 0.3]
-specular = [0.8, 0.8, 0.8]
-[shadowing]
-kind = "smith"
-[diffuse]
-albedo = [0.05, 0.05, 0.05]
-"#;
+/// The material of the closed-plan test: a Student-t and a GGX lobe.
+fn material_toml() -> String {
+    common::mirror_mixture_toml(&[
+        "{ kind = \"student-t\", gamma = 3.5, alpha = 0.08, weight = 0.6 }",
+        "{ kind = \"ggx\", alpha = 0.4, weight = 0.4 }",
+    ])
+}
 
 #[test]
 fn a_student_t_mixture_takes_the_closed_plan() {
-    let m = Material::from_toml_str(MATERIAL).unwrap();
+    let m = Material::from_toml_str(&material_toml()).unwrap();
     let Ndf::Mixture(mx) = &m.ndf else {
         panic!("not a mixture")
     };
@@ -341,18 +332,11 @@ fn a_student_t_mixture_takes_the_closed_plan() {
     ] {
         let i = spherical_direction_deg(ti, pi);
         let o = spherical_direction_deg(to, po);
-        let h = half_vector(i, o).unwrap();
-        let c = i.dot(h);
         for w in [i, o] {
             let (a, b) = (mx.lambda(w), numerical.lambda(w));
             assert!((a - b).abs() < 1e-6 * (1.0 + b), "{a} vs {b}");
         }
-        let g2 = 1.0 / (1.0 + mx.lambda(i) + mx.lambda(o));
-        let f0 = [0.9, 0.6, 0.3];
-        let want: [f64; 3] = [0, 1, 2].map(|k| {
-            let fr = f0[k] + (1.0 - f0[k]) * (1.0 - c).powi(5);
-            0.05 / PI + 0.8 * fr * mx.d(h) * g2 / (4.0 * i.z * o.z)
-        });
+        let want = common::closed_form_brdf(mx, i, o);
         let exact = m.brdf(i, o);
         let fa = fast.eval(i, o);
         for k in 0..3 {
@@ -364,9 +348,10 @@ fn a_student_t_mixture_takes_the_closed_plan() {
         }
     }
     // The file round-trips with its γ.
-    let text = meso_core::material::MaterialSpec::parse(MATERIAL, std::path::Path::new("."))
-        .unwrap()
-        .to_toml();
+    let text =
+        meso_core::material::MaterialSpec::parse(&material_toml(), std::path::Path::new("."))
+            .unwrap()
+            .to_toml();
     assert!(
         text.contains("kind = \"student-t\", gamma = 3.5, alpha = 0.08"),
         "{text}"

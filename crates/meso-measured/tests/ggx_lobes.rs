@@ -3,106 +3,19 @@
 //! (not by the fitted model's own code), sampled like a MERL table, and fitted back; every
 //! parameter must come back within 1 %.
 
+mod common;
+
+use common::{assert_recovered, material, merl_samples, recovery_error, rel};
 use meso_core::material::Material;
-use meso_core::ndf::{Distribution, Ndf};
-use meso_core::shading::{FastBrdf, Policy};
+use meso_core::ndf::Distribution::{self, Beckmann, Ggx};
 use meso_measured::fit::{fit_from, BrdfModel, FitOptions};
 use meso_measured::job::{fit_best, Lobes, Transfer};
-use meso_measured::merl::{CellPosition, MerlTable};
-use meso_measured::model::{fit_ggx_lobes_progressive, LobeGgxModel, LobeGgxParams};
-use meso_measured::samples::{MerlSampling, SampleSet};
-
-/// A microfacet mixture material: lobes `(kind, α, Eq. 1 weight)`.
-fn material(lobes: &[(&str, f64, f64)], f0: [f64; 3], specular: f64, albedo: [f64; 3]) -> Material {
-    let l: Vec<String> = lobes
-        .iter()
-        .map(|(k, a, w)| format!("{{ kind = \"{k}\", alpha = {a}, weight = {w} }}"))
-        .collect();
-    Material::from_toml_str(&format!(
-        "form = \"microfacet\"\n[ndf]\nkind = \"mixture\"\nlobes = [{}]\n[transfer]\nkind = \"mirror\"\n\
-         fresnel = \"schlick\"\nf0 = {f0:?}\nspecular = [{specular}, {specular}, {specular}]\n\
-         [shadowing]\nkind = \"smith\"\n[diffuse]\nalbedo = {albedo:?}\n",
-        l.join(", ")
-    ))
-    .unwrap()
-}
-
-/// The material sampled like a MERL table (30 000 cells fitted, 100 000 held out).
-fn merl_samples(m: &Material) -> SampleSet {
-    let f = FastBrdf::with_policy(m, Policy::Accurate);
-    let table = MerlTable::from_fn(CellPosition::Edge, |i, o| f.eval(i, o)).unwrap();
-    SampleSet::from_merl(
-        &table,
-        &MerlSampling {
-            held_out: 100_000,
-            ..MerlSampling::default()
-        },
-    )
-    .0
-}
-
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs()
-}
-
-/// The worst relative error of the fitted parameters against the truth: α and Eq. 1 weights
-/// (lobes sorted by α), f0, specular and albedo per channel; with what it was.
-fn recovery_error(got: &LobeGgxParams, truth: &Material) -> (f64, String) {
-    let Ndf::Mixture(mx) = &truth.ndf else {
-        panic!("truth is not a mixture")
-    };
-    let mut want: Vec<(f64, f64, Distribution)> = mx
-        .lobes()
-        .iter()
-        .map(|l| (l.microfacet.alpha_x, l.weight, l.microfacet.distribution))
-        .collect();
-    want.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut have: Vec<(f64, f64, Distribution)> = got
-        .lobes
-        .iter()
-        .zip(got.eq1_weights())
-        .map(|(l, w)| (l.alpha, w, l.distribution))
-        .collect();
-    have.sort_by(|a, b| a.0.total_cmp(&b.0));
-    assert_eq!(have.len(), want.len());
-    let meso_core::transfer::Transfer::Mirror {
-        fresnel: meso_core::transfer::Fresnel::Schlick { f0 },
-        specular,
-    } = truth.transfer
-    else {
-        panic!("truth is not a Schlick mirror")
-    };
-    let mut worst = (0.0, String::new());
-    let mut check = |what: &str, g: f64, w: f64| {
-        let e = rel(g, w);
-        if e > worst.0 {
-            worst = (e, format!("{what}: {g} vs {w}"));
-        }
-    };
-    for ((ga, gw, gd), (wa, ww, wd)) in have.iter().zip(&want) {
-        if gd != wd {
-            return (f64::INFINITY, format!("distributions {have:?} vs {want:?}"));
-        }
-        check("alpha", *ga, *wa);
-        check("weight", *gw, *ww);
-    }
-    for c in 0..3 {
-        check("f0", got.f0[c], f0[c]);
-        check("specular", got.specular[c], specular[c]);
-        check("albedo", got.albedo[c], truth.diffuse[c]);
-    }
-    worst
-}
-
-fn assert_recovered(got: &LobeGgxParams, truth: &Material, tol: f64) {
-    let (e, what) = recovery_error(got, truth);
-    assert!(e < tol, "worst relative error {e} ({what}) in {got:?}");
-}
+use meso_measured::model::{fit_ggx_lobes_progressive, LobeGgxModel};
 
 #[test]
 fn two_ggx_lobes_round_trip_within_one_percent() {
     let truth = material(
-        &[("ggx", 0.06, 0.6), ("ggx", 0.35, 0.4)],
+        &[(Ggx, 0.06, 0.6), (Ggx, 0.35, 0.4)],
         [0.9, 0.6, 0.3],
         0.8,
         [0.05, 0.05, 0.05],
@@ -129,7 +42,7 @@ fn two_ggx_lobes_round_trip_within_one_percent() {
 #[test]
 fn two_beckmann_lobes_round_trip_within_one_percent() {
     let truth = material(
-        &[("beckmann", 0.1, 0.5), ("beckmann", 0.45, 0.5)],
+        &[(Beckmann, 0.1, 0.5), (Beckmann, 0.45, 0.5)],
         [0.05, 0.5, 0.95],
         0.6,
         [0.2, 0.1, 0.3],
@@ -156,7 +69,7 @@ fn two_beckmann_lobes_round_trip_within_one_percent() {
 #[test]
 fn a_ggx_and_a_beckmann_lobe_round_trip_with_the_mixed_family() {
     let truth = material(
-        &[("ggx", 0.05, 0.5), ("beckmann", 0.4, 0.5)],
+        &[(Ggx, 0.05, 0.5), (Beckmann, 0.4, 0.5)],
         [0.95, 0.8, 0.5],
         0.7,
         [0.02, 0.03, 0.04],
@@ -179,7 +92,7 @@ fn a_ggx_and_a_beckmann_lobe_round_trip_with_the_mixed_family() {
 #[test]
 fn one_ggx_lobe_and_lambert_round_trip_within_one_percent() {
     let truth = material(
-        &[("ggx", 0.15, 1.0)],
+        &[(Ggx, 0.15, 1.0)],
         [0.04, 0.04, 0.04],
         1.0,
         [0.3, 0.2, 0.1],
@@ -195,7 +108,7 @@ fn one_ggx_lobe_and_lambert_round_trip_within_one_percent() {
 #[test]
 fn fit_best_tries_the_three_families_and_keeps_the_ggx_lobes_on_their_own_data() {
     let truth = material(
-        &[("ggx", 0.06, 0.6), ("ggx", 0.35, 0.4)],
+        &[(Ggx, 0.06, 0.6), (Ggx, 0.35, 0.4)],
         [0.9, 0.6, 0.3],
         0.8,
         [0.05, 0.05, 0.05],

@@ -1,51 +1,15 @@
 //! The log-gamma function, the regularised incomplete gamma functions and chi-square tail
 //! probabilities — written here so that the harness needs no statistics crate.
 //!
-//! * [`ln_gamma`] — Lanczos approximation (g = 7, 9 terms), relative error ≈ 1e-15 for `x > 0`.
+//! * [`ln_gamma`] — meso-core's [`meso_core::special::ln_gamma`] (libm's `lgamma`), re-exported:
+//!   the workspace keeps one `ln Γ`.
 //! * [`gamma_p`] / [`gamma_q`] — `P(a, x) = γ(a, x)/Γ(a)` and `Q(a, x) = 1 − P(a, x)`, by the power
 //!   series for `x < a + 1` and by the continued fraction (modified Lentz) otherwise, as in
 //!   Numerical Recipes §6.2. The one not computed directly is `1 −` the other, so the small tail
 //!   is always the one evaluated accurately.
 //! * [`chi_square_sf`] — `Pr[χ²_k ≥ x] = Q(k/2, x/2)`, the p-value of a chi-square statistic.
 
-use std::f64::consts::PI;
-
-/// Lanczos coefficients for g = 7, n = 9 (Godfrey).
-const LANCZOS_G: f64 = 7.0;
-#[allow(clippy::excessive_precision)] // the published digits, kept verbatim
-const LANCZOS: [f64; 9] = [
-    0.999_999_999_999_809_93,
-    676.520_368_121_885_1,
-    -1_259.139_216_722_402_8,
-    771.323_428_777_653_13,
-    -176.615_029_162_140_59,
-    12.507_343_278_686_905,
-    -0.138_571_095_265_720_12,
-    9.984_369_578_019_571_6e-6,
-    1.505_632_735_149_311_6e-7,
-];
-
-/// `ln Γ(x)` for `x > 0` (the reflection formula covers `x < ½`; the result is `ln |Γ(x)|`).
-///
-/// Returns `+∞` at the poles `x = 0, −1, −2, …`.
-#[must_use]
-pub fn ln_gamma(x: f64) -> f64 {
-    if x < 0.5 {
-        // Γ(x) Γ(1−x) = π / sin(πx)
-        let s = (PI * x).sin();
-        if s == 0.0 {
-            return f64::INFINITY;
-        }
-        return (PI / s.abs()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = LANCZOS[0];
-    let t = x + LANCZOS_G + 0.5;
-    for (k, &c) in LANCZOS.iter().enumerate().skip(1) {
-        a += c / (x + k as f64);
-    }
-    0.5 * (2.0 * PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-}
+pub use meso_core::special::ln_gamma;
 
 const EPS: f64 = 1e-16;
 const FPMIN: f64 = f64::MIN_POSITIVE / EPS;
@@ -168,6 +132,7 @@ pub fn chi_square_cdf(statistic: f64, dof: usize) -> f64 {
 #[allow(clippy::excessive_precision)] // reference values are quoted in full
 mod tests {
     use super::*;
+    use std::f64::consts::PI;
 
     fn rel(a: f64, b: f64) -> f64 {
         (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)

@@ -27,6 +27,8 @@
 //! The area ratio `A = E[√(1 + |s|²)]` is finite only for γ > 3/2 (the tail of `|s|` decays as
 //! `|s|^(2−2γ)`), so meso's Eq. 1 form `n = D/A` needs `γ ∈` [`MIN_GAMMA`, [`MAX_GAMMA`]].
 
+use crate::special::ln_gamma;
+
 /// Smallest γ accepted: `A = ∫ D dω` grows as `1/(γ − 3/2)` and is infinite at 3/2.
 pub const MIN_GAMMA: f64 = 1.51;
 /// Largest γ accepted (γ → ∞ is Beckmann; at 1000 `D` is within about 0.1 % of it).
@@ -50,12 +52,12 @@ impl StudentT {
     #[must_use]
     pub fn new(gamma: f64) -> StudentT {
         let nu = 2.0 * gamma - 2.0;
-        let (lg_a, lg_h) = (libm::lgamma(0.5 * nu), libm::lgamma(0.5 * (nu + 1.0)));
+        let (lg_a, lg_h) = (ln_gamma(0.5 * nu), ln_gamma(0.5 * (nu + 1.0)));
         StudentT {
             gamma,
             nu,
             f_norm: (lg_h - lg_a).exp() / (nu * std::f64::consts::PI).sqrt(),
-            ln_beta: lg_a + libm::lgamma(0.5) - lg_h,
+            ln_beta: lg_a + ln_gamma(0.5) - lg_h,
         }
     }
 
@@ -147,39 +149,20 @@ impl StudentT {
 
 /// The continued fraction of the incomplete beta function (modified Lentz), to 1e-15.
 fn beta_cf(a: f64, b: f64, x: f64) -> f64 {
-    const TINY: f64 = 1e-300;
     let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
     let mut c = 1.0;
-    let mut d = 1.0 - qab * x / qap;
-    if d.abs() < TINY {
-        d = TINY;
-    }
-    d = 1.0 / d;
+    let mut d = 1.0 / lentz_guard(1.0 - qab * x / qap);
     let mut h = d;
     for m in 1..=400 {
         let m = f64::from(m);
         let m2 = 2.0 * m;
         let aa = m * (b - m) * x / ((qam + m2) * (a + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < TINY {
-            d = TINY;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
-        d = 1.0 / d;
+        d = 1.0 / lentz_guard(1.0 + aa * d);
+        c = lentz_guard(1.0 + aa / c);
         h *= d * c;
         let aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < TINY {
-            d = TINY;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
-        d = 1.0 / d;
+        d = 1.0 / lentz_guard(1.0 + aa * d);
+        c = lentz_guard(1.0 + aa / c);
         let del = d * c;
         h *= del;
         if (del - 1.0).abs() < 1e-15 {
@@ -187,6 +170,18 @@ fn beta_cf(a: f64, b: f64, x: f64) -> f64 {
         }
     }
     h
+}
+
+/// Lentz's guard: a denominator or ratio within 1e-300 of zero becomes 1e-300 (so the next
+/// division stays finite).
+#[inline]
+fn lentz_guard(v: f64) -> f64 {
+    const TINY: f64 = 1e-300;
+    if v.abs() < TINY {
+        TINY
+    } else {
+        v
+    }
 }
 
 #[cfg(test)]

@@ -27,6 +27,23 @@
 //! * Size limits, checked from the image header before anything is decoded or allocated:
 //!   at most [`MAX_DIMENSION`] samples per side and [`MAX_TEXELS`] samples in all.
 
+/// The `width()` / `height()` accessors of a row-major grid that keeps `width` and `height`
+/// fields ([`HeightMap`], [`NormalMap`]), written once; `$unit` names what the grid holds.
+macro_rules! grid_size_accessors {
+    ($unit:literal) => {
+        #[doc = concat!("Number of columns (", $unit, " along x).")]
+        #[must_use]
+        pub fn width(&self) -> usize {
+            self.width
+        }
+        #[doc = concat!("Number of rows (", $unit, " along y).")]
+        #[must_use]
+        pub fn height(&self) -> usize {
+            self.height
+        }
+    };
+}
+
 mod decode;
 mod load;
 mod normal;
@@ -131,16 +148,7 @@ impl HeightMap {
         &self.warnings
     }
 
-    /// Number of columns (samples along x).
-    #[must_use]
-    pub fn width(&self) -> usize {
-        self.width
-    }
-    /// Number of rows (samples along y).
-    #[must_use]
-    pub fn height(&self) -> usize {
-        self.height
-    }
+    grid_size_accessors!("samples");
     /// Distance between samples S (length units).
     #[must_use]
     pub fn texel_size(&self) -> f64 {

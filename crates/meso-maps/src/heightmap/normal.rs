@@ -172,16 +172,7 @@ impl NormalMap {
         self.clamped
     }
 
-    /// Width in texels.
-    #[must_use]
-    pub fn width(&self) -> usize {
-        self.width
-    }
-    /// Height in texels.
-    #[must_use]
-    pub fn height(&self) -> usize {
-        self.height
-    }
+    grid_size_accessors!("texels");
     /// Unit normals, row-major.
     #[must_use]
     pub fn normals(&self) -> &[DVec3] {

@@ -211,13 +211,7 @@ impl LobeGgxParams {
             return [0.0; 3];
         }
         let s = mixture_specular(&self.lobes, wi, wo);
-        [0, 1, 2].map(|c| {
-            let spec = s.map_or(0.0, |(x, cos)| {
-                let m5 = (1.0 - cos).clamp(0.0, 1.0).powi(5);
-                x * self.specular[c] * (self.f0[c] + (1.0 - self.f0[c]) * m5)
-            });
-            self.albedo[c] / PI + spec
-        })
+        super::mirror_brdf(s, self.f0, self.specular, self.albedo)
     }
 
     /// The Eq. 1 weights of the lobes, `w_k ∝ c_k A_k` (sum 1).
@@ -435,7 +429,7 @@ impl LobeGgxModel {
         let kk = 1.0 / (4.0 * wi.z * wo.z);
         let g2 = 1.0 / (1.0 + li + lo);
         let x = d * g2 * kk;
-        let m5 = (1.0 - wi.dot(h)).clamp(0.0, 1.0).powi(5);
+        let m5 = super::schlick_m5(wi.dot(h));
         out[1] = x;
         out[2] = x * m5;
         let Some(grad) = grad else {

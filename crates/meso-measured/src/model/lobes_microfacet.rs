@@ -175,17 +175,10 @@ impl LobeMicrofacetParams {
     #[must_use]
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> [f64; 3] {
         let s = microfacet_lobes_fast(&self.lobes, wi, wo);
-        [0, 1, 2].map(|c| {
-            let spec = s.map_or(0.0, |(d, cos)| {
-                let m5 = (1.0 - cos).clamp(0.0, 1.0).powi(5);
-                d * self.specular[c] * (self.f0[c] + (1.0 - self.f0[c]) * m5)
-            });
-            if wi.z > 0.0 && wo.z > 0.0 {
-                self.albedo[c] / PI + spec
-            } else {
-                0.0
-            }
-        })
+        if !(wi.z > 0.0 && wo.z > 0.0) {
+            return [0.0; 3];
+        }
+        super::mirror_brdf(s, self.f0, self.specular, self.albedo)
     }
 
     /// The material (module docs): the Phong peaks (axes snapped to the degrees the file holds) under
@@ -332,7 +325,7 @@ impl BrdfModel for LobeMicrofacetModel {
         out[0] = 1.0 / PI;
         match microfacet_lobes_fast(&lobes[..self.k], wi, wo) {
             Some((d, c)) => {
-                let m5 = (1.0 - c).clamp(0.0, 1.0).powi(5);
+                let m5 = super::schlick_m5(c);
                 out[1] = d;
                 out[2] = d * m5;
             }
@@ -433,7 +426,7 @@ impl LobeMicrofacetModel {
         let g2 = 1.0 / (1.0 + lam_sum);
         let kk = 1.0 / (4.0 * wi.z * wo.z);
         let x = n / p * g2 * kk;
-        let m5 = (1.0 - wi.dot(h)).clamp(0.0, 1.0).powi(5);
+        let m5 = super::schlick_m5(wi.dot(h));
         out[1] = x;
         out[2] = x * m5;
         // dX from (dn, dP, dM) of one parameter.

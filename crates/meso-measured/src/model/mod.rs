@@ -65,6 +65,31 @@ pub fn mirror_material(
     }
 }
 
+/// Schlick's weight `(1 − cos)⁵` (the cosine clamped to `[0, 1]`): `F = f0 + (1 − f0)·m5`.
+#[inline]
+#[must_use]
+pub(crate) fn schlick_m5(cos: f64) -> f64 {
+    (1.0 - cos).clamp(0.0, 1.0).powi(5)
+}
+
+/// The BRDF (1/sr) per channel of a [`mirror_material`] above the horizon:
+/// `albedo/π + X·specular·F(cos)` for the mirror's specular factor `X` and cosine `i·h` in
+/// `s` (`None`: no specular term).
+#[must_use]
+pub(crate) fn mirror_brdf(
+    s: Option<(f64, f64)>,
+    f0: [f64; 3],
+    specular: [f64; 3],
+    albedo: [f64; 3],
+) -> [f64; 3] {
+    [0, 1, 2].map(|c| {
+        let spec = s.map_or(0.0, |(x, cos)| {
+            x * specular[c] * (f0[c] + (1.0 - f0[c]) * schlick_m5(cos))
+        });
+        albedo[c] / std::f64::consts::PI + spec
+    })
+}
+
 /// The material file of a fit: `spec` with `comment`'s lines as `#` comments first
 /// ([`MaterialSpec::to_toml_with_comment`]). Parameters that make no NDF (a fit that diverged to
 /// non-finite numbers) give the comment and a comment line saying why, a file the material

@@ -138,26 +138,19 @@ pub(super) fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambd
 
 #[cfg(test)]
 mod tests {
+    use super::super::peak_quadrature::for_each_peak_node;
     use super::*;
 
     /// `E[(m·h)^η (m·i)⁺ m_z⁺] / E[m_z⁺]` over one Phong peak `cos^η_n(α/2)` by a fine
     /// quadrature in the lobe's frame (independent of the Gaussian forms).
     fn quadrature(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
-        let f = Frame::from_normal_tangent(axis, DVec3::X);
         let amax = (12.0 * 2.0 / eta_n.sqrt()).min(std::f64::consts::PI);
-        let (na, np) = (600, 240);
         let (mut num, mut den) = (0.0, 0.0);
-        for ia in 0..na {
-            let a = (ia as f64 + 0.5) / na as f64 * amax;
-            let d = (0.5 * (1.0 + a.cos())).powf(0.5 * eta_n) * a.sin();
-            for ip in 0..np {
-                let p = (ip as f64 + 0.5) / np as f64 * std::f64::consts::TAU;
-                let m = f.to_world(DVec3::new(a.sin() * p.cos(), a.sin() * p.sin(), a.cos()));
-                let w = d * m.z.max(0.0);
-                num += w * m.dot(h).max(0.0).powf(eta) * m.dot(wi).max(0.0);
-                den += w;
-            }
-        }
+        for_each_peak_node(axis, DVec3::X, eta_n, amax, (600, 240), |d, m| {
+            let w = d * m.z.max(0.0);
+            num += w * m.dot(h).max(0.0).powf(eta) * m.dot(wi).max(0.0);
+            den += w;
+        });
         num / den
     }
 

@@ -9,7 +9,9 @@
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
 //!   Phong facets, and the 7-node form of a lobe for other facets;
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
-//!   magnification).
+//!   magnification);
+//! * `peak_quadrature` (tests only) — the brute-force quadrature over one Phong peak that the
+//!   tests of `lobes` and `shares` check against.
 //!
 //! # Conventions
 //! * Texels are indexed row-major per level (`row · cols + col`), wrapped periodically;
@@ -22,6 +24,8 @@ use super::*;
 mod build;
 mod filter;
 mod lobes;
+#[cfg(test)]
+mod peak_quadrature;
 mod shares;
 
 use lobes::{phong_texel, Node, SgLobe};

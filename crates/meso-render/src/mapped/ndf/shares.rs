@@ -144,9 +144,9 @@ pub(super) fn projected_shares(pyramid: &Pyramid) -> Vec<Vec<f64>> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::peak_quadrature::for_each_peak_node;
     use super::*;
     use glam::DVec3;
-    use meso_core::frame::Frame;
 
     /// `E[m_z⁺]` of a Phong peak: the closed form above the horizon and the quadrature across
     /// it agree with a brute-force quadrature of the peak over the sphere (in the lobe's frame),
@@ -163,20 +163,12 @@ mod tests {
             (0.2, 1e6),
         ] {
             let axis = DVec3::new((1.0 - a_z * a_z).sqrt(), 0.0, a_z);
-            let f = Frame::from_normal_tangent(axis, DVec3::Y);
-            let (na, np) = (4000, 720);
             let amax = (40.0 / f64::sqrt(eta)).min(std::f64::consts::PI);
             let (mut num, mut den) = (0.0, 0.0);
-            for ia in 0..na {
-                let a = (ia as f64 + 0.5) / na as f64 * amax;
-                let d = (0.5 * (1.0 + a.cos())).powf(0.5 * eta) * a.sin();
-                for ip in 0..np {
-                    let p = (ip as f64 + 0.5) / np as f64 * std::f64::consts::TAU;
-                    let m = f.to_world(DVec3::new(a.sin() * p.cos(), a.sin() * p.sin(), a.cos()));
-                    num += d * m.z.max(0.0);
-                    den += d;
-                }
-            }
+            for_each_peak_node(axis, DVec3::Y, eta, amax, (4000, 720), |d, m| {
+                num += d * m.z.max(0.0);
+                den += d;
+            });
             let want = num / den;
             let got = peak_projected_area(a_z, eta);
             assert!(

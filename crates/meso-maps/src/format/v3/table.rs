@@ -1,0 +1,110 @@
+//! The level table of format 3 (module docs of `v3`): per level its size, lobe count and
+//! residuals, written from a pyramid and read back checked against the header's size and
+//! lobe limit; and the memory of the pyramid a table describes.
+
+use crate::compact::COMPACT_TEXELS;
+use crate::error::Result;
+use crate::format::{Reader, LEVEL_HEADER_BYTES};
+use crate::pyramid::{Pyramid, Residual};
+use std::io::Write;
+
+/// Bytes in memory of one `f64` lobe (`PhongLobe`) and of one texel's `f64` horizon statistics
+/// (half on the levels kept in `f32`, `crate::compact`).
+const LOBE_MEM: u64 = 40;
+const HORIZON_MEM: u64 = 72;
+/// One entry of a format-3 level table, with where the level starts among all texels.
+#[derive(Clone, Copy)]
+pub(super) struct TableEntry {
+    pub(super) cols: usize,
+    pub(super) rows: usize,
+    pub(super) span: usize,
+    pub(super) lobes: usize,
+    pub(super) residual: Residual,
+    /// Index of the level's first texel among the pyramid's texels.
+    pub(super) t0: usize,
+}
+
+impl TableEntry {
+    pub(super) fn texels(&self) -> usize {
+        self.cols * self.rows
+    }
+    /// Whether the level is kept in `f32` in memory ([`COMPACT_TEXELS`]).
+    pub(super) fn compact(&self) -> bool {
+        self.texels() >= COMPACT_TEXELS
+    }
+}
+
+/// Write the level table of `p` (after the common header); returns each level's first texel
+/// among the pyramid's texels and its texel count.
+pub(super) fn write_table(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<Vec<(usize, usize)>> {
+    let mut levels = Vec::with_capacity(p.levels.len());
+    let mut t0 = 0;
+    for l in &p.levels {
+        w.write_all(&(l.cols as u32).to_le_bytes())?;
+        w.write_all(&(l.rows as u32).to_le_bytes())?;
+        w.write_all(&(l.span as u32).to_le_bytes())?;
+        w.write_all(&(l.lobes.len() as u32).to_le_bytes())?;
+        w.write_all(&l.residual.mean.to_le_bytes())?;
+        w.write_all(&l.residual.max.to_le_bytes())?;
+        w.write_all(&l.residual.texels.to_le_bytes())?;
+        levels.push((t0, l.texels()));
+        t0 += l.texels();
+    }
+    Ok(levels)
+}
+
+/// The memory (bytes) of the pyramid a level table describes: per lobe 40 bytes (`f64`) or 20
+/// (`f32` levels), per texel a lobe start (4) and with horizon statistics 72 or 36.
+pub(super) fn pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
+    table
+        .iter()
+        .map(|t| {
+            let (lobe, hz) = if t.compact() {
+                (LOBE_MEM / 2, HORIZON_MEM / 2)
+            } else {
+                (LOBE_MEM, HORIZON_MEM)
+            };
+            t.lobes as u64 * lobe + t.texels() as u64 * (4 + if has_h { hz } else { 0 })
+        })
+        .sum()
+}
+
+/// The level table (checked against `cols × rows` and `max_lobes`), with the pyramid's total
+/// texels and lobes.
+pub(super) fn read_table(
+    r: &mut Reader<'_>,
+    cols: usize,
+    rows: usize,
+    nlev: usize,
+    max_lobes: usize,
+) -> Result<(Vec<TableEntry>, u64, u64)> {
+    if ((r.b.len() - r.pos) as u64) < nlev as u64 * LEVEL_HEADER_BYTES {
+        return Err(r.err("truncated in the level table".into()));
+    }
+    let mut table = Vec::with_capacity(nlev);
+    let (mut ec, mut er) = (cols, rows);
+    let (mut texels, mut lobes) = (0u64, 0u64);
+    for k in 0..nlev {
+        let nl = r.level_header(k, ec, er, max_lobes)?;
+        let residual = Residual {
+            mean: r.f64("residual")?,
+            max: r.f64("residual")?,
+            texels: r.u32("residual texels")?,
+            shading_mean: None,
+            shading_max: None,
+        };
+        table.push(TableEntry {
+            cols: ec,
+            rows: er,
+            span: 1usize << k,
+            lobes: nl,
+            residual,
+            t0: texels as usize,
+        });
+        texels += (ec * er) as u64;
+        lobes += nl as u64;
+        ec = ec.div_ceil(2);
+        er = er.div_ceil(2);
+    }
+    Ok((table, texels, lobes))
+}
