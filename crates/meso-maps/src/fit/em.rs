@@ -33,17 +33,20 @@ pub(super) struct L {
 /// then the entry maximising weight × squared chord distance to the nearest centre), 5 Lloyd
 /// steps, then lobes with the cluster shares and the closed-form exponent of each cluster.
 pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
+    // The unit directions of the points, normalised once (the seeding passes read them k − 1
+    // times).
+    let dirs: Vec<DVec3> = pts.iter().map(|e| e.0.normalize()).collect();
     let mut centres: Vec<DVec3> = Vec::with_capacity(k);
     let first = pts
         .iter()
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|e| e.0.normalize())
+        .zip(&dirs)
+        .max_by(|a, b| a.0 .1.total_cmp(&b.0 .1))
+        .map(|e| *e.1)
         .unwrap_or(DVec3::Z);
     centres.push(first);
     while centres.len() < k {
         let mut best = (-1.0, DVec3::Z);
-        for e in pts {
-            let d = e.0.normalize();
+        for (e, &d) in pts.iter().zip(&dirs) {
             let dist = centres
                 .iter()
                 .map(|c| 2.0 - 2.0 * c.dot(d))
@@ -58,9 +61,7 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
     for _ in 0..5 {
         sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
         for &(d, w) in pts {
-            let j = (0..k)
-                .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
-                .unwrap_or(0);
+            let j = nearest(&centres, d);
             sums[j].0 += d * w;
             sums[j].1 += w;
         }
@@ -71,9 +72,7 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
         }
     }
     for &(d, w) in pts {
-        let j = (0..k)
-            .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
-            .unwrap_or(0);
+        let j = nearest(&centres, d);
         sums[j].2 += w * log_t(centres[j], d);
     }
     let total: f64 = sums.iter().map(|s| s.1).sum();
@@ -85,6 +84,20 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
             eta: eta_from_mean_t(sums[j].2 / sums[j].1).min(1e4),
         })
         .collect()
+}
+
+/// The index of the centre of largest `c·d` (the last of equal ones, as `Iterator::max_by`
+/// with `total_cmp` picks it), each dot product computed once.
+#[inline]
+fn nearest(centres: &[DVec3], d: DVec3) -> usize {
+    let mut best = (0, f64::NEG_INFINITY);
+    for (j, c) in centres.iter().enumerate() {
+        let v = c.dot(d);
+        if j == 0 || v.total_cmp(&best.1) != std::cmp::Ordering::Less {
+            best = (j, v);
+        }
+    }
+    best.0
 }
 
 /// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
@@ -116,65 +129,34 @@ pub(super) fn loglik(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
 /// log-likelihood per unit weight of the last E-step. One `ln` and one `exp` per point and lobe.
 pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
     let mut prev = f64::NEG_INFINITY;
-    let mut acc_w = [0.0f64; MAX_LOBES];
-    let mut acc_a = [DVec3::ZERO; MAX_LOBES];
-    let mut acc_t = [0.0f64; MAX_LOBES];
-    let mut logd = [0.0f64; MAX_LOBES];
-    let mut lt = [0.0f64; MAX_LOBES];
-    let mut inv = [0.0f64; MAX_LOBES];
-    let mut c = [0.0f64; MAX_LOBES];
+    let mut acc = Acc::default();
     for _ in 0..iters.max(1) {
         let k = lobes.len();
         if k == 0 {
             break;
         }
+        // The E-step with the lobe count a constant (its loops unrolled, the per-lobe values
+        // in registers); the same operations in the same order at every K.
+        let ll = match k {
+            1 => e_step::<1>(pts, lobes, &mut acc),
+            2 => e_step::<2>(pts, lobes, &mut acc),
+            3 => e_step::<3>(pts, lobes, &mut acc),
+            4 => e_step::<4>(pts, lobes, &mut acc),
+            5 => e_step::<5>(pts, lobes, &mut acc),
+            6 => e_step::<6>(pts, lobes, &mut acc),
+            7 => e_step::<7>(pts, lobes, &mut acc),
+            _ => e_step::<MAX_LOBES>(pts, lobes, &mut acc),
+        };
         for j in 0..k {
-            c[j] = lobes[j].w.max(1e-300).ln() + ((lobes[j].eta + 2.0) / (8.0 * PI)).ln();
-        }
-        acc_w[..k].fill(0.0);
-        acc_a[..k].fill(DVec3::ZERO);
-        acc_t[..k].fill(0.0);
-        let mut ll = 0.0;
-        for &(m, w) in pts {
-            let mut mx = f64::NEG_INFINITY;
-            for j in 0..k {
-                let x = (0.5 * (1.0 + lobes[j].a.dot(m))).max(1e-300);
-                lt[j] = fast_ln(x);
-                inv[j] = 0.5 / x.max(0.5e-6);
-                logd[j] = c[j] + 0.5 * lobes[j].eta * lt[j];
-                mx = mx.max(logd[j]);
-            }
-            if k == 1 {
-                ll += w * logd[0];
-                acc_w[0] += w;
-                acc_a[0] += m * (w * inv[0]);
-                acc_t[0] += w * lt[0];
-                continue;
-            }
-            let mut s = 0.0;
-            for v in logd.iter_mut().take(k) {
-                *v = fast_exp_neg(*v - mx);
-                s += *v;
-            }
-            ll += w * (mx + fast_ln(s));
-            let ws = w / s;
-            for j in 0..k {
-                let r = ws * logd[j];
-                acc_w[j] += r;
-                acc_a[j] += m * (r * inv[j]);
-                acc_t[j] += r * lt[j];
-            }
-        }
-        for j in 0..k {
-            if acc_w[j] <= 1e-12 * total {
+            if acc.w[j] <= 1e-12 * total {
                 lobes[j].w = 0.0;
                 continue;
             }
-            lobes[j].w = acc_w[j] / total;
-            if acc_a[j].length_squared() > 0.0 {
-                lobes[j].a = acc_a[j].normalize();
+            lobes[j].w = acc.w[j] / total;
+            if acc.a[j].length_squared() > 0.0 {
+                lobes[j].a = acc.a[j].normalize();
             }
-            lobes[j].eta = eta_from_mean_t(acc_t[j] / acc_w[j]);
+            lobes[j].eta = eta_from_mean_t(acc.t[j] / acc.w[j]);
         }
         lobes.retain(|l| l.w > 0.0);
         let ll = ll / total;
@@ -185,6 +167,71 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
         }
     }
     prev
+}
+
+/// The sums of one E-step per lobe: the responsibilities, the responsibility-weighted normals
+/// over `1 + a·m` (the axis update) and the responsibility-weighted `t`.
+#[derive(Default)]
+struct Acc {
+    w: [f64; MAX_LOBES],
+    a: [DVec3; MAX_LOBES],
+    t: [f64; MAX_LOBES],
+}
+
+/// One E-step of [`em`] over `K` = `lobes.len()` lobes: fills `acc` and returns the summed
+/// log-likelihood (not yet divided by the total weight).
+#[inline(always)]
+fn e_step<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+    debug_assert_eq!(lobes.len(), K);
+    let mut c = [0.0f64; K];
+    let mut a = [DVec3::ZERO; K];
+    let mut eta = [0.0f64; K];
+    for j in 0..K {
+        c[j] = lobes[j].w.max(1e-300).ln() + ((lobes[j].eta + 2.0) / (8.0 * PI)).ln();
+        a[j] = lobes[j].a;
+        eta[j] = lobes[j].eta;
+    }
+    let mut acc_w = [0.0f64; K];
+    let mut acc_a = [DVec3::ZERO; K];
+    let mut acc_t = [0.0f64; K];
+    let mut logd = [0.0f64; K];
+    let mut lt = [0.0f64; K];
+    let mut inv = [0.0f64; K];
+    let mut ll = 0.0;
+    for &(m, w) in pts {
+        let mut mx = f64::NEG_INFINITY;
+        for j in 0..K {
+            let x = (0.5 * (1.0 + a[j].dot(m))).max(1e-300);
+            lt[j] = fast_ln(x);
+            inv[j] = 0.5 / x.max(0.5e-6);
+            logd[j] = c[j] + 0.5 * eta[j] * lt[j];
+            mx = mx.max(logd[j]);
+        }
+        if K == 1 {
+            ll += w * logd[0];
+            acc_w[0] += w;
+            acc_a[0] += m * (w * inv[0]);
+            acc_t[0] += w * lt[0];
+            continue;
+        }
+        let mut s = 0.0;
+        for v in &mut logd {
+            *v = fast_exp_neg(*v - mx);
+            s += *v;
+        }
+        ll += w * (mx + fast_ln(s));
+        let ws = w / s;
+        for j in 0..K {
+            let r = ws * logd[j];
+            acc_w[j] += r;
+            acc_a[j] += m * (r * inv[j]);
+            acc_t[j] += r * lt[j];
+        }
+    }
+    acc.w[..K].copy_from_slice(&acc_w);
+    acc.a[..K].copy_from_slice(&acc_a);
+    acc.t[..K].copy_from_slice(&acc_t);
+    ll
 }
 
 /// Split the heaviest lobe of `lobes` into a concentric pair (same axis, exponents ×2.5 and

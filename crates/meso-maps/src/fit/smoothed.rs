@@ -90,6 +90,39 @@ fn tangents(a: DVec3) -> (DVec3, DVec3) {
     (t1, a.cross(t1))
 }
 
+/// The data smoothed by the kernel at each sample half vector: `Σ w K(h·m)` over the unit
+/// normals `unit` (weights summing to 1), the terms with `h·m ≤ cut` left out. Four half
+/// vectors per pass over the normals (each sum still adds its terms in the normals' order).
+fn smoothed_target(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64) -> Vec<f64> {
+    let mut target = vec![0.0; hs.len()];
+    let mut chunks = hs.chunks_exact(4);
+    let mut outs = target.chunks_exact_mut(4);
+    for (hc, out) in (&mut chunks).zip(&mut outs) {
+        let h: [DVec3; 4] = [hc[0], hc[1], hc[2], hc[3]];
+        let mut s = [0.0f64; 4];
+        for &(m, w) in unit {
+            for i in 0..4 {
+                let c = h[i].dot(m);
+                if c > cut {
+                    s[i] += w * fast_exp_neg(lambda * (c - 1.0));
+                }
+            }
+        }
+        out.copy_from_slice(&s);
+    }
+    for (&h, o) in chunks.remainder().iter().zip(outs.into_remainder()) {
+        let mut s = 0.0;
+        for &(m, w) in unit {
+            let c = h.dot(m);
+            if c > cut {
+                s += w * fast_exp_neg(lambda * (c - 1.0));
+            }
+        }
+        *o = s;
+    }
+    target
+}
+
 /// Lobe parameters of the smoothed fit: axes, `ln κ`, softmax logits of the weights (so the
 /// weights always sum to 1).
 #[derive(Clone)]
@@ -207,19 +240,7 @@ impl<'a> Smoothed<'a> {
             .map(|&(m, w)| (m.normalize_or_zero(), w / total))
             .collect();
         let cut = 1.0 - 20.0 / lambda;
-        let target = hs
-            .iter()
-            .map(|&h| {
-                let mut s = 0.0;
-                for &(m, w) in &unit {
-                    let c = h.dot(m);
-                    if c > cut {
-                        s += w * fast_exp_neg(lambda * (c - 1.0));
-                    }
-                }
-                s
-            })
-            .collect();
+        let target = smoothed_target(&hs, &unit, lambda, cut);
         Smoothed {
             lambda,
             pts,
