@@ -139,8 +139,20 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
         // in registers); the same operations in the same order at every K.
         let ll = match k {
             1 => e_step::<1>(pts, lobes, &mut acc),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+            2 => unsafe { pairs::e_step::<2, 1>(pts, lobes, &mut acc) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+            3 => unsafe { pairs::e_step::<3, 2>(pts, lobes, &mut acc) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+            4 => unsafe { pairs::e_step::<4, 2>(pts, lobes, &mut acc) },
+            #[cfg(not(target_arch = "x86_64"))]
             2 => e_step::<2>(pts, lobes, &mut acc),
+            #[cfg(not(target_arch = "x86_64"))]
             3 => e_step::<3>(pts, lobes, &mut acc),
+            #[cfg(not(target_arch = "x86_64"))]
             4 => e_step::<4>(pts, lobes, &mut acc),
             5 => e_step::<5>(pts, lobes, &mut acc),
             6 => e_step::<6>(pts, lobes, &mut acc),
@@ -232,6 +244,201 @@ fn e_step<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
     acc.a[..K].copy_from_slice(&acc_a);
     acc.t[..K].copy_from_slice(&acc_t);
     ll
+}
+
+/// [`e_step`] for 2–4 lobes with the lobes in pairs, two per SSE2 register (every x86-64 CPU
+/// has SSE2): each lane does exactly the scalar operations of its lobe (`fast_ln` and
+/// `fast_exp_neg` written out lane-wise, the sums over the points and over the lobes in the
+/// scalar order, no fused multiply-adds), so the results are bit for bit those of [`e_step`].
+#[cfg(target_arch = "x86_64")]
+pub(super) mod pairs {
+    use super::{Acc, Pt, L};
+    use glam::DVec3;
+    use meso_core::fastmath::fast_ln;
+    use std::arch::x86_64::{
+        __m128d, _mm_add_pd, _mm_and_pd, _mm_and_si128, _mm_andnot_pd, _mm_castpd_si128,
+        _mm_castsi128_pd, _mm_cmpgt_pd, _mm_cmplt_pd, _mm_cvtepi32_pd, _mm_cvtsd_f64,
+        _mm_cvttpd_epi32, _mm_div_pd, _mm_max_pd, _mm_mul_pd, _mm_or_pd, _mm_or_si128,
+        _mm_set1_epi64x, _mm_set1_pd, _mm_set_pd, _mm_setzero_pd, _mm_slli_epi64, _mm_srli_epi64,
+        _mm_sub_pd, _mm_unpackhi_pd,
+    };
+    use std::f64::consts::{LN_2, LOG2_E, PI, SQRT_2};
+
+    /// 2^52: or-ed onto a small integer's bits, the double `2^52 + n`.
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(in super::super) fn set(v: f64) -> __m128d {
+        _mm_set1_pd(v)
+    }
+
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(in super::super) fn lanes(v: __m128d) -> [f64; 2] {
+        [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))]
+    }
+
+    /// `meso_core::fastmath::fast_ln` on two lanes of normal positive numbers (its subnormal
+    /// fallback is never reached here: EM clamps its arguments to ≥ 1e-300).
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    fn ln(x: __m128d) -> __m128d {
+        let bits = _mm_castpd_si128(x);
+        let eb = _mm_and_si128(_mm_srli_epi64::<52>(bits), _mm_set1_epi64x(0x7ff));
+        // e = biased exponent − 1023, exactly, as a double.
+        let e = _mm_sub_pd(
+            _mm_castsi128_pd(_mm_or_si128(eb, _mm_castpd_si128(set(TWO52)))),
+            set(TWO52 + 1023.0),
+        );
+        let m = _mm_castsi128_pd(_mm_or_si128(
+            _mm_and_si128(bits, _mm_set1_epi64x(0x000f_ffff_ffff_ffff)),
+            _mm_set1_epi64x(0x3ff0_0000_0000_0000),
+        ));
+        let big = _mm_cmpgt_pd(m, set(SQRT_2));
+        let m = _mm_or_pd(
+            _mm_and_pd(big, _mm_mul_pd(m, set(0.5))),
+            _mm_andnot_pd(big, m),
+        );
+        let e = _mm_add_pd(e, _mm_and_pd(big, set(1.0)));
+        let s = _mm_div_pd(_mm_sub_pd(m, set(1.0)), _mm_add_pd(m, set(1.0)));
+        let s2 = _mm_mul_pd(s, s);
+        let mut p = _mm_mul_pd(s2, set(2.0 / 9.0));
+        p = _mm_mul_pd(s2, _mm_add_pd(set(2.0 / 7.0), p));
+        p = _mm_mul_pd(s2, _mm_add_pd(set(0.4), p));
+        p = _mm_mul_pd(s2, _mm_add_pd(set(2.0 / 3.0), p));
+        let p = _mm_mul_pd(s, _mm_add_pd(set(2.0), p));
+        _mm_add_pd(_mm_mul_pd(e, set(LN_2)), p)
+    }
+
+    /// `meso_core::fastmath::fast_exp_neg` on two lanes (`y ≤ 0`).
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(in super::super) fn exp_neg(y: __m128d) -> __m128d {
+        let under = _mm_cmplt_pd(y, set(-700.0));
+        // The truncation of `y·log₂e − ½` (in i32 range wherever the result is used).
+        let ki = _mm_cvttpd_epi32(_mm_sub_pd(_mm_mul_pd(y, set(LOG2_E)), set(0.5)));
+        let k = _mm_cvtepi32_pd(ki);
+        let r = _mm_sub_pd(y, _mm_mul_pd(k, set(LN_2)));
+        let mut p = _mm_mul_pd(r, set(1.0 / 40320.0));
+        for c in [
+            1.0 / 5040.0,
+            1.0 / 720.0,
+            1.0 / 120.0,
+            1.0 / 24.0,
+            1.0 / 6.0,
+            0.5,
+            1.0,
+        ] {
+            p = _mm_mul_pd(r, _mm_add_pd(set(c), p));
+        }
+        let p = _mm_add_pd(set(1.0), p);
+        // 2^k: the biased exponent k + 1023 (13..=1023 where used) shifted into place.
+        let kb = _mm_castpd_si128(_mm_add_pd(_mm_add_pd(k, set(1023.0)), set(TWO52)));
+        let scale = _mm_castsi128_pd(_mm_slli_epi64::<52>(kb));
+        _mm_andnot_pd(under, _mm_mul_pd(p, scale))
+    }
+
+    /// [`super::e_step`] for `K` ∈ 2..=4 lobes in `NV` = ⌈K/2⌉ pairs.
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(super) fn e_step<const K: usize, const NV: usize>(
+        pts: &[Pt],
+        lobes: &[L],
+        acc: &mut Acc,
+    ) -> f64 {
+        debug_assert!(lobes.len() == K && K.div_ceil(2) == NV && (2..=4).contains(&K));
+        // Per lobe: axis components, half the exponent, ln-weight plus ln-normaliser; a
+        // missing fourth lobe is all zeros (its lane is computed and ignored).
+        let mut p = [[0.0f64; 4]; 5];
+        for (j, l) in lobes.iter().enumerate() {
+            p[0][j] = l.a.x;
+            p[1][j] = l.a.y;
+            p[2][j] = l.a.z;
+            p[3][j] = 0.5 * l.eta;
+            p[4][j] = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+        }
+        let zero = _mm_setzero_pd();
+        let (mut ax, mut ay, mut az, mut half_eta, mut c) =
+            ([zero; NV], [zero; NV], [zero; NV], [zero; NV], [zero; NV]);
+        for v in 0..NV {
+            let pair = |q: &[f64; 4]| _mm_set_pd(q[2 * v + 1], q[2 * v]);
+            ax[v] = pair(&p[0]);
+            ay[v] = pair(&p[1]);
+            az[v] = pair(&p[2]);
+            half_eta[v] = pair(&p[3]);
+            c[v] = pair(&p[4]);
+        }
+        let mut acc_w = [zero; NV];
+        let mut acc_x = [zero; NV];
+        let mut acc_y = [zero; NV];
+        let mut acc_z = [zero; NV];
+        let mut acc_t = [zero; NV];
+        let mut ll = 0.0;
+        for &(m, w) in pts {
+            let (mx, my, mz) = (set(m.x), set(m.y), set(m.z));
+            let mut lt = [zero; NV];
+            let mut inv = [zero; NV];
+            let mut logd = [zero; NV];
+            let mut ld = [0.0f64; 4];
+            for v in 0..NV {
+                let d = _mm_add_pd(
+                    _mm_add_pd(_mm_mul_pd(ax[v], mx), _mm_mul_pd(ay[v], my)),
+                    _mm_mul_pd(az[v], mz),
+                );
+                let x = _mm_max_pd(_mm_mul_pd(set(0.5), _mm_add_pd(set(1.0), d)), set(1e-300));
+                lt[v] = ln(x);
+                inv[v] = _mm_div_pd(set(0.5), _mm_max_pd(x, set(0.5e-6)));
+                logd[v] = _mm_add_pd(c[v], _mm_mul_pd(half_eta[v], lt[v]));
+                let [l0, l1] = lanes(logd[v]);
+                ld[2 * v] = l0;
+                ld[2 * v + 1] = l1;
+            }
+            let mut top = f64::NEG_INFINITY;
+            for &l in &ld[..K] {
+                top = top.max(l);
+            }
+            let mut s = 0.0;
+            let mut e = [zero; NV];
+            for v in 0..NV {
+                e[v] = exp_neg(_mm_sub_pd(logd[v], set(top)));
+                let [e0, e1] = lanes(e[v]);
+                s += e0;
+                if 2 * v + 1 < K {
+                    s += e1;
+                }
+            }
+            ll += w * (top + fast_ln(s));
+            let ws = set(w / s);
+            for v in 0..NV {
+                let r = _mm_mul_pd(ws, e[v]);
+                acc_w[v] = _mm_add_pd(acc_w[v], r);
+                let q = _mm_mul_pd(r, inv[v]);
+                acc_x[v] = _mm_add_pd(acc_x[v], _mm_mul_pd(mx, q));
+                acc_y[v] = _mm_add_pd(acc_y[v], _mm_mul_pd(my, q));
+                acc_z[v] = _mm_add_pd(acc_z[v], _mm_mul_pd(mz, q));
+                acc_t[v] = _mm_add_pd(acc_t[v], _mm_mul_pd(r, lt[v]));
+            }
+        }
+        for v in 0..NV {
+            let (w, x, y, z, t) = (
+                lanes(acc_w[v]),
+                lanes(acc_x[v]),
+                lanes(acc_y[v]),
+                lanes(acc_z[v]),
+                lanes(acc_t[v]),
+            );
+            for i in 0..2 {
+                let j = 2 * v + i;
+                if j < K {
+                    acc.w[j] = w[i];
+                    acc.a[j] = DVec3::new(x[i], y[i], z[i]);
+                    acc.t[j] = t[i];
+                }
+            }
+        }
+        ll
+    }
 }
 
 /// Split the heaviest lobe of `lobes` into a concentric pair (same axis, exponents ×2.5 and
