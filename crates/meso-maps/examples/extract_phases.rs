@@ -10,6 +10,19 @@ use meso_maps::{extract, fixtures, ExtractParams, Source};
 use std::hash::{Hash, Hasher};
 use std::time::Instant;
 
+/// `VmHWM` and `VmRSS` of this process in MB (Linux), or zeros.
+fn mem() -> (f64, f64) {
+    let text = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        text.lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(1))
+            .and_then(|v| v.parse::<f64>().ok())
+            .map_or(0.0, |kb| kb / 1024.0)
+    };
+    (field("VmHWM:"), field("VmRSS:"))
+}
+
 fn main() {
     let n: usize = std::env::args()
         .nth(1)
@@ -21,10 +34,16 @@ fn main() {
     let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |p| {
         let dt = last.elapsed().as_secs_f64();
         last = Instant::now();
+        let (peak, rss) = mem();
         match calls {
             0 => {}
-            1 => println!("normals and horizons: {dt:.3} s"),
-            _ => println!("level {:>2}: {dt:.3} s", p.levels_done - 1),
+            1 => println!(
+                "normals and horizons: {dt:.3} s (peak {peak:.0} MB, resident {rss:.0} MB)"
+            ),
+            _ => println!(
+                "level {:>2}: {dt:.3} s (peak {peak:.0} MB, resident {rss:.0} MB)",
+                p.levels_done - 1
+            ),
         }
         calls += 1;
     })

@@ -159,16 +159,16 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
             7 => e_step::<7>(pts, lobes, &mut acc),
             _ => e_step::<MAX_LOBES>(pts, lobes, &mut acc),
         };
-        for j in 0..k {
+        for (j, l) in lobes.iter_mut().enumerate() {
             if acc.w[j] <= 1e-12 * total {
-                lobes[j].w = 0.0;
+                l.w = 0.0;
                 continue;
             }
-            lobes[j].w = acc.w[j] / total;
+            l.w = acc.w[j] / total;
             if acc.a[j].length_squared() > 0.0 {
-                lobes[j].a = acc.a[j].normalize();
+                l.a = acc.a[j].normalize();
             }
-            lobes[j].eta = eta_from_mean_t(acc.t[j] / acc.w[j]);
+            l.eta = eta_from_mean_t(acc.t[j] / acc.w[j]);
         }
         lobes.retain(|l| l.w > 0.0);
         let ll = ll / total;
