@@ -349,8 +349,10 @@ pub(super) mod pairs {
     ) -> f64 {
         debug_assert!(lobes.len() == K && K.div_ceil(2) == NV && (2..=4).contains(&K));
         // Per lobe: axis components, half the exponent, ln-weight plus ln-normaliser; a
-        // missing fourth lobe is all zeros (its lane is computed and ignored).
+        // missing fourth lobe has the density e^−∞ (its lane's responsibility is exactly 0, and
+        // it is left out of the maximum and the sum over the lobes).
         let mut p = [[0.0f64; 4]; 5];
+        p[4] = [f64::NEG_INFINITY; 4];
         for (j, l) in lobes.iter().enumerate() {
             p[0][j] = l.a.x;
             p[1][j] = l.a.y;
