@@ -33,17 +33,20 @@ pub(super) struct L {
 /// then the entry maximising weight × squared chord distance to the nearest centre), 5 Lloyd
 /// steps, then lobes with the cluster shares and the closed-form exponent of each cluster.
 pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
+    // The unit directions of the points, normalised once (the seeding passes read them k − 1
+    // times).
+    let dirs: Vec<DVec3> = pts.iter().map(|e| e.0.normalize()).collect();
     let mut centres: Vec<DVec3> = Vec::with_capacity(k);
     let first = pts
         .iter()
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|e| e.0.normalize())
+        .zip(&dirs)
+        .max_by(|a, b| a.0 .1.total_cmp(&b.0 .1))
+        .map(|e| *e.1)
         .unwrap_or(DVec3::Z);
     centres.push(first);
     while centres.len() < k {
         let mut best = (-1.0, DVec3::Z);
-        for e in pts {
-            let d = e.0.normalize();
+        for (e, &d) in pts.iter().zip(&dirs) {
             let dist = centres
                 .iter()
                 .map(|c| 2.0 - 2.0 * c.dot(d))
@@ -58,9 +61,7 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
     for _ in 0..5 {
         sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
         for &(d, w) in pts {
-            let j = (0..k)
-                .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
-                .unwrap_or(0);
+            let j = nearest(&centres, d);
             sums[j].0 += d * w;
             sums[j].1 += w;
         }
@@ -71,9 +72,7 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
         }
     }
     for &(d, w) in pts {
-        let j = (0..k)
-            .max_by(|&a, &b| centres[a].dot(d).total_cmp(&centres[b].dot(d)))
-            .unwrap_or(0);
+        let j = nearest(&centres, d);
         sums[j].2 += w * log_t(centres[j], d);
     }
     let total: f64 = sums.iter().map(|s| s.1).sum();
@@ -85,6 +84,20 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
             eta: eta_from_mean_t(sums[j].2 / sums[j].1).min(1e4),
         })
         .collect()
+}
+
+/// The index of the centre of largest `c·d` (the last of equal ones, as `Iterator::max_by`
+/// with `total_cmp` picks it), each dot product computed once.
+#[inline]
+fn nearest(centres: &[DVec3], d: DVec3) -> usize {
+    let mut best = (0, f64::NEG_INFINITY);
+    for (j, c) in centres.iter().enumerate() {
+        let v = c.dot(d);
+        if j == 0 || v.total_cmp(&best.1) != std::cmp::Ordering::Less {
+            best = (j, v);
+        }
+    }
+    best.0
 }
 
 /// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
@@ -116,65 +129,46 @@ pub(super) fn loglik(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
 /// log-likelihood per unit weight of the last E-step. One `ln` and one `exp` per point and lobe.
 pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
     let mut prev = f64::NEG_INFINITY;
-    let mut acc_w = [0.0f64; MAX_LOBES];
-    let mut acc_a = [DVec3::ZERO; MAX_LOBES];
-    let mut acc_t = [0.0f64; MAX_LOBES];
-    let mut logd = [0.0f64; MAX_LOBES];
-    let mut lt = [0.0f64; MAX_LOBES];
-    let mut inv = [0.0f64; MAX_LOBES];
-    let mut c = [0.0f64; MAX_LOBES];
+    let mut acc = Acc::default();
     for _ in 0..iters.max(1) {
         let k = lobes.len();
         if k == 0 {
             break;
         }
-        for j in 0..k {
-            c[j] = lobes[j].w.max(1e-300).ln() + ((lobes[j].eta + 2.0) / (8.0 * PI)).ln();
-        }
-        acc_w[..k].fill(0.0);
-        acc_a[..k].fill(DVec3::ZERO);
-        acc_t[..k].fill(0.0);
-        let mut ll = 0.0;
-        for &(m, w) in pts {
-            let mut mx = f64::NEG_INFINITY;
-            for j in 0..k {
-                let x = (0.5 * (1.0 + lobes[j].a.dot(m))).max(1e-300);
-                lt[j] = fast_ln(x);
-                inv[j] = 0.5 / x.max(0.5e-6);
-                logd[j] = c[j] + 0.5 * lobes[j].eta * lt[j];
-                mx = mx.max(logd[j]);
-            }
-            if k == 1 {
-                ll += w * logd[0];
-                acc_w[0] += w;
-                acc_a[0] += m * (w * inv[0]);
-                acc_t[0] += w * lt[0];
+        // The E-step with the lobe count a constant (its loops unrolled, the per-lobe values
+        // in registers); the same operations in the same order at every K.
+        let ll = match k {
+            1 => e_step::<1>(pts, lobes, &mut acc),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+            2 => unsafe { pairs::e_step::<2, 1>(pts, lobes, &mut acc) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+            3 => unsafe { pairs::e_step::<3, 2>(pts, lobes, &mut acc) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+            4 => unsafe { pairs::e_step::<4, 2>(pts, lobes, &mut acc) },
+            #[cfg(not(target_arch = "x86_64"))]
+            2 => e_step::<2>(pts, lobes, &mut acc),
+            #[cfg(not(target_arch = "x86_64"))]
+            3 => e_step::<3>(pts, lobes, &mut acc),
+            #[cfg(not(target_arch = "x86_64"))]
+            4 => e_step::<4>(pts, lobes, &mut acc),
+            5 => e_step::<5>(pts, lobes, &mut acc),
+            6 => e_step::<6>(pts, lobes, &mut acc),
+            7 => e_step::<7>(pts, lobes, &mut acc),
+            _ => e_step::<MAX_LOBES>(pts, lobes, &mut acc),
+        };
+        for (j, l) in lobes.iter_mut().enumerate() {
+            if acc.w[j] <= 1e-12 * total {
+                l.w = 0.0;
                 continue;
             }
-            let mut s = 0.0;
-            for v in logd.iter_mut().take(k) {
-                *v = fast_exp_neg(*v - mx);
-                s += *v;
+            l.w = acc.w[j] / total;
+            if acc.a[j].length_squared() > 0.0 {
+                l.a = acc.a[j].normalize();
             }
-            ll += w * (mx + fast_ln(s));
-            let ws = w / s;
-            for j in 0..k {
-                let r = ws * logd[j];
-                acc_w[j] += r;
-                acc_a[j] += m * (r * inv[j]);
-                acc_t[j] += r * lt[j];
-            }
-        }
-        for j in 0..k {
-            if acc_w[j] <= 1e-12 * total {
-                lobes[j].w = 0.0;
-                continue;
-            }
-            lobes[j].w = acc_w[j] / total;
-            if acc_a[j].length_squared() > 0.0 {
-                lobes[j].a = acc_a[j].normalize();
-            }
-            lobes[j].eta = eta_from_mean_t(acc_t[j] / acc_w[j]);
+            l.eta = eta_from_mean_t(acc.t[j] / acc.w[j]);
         }
         lobes.retain(|l| l.w > 0.0);
         let ll = ll / total;
@@ -185,6 +179,268 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
         }
     }
     prev
+}
+
+/// The sums of one E-step per lobe: the responsibilities, the responsibility-weighted normals
+/// over `1 + a·m` (the axis update) and the responsibility-weighted `t`.
+#[derive(Default)]
+struct Acc {
+    w: [f64; MAX_LOBES],
+    a: [DVec3; MAX_LOBES],
+    t: [f64; MAX_LOBES],
+}
+
+/// One E-step of [`em`] over `K` = `lobes.len()` lobes: fills `acc` and returns the summed
+/// log-likelihood (not yet divided by the total weight).
+#[inline(always)]
+fn e_step<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+    debug_assert_eq!(lobes.len(), K);
+    let mut c = [0.0f64; K];
+    let mut a = [DVec3::ZERO; K];
+    let mut eta = [0.0f64; K];
+    for j in 0..K {
+        c[j] = lobes[j].w.max(1e-300).ln() + ((lobes[j].eta + 2.0) / (8.0 * PI)).ln();
+        a[j] = lobes[j].a;
+        eta[j] = lobes[j].eta;
+    }
+    let mut acc_w = [0.0f64; K];
+    let mut acc_a = [DVec3::ZERO; K];
+    let mut acc_t = [0.0f64; K];
+    let mut logd = [0.0f64; K];
+    let mut lt = [0.0f64; K];
+    let mut inv = [0.0f64; K];
+    let mut ll = 0.0;
+    for &(m, w) in pts {
+        let mut mx = f64::NEG_INFINITY;
+        for j in 0..K {
+            let x = (0.5 * (1.0 + a[j].dot(m))).max(1e-300);
+            lt[j] = fast_ln(x);
+            inv[j] = 0.5 / x.max(0.5e-6);
+            logd[j] = c[j] + 0.5 * eta[j] * lt[j];
+            mx = mx.max(logd[j]);
+        }
+        if K == 1 {
+            ll += w * logd[0];
+            acc_w[0] += w;
+            acc_a[0] += m * (w * inv[0]);
+            acc_t[0] += w * lt[0];
+            continue;
+        }
+        let mut s = 0.0;
+        for v in &mut logd {
+            *v = fast_exp_neg(*v - mx);
+            s += *v;
+        }
+        ll += w * (mx + fast_ln(s));
+        let ws = w / s;
+        for j in 0..K {
+            let r = ws * logd[j];
+            acc_w[j] += r;
+            acc_a[j] += m * (r * inv[j]);
+            acc_t[j] += r * lt[j];
+        }
+    }
+    acc.w[..K].copy_from_slice(&acc_w);
+    acc.a[..K].copy_from_slice(&acc_a);
+    acc.t[..K].copy_from_slice(&acc_t);
+    ll
+}
+
+/// [`e_step`] for 2–4 lobes with the lobes in pairs, two per SSE2 register (every x86-64 CPU
+/// has SSE2): each lane does exactly the scalar operations of its lobe (`fast_ln` and
+/// `fast_exp_neg` written out lane-wise, the sums over the points and over the lobes in the
+/// scalar order, no fused multiply-adds), so the results are bit for bit those of [`e_step`].
+#[cfg(target_arch = "x86_64")]
+pub(super) mod pairs {
+    use super::{Acc, Pt, L};
+    use glam::DVec3;
+    use meso_core::fastmath::fast_ln;
+    use std::arch::x86_64::{
+        __m128d, _mm_add_pd, _mm_and_pd, _mm_and_si128, _mm_andnot_pd, _mm_castpd_si128,
+        _mm_castsi128_pd, _mm_cmpgt_pd, _mm_cmplt_pd, _mm_cvtepi32_pd, _mm_cvtsd_f64,
+        _mm_cvttpd_epi32, _mm_div_pd, _mm_max_pd, _mm_mul_pd, _mm_or_pd, _mm_or_si128,
+        _mm_set1_epi64x, _mm_set1_pd, _mm_set_pd, _mm_setzero_pd, _mm_slli_epi64, _mm_srli_epi64,
+        _mm_sub_pd, _mm_unpackhi_pd,
+    };
+    use std::f64::consts::{LN_2, LOG2_E, PI, SQRT_2};
+
+    /// 2^52: or-ed onto a small integer's bits, the double `2^52 + n`.
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(in super::super) fn set(v: f64) -> __m128d {
+        _mm_set1_pd(v)
+    }
+
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(in super::super) fn lanes(v: __m128d) -> [f64; 2] {
+        [_mm_cvtsd_f64(v), _mm_cvtsd_f64(_mm_unpackhi_pd(v, v))]
+    }
+
+    /// `meso_core::fastmath::fast_ln` on two lanes of normal positive numbers (its subnormal
+    /// fallback is never reached here: EM clamps its arguments to ≥ 1e-300).
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    fn ln(x: __m128d) -> __m128d {
+        let bits = _mm_castpd_si128(x);
+        let eb = _mm_and_si128(_mm_srli_epi64::<52>(bits), _mm_set1_epi64x(0x7ff));
+        // e = biased exponent − 1023, exactly, as a double.
+        let e = _mm_sub_pd(
+            _mm_castsi128_pd(_mm_or_si128(eb, _mm_castpd_si128(set(TWO52)))),
+            set(TWO52 + 1023.0),
+        );
+        let m = _mm_castsi128_pd(_mm_or_si128(
+            _mm_and_si128(bits, _mm_set1_epi64x(0x000f_ffff_ffff_ffff)),
+            _mm_set1_epi64x(0x3ff0_0000_0000_0000),
+        ));
+        let big = _mm_cmpgt_pd(m, set(SQRT_2));
+        let m = _mm_or_pd(
+            _mm_and_pd(big, _mm_mul_pd(m, set(0.5))),
+            _mm_andnot_pd(big, m),
+        );
+        let e = _mm_add_pd(e, _mm_and_pd(big, set(1.0)));
+        let s = _mm_div_pd(_mm_sub_pd(m, set(1.0)), _mm_add_pd(m, set(1.0)));
+        let s2 = _mm_mul_pd(s, s);
+        let mut p = _mm_mul_pd(s2, set(2.0 / 9.0));
+        p = _mm_mul_pd(s2, _mm_add_pd(set(2.0 / 7.0), p));
+        p = _mm_mul_pd(s2, _mm_add_pd(set(0.4), p));
+        p = _mm_mul_pd(s2, _mm_add_pd(set(2.0 / 3.0), p));
+        let p = _mm_mul_pd(s, _mm_add_pd(set(2.0), p));
+        _mm_add_pd(_mm_mul_pd(e, set(LN_2)), p)
+    }
+
+    /// `meso_core::fastmath::fast_exp_neg` on two lanes (`y ≤ 0`).
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(in super::super) fn exp_neg(y: __m128d) -> __m128d {
+        let under = _mm_cmplt_pd(y, set(-700.0));
+        // The truncation of `y·log₂e − ½` (in i32 range wherever the result is used).
+        let ki = _mm_cvttpd_epi32(_mm_sub_pd(_mm_mul_pd(y, set(LOG2_E)), set(0.5)));
+        let k = _mm_cvtepi32_pd(ki);
+        let r = _mm_sub_pd(y, _mm_mul_pd(k, set(LN_2)));
+        let mut p = _mm_mul_pd(r, set(1.0 / 40320.0));
+        for c in [
+            1.0 / 5040.0,
+            1.0 / 720.0,
+            1.0 / 120.0,
+            1.0 / 24.0,
+            1.0 / 6.0,
+            0.5,
+            1.0,
+        ] {
+            p = _mm_mul_pd(r, _mm_add_pd(set(c), p));
+        }
+        let p = _mm_add_pd(set(1.0), p);
+        // 2^k: the biased exponent k + 1023 (13..=1023 where used) shifted into place.
+        let kb = _mm_castpd_si128(_mm_add_pd(_mm_add_pd(k, set(1023.0)), set(TWO52)));
+        let scale = _mm_castsi128_pd(_mm_slli_epi64::<52>(kb));
+        _mm_andnot_pd(under, _mm_mul_pd(p, scale))
+    }
+
+    /// [`super::e_step`] for `K` ∈ 2..=4 lobes in `NV` = ⌈K/2⌉ pairs.
+    #[inline]
+    #[target_feature(enable = "sse2")]
+    pub(super) fn e_step<const K: usize, const NV: usize>(
+        pts: &[Pt],
+        lobes: &[L],
+        acc: &mut Acc,
+    ) -> f64 {
+        debug_assert!(lobes.len() == K && K.div_ceil(2) == NV && (2..=4).contains(&K));
+        // Per lobe: axis components, half the exponent, ln-weight plus ln-normaliser; a
+        // missing fourth lobe has the density e^−∞ (its lane's responsibility is exactly 0, and
+        // it is left out of the maximum and the sum over the lobes).
+        let mut p = [[0.0f64; 4]; 5];
+        p[4] = [f64::NEG_INFINITY; 4];
+        for (j, l) in lobes.iter().enumerate() {
+            p[0][j] = l.a.x;
+            p[1][j] = l.a.y;
+            p[2][j] = l.a.z;
+            p[3][j] = 0.5 * l.eta;
+            p[4][j] = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+        }
+        let zero = _mm_setzero_pd();
+        let (mut ax, mut ay, mut az, mut half_eta, mut c) =
+            ([zero; NV], [zero; NV], [zero; NV], [zero; NV], [zero; NV]);
+        for v in 0..NV {
+            let pair = |q: &[f64; 4]| _mm_set_pd(q[2 * v + 1], q[2 * v]);
+            ax[v] = pair(&p[0]);
+            ay[v] = pair(&p[1]);
+            az[v] = pair(&p[2]);
+            half_eta[v] = pair(&p[3]);
+            c[v] = pair(&p[4]);
+        }
+        let mut acc_w = [zero; NV];
+        let mut acc_x = [zero; NV];
+        let mut acc_y = [zero; NV];
+        let mut acc_z = [zero; NV];
+        let mut acc_t = [zero; NV];
+        let mut ll = 0.0;
+        for &(m, w) in pts {
+            let (mx, my, mz) = (set(m.x), set(m.y), set(m.z));
+            let mut lt = [zero; NV];
+            let mut inv = [zero; NV];
+            let mut logd = [zero; NV];
+            let mut ld = [0.0f64; 4];
+            for v in 0..NV {
+                let d = _mm_add_pd(
+                    _mm_add_pd(_mm_mul_pd(ax[v], mx), _mm_mul_pd(ay[v], my)),
+                    _mm_mul_pd(az[v], mz),
+                );
+                let x = _mm_max_pd(_mm_mul_pd(set(0.5), _mm_add_pd(set(1.0), d)), set(1e-300));
+                lt[v] = ln(x);
+                inv[v] = _mm_div_pd(set(0.5), _mm_max_pd(x, set(0.5e-6)));
+                logd[v] = _mm_add_pd(c[v], _mm_mul_pd(half_eta[v], lt[v]));
+                let [l0, l1] = lanes(logd[v]);
+                ld[2 * v] = l0;
+                ld[2 * v + 1] = l1;
+            }
+            let mut top = f64::NEG_INFINITY;
+            for &l in &ld[..K] {
+                top = top.max(l);
+            }
+            let mut s = 0.0;
+            let mut e = [zero; NV];
+            for v in 0..NV {
+                e[v] = exp_neg(_mm_sub_pd(logd[v], set(top)));
+                let [e0, e1] = lanes(e[v]);
+                s += e0;
+                if 2 * v + 1 < K {
+                    s += e1;
+                }
+            }
+            ll += w * (top + fast_ln(s));
+            let ws = set(w / s);
+            for v in 0..NV {
+                let r = _mm_mul_pd(ws, e[v]);
+                acc_w[v] = _mm_add_pd(acc_w[v], r);
+                let q = _mm_mul_pd(r, inv[v]);
+                acc_x[v] = _mm_add_pd(acc_x[v], _mm_mul_pd(mx, q));
+                acc_y[v] = _mm_add_pd(acc_y[v], _mm_mul_pd(my, q));
+                acc_z[v] = _mm_add_pd(acc_z[v], _mm_mul_pd(mz, q));
+                acc_t[v] = _mm_add_pd(acc_t[v], _mm_mul_pd(r, lt[v]));
+            }
+        }
+        for v in 0..NV {
+            let (w, x, y, z, t) = (
+                lanes(acc_w[v]),
+                lanes(acc_x[v]),
+                lanes(acc_y[v]),
+                lanes(acc_z[v]),
+                lanes(acc_t[v]),
+            );
+            for i in 0..2 {
+                let j = 2 * v + i;
+                if j < K {
+                    acc.w[j] = w[i];
+                    acc.a[j] = DVec3::new(x[i], y[i], z[i]);
+                    acc.t[j] = t[i];
+                }
+            }
+        }
+        ll
+    }
 }
 
 /// Split the heaviest lobe of `lobes` into a concentric pair (same axis, exponents ×2.5 and
