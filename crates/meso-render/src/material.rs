@@ -374,11 +374,6 @@ impl Shader for MaterialShader {
     }
 
     #[inline]
-    fn needs_surface_parameters(&self) -> bool {
-        false
-    }
-
-    #[inline]
     fn direction_only(&self) -> bool {
         true
     }

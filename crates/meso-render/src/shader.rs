@@ -60,11 +60,12 @@ pub trait Shader: Send + Sync {
     /// (`uv`, `dpdu`, `dpdv`, `dpdx`, `dpdy`, `duvdx`, `duvdy`). Shaders that only use the
     /// local directions (and the frame, position or material) return `false`; when every
     /// material of a scene does, [`crate::render()`] skips the ray differentials and the
-    /// sphere's texture coordinates, leaving those fields zero. The default, `true`, is
-    /// always correct.
+    /// sphere's texture coordinates, leaving those fields zero. The default, `true` unless the
+    /// shader is [`Shader::direction_only`] (which reads no [`ShadingPoint`] at all), is always
+    /// correct.
     #[inline]
     fn needs_surface_parameters(&self) -> bool {
-        true
+        !self.direction_only()
     }
 
     /// Whether the BRDF depends on the local directions `wi`, `wo` only (not on the
@@ -103,11 +104,6 @@ impl Shader for Lambert {
         }
         let k = FRAC_1_PI as f32;
         [self.albedo[0] * k, self.albedo[1] * k, self.albedo[2] * k]
-    }
-
-    #[inline]
-    fn needs_surface_parameters(&self) -> bool {
-        false
     }
 
     #[inline]
@@ -267,11 +263,6 @@ impl Shader for PhongLobes {
             return;
         }
         self.eval_many_portable(wo, wi, out);
-    }
-
-    #[inline]
-    fn needs_surface_parameters(&self) -> bool {
-        false
     }
 
     #[inline]
