@@ -1,0 +1,105 @@
+//! The estimated cost of an extraction, known before it starts: its peak memory
+//! ([`extract_bytes`], checked against the memory budget) and its work in cost units per part
+//! and level ([`extract_work`], which weights [`super::Progress`] by time).
+
+use super::{level_count, ExtractParams};
+use crate::fit::MAX_LOBES;
+
+/// Estimated cost units (≈ µs of one core) of computing the normals and horizon angles, per
+/// height sample, and of a level-0 texel (no EM: its few entries are its lobes).
+const PREP_WORK_PER_SAMPLE: u64 = 1;
+/// Estimated cost units of one EM point of a texel's fit on a level fitted plainly.
+const FIT_WORK_PLAIN: u64 = 4;
+/// … on a level with the smoothed refinement (`FitParams::smooth_texels`).
+const FIT_WORK_SMOOTH: u64 = 22;
+/// … on a level fitted thoroughly (`FitParams::thorough_texels`).
+const FIT_WORK_THOROUGH: u64 = 45;
+
+/// Peak memory of [`extract`](super::extract) per level-0 cell with one normal per cell (bytes):
+/// the normals, the level-0 fits (row buffers and their flat copies), the coarser levels, and
+/// writing the map (the file's bytes and the reader's check of them). `meso extract` on rough
+/// 16-bit maps measured 735–755 bytes per cell (peak RSS, triangles, 512² and 1024²;
+/// docs/limits.md): with the per-sample term the estimate is 890, a 20% margin. Since the compact
+/// levels (2026-12-02) the peak is 458 bytes per cell of heap at 256² and 354 of RSS at 1024², so
+/// the estimate is a looser upper bound (`crates/meso-maps/tests/extract_memory.rs` requires it to
+/// cover the heap peak and stay within 3× of it).
+pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
+/// Extra peak memory of [`extract`](super::extract) per cell for each further normal of the cell
+/// (triangles: 2).
+pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
+/// Peak memory of [`extract`](super::extract) per height sample (horizon angles, bytes).
+pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 40;
+
+/// The estimated peak memory (bytes) of [`extract`](super::extract) on a `cols × rows` cell grid
+/// with `per_cell` normals per cell and `samples` height samples (0 for a normal map), including
+/// writing the pyramid as a map file ([`Pyramid::write`](super::Pyramid::write)); the source map
+/// itself is not counted.
+#[must_use]
+pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) -> u64 {
+    let cells = (cols as u64).saturating_mul(rows as u64);
+    let per =
+        EXTRACT_BYTES_PER_CELL + EXTRACT_BYTES_PER_EXTRA_NORMAL * (per_cell.max(1) as u64 - 1);
+    cells
+        .saturating_mul(per)
+        .saturating_add((samples as u64).saturating_mul(EXTRACT_BYTES_PER_SAMPLE))
+}
+
+/// The estimated work of [`extract`](super::extract) on a `cols × rows` cell grid with `per_cell`
+/// normals per cell (2 for triangles, 1 otherwise) and `samples` height samples (0 for a normal
+/// map): the preparation (normals, horizons) and then each level, in cost units (≈ µs of one core).
+/// A texel's fit costs its EM points (its footprint's facets, capped as [`extract`](super::extract)
+/// caps them) × a factor of the level's fitting regime (plain, smoothed, thorough), measured per
+/// level with `cargo run -p meso-maps --example level_times` on 64² to 256² Gaussian maps; merging
+/// costs its entries and the residual its footprint facets. Used to weight
+/// [`Progress`](super::Progress) by time rather than by texels (the coarse levels have few texels
+/// and most of the time).
+#[must_use]
+pub fn extract_work(
+    cols: usize,
+    rows: usize,
+    per_cell: usize,
+    samples: usize,
+    params: &ExtractParams,
+) -> (u64, Vec<u64>) {
+    let prep = (samples.max(cols * rows) as u64) * PREP_WORK_PER_SAMPLE;
+    let nlev = level_count(cols, rows);
+    let cells = (cols as u64) * (rows as u64);
+    let kmax = params.fit.max_lobes.clamp(1, MAX_LOBES) as u64;
+    let bins = (crate::fit::ENTRY_GRID_RES * crate::fit::ENTRY_GRID_RES) as u64;
+    let mut out = Vec::with_capacity(nlev);
+    let (mut c, mut r) = (cols, rows);
+    for k in 0..nlev {
+        let texels = c * r;
+        let t = texels as u64;
+        let span2 = 1u64 << (2 * k.min(31));
+        let facets = span2.min(cells).max(1) * per_cell as u64;
+        let entries = facets.min(bins);
+        let cap = (params.fit.level_em_points / texels.max(1))
+            .clamp(64, params.fit.max_em_points.max(64)) as u64;
+        let points = if entries <= kmax { 0 } else { entries.min(cap) };
+        let per_point = if texels <= params.fit.thorough_texels {
+            FIT_WORK_THOROUGH
+        } else if texels <= params.fit.smooth_texels {
+            FIT_WORK_SMOOTH
+        } else {
+            FIT_WORK_PLAIN
+        };
+        let fit = t * (1 + entries / 4 + per_point * points);
+        let residual = t.min(params.residual_texels.max(1) as u64) * facets / 4;
+        out.push(fit + residual);
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+    }
+    (prep, out)
+}
+
+/// Texels of all `levels` levels of a pyramid over `cols × rows` cells.
+pub(super) fn pyramid_texels(cols: usize, rows: usize, levels: usize) -> u64 {
+    let (mut c, mut r, mut t) = (cols, rows, 0u64);
+    for _ in 0..levels {
+        t += (c * r) as u64;
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+    }
+    t
+}

@@ -1,0 +1,111 @@
+//! The summary of a pyramid for `meso map info`: per level its size, lobe counts and
+//! residuals ([`Pyramid::info`]), and how it prints.
+
+use super::{Pyramid, Residual};
+use crate::fit::MAX_LOBES;
+
+/// Summary of a pyramid for `meso map info`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PyramidInfo {
+    /// Source size in samples.
+    pub width: usize,
+    /// Source size in samples.
+    pub height: usize,
+    /// Texel size.
+    pub texel_size: f64,
+    /// Per level: `(cols, rows, span, total lobes, histogram of lobe counts 0..=MAX_LOBES,
+    /// residual)`.
+    pub levels: Vec<LevelInfo>,
+}
+
+/// Summary of one level.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelInfo {
+    /// Texels along x.
+    pub cols: usize,
+    /// Texels along y.
+    pub rows: usize,
+    /// Footprint side in cells.
+    pub span: usize,
+    /// Total number of lobes.
+    pub lobes: usize,
+    /// `lobe_counts[k]` = number of texels with k lobes.
+    pub lobe_counts: Vec<usize>,
+    /// Fit residual.
+    pub residual: Residual,
+}
+
+impl std::fmt::Display for PyramidInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "map {}x{} samples, texel size {}, {} levels",
+            self.width,
+            self.height,
+            self.texel_size,
+            self.levels.len()
+        )?;
+        writeln!(
+            f,
+            "level  texels       span  lobes     lobes/texel  lobe-count histogram  residual mean/max (n)  shading error mean/max (% of peak)"
+        )?;
+        for (k, l) in self.levels.iter().enumerate() {
+            let hist: Vec<String> = l
+                .lobe_counts
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c > 0)
+                .map(|(n, c)| format!("{n}:{c}"))
+                .collect();
+            let shading = match (l.residual.shading_mean, l.residual.shading_max) {
+                (Some(m), Some(x)) => format!("{:.2}/{:.2}", 100.0 * m, 100.0 * x),
+                _ => "not recorded".to_string(),
+            };
+            writeln!(
+                f,
+                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:<22} {shading}",
+                format!("{}x{}", l.cols, l.rows),
+                l.span,
+                l.lobes,
+                l.lobes as f64 / (l.cols * l.rows) as f64,
+                hist.join(" "),
+                format!(
+                    "{:.4}/{:.4} ({})",
+                    l.residual.mean, l.residual.max, l.residual.texels
+                ),
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl Pyramid {
+    /// A summary: sizes, lobe counts and residuals per level.
+    #[must_use]
+    pub fn info(&self) -> PyramidInfo {
+        PyramidInfo {
+            width: self.width,
+            height: self.height,
+            texel_size: self.texel_size,
+            levels: self
+                .levels
+                .iter()
+                .map(|l| {
+                    let mut counts = vec![0; MAX_LOBES + 1];
+                    for t in 0..l.texels() {
+                        let n = (l.lobe_start[t + 1] - l.lobe_start[t]) as usize;
+                        counts[n.min(MAX_LOBES)] += 1;
+                    }
+                    LevelInfo {
+                        cols: l.cols,
+                        rows: l.rows,
+                        span: l.span,
+                        lobes: l.lobes.len(),
+                        lobe_counts: counts,
+                        residual: l.residual,
+                    }
+                })
+                .collect(),
+        }
+    }
+}

@@ -1,0 +1,216 @@
+//! The NDF pyramid: for every texel of every level, a few Phong lobes fitted to the meso-normals
+//! of its footprint, plus horizon statistics.
+//!
+//! * Level 0 has one texel per grid cell (two triangle normals, or one normal with central
+//!   differences or for normal maps).
+//! * Level k has `⌈cols/2^k⌉ × ⌈rows/2^k⌉` texels; texel `(r, c)` covers cells
+//!   `r·2^k .. min((r+1)·2^k, rows)` × `c·2^k .. min((c+1)·2^k, cols)`. Maps whose sides are not
+//!   powers of two get a **ragged** last row/column (smaller footprints), not padding.
+//! * The top level is the first with a single texel; it covers the whole map.
+//! * Each level reports its fit residual ([`Residual`]): the relative NDF L2 error of
+//!   `crate::fit::ndf_l2_error` over all its texels, or a strided sample of
+//!   `residual_texels` of them on large levels.
+//!
+//! This file holds the public types (the source, the parameters, progress, levels and the
+//! pyramid) and the level geometry ([`level_count`], [`footprint_cells`]). The rest, by concern:
+//! the per-texel queries and the `f32` compaction of levels and pyramids in `access.rs`; the
+//! summary for `meso map info` ([`PyramidInfo`]) in `info.rs`; the estimated memory and work of
+//! an extraction ([`extract_bytes`], [`extract_work`]) in `cost.rs`; the driver ([`extract`]:
+//! parameter checks, level by level, rows in batches) in `extract.rs`; fitting one row of a
+//! level (merging the children's entries and horizon statistics, fitting, sampled residuals) in
+//! `level_fit.rs`; assembling a level from its rows into `f64` or `f32` storage, and what it
+//! hands to the next level, in `builder.rs`.
+
+mod access;
+mod builder;
+mod cost;
+mod extract;
+mod info;
+mod level_fit;
+
+pub use cost::{
+    extract_bytes, extract_work, EXTRACT_BYTES_PER_CELL, EXTRACT_BYTES_PER_EXTRA_NORMAL,
+    EXTRACT_BYTES_PER_SAMPLE,
+};
+pub use extract::extract;
+pub use info::{LevelInfo, PyramidInfo};
+
+use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
+use crate::facets::{FacetNormals, NormalMode};
+use crate::fit::FitParams;
+use crate::heightmap::{Border, HeightMap, NormalMap};
+
+/// What to extract from.
+#[derive(Clone, Copy, Debug)]
+pub enum Source<'a> {
+    /// A height map (normals from triangles or central differences, plus horizon angles).
+    Heights(&'a HeightMap),
+    /// A tangent-space normal map (normals only; no horizon statistics).
+    Normals(&'a NormalMap),
+}
+
+/// Parameters of [`extract`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExtractParams {
+    /// Lobe fit parameters (max lobes, likelihood threshold, EM budget).
+    pub fit: FitParams,
+    /// Triangles (default) or central differences.
+    pub normal_mode: NormalMode,
+    /// Texels per level on which the NDF residual is measured (all when the level has fewer;
+    /// default 64).
+    pub residual_texels: usize,
+    /// What to store per texel: fitted lobes (default) or a single-lobe baseline.
+    pub method: Method,
+    /// Levels with at least this many texels keep their lobes and horizon statistics in `f32`
+    /// (half the memory; [`crate::compact`]), smaller ones in `f64` (default
+    /// [`COMPACT_TEXELS`]; `usize::MAX` keeps every level in `f64`, 0 none). The fit itself
+    /// always runs in `f64`, and each level is fitted from the `f64` data of the one below.
+    pub compact_texels: usize,
+}
+
+/// What [`extract`] stores per texel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Up to `max_lobes` fitted Phong peaks (the multiple surface).
+    #[default]
+    Lobes,
+    /// A single-lobe baseline, converted to one Phong peak ([`crate::baseline::baseline_lobes`]):
+    /// the map file stores isotropic Phong lobes only, so LEAN is isotropised.
+    Baseline(crate::baseline::Baseline),
+}
+
+impl Default for ExtractParams {
+    fn default() -> Self {
+        ExtractParams {
+            fit: FitParams::default(),
+            normal_mode: NormalMode::Triangles,
+            residual_texels: 64,
+            method: Method::Lobes,
+            compact_texels: COMPACT_TEXELS,
+        }
+    }
+}
+
+/// Progress of [`extract`]: reported once before any work (everything at 0, the totals set),
+/// once the normals and horizon angles are computed, and after each level.
+///
+/// `work_done / work_total` is the fraction of the expected *time* done: work is counted in
+/// estimated cost units ([`extract_work`]: the normals and horizons per sample, and per level
+/// the merging, the EM fit on its capped point set and the residual's footprint visits), so the
+/// few coarse levels, each fitted thoroughly on many points, weigh what they cost rather than
+/// their handful of texels. `work_done` only grows and ends equal to `work_total`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Progress {
+    /// Levels finished so far.
+    pub levels_done: usize,
+    /// Total number of levels.
+    pub levels: usize,
+    /// Texels fitted so far (all levels).
+    pub texels_done: u64,
+    /// Texels to fit in all.
+    pub texels_total: u64,
+    /// Work done so far (estimated cost units, see [`extract_work`]).
+    pub work_done: u64,
+    /// All the work of the extraction (estimated cost units); > 0.
+    pub work_total: u64,
+}
+
+/// The fit residuals of one level, measured on a sample of its texels (`texels` of them,
+/// evenly strided): the binned NDF error and the shading error.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Residual {
+    /// Mean relative NDF L2 error over the measured texels ([`crate::fit::ndf_l2_error`]).
+    pub mean: f64,
+    /// Largest relative NDF L2 error among them.
+    pub max: f64,
+    /// Number of texels measured.
+    pub texels: u32,
+    /// Mean shading error over the measured texels, as a fraction of each texel's peak
+    /// ([`crate::fit::shading_error`]: the lobes against the footprint's normals, both seen
+    /// through a facet kernel of the fit's `smooth_exponent`, RMS over the half vectors;
+    /// 0.01 = 1 %). `None` for map files that did not record it (format 2, and format-3 files
+    /// written before it was recorded).
+    pub shading_mean: Option<f64>,
+    /// Largest shading error among the measured texels (fraction of its peak); `None` as above.
+    pub shading_max: Option<f64>,
+}
+
+/// One level of the pyramid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Level {
+    /// Texels along x.
+    pub cols: usize,
+    /// Texels along y.
+    pub rows: usize,
+    /// Footprint side in level-0 cells (2^k).
+    pub span: usize,
+    /// `lobe_start[t]..lobe_start[t+1]` indexes `lobes` for texel `t = row·cols + col`.
+    pub lobe_start: Vec<u32>,
+    /// All lobes of the level (local frame, normal +z; weights of a texel sum to 1), in `f64`
+    /// or, on big levels, `f32` ([`crate::compact`]); read as
+    /// [`PhongLobe`](meso_core::ndf::PhongLobe)s.
+    pub lobes: Lobes,
+    /// Horizon statistics per texel (height maps only), in `f64` or `f32` like the lobes.
+    pub horizon: Option<Horizons>,
+    /// Fit residual.
+    pub residual: Residual,
+}
+
+/// An extracted pyramid (see the module docs). Written and read by `Pyramid::write`/`read`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pyramid {
+    /// Samples along x of the source map.
+    pub width: usize,
+    /// Samples along y of the source map.
+    pub height: usize,
+    /// Texel size S (length units; 1 for normal maps).
+    pub texel_size: f64,
+    /// Border mode of the source.
+    pub border: Border,
+    /// How normals were derived.
+    pub normal_mode: NormalMode,
+    /// `max_lobes` used for the fit.
+    pub max_lobes: usize,
+    /// Levels, finest (0) first; the last has one texel.
+    pub levels: Vec<Level>,
+}
+
+/// Number of levels of a `cols × rows` cell grid (level 0 … the first 1×1 level).
+#[must_use]
+pub fn level_count(cols: usize, rows: usize) -> usize {
+    let mut n = 1;
+    let (mut c, mut r) = (cols, rows);
+    while c > 1 || r > 1 {
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+        n += 1;
+    }
+    n
+}
+
+/// Cells covered by texel `(r, c)` of a level with footprint side `span`.
+#[must_use]
+pub fn footprint_cells(
+    facets: &FacetNormals,
+    span: usize,
+    r: usize,
+    c: usize,
+) -> (usize, usize, usize, usize) {
+    footprint_bounds(facets.rows, facets.cols, span, r, c)
+}
+
+/// [`footprint_cells`] on a grid of `rows × cols` cells.
+fn footprint_bounds(
+    rows: usize,
+    cols: usize,
+    span: usize,
+    r: usize,
+    c: usize,
+) -> (usize, usize, usize, usize) {
+    (
+        r * span,
+        ((r + 1) * span).min(rows),
+        c * span,
+        ((c + 1) * span).min(cols),
+    )
+}
