@@ -463,3 +463,89 @@ pub(super) fn split_heaviest(lobes: &[L]) -> Vec<L> {
     }
     out
 }
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+
+    /// Random unit normals with weights, and lobes with axes, shares and exponents from
+    /// broad to sharp (points far from every lobe included: their log-densities underflow).
+    fn random_case(seed: u64, n: usize, k: usize) -> (Vec<Pt>, Vec<L>) {
+        let mut s = seed;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        fn dir(rnd: &mut impl FnMut() -> f64, spread: f64) -> DVec3 {
+            let x = spread * (2.0 * rnd() - 1.0);
+            let y = spread * (2.0 * rnd() - 1.0);
+            DVec3::new(x, y, 1.0).normalize()
+        }
+        let pts: Vec<Pt> = (0..n)
+            .map(|_| {
+                let d = dir(&mut rnd, 3.0);
+                (d, 0.1 + rnd())
+            })
+            .collect();
+        let lobes: Vec<L> = (0..k)
+            .map(|j| L {
+                a: dir(&mut rnd, 1.0),
+                w: 1.0 / k as f64,
+                eta: [2.0, 40.0, 800.0, 20_000.0][j % 4],
+            })
+            .collect();
+        (pts, lobes)
+    }
+
+    /// The SSE2 E-step (two lobes per register) is the scalar E-step bit for bit: the same
+    /// responsibilities, axis and exponent sums and log-likelihood, K = 2, 3 and 4, with an
+    /// odd and an even point count.
+    #[test]
+    fn sse2_e_step_is_the_scalar_one_bit_for_bit() {
+        for (seed, n) in [(7u64, 257usize), (11, 1000), (13, 64)] {
+            for k in 2..=4 {
+                let (pts, lobes) = random_case(seed + k as u64, n, k);
+                let (mut scalar, mut simd) = (Acc::default(), Acc::default());
+                let ll_scalar = match k {
+                    2 => e_step::<2>(&pts, &lobes, &mut scalar),
+                    3 => e_step::<3>(&pts, &lobes, &mut scalar),
+                    _ => e_step::<4>(&pts, &lobes, &mut scalar),
+                };
+                // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
+                let ll_simd = unsafe {
+                    match k {
+                        2 => pairs::e_step::<2, 1>(&pts, &lobes, &mut simd),
+                        3 => pairs::e_step::<3, 2>(&pts, &lobes, &mut simd),
+                        _ => pairs::e_step::<4, 2>(&pts, &lobes, &mut simd),
+                    }
+                };
+                assert_eq!(
+                    ll_scalar.to_bits(),
+                    ll_simd.to_bits(),
+                    "K {k}, n {n}: log-likelihood"
+                );
+                for j in 0..k {
+                    assert_eq!(
+                        scalar.w[j].to_bits(),
+                        simd.w[j].to_bits(),
+                        "K {k} lobe {j}: w"
+                    );
+                    assert_eq!(
+                        scalar.t[j].to_bits(),
+                        simd.t[j].to_bits(),
+                        "K {k} lobe {j}: t"
+                    );
+                    for c in 0..3 {
+                        assert_eq!(
+                            scalar.a[j][c].to_bits(),
+                            simd.a[j][c].to_bits(),
+                            "K {k} lobe {j}: a[{c}]"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
