@@ -199,6 +199,29 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
 
 /// Direction pairs with θi, θo < 80°, dense near the specular configuration (θh sampled like
 /// MERL's non-linear axis), all four half/difference angles varying (low-discrepancy sequence).
+/// Run the command line in the first line of a written material file (`# meso fit …`) as
+/// written, with `--out out` added; it must succeed.
+fn rerun_header(text: &str, out: &Path) {
+    let header = text
+        .lines()
+        .next()
+        .unwrap()
+        .trim_start_matches("# ")
+        .to_owned();
+    let mut args: Vec<String> = header
+        .split_whitespace()
+        .skip(1)
+        .map(str::to_owned)
+        .collect();
+    args.extend(["--out".into(), out.to_str().unwrap().to_owned()]);
+    let o = meso(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        o.status.success(),
+        "{header}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
 fn pairs(n: usize) -> Vec<(DVec3, DVec3)> {
     use meso_measured::rusinkiewicz::{dirs_from_half_diff, HalfDiff};
     use std::f64::consts::{FRAC_PI_2, PI};
@@ -444,25 +467,7 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = std::fs::read_to_string(&out2).unwrap();
-    let header = text
-        .lines()
-        .next()
-        .unwrap()
-        .trim_start_matches("# ")
-        .to_owned();
-    let out3 = dir.join("again.toml");
-    let mut args: Vec<String> = header
-        .split_whitespace()
-        .skip(1)
-        .map(str::to_owned)
-        .collect();
-    args.extend(["--out".into(), s(&out3)]);
-    let o = meso(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(
-        o.status.success(),
-        "{header}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    rerun_header(&text, &dir.join("again.toml"));
 
     // The fitted closed form, rebuilt from the written material's parameters.
     let m = Material::from_toml_str(&text).unwrap();
@@ -590,24 +595,6 @@ fn student_t_lobes_fit_recovers_the_tail_exponent() {
         "α {}: {text}",
         lobe.alpha_x
     );
-    let header = text
-        .lines()
-        .next()
-        .unwrap()
-        .trim_start_matches("# ")
-        .to_owned();
-    let again = dir.join("again.toml");
-    let mut args: Vec<String> = header
-        .split_whitespace()
-        .skip(1)
-        .map(str::to_owned)
-        .collect();
-    args.extend(["--out".into(), s(&again)]);
-    let o = meso(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(
-        o.status.success(),
-        "{header}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    rerun_header(&text, &dir.join("again.toml"));
     let _ = std::fs::remove_dir_all(&dir);
 }

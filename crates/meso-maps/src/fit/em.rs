@@ -471,27 +471,17 @@ mod tests {
     /// Random unit normals with weights, and lobes with axes, shares and exponents from
     /// broad to sharp (points far from every lobe included: their log-densities underflow).
     fn random_case(seed: u64, n: usize, k: usize) -> (Vec<Pt>, Vec<L>) {
-        let mut s = seed;
-        let mut rnd = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
-        fn dir(rnd: &mut impl FnMut() -> f64, spread: f64) -> DVec3 {
-            let x = spread * (2.0 * rnd() - 1.0);
-            let y = spread * (2.0 * rnd() - 1.0);
-            DVec3::new(x, y, 1.0).normalize()
-        }
+        use super::super::test_dirs::random_dir;
+        let mut rng = meso_testkit::rng(seed);
         let pts: Vec<Pt> = (0..n)
             .map(|_| {
-                let d = dir(&mut rnd, 3.0);
-                (d, 0.1 + rnd())
+                let d = random_dir(&mut rng, 3.0);
+                (d, 0.1 + meso_testkit::uniform2(&mut rng)[0])
             })
             .collect();
         let lobes: Vec<L> = (0..k)
             .map(|j| L {
-                a: dir(&mut rnd, 1.0),
+                a: random_dir(&mut rng, 1.0),
                 w: 1.0 / k as f64,
                 eta: [2.0, 40.0, 800.0, 20_000.0][j % 4],
             })

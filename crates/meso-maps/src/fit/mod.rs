@@ -639,3 +639,15 @@ impl<'a> Single<'a> {
         }
     }
 }
+
+/// Random directions for the tests of the fit's kernels.
+#[cfg(test)]
+mod test_dirs {
+    use glam::DVec3;
+
+    /// A unit vector with slopes uniform in `[−spread, spread]` along x and y.
+    pub(super) fn random_dir(rng: &mut meso_testkit::Rng, spread: f64) -> DVec3 {
+        let [u, v] = meso_testkit::uniform2(rng);
+        DVec3::new(spread * (2.0 * u - 1.0), spread * (2.0 * v - 1.0), 1.0).normalize()
+    }
+}

@@ -620,23 +620,13 @@ mod tests {
     /// bit for bit (odd and even counts; terms beyond the cut left out).
     #[test]
     fn smoothed_target_is_the_scalar_sum_bit_for_bit() {
-        let mut s = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
-        fn dir(rnd: &mut impl FnMut() -> f64, spread: f64) -> DVec3 {
-            let x = spread * (2.0 * rnd() - 1.0);
-            let y = spread * (2.0 * rnd() - 1.0);
-            DVec3::new(x, y, 1.0).normalize()
-        }
+        use super::super::test_dirs::random_dir;
+        let mut rng = meso_testkit::rng(0x9e37_79b9);
         let unit: Vec<(DVec3, f64)> = (0..300)
-            .map(|k| (dir(&mut rnd, 2.0), 1.0 / 300.0 + 1e-5 * f64::from(k)))
+            .map(|k| (random_dir(&mut rng, 2.0), 1.0 / 300.0 + 1e-5 * f64::from(k)))
             .collect();
         for n in [1usize, 2, 37, 128] {
-            let hs: Vec<DVec3> = (0..n).map(|_| dir(&mut rnd, 1.5)).collect();
+            let hs: Vec<DVec3> = (0..n).map(|_| random_dir(&mut rng, 1.5)).collect();
             for (lambda, cut) in [(3.0, -1.0), (80.0, 0.5), (2000.0, 0.9)] {
                 let got = smoothed_target(&hs, &unit, lambda, cut);
                 for (h, g) in hs.iter().zip(&got) {
