@@ -9,6 +9,13 @@
 //!
 //! [`emit_toml`] writes a table the way a person would: top-level keys first, then one
 //! `[section]` per table, lobes as one inline table per line.
+//!
+//! It transcribes the user's own document key for key (the reverse of [`parse_toml`]); it is
+//! not a second material writer. meso-core's writer ([`MaterialSpec::to_toml`]) writes a
+//! material *value* as the parser stores it: weights and densities normalised, every default
+//! explicit (tried for Save, 2026-12-03: an edited weight of 0.3 beside a weight of 1 was saved
+//! as 0.23, and the browser test "the saved TOML holds the new values" failed). The editor
+//! saves what the user typed, and every text it saves is validated by that parser first.
 
 use crate::error::ApiError;
 use meso_core::material::{Material, MaterialSpec};
