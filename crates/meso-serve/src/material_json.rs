@@ -13,9 +13,11 @@
 //! It transcribes the user's own document key for key (the reverse of [`parse_toml`]); it is
 //! not a second material writer. meso-core's writer ([`MaterialSpec::to_toml`]) writes a
 //! material *value* as the parser stores it: weights and densities normalised, every default
-//! explicit (tried for Save, 2026-12-03: an edited weight of 0.3 beside a weight of 1 was saved
-//! as 0.23, and the browser test "the saved TOML holds the new values" failed). The editor
-//! saves what the user typed, and every text it saves is validated by that parser first.
+//! explicit (tried for Save, 2026-12-03: lobe weights 3 and 1 were saved as 0.75 and 0.25, a
+//! radial density table rescaled, the mirror's default `specular` added, so the material came
+//! back from Open… with other numbers than the user typed, which the browser test "the saved
+//! TOML holds the new values" checks). The editor saves what the user typed, and every text it
+//! saves is validated by that parser first.
 
 use crate::error::ApiError;
 use meso_core::material::{Material, MaterialSpec};
