@@ -375,6 +375,28 @@ impl Level {
         self.level().residual.mean
     }
 
+    /// The largest NDF residual among the texels this level measured.
+    #[getter]
+    fn residual_max(&self) -> f64 {
+        self.level().residual.max
+    }
+
+    /// The mean shading error of this level's lobes as a fraction of each texel's peak (0.01 =
+    /// 1 %; the lobes against the footprint's normals through a facet kernel, RMS over the half
+    /// vectors, as `meso map info` prints it in %), or `None` for a map file that did not
+    /// record it.
+    #[getter]
+    fn shading_error(&self) -> Option<f64> {
+        self.level().residual.shading_mean
+    }
+
+    /// The largest shading error among the texels this level measured (fraction of the peak),
+    /// or `None` as for `shading_error`.
+    #[getter]
+    fn shading_error_max(&self) -> Option<f64> {
+        self.level().residual.shading_max
+    }
+
     fn __repr__(&self) -> String {
         let l = self.level();
         format!(

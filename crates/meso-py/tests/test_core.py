@@ -194,6 +194,8 @@ def test_extract_of_a_tilted_plane_has_its_normal():
     pyr = meso.extract(0.25 * x, texel_size=1.0, border="clamp")
     normal = np.array([-0.25, 0, 1]) / math.hypot(0.25, 1)
     for level in pyr.levels:
+        # One normal everywhere: the lobes shade as the footprint does.
+        assert level.shading_error is not None and 0 <= level.shading_error <= level.shading_error_max * (1 + 1e-12) < 1e-3
         counts, axes, weights = level.counts, level.axes, level.weights
         assert counts.shape == (level.rows, level.cols) and counts.min() >= 1
         np.testing.assert_allclose(weights.sum(axis=2), 1, atol=1e-9)
@@ -217,6 +219,18 @@ def test_extract_file_equals_the_cli_and_the_array_path(tmp_path):
         np.testing.assert_allclose(a.axes, c.axes, atol=1e-12)
         # Map format 3 stores log2(1 + η) in 16 bits: |Δη| ≤ 1.06e-4 · (1 + η) (docs/map-format.md).
         assert np.all(np.abs(a.exponents - b.exponents) <= 1.07e-4 * (1 + a.exponents))
+        assert a.shading_error == pytest.approx(b.shading_error, rel=1e-6)
+        assert a.shading_error_max == pytest.approx(b.shading_error_max, rel=1e-6)
+        assert a.residual_max >= a.residual >= 0
+    # The same shading errors as `meso map info` prints (in % of the peak, 2 decimals).
+    info = run_cli("map", "info", tmp_path / "cli.map").stdout
+    rows = [l.split() for l in info.splitlines() if l[:1].isdigit()]
+    assert len(rows) == len(read)
+    for row, level in zip(rows, read.levels):
+        mean, peak = (float(x) for x in row[-1].split("/"))
+        assert mean == pytest.approx(100 * level.shading_error, abs=0.006)
+        assert peak == pytest.approx(100 * level.shading_error_max, abs=0.006)
+    assert max(l.shading_error for l in read.levels) > 0
 
 
 def test_render_of_a_lambert_sphere_is_albedo_over_pi_times_irradiance(tmp_path):

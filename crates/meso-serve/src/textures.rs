@@ -122,7 +122,8 @@ impl Texture {
     }
 
     /// The texture's summary (`POST /api/texture`, `GET /api/texture/{id}`): sizes, parameters,
-    /// warnings and per level the texel grid, lobe count and fit residual.
+    /// warnings and per level the texel grid, lobe count and fit residuals (the NDF residual and
+    /// the shading error as a fraction of the peak, `null` when the map file did not record it).
     #[must_use]
     pub fn info_json(&self, cached: bool) -> Value {
         let p = &self.pyramid;
@@ -143,6 +144,8 @@ impl Texture {
                         "mean": finite(l.residual.mean),
                         "max": finite(l.residual.max),
                         "texels": l.residual.texels,
+                        "shading_mean": l.residual.shading_mean.map(finite),
+                        "shading_max": l.residual.shading_max.map(finite),
                     },
                 })
             })

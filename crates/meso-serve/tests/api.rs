@@ -886,6 +886,14 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
         assert_eq!(l["lobes"], o.lobes.len());
         let res = l["residual"]["mean"].as_f64().unwrap();
         assert!(res.is_finite() && res >= 0.0, "{l}");
+        // The shading error, as the extraction measured it (the texture's own pyramid).
+        let (sm, sx) = (
+            l["residual"]["shading_mean"].as_f64().unwrap(),
+            l["residual"]["shading_max"].as_f64().unwrap(),
+        );
+        assert_eq!(Some(sm), o.residual.shading_mean, "{l}");
+        assert_eq!(Some(sx), o.residual.shading_max, "{l}");
+        assert!(0.0 <= sm && sm <= sx * (1.0 + 1e-12), "{l}");
     }
     for (level, row, col) in [(0, 5, 7), (2, 1, 3), (3, 0, 2), (5, 0, 0)] {
         assert_same_lobes(&texel_lobes(&id, level, row, col), &own, level, row, col);

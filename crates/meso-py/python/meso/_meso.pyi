@@ -83,7 +83,17 @@ class Level:
     def exponents(self) -> npt.NDArray[np.float64]:
         """(rows, cols, K) Phong exponents η of cos^η(α/2)."""
     @property
-    def residual(self) -> float: ...
+    def residual(self) -> float:
+        """Mean relative NDF L2 residual of the level's measured texels."""
+    @property
+    def residual_max(self) -> float:
+        """Largest NDF residual among the level's measured texels."""
+    @property
+    def shading_error(self) -> Optional[float]:
+        """Mean shading error, a fraction of each texel's peak (0.01 = 1 %); None if not recorded."""
+    @property
+    def shading_error_max(self) -> Optional[float]:
+        """Largest shading error (fraction of the peak); None if not recorded."""
 
 class Pyramid:
     """An NDF pyramid (docs/map-format.md); level 0 finest, ``top`` one texel."""

@@ -1134,7 +1134,8 @@
     info.levels.forEach((l) => {
       const o = document.createElement('option'); o.value = l.level;
       const res = l.residual.mean === null ? '—' : l.residual.mean.toFixed(3);
-      o.textContent = `${l.level} · ${l.cols}×${l.rows} · ${l.lobes_per_texel.toFixed(2)} lobes · residual ${res}`;
+      const sh = l.residual.shading_mean == null ? '' : ` · shading error ${(100 * l.residual.shading_mean).toFixed(2)} %`;
+      o.textContent = `${l.level} · ${l.cols}×${l.rows} · ${l.lobes_per_texel.toFixed(2)} lobes · residual ${res}${sh}`;
       sel.append(o);
     });
     state.selected = 0;
