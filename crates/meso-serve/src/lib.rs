@@ -1,7 +1,8 @@
 //! # meso-serve
 //!
 //! `meso serve`: an interactive NDF editor in the browser (Fournier 1992, §3.4 "Making them
-//! up"). One self-contained page (HTML, CSS and JavaScript embedded in the binary, no CDN) edits
+//! up"). One self-contained page (HTML, CSS and JavaScript embedded in the binary, no CDN: the
+//! script's parts live in `src/page/editor/`, one concern a file, joined in `PAGE_JS`) edits
 //! the lobes of a material on an equal-area hemisphere disc and shows a live preview rendered by
 //! `meso_render`, a picture of the NDF and BRDF slices drawn by `meso_plot`.
 //!
@@ -93,7 +94,29 @@ pub const MAX_QUEUED_RENDERS: usize = 32;
 
 const PAGE_HTML: &str = include_str!("page/index.html");
 const PAGE_CSS: &str = include_str!("page/style.css");
-const PAGE_JS: &str = include_str!("page/app.js");
+/// The editor's script: one closure (`'use strict'`, no globals but the `window.mesoEditor`
+/// test hook) over the parts of `page/editor/`, one concern a file, in this order (each part
+/// uses what the parts before it declare; functions are hoisted within the closure).
+const PAGE_JS: &str = concat!(
+    "'use strict';\n",
+    "// meso NDF editor. One page, no dependencies. The material is kept in the JSON form of the TOML\n",
+    "// material format (docs/material-format.md, docs/http-api.md); every edit re-renders through the\n",
+    "// server's API with at most one request of each kind in flight (latest wins).\n",
+    "\n",
+    "(() => {\n",
+    include_str!("page/editor/base.js"),
+    include_str!("page/editor/history.js"),
+    include_str!("page/editor/api.js"),
+    include_str!("page/editor/preview.js"),
+    include_str!("page/editor/disc.js"),
+    include_str!("page/editor/controls.js"),
+    include_str!("page/editor/transfer.js"),
+    include_str!("page/editor/panels.js"),
+    include_str!("page/editor/files.js"),
+    include_str!("page/editor/textures.js"),
+    include_str!("page/editor/start.js"),
+    "})();\n",
+);
 
 /// The editor page: the HTML with its stylesheet and script inlined.
 #[must_use]
@@ -630,5 +653,24 @@ mod tests {
         assert_eq!(running.await.unwrap().unwrap(), 1);
         assert_eq!(next.await.unwrap().unwrap(), 4);
         assert_eq!(state.queued.load(std::sync::atomic::Ordering::SeqCst), 0);
+    }
+}
+
+#[cfg(test)]
+mod page_tests {
+    /// The page carries the whole script once: its closure opened and closed, the test hook and
+    /// the start-up call in it.
+    #[test]
+    fn the_page_inlines_the_editor_script() {
+        let js = super::PAGE_JS;
+        assert!(js.starts_with("'use strict';\n"));
+        assert!(
+            js.ends_with("  start();\n})();\n"),
+            "{}",
+            &js[js.len() - 40..]
+        );
+        assert_eq!(js.matches("window.mesoEditor = {").count(), 1);
+        let page = super::page();
+        assert!(page.contains(js) && !page.contains("/*SCRIPT*/") && !page.contains("/*STYLE*/"));
     }
 }
