@@ -1,21 +1,17 @@
 //! Assembling a level from its fitted rows, batch by batch: the lobes and horizon statistics
 //! stored in `f64` or, on big levels, `f32` ([`crate::compact`]), allocations reserved up front
 //! under the memory budget, the level's residual summed at the end, and what the next level
-//! reads of it (its entries and, for an `f32` level, its horizon statistics in `f64`).
+//! reads of it (for an `f32` level, its horizon statistics in `f64`).
 
 use super::level_fit::RowOut;
 use super::{Level, Residual};
 use crate::compact::{Horizons, Lobes};
-use crate::fit::Entry;
 use crate::horizon::HorizonStats;
 
-/// What a level hands to the next beside itself: its entries, flat, with per-texel offsets
-/// `start` (empty when the next level does not read them), and its horizon statistics in
-/// `f64` when the level keeps them in `f32`.
+/// What a level hands to the next beside itself: its horizon statistics in `f64` when the
+/// level keeps them in `f32`.
 #[derive(Default)]
 pub(super) struct Carry {
-    pub(super) entries: Vec<Entry>,
-    pub(super) start: Vec<u32>,
     pub(super) horizon: Option<Vec<HorizonStats>>,
 }
 
@@ -50,7 +46,6 @@ impl LevelBuilder {
                 } else {
                     None
                 },
-                ..Carry::default()
             },
             lobes: if compact {
                 Lobes::F32(try_with_capacity(n)?)
@@ -70,16 +65,6 @@ impl LevelBuilder {
     /// Append a batch of rows (in order), freeing their buffers.
     pub(super) fn extend(&mut self, rows: Vec<RowOut>) {
         for ro in rows {
-            if !ro.ecount.is_empty() {
-                let e = &mut self.carry;
-                if e.start.is_empty() {
-                    e.start.push(0u32);
-                }
-                for ec in &ro.ecount {
-                    e.start.push(e.start.last().unwrap() + ec);
-                }
-                e.entries.extend_from_slice(&ro.entries);
-            }
             for lc in &ro.lcount {
                 self.lstart.push(self.lstart.last().unwrap() + lc);
             }

@@ -20,9 +20,11 @@ const FIT_WORK_THOROUGH: u64 = 45;
 /// writing the map (the file's bytes and the reader's check of them). `meso extract` on rough
 /// 16-bit maps measured 735–755 bytes per cell (peak RSS, triangles, 512² and 1024²;
 /// docs/limits.md): with the per-sample term the estimate is 890, a 20% margin. Since the compact
-/// levels (2026-12-02) the peak is 458 bytes per cell of heap at 256² and 354 of RSS at 1024², so
-/// the estimate is a looser upper bound (`crates/meso-maps/tests/extract_memory.rs` requires it to
-/// cover the heap peak and stay within 3× of it).
+/// levels (2026-12-02) the peak is 458 bytes per cell of heap at 256² and 354 of RSS at 1024², and
+/// since the entries are no longer carried from level to level (2026-12-03) 339 bytes per cell of
+/// heap at 256² (the map file's writing included) and 218 of RSS at 1024², so the estimate is a
+/// looser upper bound (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap
+/// peak and stay within 3× of it).
 pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
 /// Extra peak memory of [`extract`](super::extract) per cell for each further normal of the cell
 /// (triangles: 2).
@@ -84,7 +86,10 @@ pub fn extract_work(
         } else {
             FIT_WORK_PLAIN
         };
-        let fit = t * (1 + entries / 4 + per_point * points);
+        // Merging: a texel of level k ≥ 1 merges its footprint's entries again on every level
+        // below it (`level_fit::texel_entries`), k merges of about its entries each.
+        let merges = (k.max(1) as u64) * (entries / 4);
+        let fit = t * (1 + merges + per_point * points);
         let residual = t.min(params.residual_texels.max(1) as u64) * facets / 4;
         out.push(fit + residual);
         c = c.div_ceil(2);

@@ -79,9 +79,9 @@ pub fn extract(
     let mut work_done = prep_work;
     report(0, 0, work_done);
     let mut levels: Vec<Level> = Vec::with_capacity(nlev);
-    // What the next level reads of this one, beside the level itself: its entries (none for
-    // level 0: level 1 merges its children's entries from the facets again, as level 0 did)
-    // and, when the level is stored in f32, its horizon statistics in f64.
+    // What the next level reads of this one, beside the level itself: when the level is
+    // stored in f32, its horizon statistics in f64. (Entries are not carried: each texel
+    // merges its footprint's facets again, level by level, `level_fit::texel_entries`.)
     let mut prev = Carry::default();
     let mut done = 0u64;
     let (mut cols, mut rows) = (facets.cols(), facets.rows());
@@ -99,14 +99,12 @@ pub fn extract(
             },
         };
         let ctx = LevelFit {
+            k,
             cols,
             facets,
             horizon: if k == 0 { horizon.as_ref() } else { None },
             prev: levels.last(),
-            prev_entries: &prev.entries,
-            prev_start: &prev.start,
             prev_horizon,
-            keep_entries: k > 0 && !last,
             residual_stride: texels.div_ceil(params.residual_texels.max(1)).max(1),
             params,
             em_cap: (params.fit.level_em_points / texels.max(1))

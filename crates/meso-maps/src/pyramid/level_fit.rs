@@ -2,6 +2,12 @@
 //! or the merged entries of its up to four children), its horizon statistics merged from its
 //! children's, its lobes by the extraction's method, and the NDF residual and shading error of
 //! the texels the level samples.
+//!
+//! A texel's entries are computed depth first from the facets of its footprint: the entries of
+//! each cell, merged four children at a time up the levels below, exactly the merges (same
+//! lists, same order, so the same numbers to the last bit) that a level stored for the next one
+//! before 2026-12-03. No level's entries are kept: they were ≈ 80 bytes a cell per level, two
+//! levels of them alive at once (docs/benchmarks.md, "Extraction memory: entries recomputed").
 
 use super::{footprint_bounds, ExtractParams, Level, Method};
 use crate::compact::Horizons;
@@ -9,11 +15,10 @@ use crate::facets::FacetSource;
 use crate::fit::{fit_lobes_with, merge_entries, ndf_l2_error, Entry};
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
+use rayon::prelude::*;
 
 /// One row of texels of a level, as [`LevelFit::row`] fits it.
 pub(super) struct RowOut {
-    pub(super) entries: Vec<Entry>,
-    pub(super) ecount: Vec<u32>,
     pub(super) lobes: Vec<PhongLobe>,
     pub(super) lcount: Vec<u32>,
     pub(super) horizon: Vec<HorizonStats>,
@@ -52,18 +57,14 @@ impl PrevHorizon<'_> {
 /// entries, the previous level's horizon statistics, and the fit's settings for this level's
 /// size.
 pub(super) struct LevelFit<'a> {
+    /// The level's index (0: the cells themselves).
+    pub(super) k: usize,
     pub(super) cols: usize,
     pub(super) facets: FacetSource<'a>,
     /// The samples' horizon angles (level 0 only).
     pub(super) horizon: Option<&'a HorizonMap>,
     pub(super) prev: Option<&'a Level>,
-    /// The previous level's entries; empty when the previous level is level 0 (its entries
-    /// are merged from the facets again).
-    pub(super) prev_entries: &'a [Entry],
-    pub(super) prev_start: &'a [u32],
     pub(super) prev_horizon: PrevHorizon<'a>,
-    /// Whether the next level reads this level's entries (not level 0's, not the top's).
-    pub(super) keep_entries: bool,
     /// Texels `0, s, 2s, …` get their NDF residual measured.
     pub(super) residual_stride: usize,
     pub(super) params: &'a ExtractParams,
@@ -72,12 +73,18 @@ pub(super) struct LevelFit<'a> {
     pub(super) smooth: bool,
 }
 
-/// A texel's scratch buffers: its merged entries and those of its (up to four) children.
+/// The lowest level whose texels compute their children's entries in parallel: a texel there
+/// covers ≥ 4^8 cells, so only the few texels of the top levels (which leave cores idle when
+/// fitted one per core) do.
+const PARALLEL_SUBTREE_LEVEL: usize = 8;
+
+/// A row's scratch buffers: the texel's merged entries, and per level `j` below it the merged
+/// entries of the (up to four) children being merged into a texel of level `j` (`depth[0]`
+/// holds a cell's single facets instead).
 #[derive(Default)]
 struct Scratch {
     merged: Vec<Entry>,
-    singles: Vec<Entry>,
-    children: [Vec<Entry>; 4],
+    depth: Vec<[Vec<Entry>; 4]>,
 }
 
 impl LevelFit<'_> {
@@ -86,25 +93,24 @@ impl LevelFit<'_> {
     pub(super) fn row(&self, r: usize) -> RowOut {
         let cols = self.cols;
         let mut out = RowOut {
-            entries: Vec::new(),
-            ecount: Vec::with_capacity(cols),
             lobes: Vec::new(),
             lcount: Vec::with_capacity(cols),
             horizon: Vec::new(),
             residual: Vec::new(),
         };
         let mut buf = Scratch::default();
+        buf.depth.resize_with(self.k + 1, Default::default);
         let mut scratch = Vec::new();
         let mut lobes = Vec::new();
         for c in 0..cols {
+            self.texel_entries(self.k, r, c, &mut buf.depth, &mut buf.merged);
             match self.prev {
                 None => {
-                    self.cell_entries(r, c, &mut buf.singles, &mut buf.merged);
                     if let Some(h) = self.horizon {
                         out.horizon.push(h.sample_stats(r, c));
                     }
                 }
-                Some(prev) => self.merge_children(prev, r, c, &mut buf, &mut out.horizon),
+                Some(prev) => self.merge_child_horizons(prev, r, c, &mut out.horizon),
             }
             self.fit_texel(&buf.merged, &mut scratch, &mut lobes);
             if (r * cols + c).is_multiple_of(self.residual_stride) {
@@ -112,10 +118,6 @@ impl LevelFit<'_> {
                     self.residual(r, c, &lobes),
                     crate::fit::shading_error(&buf.merged, &lobes, self.shading_exponent()),
                 ));
-            }
-            if self.keep_entries {
-                out.entries.extend_from_slice(&buf.merged);
-                out.ecount.push(buf.merged.len() as u32);
             }
             out.lobes.extend_from_slice(&lobes);
             out.lcount.push(lobes.len() as u32);
@@ -152,45 +154,82 @@ impl LevelFit<'_> {
         merge_entries(&[singles], out);
     }
 
-    /// Texel `(r, c)` of this level from its (up to four) children in `prev`: their entries
-    /// (stored, or for level 0's children merged from the facets again) merged into
-    /// `buf.merged`, their horizon statistics merged onto `horizon`.
-    fn merge_children(
+    /// The merged entries of texel `(r, c)` of level `j`, into `out`: a cell's facets merged
+    /// per bin (`j = 0`, through `depth[0][0]`), or the merged entries of its (up to four)
+    /// children on level `j − 1`, each computed the same way into `depth[j]` (`depth` has at
+    /// least `j + 1` levels of buffers).
+    fn texel_entries(
+        &self,
+        j: usize,
+        r: usize,
+        c: usize,
+        depth: &mut [[Vec<Entry>; 4]],
+        out: &mut Vec<Entry>,
+    ) {
+        if j == 0 {
+            self.cell_entries(r, c, &mut depth[0][0], out);
+            return;
+        }
+        // Level j − 1 has ⌈cells / 2^(j−1)⌉ texels along each side.
+        let below = |n: usize| n.div_ceil(1 << (j - 1));
+        let (rows, cols) = (below(self.facets.rows()), below(self.facets.cols()));
+        let (lower, here) = depth.split_at_mut(j);
+        let children = &mut here[0];
+        let mut kids = [(0, 0); 4];
+        let mut n = 0;
+        for cr in 2 * r..(2 * r + 2).min(rows) {
+            for cc in 2 * c..(2 * c + 2).min(cols) {
+                kids[n] = (cr, cc);
+                n += 1;
+            }
+        }
+        if j >= PARALLEL_SUBTREE_LEVEL {
+            // A big footprint (the few texels of the top levels): its children in parallel,
+            // each with buffers of its own; the same merges, so the same numbers.
+            let done: Vec<Vec<Entry>> = kids[..n]
+                .par_iter()
+                .map(|&(cr, cc)| {
+                    let mut d: Vec<[Vec<Entry>; 4]> = Vec::new();
+                    d.resize_with(j, Default::default);
+                    let mut v = Vec::new();
+                    self.texel_entries(j - 1, cr, cc, &mut d, &mut v);
+                    v
+                })
+                .collect();
+            for (slot, v) in children.iter_mut().zip(done) {
+                *slot = v;
+            }
+        } else {
+            for (slot, &(cr, cc)) in children.iter_mut().zip(&kids[..n]) {
+                self.texel_entries(j - 1, cr, cc, lower, slot);
+            }
+        }
+        let mut lists: [&[Entry]; 4] = [&[]; 4];
+        for (i, list) in lists.iter_mut().enumerate().take(n) {
+            *list = &children[i];
+        }
+        merge_entries(&lists[..n], out);
+    }
+
+    /// The horizon statistics of texel `(r, c)` of this level, merged from its (up to four)
+    /// children in `prev` and pushed onto `horizon` (nothing for a map without them).
+    fn merge_child_horizons(
         &self,
         prev: &Level,
         r: usize,
         c: usize,
-        buf: &mut Scratch,
         horizon: &mut Vec<HorizonStats>,
     ) {
-        let from_facets = self.prev_start.is_empty();
         let mut hs = HorizonStats::default();
         let mut has_h = false;
-        let mut ts = [0usize; 4];
-        let mut n = 0;
         for cr in 2 * r..(2 * r + 2).min(prev.rows) {
             for cc in 2 * c..(2 * c + 2).min(prev.cols) {
-                if from_facets {
-                    self.cell_entries(cr, cc, &mut buf.singles, &mut buf.children[n]);
-                }
-                ts[n] = cr * prev.cols + cc;
-                n += 1;
                 if let Some(h) = self.prev_horizon.get(cr, cc, prev.cols) {
                     hs.merge(&h);
                     has_h = true;
                 }
             }
         }
-        let mut lists: [&[Entry]; 4] = [&[]; 4];
-        for (i, list) in lists.iter_mut().enumerate().take(n) {
-            *list = if from_facets {
-                &buf.children[i]
-            } else {
-                let t = ts[i];
-                &self.prev_entries[self.prev_start[t] as usize..self.prev_start[t + 1] as usize]
-            };
-        }
-        merge_entries(&lists[..n], &mut buf.merged);
         if has_h {
             horizon.push(hs);
         }
