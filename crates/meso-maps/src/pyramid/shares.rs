@@ -294,13 +294,13 @@ mod tests {
                 let mut want = [0.0; 4];
                 for (rr, cc) in [(r, c), (r, c + 1), (r + 1, c), (r + 1, c + 1)] {
                     let s = h0.get((rr % l0.rows) * l0.cols + cc % l0.cols);
-                    for d in 0..4 {
-                        want[d] += 0.25 * s.mean[d];
+                    for (w, m) in want.iter_mut().zip(s.mean) {
+                        *w += 0.25 * m;
                     }
                 }
                 for j in l0.lobe_start[t] as usize..l0.lobe_start[t + 1] as usize {
-                    for d in 0..4 {
-                        assert!((hz[0].get(j).mean[d] - want[d]).abs() < 1e-12);
+                    for (g, w) in hz[0].get(j).mean.iter().zip(want) {
+                        assert!((g - w).abs() < 1e-12);
                     }
                 }
             }
