@@ -37,7 +37,7 @@ pub use cost::{
 };
 pub use extract::extract;
 pub use info::{LevelInfo, PyramidInfo};
-pub use shares::{lobe_stats, peak_projected_area, LobeStats};
+pub use shares::{lobe_stats, peak_projected_area, texel_lobe_stats, LobeStat, LobeStats};
 
 use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
 use crate::facets::{FacetNormals, NormalMode};

@@ -1,6 +1,6 @@
 //! What each lobe of a pyramid stands for, handed down from the level-0 normals: its share of
 //! its texel's projected area and the horizon statistics of the cells whose normals it stands
-//! for ([`lobe_stats`]), and the projected area `E[m_z⁺]` of one Phong peak
+//! for ([`lobe_stats`]; one texel's: [`texel_lobe_stats`]), and the projected area `E[m_z⁺]` of one Phong peak
 //! ([`peak_projected_area`]).
 //!
 //! A coarse texel's lobes are a fit of the normals of its footprint; which cells a lobe stands
@@ -100,19 +100,16 @@ pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
             horizon: None,
         };
     };
-    let h0 = l0
-        .horizon
-        .as_ref()
-        .filter(|_| horizons)
-        .map(|h| cell_horizons(pyramid, h));
+    let h0: Option<Vec<HorizonStats>> = l0.horizon.as_ref().filter(|_| horizons).map(|h| {
+        (0..l0.texels())
+            .map(|t| cell_horizon(pyramid, h, t))
+            .collect()
+    });
     // Level 0: projected area per lobe, one cell per texel.
-    let base = normalise_per_texel(
-        l0,
-        l0.lobes
-            .iter()
-            .map(|p| p.weight * peak_projected_area(p.axis.z, p.exponent))
-            .collect(),
-    );
+    let mut base = Vec::with_capacity(l0.lobes.len());
+    for t in 0..l0.texels() {
+        cell_shares(l0, t, &mut base);
+    }
     let base_horizon = h0.as_ref().map(|h| {
         let mut out = Horizons::new(Vec::new(), l0.lobes.is_compact());
         for (t, s) in h.iter().enumerate() {
@@ -138,12 +135,70 @@ pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
     LobeStats { shares, horizon }
 }
 
-/// Per level-0 cell, the horizon statistics of its four corner samples pooled (from level 0's
-/// texels, which hold the samples' own: texel `(r, c)` is sample `(r, c)`, the cell's top-left
-/// corner; the far corners wrap, or on clamped maps repeat the last row and column): a point
-/// of the cell is shadowed by its nearest sample's horizon (`meso_render::BumpMapped`), a
-/// quarter of the cell for each corner.
-fn cell_horizons(pyramid: &Pyramid, h: &Horizons) -> Vec<HorizonStats> {
+/// What one lobe of a texel stands for ([`texel_lobe_stats`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LobeStat {
+    /// Its share of the texel's projected area (the texel's shares sum to 1, or are all 0).
+    pub share: f64,
+    /// The horizon statistics of the cells it stands for (weight: the projected area handed to
+    /// it, in level-0 cells); `None` without horizon statistics.
+    pub horizon: Option<HorizonStats>,
+}
+
+/// [`lobe_stats`] of one texel, `(row, col)` of level `level`: per lobe, in the order of
+/// [`Level::texel_lobes`], what it stands for. Visits only the level-0 cells of the texel's
+/// footprint (for the editor's texel view).
+///
+/// # Errors
+/// The level, row or column out of range.
+pub fn texel_lobe_stats(
+    pyramid: &Pyramid,
+    level: usize,
+    row: usize,
+    col: usize,
+) -> crate::error::Result<Vec<LobeStat>> {
+    let l = pyramid.level(level)?;
+    // Checks the row and column.
+    l.texel_lobes(row, col)?;
+    let l0 = &pyramid.levels[0];
+    let t = row * l.cols + col;
+    let (pa, pb) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
+    let mut mass = vec![0.0f64; pb - pa];
+    let h0 = l0.horizon.as_ref();
+    let mut hz = h0.map(|_| vec![HorizonStats::default(); pb - pa]);
+    let (mut shares, mut logr) = (Vec::new(), Vec::new());
+    for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
+        for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
+            let ct = r * l0.cols + c;
+            shares.clear();
+            cell_shares(l0, ct, &mut shares);
+            let cell_h = h0.map(|h| cell_horizon(pyramid, h, ct));
+            hand_cell(l0, ct, &shares, l, pa, pb, &mut logr, |j, m| {
+                mass[j - pa] += m;
+                if let (Some(hz), Some(mut s)) = (&mut hz, cell_h) {
+                    s.weight = m;
+                    hz[j - pa].merge(&s);
+                }
+            });
+        }
+    }
+    let total: f64 = mass.iter().sum();
+    Ok(mass
+        .iter()
+        .enumerate()
+        .map(|(j, &m)| LobeStat {
+            share: if total > 0.0 { m / total } else { 0.0 },
+            horizon: hz.as_ref().map(|v| v[j]),
+        })
+        .collect())
+}
+
+/// The horizon statistics of level-0 cell `t` (row-major): its four corner samples' pooled
+/// (from level 0's texels `h`, which hold the samples' own: texel `(r, c)` is sample `(r, c)`,
+/// the cell's top-left corner; the far corners wrap, or on clamped maps repeat the last row
+/// and column), weight 1: a point of the cell is shadowed by its nearest sample's horizon
+/// (`meso_render::BumpMapped`), a quarter of the cell for each corner.
+fn cell_horizon(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonStats {
     let l0 = &pyramid.levels[0];
     let wrap = pyramid.border == crate::heightmap::Border::Wrap;
     let next = |i: usize, n: usize| {
@@ -155,20 +210,31 @@ fn cell_horizons(pyramid: &Pyramid, h: &Horizons) -> Vec<HorizonStats> {
             i
         }
     };
-    let mut out = Vec::with_capacity(l0.texels());
-    for r in 0..l0.rows {
-        for c in 0..l0.cols {
-            let mut s = HorizonStats::default();
-            for rr in [r, next(r, l0.rows)] {
-                for cc in [c, next(c, l0.cols)] {
-                    s.merge(&h.get(rr * l0.cols + cc));
-                }
-            }
-            s.weight = 1.0;
-            out.push(s);
+    let (r, c) = (t / l0.cols, t % l0.cols);
+    let mut s = HorizonStats::default();
+    for rr in [r, next(r, l0.rows)] {
+        for cc in [c, next(c, l0.cols)] {
+            s.merge(&h.get(rr * l0.cols + cc));
         }
     }
-    out
+    s.weight = 1.0;
+    s
+}
+
+/// Appends to `out` the shares of level-0 texel `t`'s lobes: `w·E[m_z⁺]` each
+/// ([`peak_projected_area`]) over their sum, or 0 when that is 0.
+fn cell_shares(l0: &Level, t: usize, out: &mut Vec<f64>) {
+    let (a, b) = (l0.lobe_start[t] as usize, l0.lobe_start[t + 1] as usize);
+    let start = out.len();
+    out.extend(
+        l0.lobes
+            .range(a, b)
+            .map(|p| p.weight * peak_projected_area(p.axis.z, p.exponent)),
+    );
+    let total: f64 = out[start..].iter().sum();
+    for m in &mut out[start..] {
+        *m = if total > 0.0 { *m / total } else { 0.0 };
+    }
 }
 
 /// `mass` (per lobe of `l`) divided by its texel's total, or 0 where that is 0.
@@ -183,8 +249,68 @@ fn normalise_per_texel(l: &Level, mut mass: Vec<f64>) -> Vec<f64> {
     mass
 }
 
+/// Hands level-0 cell `ct`'s projected area (its lobes' `shares`) to the lobes `pa..pb` of
+/// level `l` by the mixture's posterior: `give(j, m)` for each lobe `j` and area `m` > 0.
+/// `logr` is scratch.
+#[allow(clippy::too_many_arguments)]
+fn hand_cell(
+    l0: &Level,
+    ct: usize,
+    shares: &[f64],
+    l: &Level,
+    pa: usize,
+    pb: usize,
+    logr: &mut Vec<f64>,
+    mut give: impl FnMut(usize, f64),
+) {
+    if pa == pb {
+        return;
+    }
+    let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
+    for (lobe, &mj) in l0.lobes.range(ca, cb).zip(shares) {
+        let m = lobe.axis;
+        if mj <= 0.0 {
+            continue;
+        }
+        // Log responsibilities (log-sum-exp: sharp lobes underflow).
+        logr.clear();
+        let mut best = f64::NEG_INFINITY;
+        for p in l.lobes.range(pa, pb) {
+            let x = 0.5 * (1.0 + p.axis.dot(m));
+            let v = if x > 0.0 && p.weight > 0.0 {
+                p.weight.ln() + (p.exponent + 2.0).ln() + 0.5 * p.exponent * x.ln()
+            } else {
+                f64::NEG_INFINITY
+            };
+            best = best.max(v);
+            logr.push(v);
+        }
+        if best == f64::NEG_INFINITY {
+            // Opposite every lobe: the nearest axis takes it.
+            let near = (pa..pb)
+                .max_by(|&x, &y| {
+                    l.lobes
+                        .get(x)
+                        .axis
+                        .dot(m)
+                        .total_cmp(&l.lobes.get(y).axis.dot(m))
+                })
+                .unwrap_or(pa);
+            give(near, mj);
+            continue;
+        }
+        let z: f64 = logr.iter().map(|v| (v - best).exp()).sum();
+        for (i, v) in logr.iter().enumerate() {
+            let r = (v - best).exp() / z;
+            if r > 0.0 {
+                give(pa + i, mj * r);
+            }
+        }
+    }
+}
+
 /// Level `k`'s (`l`) shares and lobe horizon statistics from level 0 (`l0`, its lobes' shares
-/// `base`, its cells' horizon statistics `h0`, [`cell_horizons`]).
+/// `base`, its cells' horizon statistics `h0`, [`cell_horizon`]).
 fn hand_down(
     l0: &Level,
     base: &[f64],
@@ -195,64 +321,20 @@ fn hand_down(
     let mut mass = vec![0.0f64; l.lobes.len()];
     let mut hz = h0.map(|_| vec![HorizonStats::default(); l.lobes.len()]);
     let mut logr = Vec::with_capacity(8);
-    // Hands `m` of level-0 texel `ct`'s projected area to lobe `j` of `l`.
-    let mut give = |mass: &mut [f64], j: usize, m: f64, ct: usize| {
-        mass[j] += m;
-        if let (Some(hz), Some(h0)) = (&mut hz, h0) {
-            let mut s = h0[ct];
-            s.weight = m;
-            hz[j].merge(&s);
-        }
-    };
     for row in 0..l0.rows {
         for col in 0..l0.cols {
             let ct = row * l0.cols + col;
             let pt = (row >> k).min(l.rows - 1) * l.cols + (col >> k).min(l.cols - 1);
             let (pa, pb) = (l.lobe_start[pt] as usize, l.lobe_start[pt + 1] as usize);
-            if pa == pb {
-                continue;
-            }
             let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
-            for (lobe, &mj) in l0.lobes.range(ca, cb).zip(&base[ca..cb]) {
-                let m = lobe.axis;
-                if mj <= 0.0 {
-                    continue;
+            hand_cell(l0, ct, &base[ca..cb], l, pa, pb, &mut logr, |j, m| {
+                mass[j] += m;
+                if let (Some(hz), Some(h0)) = (&mut hz, h0) {
+                    let mut s = h0[ct];
+                    s.weight = m;
+                    hz[j].merge(&s);
                 }
-                // Log responsibilities (log-sum-exp: sharp lobes underflow).
-                logr.clear();
-                let mut best = f64::NEG_INFINITY;
-                for p in l.lobes.range(pa, pb) {
-                    let x = 0.5 * (1.0 + p.axis.dot(m));
-                    let v = if x > 0.0 && p.weight > 0.0 {
-                        p.weight.ln() + (p.exponent + 2.0).ln() + 0.5 * p.exponent * x.ln()
-                    } else {
-                        f64::NEG_INFINITY
-                    };
-                    best = best.max(v);
-                    logr.push(v);
-                }
-                if best == f64::NEG_INFINITY {
-                    // Opposite every lobe: the nearest axis takes it.
-                    let near = (pa..pb)
-                        .max_by(|&x, &y| {
-                            l.lobes
-                                .get(x)
-                                .axis
-                                .dot(m)
-                                .total_cmp(&l.lobes.get(y).axis.dot(m))
-                        })
-                        .unwrap_or(pa);
-                    give(&mut mass, near, mj, ct);
-                    continue;
-                }
-                let z: f64 = logr.iter().map(|v| (v - best).exp()).sum();
-                for (i, v) in logr.iter().enumerate() {
-                    let r = (v - best).exp() / z;
-                    if r > 0.0 {
-                        give(&mut mass, pa + i, mj * r, ct);
-                    }
-                }
-            }
+            });
         }
     }
     let compact = l.lobes.is_compact();
@@ -272,7 +354,7 @@ mod tests {
     /// (low horizons along +x) and the one tilted towards +x for the creases (high horizons);
     /// on the same heights upside down (grooves: the same NDF) the other way round. Level 0's
     /// lobes take their cell's statistics (its four corners pooled), and each texel's shares
-    /// sum to 1. Measured (32², period 16, level 4): bumps 0.333 rad for the flat lobe (it
+    /// sum to 1; one texel's [`texel_lobe_stats`] agrees with the whole pyramid's. Measured (32², period 16, level 4): bumps 0.333 rad for the flat lobe (it
     /// also stands for the normals tilted towards −x, which see their own cylinder's top
     /// along +x) and 0.686 for the steep one; grooves 0.982 and 0.214.
     #[test]
@@ -309,6 +391,19 @@ mod tests {
                     let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
                     let s: f64 = st.shares[k][a..b].iter().sum();
                     assert!((s - 1.0).abs() < 1e-9, "level {k} texel {t}: {s}");
+                }
+            }
+            // One texel's query agrees with the whole pyramid's.
+            for (k, l) in pyr.levels.iter().enumerate() {
+                let t = l.texels() / 2;
+                let one = texel_lobe_stats(&pyr, k, t / l.cols, t % l.cols).unwrap();
+                let a = l.lobe_start[t] as usize;
+                for (j, s) in one.iter().enumerate() {
+                    assert!((s.share - st.shares[k][a + j]).abs() < 1e-9);
+                    let (x, y) = (s.horizon.unwrap(), hz[k].get(a + j));
+                    for d in 0..4 {
+                        assert!((x.mean[d] - y.mean[d]).abs() < 1e-5, "level {k}");
+                    }
                 }
             }
             // Level 4: one texel per period (16 cells).
