@@ -159,29 +159,70 @@ impl HorizonStats {
     /// nearest of the four directions with weights cos²φ and sin²φ.
     #[must_use]
     pub fn visibility(&self, w: DVec3) -> f64 {
+        self.visibility_along(&HorizonDirection::new(w))
+    }
+
+    /// [`HorizonStats::visibility`] of a direction prepared once ([`HorizonDirection::new`]),
+    /// for many statistics seen from the same direction (one shading call's lobes).
+    #[inline]
+    #[must_use]
+    pub fn visibility_along(&self, d: &HorizonDirection) -> f64 {
         if self.weight <= 0.0 {
             return 1.0;
         }
-        if w.z <= 0.0 {
-            return 0.0;
+        if let Some(v) = d.fixed {
+            return v;
         }
-        let rxy = (w.x * w.x + w.y * w.y).sqrt();
-        let elev = w.z.atan2(rxy);
-        if rxy < 1e-12 {
-            return 1.0;
-        }
-        let (c, s) = (w.x / rxy, w.y / rxy);
-        let ix = if c >= 0.0 { 0 } else { 2 };
-        let iy = if s >= 0.0 { 1 } else { 3 };
-        let (c2, s2) = (c * c, s * s);
-        let mu = c2 * self.mean[ix] + s2 * self.mean[iy];
-        let var = c2 * self.var[ix] + s2 * self.var[iy];
+        let mu = d.c2 * self.mean[d.ix] + d.s2 * self.mean[d.iy];
+        let var = d.c2 * self.var[d.ix] + d.s2 * self.var[d.iy];
         let half = 3f64.sqrt() * var.max(0.0).sqrt();
         if half < 1e-9 {
-            return if elev > mu { 1.0 } else { 0.0 };
+            return if d.elev > mu { 1.0 } else { 0.0 };
         }
-        let x = ((elev - (mu - half)) / (2.0 * half)).clamp(0.0, 1.0);
+        let x = ((d.elev - (mu - half)) / (2.0 * half)).clamp(0.0, 1.0);
         x * x * (3.0 - 2.0 * x)
+    }
+}
+
+/// A direction prepared for [`HorizonStats::visibility_along`]: its elevation (radians) and
+/// its azimuth's two nearest horizon directions with their weights cos²φ and sin²φ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HorizonDirection {
+    elev: f64,
+    ix: usize,
+    iy: usize,
+    c2: f64,
+    s2: f64,
+    /// The visibility when it does not depend on the statistics: 0 below the horizon, 1 at
+    /// the zenith.
+    fixed: Option<f64>,
+}
+
+impl HorizonDirection {
+    /// The direction `w` (local frame, z up; need not be unit).
+    #[must_use]
+    pub fn new(w: DVec3) -> HorizonDirection {
+        let rxy = (w.x * w.x + w.y * w.y).sqrt();
+        let mut d = HorizonDirection {
+            elev: w.z.atan2(rxy),
+            ix: 0,
+            iy: 1,
+            c2: 1.0,
+            s2: 0.0,
+            fixed: None,
+        };
+        if w.z <= 0.0 {
+            d.fixed = Some(0.0);
+        } else if rxy < 1e-12 {
+            d.fixed = Some(1.0);
+        } else {
+            let (c, s) = (w.x / rxy, w.y / rxy);
+            d.ix = if c >= 0.0 { 0 } else { 2 };
+            d.iy = if s >= 0.0 { 1 } else { 3 };
+            d.c2 = c * c;
+            d.s2 = s * s;
+        }
+        d
     }
 }
 

@@ -55,11 +55,11 @@ pub use fit::FitParams;
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;
-pub use horizon::{HorizonMap, HorizonStats};
+pub use horizon::{HorizonDirection, HorizonMap, HorizonStats};
 pub use input::{Input, InputKind};
 pub use pyramid::{
-    extract, extract_bytes, extract_work, ExtractParams, Level, Method, Progress, Pyramid,
-    PyramidInfo, Source,
+    extract, extract_bytes, extract_work, lobe_stats, peak_projected_area, texel_lobe_stats,
+    ExtractParams, Level, LobeStat, LobeStats, Method, Progress, Pyramid, PyramidInfo, Source,
 };
 pub use resolver::{ExtractProgress, MapsResolver};
 pub use visibility::BinnedVisibility;

@@ -22,7 +22,7 @@
 //! | `POST /api/blend` | `{a, b, t}` | the blended material (JSON) |
 //! | `POST /api/texture?kind=…` | the bytes of a height map, normal map or map file | the texture's id and levels (JSON) |
 //! | `GET /api/texture/{id}` | — | the same summary of an open texture |
-//! | `GET /api/texture/{id}/texel?level=&row=&col=` | — | a texel's lobes (JSON) |
+//! | `GET /api/texture/{id}/texel?level=&row=&col=` | — | a texel's lobes, with each one's share of projected area and horizon statistics (JSON) |
 //! | `POST /api/texture/render` | `{texture, material, view?, lights?, repeat?}` | PNG of the textured object |
 //!
 //! A material's NDF may name a texel of an open texture (`{"kind": "map", "texture": id,

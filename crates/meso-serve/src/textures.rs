@@ -174,8 +174,13 @@ impl Texture {
 
     /// The lobes of texel `(row, col)` of level `level` (`GET /api/texture/{id}/texel`): each
     /// lobe's axis as `[θ, φ]` in degrees (φ in [0, 360), rounded to 1e-6°), its weight and its
-    /// Phong exponent η, in the JSON form of a `phong-peaks` lobe; the level's size and the
-    /// texel's footprint in level-0 cells.
+    /// Phong exponent η, in the JSON form of a `phong-peaks` lobe, plus what it stands for
+    /// ([`meso_maps::texel_lobe_stats`]): `share`, its share of the texel's projected area, and
+    /// for height maps `horizon`, the horizon angles of the cells whose normals it stands for
+    /// along +x, +y, −x, −y as `{"mean": [4], "sd": [4]}` in degrees (`null` for normal maps),
+    /// from which the renderer takes the lobe's visibility of the light; the level's size and
+    /// the texel's footprint in level-0 cells. Cost: one visit of each level-0 cell of the
+    /// footprint (the whole map for the top level).
     ///
     /// # Errors
     /// 400 naming a level, row or column out of range.
@@ -190,21 +195,32 @@ impl Texture {
                 lv.rows, lv.cols
             ))
         })?;
+        let stats = meso_maps::texel_lobe_stats(p, level, row, col)
+            .map_err(|e| ApiError::bad_request(format!("texel [{row}, {col}]: {e}")))?;
         let c0 = p.levels[0].cols;
         let r0 = p.levels[0].rows;
         let out: Vec<Value> = lobes
             .iter()
-            .map(|l| {
+            .zip(&stats)
+            .map(|(l, st)| {
                 let (t, ph) = meso_core::frame::spherical_angles(l.axis);
                 let r = |x: f64| (x * 1e6).round() / 1e6;
                 let mut ph = r(ph.to_degrees());
                 if ph < 0.0 {
                     ph += 360.0;
                 }
+                let horizon = st.horizon.map(|h| {
+                    json!({
+                        "mean": h.mean.map(|a| r(a.to_degrees())),
+                        "sd": h.var.map(|v| r(v.max(0.0).sqrt().to_degrees())),
+                    })
+                });
                 json!({
                     "axis": [r(t.to_degrees()), ph],
                     "weight": l.weight,
                     "exponent": l.exponent,
+                    "share": st.share,
+                    "horizon": horizon,
                 })
             })
             .collect();

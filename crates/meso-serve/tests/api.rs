@@ -897,6 +897,30 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
     }
     for (level, row, col) in [(0, 5, 7), (2, 1, 3), (3, 0, 2), (5, 0, 0)] {
         assert_same_lobes(&texel_lobes(&id, level, row, col), &own, level, row, col);
+        // Each lobe's share and horizon statistics: meso-maps' own.
+        let v = get(&format!(
+            "/api/texture/{id}/texel?level={level}&row={row}&col={col}"
+        ))
+        .json();
+        let want = meso_maps::texel_lobe_stats(&own, level, row, col).unwrap();
+        let got = v["lobes"].as_array().unwrap();
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(&want) {
+            assert!(
+                (g["share"].as_f64().unwrap() - w.share).abs() < 1e-12,
+                "{g}"
+            );
+            let h = w.horizon.unwrap();
+            for d in 0..4 {
+                let m = g["horizon"]["mean"][d].as_f64().unwrap();
+                assert!((m - h.mean[d].to_degrees()).abs() < 1e-6, "{g}");
+            }
+        }
+        let total: f64 = got.iter().map(|g| g["share"].as_f64().unwrap()).sum();
+        assert!(
+            (total - 1.0).abs() < 1e-9,
+            "level {level}: shares sum to {total}"
+        );
     }
     // The same bytes and parameters again: answered from memory.
     let again = upload(&height_query(s, scale), &png).json();
@@ -1089,6 +1113,9 @@ fn a_normal_map_opens() {
     let id = info["id"].as_str().unwrap();
     let lobes = texel_lobes(id, 0, 3, 3);
     assert_eq!(lobes.len(), 1);
+    let v = get(&format!("/api/texture/{id}/texel?level=0&row=3&col=3")).json();
+    assert_eq!(v["lobes"][0]["horizon"], Value::Null);
+    assert!((v["lobes"][0]["share"].as_f64().unwrap() - 1.0).abs() < 1e-12);
     assert!(lobes[0][0] > 5.0 && lobes[0][0] < 20.0, "{lobes:?}");
     let msg = post_json(
         "/api/texture/render",

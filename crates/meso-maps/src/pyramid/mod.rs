@@ -19,7 +19,9 @@
 //! parameter checks, level by level, rows in batches) in `extract.rs`; fitting one row of a
 //! level (merging the children's entries and horizon statistics, fitting, sampled residuals) in
 //! `level_fit.rs`; assembling a level from its rows into `f64` or `f32` storage, and what it
-//! hands to the next level, in `builder.rs`.
+//! hands to the next level, in `builder.rs`; what each lobe stands for, handed down from the
+//! level-0 normals (its share of its texel's projected area and the horizon statistics of the
+//! cells it stands for: [`lobe_stats`]), in `shares.rs`.
 
 mod access;
 mod builder;
@@ -27,6 +29,7 @@ mod cost;
 mod extract;
 mod info;
 mod level_fit;
+mod shares;
 
 pub use cost::{
     extract_bytes, extract_work, EXTRACT_BYTES_PER_CELL, EXTRACT_BYTES_PER_EXTRA_NORMAL,
@@ -34,6 +37,7 @@ pub use cost::{
 };
 pub use extract::extract;
 pub use info::{LevelInfo, PyramidInfo};
+pub use shares::{lobe_stats, peak_projected_area, texel_lobe_stats, LobeStat, LobeStats};
 
 use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
 use crate::facets::{FacetNormals, NormalMode};

@@ -1,21 +1,22 @@
 //! Building an [`NdfMapped`] from a pyramid: per level and texel, its lobes as spherical
 //! Gaussians weighted by their share of the texel's projected area over their own
 //! ([`SgLobe`]), and for Lambert and general facets their nodes weighted by projected area
-//! ([`Node`]).
+//! ([`Node`]); with shadowing, the horizon statistics of each texel and of each lobe (both
+//! from [`meso_maps::lobe_stats`], which hands the level-0 normals' projected area and horizons
+//! to the lobes that stand for them).
 //!
 //! # Conventions
 //! * A texel with no lobe facing up shades as the flat surface (one lobe of
 //!   `meso_maps::limits::ETA_MAX` on the normal; one node on the normal).
 //! * Each texel's node weights sum to 1.
 
-use super::lobes::{lobe_nodes, Node, SgLobe};
-use super::shares::{peak_projected_area, projected_shares};
+use super::lobes::{lobe_nodes, Node, SgLobe, NO_LOBE};
 use super::{NdfMapped, NodeLevel};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
 use meso_core::sg;
-use meso_maps::Pyramid;
+use meso_maps::{lobe_stats, peak_projected_area, Pyramid};
 use std::f64::consts::FRAC_1_PI;
 
 impl NdfMapped {
@@ -38,7 +39,9 @@ impl NdfMapped {
         // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
         let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
         let mut levels = Vec::with_capacity(pyramid.levels.len());
-        let shares = projected_shares(pyramid);
+        let stats = lobe_stats(pyramid, shadowing);
+        let shares = &stats.shares;
+        let mut lobe_horizons = stats.horizon.map(Vec::into_iter);
         for (k, l) in pyramid.levels.iter().enumerate() {
             if shadowing && l.horizon.is_none() {
                 return Err(format!(
@@ -66,7 +69,8 @@ impl NdfMapped {
                 // and its own projected area E[m_z⁺] per unit of weight.
                 let share = &shares[k][l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
                 let mut any = false;
-                for (p, &sh) in src.iter().zip(share) {
+                let first = l.lobe_start[t];
+                for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
                     let e = peak_projected_area(p.axis.z, p.exponent);
                     if sh <= 0.0 || e <= 1e-12 {
                         continue;
@@ -74,7 +78,13 @@ impl NdfMapped {
                     any = true;
                     let kappa = sg::kappa_same_mean_cos(p.exponent);
                     let norm = sg::normaliser_2pi(kappa);
-                    lobes.push(SgLobe::new(p.axis, p.exponent, kappa, sh / e * norm));
+                    lobes.push(SgLobe::new(
+                        p.axis,
+                        p.exponent,
+                        kappa,
+                        sh / e * norm,
+                        first + j as u32,
+                    ));
                 }
                 if !any {
                     // No lobe faces up: shade as the flat surface.
@@ -85,6 +95,7 @@ impl NdfMapped {
                         kappa,
                         sg::normaliser_2pi(kappa)
                             / sg::phong_peak_mean_cos(meso_maps::limits::ETA_MAX),
+                        NO_LOBE,
                     ));
                 }
                 lobe_start.push(lobes.len() as u32);
@@ -92,17 +103,17 @@ impl NdfMapped {
                     // Each lobe's nodes weighted by their projected area, scaled to the lobe's
                     // share.
                     let before = nodes.len();
-                    for (p, &sh) in src.iter().zip(share) {
+                    for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
                         tmp.clear();
-                        lobe_nodes(p.axis, 1.0, p.exponent, &mut tmp);
+                        lobe_nodes(p.axis, 1.0, p.exponent, first + j as u32, &mut tmp);
                         for n in &mut tmp {
                             n.w *= n.n.z.max(0.0);
                         }
                         let total: f64 = tmp.iter().map(|n| n.w).sum();
                         if sh > 0.0 && total > 0.0 {
                             nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
-                                n: n.n,
                                 w: n.w / total * sh,
+                                ..*n
                             }));
                         }
                     }
@@ -116,6 +127,7 @@ impl NdfMapped {
                         nodes.push(Node {
                             n: DVec3::Z,
                             w: 1.0,
+                            src: NO_LOBE,
                         });
                     }
                     node_start.push(nodes.len() as u32);
@@ -134,6 +146,7 @@ impl NdfMapped {
                 } else {
                     None
                 },
+                lobe_horizon: lobe_horizons.as_mut().and_then(Iterator::next),
             });
         }
         if levels.is_empty() {
@@ -148,6 +161,7 @@ impl NdfMapped {
             footprint_scale: 1.0,
             sharp_magnification: false,
             box_filter: true,
+            texel_visibility: false,
         })
     }
 }

@@ -12,12 +12,19 @@ use meso_core::frame::Frame;
 use meso_core::sg;
 
 /// One node of a texel's filtered NDF (general facet transfers only): a unit normal with its
-/// projected-area weight.
+/// projected-area weight and the lobe it comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Node {
     pub(super) n: DVec3,
     pub(super) w: f64,
+    /// Index of its lobe among the pyramid level's lobes (for the lobe's horizon statistics),
+    /// or [`NO_LOBE`].
+    pub(super) src: u32,
 }
+
+/// The `src` of a lobe or node that stands for no lobe of the pyramid (a texel with nothing
+/// facing up shaded as the flat surface): it takes its texel's horizon statistics.
+pub(super) const NO_LOBE: u32 = u32::MAX;
 
 /// One fitted lobe of a texel, as the spherical Gaussian `c·exp(κ(a·m − 1))` of the same mean
 /// cosine ([`sg::kappa_same_mean_cos`]: the lobe's projected area normalises it, see
@@ -38,12 +45,15 @@ pub(super) struct SgLobe {
     /// Area weight ÷ the texel's projected area × the Gaussian's normalisation `κ/(1 − e^{−2κ})`
     /// (without its `1/2π`, which the product integral's `2π` cancels).
     w: f64,
+    /// Index of the lobe among the pyramid level's lobes (for its horizon statistics), or
+    /// [`NO_LOBE`].
+    pub(super) src: u32,
 }
 
 impl SgLobe {
     /// The lobe of the Phong peak `(axis, η)` with Gaussian concentration `kappa` and weight
-    /// `w` (normalisation included).
-    pub(super) fn new(axis: DVec3, eta: f64, kappa: f64, w: f64) -> SgLobe {
+    /// `w` (normalisation included), lobe `src` of its pyramid level (or [`NO_LOBE`]).
+    pub(super) fn new(axis: DVec3, eta: f64, kappa: f64, w: f64, src: u32) -> SgLobe {
         // Phong: (η + 2)/(8π); Gaussian: sg::normaliser(κ) = κ/(2π(1 − e^{−2κ})).
         let ratio = 0.25 * (eta + 2.0) / sg::normaliser_2pi(kappa);
         SgLobe {
@@ -53,6 +63,7 @@ impl SgLobe {
             half_eta: 0.5 * eta,
             ln_ratio: ratio.ln(),
             w,
+            src,
         }
     }
 }
@@ -62,12 +73,17 @@ const RING: usize = 6;
 /// Weight of the axis node.
 const AXIS_WEIGHT: f64 = 0.25;
 
-/// Replace a Phong peak by 7 weighted nodes (area weights) with the lobe's mean cosine.
-pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<Node>) {
+/// Replace a Phong peak (lobe `src` of its pyramid level) by 7 weighted nodes (area weights)
+/// with the lobe's mean cosine.
+pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out: &mut Vec<Node>) {
     let mean = sg::phong_peak_mean_cos(exponent);
     let c = ((mean - AXIS_WEIGHT) / (1.0 - AXIS_WEIGHT)).clamp(-1.0, 1.0);
     if c > 1.0 - 1e-9 {
-        out.push(Node { n: axis, w: weight });
+        out.push(Node {
+            n: axis,
+            w: weight,
+            src,
+        });
         return;
     }
     let s = (1.0 - c * c).max(0.0).sqrt();
@@ -75,6 +91,7 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<
     out.push(Node {
         n: axis,
         w: weight * AXIS_WEIGHT,
+        src,
     });
     for k in 0..RING {
         let a = std::f64::consts::TAU * k as f64 / RING as f64;
@@ -82,6 +99,7 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<
             n: f.to_world(DVec3::new(s * a.cos(), s * a.sin(), c))
                 .normalize(),
             w: weight * (1.0 - AXIS_WEIGHT) / RING as f64,
+            src,
         });
     }
 }
@@ -91,9 +109,18 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, out: &mut Vec<
 /// [`NdfMapped`](super::NdfMapped)). `lambda = η + 1` is the Gaussian of the transfer (same
 /// integral over the sphere: [`sg::kappa_transfer`]). The product of the lobe and the
 /// transfer's Gaussian is [`sg::product`] written out on the lobe's precomputed `κa`, with its
-/// `r − κ` kept apart for the shape corrections (no allocation, one `exp` per lobe).
+/// `r − κ` kept apart for the shape corrections (no allocation, one `exp` per lobe). Each
+/// lobe's term is multiplied by `vis(lobe)` (its visibility of the light, in `[0, 1]`; `1`
+/// without shadowing), which is called only for lobes that reflect something.
 #[inline]
-pub(super) fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambda: f64) -> f64 {
+pub(super) fn phong_texel(
+    lobes: &[SgLobe],
+    wi: DVec3,
+    h: DVec3,
+    eta: f64,
+    lambda: f64,
+    vis: impl Fn(&SgLobe) -> f64,
+) -> f64 {
     let mut sum = 0.0;
     for l in lobes {
         let kah = l.ka.dot(h);
@@ -130,7 +157,7 @@ pub(super) fn phong_texel(lobes: &[SgLobe], wi: DVec3, h: DVec3, eta: f64, lambd
         let (mass, a_r) = (sg::integral_per_2pi(r), sg::mean_cos(r) * inv_r);
         let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
         if q > 0.0 {
-            sum += l.w * mass * q * e;
+            sum += l.w * mass * q * e * vis(l);
         }
     }
     sum
@@ -157,8 +184,14 @@ mod tests {
     fn closed(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
         let kappa = sg::kappa_same_mean_cos(eta_n);
         let area = eta_n / (eta_n + 4.0) * axis.z;
-        let lobe = SgLobe::new(axis, eta_n, kappa, sg::normaliser_2pi(kappa) / area);
-        phong_texel(&[lobe], wi, h, eta, sg::kappa_transfer(eta))
+        let lobe = SgLobe::new(
+            axis,
+            eta_n,
+            kappa,
+            sg::normaliser_2pi(kappa) / area,
+            NO_LOBE,
+        );
+        phong_texel(&[lobe], wi, h, eta, sg::kappa_transfer(eta), |_| 1.0)
     }
 
     /// The closed form of one lobe under Phong facets agrees with the quadrature, from a
@@ -207,5 +240,39 @@ mod tests {
                 "{eta}: {k}"
             );
         }
+    }
+
+    /// `E[m_z⁺]` of a Phong peak (`meso_maps::peak_projected_area`): the closed form above the
+    /// horizon and the quadrature across it agree with a brute-force quadrature of the peak over
+    /// the sphere (in the lobe's frame), and a lobe at the horizon covers far more than `μ a_z`
+    /// says.
+    #[test]
+    fn peak_projected_area_matches_quadrature() {
+        use meso_maps::peak_projected_area;
+        for (a_z, eta) in [
+            (0.9f64, 40.0f64),
+            (0.5, 4.0),
+            (0.3, 40.0),
+            (0.05, 4.0),
+            (0.05, 100.0),
+            (0.05, 1e4),
+            (0.2, 1e6),
+        ] {
+            let axis = DVec3::new((1.0 - a_z * a_z).sqrt(), 0.0, a_z);
+            let amax = (40.0 / f64::sqrt(eta)).min(std::f64::consts::PI);
+            let (mut num, mut den) = (0.0, 0.0);
+            for_each_peak_node(axis, DVec3::Y, eta, amax, (4000, 720), |d, m| {
+                num += d * m.z.max(0.0);
+                den += d;
+            });
+            let want = num / den;
+            let got = peak_projected_area(a_z, eta);
+            assert!(
+                (got - want).abs() < 2e-3 * want,
+                "a_z {a_z}, η {eta}: {got} vs {want}"
+            );
+        }
+        // A lobe of η = 100 at a_z = 0.05: several times μ a_z.
+        assert!(peak_projected_area(0.05, 100.0) > 2.0 * 0.05 * 100.0 / 104.0);
     }
 }

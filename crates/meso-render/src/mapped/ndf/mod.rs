@@ -4,14 +4,15 @@
 //! This module holds the material (its per-level tables, options and the [`Shader`] entry
 //! points, which blend the taps' per-texel responses); the sub-modules hold its parts:
 //!
-//! * `build` — [`NdfMapped::new`]: the per-level tables from a pyramid;
-//! * `shares` — each lobe's share of its texel's projected area, from the level-0 normals;
+//! * `build` — [`NdfMapped::new`]: the per-level tables from a pyramid, with each lobe's
+//!   share of its texel's projected area and its horizon statistics from
+//!   [`meso_maps::lobe_stats`] (handed down from the level-0 normals);
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
 //!   Phong facets, and the 7-node form of a lobe for other facets;
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
 //!   magnification);
 //! * `peak_quadrature` (tests only) — the brute-force quadrature over one Phong peak that the
-//!   tests of `lobes` and `shares` check against.
+//!   tests of `lobes` check against.
 //!
 //! # Conventions
 //! * Texels are indexed row-major per level (`row · cols + col`), wrapped periodically;
@@ -26,9 +27,9 @@ mod filter;
 mod lobes;
 #[cfg(test)]
 mod peak_quadrature;
-mod shares;
 
-use lobes::{phong_texel, Node, SgLobe};
+use lobes::{phong_texel, Node, SgLobe, NO_LOBE};
+use meso_maps::{HorizonDirection, Horizons};
 
 /// One level of the filtered pyramid.
 #[derive(Clone, Debug)]
@@ -42,7 +43,11 @@ struct NodeLevel {
     /// Nodes for a general facet transfer (empty otherwise).
     node_start: Vec<u32>,
     nodes: Vec<Node>,
+    /// Per texel, its horizon statistics (with shadowing).
     horizon: Option<Vec<HorizonStats>>,
+    /// Per lobe of the pyramid level (the `src` of [`SgLobe`] and [`Node`]), the horizon
+    /// statistics of the cells it stands for (with shadowing).
+    lobe_horizon: Option<Horizons>,
 }
 
 /// A material reading an NDF pyramid (see the module docs): the filtered bump map.
@@ -56,6 +61,7 @@ pub struct NdfMapped {
     footprint_scale: f64,
     sharp_magnification: bool,
     box_filter: bool,
+    texel_visibility: bool,
 }
 
 impl NdfMapped {
@@ -96,6 +102,16 @@ impl NdfMapped {
         self
     }
 
+    /// With shadowing, multiply each texel's response by one visibility of the light for the
+    /// whole texel (its `HorizonStats::visibility`, blended over the taps) instead of each
+    /// lobe's by its own (the default, see the module docs, "Visibility per lobe"): the model
+    /// before 2026-12-03, kept for comparison; it cannot tell bumps from grooves.
+    #[must_use]
+    pub fn with_texel_visibility(mut self, on: bool) -> NdfMapped {
+        self.texel_visibility = on;
+        self
+    }
+
     /// Multiply the ray-differential footprint by `scale` (> 0; default 1) before choosing the
     /// level of detail (for experiments; the renderer already fits the footprint to each
     /// sample's share of the pixel).
@@ -107,15 +123,38 @@ impl NdfMapped {
         self
     }
     /// The facets' response `E[f_μ(i, o; m) (m·i)⁺]` of texel `t` of level `l` (scalar for
-    /// Phong and Lambert facets, whose colour is applied by the caller).
+    /// Phong and Lambert facets, whose colour is applied by the caller), each lobe's part
+    /// multiplied by its visibility of the light `wi` (prepared as `dir`) when `dir` is given
+    /// and the level has per-lobe horizon statistics.
     #[inline]
-    fn texel(&self, l: &NodeLevel, t: usize, wi: DVec3, wo: DVec3, h: DVec3) -> [f64; 3] {
+    #[allow(clippy::too_many_arguments)]
+    fn texel(
+        &self,
+        l: &NodeLevel,
+        t: usize,
+        wi: DVec3,
+        wo: DVec3,
+        h: DVec3,
+        dir: Option<&HorizonDirection>,
+    ) -> [f64; 3] {
+        let vis = |src: u32| -> f64 {
+            match (dir, &l.lobe_horizon, &l.horizon) {
+                (Some(d), Some(lh), Some(th)) => {
+                    if src == NO_LOBE {
+                        th[t].visibility_along(d)
+                    } else {
+                        lh.get(src as usize).visibility_along(d)
+                    }
+                }
+                _ => 1.0,
+            }
+        };
         match self.facet {
             Facet::Phong { exponent, .. } => {
                 let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
                 let eta = f64::from(exponent);
                 [
-                    phong_texel(lobes, wi, h, eta, sg::kappa_transfer(eta)),
+                    phong_texel(lobes, wi, h, eta, sg::kappa_transfer(eta), |lb| vis(lb.src)),
                     0.0,
                     0.0,
                 ]
@@ -124,8 +163,9 @@ impl NdfMapped {
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
                 let mut a = 0.0;
                 for nd in nodes {
-                    if nd.n.dot(wo) > 0.0 {
-                        a += nd.w * nd.n.dot(wi).max(0.0);
+                    let c = nd.n.dot(wi);
+                    if nd.n.dot(wo) > 0.0 && c > 0.0 {
+                        a += nd.w * c * vis(nd.src);
                     }
                 }
                 [a, 0.0, 0.0]
@@ -135,8 +175,12 @@ impl NdfMapped {
                 let mut a = [0.0f64; 3];
                 for nd in nodes {
                     let v = self.facet.lit(nd.n, wi, wo, h);
+                    if v == [0.0; 3] {
+                        continue;
+                    }
+                    let w = nd.w * vis(nd.src);
                     for c in 0..3 {
-                        a[c] += nd.w * f64::from(v[c]);
+                        a[c] += w * f64::from(v[c]);
                     }
                 }
                 a
@@ -173,11 +217,19 @@ impl Shader for NdfMapped {
                 continue;
             }
             let h = s / len;
+            // Per lobe (the default): each lobe's part times its own visibility; per texel:
+            // the response times the taps' blended visibility.
+            let dir = if self.shadowing {
+                HorizonDirection::new(i)
+            } else {
+                HorizonDirection::new(DVec3::Z)
+            };
+            let per_lobe = self.shadowing && !self.texel_visibility;
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for &(lev, t, w) in &taps[..ntaps] {
                 let l = &self.levels[lev];
-                let v = self.texel(l, t, i, wo, h);
+                let v = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir));
                 if scalar {
                     acc[0] += w * v[0];
                 } else {
@@ -185,11 +237,17 @@ impl Shader for NdfMapped {
                         acc[c] += w * v[c];
                     }
                 }
-                if let Some(hz) = &l.horizon {
-                    vis += w * hz[t].visibility(i);
+                if !per_lobe {
+                    if let Some(hz) = &l.horizon {
+                        vis += w * hz[t].visibility_along(&dir);
+                    }
                 }
             }
-            let v = if self.shadowing { vis } else { 1.0 };
+            let v = if self.shadowing && !per_lobe {
+                vis
+            } else {
+                1.0
+            };
             let s = v / i.z;
             for c in 0..3 {
                 let a = if scalar { acc[0] * colour[c] } else { acc[c] };

@@ -1,6 +1,6 @@
 //! A brute-force quadrature over one Phong peak `cos^η(α/2)` in the peak's own frame, for the
-//! tests of `lobes` (the closed-form response) and `shares` (the projected area): written once,
-//! independent of the Gaussian forms both check.
+//! tests of `lobes` (the closed-form response and `meso_maps::peak_projected_area`, the
+//! projected area): written once, independent of the Gaussian forms both check.
 
 use glam::DVec3;
 use meso_core::frame::Frame;

@@ -1,0 +1,134 @@
+//! Time the NDF-mapped material with shadowing: building it from a pyramid, and rendering a
+//! plane of it, with each lobe's own visibility (the default) and with one visibility per
+//! texel (`NdfMapped::with_texel_visibility`, the model before):
+//!
+//! `cargo run --release -p meso-render --example bench_mapped -- [MAP] [SIZE] [FRAMES]`
+//!
+//! `MAP`: side of the generated Gaussian height map (`meso_maps::fixtures::gaussian`,
+//! correlation 4 texels; default 512); `SIZE`: image side in pixels (default 256); `FRAMES`:
+//! frames per case (default 5). Builds are timed without shadowing (shares only), with
+//! shadowing (shares and the lobes' horizon statistics), and `meso_maps::lobe_stats` alone;
+//! frames at 8 and 32 texels per pixel, 1 spp, Phong η = 20 facets, one directional light at
+//! 70° from the normal. Prints the best wall time and the mean process CPU time per case.
+
+use glam::DVec3;
+use meso_core::material::Material;
+use meso_maps::{extract, fixtures, lobe_stats, ExtractParams, Source};
+use meso_render::*;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// User + system CPU seconds of this process (Linux `/proc/self/stat`, 100 ticks/s).
+fn cpu_seconds() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = s.rsplit_once(')').map_or("", |x| x.1);
+    let f: Vec<&str> = after.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(11) + tick(12)) / 100.0
+}
+
+/// Runs `f` `n` times: (best wall ms, mean CPU ms).
+fn time(n: u32, mut f: impl FnMut()) -> (f64, f64) {
+    let c0 = cpu_seconds();
+    let mut best = f64::MAX;
+    for _ in 0..n {
+        let t = Instant::now();
+        f();
+        best = best.min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    (best, (cpu_seconds() - c0) * 1e3 / f64::from(n))
+}
+
+fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32) -> Scene {
+    let cam = Camera::new(
+        Projection::Orthographic { width },
+        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .unwrap();
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp: 1,
+            background: [0.0; 3],
+        },
+    );
+    let m = b.material(shader);
+    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
+    let t = 70f64.to_radians();
+    b.light(Light::Directional {
+        direction: DVec3::new(t.sin(), 0.0, t.cos()),
+        irradiance: DVec3::splat(2.0),
+    })
+    .unwrap();
+    b.build().unwrap()
+}
+
+fn main() {
+    let args: Vec<usize> = std::env::args()
+        .skip(1)
+        .map(|a| a.parse().expect("numbers: MAP SIZE FRAMES"))
+        .collect();
+    let n = args.first().copied().unwrap_or(512);
+    let size = args.get(1).copied().unwrap_or(256) as u32;
+    let frames = args.get(2).copied().unwrap_or(5) as u32;
+    let s = 1.0 / n as f64;
+    let map = fixtures::gaussian(n, 4.0, 0.7 * s, 3, s).unwrap();
+    let t = Instant::now();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let lobes: usize = pyr.levels.iter().map(|l| l.lobes.len()).sum();
+    println!(
+        "{n}² Gaussian map: extracted in {:.1} s, {} levels, {lobes} lobes",
+        t.elapsed().as_secs_f64(),
+        pyr.levels.len()
+    );
+    let surface = Material::from_toml_str(
+        "[transfer]\nkind = \"phong\"\nexponent = 20.0\nspecular = [0.6, 0.6, 0.6]\n",
+    )
+    .unwrap();
+    let tpu = n as f64;
+    for (what, shadowing) in [("without shadowing", false), ("with shadowing", true)] {
+        let (wall, cpu) = time(3, || {
+            std::hint::black_box(NdfMapped::new(&pyr, &surface, tpu, shadowing).unwrap());
+        });
+        println!("build {what}: best {wall:.0} ms wall, mean {cpu:.0} ms CPU");
+    }
+    for (what, horizons) in [("shares", false), ("shares + lobe horizons", true)] {
+        let (wall, cpu) = time(3, || {
+            std::hint::black_box(lobe_stats(&pyr, horizons));
+        });
+        println!("lobe_stats, {what}: best {wall:.0} ms wall, mean {cpu:.0} ms CPU");
+    }
+    let ndf = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
+    for cells in [8.0, 32.0] {
+        let width = cells * f64::from(size) / tpu;
+        for (what, shader) in [
+            ("per lobe", Arc::new(ndf.clone()) as Arc<dyn Shader>),
+            (
+                "per texel",
+                Arc::new(ndf.clone().with_texel_visibility(true)) as Arc<dyn Shader>,
+            ),
+        ] {
+            let scene = plane_scene(shader, width, size);
+            let opts = RenderOptions {
+                spp: Some(1),
+                ..RenderOptions::default()
+            };
+            let (wall, cpu) = time(frames, || {
+                std::hint::black_box(render(&scene, &opts, None));
+            });
+            println!(
+                "{size}² frame, {cells} texels/px, visibility {what}: best {wall:.1} ms wall, \
+                 mean {cpu:.1} ms CPU"
+            );
+        }
+    }
+}
