@@ -475,12 +475,7 @@ impl Canvas {
         dst: Rect,
         filter: Filter,
     ) -> Result<(), PlotError> {
-        check_buffer(width, height, bytes.len())?;
-        self.blit_fn(width, height, dst, filter, |x, y| {
-            let i = 3 * (y as usize * width as usize + x as usize);
-            [bytes[i], bytes[i + 1], bytes[i + 2]].map(|v| f32::from(v) / 255.0)
-        });
-        Ok(())
+        self.blit_rgb(bytes, width, height, dst, filter, |v| f32::from(v) / 255.0)
     }
 
     /// Copy f32 RGB values (`width * height * 3`, row-major, display-referred) into `dst`.
@@ -492,10 +487,30 @@ impl Canvas {
         dst: Rect,
         filter: Filter,
     ) -> Result<(), PlotError> {
+        self.blit_rgb(values, width, height, dst, filter, |v| {
+            if v.is_finite() {
+                v
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// Copy RGB values of any type (`width * height * 3`, row-major) into `dst`, each channel
+    /// read by `channel` ([`Canvas::blit_rgb8`], [`Canvas::blit_rgb_f32`]).
+    fn blit_rgb<T: Copy>(
+        &mut self,
+        values: &[T],
+        width: u32,
+        height: u32,
+        dst: Rect,
+        filter: Filter,
+        channel: impl Fn(T) -> f32,
+    ) -> Result<(), PlotError> {
         check_buffer(width, height, values.len())?;
         self.blit_fn(width, height, dst, filter, |x, y| {
             let i = 3 * (y as usize * width as usize + x as usize);
-            [values[i], values[i + 1], values[i + 2]].map(|v| if v.is_finite() { v } else { 0.0 })
+            [values[i], values[i + 1], values[i + 2]].map(&channel)
         });
         Ok(())
     }
