@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Read a UTF-8 text file of at most `limit` bytes, naming the file in every error.
 pub fn read_text(path: &Path, limit: u64) -> Result<String> {
@@ -114,9 +114,38 @@ pub fn par_map_progress<T: Sync, R: Send>(
         .collect()
 }
 
+/// The input and output of `meso brdf` and `meso gonio`: direction pairs in, BRDF values out.
+#[derive(clap::Args, Debug)]
+pub struct BrdfTable {
+    /// Direction pairs (CSV with header theta_i,phi_i,theta_o,phi_o; degrees).
+    #[arg(long)]
+    pub pairs: PathBuf,
+    /// Output CSV; standard output when absent.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+}
+
+impl BrdfTable {
+    /// The direction pairs of `--pairs` (errors name the file).
+    pub fn read_pairs(&self) -> Result<Vec<meso_core::pairs::DirectionPair>> {
+        let text = read_text(&self.pairs, 1 << 30)?;
+        meso_core::pairs::parse_pairs(&text).with_context(|| format!("{}", self.pairs.display()))
+    }
+
+    /// Write `values` at `pairs` as the CSV of `write_brdf_table`: to `--out` atomically, or to
+    /// standard output.
+    pub fn write(
+        &self,
+        pairs: &[meso_core::pairs::DirectionPair],
+        values: &[[f64; 3]],
+    ) -> Result<()> {
+        write_brdf_table(self.out.as_deref(), pairs, values)
+    }
+}
+
 /// Write BRDF values as the CSV of `meso brdf` and `meso gonio`: the pair's four angles as read
 /// (degrees) and `r,g,b` in 1/sr. To `out` atomically, or to standard output.
-pub fn write_brdf_table(
+fn write_brdf_table(
     out: Option<&Path>,
     pairs: &[meso_core::pairs::DirectionPair],
     values: &[[f64; 3]],

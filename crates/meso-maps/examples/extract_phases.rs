@@ -10,18 +10,9 @@ use meso_maps::{extract, fixtures, ExtractParams, Source};
 use std::hash::{Hash, Hasher};
 use std::time::Instant;
 
-/// `VmHWM` and `VmRSS` of this process in MB (Linux), or zeros.
-fn mem() -> (f64, f64) {
-    let text = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let field = |name: &str| {
-        text.lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_whitespace().nth(1))
-            .and_then(|v| v.parse::<f64>().ok())
-            .map_or(0.0, |kb| kb / 1024.0)
-    };
-    (field("VmHWM:"), field("VmRSS:"))
-}
+#[path = "common/proc_status.rs"]
+mod proc_status;
+use proc_status::mem;
 
 fn main() {
     let n: usize = std::env::args()

@@ -41,32 +41,32 @@ pub fn gaussian(n: usize, corr: f64, rms: f64, seed: u64, s: f64) -> Result<Heig
     let k: Vec<f64> = (-rad..=rad)
         .map(|d| (-(d * d) as f64 / (2.0 * corr * corr)).exp())
         .collect();
+    // Separable: along each row into `b`, then along each column back into `a`.
     let mut b = vec![0.0; n * n];
-    let ni = n as isize;
-    for i in 0..n {
-        for j in 0..n {
-            let mut v = 0.0;
-            for (t, kv) in k.iter().enumerate() {
-                let jj = (j as isize + t as isize - rad).rem_euclid(ni) as usize;
-                v += kv * a[i * n + jj];
-            }
-            b[i * n + j] = v;
-        }
-    }
-    for i in 0..n {
-        for j in 0..n {
-            let mut v = 0.0;
-            for (t, kv) in k.iter().enumerate() {
-                let ii = (i as isize + t as isize - rad).rem_euclid(ni) as usize;
-                v += kv * b[ii * n + j];
-            }
-            a[i * n + j] = v;
-        }
-    }
+    blur_periodic(&a, &mut b, n, &k, rad, 1);
+    blur_periodic(&b, &mut a, n, &k, rad, n);
     let mean = a.iter().sum::<f64>() / a.len() as f64;
     let sd = (a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / a.len() as f64).sqrt();
     let h = a.iter().map(|v| (v - mean) / sd * rms).collect();
     HeightMap::from_heights(n, n, h, s, Border::Wrap)
+}
+
+/// One pass of the periodic blur of [`gaussian`] over the `n × n` grid `src` into `dst`: the
+/// kernel `k` (centred at `rad`) along x (`stride = 1`) or along y (`stride = n`), wrapping.
+fn blur_periodic(src: &[f64], dst: &mut [f64], n: usize, k: &[f64], rad: isize, stride: usize) {
+    let ni = n as isize;
+    for i in 0..n {
+        for j in 0..n {
+            // The coordinate the kernel runs along, and the cell's offset without it.
+            let (along, base) = if stride == 1 { (j, i * n) } else { (i, j) };
+            let mut v = 0.0;
+            for (t, kv) in k.iter().enumerate() {
+                let q = (along as isize + t as isize - rad).rem_euclid(ni) as usize;
+                v += kv * src[base + q * stride];
+            }
+            dst[i * n + j] = v;
+        }
+    }
 }
 
 /// A plain-weave pattern of period `period` texels (a multiple of 4 works best): warp threads

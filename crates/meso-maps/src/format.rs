@@ -200,7 +200,7 @@ impl Pyramid {
         };
         let h = read_header(&mut r)?;
         let levels = if h.version == VERSION {
-            let mut levels = v3::read_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+            let mut levels = v3::read_levels(&mut r, &h)?;
             if let Some(sh) = v3::read_shading(&mut r, h.nlev)? {
                 for (l, (m, x)) in levels.iter_mut().zip(sh) {
                     l.residual.shading_mean = Some(m);
@@ -209,7 +209,7 @@ impl Pyramid {
             }
             levels
         } else {
-            read_levels_v2(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?
+            read_levels_v2(&mut r, &h)?
         };
         if r.pos != r.b.len() {
             return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
@@ -240,10 +240,10 @@ impl Pyramid {
         };
         let h = read_header(&mut r)?;
         if h.version == VERSION {
-            v3::check_levels(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+            v3::check_levels(&mut r, &h)?;
             v3::read_shading(&mut r, h.nlev)?;
         } else {
-            read_levels_v2(&mut r, h.cols, h.rows, h.nlev, h.max_lobes, h.has_h)?;
+            read_levels_v2(&mut r, &h)?;
         }
         if r.pos != r.b.len() {
             return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
@@ -346,15 +346,9 @@ fn read_header(r: &mut Reader<'_>) -> Result<Header> {
     })
 }
 
-/// The levels of a version-2 file, after the common header.
-fn read_levels_v2(
-    r: &mut Reader<'_>,
-    cols: usize,
-    rows: usize,
-    nlev: usize,
-    max_lobes: usize,
-    has_h: bool,
-) -> Result<Vec<Level>> {
+/// The levels of a version-2 file, after the common header `h`.
+fn read_levels_v2(r: &mut Reader<'_>, h: &Header) -> Result<Vec<Level>> {
+    let (cols, rows, nlev, max_lobes, has_h) = (h.cols, h.rows, h.nlev, h.max_lobes, h.has_h);
     let mut levels = Vec::with_capacity(nlev);
     let (mut ec, mut er) = (cols, rows);
     for k in 0..nlev {
@@ -373,13 +367,7 @@ fn read_levels_v2(
         if ((r.b.len() - r.pos) as u64) < need {
             return Err(r.err(format!("truncated in level {k}")));
         }
-        let residual = Residual {
-            mean: r.f64("residual")?,
-            max: r.f64("residual")?,
-            texels: r.u32("residual texels")?,
-            shading_mean: None,
-            shading_max: None,
-        };
+        let residual = r.residual()?;
         let counts = r.take(texels, "lobe counts")?;
         let mut lobe_start = Vec::with_capacity(texels + 1);
         lobe_start.push(0u32);
@@ -481,6 +469,19 @@ impl<'a> Reader<'a> {
             )));
         }
         Ok(nl)
+    }
+
+    /// A level's residual as both formats store it after the level header: mean, max (`f64`)
+    /// and the texels it was sampled over (`u32`); the shading errors come from format 3's
+    /// trailer, if at all.
+    fn residual(&mut self) -> Result<Residual> {
+        Ok(Residual {
+            mean: self.f64("residual")?,
+            max: self.f64("residual")?,
+            texels: self.u32("residual texels")?,
+            shading_mean: None,
+            shading_max: None,
+        })
     }
 
     fn err(&self, message: String) -> MapError {

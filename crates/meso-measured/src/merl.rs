@@ -284,6 +284,59 @@ pub fn decode_values(bytes: &[u8], first: usize, out: &mut Vec<f64>) -> Result<(
     Ok(())
 }
 
+/// The checks of a MERL file's 12-byte header `head` and its `size` (both ways of reading):
+/// the dimensions 90, 90, 180 ([`MerlError::BadHeader`]), then the size they imply
+/// ([`MerlError::BadSize`]); errors name the file `path`.
+fn check_header(head: &[u8], size: u64, path: &str) -> Result<(), MerlError> {
+    let dims = [0, 1, 2].map(|k| {
+        i32::from_le_bytes([
+            head[4 * k],
+            head[4 * k + 1],
+            head[4 * k + 2],
+            head[4 * k + 3],
+        ])
+    });
+    if dims != [N_THETA_H as i32, N_THETA_D as i32, N_PHI_D as i32] {
+        return Err(MerlError::BadHeader {
+            path: path.to_string(),
+            dims,
+        });
+    }
+    if size != MERL_FILE_BYTES {
+        return Err(MerlError::BadSize {
+            path: path.to_string(),
+            size,
+            expected: MERL_FILE_BYTES,
+        });
+    }
+    Ok(())
+}
+
+impl MerlError {
+    /// A [`MerlError::NonFinite`] of the decoder (no file) names the file `path`; other errors
+    /// are returned as they are.
+    fn in_file(self, path: &str) -> MerlError {
+        match self {
+            MerlError::NonFinite {
+                channel,
+                ih,
+                id,
+                ip,
+                value,
+                ..
+            } => MerlError::NonFinite {
+                path: path.to_string(),
+                channel,
+                ih,
+                id,
+                ip,
+                value,
+            },
+            other => other,
+        }
+    }
+}
+
 impl MerlTable {
     /// Read a MERL binary. The header, the file size and the memory budget
     /// ([`MERL_READ_BYTES`] against `meso_core::budget`) are checked before any allocation, and
@@ -303,24 +356,7 @@ impl MerlTable {
         }
         let mut head = [0u8; 12];
         f.read_exact(&mut head).map_err(io)?;
-        let dims = [0, 1, 2].map(|k| {
-            i32::from_le_bytes([
-                head[4 * k],
-                head[4 * k + 1],
-                head[4 * k + 2],
-                head[4 * k + 3],
-            ])
-        });
-        if dims != [N_THETA_H as i32, N_THETA_D as i32, N_PHI_D as i32] {
-            return Err(MerlError::BadHeader { path: p, dims });
-        }
-        if size != MERL_FILE_BYTES {
-            return Err(MerlError::BadSize {
-                path: p,
-                size,
-                expected: MERL_FILE_BYTES,
-            });
-        }
+        check_header(&head, size, &p)?;
         meso_core::budget::check(path, "reading the MERL table", MERL_READ_BYTES)?;
         let oom = |source| MerlError::OutOfMemory {
             path: p.clone(),
@@ -341,70 +377,22 @@ impl MerlTable {
         }
         decode_values(&bytes, 0, &mut data)
             .map(|()| MerlTable { data })
-            .map_err(|e| match e {
-                MerlError::NonFinite {
-                    channel,
-                    ih,
-                    id,
-                    ip,
-                    value,
-                    ..
-                } => MerlError::NonFinite {
-                    path: p.clone(),
-                    channel,
-                    ih,
-                    id,
-                    ip,
-                    value,
-                },
-                other => other,
-            })
+            .map_err(|e| e.in_file(&p))
     }
 
     /// Decode a whole MERL file held in memory (header and body), with the checks of
     /// [`MerlTable::read`]; errors name the file as `(memory)`.
     pub fn from_bytes(bytes: &[u8]) -> Result<MerlTable, MerlError> {
-        let p = || "(memory)".to_string();
+        let p = "(memory)";
         let size = bytes.len() as u64;
         if bytes.len() < 12 {
-            return Err(MerlError::NoHeader { path: p(), size });
-        }
-        let dims = [0, 1, 2].map(|k| {
-            i32::from_le_bytes([
-                bytes[4 * k],
-                bytes[4 * k + 1],
-                bytes[4 * k + 2],
-                bytes[4 * k + 3],
-            ])
-        });
-        if dims != [N_THETA_H as i32, N_THETA_D as i32, N_PHI_D as i32] {
-            return Err(MerlError::BadHeader { path: p(), dims });
-        }
-        if size != MERL_FILE_BYTES {
-            return Err(MerlError::BadSize {
-                path: p(),
+            return Err(MerlError::NoHeader {
+                path: p.to_string(),
                 size,
-                expected: MERL_FILE_BYTES,
             });
         }
-        Self::from_le_bytes(&bytes[12..]).map_err(|e| match e {
-            MerlError::NonFinite {
-                channel,
-                ih,
-                id,
-                ip,
-                value,
-                ..
-            } => MerlError::NonFinite {
-                path: p(),
-                channel,
-                ih,
-                id,
-                ip,
-                value,
-            },
-            other => other,
-        })
+        check_header(&bytes[..12], size, p)?;
+        Self::from_le_bytes(&bytes[12..]).map_err(|e| e.in_file(p))
     }
 
     /// Whether `bytes` (the start of a file, at least 12 bytes) begin with the MERL header

@@ -108,25 +108,26 @@ impl Canvas {
 
     /// A canvas from 8-bit RGB bytes (`width * height * 3` values, row-major).
     pub fn from_rgb8(width: u32, height: u32, bytes: &[u8]) -> Result<Canvas, PlotError> {
-        check_buffer(width, height, bytes.len())?;
-        let data = bytes
-            .chunks_exact(3)
-            .map(|p| [p[0], p[1], p[2]].map(|v| f32::from(v) / 255.0))
-            .collect();
-        Ok(Canvas {
-            width,
-            height,
-            data,
-            clip: None,
-        })
+        Canvas::from_rgb(width, height, bytes, channel_u8)
     }
 
     /// A canvas from f32 RGB values (`width * height * 3` values, row-major, display-referred).
     pub fn from_rgb_f32(width: u32, height: u32, values: &[f32]) -> Result<Canvas, PlotError> {
+        Canvas::from_rgb(width, height, values, channel_f32)
+    }
+
+    /// A canvas from RGB values of any type (`width * height * 3`, row-major), each channel read
+    /// by `channel` ([`Canvas::from_rgb8`], [`Canvas::from_rgb_f32`]).
+    fn from_rgb<T: Copy>(
+        width: u32,
+        height: u32,
+        values: &[T],
+        channel: impl Fn(T) -> f32,
+    ) -> Result<Canvas, PlotError> {
         check_buffer(width, height, values.len())?;
         let data = values
             .chunks_exact(3)
-            .map(|p| [p[0], p[1], p[2]].map(|v| if v.is_finite() { v } else { 0.0 }))
+            .map(|p| [p[0], p[1], p[2]].map(&channel))
             .collect();
         Ok(Canvas {
             width,
@@ -475,12 +476,7 @@ impl Canvas {
         dst: Rect,
         filter: Filter,
     ) -> Result<(), PlotError> {
-        check_buffer(width, height, bytes.len())?;
-        self.blit_fn(width, height, dst, filter, |x, y| {
-            let i = 3 * (y as usize * width as usize + x as usize);
-            [bytes[i], bytes[i + 1], bytes[i + 2]].map(|v| f32::from(v) / 255.0)
-        });
-        Ok(())
+        self.blit_rgb(bytes, width, height, dst, filter, channel_u8)
     }
 
     /// Copy f32 RGB values (`width * height * 3`, row-major, display-referred) into `dst`.
@@ -492,10 +488,24 @@ impl Canvas {
         dst: Rect,
         filter: Filter,
     ) -> Result<(), PlotError> {
+        self.blit_rgb(values, width, height, dst, filter, channel_f32)
+    }
+
+    /// Copy RGB values of any type (`width * height * 3`, row-major) into `dst`, each channel
+    /// read by `channel` ([`Canvas::blit_rgb8`], [`Canvas::blit_rgb_f32`]).
+    fn blit_rgb<T: Copy>(
+        &mut self,
+        values: &[T],
+        width: u32,
+        height: u32,
+        dst: Rect,
+        filter: Filter,
+        channel: impl Fn(T) -> f32,
+    ) -> Result<(), PlotError> {
         check_buffer(width, height, values.len())?;
         self.blit_fn(width, height, dst, filter, |x, y| {
             let i = 3 * (y as usize * width as usize + x as usize);
-            [values[i], values[i + 1], values[i + 2]].map(|v| if v.is_finite() { v } else { 0.0 })
+            [values[i], values[i + 1], values[i + 2]].map(&channel)
         });
         Ok(())
     }
@@ -616,6 +626,20 @@ pub(crate) fn arc_points(centre: [f64; 2], r: f64, a0: f64, a1: f64) -> Vec<[f64
             [centre[0] + r * a.cos(), centre[1] - r * a.sin()]
         })
         .collect()
+}
+
+/// An 8-bit channel as a colour value in `[0, 1]`.
+fn channel_u8(v: u8) -> f32 {
+    f32::from(v) / 255.0
+}
+
+/// An `f32` channel as a colour value: itself, 0 where not finite.
+fn channel_f32(v: f32) -> f32 {
+    if v.is_finite() {
+        v
+    } else {
+        0.0
+    }
 }
 
 fn check_buffer(width: u32, height: u32, got: usize) -> Result<(), PlotError> {

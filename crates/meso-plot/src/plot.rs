@@ -17,12 +17,14 @@ pub enum LineStyle {
     None,
 }
 
-/// One data series of a [`LinePlot`] (also used for legends elsewhere).
+/// One data series of a [`LinePlot`], or a curve of a [`PolarPlot`](crate::PolarPlot)
+/// ([`PolarSeries`](crate::PolarSeries)); also used for legends elsewhere.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series {
     /// Name shown in the legend (empty: not listed).
     pub name: String,
-    /// Points `[x, y]`; non-finite points (and non-positive `y` on a log axis) break the line.
+    /// Points `[x, y]` (polar: `[θ, value]`); non-finite points (and non-positive `y` on a log
+    /// axis, negative values in a polar plot) break the line.
     pub points: Vec<[f64; 2]>,
     /// Colour; `None` takes the next palette colour.
     pub color: Option<Rgb>,

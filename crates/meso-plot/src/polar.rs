@@ -4,46 +4,20 @@
 //! half-planes of the slice).
 
 use crate::canvas::{arc_points, Canvas, Rect};
-use crate::color::{self, Rgb};
+use crate::color;
 use crate::font::{self, Anchor};
-use crate::plot::{draw_curves, draw_title_and_legend, render_on_paper, Curve, LineStyle, Metrics};
+use crate::plot::{draw_curves, draw_title_and_legend, render_on_paper, Curve, Metrics, Series};
 use crate::ticks;
 use crate::PlotError;
 use std::f64::consts::FRAC_PI_2;
 
-/// One curve of a [`PolarPlot`]: samples `(θ, value)` with θ in radians, signed
-/// (negative: left half-plane), in `[−π/2, π/2]`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PolarSeries {
-    /// Name shown in the legend (empty: not listed).
-    pub name: String,
-    /// Samples `[θ, value]`; non-finite or negative values break the curve.
-    pub points: Vec<[f64; 2]>,
-    /// Colour; `None` takes the next palette colour.
-    pub color: Option<Rgb>,
-    /// Line width in pixels at text scale 1.
-    pub width: f64,
-    /// Line style.
-    pub style: LineStyle,
-    /// Draw a small disc at every sample (for measured data).
-    pub markers: bool,
-}
+/// One curve of a [`PolarPlot`]: a [`Series`] whose points are samples `[θ, value]` with θ in
+/// radians, signed (negative: left half-plane), in `[−π/2, π/2]`; non-finite or negative values
+/// break the curve.
+pub type PolarSeries = Series;
 
-impl PolarSeries {
-    /// A solid curve from samples `[θ, value]` (θ in radians, signed).
-    #[must_use]
-    pub fn new(name: impl Into<String>, points: Vec<[f64; 2]>) -> PolarSeries {
-        PolarSeries {
-            name: name.into(),
-            points,
-            color: None,
-            width: 1.5,
-            style: LineStyle::Solid,
-            markers: false,
-        }
-    }
-
-    /// Sample `f(θ)` at `n` (≥ 2) evenly spaced θ in `[−π/2, π/2]`.
+impl Series {
+    /// A [`PolarSeries`] sampling `f(θ)` at `n` (≥ 2) evenly spaced θ in `[−π/2, π/2]`.
     #[must_use]
     pub fn from_fn(name: impl Into<String>, f: impl Fn(f64) -> f64, n: usize) -> PolarSeries {
         let n = n.max(2);
@@ -54,27 +28,6 @@ impl PolarSeries {
             })
             .collect();
         PolarSeries::new(name, pts)
-    }
-
-    /// Set the colour.
-    #[must_use]
-    pub fn with_color(mut self, c: Rgb) -> PolarSeries {
-        self.color = Some(c);
-        self
-    }
-
-    /// Set the line style.
-    #[must_use]
-    pub fn with_style(mut self, s: LineStyle) -> PolarSeries {
-        self.style = s;
-        self
-    }
-
-    /// Turn sample markers on or off.
-    #[must_use]
-    pub fn with_markers(mut self, on: bool) -> PolarSeries {
-        self.markers = on;
-        self
     }
 }
 

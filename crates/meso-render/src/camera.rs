@@ -74,17 +74,6 @@ pub struct RayDifferential {
     pub dddy: DVec3,
 }
 
-fn check_vec(field: &str, v: DVec3) -> Result<(), SceneError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(SceneError::invalid(
-            field,
-            format!("must be finite, got {v:?}"),
-        ))
-    }
-}
-
 impl Camera {
     /// A camera; errors name the offending field (`camera.position`, `camera.up`, …) when
     /// a value is not finite, `position == look_at`, `up` is zero or parallel to the view
@@ -95,9 +84,9 @@ impl Camera {
         look_at: DVec3,
         up: DVec3,
     ) -> Result<Camera, SceneError> {
-        check_vec("camera.position", position)?;
-        check_vec("camera.look_at", look_at)?;
-        check_vec("camera.up", up)?;
+        crate::error::finite("camera.position", position)?;
+        crate::error::finite("camera.look_at", look_at)?;
+        crate::error::finite("camera.up", up)?;
         match projection {
             Projection::Perspective { fov_deg } => {
                 if !(fov_deg.is_finite() && fov_deg > 0.0 && fov_deg < 180.0) {

@@ -74,6 +74,18 @@ pub enum SceneError {
     },
 }
 
+/// `Ok` if every coordinate of the vector `field` is finite, else [`SceneError::Invalid`].
+pub(crate) fn finite(field: &str, v: glam::DVec3) -> Result<(), SceneError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(SceneError::invalid(
+            field,
+            format!("must be finite, got {v:?}"),
+        ))
+    }
+}
+
 impl SceneError {
     /// An [`SceneError::Invalid`] without a file (attach one with [`SceneError::in_file`]).
     #[must_use]

@@ -38,6 +38,24 @@ pub fn srgb_to_linear(x: f32) -> f32 {
     }
 }
 
+/// Write the bytes of an image encoded in memory to `path` (atomically); an encoding error names
+/// `path` as its file.
+fn write_encoded(path: &Path, encoded: Result<Vec<u8>, ImageError>) -> Result<(), ImageError> {
+    let bytes = encoded.map_err(|e| match e {
+        ImageError::Encode { message, .. } => ImageError::Encode {
+            file: path.to_path_buf(),
+            message,
+        },
+        e => e,
+    })?;
+    meso_core::io::write_atomic_with(path, |w| w.write_all(&bytes)).map_err(|source| {
+        ImageError::Write {
+            file: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
 impl Image {
     /// A black image.
     #[must_use]
@@ -121,36 +139,12 @@ impl Image {
 
     /// Write a tone-mapped sRGB PNG (see [`Image::to_srgb8`]).
     pub fn write_png(&self, path: &Path, exposure_stops: f32) -> Result<(), ImageError> {
-        let bytes = self.encode_png(exposure_stops).map_err(|e| match e {
-            ImageError::Encode { message, .. } => ImageError::Encode {
-                file: path.to_path_buf(),
-                message,
-            },
-            e => e,
-        })?;
-        meso_core::io::write_atomic_with(path, |w| w.write_all(&bytes)).map_err(|source| {
-            ImageError::Write {
-                file: path.to_path_buf(),
-                source,
-            }
-        })
+        write_encoded(path, self.encode_png(exposure_stops))
     }
 
     /// Write linear radiance as a 32-bit float RGB OpenEXR file.
     pub fn write_exr(&self, path: &Path) -> Result<(), ImageError> {
-        let bytes = self.encode_exr().map_err(|e| match e {
-            ImageError::Encode { message, .. } => ImageError::Encode {
-                file: path.to_path_buf(),
-                message,
-            },
-            e => e,
-        })?;
-        meso_core::io::write_atomic_with(path, |w| w.write_all(&bytes)).map_err(|source| {
-            ImageError::Write {
-                file: path.to_path_buf(),
-                source,
-            }
-        })
+        write_encoded(path, self.encode_exr())
     }
 
     /// Encode linear radiance as a 32-bit float RGB OpenEXR file in memory.

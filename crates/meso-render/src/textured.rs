@@ -56,6 +56,14 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     let kind = texture_kind(tex).map_err(named)?;
     let box_filter = box_filter(tex, kind).map_err(named)?;
     let dir = path.parent().unwrap_or(Path::new("."));
+    let t = Texture {
+        kind,
+        tex,
+        doc: &doc,
+        dir,
+        box_filter,
+        maps,
+    };
     let string = |key: &str| tex_string(tex, key).map_err(named);
     if let Some(m) = string("map")? {
         if tex.contains_key("file") || tex.contains_key("normal_map") {
@@ -65,13 +73,11 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
                     .into(),
             ));
         }
-        return map_mapped(kind, tex, &doc, dir, &dir.join(m), box_filter, maps)
-            .map(Some)
-            .map_err(named);
+        return map_mapped(&t, &dir.join(m)).map(Some).map_err(named);
     }
     let shader = match (string("file")?, string("normal_map")?) {
-        (Some(f), None) => height_textured(kind, tex, &doc, dir, &dir.join(f), box_filter, maps),
-        (None, Some(n)) => normal_textured(kind, tex, &doc, path, &dir.join(n), box_filter, maps),
+        (Some(f), None) => height_textured(&t, &dir.join(f)),
+        (None, Some(n)) => normal_textured(&t, &dir.join(n)),
         (Some(_), Some(_)) => {
             Err("[texture]: `file` (a height map) and `normal_map` exclude each other".into())
         }
@@ -130,18 +136,48 @@ fn tex_string<'a>(tex: &'a toml::Table, key: &str) -> Result<Option<&'a str>, St
     }
 }
 
+/// A `[texture]` table as read by [`load_textured`], with what every kind of texture needs: its
+/// `kind` and `filter` (checked), the rest of the material file (the facet material) and the
+/// material file's folder.
+struct Texture<'a> {
+    kind: &'a str,
+    tex: &'a toml::Table,
+    /// The material file without its `[texture]` table.
+    doc: &'a toml::Table,
+    /// The folder of the material file (relative paths).
+    dir: &'a Path,
+    box_filter: bool,
+    maps: &'a MapsResolver,
+}
+
+impl Texture<'_> {
+    /// The facet material: the file without its `[texture]` table.
+    fn surface(&self) -> Result<meso_core::material::Material, String> {
+        let rest = toml::to_string(self.doc).map_err(|e| format!("cannot re-read: {e}"))?;
+        MaterialSpec::parse(&rest, self.dir)
+            .and_then(|s| s.build(self.maps))
+            .map_err(|e| e.0)
+    }
+
+    /// `max_lobes` of the table, if given: an integer in `1..=MAX_LOBES`.
+    fn max_lobes(&self) -> Result<Option<usize>, String> {
+        let Some(v) = self.tex.get("max_lobes") else {
+            return Ok(None);
+        };
+        let k = v
+            .as_integer()
+            .filter(|k| (1..=MAX_LOBES as i64).contains(k))
+            .ok_or_else(|| {
+                format!("[texture] max_lobes: must be an integer 1–{MAX_LOBES}, got {v}")
+            })?;
+        Ok(Some(k as usize))
+    }
+}
+
 /// A `[texture]` with `normal_map = FILE`: its checks (no height-map keys, no shadowing, the
 /// convention), then [`normal_mapped`].
-#[allow(clippy::too_many_arguments)]
-fn normal_textured(
-    kind: &str,
-    tex: &toml::Table,
-    doc: &toml::Table,
-    path: &Path,
-    file: &Path,
-    box_filter: bool,
-    maps: &MapsResolver,
-) -> Result<Arc<dyn Shader>, String> {
+fn normal_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
+    let tex = t.tex;
     for k in ["texel_size", "height_scale", "border", "normals"] {
         if tex.contains_key(k) {
             return Err(format!(
@@ -161,21 +197,13 @@ fn normal_textured(
             ))
         }
     };
-    normal_mapped(kind, tex, doc, path, file, convention, box_filter, maps)
+    normal_mapped(t, file, convention)
 }
 
 /// A `[texture]` with `file = HEIGHTS`: bump-mapped from the heights, or NDF-mapped through the
 /// pyramid (from the resolver's memory, the disk cache, or extracted).
-#[allow(clippy::too_many_arguments)]
-fn height_textured(
-    kind: &str,
-    tex: &toml::Table,
-    doc: &toml::Table,
-    dir: &Path,
-    file: &Path,
-    box_filter: bool,
-    maps: &MapsResolver,
-) -> Result<Arc<dyn Shader>, String> {
+fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
+    let tex = t.tex;
     if is_map_file(file) {
         return Err(format!(
             "[texture] file: {} is a meso map file (`meso extract`), not a height map: give it \
@@ -200,8 +228,8 @@ fn height_textured(
         .collect();
     map_table.insert("kind".into(), toml::Value::String("heightmap".into()));
     let texture_err = |e: meso_core::material::MaterialError| e.0.replace("[ndf]", "[texture]");
-    let surface = facet_material(doc, dir, maps)?;
-    Ok(match kind {
+    let surface = t.surface()?;
+    Ok(match t.kind {
         "bump-mapped" => {
             let map = MapsResolver::heightmap(&map_table, file).map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, map.cells_x())?;
@@ -210,13 +238,14 @@ fn height_textured(
         _ => {
             // From the resolver's memory, the disk cache or extracted (`MapsResolver`): the
             // height map itself is only decoded to extract.
-            let pyramid = maps
+            let pyramid = t
+                .maps
                 .heightmap_pyramid(&map_table, file)
                 .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
             Arc::new(
                 NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)?
-                    .with_box_filter(box_filter),
+                    .with_box_filter(t.box_filter),
             )
         }
     })
@@ -235,17 +264,10 @@ fn is_map_file(file: &Path) -> bool {
 /// its pyramid as stored. The keys that describe the extraction (`texel_size`, `max_lobes`,
 /// `border`, `normals`) may be given only to agree with the file; `height_scale` is refused
 /// (the file's slopes are already scaled), and so is `kind = "bump-mapped"` (no heights).
-fn map_mapped(
-    kind: &str,
-    tex: &toml::Table,
-    doc: &toml::Table,
-    dir: &Path,
-    file: &Path,
-    box_filter: bool,
-    maps: &MapsResolver,
-) -> Result<Arc<dyn Shader>, String> {
+fn map_mapped(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
+    let tex = t.tex;
     let shown = file.display();
-    if kind == "bump-mapped" {
+    if t.kind == "bump-mapped" {
         return Err(format!(
             "[texture] map: {shown} is a map file of fitted NDFs, without the heights that \
              kind = \"bump-mapped\" shades: give the height map as `file = \"…\"`, or use \
@@ -276,14 +298,8 @@ fn map_mapped(
             return Err(conflict("texel_size", &t, &pyramid.texel_size));
         }
     }
-    if let Some(v) = tex.get("max_lobes") {
-        let k = v
-            .as_integer()
-            .filter(|k| (1..=MAX_LOBES as i64).contains(k))
-            .ok_or_else(|| {
-                format!("[texture] max_lobes: must be an integer 1–{MAX_LOBES}, got {v}")
-            })?;
-        if k as usize != pyramid.max_lobes {
+    if let Some(k) = t.max_lobes()? {
+        if k != pyramid.max_lobes {
             return Err(conflict("max_lobes", &k, &pyramid.max_lobes));
         }
     }
@@ -331,9 +347,9 @@ fn map_mapped(
         }
     };
     let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
-    let surface = facet_material(doc, dir, maps)?;
+    let surface = t.surface()?;
     Ok(Arc::new(
-        NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)?.with_box_filter(box_filter),
+        NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)?.with_box_filter(t.box_filter),
     ))
 }
 
@@ -376,36 +392,18 @@ fn texels_per_uv(tex: &toml::Table, width: usize) -> Result<f64, String> {
     }
 }
 
-/// The facet material: the file without its `[texture]` table.
-fn facet_material(
-    doc: &toml::Table,
-    dir: &Path,
-    maps: &MapsResolver,
-) -> Result<meso_core::material::Material, String> {
-    let rest = toml::to_string(doc).map_err(|e| format!("cannot re-read: {e}"))?;
-    MaterialSpec::parse(&rest, dir)
-        .and_then(|s| s.build(maps))
-        .map_err(|e| e.0)
-}
-
 /// A `[texture]` over a tangent-space normal map: texel by texel, or through the pyramid of
 /// its normals (no heights: no shadowing).
-#[allow(clippy::too_many_arguments)]
 fn normal_mapped(
-    kind: &str,
-    tex: &toml::Table,
-    doc: &toml::Table,
-    path: &Path,
+    t: &Texture<'_>,
     file: &Path,
     convention: NormalConvention,
-    box_filter: bool,
-    maps: &MapsResolver,
 ) -> Result<Arc<dyn Shader>, String> {
     let load = || NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"));
-    let surface = facet_material(doc, path.parent().unwrap_or(Path::new(".")), maps)?;
-    if kind == "bump-mapped" {
+    let surface = t.surface()?;
+    if t.kind == "bump-mapped" {
         let map = load()?;
-        let texels_per_uv = texels_per_uv(tex, map.width())?;
+        let texels_per_uv = texels_per_uv(t.tex, map.width())?;
         return Ok(Arc::new(BumpMapped::from_normal_map(
             &map,
             &surface,
@@ -413,14 +411,8 @@ fn normal_mapped(
         )?));
     }
     let mut params = ExtractParams::default();
-    if let Some(v) = tex.get("max_lobes") {
-        let k = v
-            .as_integer()
-            .filter(|k| (1..=MAX_LOBES as i64).contains(k))
-            .ok_or_else(|| {
-                format!("[texture] max_lobes: must be an integer 1–{MAX_LOBES}, got {v}")
-            })?;
-        params.fit.max_lobes = k as usize;
+    if let Some(k) = t.max_lobes()? {
+        params.fit.max_lobes = k;
     }
     // From the disk cache (keyed by the file's bytes, convention and parameters) or extracted
     // and stored there: the normal map is only decoded to extract.
@@ -429,9 +421,9 @@ fn normal_mapped(
             extract(Source::Normals(&load()?), &params, &mut |_| {})
                 .map_err(|e| format!("[texture] {}: {e}", file.display()))
         })?;
-    let texels_per_uv = texels_per_uv(tex, pyramid.width)?;
+    let texels_per_uv = texels_per_uv(t.tex, pyramid.width)?;
     Ok(Arc::new(
-        NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(box_filter),
+        NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(t.box_filter),
     ))
 }
 

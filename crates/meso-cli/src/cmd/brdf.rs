@@ -2,8 +2,7 @@
 //! effective BRDF (its compiled plan, [`meso_core::shading::Policy::Accurate`], or with `--exact`
 //! the quadrature of every pair).
 
-use anyhow::{Context, Result};
-use meso_core::pairs::parse_pairs;
+use anyhow::Result;
 use meso_core::shading::{FastBrdf, Policy};
 use std::path::PathBuf;
 
@@ -16,12 +15,8 @@ use std::path::PathBuf;
 pub struct Args {
     /// Material file (TOML, see docs/material-format.md).
     pub material: PathBuf,
-    /// Direction pairs (CSV with header theta_i,phi_i,theta_o,phi_o; degrees).
-    #[arg(long)]
-    pub pairs: PathBuf,
-    /// Output CSV; standard output when absent.
-    #[arg(long, short)]
-    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub table: crate::util::BrdfTable,
     /// Evaluate every pair by the material's own quadrature (Eq. 2/8) instead of its compiled
     /// plan. The plan differs only where it tabulates Smith Λ (mirror facets under an NDF
     /// without a closed form, e.g. fitted lobe sums): < 2e-4 relative for isotropic NDFs,
@@ -32,12 +27,11 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    if let Some(out) = &a.out {
-        crate::util::check_outputs(&[out], &[&a.material, &a.pairs])?;
+    if let Some(out) = &a.table.out {
+        crate::util::check_outputs(&[out], &[&a.material, &a.table.pairs])?;
     }
     let material = crate::load_material(&a.material)?;
-    let text = crate::read_text(&a.pairs, 1 << 30)?;
-    let pairs = parse_pairs(&text).with_context(|| format!("{}", a.pairs.display()))?;
+    let pairs = a.table.read_pairs()?;
     let bar = crate::progress(pairs.len() as u64, "brdf");
     let values = if a.exact {
         crate::par_map_progress(&pairs, &bar, |p| material.brdf(p.i, p.o))
@@ -46,5 +40,5 @@ pub fn run(a: Args) -> Result<()> {
         crate::par_map_progress(&pairs, &bar, |p| plan.eval(p.i, p.o))
     };
     bar.finish_and_clear();
-    crate::util::write_brdf_table(a.out.as_deref(), &pairs, &values)
+    a.table.write(&pairs, &values)
 }

@@ -4,7 +4,6 @@
 
 use anyhow::{bail, Context, Result};
 use meso_core::material::{MaterialSpec, NdfSpec};
-use meso_core::pairs::parse_pairs;
 use meso_maps::{Gonio, GonioParams, MapsResolver};
 use std::path::PathBuf;
 
@@ -17,12 +16,8 @@ use std::path::PathBuf;
 pub struct Args {
     /// Material file (TOML) with `[ndf] kind = "heightmap"`.
     pub material: PathBuf,
-    /// Direction pairs (CSV with header theta_i,phi_i,theta_o,phi_o; degrees).
-    #[arg(long)]
-    pub pairs: PathBuf,
-    /// Output CSV; standard output when absent.
-    #[arg(long, short)]
-    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub table: crate::util::BrdfTable,
     /// Rays per side of the stratified grid: N² rays per direction pair.
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub rays: u32,
@@ -51,14 +46,13 @@ pub fn run(a: Args) -> Result<()> {
             a.material.display()
         ),
     };
-    if let Some(out) = &a.out {
-        crate::util::check_outputs(&[out], &[&a.material, &a.pairs, file])?;
+    if let Some(out) = &a.table.out {
+        crate::util::check_outputs(&[out], &[&a.material, &a.table.pairs, file])?;
     }
     let map = MapsResolver::heightmap(table, file)
         .with_context(|| format!("{}", a.material.display()))?;
     let gonio = Gonio::new(&map).with_context(|| format!("{}", file.display()))?;
-    let pairs_text = crate::read_text(&a.pairs, 1 << 30)?;
-    let pairs = parse_pairs(&pairs_text).with_context(|| format!("{}", a.pairs.display()))?;
+    let pairs = a.table.read_pairs()?;
     let params = GonioParams {
         rays_per_side: a.rays as usize,
         bounces: a.bounces as usize,
@@ -85,5 +79,5 @@ pub fn run(a: Args) -> Result<()> {
         bar.inc(2000);
     }
     bar.finish_and_clear();
-    crate::util::write_brdf_table(a.out.as_deref(), &pairs, &values)
+    a.table.write(&pairs, &values)
 }

@@ -204,15 +204,9 @@ impl BrdfModel for AshikhminShirley {
         let (nu, nv) = (theta[0].exp(), theta[1].exp());
         out[0] = 1.0 / PI;
         out[1] = 0.0;
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+        let Some(h) = super::upper_half_vector(wi, wo) else {
             return;
         };
-        if h.z <= 0.0 {
-            return;
-        }
         let s2 = 1.0 - h.z * h.z;
         let e = if s2 > 1e-14 {
             (nu * h.x * h.x + nv * h.y * h.y) / s2

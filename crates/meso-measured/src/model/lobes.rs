@@ -153,9 +153,10 @@ impl LobeParams {
     }
 }
 
-/// Decode the first `k` lobes of `θ` (per lobe `ax, ay, ln η`, then `k − 1` logits) into `out`,
-/// weights normalised by a softmax.
-pub(crate) fn decode_lobes(k: usize, theta: &[f64], out: &mut [PhongLobe; MAX_LOBES]) {
+/// Decode the first `k` lobes of `θ` (per lobe `ax, ay, ln η`, then `k − 1` logits), weights
+/// normalised by a softmax; the lobes past `k` are empty (on the normal, weight and exponent 0).
+pub(crate) fn decode_lobes(k: usize, theta: &[f64]) -> [PhongLobe; MAX_LOBES] {
+    let mut out = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
     let logit = |j: usize| if j == 0 { 0.0 } else { theta[3 * k + j - 1] };
     let mx = (0..k).map(logit).fold(f64::NEG_INFINITY, f64::max);
     let mut total = 0.0;
@@ -171,6 +172,7 @@ pub(crate) fn decode_lobes(k: usize, theta: &[f64], out: &mut [PhongLobe; MAX_LO
     for l in out.iter_mut().take(k) {
         l.weight /= total;
     }
+    out
 }
 
 /// `θ` entries of lobes (inverse of [`decode_lobes`], axes in the upper hemisphere).
@@ -185,6 +187,42 @@ pub(crate) fn encode_lobes(lobes: &[PhongLobe]) -> Vec<f64> {
         t.push((l.weight.max(1e-300) / w0).ln());
     }
     t
+}
+
+/// The names of the `θ` entries [`decode_lobes`] reads for `k` lobes: `ax_j, ay_j, ln_eta_j` per
+/// lobe, then `logit_j` for `j` in `1..k`.
+pub(crate) fn peak_parameter_names(k: usize) -> Vec<String> {
+    let mut v = Vec::new();
+    for j in 0..k {
+        v.extend([format!("ax{j}"), format!("ay{j}"), format!("ln_eta{j}")]);
+    }
+    for j in 1..k {
+        v.push(format!("logit{j}"));
+    }
+    v
+}
+
+/// The bounds of the `θ` entries [`decode_lobes`] reads for `k` lobes: the axis slopes in
+/// `±AXIS_BOUND`, `ln η` in `ln_eta`, the logits in `LOGIT`.
+pub(crate) fn peak_bounds(k: usize, ln_eta: (f64, f64)) -> Vec<(f64, f64)> {
+    let mut v = Vec::new();
+    for _ in 0..k {
+        v.extend([(-AXIS_BOUND, AXIS_BOUND), (-AXIS_BOUND, AXIS_BOUND), ln_eta]);
+    }
+    v.extend(std::iter::repeat_n(LOGIT, k - 1));
+    v
+}
+
+/// [`BrdfModel::axis_parameters`] of `k` Phong peaks: `ax_j, ay_j` of every lobe.
+pub(crate) fn peak_axis_parameters(k: usize) -> Vec<usize> {
+    (0..k).flat_map(|j| [3 * j, 3 * j + 1]).collect()
+}
+
+/// [`BrdfModel::sharpness_parameters`] of `k` Phong peaks: `ln η_j` of every lobe, `κ = η/4`.
+/// (The BRDF lobe is never sharper than its NDF peak, so capping the peaks caps every lobe of
+/// the fitted BRDF.)
+pub(crate) fn peak_sharpness_parameters(k: usize) -> Vec<(usize, f64)> {
+    (0..k).map(|j| (3 * j + 2, 0.25)).collect()
 }
 
 /// The Phong peaks as a material file holds them: each axis at the `[theta_deg, phi_deg]` it is
@@ -227,12 +265,13 @@ impl LobeModel {
         }
     }
 
-    fn decode(&self, theta: &[f64], out: &mut [PhongLobe; MAX_LOBES]) -> f64 {
-        decode_lobes(self.k, theta, out);
-        match self.transfer {
+    /// The lobes ([`decode_lobes`]) and the transfer exponent of `θ`.
+    fn decode(&self, theta: &[f64]) -> ([PhongLobe; MAX_LOBES], f64) {
+        let eta_t = match self.transfer {
             TransferExponent::Free => theta[4 * self.k - 1].exp(),
             TransferExponent::Fixed(e) => e,
-        }
+        };
+        (decode_lobes(self.k, theta), eta_t)
     }
 
     /// Physical parameters from a fit of this model.
@@ -244,8 +283,7 @@ impl LobeModel {
     /// Physical parameters from `θ` and amplitudes (`[albedo, specular]`).
     #[must_use]
     pub fn params_from(&self, theta: &[f64], amps: &[[f64; 3]]) -> LobeParams {
-        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
-        let eta_t = self.decode(theta, &mut lobes);
+        let (lobes, eta_t) = self.decode(theta);
         LobeParams {
             lobes: lobes[..self.k].to_vec(),
             transfer_exponent: eta_t,
@@ -275,13 +313,7 @@ impl BrdfModel for LobeModel {
     }
 
     fn nonlinear_names(&self) -> Vec<String> {
-        let mut v = Vec::new();
-        for j in 0..self.k {
-            v.extend([format!("ax{j}"), format!("ay{j}"), format!("ln_eta{j}")]);
-        }
-        for j in 1..self.k {
-            v.push(format!("logit{j}"));
-        }
+        let mut v = peak_parameter_names(self.k);
         if self.transfer == TransferExponent::Free {
             v.push("ln_eta_t".into());
         }
@@ -292,15 +324,12 @@ impl BrdfModel for LobeModel {
         vec!["diffuse".into(), "specular".into()]
     }
 
-    /// `ax_k, ay_k` of every lobe.
     fn axis_parameters(&self) -> Vec<usize> {
-        (0..self.k).flat_map(|j| [3 * j, 3 * j + 1]).collect()
+        peak_axis_parameters(self.k)
     }
 
-    /// `ln η_k` of every lobe, `κ = η/4`. (The BRDF lobe is never sharper than its NDF peak,
-    /// so capping the peaks caps every lobe of the fitted BRDF.)
     fn sharpness_parameters(&self) -> Vec<(usize, f64)> {
-        (0..self.k).map(|j| (3 * j + 2, 0.25)).collect()
+        peak_sharpness_parameters(self.k)
     }
 
     fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
@@ -309,11 +338,7 @@ impl BrdfModel for LobeModel {
     }
 
     fn bounds(&self) -> Vec<(f64, f64)> {
-        let mut v = Vec::new();
-        for _ in 0..self.k {
-            v.extend([(-AXIS_BOUND, AXIS_BOUND), (-AXIS_BOUND, AXIS_BOUND), LN_ETA]);
-        }
-        v.extend(std::iter::repeat_n(LOGIT, self.k - 1));
+        let mut v = peak_bounds(self.k, LN_ETA);
         if self.transfer == TransferExponent::Free {
             v.push(LN_ETA);
         }
@@ -348,12 +373,7 @@ impl BrdfModel for LobeModel {
     }
 
     fn basis(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        let mut lobes = [PhongLobe {
-            axis: DVec3::Z,
-            weight: 0.0,
-            exponent: 0.0,
-        }; MAX_LOBES];
-        let eta_t = self.decode(theta, &mut lobes);
+        let (lobes, eta_t) = self.decode(theta);
         out[0] = 1.0 / PI;
         out[1] = lobe_sum_closed_form(&lobes[..self.k], eta_t, wi, wo);
     }
@@ -375,14 +395,10 @@ impl BrdfModel for LobeModel {
         grad[..2 * nt].fill(0.0);
         out[0] = 1.0 / PI;
         out[1] = 0.0;
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return true;
-        }
-        let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+        let Some(h) = super::upper_half_vector(wi, wo) else {
             return true;
         };
-        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
-        let eta_t = self.decode(theta, &mut lobes);
+        let (lobes, eta_t) = self.decode(theta);
         let k2 = meso_core::sg::kappa_transfer(eta_t);
         let inv = 1.0 / wi.z;
         let mut terms = [0.0; MAX_LOBES];
@@ -469,45 +485,66 @@ pub fn fit_lobes_progressive(
     data: &SampleSet,
     opts: &FitOptions,
 ) -> Result<Vec<(LobeModel, FitResult)>, FitError> {
-    let mut out: Vec<(LobeModel, FitResult)> = Vec::new();
+    fit_peaks_progressive(
+        k,
+        data,
+        opts,
+        |j| LobeModel { k: j, transfer },
+        |m, prev, h, e, [keep, w]| {
+            let p = match prev {
+                Some((pm, r)) => {
+                    let mut p = pm.params(r);
+                    let eta = eta_for(e, p.transfer_exponent);
+                    p.lobes.iter_mut().for_each(|l| l.weight *= keep);
+                    p.lobes.push(PhongLobe::new(h, w, eta));
+                    p
+                }
+                None => {
+                    let eta_t = match transfer {
+                        TransferExponent::Free => 2.0 * e,
+                        TransferExponent::Fixed(t) => t,
+                    };
+                    LobeParams {
+                        lobes: vec![PhongLobe::new(h, 1.0, eta_for(e, eta_t))],
+                        transfer_exponent: eta_t,
+                        specular: [0.0; 3],
+                        albedo: [0.0; 3],
+                    }
+                }
+            };
+            m.theta_of(&p)
+        },
+    )
+}
+
+/// The progressive schedule of both Phong-peak models ([`fit_lobes_progressive`],
+/// [`super::fit_microfacet_lobes_progressive`]): for `K = 1, …, k` lobes, the model `model(K)`
+/// starts from its own grid, then from `grow(m, prev, h, e, [keep, w])` — the previous fit
+/// `prev` with its weights scaled by `keep` and one more lobe of weight `w` at the half vector
+/// `h` with the Blinn-equivalent sharpness `e` (for `K = 1`, `prev` is `None`: one lobe at
+/// `h`), as `θ` of `m`: first a negligible new lobe at the first seed (`e = 100`, weights
+/// `[0.99, 0.01]`; a start as good as the previous fit, so that adding a lobe does not make the
+/// fit worse), then a lobe of weight 0.25 at each of three seeds ([`peak_seeds`]) and each `e`
+/// in 10, 100, 1000, 10000.
+pub(crate) fn fit_peaks_progressive<M: BrdfModel>(
+    k: usize,
+    data: &SampleSet,
+    opts: &FitOptions,
+    model: impl Fn(usize) -> M,
+    grow: impl Fn(&M, Option<(&M, &FitResult)>, DVec3, f64, [f64; 2]) -> Vec<f64>,
+) -> Result<Vec<(M, FitResult)>, FitError> {
+    let mut out: Vec<(M, FitResult)> = Vec::new();
     for j in 1..=k.clamp(1, MAX_LOBES) {
-        let m = LobeModel { k: j, transfer };
+        let m = model(j);
         let mut starts = m.initial_guesses();
         let prev = out.last().map(|(pm, r)| (pm, r));
         let seeds = peak_seeds(data, prev.map(|(pm, r)| (pm as &dyn BrdfModel, r)), 3);
-        // The previous fit with a negligible new lobe: a start as good as the previous fit, so
-        // that adding a lobe does not make the fit worse.
-        if let (Some((pm, r)), Some(&h)) = (prev, seeds.first()) {
-            let mut p = pm.params(r);
-            let eta = eta_for(100.0, p.transfer_exponent);
-            p.lobes.iter_mut().for_each(|l| l.weight *= 0.99);
-            p.lobes.push(PhongLobe::new(h, 0.01, eta));
-            starts.push(m.theta_of(&p));
+        if let (Some(prev), Some(&h)) = (prev, seeds.first()) {
+            starts.push(grow(&m, Some(prev), h, 100.0, [0.99, 0.01]));
         }
         for h in seeds {
             for e in [10.0, 100.0, 1000.0, 10000.0] {
-                let p = match prev {
-                    Some((pm, r)) => {
-                        let mut p = pm.params(r);
-                        let eta = eta_for(e, p.transfer_exponent);
-                        p.lobes.iter_mut().for_each(|l| l.weight *= 0.75);
-                        p.lobes.push(PhongLobe::new(h, 0.25, eta));
-                        p
-                    }
-                    None => {
-                        let eta_t = match transfer {
-                            TransferExponent::Free => 2.0 * e,
-                            TransferExponent::Fixed(t) => t,
-                        };
-                        LobeParams {
-                            lobes: vec![PhongLobe::new(h, 1.0, eta_for(e, eta_t))],
-                            transfer_exponent: eta_t,
-                            specular: [0.0; 3],
-                            albedo: [0.0; 3],
-                        }
-                    }
-                };
-                starts.push(m.theta_of(&p));
+                starts.push(grow(&m, prev, h, e, [0.75, 0.25]));
             }
         }
         let r = fit_from(&m, data, opts, &starts)?;

@@ -163,13 +163,7 @@ fn tan2_of(c: f64) -> f64 {
 /// written material.
 #[must_use]
 pub fn mixture_specular(lobes: &[GgxLobe], wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
-    if wi.z <= 0.0 || wo.z <= 0.0 {
-        return None;
-    }
-    let h = meso_core::frame::half_vector(wi, wo)?;
-    if h.z <= 0.0 {
-        return None;
-    }
+    let h = super::upper_half_vector(wi, wo)?;
     let (ch2, th2) = (h.z * h.z, tan2_of(h.z));
     let (ti2, to2) = (tan2_of(wi.z), tan2_of(wo.z));
     let (mut d, mut li, mut lo) = (0.0, 0.0, 0.0);
@@ -354,13 +348,7 @@ impl LobeGgxModel {
     /// Physical parameters from `θ` and amplitudes `[albedo, u, g]`.
     #[must_use]
     pub fn params_from(&self, theta: &[f64], amps: &[[f64; 3]]) -> LobeGgxParams {
-        let (mut f0, mut specular) = ([0.0; 3], [0.0; 3]);
-        for c in 0..3 {
-            let (u, g) = (amps[1][c].max(0.0), amps[2][c].max(0.0));
-            let s = u + g;
-            specular[c] = s.min(1.0);
-            f0[c] = if s > 0.0 { (u / s).min(1.0) } else { 0.0 };
-        }
+        let (f0, specular) = super::mirror_from_amplitudes(amps);
         LobeGgxParams {
             lobes: self.decode(theta),
             f0,
@@ -387,15 +375,9 @@ impl LobeGgxModel {
         if let Some(g) = grad.as_deref_mut() {
             g[..3 * nt].fill(0.0);
         }
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+        let Some(h) = super::upper_half_vector(wi, wo) else {
             return;
         };
-        if h.z <= 0.0 {
-            return;
-        }
         let lobes = self.decode(theta);
         let (ch2, th2) = (h.z * h.z, tan2_of(h.z));
         let (ti2, to2) = (tan2_of(wi.z), tan2_of(wo.z));
@@ -430,17 +412,13 @@ impl LobeGgxModel {
         let g2 = 1.0 / (1.0 + li + lo);
         let x = d * g2 * kk;
         let m5 = super::schlick_m5(wi.dot(h));
-        out[1] = x;
-        out[2] = x * m5;
+        super::split_schlick(out, x, m5);
         let Some(grad) = grad else {
             return;
         };
         // dX from (dD, dΛi + dΛo).
         let dx = |dd: f64, dl: f64| kk * (dd * g2 - d * g2 * g2 * dl);
-        let mut put = |q: usize, v: f64| {
-            grad[3 * q + 1] = v;
-            grad[3 * q + 2] = v * m5;
-        };
+        let mut put = |q: usize, v: f64| super::split_schlick(&mut grad[3 * q..], v, m5);
         for (j, l) in lobes.iter().enumerate() {
             let p = per[j];
             // θ_j = ln(1/α²): ∂/∂θ = −½ ∂/∂ln α.
@@ -486,11 +464,7 @@ impl BrdfModel for LobeGgxModel {
     }
 
     fn basis_names(&self) -> Vec<String> {
-        vec![
-            "diffuse".into(),
-            "specular-f0".into(),
-            "specular-grazing".into(),
-        ]
+        super::mirror_basis_names()
     }
 
     fn sharpness_parameters(&self) -> Vec<(usize, f64)> {
@@ -512,13 +486,11 @@ impl BrdfModel for LobeGgxModel {
     }
 
     fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
-        vec![(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
+        super::mirror_amplitude_bounds()
     }
 
-    /// The mirror's specular scale `s = u + g ≤ 1` (the written material's bound), kept by the
-    /// fit rather than clamped afterwards.
     fn amplitude_sums(&self) -> Vec<(Vec<usize>, f64)> {
-        vec![(vec![1, 2], 1.0)]
+        super::mirror_amplitude_sums()
     }
 
     fn bounds(&self) -> Vec<(f64, f64)> {

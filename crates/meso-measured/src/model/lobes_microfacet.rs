@@ -50,8 +50,11 @@
 //! material (quadrature of meso-core) next to the fitted one.
 
 use super::baselines::Microfacet;
-use super::lobes::{decode_lobes, encode_lobes, file_phong_peaks, peak_seeds, MAX_LOBES};
-use crate::fit::{fit_from, BrdfModel, FitError, FitOptions, FitResult};
+use super::lobes::{
+    decode_lobes, encode_lobes, file_phong_peaks, fit_peaks_progressive, peak_axis_parameters,
+    peak_bounds, peak_parameter_names, peak_sharpness_parameters, MAX_LOBES,
+};
+use crate::fit::{BrdfModel, FitError, FitOptions, FitResult};
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::material::MaterialSpec;
@@ -59,12 +62,10 @@ use meso_core::ndf::{Ndf, PhongLobe};
 use meso_core::NdfError;
 use std::f64::consts::PI;
 
-const AXIS_BOUND: f64 = 2.75;
 /// `ln η` bounds: η ∈ [10, 10⁶]. Broader peaks put much of their mass near or below the horizon,
 /// where the fast `D` and `Λ` are poor (measured: 17–35 % from the exact material with η = 1
 /// lobes); the Lambert term takes the broad reflection instead.
 const LN_ETA: (f64, f64) = (std::f64::consts::LN_10, 6.0 * std::f64::consts::LN_10);
-const LOGIT: (f64, f64) = (-10.0, 10.0);
 
 /// `∫_{z>0} (η+2)/(8π) cos^η(α/2) (m·z) dω` for a Phong peak on the normal (α = θ), closed form
 /// (module docs), dimensionless: `¼` at η = 0 (the upper half of the uniform sphere), → 1 as
@@ -113,13 +114,7 @@ fn beckmann_lambda_grad(alpha: f64, c: f64) -> (f64, f64) {
 /// `D(h) G₂(i, o) / (4 cos θi cos θo)` (1/sr) and `c = i·h`; `None` below the horizon.
 #[must_use]
 pub fn microfacet_lobes_fast(lobes: &[PhongLobe], wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
-    if wi.z <= 0.0 || wo.z <= 0.0 {
-        return None;
-    }
-    let h = meso_core::frame::half_vector(wi, wo)?;
-    if h.z <= 0.0 {
-        return None;
-    }
+    let h = super::upper_half_vector(wi, wo)?;
     let mut n = 0.0;
     let mut p = 0.0;
     let mut m = [0.0f64; 3]; // slope second moment xx, xy, yy (unnormalised by p)
@@ -225,15 +220,8 @@ impl LobeMicrofacetModel {
     /// [`LobeMicrofacetModel::params`]).
     #[must_use]
     pub fn params_from(&self, theta: &[f64], amps: &[[f64; 3]]) -> LobeMicrofacetParams {
-        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
-        decode_lobes(self.k, theta, &mut lobes);
-        let (mut f0, mut specular) = ([0.0; 3], [0.0; 3]);
-        for c in 0..3 {
-            let (u, g) = (amps[1][c].max(0.0), amps[2][c].max(0.0));
-            let s = u + g;
-            specular[c] = s.min(1.0);
-            f0[c] = if s > 0.0 { (u / s).min(1.0) } else { 0.0 };
-        }
+        let lobes = decode_lobes(self.k, theta);
+        let (f0, specular) = super::mirror_from_amplitudes(amps);
         LobeMicrofacetParams {
             lobes: lobes[..self.k].to_vec(),
             f0,
@@ -255,52 +243,31 @@ impl BrdfModel for LobeMicrofacetModel {
     }
 
     fn nonlinear_names(&self) -> Vec<String> {
-        let mut v = Vec::new();
-        for j in 0..self.k {
-            v.extend([format!("ax{j}"), format!("ay{j}"), format!("ln_eta{j}")]);
-        }
-        for j in 1..self.k {
-            v.push(format!("logit{j}"));
-        }
-        v
+        peak_parameter_names(self.k)
     }
 
     fn basis_names(&self) -> Vec<String> {
-        vec![
-            "diffuse".into(),
-            "specular-f0".into(),
-            "specular-grazing".into(),
-        ]
+        super::mirror_basis_names()
     }
 
-    /// `ax_k, ay_k` of every lobe.
     fn axis_parameters(&self) -> Vec<usize> {
-        (0..self.k).flat_map(|j| [3 * j, 3 * j + 1]).collect()
+        peak_axis_parameters(self.k)
     }
 
-    /// `ln η_k` of every lobe, `κ = η/4`. (The BRDF lobe is never sharper than its NDF peak,
-    /// so capping the peaks caps every lobe of the fitted BRDF.)
     fn sharpness_parameters(&self) -> Vec<(usize, f64)> {
-        (0..self.k).map(|j| (3 * j + 2, 0.25)).collect()
+        peak_sharpness_parameters(self.k)
     }
 
     fn amplitude_bounds(&self) -> Vec<(f64, f64)> {
-        vec![(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
+        super::mirror_amplitude_bounds()
     }
 
-    /// The mirror's specular scale `s = u + g ≤ 1` (the written material's bound), kept by the
-    /// fit rather than clamped afterwards.
     fn amplitude_sums(&self) -> Vec<(Vec<usize>, f64)> {
-        vec![(vec![1, 2], 1.0)]
+        super::mirror_amplitude_sums()
     }
 
     fn bounds(&self) -> Vec<(f64, f64)> {
-        let mut v = Vec::new();
-        for _ in 0..self.k {
-            v.extend([(-AXIS_BOUND, AXIS_BOUND), (-AXIS_BOUND, AXIS_BOUND), LN_ETA]);
-        }
-        v.extend(std::iter::repeat_n(LOGIT, self.k - 1));
-        v
+        peak_bounds(self.k, LN_ETA)
     }
 
     fn initial_guesses(&self) -> Vec<Vec<f64>> {
@@ -320,15 +287,10 @@ impl BrdfModel for LobeMicrofacetModel {
     }
 
     fn basis(&self, theta: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
-        decode_lobes(self.k, theta, &mut lobes);
+        let lobes = decode_lobes(self.k, theta);
         out[0] = 1.0 / PI;
         match microfacet_lobes_fast(&lobes[..self.k], wi, wo) {
-            Some((d, c)) => {
-                let m5 = super::schlick_m5(c);
-                out[1] = d;
-                out[2] = d * m5;
-            }
+            Some((d, c)) => super::split_schlick(out, d, super::schlick_m5(c)),
             None => {
                 out[1] = 0.0;
                 out[2] = 0.0;
@@ -360,17 +322,10 @@ impl LobeMicrofacetModel {
         out[0] = 1.0 / PI;
         out[1] = 0.0;
         out[2] = 0.0;
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        let Some(h) = meso_core::frame::half_vector(wi, wo) else {
+        let Some(h) = super::upper_half_vector(wi, wo) else {
             return;
         };
-        if h.z <= 0.0 {
-            return;
-        }
-        let mut lobes = [PhongLobe::new(DVec3::Z, 0.0, 0.0); MAX_LOBES];
-        decode_lobes(k, theta, &mut lobes);
+        let lobes = decode_lobes(k, theta);
         // Per lobe: unit density ρ at h and ∂ρ/∂ln η, ρ η/(4q) (∂ρ/∂a = that · h), the
         // projected area P↑ with ∂P↑/∂ln η, the slope-moment contribution.
         let mut rho = [0.0; MAX_LOBES];
@@ -427,8 +382,7 @@ impl LobeMicrofacetModel {
         let kk = 1.0 / (4.0 * wi.z * wo.z);
         let x = n / p * g2 * kk;
         let m5 = super::schlick_m5(wi.dot(h));
-        out[1] = x;
-        out[2] = x * m5;
+        super::split_schlick(out, x, m5);
         // dX from (dn, dP, dM) of one parameter.
         let dx = |dn: f64, dp: f64, dm: [f64; 3]| -> f64 {
             let mut dlam = 0.0;
@@ -443,10 +397,7 @@ impl LobeMicrofacetModel {
             let dg2 = -g2 * g2 * dlam;
             kk * (g2 * (dn - n * dp / p) / p + n / p * dg2)
         };
-        let mut put = |q: usize, d: f64| {
-            grad[3 * q + 1] = d;
-            grad[3 * q + 2] = d * m5;
-        };
+        let mut put = |q: usize, d: f64| super::split_schlick(&mut grad[3 * q..], d, m5);
         for (j, l) in lobes.iter().enumerate().take(k) {
             let w = l.weight;
             let a = l.axis;
@@ -486,44 +437,30 @@ pub fn fit_microfacet_lobes_progressive(
     data: &SampleSet,
     opts: &FitOptions,
 ) -> Result<Vec<(LobeMicrofacetModel, FitResult)>, FitError> {
-    let mut out: Vec<(LobeMicrofacetModel, FitResult)> = Vec::new();
-    for j in 1..=k.clamp(1, MAX_LOBES) {
-        let m = LobeMicrofacetModel { k: j };
-        let mut starts = m.initial_guesses();
-        let prev = out.last();
-        let seeds = peak_seeds(data, prev.map(|(pm, r)| (pm as &dyn BrdfModel, r)), 3);
-        // The previous fit with a negligible new lobe: a start as good as the previous fit, so
-        // that adding a lobe does not make the fit worse.
-        if let (Some((pm, r)), Some(&h)) = (prev, seeds.first()) {
-            let mut p = pm.params(r);
-            p.lobes.iter_mut().for_each(|l| l.weight *= 0.99);
-            p.lobes.push(PhongLobe::new(h, 0.01, 400.0));
-            starts.push(m.theta_of(&p));
-        }
-        for h in seeds {
-            for e in [10.0_f64, 100.0, 1000.0, 10000.0] {
-                let eta = (4.0 * e).clamp(10.0_f64, 1e6);
-                let p = match prev {
-                    Some((pm, r)) => {
-                        let mut p = pm.params(r);
-                        p.lobes.iter_mut().for_each(|l| l.weight *= 0.75);
-                        p.lobes.push(PhongLobe::new(h, 0.25, eta));
-                        p
-                    }
-                    None => LobeMicrofacetParams {
-                        lobes: vec![PhongLobe::new(h, 1.0, eta)],
-                        f0: [0.0; 3],
-                        specular: [1.0; 3],
-                        albedo: [0.0; 3],
-                    },
-                };
-                starts.push(m.theta_of(&p));
-            }
-        }
-        let r = fit_from(&m, data, opts, &starts)?;
-        out.push((m, r));
-    }
-    Ok(out)
+    fit_peaks_progressive(
+        k,
+        data,
+        opts,
+        |j| LobeMicrofacetModel { k: j },
+        |m, prev, h, e, [keep, w]| {
+            let eta = (4.0 * e).clamp(10.0_f64, 1e6);
+            let p = match prev {
+                Some((pm, r)) => {
+                    let mut p = pm.params(r);
+                    p.lobes.iter_mut().for_each(|l| l.weight *= keep);
+                    p.lobes.push(PhongLobe::new(h, w, eta));
+                    p
+                }
+                None => LobeMicrofacetParams {
+                    lobes: vec![PhongLobe::new(h, 1.0, eta)],
+                    f0: [0.0; 3],
+                    specular: [1.0; 3],
+                    albedo: [0.0; 3],
+                },
+            };
+            m.theta_of(&p)
+        },
+    )
 }
 
 #[cfg(test)]

@@ -18,6 +18,7 @@ pub use lobes_microfacet::{
 };
 
 use crate::fit::BrdfModel;
+use glam::DVec3;
 use meso_core::convolution::{Accuracy, Form};
 use meso_core::material::{MaterialSpec, NdfSpec, ShadowingKind};
 use meso_core::ndf::Ndf;
@@ -88,6 +89,70 @@ pub(crate) fn mirror_brdf(
         });
         albedo[c] / std::f64::consts::PI + spec
     })
+}
+
+/// The half vector of `wi`, `wo` where both directions lie above the horizon and it does too:
+/// where the specular basis lobes of the microfacet models are non-zero (`None` elsewhere).
+#[inline]
+#[must_use]
+pub(crate) fn upper_half_vector(wi: DVec3, wo: DVec3) -> Option<DVec3> {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return None;
+    }
+    let h = meso_core::frame::half_vector(wi, wo)?;
+    if h.z <= 0.0 {
+        return None;
+    }
+    Some(h)
+}
+
+/// The basis of the models fitted as a [`mirror_material`]: a Lambert lobe and the mirror's
+/// specular lobe split by Schlick's Fresnel into its `f0` and grazing parts (amplitudes
+/// `[albedo, u, g]`, [`mirror_from_amplitudes`]).
+#[must_use]
+pub(crate) fn mirror_basis_names() -> Vec<String> {
+    vec![
+        "diffuse".into(),
+        "specular-f0".into(),
+        "specular-grazing".into(),
+    ]
+}
+
+/// The amplitude bounds of [`mirror_basis_names`]: each in `[0, 1]`.
+#[must_use]
+pub(crate) fn mirror_amplitude_bounds() -> Vec<(f64, f64)> {
+    vec![(0.0, 1.0), (0.0, 1.0), (0.0, 1.0)]
+}
+
+/// The mirror's specular scale `s = u + g ≤ 1` (the written material's bound) of
+/// [`mirror_basis_names`], kept by the fit rather than clamped afterwards.
+#[must_use]
+pub(crate) fn mirror_amplitude_sums() -> Vec<(Vec<usize>, f64)> {
+    vec![(vec![1, 2], 1.0)]
+}
+
+/// The mirror's `(f0, specular)` per channel from the amplitudes `[albedo, u, g]` of
+/// [`mirror_basis_names`]: `specular = min(u + g, 1)`, `f0 = min(u/(u + g), 1)` (0 where
+/// `u + g = 0`), negative amplitudes read as 0.
+#[must_use]
+pub(crate) fn mirror_from_amplitudes(amps: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let (mut f0, mut specular) = ([0.0; 3], [0.0; 3]);
+    for c in 0..3 {
+        let (u, g) = (amps[1][c].max(0.0), amps[2][c].max(0.0));
+        let s = u + g;
+        specular[c] = s.min(1.0);
+        f0[c] = if s > 0.0 { (u / s).min(1.0) } else { 0.0 };
+    }
+    (f0, specular)
+}
+
+/// The specular value `x` of a mirror model split into its two basis lobes
+/// ([`mirror_basis_names`]): `out[1] = x`, `out[2] = x·m5` for Schlick's weight `m5`
+/// ([`schlick_m5`]). With `out` at `grad[3q..]`, the same split of the derivative in `θ_q`.
+#[inline]
+pub(crate) fn split_schlick(out: &mut [f64], x: f64, m5: f64) {
+    out[1] = x;
+    out[2] = x * m5;
 }
 
 /// The material file of a fit: `spec` with `comment`'s lines as `#` comments first

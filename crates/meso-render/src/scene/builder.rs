@@ -28,16 +28,7 @@ pub struct SceneBuilder {
     meshes: Vec<(Arc<Mesh>, MaterialId)>,
 }
 
-pub(super) fn finite(field: &str, v: DVec3) -> Result<(), SceneError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(SceneError::invalid(
-            field,
-            format!("must be finite, got {v:?}"),
-        ))
-    }
-}
+pub(super) use crate::error::finite;
 
 pub(super) fn positive(field: &str, x: f64) -> Result<(), SceneError> {
     if x.is_finite() && x > 0.0 {

@@ -7,7 +7,7 @@ use super::streams::{decode, read_stream, Layout, STREAMS};
 use super::table::{pyramid_bytes, read_table, TableEntry};
 use crate::compact::{Horizons, Lobes};
 use crate::error::Result;
-use crate::format::Reader;
+use crate::format::{Header, Reader};
 use crate::horizon::HorizonStats;
 use crate::pyramid::Level;
 use meso_core::ndf::PhongLobe;
@@ -25,15 +25,9 @@ struct Columns {
 /// Read the levels of a format-3 file after the common header (`docs/map-format.md`): the
 /// level table, the memory budget, the streams inflated, the lobe counts checked, the columns
 /// decoded, the levels built.
-pub(in crate::format) fn read_levels(
-    r: &mut Reader<'_>,
-    cols: usize,
-    rows: usize,
-    nlev: usize,
-    max_lobes: usize,
-    has_h: bool,
-) -> Result<Vec<Level>> {
-    let (table, texels, lobes) = read_table(r, cols, rows, nlev, max_lobes)?;
+pub(in crate::format) fn read_levels(r: &mut Reader<'_>, h: &Header) -> Result<Vec<Level>> {
+    let (max_lobes, has_h) = (h.max_lobes, h.has_h);
+    let (table, texels, lobes) = read_table(r, h)?;
     let n_streams = if has_h { STREAMS.len() } else { 4 };
     let expect = |s: usize| {
         (if STREAMS[s].1 { lobes } else { texels }) * (STREAMS[s].2 * STREAMS[s].3) as u64
@@ -157,15 +151,9 @@ fn horizon_weight(r: &Reader<'_>, k: usize, bits: u32) -> Result<f64> {
 /// before the next (the lobe counts, every stream's width, each texel's weight codes, the
 /// horizon weights). Its memory: the lobe layout (9 bytes per texel) and one stream, raw and
 /// decoded.
-pub(in crate::format) fn check_levels(
-    r: &mut Reader<'_>,
-    cols: usize,
-    rows: usize,
-    nlev: usize,
-    max_lobes: usize,
-    has_h: bool,
-) -> Result<()> {
-    let (table, texels, lobes) = read_table(r, cols, rows, nlev, max_lobes)?;
+pub(in crate::format) fn check_levels(r: &mut Reader<'_>, h: &Header) -> Result<()> {
+    let (max_lobes, has_h) = (h.max_lobes, h.has_h);
+    let (table, texels, lobes) = read_table(r, h)?;
     let expect =
         |s: usize| if STREAMS[s].1 { lobes } else { texels } * (STREAMS[s].2 * STREAMS[s].3) as u64;
     let levels_at: Vec<(usize, usize)> = table.iter().map(|t| (t.t0, t.texels())).collect();

@@ -4,7 +4,7 @@
 
 use crate::compact::COMPACT_TEXELS;
 use crate::error::Result;
-use crate::format::{Reader, LEVEL_HEADER_BYTES};
+use crate::format::{Header, Reader, LEVEL_HEADER_BYTES};
 use crate::pyramid::{Pyramid, Residual};
 use std::io::Write;
 
@@ -71,13 +71,8 @@ pub(super) fn pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
 
 /// The level table (checked against `cols × rows` and `max_lobes`), with the pyramid's total
 /// texels and lobes.
-pub(super) fn read_table(
-    r: &mut Reader<'_>,
-    cols: usize,
-    rows: usize,
-    nlev: usize,
-    max_lobes: usize,
-) -> Result<(Vec<TableEntry>, u64, u64)> {
+pub(super) fn read_table(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64, u64)> {
+    let (cols, rows, nlev, max_lobes) = (h.cols, h.rows, h.nlev, h.max_lobes);
     if ((r.b.len() - r.pos) as u64) < nlev as u64 * LEVEL_HEADER_BYTES {
         return Err(r.err("truncated in the level table".into()));
     }
@@ -86,13 +81,7 @@ pub(super) fn read_table(
     let (mut texels, mut lobes) = (0u64, 0u64);
     for k in 0..nlev {
         let nl = r.level_header(k, ec, er, max_lobes)?;
-        let residual = Residual {
-            mean: r.f64("residual")?,
-            max: r.f64("residual")?,
-            texels: r.u32("residual texels")?,
-            shading_mean: None,
-            shading_max: None,
-        };
+        let residual = r.residual()?;
         table.push(TableEntry {
             cols: ec,
             rows: er,
