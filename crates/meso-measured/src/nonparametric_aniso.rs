@@ -26,14 +26,29 @@
 //! 2. **Power iteration:** `a` depends on `D`, so the update is iterated from `a = cos θ`
 //!    ([`POWER_ITERATIONS`]): with `X(ω) = D G₂/(4 cos² θ)` the white mirror's value of the
 //!    current table at `(ω, ω)` (from its compiled plan), the update is
-//!    `n_new(cell) ∝ mean (f_r − ρ/π) n(cell)/X(ω)`. Each channel's smallest back-scattering
-//!    value is its first diffuse floor `ρ/π`.
+//!    `n_new(cell) ∝ mean (f_r − ρ/π) n(cell)/X(ω)`, each channel's smallest back-scattering
+//!    value taken as its diffuse floor `ρ/π`.
 //! 3. **Fresnel, specular, diffuse:** with `D` and `G₂` known the model is linear in `(ρ, u, g)`
 //!    per channel: the isotropic fit's weighted least squares on all fitted samples (Löw log
 //!    metric linearised about the data, `0 ≤ ρ ≤ 1`, `u, g ≥ 0`, `u + g ≤ 1`, solved exactly).
-//! 4. Steps 3 and 2 alternate [`OUTER_ITERATIONS`] times ([`INNER_POWER_ITERATIONS`] power
-//!    iterations each): the fitted `ρ` replaces the floor, then step 3 runs on the final table.
+//! 4. **All samples:** then, [`OUTER_ITERATIONS`] times, step 3 and a refit of every cell and
+//!    the three albedos jointly by linear least squares on all fitted samples, `G₂` held from
+//!    the table of the step before (each sample touches the cell of its half vector, so the
+//!    normal equations are diagonal but for the albedos: a 3 × 3 Schur complement). The
+//!    back-scattering alone cannot tell a broad tail from the Lambert term: a power iteration
+//!    alternated with step 3 drifted (a GGX material's albedo 0.05 went to 0.15 in four
+//!    alternations, the NDF's tail eaten), which the joint refit does not.
 //!
+//! Round trips (`tests/nonparametric_aniso.rs`; 16 384 back-scattering samples at the cell
+//! centres of the default grid, four pairs per cell with the half vector in the cell, 20 000
+//! pairs over the hemisphere, 10 000 held out): a GGX material α = (0.2, 0.4) turned by 30°
+//! with f0 (0.9, 0.6, 0.3), specular 0.8 and albedo (0.05, 0.1, 0.2) comes back with f0 within
+//! 0.9 %, specular within 0.6 %, albedo within 1.2 %, the table within 3.0 % rms of the
+//! truth's cell means up to θ = 45° (worst cell 11 %: a cell is fitted to the few samples in
+//! it, their weighted mean of `D`, not the cell's), and a held-out Löw log error 1.05–1.06×
+//! that of the truth's own table with the true Fresnel and albedo (0.0145 against 0.0137 on
+//! red: the error of a piecewise-constant table on this grid, not of the fit).
+
 //! `s = u + g` and `f0 = u/(u + g)` are written as the mirror's `specular` and `f0`.
 //!
 //! A piecewise-constant table cannot be finer than its cells: the grid (`n_z` bands of equal
@@ -43,10 +58,10 @@
 
 use crate::fit::{evaluate_samples_fn, FitErrors};
 use crate::nonparametric::{linear_terms_of, log_weight, Basis, Linear, NonParametricError};
-use meso_core::linalg::gauss_solve;
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::grid::EqualAreaGrid;
+use meso_core::linalg::gauss_solve;
 use meso_core::material::{Material, MaterialSpec, MAX_TABLE_CELLS};
 use meso_core::ndf::{Ndf, Tabulated};
 use meso_core::shading::{FastBrdf, Policy};
@@ -123,7 +138,11 @@ fn err(msg: String) -> NonParametricError {
 
 /// Check the grid and the samples (finite, non-negative values; directions above the horizon).
 fn validate(data: &SampleSet, opts: &AnisoOptions) -> Result<(), NonParametricError> {
-    if opts.n_z < 4 || opts.n_z % 2 != 0 || opts.n_z > 4096 || opts.n_phi == 0 || opts.n_phi > 8192
+    if opts.n_z < 4
+        || !opts.n_z.is_multiple_of(2)
+        || opts.n_z > 4096
+        || opts.n_phi == 0
+        || opts.n_phi > 8192
     {
         return Err(err(format!(
             "the table's grid {} × {} is not usable: n_z must be even, 4 to 4096, n_phi 1 to 8192",
@@ -297,7 +316,8 @@ impl Power {
 /// The white mirror material of a table (`f0 = 1`, `specular = 1`, no diffuse), as written and
 /// parsed back.
 fn white(t: &Tabulated) -> Material {
-    let spec = crate::model::mirror_material(Ndf::Tabulated(t.clone()), [1.0; 3], [1.0; 3], [0.0; 3]);
+    let spec =
+        crate::model::mirror_material(Ndf::Tabulated(t.clone()), [1.0; 3], [1.0; 3], [0.0; 3]);
     Material::from_toml_str(&spec.to_toml_with_comment("")).expect("a tabulated material parses")
 }
 
@@ -362,7 +382,11 @@ pub fn fit(
     }
     let mut floor = [0.0; 3];
     for (c, f) in floor.iter_mut().enumerate() {
-        *f = power.back.iter().map(|b| b.rgb[c]).fold(f64::INFINITY, f64::min);
+        *f = power
+            .back
+            .iter()
+            .map(|b| b.rgb[c])
+            .fold(f64::INFINITY, f64::min);
     }
     let peak = power
         .back
@@ -431,21 +455,24 @@ fn refit_cells(
         }
     }
     let ridge = 1e-9 * diag.iter().copied().fold(0.0, f64::max);
-    for c in 0..n {
-        diag[c] += ridge;
-        rhs[c] += ridge * t.values()[c];
+    for ((d, r), v) in diag.iter_mut().zip(&mut rhs).zip(t.values()) {
+        *d += ridge;
+        *r += ridge * v;
     }
     // The albedos from the Schur complement of the cells.
     let mut m = [0.0f64; 9];
     let mut b = ry;
-    for ch in 0..3 {
-        m[ch * 3 + ch] = rr[ch];
+    for (ch, v) in rr.iter().enumerate() {
+        m[ch * 3 + ch] = *v;
     }
-    for c in (0..n).filter(|&c| diag[c] > 0.0) {
-        for a in 0..3 {
-            b[a] -= cross[c][a] * rhs[c] / diag[c];
-            for k in 0..3 {
-                m[a * 3 + k] -= cross[c][a] * cross[c][k] / diag[c];
+    for ((d, r), x) in diag.iter().zip(&rhs).zip(&cross) {
+        if *d <= 0.0 {
+            continue;
+        }
+        for (a, xa) in x.iter().enumerate() {
+            b[a] -= xa * r / d;
+            for (k, xk) in x.iter().enumerate() {
+                m[a * 3 + k] -= xa * xk / d;
             }
         }
     }

