@@ -631,7 +631,11 @@ fn aniso_csv(path: &Path, n_z: usize, n_phi: usize, back: bool, n: usize) {
     let hemi = |u: [f64; 2]| {
         let z = u[0].max(0.02);
         let r = (1.0 - z * z).sqrt();
-        DVec3::new(r * (6.283 * u[1]).cos(), r * (6.283 * u[1]).sin(), z)
+        DVec3::new(
+            r * (std::f64::consts::TAU * u[1]).cos(),
+            r * (std::f64::consts::TAU * u[1]).sin(),
+            z,
+        )
     };
     let mut r = rng(9);
     let mut rows = Vec::new();

@@ -47,7 +47,10 @@
 //! truth's cell means up to θ = 45° (worst cell 11 %: a cell is fitted to the few samples in
 //! it, their weighted mean of `D`, not the cell's), and a held-out Löw log error 1.05–1.06×
 //! that of the truth's own table with the true Fresnel and albedo (0.0145 against 0.0137 on
-//! red: the error of a piecewise-constant table on this grid, not of the fit).
+//! red: the error of a piecewise-constant table on this grid, not of the fit). A Beckmann
+//! material α = (0.35, 0.2) turned by −60°: f0, specular and albedo within 0.6 %, the table
+//! within 7.0 % rms (worst cell 45 %: its tail falls by orders of magnitude across a cell),
+//! held-out 1.05–1.06× the truth's own table.
 
 //! `s = u + g` and `f0 = u/(u + g)` are written as the mirror's `specular` and `f0`.
 //!
@@ -125,13 +128,15 @@ pub struct NonParametricAniso {
     pub cells_needed: usize,
 }
 
-/// One back-scattering sample: its cell, `cos θ` of `ω`, and `f_r` per channel.
+/// One back-scattering sample: its cell, its direction `ω = h` (unit, local frame), and `f_r`
+/// per channel (1/sr).
 struct Back {
     cell: usize,
     dir: DVec3,
     rgb: [f64; 3],
 }
 
+/// A data error with `msg`.
 fn err(msg: String) -> NonParametricError {
     NonParametricError::Data(msg)
 }
