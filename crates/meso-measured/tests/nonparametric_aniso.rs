@@ -296,7 +296,7 @@ fn round_trip(t: &Truth, rms_tol: f64, worst_tol: f64) {
     // Eq. 1 by an independent quadrature; the projected area `∫ n (m·z) dω` by the same rule
     // and exactly (z is uniform in solid angle within a band, so a cell contributes its value
     // × its solid angle × its band's mid z), against meso-core's quadrature, which the
-    // material divides by: `∫ D (m·z) dω = exact / meso-core` (measured 1.0021 for Beckmann).
+    // material divides by: `∫ D (m·z) dω = exact / meso-core` (measured 1.0015 GGX, 1.0013 Beckmann).
     let (total, projected) = independent_integrals(back);
     let g = back.grid();
     let exact: f64 = back
