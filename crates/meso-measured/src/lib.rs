@@ -9,6 +9,8 @@
 //! * [`samples`] — data to fit (weighted direction pairs), with a stratified MERL subsample;
 //! * [`metric`] — the cosine-weighted L2 of Ngan et al. 2005 and the log metric of Löw et al. 2012;
 //! * [`job`] — the core of `meso fit`: loading a data file, the lobe fits for either transfer;
+//! * [`nonparametric`], [`nonparametric_aniso`] — the NDF itself tabulated (1-D in θm for MERL
+//!   tables, 2-D for anisotropic samples) by power iteration, Fresnel and diffuse alongside;
 //! * [`engine`] — engine (glTF metallic–roughness) parameters from a GGX + Lambert fit;
 //! * the fits solve with meso-core's one Levenberg–Marquardt solver ([`meso_core::lm`]);
 //! * [`fit`] — the [`fit::BrdfModel`] trait and the fitting driver (several starts, coarse to fine,
@@ -41,6 +43,7 @@ pub mod merl;
 pub mod metric;
 pub mod model;
 pub mod nonparametric;
+pub mod nonparametric_aniso;
 pub mod plots;
 pub mod rusinkiewicz;
 pub mod samples;

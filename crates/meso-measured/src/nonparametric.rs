@@ -167,7 +167,7 @@ fn projected_areas(ndf: &Ndf, theta: &[f64]) -> Vec<f64> {
 /// `0 ≤ ρ ≤ 1`, `u, g ≥ 0` and `u + g ≤ 1` (the mirror's specular scale may not exceed 1), solved
 /// exactly by [`meso_core::lm::linear_least_squares_limited`] (the limit is a constraint of
 /// the solve, not a clamp afterwards).
-fn linear3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
+pub(crate) fn linear3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
     let mut ata = [0.0f64; 9];
     let mut aty = [0.0f64; 3];
     for (a, y, w) in rows {
@@ -310,19 +310,22 @@ fn initial_ndf(back: &[(f64, [f64; 3])], theta: &[f64]) -> Result<Radial, NonPar
 
 /// The linear terms of the fit, per channel: Lambert albedo and the Schlick split of the
 /// specular scale, `u + g (1 − cos θd)⁵`.
-struct Linear {
-    albedo: [f64; 3],
-    u: [f64; 3],
-    g: [f64; 3],
+pub(crate) struct Linear {
+    /// Lambert albedo per channel.
+    pub(crate) albedo: [f64; 3],
+    /// The Fresnel-independent part of the specular scale per channel.
+    pub(crate) u: [f64; 3],
+    /// Schlick's part of the specular scale per channel.
+    pub(crate) g: [f64; 3],
 }
 
 /// Per sample: the white mirror's value `X`, its Schlick part `X (1 − c)⁵` and the sample's
 /// weight times `cos² θi`.
-type Basis = Vec<(f64, f64, f64)>;
+pub(crate) type Basis = Vec<(f64, f64, f64)>;
 
 /// The log metric linearised about the data: a residual δf in f weighs
 /// cos θi / (1 + f cos θi) in ln(1 + f cos θi).
-fn log_weight(s: &crate::samples::Sample, ch: usize, w: f64) -> f64 {
+pub(crate) fn log_weight(s: &crate::samples::Sample, ch: usize, w: f64) -> f64 {
     let l = 1.0 + s.rgb[ch].max(0.0) * s.wi.z;
     w / (l * l)
 }
@@ -341,7 +344,13 @@ fn linear_terms(r: &Radial, nodes: usize, data: &SampleSet) -> (Basis, Linear) {
         nodes,
         start: Start::default(),
     };
-    let plan = FastBrdf::with_policy(&material(&unit), Policy::Accurate);
+    linear_terms_of(&material(&unit), data)
+}
+
+/// Step 2 for any NDF: the linear terms by least squares on the fitted samples, the basis from
+/// the plan of `white`, a white mirror material (`f0 = 1`, `specular = 1`, no diffuse term).
+pub(crate) fn linear_terms_of(white: &Material, data: &SampleSet) -> (Basis, Linear) {
+    let plan = FastBrdf::with_policy(white, Policy::Accurate);
     let basis: Basis = data
         .samples
         .iter()

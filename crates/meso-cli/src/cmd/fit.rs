@@ -74,11 +74,18 @@ pub struct Args {
     #[arg(long, value_parser = parse_lobes, required_unless_present = "nonparametric")]
     pub lobes: Option<LobeCount>,
     /// Fit the non-parametric NDF instead of lobes: the NDF tabulated in θm from the
-    /// back-scattering cells of a MERL table (power iteration, Dupuy et al. 2015), Smith masking
-    /// derived from it, Schlick Fresnel, specular scale and Lambert fitted alongside
-    /// (docs/measured.md "Non-parametric NDF").
+    /// back-scattering cells of a MERL table, or over (θm, φm) from the back-scattering samples
+    /// of a sample CSV (anisotropic data; `[ndf] kind = "tabulated"` on the --grid), by power
+    /// iteration (Dupuy et al. 2015), Smith masking derived from it, Schlick Fresnel, specular
+    /// scale and Lambert fitted alongside (docs/measured.md "Non-parametric NDF").
     #[arg(long, conflicts_with_all = ["lobes", "transfer", "axes"])]
     pub nonparametric: bool,
+    /// The 2-D table of `--nonparametric` on a sample CSV: `N_Z,N_PHI`, bands of equal height in
+    /// cos θ over the sphere (even; half above the horizon) and sectors in φ. The CSV needs
+    /// back-scattering samples (i and o within 0.5°) in 90 % of the upper cells up to 85°.
+    /// Default 512,64.
+    #[arg(long, value_parser = parse_grid, requires = "nonparametric")]
+    pub grid: Option<(usize, usize)>,
     /// Metric minimised.
     #[arg(long, value_enum, default_value = "both")]
     pub metric: MetricArg,
@@ -158,6 +165,15 @@ fn parse_lobes(s: &str) -> Result<LobeCount, String> {
             "{s}: expected a number of lobes from 1 to 6, or auto"
         )),
     }
+}
+
+/// `--grid`'s value parser: `N_Z,N_PHI`.
+fn parse_grid(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("{s}: expected N_Z,N_PHI (two whole numbers, e.g. 512,64)");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let a = a.trim().parse::<usize>().map_err(|_| bad())?;
+    let b = b.trim().parse::<usize>().map_err(|_| bad())?;
+    Ok((a, b))
 }
 
 /// Run the command.

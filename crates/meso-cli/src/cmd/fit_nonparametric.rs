@@ -1,5 +1,7 @@
-//! `meso fit DATA --nonparametric --out MATERIAL.toml`: the non-parametric NDF of a MERL table
-//! (`meso_measured::nonparametric`), printed and written; the CLI only reads, calls and prints.
+//! `meso fit DATA --nonparametric [--grid N_Z,N_PHI] --out MATERIAL.toml`: the non-parametric NDF
+//! of a MERL table (`meso_measured::nonparametric`, 1-D in θm) or of a sample CSV
+//! (`meso_measured::nonparametric_aniso`, 2-D over the grid), printed and written; the CLI only
+//! reads, calls and prints.
 
 use super::fit::Args;
 use anyhow::{bail, Context, Result};
@@ -17,12 +19,14 @@ pub fn run(a: &Args) -> Result<()> {
     crate::util::check_outputs(&[&a.out], &[&a.data])?;
     let data = load(&a.data, a.samples)?;
     let Some(table) = &data.merl else {
-        bail!(
-            "{}: --nonparametric needs a MERL table (it reads the NDF from the back-scattering cells); this is {}",
-            a.data.display(),
-            data.description
-        );
+        return run_aniso(a, &data, t0);
     };
+    if a.grid.is_some() {
+        bail!(
+            "{}: --grid is the 2-D table of a sample CSV; a MERL table is isotropic and gets the 1-D NDF in θm",
+            a.data.display()
+        );
+    }
     let r = fit(table, &data.samples).with_context(|| a.data.display().to_string())?;
     let mut report = String::new();
     let _ = writeln!(report, "data: {}", data.description);
@@ -78,6 +82,79 @@ pub fn run(a: &Args) -> Result<()> {
         a.data.display(),
         a.samples,
         r.nodes,
+        data.description
+    );
+    let text = material_toml(&r, &comment);
+    meso_core::io::write_atomic(&a.out, text.as_bytes())
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    let _ = writeln!(report, "\nwrote {}", a.out.display());
+    let _ = writeln!(report, "total time {:.2} s", t0.elapsed().as_secs_f64());
+    crate::util::print_stdout(&report)
+}
+
+/// `--nonparametric` on a sample CSV: the 2-D table over `--grid`.
+fn run_aniso(a: &Args, data: &meso_measured::job::Data, t0: Instant) -> Result<()> {
+    use meso_measured::nonparametric_aniso::{fit, material_toml, AnisoOptions, MAX_THETA_DEG};
+    let opts = a
+        .grid
+        .map_or_else(AnisoOptions::default, |(n_z, n_phi)| AnisoOptions {
+            n_z,
+            n_phi,
+        });
+    let r = fit(&data.samples, &opts).with_context(|| a.data.display().to_string())?;
+    let mut report = String::new();
+    let _ = writeln!(report, "data: {}", data.description);
+    let _ = writeln!(
+        report,
+        "non-parametric NDF (2-D): {} × {} table, {} back-scattering samples in {} of its {} cells up to {}°",
+        opts.n_z, opts.n_phi, r.back_samples, r.cells_covered, r.cells_needed, MAX_THETA_DEG
+    );
+    let _ = writeln!(
+        report,
+        "  transfer mirror, Schlick f0 [{}], specular [{}], Smith masking-shadowing from the NDF",
+        fmt3(r.f0, 4),
+        fmt3(r.specular, 4)
+    );
+    let _ = writeln!(report, "  diffuse albedo [{}]", fmt3(r.albedo, 4));
+    if r.specular_at_limit {
+        let _ = writeln!(
+            report,
+            "  note: the specular scale is at its limit 1 on some channel (the fit held it there)"
+        );
+    }
+    let _ = writeln!(
+        report,
+        "\nerrors per channel (r g b)            ngan-l2 (1/sr)             low-log"
+    );
+    let row = meso_measured::workflow::error_row;
+    let _ = writeln!(
+        report,
+        "{}",
+        row(
+            &format!("fitted ({} samples)", data.samples.samples.len()),
+            &r.fitted
+        )
+    );
+    if let Some(h) = &r.held_out {
+        let _ = writeln!(
+            report,
+            "{}",
+            row(
+                &format!(
+                    "held out, not fitted ({} samples)",
+                    data.samples.held_out.len()
+                ),
+                h
+            )
+        );
+    }
+    let comment = format!(
+        "meso fit {} --nonparametric --grid {},{}\nnon-parametric NDF ({} × {} table): {}",
+        a.data.display(),
+        opts.n_z,
+        opts.n_phi,
+        opts.n_z,
+        opts.n_phi,
         data.description
     );
     let text = material_toml(&r, &comment);
