@@ -38,45 +38,14 @@ pub fn run(a: &Args) -> Result<()> {
         r.ndf.rms_theta().to_degrees(),
         r.start.name()
     );
-    let _ = writeln!(
-        report,
-        "  transfer mirror, Schlick f0 [{}], specular [{}], Smith masking-shadowing from the NDF",
-        fmt3(r.f0, 4),
-        fmt3(r.specular, 4)
-    );
-    let _ = writeln!(report, "  diffuse albedo [{}]", fmt3(r.albedo, 4));
-    if r.specular_at_limit {
-        let _ = writeln!(
-            report,
-            "  note: the specular scale is at its limit 1 on some channel (the fit held it there)"
-        );
-    }
-    let _ = writeln!(
-        report,
-        "\nerrors per channel (r g b)            ngan-l2 (1/sr)             low-log"
-    );
-    let row = meso_measured::workflow::error_row;
-    let _ = writeln!(
-        report,
-        "{}",
-        row(
-            &format!("fitted ({} samples)", data.samples.samples.len()),
-            &r.fitted
-        )
-    );
-    if let Some(h) = &r.held_out {
-        let _ = writeln!(
-            report,
-            "{}",
-            row(
-                &format!(
-                    "held out, not fitted ({} samples)",
-                    data.samples.held_out.len()
-                ),
-                h
-            )
-        );
-    }
+    let terms = Terms {
+        f0: r.f0,
+        specular: r.specular,
+        albedo: r.albedo,
+        specular_at_limit: r.specular_at_limit,
+        fitted: &r.fitted,
+        held_out: r.held_out.as_ref(),
+    };
     let comment = format!(
         "meso fit {} --nonparametric --samples {}\nnon-parametric NDF ({} nodes): {}",
         a.data.display(),
@@ -84,12 +53,14 @@ pub fn run(a: &Args) -> Result<()> {
         r.nodes,
         data.description
     );
-    let text = material_toml(&r, &comment);
-    meso_core::io::write_atomic(&a.out, text.as_bytes())
-        .with_context(|| format!("writing {}", a.out.display()))?;
-    let _ = writeln!(report, "\nwrote {}", a.out.display());
-    let _ = writeln!(report, "total time {:.2} s", t0.elapsed().as_secs_f64());
-    crate::util::print_stdout(&report)
+    finish(
+        a,
+        &data.samples,
+        &terms,
+        &material_toml(&r, &comment),
+        report,
+        t0,
+    )
 }
 
 /// `--nonparametric` on a sample CSV: the 2-D table over `--grid`.
@@ -109,14 +80,62 @@ fn run_aniso(a: &Args, data: &meso_measured::job::Data, t0: Instant) -> Result<(
         "non-parametric NDF (2-D): {} × {} table, {} back-scattering samples in {} of its {} cells up to {}°",
         opts.n_z, opts.n_phi, r.back_samples, r.cells_covered, r.cells_needed, MAX_THETA_DEG
     );
+    let terms = Terms {
+        f0: r.f0,
+        specular: r.specular,
+        albedo: r.albedo,
+        specular_at_limit: r.specular_at_limit,
+        fitted: &r.fitted,
+        held_out: r.held_out.as_ref(),
+    };
+    let comment = format!(
+        "meso fit {} --nonparametric --grid {},{}\nnon-parametric NDF ({} × {} table): {}",
+        a.data.display(),
+        opts.n_z,
+        opts.n_phi,
+        opts.n_z,
+        opts.n_phi,
+        data.description
+    );
+    finish(
+        a,
+        &data.samples,
+        &terms,
+        &material_toml(&r, &comment),
+        report,
+        t0,
+    )
+}
+
+/// What both non-parametric fits report beside their NDF: the mirror's Schlick terms, the
+/// Lambert albedo, and the errors on fitted and held-out samples.
+struct Terms<'a> {
+    f0: [f64; 3],
+    specular: [f64; 3],
+    albedo: [f64; 3],
+    specular_at_limit: bool,
+    fitted: &'a meso_measured::fit::FitErrors,
+    held_out: Option<&'a meso_measured::fit::FitErrors>,
+}
+
+/// The report's common part (the terms, the error table), the material written atomically to
+/// `--out`, and the report printed.
+fn finish(
+    a: &Args,
+    samples: &meso_measured::samples::SampleSet,
+    t: &Terms<'_>,
+    text: &str,
+    mut report: String,
+    t0: Instant,
+) -> Result<()> {
     let _ = writeln!(
         report,
         "  transfer mirror, Schlick f0 [{}], specular [{}], Smith masking-shadowing from the NDF",
-        fmt3(r.f0, 4),
-        fmt3(r.specular, 4)
+        fmt3(t.f0, 4),
+        fmt3(t.specular, 4)
     );
-    let _ = writeln!(report, "  diffuse albedo [{}]", fmt3(r.albedo, 4));
-    if r.specular_at_limit {
+    let _ = writeln!(report, "  diffuse albedo [{}]", fmt3(t.albedo, 4));
+    if t.specular_at_limit {
         let _ = writeln!(
             report,
             "  note: the specular scale is at its limit 1 on some channel (the fit held it there)"
@@ -131,33 +150,20 @@ fn run_aniso(a: &Args, data: &meso_measured::job::Data, t0: Instant) -> Result<(
         report,
         "{}",
         row(
-            &format!("fitted ({} samples)", data.samples.samples.len()),
-            &r.fitted
+            &format!("fitted ({} samples)", samples.samples.len()),
+            t.fitted
         )
     );
-    if let Some(h) = &r.held_out {
+    if let Some(h) = t.held_out {
         let _ = writeln!(
             report,
             "{}",
             row(
-                &format!(
-                    "held out, not fitted ({} samples)",
-                    data.samples.held_out.len()
-                ),
+                &format!("held out, not fitted ({} samples)", samples.held_out.len()),
                 h
             )
         );
     }
-    let comment = format!(
-        "meso fit {} --nonparametric --grid {},{}\nnon-parametric NDF ({} × {} table): {}",
-        a.data.display(),
-        opts.n_z,
-        opts.n_phi,
-        opts.n_z,
-        opts.n_phi,
-        data.description
-    );
-    let text = material_toml(&r, &comment);
     meso_core::io::write_atomic(&a.out, text.as_bytes())
         .with_context(|| format!("writing {}", a.out.display()))?;
     let _ = writeln!(report, "\nwrote {}", a.out.display());
