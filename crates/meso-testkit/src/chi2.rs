@@ -11,6 +11,8 @@
 //!    mass where the pdf says there is none, or a peak is narrower than the sub-cells).
 //! 4. Cells with expected count below `min_expected` are pooled into one; Pearson's statistic
 //!    `Σ (O − E)² / E` over the remaining cells and the pool, with `cells − 1` degrees of freedom.
+//!    This step alone is [`pearson`], for tests that bin on a grid of their own with exact cell
+//!    probabilities (a tabulated NDF's sampler on its equal-area grid).
 //! 5. The p-value `Q(dof/2, χ²/2)` is compared with the Šidák-corrected level
 //!    `1 − (1 − significance)^{1/tests_run}`; below it, the sampler is rejected.
 //!
@@ -306,40 +308,11 @@ impl ChiSquareTest {
     ) -> Vec<(f64, f64, Option<usize>)> {
         let mut order: Vec<usize> = (0..self.n_theta * self.n_phi).collect();
         order.sort_by(|&a, &b| report.expected[a].total_cmp(&report.expected[b]));
-        let (mut pool_o, mut pool_e) = (0.0, 0.0);
-        // Regular categories (observed, expected, cell), in ascending expected count.
-        let mut bins: Vec<(f64, f64, Option<usize>)> = Vec::new();
         let categories = order
             .iter()
             .map(|&c| (report.observed[c], report.expected[c], Some(c)))
             .chain(std::iter::once((none_observed, none_expected, None)));
-        let mut pooled = 0;
-        for (o, e, cell) in categories {
-            if e == 0.0 && o == 0.0 {
-                continue;
-            }
-            if e < self.min_expected || (pool_o > 0.0 && pool_e < self.min_expected) {
-                pool_o += o;
-                pool_e += e;
-                pooled += 1;
-            } else {
-                bins.push((o, e, cell));
-            }
-        }
-        bins.sort_by(|a, b| a.1.total_cmp(&b.1));
-        if pool_e > 0.0 || pool_o > 0.0 {
-            if pool_e >= self.min_expected || bins.is_empty() {
-                bins.push((pool_o, pool_e, None));
-            } else {
-                // An under-filled pool is merged into the smallest regular category rather than
-                // counted as a category of its own (which would add a degree of freedom that
-                // carries no information).
-                bins[0].0 += pool_o;
-                bins[0].1 += pool_e;
-                bins[0].2 = None;
-                pooled += 1;
-            }
-        }
+        let (bins, pooled) = pool_categories(categories, self.min_expected);
         report.pooled_cells += pooled;
         bins
     }
@@ -404,19 +377,15 @@ fn score(
     nt: usize,
     np: usize,
 ) -> Result<(), String> {
-    let mut stat = 0.0;
     let mut worst: Option<(f64, usize)> = None;
     for &(o, e, cell) in bins {
         let contrib = (o - e) * (o - e) / e;
-        stat += contrib;
         if let Some(c) = cell {
             if worst.is_none_or(|(w, _)| contrib > w) {
                 worst = Some((contrib, c));
             }
         }
     }
-    let cells = bins.len();
-    report.statistic = stat;
     report.worst_cell = worst.map(|(_, c)| {
         let (lo, hi) = cell_bounds(c, nt, np);
         CellResidual {
@@ -426,14 +395,124 @@ fn score(
             expected: report.expected[c],
         }
     });
+    report.statistic = statistic(bins);
+    let p = pearson_of(bins, 0)?;
+    report.dof = p.dof;
+    report.p_value = p.p_value;
+    Ok(())
+}
+
+/// Pearson's χ² test of counts over categories: what the harness does after binning (steps 4
+/// and 5 of the [module docs](self) without the significance decision), for tests that bin on a
+/// grid of their own with exact cell probabilities (e.g. a tabulated NDF's sampler on its own
+/// equal-area grid).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pearson {
+    /// `Σ (O − E)² / E` over the categories left after pooling.
+    pub statistic: f64,
+    /// Degrees of freedom: categories left after pooling − 1.
+    pub dof: usize,
+    /// `Pr[χ²_dof ≥ statistic]`.
+    pub p_value: f64,
+    /// Number of categories merged into the pool of small ones.
+    pub pooled: usize,
+}
+
+/// Pearson's χ² test of `observed` counts against `expected` counts (same length, one entry a
+/// category; expected counts are `samples · probability`): categories whose expected count is
+/// below `min_expected` are pooled exactly as [`ChiSquareTest`] pools its cells (ascending
+/// expected count; an under-filled pool merged into the smallest category), then Pearson's
+/// statistic and its p-value. `Err` when the lengths differ, an expected count is negative or
+/// not finite, a category with no expected count has observations (the sampler puts mass where
+/// the probabilities say there is none), or fewer than two categories are left.
+pub fn pearson(observed: &[f64], expected: &[f64], min_expected: f64) -> Result<Pearson, String> {
+    if observed.len() != expected.len() {
+        return Err(format!(
+            "{} observed counts against {} expected ones",
+            observed.len(),
+            expected.len()
+        ));
+    }
+    if let Some(c) = expected.iter().position(|e| !e.is_finite() || *e < 0.0) {
+        return Err(format!("expected count {} of category {c}", expected[c]));
+    }
+    if let Some(c) = (0..observed.len()).find(|&c| expected[c] == 0.0 && observed[c] > 0.0) {
+        return Err(format!(
+            "{} samples in category {c}, whose probability is 0",
+            observed[c]
+        ));
+    }
+    let mut order: Vec<usize> = (0..observed.len()).collect();
+    order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let (bins, pooled) = pool_categories(
+        order.iter().map(|&c| (observed[c], expected[c], Some(c))),
+        min_expected,
+    );
+    pearson_of(&bins, pooled)
+}
+
+/// Pool `categories` (observed, expected, cell), taken in the order given: a category whose
+/// expected count is below `min_expected`, or any while the pool is started but under-filled,
+/// goes into the pool. Returns the categories left (ascending in expected count; the pool one of
+/// them, as cell `None`, or merged into the smallest when it stays under-filled) and how many
+/// were pooled.
+fn pool_categories(
+    categories: impl Iterator<Item = (f64, f64, Option<usize>)>,
+    min_expected: f64,
+) -> (Vec<(f64, f64, Option<usize>)>, usize) {
+    let (mut pool_o, mut pool_e) = (0.0, 0.0);
+    let mut bins: Vec<(f64, f64, Option<usize>)> = Vec::new();
+    let mut pooled = 0;
+    for (o, e, cell) in categories {
+        if e == 0.0 && o == 0.0 {
+            continue;
+        }
+        if e < min_expected || (pool_o > 0.0 && pool_e < min_expected) {
+            pool_o += o;
+            pool_e += e;
+            pooled += 1;
+        } else {
+            bins.push((o, e, cell));
+        }
+    }
+    bins.sort_by(|a, b| a.1.total_cmp(&b.1));
+    if pool_e > 0.0 || pool_o > 0.0 {
+        if pool_e >= min_expected || bins.is_empty() {
+            bins.push((pool_o, pool_e, None));
+        } else {
+            // An under-filled pool is merged into the smallest regular category rather than
+            // counted as a category of its own (which would add a degree of freedom that
+            // carries no information).
+            bins[0].0 += pool_o;
+            bins[0].1 += pool_e;
+            bins[0].2 = None;
+            pooled += 1;
+        }
+    }
+    (bins, pooled)
+}
+
+/// Pearson's statistic `Σ (O − E)² / E` over `bins` (observed, expected, cell).
+fn statistic(bins: &[(f64, f64, Option<usize>)]) -> f64 {
+    bins.iter().map(|&(o, e, _)| (o - e) * (o - e) / e).sum()
+}
+
+/// The statistic, degrees of freedom and p-value of pooled `bins`; fewer than two fail.
+fn pearson_of(bins: &[(f64, f64, Option<usize>)], pooled: usize) -> Result<Pearson, String> {
+    let cells = bins.len();
     if cells < 2 {
         return Err(format!(
             "only {cells} cell(s) left after pooling: too few samples for this grid"
         ));
     }
-    report.dof = cells - 1;
-    report.p_value = crate::gamma::chi_square_sf(stat, report.dof);
-    Ok(())
+    let statistic = statistic(bins);
+    let dof = cells - 1;
+    Ok(Pearson {
+        statistic,
+        dof,
+        p_value: crate::gamma::chi_square_sf(statistic, dof),
+        pooled,
+    })
 }
 
 /// The cell `(θ index, φ index)` of a unit direction.
@@ -595,5 +674,48 @@ mod tests {
         let lobe = meso_core::ndf::PhongLobe::new(DVec3::new(0.2, 0.1, 0.9), 1.0, 1e4);
         let sharp = check_normalization(|d| lobe.unit_density(d), 80, 160, 4);
         assert!((sharp - 1.0).abs() < 1e-6, "{sharp}");
+    }
+
+    /// Counts drawn from known probabilities pass; the same counts against other
+    /// probabilities fail; small categories are pooled; bad input is refused.
+    #[test]
+    fn pearson_accepts_the_truth_and_rejects_a_lie() {
+        use rand::RngExt as _;
+        let probs: Vec<f64> = (0..40).map(|k| (1 + k % 7) as f64).collect();
+        let total: f64 = probs.iter().sum();
+        let probs: Vec<f64> = probs.iter().map(|p| p / total).collect();
+        let mut rng = crate::rng(5);
+        let n = 100_000;
+        let mut counts = vec![0.0; probs.len()];
+        for _ in 0..n {
+            let mut u: f64 = rng.random();
+            let c = probs
+                .iter()
+                .position(|p| {
+                    u -= p;
+                    u < 0.0
+                })
+                .unwrap_or(probs.len() - 1);
+            counts[c] += 1.0;
+        }
+        let expected: Vec<f64> = probs.iter().map(|p| p * n as f64).collect();
+        let r = pearson(&counts, &expected, 5.0).unwrap();
+        assert_eq!((r.dof, r.pooled), (39, 0));
+        assert!(r.p_value > 1e-3, "{r:?}");
+        // Swap the probabilities of two unequal categories: rejected.
+        let mut wrong = expected.clone();
+        wrong.swap(0, 6);
+        let r = pearson(&counts, &wrong, 5.0).unwrap();
+        assert!(r.p_value < 1e-9, "{r:?}");
+        // Categories expecting under 5 are pooled.
+        let mut tiny = expected.clone();
+        let mut obs = counts.clone();
+        tiny.extend([1.0, 2.0, 3.0]);
+        obs.extend([1.0, 3.0, 2.0]);
+        let r = pearson(&obs, &tiny, 5.0).unwrap();
+        assert_eq!((r.dof, r.pooled), (40, 3));
+        assert!(pearson(&[1.0], &[1.0, 2.0], 5.0).is_err());
+        assert!(pearson(&[1.0, 2.0], &[0.0, 3.0], 5.0).is_err());
+        assert!(pearson(&[1.0, 2.0], &[f64::NAN, 3.0], 5.0).is_err());
     }
 }
