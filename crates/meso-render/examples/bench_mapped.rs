@@ -18,6 +18,10 @@ use meso_render::*;
 use std::sync::Arc;
 use std::time::Instant;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+use common::plane_scene;
+
 /// User + system CPU seconds of this process (Linux `/proc/self/stat`, 100 ticks/s).
 fn cpu_seconds() -> f64 {
     let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
@@ -37,34 +41,6 @@ fn time(n: u32, mut f: impl FnMut()) -> (f64, f64) {
         best = best.min(t.elapsed().as_secs_f64() * 1e3);
     }
     (best, (cpu_seconds() - c0) * 1e3 / f64::from(n))
-}
-
-fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32) -> Scene {
-    let cam = Camera::new(
-        Projection::Orthographic { width },
-        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
-        DVec3::ZERO,
-        DVec3::Y,
-    )
-    .unwrap();
-    let mut b = SceneBuilder::new(
-        cam,
-        ImageSettings {
-            width: size,
-            height: size,
-            spp: 1,
-            background: [0.0; 3],
-        },
-    );
-    let m = b.material(shader);
-    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
-    let t = 70f64.to_radians();
-    b.light(Light::Directional {
-        direction: DVec3::new(t.sin(), 0.0, t.cos()),
-        irradiance: DVec3::splat(2.0),
-    })
-    .unwrap();
-    b.build().unwrap()
 }
 
 fn main() {
@@ -117,7 +93,8 @@ fn main() {
                 Arc::new(ndf.clone().with_texel_visibility(true)) as Arc<dyn Shader>,
             ),
         ] {
-            let scene = plane_scene(shader, width, size);
+            let t = 70f64.to_radians();
+            let scene = plane_scene(shader, width, size, DVec3::new(t.sin(), 0.0, t.cos()));
             let opts = RenderOptions {
                 spp: Some(1),
                 ..RenderOptions::default()

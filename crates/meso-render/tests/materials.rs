@@ -8,6 +8,12 @@ use meso_render::sampling::PixelSampler;
 use meso_render::*;
 use std::sync::Arc;
 
+mod common;
+use common::plane_scene;
+
+/// The light of the plane scenes (towards the light).
+const LIGHT: DVec3 = DVec3::new(-0.5, 0.3, 0.8);
+
 fn ortho_sphere_scene(shader: Arc<dyn Shader>, size: u32, spp: u32, light: Light) -> Scene {
     let cam = Camera::new(
         Projection::Orthographic { width: 2.5 },
@@ -209,33 +215,6 @@ fn egg_crate() -> HeightMap {
     .unwrap()
 }
 
-fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32) -> Scene {
-    let cam = Camera::new(
-        Projection::Orthographic { width },
-        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
-        DVec3::ZERO,
-        DVec3::Y,
-    )
-    .unwrap();
-    let mut b = SceneBuilder::new(
-        cam,
-        ImageSettings {
-            width: size,
-            height: size,
-            spp: 1,
-            background: [0.0; 3],
-        },
-    );
-    let m = b.material(shader);
-    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
-    b.light(Light::Directional {
-        direction: DVec3::new(-0.5, 0.3, 0.8),
-        irradiance: DVec3::splat(2.0),
-    })
-    .unwrap();
-    b.build().unwrap()
-}
-
 /// Mean relative error `Σ|a − b| / Σ b` over all pixels and channels.
 fn mean_rel(a: &Image, b: &Image) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
@@ -284,7 +263,7 @@ fn ndf_mapped_matches_supersampled_bump_map() {
     for cells_per_pixel in [4.0, 16.0, 64.0, 256.0] {
         let width = cells_per_pixel * f64::from(size) / tpu;
         let truth = render(
-            &plane_scene(bump.clone(), width, size),
+            &plane_scene(bump.clone(), width, size, LIGHT),
             &RenderOptions {
                 spp: Some(1024),
                 ..RenderOptions::default()
@@ -292,7 +271,7 @@ fn ndf_mapped_matches_supersampled_bump_map() {
             None,
         );
         let filtered = render(
-            &plane_scene(ndf.clone(), width, size),
+            &plane_scene(ndf.clone(), width, size, LIGHT),
             &RenderOptions {
                 spp: Some(4),
                 ..RenderOptions::default()
@@ -331,7 +310,7 @@ fn ndf_mapped_zoom_is_smooth() {
     let bump = Arc::new(BumpMapped::new(&map, &surface, 32.0, true).unwrap());
     let mean = |shader: Arc<dyn Shader>, width: f64, spp: u32| -> f64 {
         let img = render(
-            &plane_scene(shader, width, 32),
+            &plane_scene(shader, width, 32, LIGHT),
             &RenderOptions {
                 spp: Some(spp),
                 ..RenderOptions::default()

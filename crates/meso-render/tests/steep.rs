@@ -11,6 +11,9 @@ use meso_maps::{extract, ExtractParams, NormalMap, Source};
 use meso_render::*;
 use std::sync::Arc;
 
+mod common;
+use common::plane_scene;
+
 /// A deterministic hash of `(a, b, c)` to `[0, 1)`.
 fn hash(a: i64, b: i64, c: i64) -> f64 {
     let mut h = (a as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -86,35 +89,6 @@ fn stone_wall() -> Vec<DVec3> {
         }
     }
     out
-}
-
-/// A plane seen from ≈ 24° off its normal (orthographic, `size²` pixels covering `width`
-/// world units, one map tile per world unit) under a directional light.
-fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32, light: DVec3) -> Scene {
-    let cam = Camera::new(
-        Projection::Orthographic { width },
-        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
-        DVec3::ZERO,
-        DVec3::Y,
-    )
-    .unwrap();
-    let mut b = SceneBuilder::new(
-        cam,
-        ImageSettings {
-            width: size,
-            height: size,
-            spp: 1,
-            background: [0.0; 3],
-        },
-    );
-    let m = b.material(shader);
-    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
-    b.light(Light::Directional {
-        direction: light.normalize(),
-        irradiance: DVec3::splat(2.0),
-    })
-    .unwrap();
-    b.build().unwrap()
 }
 
 /// What the comparison of one filtered image against its truth found.

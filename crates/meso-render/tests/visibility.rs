@@ -12,34 +12,8 @@ use meso_maps::{extract, fixtures, ExtractParams, HeightMap, Source};
 use meso_render::*;
 use std::sync::Arc;
 
-/// A plane seen from ≈ 24° off its normal, tilted along the cylinders (orthographic, `size²`
-/// pixels covering `width` world units, one map tile per world unit) under a directional light.
-fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32, light: DVec3) -> Scene {
-    let cam = Camera::new(
-        Projection::Orthographic { width },
-        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
-        DVec3::ZERO,
-        DVec3::Y,
-    )
-    .unwrap();
-    let mut b = SceneBuilder::new(
-        cam,
-        ImageSettings {
-            width: size,
-            height: size,
-            spp: 1,
-            background: [0.0; 3],
-        },
-    );
-    let m = b.material(shader);
-    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
-    b.light(Light::Directional {
-        direction: light.normalize(),
-        irradiance: DVec3::splat(2.0),
-    })
-    .unwrap();
-    b.build().unwrap()
-}
+mod common;
+use common::plane_scene;
 
 /// `(Σ|a − b| / Σb, Σa / Σb)` over pixels and channels: the mean pixel error and the ratio of
 /// the mean radiances.

@@ -1,0 +1,37 @@
+//! The plane scene of the textured-material tests (`materials.rs`, `steep.rs`,
+//! `visibility.rs`) and of `examples/bench_mapped.rs` (which includes this file by path).
+
+use glam::DVec3;
+use meso_render::*;
+use std::sync::Arc;
+
+/// A unit-tiled plane `z = 0` (one map tile per world unit, u along +x) seen orthographically
+/// from ≈ 24° off its normal (the camera at `(0, −0.4, 0.9)`, up +y), `size²` pixels covering
+/// `width` world units, 1 spp, black background, under a directional light of irradiance 2 W/m²
+/// from `light` (towards the light; the builder normalises it).
+pub fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32, light: DVec3) -> Scene {
+    let cam = Camera::new(
+        Projection::Orthographic { width },
+        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
+        DVec3::ZERO,
+        DVec3::Y,
+    )
+    .unwrap();
+    let mut b = SceneBuilder::new(
+        cam,
+        ImageSettings {
+            width: size,
+            height: size,
+            spp: 1,
+            background: [0.0; 3],
+        },
+    );
+    let m = b.material(shader);
+    b.plane(DVec3::ZERO, DVec3::Z, DVec3::X, 1.0, m).unwrap();
+    b.light(Light::Directional {
+        direction: light,
+        irradiance: DVec3::splat(2.0),
+    })
+    .unwrap();
+    b.build().unwrap()
+}
