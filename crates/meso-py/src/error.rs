@@ -33,6 +33,21 @@ pub fn require_exists(path: &Path) -> PyResult<()> {
     Ok(())
 }
 
+/// [`require_exists`] for the input `data`, and a [`MesoError`] when the output `out` names the
+/// same file (the fits write their material there; the data must never be overwritten).
+pub fn require_input_not_output(data: &Path, out: Option<&Path>) -> PyResult<()> {
+    require_exists(data)?;
+    if let (Some(out), Ok(d)) = (out, std::fs::canonicalize(data)) {
+        if std::fs::canonicalize(out).is_ok_and(|o| o == d) {
+            return Err(meso_err(format!(
+                "{}: the output would overwrite the input data",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Set the memory budget of this process (bytes, or a size with a K, M, G or T suffix: `"8G"`),
 /// as the CLI's `--memory-budget`: work whose estimated peak memory is larger is refused with a
 /// `MesoError` before it starts. The default is the CLI's (4G, or less on small machines, or the

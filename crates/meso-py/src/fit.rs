@@ -3,7 +3,7 @@
 //! material and a report.
 
 use crate::arrays::{directions, rows, same_rows, Arr};
-use crate::error::{meso_err, require_exists, value_err};
+use crate::error::{meso_err, require_input_not_output, value_err};
 use crate::material::Material;
 use meso_measured::fit::{FitErrors, LobeAxes};
 use meso_measured::job::{self, Data, Transfer};
@@ -208,15 +208,7 @@ pub fn fit(
     samples: usize,
 ) -> PyResult<(Material, Py<PyDict>)> {
     let o = options(lobes, transfer, metric, axes)?;
-    require_exists(&data)?;
-    if let (Some(out), Ok(d)) = (&out, std::fs::canonicalize(&data)) {
-        if std::fs::canonicalize(out).is_ok_and(|o| o == d) {
-            return Err(meso_err(format!(
-                "{}: the output would overwrite the input data",
-                out.display()
-            )));
-        }
-    }
+    require_input_not_output(&data, out.as_deref())?;
     let name = data.display().to_string();
     let f = py
         .detach(|| {

@@ -9,7 +9,7 @@ use meso_maps::{
 use numpy::{PyArray1, PyArray2, PyArray3, PyArray4, PyArrayMethods};
 use pyo3::prelude::*;
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// The extraction parameters named as the CLI's `meso extract` options.
 fn params(max_lobes: usize, normals: &str, method: &str) -> PyResult<ExtractParams> {
@@ -186,11 +186,25 @@ pub fn extract_file(
 #[pyclass(module = "meso._meso", frozen)]
 pub struct Pyramid {
     inner: Arc<meso_maps::Pyramid>,
+    /// What each lobe stands for ([`meso_maps::lobe_stats`] with horizons), computed on first
+    /// use by any level and shared by all.
+    stats: Arc<OnceLock<meso_maps::LobeStats>>,
 }
 
 impl Pyramid {
     fn new(p: meso_maps::Pyramid) -> Pyramid {
-        Pyramid { inner: Arc::new(p) }
+        Pyramid {
+            inner: Arc::new(p),
+            stats: Arc::default(),
+        }
+    }
+
+    fn level(&self, index: usize) -> Level {
+        Level {
+            pyramid: self.inner.clone(),
+            stats: self.stats.clone(),
+            index,
+        }
     }
 }
 
@@ -239,20 +253,14 @@ impl Pyramid {
     #[getter]
     fn levels(&self) -> Vec<Level> {
         (0..self.inner.levels.len())
-            .map(|index| Level {
-                pyramid: self.inner.clone(),
-                index,
-            })
+            .map(|index| self.level(index))
             .collect()
     }
 
     /// The coarsest level (one texel).
     #[getter]
     fn top(&self) -> Level {
-        Level {
-            pyramid: self.inner.clone(),
-            index: self.inner.levels.len() - 1,
-        }
+        self.level(self.inner.levels.len() - 1)
     }
 
     fn __len__(&self) -> usize {
@@ -283,12 +291,42 @@ fn map_texel(l: &meso_maps::Level, t: usize) -> usize {
 #[pyclass(module = "meso._meso", frozen)]
 pub struct Level {
     pyramid: Arc<meso_maps::Pyramid>,
+    stats: Arc<OnceLock<meso_maps::LobeStats>>,
     index: usize,
 }
 
 impl Level {
     fn level(&self) -> &meso_maps::Level {
         &self.pyramid.levels[self.index]
+    }
+
+    /// The pyramid's lobe statistics (computed once, outside the GIL).
+    fn stats(&self, py: Python<'_>) -> &meso_maps::LobeStats {
+        if let Some(s) = self.stats.get() {
+            return s;
+        }
+        let s = py.detach(|| meso_maps::lobe_stats(&self.pyramid, true));
+        self.stats.get_or_init(|| s)
+    }
+
+    /// `(rows, cols, K)` array of a per-lobe value `f(index of the lobe in the level)`,
+    /// zero-padded.
+    fn per_lobe_index<'py>(
+        &self,
+        py: Python<'py>,
+        f: impl Fn(usize) -> f64,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let l = self.level();
+        let k = self.pyramid.max_lobes;
+        let mut v = vec![0.0; l.rows * l.cols * k];
+        for t in 0..l.rows * l.cols {
+            let m = map_texel(l, t);
+            let (a, b) = (l.lobe_start[m] as usize, l.lobe_start[m + 1] as usize);
+            for (j, i) in (a..b).enumerate().take(k) {
+                v[t * k + j] = f(i);
+            }
+        }
+        PyArray1::from_vec(py, v).reshape([l.rows, l.cols, k])
     }
 
     /// `(rows, cols, K, n)` array of a per-lobe quantity, zero-padded.
@@ -395,6 +433,41 @@ impl Level {
     #[getter]
     fn shading_error_max(&self) -> Option<f64> {
         self.level().residual.shading_max
+    }
+
+    /// `(rows, cols, K)` float64: each lobe's share of its texel's projected area, from the
+    /// level-0 normals it stands for (`meso_maps::lobe_stats`: a coarse texel hands each fine
+    /// normal's projected area to its lobes by the mixture's posterior; a texel's shares sum to
+    /// 1, or are all 0 when nothing faces up). Zero-padded like `weights`. Computed for the whole
+    /// pyramid on first use (about a second for a 512² map).
+    #[getter]
+    fn lobe_shares<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let shares = &self.stats(py).shares[self.index];
+        self.per_lobe_index(py, |i| shares[i])
+    }
+
+    /// `(rows, cols, K)` float64: per lobe, the fraction of the cells it stands for from which
+    /// the unit `direction` (meso's frame: +z the surface normal, +y up in the image) is above
+    /// the horizon: the visibility `V_j(ω)` the renderer's NDF-mapped shading multiplies that
+    /// lobe by (docs/heightmaps.md, "Visibility per lobe"). `None` for a pyramid without horizon
+    /// statistics (one extracted from a normal map). Zero-padded like `weights`.
+    fn lobe_visibility<'py>(
+        &self,
+        py: Python<'py>,
+        direction: [f64; 3],
+    ) -> PyResult<Option<Bound<'py, PyArray3<f64>>>> {
+        let w = glam::DVec3::from_array(direction);
+        if !(w.is_finite() && (w.length() - 1.0).abs() < 1e-6) {
+            return Err(value_err(format!(
+                "direction {direction:?} is not a unit vector"
+            )));
+        }
+        let Some(h) = self.stats(py).horizon.as_ref() else {
+            return Ok(None);
+        };
+        let h = &h[self.index];
+        self.per_lobe_index(py, |i| h.get(i).visibility(w))
+            .map(Some)
     }
 
     fn __repr__(&self) -> String {

@@ -3,7 +3,7 @@ local frame (normal +z, tangent +x); ``wi`` points towards the light, ``wo`` tow
 BRDF values are RGB in 1/sr without the cosine."""
 
 from os import PathLike
-from typing import Any, Optional, Union
+from typing import Any, Optional, Sequence, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -94,6 +94,13 @@ class Level:
     @property
     def shading_error_max(self) -> Optional[float]:
         """Largest shading error (fraction of the peak); None if not recorded."""
+    @property
+    def lobe_shares(self) -> npt.NDArray[np.float64]:
+        """(rows, cols, K) each lobe's share of its texel's projected area (summing to 1)."""
+    def lobe_visibility(self, direction: Sequence[float]) -> Optional[npt.NDArray[np.float64]]:
+        """(rows, cols, K) per lobe, the fraction of the cells it stands for from which the unit
+        ``direction`` (+z the normal, +y up in the image) is above the horizon; None for a
+        pyramid from a normal map."""
 
 class Pyramid:
     """An NDF pyramid (docs/map-format.md); level 0 finest, ``top`` one texel."""
@@ -185,11 +192,16 @@ def fit_nonparametric(
     data: _Path,
     out: Optional[_Path] = None,
     samples: int = 30000,
+    grid: Optional[tuple[int, int]] = None,
 ) -> tuple[Material, dict[str, Any]]:
-    """``meso fit DATA --nonparametric``: the NDF tabulated in θm from a MERL table's
-    back-scattering cells, Smith derived from it, Schlick f0, specular and albedo fitted; returns
-    the material and a report (``nodes``, ``rms_theta_deg``, ``f0``, ``specular``, ``albedo``,
-    ``fitted``/``held_out`` errors per channel, the TOML); ``out`` also writes the file."""
+    """``meso fit DATA --nonparametric [--grid N_Z,N_PHI]``: from a MERL table, the NDF tabulated
+    in θm from its back-scattering cells (``kind`` ``"radial"``; report ``nodes``,
+    ``rms_theta_deg``, ``start``; ``grid`` must be None); from a sample CSV, the NDF tabulated
+    over an equal-area grid of ``grid = (n_z, n_phi)`` cells (default 512 × 64, ``n_z`` even) from
+    its back-scattering samples (``kind`` ``"tabulated"``; report ``grid``, ``back_samples``,
+    ``cells_covered``, ``cells_needed``). Both: Smith derived from the NDF, Schlick ``f0``,
+    ``specular`` and ``albedo`` fitted, ``fitted``/``held_out`` errors per channel, the TOML;
+    ``out`` also writes the file."""
 
 def fit_samples(
     wi: _Array,
