@@ -59,8 +59,10 @@
 //! angular radius `√(4/n_z)` (5.1° for the default 512), so lobes much narrower than that are
 //! averaged over it.
 
-use crate::fit::{evaluate_samples_fn, FitErrors};
-use crate::nonparametric::{linear_terms_of, log_weight, Basis, Linear, NonParametricError};
+use crate::fit::FitErrors;
+use crate::nonparametric::{
+    linear_terms_of, log_weight, parsed, scores, white, Basis, Linear, NonParametricError,
+};
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::grid::EqualAreaGrid;
@@ -293,7 +295,7 @@ impl Power {
         floor: &[f64; 3],
         tiny: f64,
     ) -> Result<Tabulated, NonParametricError> {
-        let plan = FastBrdf::with_policy(&white(t), Policy::Accurate);
+        let plan = FastBrdf::with_policy(&white(Ndf::Tabulated(t.clone())), Policy::Accurate);
         let v: Vec<f64> = self
             .covered
             .iter()
@@ -316,14 +318,6 @@ impl Power {
             .collect();
         self.table(&v)
     }
-}
-
-/// The white mirror material of a table (`f0 = 1`, `specular = 1`, no diffuse), as written and
-/// parsed back.
-fn white(t: &Tabulated) -> Material {
-    let spec =
-        crate::model::mirror_material(Ndf::Tabulated(t.clone()), [1.0; 3], [1.0; 3], [0.0; 3]);
-    Material::from_toml_str(&spec.to_toml_with_comment("")).expect("a tabulated material parses")
 }
 
 /// The material of a fit: the tabulated NDF under [`crate::model::mirror_material`].
@@ -349,7 +343,7 @@ pub fn material_toml(fit: &NonParametricAniso, comment: &str) -> String {
 /// Never for a fit made here (its file always parses).
 #[must_use]
 pub fn material(fit: &NonParametricAniso) -> Material {
-    Material::from_toml_str(&material_toml(fit, "")).expect("a fitted material parses")
+    parsed(&material_spec(fit))
 }
 
 /// Fit the anisotropic non-parametric material (module docs) to scattered samples with full
@@ -409,10 +403,10 @@ pub fn fit(
         t = power.step(&t, &floor, tiny)?;
     }
     for _ in 0..OUTER_ITERATIONS {
-        let (basis, lin) = linear_terms_of(&white(&t), data);
+        let (basis, lin) = linear_terms_of(&white(Ndf::Tabulated(t.clone())), data);
         t = refit_cells(&t, &basis, &lin, data)?;
     }
-    let (_, lin) = linear_terms_of(&white(&t), data);
+    let (_, lin) = linear_terms_of(&white(Ndf::Tabulated(t.clone())), data);
     let mut out = finish(t, &lin, data);
     out.back_samples = power.back.len();
     out.cells_covered = covered;
@@ -505,32 +499,19 @@ fn refit_cells(
 
 /// The fitted material from the final table and linear terms, with its errors.
 fn finish(ndf: Tabulated, lin: &Linear, data: &SampleSet) -> NonParametricAniso {
-    let mut at_limit = false;
-    let mut f0 = [0.0; 3];
-    let mut specular = [0.0; 3];
-    for c in 0..3 {
-        let s = lin.u[c] + lin.g[c];
-        at_limit |= s >= 1.0 - 1e-9;
-        specular[c] = s.min(1.0);
-        f0[c] = if s > 0.0 { lin.u[c] / s } else { 0.0 };
-    }
+    let (f0, specular, specular_at_limit) = lin.mirror();
     let mut out = NonParametricAniso {
         ndf,
         f0,
         specular,
         albedo: lin.albedo,
-        specular_at_limit: at_limit,
+        specular_at_limit,
         fitted: FitErrors::default(),
         held_out: None,
         back_samples: 0,
         cells_covered: 0,
         cells_needed: 0,
     };
-    let plan = FastBrdf::with_policy(&material(&out), Policy::Accurate);
-    let eval = |wi: DVec3, wo: DVec3| plan.eval(wi, wo);
-    out.fitted = evaluate_samples_fn(&data.samples, eval);
-    if !data.held_out.is_empty() {
-        out.held_out = Some(evaluate_samples_fn(&data.held_out, eval));
-    }
+    (out.fitted, out.held_out) = scores(&material(&out), data);
     out
 }
