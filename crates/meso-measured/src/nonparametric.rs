@@ -186,29 +186,47 @@ pub(crate) fn linear3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
     [x[0], x[1], x[2]]
 }
 
-/// The material of a fit: the radial NDF under [`crate::model::mirror_material`].
+/// A fitted non-parametric material, isotropic ([`NonParametric`]) or anisotropic
+/// ([`crate::nonparametric_aniso::NonParametricAniso`]): what its material file is written from
+/// ([`material_spec`]).
+pub trait MirrorFit {
+    /// The fitted NDF (Eq. 1 convention) as meso-core's [`Ndf`]: `Radial` or `Tabulated`.
+    fn mirror_ndf(&self) -> Ndf;
+    /// `[f0, specular, albedo]`: Schlick `f0`, the mirror's `specular` scale and the Lambert
+    /// albedo, per channel, each in [0, 1].
+    fn mirror_terms(&self) -> [[f64; 3]; 3];
+}
+
+impl MirrorFit for NonParametric {
+    fn mirror_ndf(&self) -> Ndf {
+        Ndf::Radial(self.ndf.clone())
+    }
+
+    fn mirror_terms(&self) -> [[f64; 3]; 3] {
+        [self.f0, self.specular, self.albedo]
+    }
+}
+
+/// The material of a fit: its NDF (radial or tabulated) under
+/// [`crate::model::mirror_material`].
 #[must_use]
-pub fn material_spec(fit: &NonParametric) -> MaterialSpec {
-    crate::model::mirror_material(
-        Ndf::Radial(fit.ndf.clone()),
-        fit.f0,
-        fit.specular,
-        fit.albedo,
-    )
+pub fn material_spec(fit: &impl MirrorFit) -> MaterialSpec {
+    let [f0, specular, albedo] = fit.mirror_terms();
+    crate::model::mirror_material(fit.mirror_ndf(), f0, specular, albedo)
 }
 
 /// The material file of a fit (TOML, with `comment` lines as `#` comments first).
 #[must_use]
-pub fn material_toml(fit: &NonParametric, comment: &str) -> String {
+pub fn material_toml(fit: &impl MirrorFit, comment: &str) -> String {
     material_spec(fit).to_toml_with_comment(comment)
 }
 
-/// The material of a fit.
+/// The material of a fit, as its file reads back.
 ///
 /// # Panics
 /// Never for a fit made here (its file always parses).
 #[must_use]
-pub fn material(fit: &NonParametric) -> Material {
+pub fn material(fit: &impl MirrorFit) -> Material {
     parsed(&material_spec(fit))
 }
 

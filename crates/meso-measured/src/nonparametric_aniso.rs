@@ -61,13 +61,13 @@
 
 use crate::fit::FitErrors;
 use crate::nonparametric::{
-    linear_terms_of, log_weight, parsed, scores, white, Basis, Linear, NonParametricError,
+    linear_terms_of, log_weight, scores, white, Basis, Linear, MirrorFit, NonParametricError,
 };
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::grid::EqualAreaGrid;
 use meso_core::linalg::gauss_solve;
-use meso_core::material::{Material, MaterialSpec, MAX_TABLE_CELLS};
+use meso_core::material::MAX_TABLE_CELLS;
 use meso_core::ndf::{Ndf, Tabulated};
 use meso_core::shading::{FastBrdf, Policy};
 use std::f64::consts::PI;
@@ -320,30 +320,16 @@ impl Power {
     }
 }
 
-/// The material of a fit: the tabulated NDF under [`crate::model::mirror_material`].
-#[must_use]
-pub fn material_spec(fit: &NonParametricAniso) -> MaterialSpec {
-    crate::model::mirror_material(
-        Ndf::Tabulated(fit.ndf.clone()),
-        fit.f0,
-        fit.specular,
-        fit.albedo,
-    )
-}
+pub use crate::nonparametric::{material, material_spec, material_toml};
 
-/// The material file of a fit (TOML, with `comment` lines as `#` comments first).
-#[must_use]
-pub fn material_toml(fit: &NonParametricAniso, comment: &str) -> String {
-    material_spec(fit).to_toml_with_comment(comment)
-}
+impl MirrorFit for NonParametricAniso {
+    fn mirror_ndf(&self) -> Ndf {
+        Ndf::Tabulated(self.ndf.clone())
+    }
 
-/// The material of a fit, as its file reads back.
-///
-/// # Panics
-/// Never for a fit made here (its file always parses).
-#[must_use]
-pub fn material(fit: &NonParametricAniso) -> Material {
-    parsed(&material_spec(fit))
+    fn mirror_terms(&self) -> [[f64; 3]; 3] {
+        [self.f0, self.specular, self.albedo]
+    }
 }
 
 /// Fit the anisotropic non-parametric material (module docs) to scattered samples with full
