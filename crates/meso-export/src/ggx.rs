@@ -573,24 +573,32 @@ pub fn fit_aniso_on(
 mod tests {
     use super::*;
 
+    /// `∫ D(h)(n·h) dω_h` over the hemisphere of `n` by the midpoint rule on `nt × np` cells in
+    /// `(u, φ)`, `θ = u² π/2` (denser near the pole for narrow lobes); `d(θ, φ)` is `D` at the
+    /// direction of polar angle `θ` from `n` and azimuth `φ` (radians).
+    fn projected_area(nt: usize, np: usize, d: impl Fn(f64, f64) -> f64) -> f64 {
+        let mut s = 0.0;
+        for i in 0..nt {
+            let u = (i as f64 + 0.5) / nt as f64;
+            let th = u * u * PI / 2.0;
+            let dth = 2.0 * u * PI / 2.0 / nt as f64;
+            for j in 0..np {
+                let ph = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+                s += d(th, ph) * th.cos() * th.sin() * dth * (2.0 * PI / np as f64);
+            }
+        }
+        s
+    }
+
     /// ∫ D(h)(n·h) dω_h = 1 for GGX, by midpoint quadrature over the hemisphere.
     #[test]
     fn ggx_projected_area_is_one() {
         for &alpha in &[0.05, 0.3, 0.8] {
             let n = DVec3::Z;
-            let (nt, np) = (4000, 64);
-            let mut s = 0.0;
-            for i in 0..nt {
-                // Substitution t = θ², denser near the pole for narrow lobes.
-                let u = (i as f64 + 0.5) / nt as f64;
-                let th = u * u * PI / 2.0;
-                let dth = 2.0 * u * PI / 2.0 / nt as f64;
-                for j in 0..np {
-                    let ph = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
-                    let h = DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
-                    s += d_ggx(n, h, alpha) * th.cos() * th.sin() * dth * (2.0 * PI / np as f64);
-                }
-            }
+            let s = projected_area(4000, 64, |th, ph| {
+                let h = DVec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                d_ggx(n, h, alpha)
+            });
             assert!((s - 1.0).abs() < 2e-3, "α = {alpha}: ∫ D cos = {s}");
         }
     }
@@ -610,19 +618,9 @@ mod tests {
                 (0.02, 1.0, 1.0),
             ] {
                 let lobe = AnisoGgx::new(n, psi, at, ab);
-                let (nt, np) = (3000, 720);
-                let mut s = 0.0;
-                for i in 0..nt {
-                    let u = (i as f64 + 0.5) / nt as f64;
-                    let th = u * u * PI / 2.0;
-                    let dth = 2.0 * u * PI / 2.0 / nt as f64;
-                    for j in 0..np {
-                        let ph = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
-                        let h =
-                            ft * (th.sin() * ph.cos()) + fb * (th.sin() * ph.sin()) + n * th.cos();
-                        s += lobe.d(h) * th.cos() * th.sin() * dth * (2.0 * PI / np as f64);
-                    }
-                }
+                let s = projected_area(3000, 720, |th, ph| {
+                    lobe.d(ft * (th.sin() * ph.cos()) + fb * (th.sin() * ph.sin()) + n * th.cos())
+                });
                 assert!(
                     (s - 1.0).abs() < 3e-3,
                     "n = {n}, α = ({at}, {ab}), ψ = {psi}: ∫ D cos = {s}"

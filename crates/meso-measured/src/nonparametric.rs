@@ -186,30 +186,64 @@ pub(crate) fn linear3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
     [x[0], x[1], x[2]]
 }
 
-/// The material of a fit: the radial NDF under [`crate::model::mirror_material`].
+/// A fitted non-parametric material, isotropic ([`NonParametric`]) or anisotropic
+/// ([`crate::nonparametric_aniso::NonParametricAniso`]): what its material file is written from
+/// ([`material_spec`]).
+pub trait MirrorFit {
+    /// The fitted NDF (Eq. 1 convention) as meso-core's [`Ndf`]: `Radial` or `Tabulated`.
+    fn mirror_ndf(&self) -> Ndf;
+    /// `[f0, specular, albedo]`: Schlick `f0`, the mirror's `specular` scale and the Lambert
+    /// albedo, per channel, each in [0, 1].
+    fn mirror_terms(&self) -> [[f64; 3]; 3];
+}
+
+impl MirrorFit for NonParametric {
+    fn mirror_ndf(&self) -> Ndf {
+        Ndf::Radial(self.ndf.clone())
+    }
+
+    fn mirror_terms(&self) -> [[f64; 3]; 3] {
+        [self.f0, self.specular, self.albedo]
+    }
+}
+
+/// The material of a fit: its NDF (radial or tabulated) under
+/// [`crate::model::mirror_material`].
 #[must_use]
-pub fn material_spec(fit: &NonParametric) -> MaterialSpec {
-    crate::model::mirror_material(
-        Ndf::Radial(fit.ndf.clone()),
-        fit.f0,
-        fit.specular,
-        fit.albedo,
-    )
+pub fn material_spec(fit: &impl MirrorFit) -> MaterialSpec {
+    let [f0, specular, albedo] = fit.mirror_terms();
+    crate::model::mirror_material(fit.mirror_ndf(), f0, specular, albedo)
 }
 
 /// The material file of a fit (TOML, with `comment` lines as `#` comments first).
 #[must_use]
-pub fn material_toml(fit: &NonParametric, comment: &str) -> String {
+pub fn material_toml(fit: &impl MirrorFit, comment: &str) -> String {
     material_spec(fit).to_toml_with_comment(comment)
 }
 
-/// The material of a fit.
+/// The material of a fit, as its file reads back.
 ///
 /// # Panics
 /// Never for a fit made here (its file always parses).
 #[must_use]
-pub fn material(fit: &NonParametric) -> Material {
-    Material::from_toml_str(&material_toml(fit, "")).expect("a fitted material parses")
+pub fn material(fit: &impl MirrorFit) -> Material {
+    parsed(&material_spec(fit))
+}
+
+/// A fitted material as its file reads back: `spec` written as TOML and parsed.
+///
+/// # Panics
+/// Never for a [`crate::model::mirror_material`] (its file always parses).
+pub(crate) fn parsed(spec: &MaterialSpec) -> Material {
+    Material::from_toml_str(&spec.to_toml_with_comment("")).expect("a fitted material parses")
+}
+
+/// The white mirror material of `ndf` (`f0 = 1`, `specular = 1`, no diffuse), as written and
+/// parsed back: its value is the basis `X` of the linear terms ([`linear_terms_of`]).
+pub(crate) fn white(ndf: Ndf) -> Material {
+    parsed(&crate::model::mirror_material(
+        ndf, [1.0; 3], [1.0; 3], [0.0; 3],
+    ))
 }
 
 /// Fit the non-parametric material (module docs) to a MERL table, scoring it on `data`'s fitted
@@ -236,10 +270,10 @@ pub fn fit(table: &MerlTable, data: &SampleSet) -> Result<NonParametric, NonPara
     let mut best: Option<NonParametric> = None;
     for (start, mut r) in starts {
         for _ in 0..OUTER_ITERATIONS {
-            let (basis, lin) = linear_terms(&r, back.len(), data);
+            let (basis, lin) = linear_terms(&r, data);
             r = refit_nodes(&r, &basis, &lin, data)?;
         }
-        let (_, lin) = linear_terms(&r, back.len(), data);
+        let (_, lin) = linear_terms(&r, data);
         let mut fit = finish(r, &lin, back.len(), data);
         fit.start = start;
         let err = |f: &NonParametric| f.fitted.low_log.iter().sum::<f64>();
@@ -319,6 +353,34 @@ pub(crate) struct Linear {
     pub(crate) g: [f64; 3],
 }
 
+impl Linear {
+    /// The mirror's `(f0, specular)` per channel, `specular = min(u + g, 1)` and
+    /// `f0 = u/(u + g)` (0 where `u + g = 0`), and whether `u + g` sits at its limit 1 on some
+    /// channel.
+    pub(crate) fn mirror(&self) -> ([f64; 3], [f64; 3], bool) {
+        let mut at_limit = false;
+        let mut f0 = [0.0; 3];
+        let mut specular = [0.0; 3];
+        for c in 0..3 {
+            let s = self.u[c] + self.g[c];
+            at_limit |= s >= 1.0 - 1e-9;
+            specular[c] = s.min(1.0);
+            f0[c] = if s > 0.0 { self.u[c] / s } else { 0.0 };
+        }
+        (f0, specular, at_limit)
+    }
+}
+
+/// The errors of `material` (its plan under [`Policy::Accurate`]) on `data`'s fitted samples
+/// and on its held-out ones (`None` when none are held out).
+pub(crate) fn scores(material: &Material, data: &SampleSet) -> (FitErrors, Option<FitErrors>) {
+    let plan = FastBrdf::with_policy(material, Policy::Accurate);
+    let eval = |wi: DVec3, wo: DVec3| plan.eval(wi, wo);
+    let fitted = evaluate_samples_fn(&data.samples, eval);
+    let held_out = (!data.held_out.is_empty()).then(|| evaluate_samples_fn(&data.held_out, eval));
+    (fitted, held_out)
+}
+
 /// Per sample: the white mirror's value `X`, its Schlick part `X (1 − c)⁵` and the sample's
 /// weight times `cos² θi`.
 pub(crate) type Basis = Vec<(f64, f64, f64)>;
@@ -332,19 +394,8 @@ pub(crate) fn log_weight(s: &crate::samples::Sample, ch: usize, w: f64) -> f64 {
 
 /// Step 2: Fresnel, specular and diffuse by linear least squares on the fitted samples: the
 /// basis X = D G₂ / (4 cos θi cos θo) from the plan of a white mirror material with NDF `r`.
-fn linear_terms(r: &Radial, nodes: usize, data: &SampleSet) -> (Basis, Linear) {
-    let unit = NonParametric {
-        ndf: r.clone(),
-        f0: [1.0; 3],
-        specular: [1.0; 3],
-        albedo: [0.0; 3],
-        specular_at_limit: false,
-        fitted: FitErrors::default(),
-        held_out: None,
-        nodes,
-        start: Start::default(),
-    };
-    linear_terms_of(&material(&unit), data)
+fn linear_terms(r: &Radial, data: &SampleSet) -> (Basis, Linear) {
+    linear_terms_of(&white(Ndf::Radial(r.clone())), data)
 }
 
 /// Step 2 for any NDF: the linear terms by least squares on the fitted samples, the basis from
@@ -448,35 +499,19 @@ fn refit_nodes(
 /// The fitted material from the final NDF and linear terms (whose specular scale `u + g` the
 /// linear solve kept ≤ 1), with its errors on the fitted and held-out samples.
 fn finish(ndf: Radial, lin: &Linear, nodes: usize, data: &SampleSet) -> NonParametric {
-    let (u, g) = (&lin.u, &lin.g);
-    let mut at_limit = false;
-    let mut f0 = [0.0; 3];
-    let mut specular = [0.0; 3];
-    for c in 0..3 {
-        let s = u[c] + g[c];
-        if s >= 1.0 - 1e-9 {
-            at_limit = true;
-        }
-        specular[c] = s.min(1.0);
-        f0[c] = if s > 0.0 { u[c] / s } else { 0.0 };
-    }
+    let (f0, specular, specular_at_limit) = lin.mirror();
     let mut out = NonParametric {
         ndf,
         f0,
         specular,
         albedo: lin.albedo,
-        specular_at_limit: at_limit,
+        specular_at_limit,
         fitted: FitErrors::default(),
         held_out: None,
         nodes,
         start: Start::default(),
     };
-    let plan = FastBrdf::with_policy(&material(&out), Policy::Accurate);
-    let eval = |wi: DVec3, wo: DVec3| plan.eval(wi, wo);
-    out.fitted = evaluate_samples_fn(&data.samples, eval);
-    if !data.held_out.is_empty() {
-        out.held_out = Some(evaluate_samples_fn(&data.held_out, eval));
-    }
+    (out.fitted, out.held_out) = scores(&material(&out), data);
     out
 }
 

@@ -59,13 +59,15 @@
 //! angular radius `√(4/n_z)` (5.1° for the default 512), so lobes much narrower than that are
 //! averaged over it.
 
-use crate::fit::{evaluate_samples_fn, FitErrors};
-use crate::nonparametric::{linear_terms_of, log_weight, Basis, Linear, NonParametricError};
+use crate::fit::FitErrors;
+use crate::nonparametric::{
+    linear_terms_of, log_weight, scores, white, Basis, Linear, MirrorFit, NonParametricError,
+};
 use crate::samples::SampleSet;
 use glam::DVec3;
 use meso_core::grid::EqualAreaGrid;
 use meso_core::linalg::gauss_solve;
-use meso_core::material::{Material, MaterialSpec, MAX_TABLE_CELLS};
+use meso_core::material::MAX_TABLE_CELLS;
 use meso_core::ndf::{Ndf, Tabulated};
 use meso_core::shading::{FastBrdf, Policy};
 use std::f64::consts::PI;
@@ -293,7 +295,7 @@ impl Power {
         floor: &[f64; 3],
         tiny: f64,
     ) -> Result<Tabulated, NonParametricError> {
-        let plan = FastBrdf::with_policy(&white(t), Policy::Accurate);
+        let plan = FastBrdf::with_policy(&white(Ndf::Tabulated(t.clone())), Policy::Accurate);
         let v: Vec<f64> = self
             .covered
             .iter()
@@ -318,38 +320,16 @@ impl Power {
     }
 }
 
-/// The white mirror material of a table (`f0 = 1`, `specular = 1`, no diffuse), as written and
-/// parsed back.
-fn white(t: &Tabulated) -> Material {
-    let spec =
-        crate::model::mirror_material(Ndf::Tabulated(t.clone()), [1.0; 3], [1.0; 3], [0.0; 3]);
-    Material::from_toml_str(&spec.to_toml_with_comment("")).expect("a tabulated material parses")
-}
+pub use crate::nonparametric::{material, material_spec, material_toml};
 
-/// The material of a fit: the tabulated NDF under [`crate::model::mirror_material`].
-#[must_use]
-pub fn material_spec(fit: &NonParametricAniso) -> MaterialSpec {
-    crate::model::mirror_material(
-        Ndf::Tabulated(fit.ndf.clone()),
-        fit.f0,
-        fit.specular,
-        fit.albedo,
-    )
-}
+impl MirrorFit for NonParametricAniso {
+    fn mirror_ndf(&self) -> Ndf {
+        Ndf::Tabulated(self.ndf.clone())
+    }
 
-/// The material file of a fit (TOML, with `comment` lines as `#` comments first).
-#[must_use]
-pub fn material_toml(fit: &NonParametricAniso, comment: &str) -> String {
-    material_spec(fit).to_toml_with_comment(comment)
-}
-
-/// The material of a fit, as its file reads back.
-///
-/// # Panics
-/// Never for a fit made here (its file always parses).
-#[must_use]
-pub fn material(fit: &NonParametricAniso) -> Material {
-    Material::from_toml_str(&material_toml(fit, "")).expect("a fitted material parses")
+    fn mirror_terms(&self) -> [[f64; 3]; 3] {
+        [self.f0, self.specular, self.albedo]
+    }
 }
 
 /// Fit the anisotropic non-parametric material (module docs) to scattered samples with full
@@ -409,10 +389,10 @@ pub fn fit(
         t = power.step(&t, &floor, tiny)?;
     }
     for _ in 0..OUTER_ITERATIONS {
-        let (basis, lin) = linear_terms_of(&white(&t), data);
+        let (basis, lin) = linear_terms_of(&white(Ndf::Tabulated(t.clone())), data);
         t = refit_cells(&t, &basis, &lin, data)?;
     }
-    let (_, lin) = linear_terms_of(&white(&t), data);
+    let (_, lin) = linear_terms_of(&white(Ndf::Tabulated(t.clone())), data);
     let mut out = finish(t, &lin, data);
     out.back_samples = power.back.len();
     out.cells_covered = covered;
@@ -505,32 +485,19 @@ fn refit_cells(
 
 /// The fitted material from the final table and linear terms, with its errors.
 fn finish(ndf: Tabulated, lin: &Linear, data: &SampleSet) -> NonParametricAniso {
-    let mut at_limit = false;
-    let mut f0 = [0.0; 3];
-    let mut specular = [0.0; 3];
-    for c in 0..3 {
-        let s = lin.u[c] + lin.g[c];
-        at_limit |= s >= 1.0 - 1e-9;
-        specular[c] = s.min(1.0);
-        f0[c] = if s > 0.0 { lin.u[c] / s } else { 0.0 };
-    }
+    let (f0, specular, specular_at_limit) = lin.mirror();
     let mut out = NonParametricAniso {
         ndf,
         f0,
         specular,
         albedo: lin.albedo,
-        specular_at_limit: at_limit,
+        specular_at_limit,
         fitted: FitErrors::default(),
         held_out: None,
         back_samples: 0,
         cells_covered: 0,
         cells_needed: 0,
     };
-    let plan = FastBrdf::with_policy(&material(&out), Policy::Accurate);
-    let eval = |wi: DVec3, wo: DVec3| plan.eval(wi, wo);
-    out.fitted = evaluate_samples_fn(&data.samples, eval);
-    if !data.held_out.is_empty() {
-        out.held_out = Some(evaluate_samples_fn(&data.held_out, eval));
-    }
+    (out.fitted, out.held_out) = scores(&material(&out), data);
     out
 }

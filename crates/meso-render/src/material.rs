@@ -34,6 +34,7 @@
 use crate::geometry::ShadingPoint;
 use crate::shader::{colour_pairs, fast_pow, lobe_pairs, pairs_one_by_one, LobeSlices, Shader};
 use glam::DVec3;
+use meso_core::frame::half_vector;
 use meso_core::material::Material;
 use meso_core::shading::FastBrdf;
 use meso_core::transfer::Transfer;
@@ -332,12 +333,9 @@ impl Shader for MaterialShader {
             Kind::DeltaPhong { diffuse, .. } => {
                 let p = self.phong();
                 let (n, specular) = (p.normals, p.specular);
-                let h = wi + wo;
-                let l = h.length();
-                if l < 1e-12 {
+                let Some(h) = half_vector(wi, wo) else {
                     return [0.0; 3];
-                }
-                let h = h / l;
+                };
                 let (hx, hy, hz) = (h.x as f32, h.y as f32, h.z as f32);
                 let (ix, iy, iz) = (wi.x as f32, wi.y as f32, wi.z as f32);
                 let e = p.exponent;

@@ -14,7 +14,7 @@ use crate::geometry::{MaterialId, ShadingPoint};
 use glam::{DVec2, DVec3};
 pub use meso_core::fastmath::{fast_exp, fast_pow};
 use meso_core::fastmath::{fast_pow_impl, madd};
-use meso_core::frame::Frame;
+use meso_core::frame::{half_vector, Frame};
 use std::f64::consts::FRAC_1_PI;
 
 /// A shading point at the origin with the identity frame (world = local), texture coordinates
@@ -240,12 +240,9 @@ impl Shader for PhongLobes {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return [0.0; 3];
         }
-        let h = wi + wo;
-        let l = h.length();
-        if l < 1e-12 {
+        let Some(h) = half_vector(wi, wo) else {
             return [0.0; 3];
-        }
-        let h = h / l;
+        };
         let s = self.sum_at([h.x as f32, h.y as f32, h.z as f32]);
         [self.color[0] * s, self.color[1] * s, self.color[2] * s]
     }

@@ -38,14 +38,6 @@ pub fn run(a: &Args) -> Result<()> {
         r.ndf.rms_theta().to_degrees(),
         r.start.name()
     );
-    let terms = Terms {
-        f0: r.f0,
-        specular: r.specular,
-        albedo: r.albedo,
-        specular_at_limit: r.specular_at_limit,
-        fitted: &r.fitted,
-        held_out: r.held_out.as_ref(),
-    };
     let comment = format!(
         "meso fit {} --nonparametric --samples {}\nnon-parametric NDF ({} nodes): {}",
         a.data.display(),
@@ -53,14 +45,8 @@ pub fn run(a: &Args) -> Result<()> {
         r.nodes,
         data.description
     );
-    finish(
-        a,
-        &data.samples,
-        &terms,
-        &material_toml(&r, &comment),
-        report,
-        t0,
-    )
+    let text = material_toml(&r, &comment);
+    finish(a, &data.samples, &terms_of!(r), &text, report, t0)
 }
 
 /// `--nonparametric` on a sample CSV: the 2-D table over `--grid`.
@@ -80,14 +66,6 @@ fn run_aniso(a: &Args, data: &meso_measured::job::Data, t0: Instant) -> Result<(
         "non-parametric NDF (2-D): {} × {} table, {} back-scattering samples in {} of its {} cells up to {}°",
         opts.n_z, opts.n_phi, r.back_samples, r.cells_covered, r.cells_needed, MAX_THETA_DEG
     );
-    let terms = Terms {
-        f0: r.f0,
-        specular: r.specular,
-        albedo: r.albedo,
-        specular_at_limit: r.specular_at_limit,
-        fitted: &r.fitted,
-        held_out: r.held_out.as_ref(),
-    };
     let comment = format!(
         "meso fit {} --nonparametric --grid {},{}\nnon-parametric NDF ({} × {} table): {}",
         a.data.display(),
@@ -97,15 +75,25 @@ fn run_aniso(a: &Args, data: &meso_measured::job::Data, t0: Instant) -> Result<(
         opts.n_phi,
         data.description
     );
-    finish(
-        a,
-        &data.samples,
-        &terms,
-        &material_toml(&r, &comment),
-        report,
-        t0,
-    )
+    let text = material_toml(&r, &comment);
+    finish(a, &data.samples, &terms_of!(r), &text, report, t0)
 }
+
+/// The [`Terms`] of a fit result `r` (a `NonParametric` or a `NonParametricAniso`, whose fields
+/// of these names agree).
+macro_rules! terms_of {
+    ($r:expr) => {
+        Terms {
+            f0: $r.f0,
+            specular: $r.specular,
+            albedo: $r.albedo,
+            specular_at_limit: $r.specular_at_limit,
+            fitted: &$r.fitted,
+            held_out: $r.held_out.as_ref(),
+        }
+    };
+}
+use terms_of;
 
 /// What both non-parametric fits report beside their NDF: the mirror's Schlick terms, the
 /// Lambert albedo, and the errors on fitted and held-out samples.

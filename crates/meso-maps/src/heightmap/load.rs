@@ -23,8 +23,7 @@ impl HeightMap {
         height_scale: f64,
         border: Border,
     ) -> Result<HeightMap> {
-        positive("texel_size", texel_size)?;
-        positive("height_scale", height_scale)?;
+        check_scales(texel_size, height_scale)?;
         let img = open_image_budgeted(
             path,
             "loading the height map",
@@ -45,8 +44,7 @@ impl HeightMap {
         height_scale: f64,
         border: Border,
     ) -> Result<HeightMap> {
-        positive("texel_size", texel_size)?;
-        positive("height_scale", height_scale)?;
+        check_scales(texel_size, height_scale)?;
         let img = decode_bytes(name, bytes)?;
         Self::from_image(img, texel_size, height_scale, border)
     }
@@ -172,4 +170,11 @@ impl HeightMap {
             .map_err(|e| decode_err(Path::new("<memory>"), e))?;
         Ok((out, scale))
     }
+}
+
+/// Both scales of a height map file finite and > 0 (texel size first, as the error names it).
+fn check_scales(texel_size: f64, height_scale: f64) -> Result<()> {
+    positive("texel_size", texel_size)?;
+    positive("height_scale", height_scale)?;
+    Ok(())
 }

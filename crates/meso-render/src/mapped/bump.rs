@@ -1,6 +1,7 @@
 //! [`BumpMapped`]: the bump-mapped ground truth, shaded texel by texel from the heights.
 
 use super::*;
+use meso_core::frame::half_vector;
 
 /// A bump-mapped material shaded texel by texel from a height map (see the module docs):
 /// the ground truth that [`NdfMapped`] filters.
@@ -98,13 +99,11 @@ impl Shader for BumpMapped {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return [0.0; 3];
         }
-        let h = wi + wo;
-        let l = h.length();
-        if l < 1e-12 {
+        let Some(h) = half_vector(wi, wo) else {
             return [0.0; 3];
-        }
+        };
         let m = self.normal_at(sp.uv.x, sp.uv.y);
-        let v = self.facet.lit(m, wi, wo, h / l);
+        let v = self.facet.lit(m, wi, wo, h);
         let s = self.shadow(sp.uv.x, sp.uv.y, wi) / wi.z as f32;
         [
             v[0] * s + self.diffuse[0],
