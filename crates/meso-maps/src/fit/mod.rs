@@ -57,6 +57,20 @@
 //!   chain, the LM polish of each distinct EM fit and the greedy states (computed once:
 //!   `Single`, `smoothed::Refiner`), so the chain costs the candidates it adds and little more.
 //!
+//! * **K by the shading error** ([`KChoice::Shading`], with the chain; opt-in; issue #11 item
+//!   4). Each texel's lobes are the candidate with the fewest lobes whose shading error (the
+//!   measure of [`shading_error`], under the kernel of the material's own facet transfer,
+//!   [`FitParams::facet_exponent`] / [`facet_kernel_exponent`], λ = 40 when it is not known)
+//!   is within a tolerance of the least; the candidates are every fit the chain considered
+//!   (the single fits at K = 1, …, `max_lobes` and the chain's own). With tolerance 0 the
+//!   shading error never rises with `max_lobes` (the candidates at K are among those at
+//!   K + 1). It is measured on the fit's own data (the refinement's points, or the EM points
+//!   on the big levels), not on the 64² grid of the report. Not the default: on the steep
+//!   stone-wall render test it shaded worse than the single fit (Phong 20, box, 8 texels/px
+//!   3.12 % at tolerance 0 against the 3 % bound, 3.45 % at 0.2 %; with the facet's own
+//!   λ = 20, 3.33 %), and it costs ≈ 2× the single fit's extraction time (docs/heightmaps.md,
+//!   "Lobe fits that cannot go wrong").
+//!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
 //! the footprint's normals; and by [`shading_error`], the error a user can read: both seen
@@ -193,7 +207,8 @@ pub struct FitParams {
     /// (one of the chain's candidates): on the steep stone-wall render test
     /// (`crates/meso-render/tests/steep.rs`) the chain's lower smoothed objective shaded worse
     /// (Phong 20, box, 8 texels/px 3.15 % against the 3 % bound; Lambert, trilinear, 4 texels/px
-    /// 15.3 % against 14 %), so it stays opt-in until its objective matches shading.
+    /// 15.3 % against 14 %), so it stays opt-in until its objective matches shading; nor did
+    /// choosing K by the shading error ([`KChoice::Shading`]) pass it (module docs).
     pub k_chain: bool,
     /// How the K chain picks each texel's lobes (only with `k_chain`; module docs, "K by the
     /// shading error"). Default [`KChoice::Objective`].
