@@ -242,7 +242,8 @@ pub enum KChoice {
 /// shading error ([`FitParams::facet_exponent`]): a Phong facet `(m·h)^η` (Eq. 10, bisector)
 /// → η; the reflected form `(R·o)^η` turns twice as fast with m → 4η; a Beckmann or GGX facet
 /// of roughness α (the geometric mean of `alpha_x` and `alpha_y`) → 2/α² (the Gaussian
-/// `exp(−tan²θ/α²)` of its slopes); Lambert (`(i·m)(o·m)`, two cosines) → 2. `None` for a
+/// `exp(−tan²θ/α²)` of Beckmann's slopes; GGX's core is twice as curved, 4/α², and its tails
+/// far wider, so 2/α² is a compromise there, not measured); Lambert (`(i·m)(o·m)`, two cosines) → 2. `None` for a
 /// mirror facet (it sees the NDF itself, no kernel) or a non-positive result. Each λ is
 /// clamped to `[1, 10⁴]`.
 #[must_use]
