@@ -109,7 +109,7 @@ fn extract_info_brdf_and_gonio() {
     std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
     // Extract + info.
     let map = d.join("gravel.map");
-    ok(&meso(&[
+    let extracted = meso(&[
         "extract",
         s(&d.join("gravel.png")),
         "--texel-size",
@@ -120,7 +120,11 @@ fn extract_info_brdf_and_gonio() {
         "4",
         "--out",
         s(&map),
-    ]));
+    ]);
+    ok(&extracted);
+    // Issue #11 item 4: per level the shading error and the mean lobes per texel.
+    let said = String::from_utf8_lossy(&extracted.stderr);
+    assert!(said.contains("(mean lobes per texel): 0: "), "{said}");
     let info = meso(&["map", "info", s(&map)]);
     ok(&info);
     let text = String::from_utf8_lossy(&info.stdout);

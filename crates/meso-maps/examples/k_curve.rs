@@ -1,14 +1,51 @@
-//! Issue #11 item 4: the top level's fit as `max_lobes` goes 1, 2, 4, 8, with the K chain and
-//! without it (the single fit at `max_lobes`, `FitParams::k_chain = false`): its own objective
-//! (`fit::fit_objective`), the binned NDF residual and the shading error (% of peak); then the
-//! time of a 1024 × 1024 extraction at K ≤ 4 with and without the chain, alternated.
+//! Issue #11 item 4: the top level's fit as `max_lobes` goes 1, 2, 4, 8, for each way of
+//! choosing K (`Fit`: the single fit at `max_lobes`, `FitParams::k_chain = false`; the K chain's
+//! end; the chain with K per texel by the shading error, `KChoice::Shading`, at two
+//! tolerances and two facet kernels): its own objective (`fit::fit_objective`), the binned NDF
+//! residual and the shading error (% of peak); the mean lobes per texel and mean shading error
+//! of every level; then the time of a 1024 × 1024 extraction at K ≤ 4 for each, alternated.
 //!
 //! ```text
 //! cargo run --release -p meso-maps --example k_curve [--no-timing | --timing-only]
 //! ```
-use meso_maps::fit::{fit_objective, merge_entries, Entry};
+use meso_maps::fit::{fit_objective, merge_entries, Entry, KChoice};
 use meso_maps::*;
 use std::time::Instant;
+
+/// A way of choosing K: its name, `k_chain`, the choice and the facet kernel's exponent (0:
+/// not known, the default λ = 40).
+const FITS: [(&str, bool, KChoice, f64); 5] = [
+    ("single", false, KChoice::Objective, 0.0),
+    ("chain", true, KChoice::Objective, 0.0),
+    (
+        "shading tol 0",
+        true,
+        KChoice::Shading { tolerance: 0.0 },
+        0.0,
+    ),
+    (
+        "shading tol 0.2%",
+        true,
+        KChoice::Shading { tolerance: 0.002 },
+        0.0,
+    ),
+    (
+        "shading tol 0.2% λ=20",
+        true,
+        KChoice::Shading { tolerance: 0.002 },
+        20.0,
+    ),
+];
+
+/// The extraction parameters of a way of choosing K (`FITS`) at `max_lobes` K.
+fn params(fit: &(&str, bool, KChoice, f64), k: usize) -> ExtractParams {
+    let mut p = ExtractParams::default();
+    p.fit.max_lobes = k;
+    p.fit.k_chain = fit.1;
+    p.fit.k_choice = fit.2;
+    p.fit.facet_exponent = fit.3;
+    p
+}
 
 fn main() {
     let timing = !std::env::args().any(|a| a == "--no-timing");
@@ -24,7 +61,7 @@ fn main() {
         ),
         ("woven", fixtures::woven(128, 16, 0.1, 0.05).unwrap()),
     ];
-    println!("map; chain; K; top lobes; top objective; top NDF residual; top shading error (% of peak); level-5 shading mean/max (%)");
+    println!("map; fit; K; top lobes; top objective; top NDF residual; top shading error (% of peak); per level from 0: mean lobes per texel / mean shading error (%)");
     for (name, map) in maps.iter().filter(|_| table) {
         let facets = FacetNormals::from_heightmap(map, NormalMode::Triangles);
         let singles: Vec<Entry> = facets
@@ -33,23 +70,31 @@ fn main() {
             .collect();
         let mut all = Vec::new();
         merge_entries(&[&singles], &mut all);
-        for chain in [false, true] {
+        for fit in &FITS {
             for k in [1, 2, 4, 8] {
-                let mut p = ExtractParams::default();
-                p.fit.max_lobes = k;
-                p.fit.k_chain = chain;
+                let p = params(fit, k);
                 let pyr = extract(Source::Heights(map), &p, &mut |_| {}).unwrap();
                 let top = pyr.top();
                 let lobes = top.texel_lobes(0, 0).unwrap();
                 let o = fit_objective(&all, &p.fit, p.fit.max_em_points, true, &lobes);
-                let l5 = &pyr.levels[5.min(pyr.levels.len() - 1)].residual;
+                let levels: Vec<String> = pyr
+                    .levels
+                    .iter()
+                    .map(|l| {
+                        format!(
+                            "{:.2}/{:.2}",
+                            l.lobes.len() as f64 / (l.cols * l.rows) as f64,
+                            100.0 * l.residual.shading_mean.unwrap_or(f64::NAN)
+                        )
+                    })
+                    .collect();
                 println!(
-                    "{name}; {chain}; {k}; {}; {o:.6e}; {:.4}; {:.2}; {:.2}/{:.2}",
+                    "{name}; {}; {k}; {}; {o:.6e}; {:.4}; {:.2}; {}",
+                    fit.0,
                     lobes.len(),
                     top.residual.mean,
                     100.0 * top.residual.shading_mean.unwrap_or(f64::NAN),
-                    100.0 * l5.shading_mean.unwrap_or(f64::NAN),
-                    100.0 * l5.shading_max.unwrap_or(f64::NAN),
+                    levels.join(" "),
                 );
             }
         }
@@ -59,14 +104,17 @@ fn main() {
     }
     let map = fixtures::gaussian(1024, 4.0, 0.1, 3, 0.01).unwrap();
     for round in 0..2 {
-        for chain in [false, true] {
-            let mut p = ExtractParams::default();
-            p.fit.k_chain = chain;
+        for fit in FITS.iter().take(4) {
+            let p = params(fit, 4);
             let t = Instant::now();
-            extract(Source::Heights(&map), &p, &mut |_| {}).unwrap();
+            let pyr = extract(Source::Heights(&map), &p, &mut |_| {}).unwrap();
+            let lobes: usize = pyr.levels.iter().map(|l| l.lobes.len()).sum();
+            let texels: usize = pyr.levels.iter().map(|l| l.cols * l.rows).sum();
             println!(
-                "round {round}: 1024x1024 K<=4, chain {chain}: {:.2} s",
-                t.elapsed().as_secs_f64()
+                "round {round}: 1024x1024 K<=4, {}: {:.2} s, {:.3} lobes per texel",
+                fit.0,
+                t.elapsed().as_secs_f64(),
+                lobes as f64 / texels as f64
             );
         }
     }

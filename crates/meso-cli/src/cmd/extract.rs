@@ -152,22 +152,25 @@ pub fn run(a: Args) -> Result<()> {
         phases.summary()
     );
     // Per level: the shading error (mean/max over the sampled texels, % of each texel's peak;
-    // `meso map info` prints it too, with the NDF residual).
+    // `meso map info` prints it too, with the NDF residual) and the mean lobes per texel (K is
+    // chosen per texel).
     let per_level: Vec<String> = pyr
         .levels
         .iter()
         .enumerate()
         .map(|(k, l)| {
             format!(
-                "{k}: {:.2}/{:.2}",
+                "{k}: {:.2}/{:.2} ({:.2})",
                 100.0 * l.residual.shading_mean.unwrap_or(0.0),
-                100.0 * l.residual.shading_max.unwrap_or(0.0)
+                100.0 * l.residual.shading_max.unwrap_or(0.0),
+                l.lobes.len() as f64 / (l.cols * l.rows) as f64
             )
         })
         .collect();
     note!(
-        "shading error per level, mean/max % of peak (facet kernel exp({}(h·m − 1))): {}",
-        params.fit.smooth_exponent,
+        "shading error per level, mean/max % of peak (facet kernel exp({}(h·m − 1))) \
+         (mean lobes per texel): {}",
+        params.fit.shading_exponent(),
         per_level.join(", ")
     );
     Ok(())

@@ -57,6 +57,20 @@
 //!   chain, the LM polish of each distinct EM fit and the greedy states (computed once:
 //!   `Single`, `smoothed::Refiner`), so the chain costs the candidates it adds and little more.
 //!
+//! * **K by the shading error** ([`KChoice::Shading`], with the chain; opt-in; issue #11 item
+//!   4). Each texel's lobes are the candidate with the fewest lobes whose shading error (the
+//!   measure of [`shading_error`], under the kernel of the material's own facet transfer,
+//!   [`FitParams::facet_exponent`] / [`facet_kernel_exponent`], λ = 40 when it is not known)
+//!   is within a tolerance of the least; the candidates are every fit the chain considered
+//!   (the single fits at K = 1, …, `max_lobes` and the chain's own). With tolerance 0 the
+//!   shading error never rises with `max_lobes` (the candidates at K are among those at
+//!   K + 1). It is measured on the fit's own data (the refinement's points, or the EM points
+//!   on the big levels), not on the 64² grid of the report. Not the default: on the steep
+//!   stone-wall render test it shaded worse than the single fit (Phong 20, box, 8 texels/px
+//!   3.12 % at tolerance 0 against the 3 % bound, 3.45 % at 0.2 %; with the facet's own
+//!   λ = 20, 3.33 %), and it costs ≈ 2× the single fit's extraction time (docs/heightmaps.md,
+//!   "Lobe fits that cannot go wrong").
+//!
 //! The quality of a fit is measured by [`ndf_l2_error`]: the relative L2 distance between the
 //! lobes' probability per bin of a [`RESIDUAL_GRID_RES`]² equal-area grid and the histogram of
 //! the footprint's normals; and by [`shading_error`], the error a user can read: both seen
@@ -76,7 +90,7 @@ use crate::sphgrid::SphereGrid;
 use em::{em, eta_from_mean_t, kmeans_init, log_t, loglik, split_heaviest, Pt, L};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
-use smoothed::{rms_of_peak, Refiner, SMOOTH_MAX_POINTS, SMOOTH_MIN_DROP};
+use smoothed::{rms_of_peak, Refiner, Smoothed, SMOOTH_MAX_POINTS, SMOOTH_MIN_DROP};
 
 // The lobe bounds live in `crate::limits` (other crates read them there); re-exported here.
 pub use crate::limits::{AXIS_MIN_Z, ETA_MAX, ETA_MIN, MAX_LOBES};
@@ -193,8 +207,75 @@ pub struct FitParams {
     /// (one of the chain's candidates): on the steep stone-wall render test
     /// (`crates/meso-render/tests/steep.rs`) the chain's lower smoothed objective shaded worse
     /// (Phong 20, box, 8 texels/px 3.15 % against the 3 % bound; Lambert, trilinear, 4 texels/px
-    /// 15.3 % against 14 %), so it stays opt-in until its objective matches shading.
+    /// 15.3 % against 14 %), so it stays opt-in until its objective matches shading; nor did
+    /// choosing K by the shading error ([`KChoice::Shading`]) pass it (module docs).
     pub k_chain: bool,
+    /// How the K chain picks each texel's lobes (only with `k_chain`; module docs, "K by the
+    /// shading error"). Default [`KChoice::Objective`].
+    pub k_choice: KChoice,
+    /// Exponent λ of the kernel `exp(λ(h·m − 1))` of the material's own facet transfer
+    /// ([`facet_kernel_exponent`]: Phong η → η, Beckmann/GGX α → 2/α², Lambert → 2), by which
+    /// [`KChoice::Shading`] picks K and the pyramid reports each level's shading error
+    /// ([`Self::shading_exponent`]); 0 (the default) when the transfer is not known: then
+    /// `smooth_exponent`, or [`SHADING_KERNEL_EXPONENT`] when that is 0.
+    pub facet_exponent: f64,
+}
+
+/// How the K chain ([`FitParams::k_chain`]) picks a texel's lobes among its candidates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum KChoice {
+    /// The end of the chain: the lowest [`fit_objective`], which never rises with `max_lobes`.
+    Objective,
+    /// By the shading error ([`shading_error`]'s measure, kernel
+    /// [`FitParams::shading_exponent`]): among the chain's fits and the single fits at
+    /// K = 1, …, `max_lobes`, the one with the fewest lobes whose shading error is within
+    /// `tolerance` (a fraction of the peak, 0.001 = 0.1 % of peak, added) of the least; equal
+    /// counts go to the lower error. Measured on the fit's own data (the smoothed refinement's
+    /// points where it runs, else the EM points), not on the 64² grid of the report.
+    Shading {
+        /// Shading error (fraction of the peak, ≥ 0) that one lobe less may cost.
+        tolerance: f64,
+    },
+}
+
+/// The exponent λ of the facet kernel `exp(λ(h·m − 1))` that stands for `transfer` in the
+/// shading error ([`FitParams::facet_exponent`]): a Phong facet `(m·h)^η` (Eq. 10, bisector)
+/// → η; the reflected form `(R·o)^η` turns twice as fast with m → 4η; a Beckmann or GGX facet
+/// of roughness α (the geometric mean of `alpha_x` and `alpha_y`) → 2/α² (the Gaussian
+/// `exp(−tan²θ/α²)` of Beckmann's slopes; GGX's core is twice as curved, 4/α², and its tails
+/// far wider, so 2/α² is a compromise there, not measured); Lambert (`(i·m)(o·m)`, two cosines) → 2. `None` for a
+/// mirror facet (it sees the NDF itself, no kernel) or a non-positive result. Each λ is
+/// clamped to `[1, 10⁴]`.
+#[must_use]
+pub fn facet_kernel_exponent(transfer: &meso_core::transfer::Transfer) -> Option<f64> {
+    use meso_core::transfer::{PhongVariant, Transfer};
+    let l = match transfer {
+        Transfer::Phong {
+            exponent, variant, ..
+        } => match variant {
+            PhongVariant::Half => *exponent,
+            PhongVariant::Reflect => 4.0 * exponent,
+        },
+        Transfer::Lambert { .. } => 2.0,
+        Transfer::Mirror { .. } => return None,
+        Transfer::Microfacet { distribution, .. } => {
+            2.0 / (distribution.alpha_x * distribution.alpha_y)
+        }
+    };
+    (l.is_finite() && l > 0.0).then(|| l.clamp(1.0, 1e4))
+}
+
+impl FitParams {
+    /// The kernel exponent λ of the shading error (by which [`KChoice::Shading`] picks K, and
+    /// which the pyramid's levels report): `facet_exponent` when > 0, else `smooth_exponent`
+    /// when > 0, else [`SHADING_KERNEL_EXPONENT`].
+    #[must_use]
+    pub fn shading_exponent(&self) -> f64 {
+        [self.facet_exponent, self.smooth_exponent]
+            .into_iter()
+            .find(|l| l.is_finite() && *l > 0.0)
+            .unwrap_or(SHADING_KERNEL_EXPONENT)
+    }
 }
 
 impl Default for FitParams {
@@ -209,6 +290,8 @@ impl Default for FitParams {
             smooth_exponent: 40.0,
             smooth_texels: 1024,
             k_chain: false,
+            k_choice: KChoice::Objective,
+            facet_exponent: 0.0,
         }
     }
 }
@@ -287,7 +370,16 @@ pub fn fit_lobes_with(
     // The chain: the fit at K is the best (lowest objective) of the fit at K − 1, the single
     // fit at K, and the fit at K − 1 plus one lobe; a candidate with more lobes must lower the
     // objective by the gain (`min_gain` nats, or SMOOTH_MIN_DROP of the smoothed objective).
+    // With the shading choice every distinct candidate is kept for it.
+    let shading = matches!(params.k_choice, KChoice::Shading { .. });
+    let mut cands: Vec<Vec<PhongLobe>> = Vec::new();
+    let mut keep = |c: &Vec<PhongLobe>| {
+        if shading && !cands.contains(c) {
+            cands.push(c.clone());
+        }
+    };
     let mut cur = single.fit(1);
+    keep(&cur);
     let mut o = single.objective(&cur);
     for k in 2..=kmax.min(n) {
         let prev = cur.clone();
@@ -296,6 +388,7 @@ pub fn fit_lobes_with(
         } else {
             single.fit(k)
         };
+        keep(&cand);
         let oc = single.objective(&cand);
         let gained = oc < o - single.gain(o);
         if oc <= o {
@@ -304,11 +397,17 @@ pub fn fit_lobes_with(
         }
         if !gained && n > k && !single.delta && pts.len() > 4 * k {
             let cand = single.plus_one(&prev, k);
+            keep(&cand);
             let oc = single.objective(&cand);
             if oc < o - single.gain(o) {
                 cur = cand;
                 o = oc;
             }
+        }
+    }
+    if let KChoice::Shading { tolerance } = params.k_choice {
+        if let Some(i) = single.by_shading(&cands, params.shading_exponent(), tolerance) {
+            cur = cands.swap_remove(i);
         }
     }
     out.extend(cur);
@@ -529,6 +628,35 @@ impl<'a> Single<'a> {
             Some(r) => r.sm.objective_of(&to_l(lobes)),
             None => -loglik(self.pts, &to_l(lobes), self.ptotal),
         }
+    }
+
+    /// The index of the candidate [`KChoice::Shading`] picks (the fewest lobes whose shading
+    /// error under the kernel of exponent `lambda` is within `tolerance` of the least; equal
+    /// counts by the lower error), or `None` when the data give no peak to measure against.
+    /// The measure is [`shading_error`]'s, on the refinement's data (its own smoothed data when
+    /// its kernel is `lambda`) or the EM points.
+    fn by_shading(&self, cands: &[Vec<PhongLobe>], lambda: f64, tolerance: f64) -> Option<usize> {
+        let own;
+        let sm = match &self.refiner {
+            Some(r) if r.sm.lambda() == lambda => &r.sm,
+            r => {
+                own = Smoothed::new(r.as_ref().map_or(self.pts, |r| r.sm.points()), lambda);
+                &own
+            }
+        };
+        let errs: Vec<f64> = cands
+            .iter()
+            .map(|c| sm.rms_of_peak(&to_l(c)))
+            .collect::<Option<_>>()?;
+        let least = errs.iter().copied().fold(f64::INFINITY, f64::min);
+        (0..cands.len())
+            .filter(|&i| errs[i] <= least + tolerance)
+            .min_by(|&a, &b| {
+                cands[a]
+                    .len()
+                    .cmp(&cands[b].len())
+                    .then(errs[a].total_cmp(&errs[b]))
+            })
     }
 
     /// The drop of the objective below `o` that justifies one more lobe.

@@ -235,7 +235,8 @@ pub(super) struct Smoothed<'a> {
 }
 
 impl<'a> Smoothed<'a> {
-    fn new(pts: &'a [Pt], lambda: f64) -> Smoothed<'a> {
+    /// The smoothed objective of the points `pts` under the kernel of exponent `lambda`.
+    pub(super) fn new(pts: &'a [Pt], lambda: f64) -> Smoothed<'a> {
         let total: f64 = pts.iter().map(|p| p.1).sum();
         // Kernel width ≈ 1/√λ rad; grid spacing √(4π)/res ≈ that width.
         let sigma = 1.0 / lambda.sqrt();
@@ -274,6 +275,28 @@ impl<'a> Smoothed<'a> {
             hs,
             target,
         }
+    }
+
+    /// The kernel's exponent λ.
+    pub(super) fn lambda(&self) -> f64 {
+        self.lambda
+    }
+
+    /// The data points.
+    pub(super) fn points(&self) -> &'a [Pt] {
+        self.pts
+    }
+
+    /// The shading error of `lobes` (weights summing to 1) against the data: the RMS over the
+    /// sample half vectors of the blurred difference, over the largest blurred value of the
+    /// data (the measure of the parent module's [`super::shading_error`]); `None` without
+    /// sample half vectors or a positive peak.
+    pub(super) fn rms_of_peak(&self, lobes: &[L]) -> Option<f64> {
+        let peak = self.target.iter().copied().fold(0.0, f64::max);
+        if self.hs.is_empty() || peak <= 0.0 || lobes.is_empty() {
+            return None;
+        }
+        Some((self.objective_of(lobes) / self.hs.len() as f64).sqrt() / peak)
     }
 
     /// The objective of `lobes` (weights summing to 1): each Phong peak as the spherical
@@ -585,12 +608,7 @@ impl<'a> Refiner<'a> {
 /// `lambda` (parent module's [`super::shading_error`]): RMS over the sample half vectors of
 /// [`Smoothed`] of the kernel-blurred difference, over the largest blurred value of the points.
 pub(super) fn rms_of_peak(pts: &[Pt], lobes: &[L], lambda: f64) -> f64 {
-    let sm = Smoothed::new(pts, lambda);
-    let peak = sm.target.iter().copied().fold(0.0, f64::max);
-    if sm.hs.is_empty() || peak <= 0.0 || lobes.is_empty() {
-        return 0.0;
-    }
-    (sm.objective_of(lobes) / sm.hs.len() as f64).sqrt() / peak
+    Smoothed::new(pts, lambda).rms_of_peak(lobes).unwrap_or(0.0)
 }
 
 /// Relative smoothed L2 error of the EM fit up to which it is kept as it is.

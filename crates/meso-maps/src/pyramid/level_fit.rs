@@ -116,24 +116,17 @@ impl LevelFit<'_> {
             if (r * cols + c).is_multiple_of(self.residual_stride) {
                 out.residual.push((
                     self.residual(r, c, &lobes),
-                    crate::fit::shading_error(&buf.merged, &lobes, self.shading_exponent()),
+                    crate::fit::shading_error(
+                        &buf.merged,
+                        &lobes,
+                        self.params.fit.shading_exponent(),
+                    ),
                 ));
             }
             out.lobes.extend_from_slice(&lobes);
             out.lcount.push(lobes.len() as u32);
         }
         out
-    }
-
-    /// The kernel exponent of the shading error: the fit's `smooth_exponent`, or
-    /// [`crate::fit::SHADING_KERNEL_EXPONENT`] when that is 0.
-    fn shading_exponent(&self) -> f64 {
-        let l = self.params.fit.smooth_exponent;
-        if l.is_finite() && l > 0.0 {
-            l
-        } else {
-            crate::fit::SHADING_KERNEL_EXPONENT
-        }
     }
 
     /// The relative NDF L2 error of texel `(r, c)`'s lobes against its footprint's facets.
