@@ -170,6 +170,8 @@ impl Tabulated {
         let g = self.grid;
         let n = g.n_phi;
         let dphi = 2.0 * std::f64::consts::PI / n as f64;
+        // `(sin φ, cos φ)` of the meridians, shared by every band.
+        let edges: Vec<(f64, f64)> = (0..=n).map(|j| (j as f64 * dphi).sin_cos()).collect();
         let mut bands = Vec::new();
         let mut prefix = Vec::new();
         for iz in 0..g.n_z {
@@ -190,8 +192,8 @@ impl Tabulated {
             let mut acc = DVec3::ZERO;
             prefix.push(acc);
             for j in 0..n {
-                let (p0, p1) = (j as f64 * dphi, (j + 1) as f64 * dphi);
-                let m = DVec3::new(rz * (p1.sin() - p0.sin()), rz * (p0.cos() - p1.cos()), mz);
+                let ((s0, c0), (s1, c1)) = (edges[j], edges[j + 1]);
+                let m = DVec3::new(rz * (s1 - s0), rz * (c0 - c1), mz);
                 acc += self.values[iz * n + j] * m;
                 prefix.push(acc);
             }
