@@ -440,6 +440,9 @@ pub struct SmithMasking<'a> {
     /// The NDF is rotationally symmetric ([`Ndf::is_isotropic`]): projected areas by the 1-D
     /// rule of [`isotropic_projected_area`].
     isotropic: bool,
+    /// A tabulated NDF's exact projected areas ([`crate::ndf::tabulated::ProjectedAreas`];
+    /// `None` for other NDFs and for [`SmithMasking::numerical`]).
+    tabulated: Option<crate::ndf::tabulated::ProjectedAreas<'a>>,
 }
 
 /// `∫_{z>0} n(m)(ω·m)⁺ dω_m` for an isotropic NDF `n` (a function of `θ_m` only) and `ω` with
@@ -515,15 +518,15 @@ pub fn axial_projected_area(density: impl Fn(f64) -> f64, u: f64, full_sphere: b
 
 impl<'a> SmithMasking<'a> {
     /// Prepare the masking function of `ndf`: closed forms for Beckmann and GGX NDFs and their
-    /// mixtures (the common
-    /// material's fast path), quadrature for the others.
+    /// mixtures (the common material's fast path), the exact cell-by-cell projected areas of a
+    /// tabulated NDF ([`crate::ndf::tabulated::ProjectedAreas`]), quadrature for the others.
     #[must_use]
     pub fn new(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
         Self::with(ndf, accuracy, true)
     }
 
-    /// [`SmithMasking::new`] by quadrature for every NDF, Beckmann and GGX included (the
-    /// tests compare it with the closed forms).
+    /// [`SmithMasking::new`] by quadrature for every NDF, Beckmann, GGX and tabulated NDFs
+    /// included (the tests compare it with the closed forms and the exact tabulated areas).
     #[must_use]
     pub fn numerical(ndf: &'a Ndf, accuracy: Accuracy) -> SmithMasking<'a> {
         Self::with(ndf, accuracy, false)
@@ -531,7 +534,13 @@ impl<'a> SmithMasking<'a> {
 
     fn with(ndf: &'a Ndf, accuracy: Accuracy, closed_form: bool) -> SmithMasking<'a> {
         let isotropic = ndf.is_isotropic();
+        let tabulated = match ndf {
+            Ndf::Tabulated(t) if closed_form => Some(t.projected_areas()),
+            _ => None,
+        };
         let z = match ndf {
+            // Cell by cell, exactly.
+            Ndf::Tabulated(_) if closed_form => tabulated.as_ref().map_or(0.0, |t| t.moment().z),
             Ndf::Deltas(d) => d.projected_area(),
             // `n = D/A` with `∫ D (m·z) dω = 1`: exactly `1/A`.
             Ndf::Microfacet(mf) if closed_form => 1.0 / mf.area_ratio(),
@@ -546,6 +555,7 @@ impl<'a> SmithMasking<'a> {
             projected_area: z.max(1e-300),
             closed_form,
             isotropic,
+            tabulated,
         }
     }
 
@@ -568,12 +578,16 @@ impl<'a> SmithMasking<'a> {
     /// The projected area of the microsurface towards `w` relative to its projected area
     /// towards the normal, `a(ω) = ∫_{z>0} n(m)(ω·m)⁺ dω_m / ∫_{z>0} n(m)(m·z) dω_m`
     /// (dimensionless; 1 at the normal for an NDF on the normal). Unlike `Λ = a/cos θ − 1` it is
-    /// smooth up to and across the horizon, which makes it the quantity to tabulate. By
-    /// quadrature for every NDF (the closed forms give `Λ` directly).
+    /// smooth up to and across the horizon, which makes it the quantity to tabulate. Exact for a
+    /// tabulated NDF (but under [`SmithMasking::numerical`]), by quadrature for every other NDF
+    /// (the closed forms give `Λ` directly).
     #[must_use]
     pub fn relative_projected_area(&self, w: DVec3) -> f64 {
         if self.isotropic {
             return isotropic_projected_area(self.ndf, w.z) / self.projected_area;
+        }
+        if let Some(t) = &self.tabulated {
+            return t.area(w) / self.projected_area;
         }
         let [p] = integrate(self.ndf, self.accuracy, None, |m| {
             if m.z <= 0.0 {
@@ -588,11 +602,15 @@ impl<'a> SmithMasking<'a> {
     /// The mean facet normal over the upper hemisphere per unit projected area,
     /// `c = ∫_{z>0} n(m) m dω_m / ∫_{z>0} n(m)(m·z) dω_m` (so `c_z = 1`): the linear part of
     /// [`SmithMasking::relative_projected_area`], `a(ω) = ω·c` wherever no facet of the NDF faces
-    /// away from `ω`. `+z` for isotropic NDFs.
+    /// away from `ω`. `+z` for isotropic NDFs; exact for tabulated ones (as the projected area).
     #[must_use]
     pub fn mean_normal(&self) -> DVec3 {
         if self.isotropic {
             return DVec3::Z;
+        }
+        if let Some(t) = &self.tabulated {
+            let m = t.moment();
+            return DVec3::new(m.x / self.projected_area, m.y / self.projected_area, 1.0);
         }
         let [x, y, _] = integrate(self.ndf, self.accuracy, None, |m| {
             if m.z <= 0.0 {

@@ -119,7 +119,8 @@ impl LobeLambda {
 /// faces away from `ω` (so the table is exact there) and ≥ 0 near grazing. Nodes at
 /// `cos θ = t²`, `t` uniform on `[0, 1]` (both ends included; dense near grazing, where a sharp
 /// NDF's `r` bends over a small angle), and uniform in φ unless the NDF is isotropic
-/// ([`Ndf::is_isotropic`]: one column, computed by the 1-D rule). Catmull–Rom in `t`, linear
+/// ([`Ndf::is_isotropic`]: one column, computed by the 1-D rule; a tabulated NDF's nodes are
+/// exact, [`crate::ndf::tabulated::ProjectedAreas`]). Catmull–Rom in `t`, linear
 /// in φ. Error against the quadrature: [`LAMBDA_TABLE_TOLERANCE`] (tested on sharp and tilted
 /// lobes).
 #[derive(Clone, Debug, PartialEq)]

@@ -14,7 +14,7 @@
 //! | delta sum, any other facet | Eq. 4, f64 | exact |
 //! | Phong peaks × Phong (N·H) facets, multiple-surface form (interactive) | each lobe replaced by a fixed quadrature of weighted nodes (a dense multiple surface), then the f32 kernel; beyond [`MAX_NODES`] nodes the vMF closed form | < 1% (tested) / closed form: docs/benchmarks.md |
 //! | mirror facets under Beckmann / GGX or a mixture of them (either form) | the closed-form microfacet BRDF (a mixture's `Λ = Σ c_k Λ_k`, [`crate::ndf::mixture`]) | exact |
-//! | mirror facets under any other NDF (either form; fitted lobe sums) | collapses onto `m = H`; Smith `Λ` from a table of the projected area, built once (97 1-D integrals for an isotropic NDF, 97 × 64 quadratures otherwise) | < [`LAMBDA_TABLE_TOLERANCE`] of `G₂` (isotropic), < [`LAMBDA_TABLE_TOLERANCE_ANISOTROPIC`] (tested) |
+//! | mirror facets under any other NDF (either form; fitted lobe sums) | collapses onto `m = H`; Smith `Λ` from a table of the projected area, built once (97 1-D integrals for an isotropic NDF, 97 × 64 closed-form areas for a tabulated one, [`crate::ndf::tabulated::ProjectedAreas`], 97 × 64 quadratures otherwise) | < [`LAMBDA_TABLE_TOLERANCE`] of `G₂` (isotropic), < [`LAMBDA_TABLE_TOLERANCE_ANISOTROPIC`] (tested) |
 //! | anything else | the Eq. 2/8 quadrature, at [`Accuracy::fast`] when interactive | ~1e-3 / exact |
 //! | Phong peaks × Phong (N·H) facets (preview) | the vMF closed form always (a cost per lobe) | a few per cent: docs/benchmarks.md |
 //! | anything the quadrature would take (preview; not a delta sum or cylinder) | [`PREVIEW_NORMALS`] normals drawn from the NDF by stratified sampling (a multiple surface with the same distribution), then the rows above | the sampling's noise: a preview |
@@ -75,21 +75,29 @@ pub struct PhongNormals<'a> {
 pub const CLOSED_MICROFACET_PATH: &str =
     "mirror facets, closed-form microfacet BRDF (analytic D, Smith Lambda)";
 
-/// Phong peaks under Phong (N·H) facets in the multiple-surface form (the paper's materials):
-/// the peaks, the facet exponent and specular colour.
-fn phong_peaks_under_phong(m: &Material) -> Option<(&PhongPeaks, &f64, &[f64; 3])> {
-    match (&m.ndf, &m.transfer, m.form) {
+/// Phong (N·H) facets in the multiple-surface form, the transfer of the paper's materials and
+/// of the f32 kernels: the facet exponent and specular colour.
+fn phong_facets(m: &Material) -> Option<(f64, [f64; 3])> {
+    match (&m.transfer, m.form) {
         (
-            Ndf::PhongPeaks(p),
             Transfer::Phong {
                 exponent,
                 specular,
                 variant: PhongVariant::Half,
             },
             Form::MultipleSurface,
-        ) => Some((p, exponent, specular)),
+        ) => Some((*exponent, *specular)),
         _ => None,
     }
+}
+
+/// Phong peaks under Phong (N·H) facets in the multiple-surface form (the paper's materials):
+/// the peaks, the facet exponent and specular colour.
+fn phong_peaks_under_phong(m: &Material) -> Option<(&PhongPeaks, f64, [f64; 3])> {
+    let Ndf::PhongPeaks(p) = &m.ndf else {
+        return None;
+    };
+    phong_facets(m).map(|(exponent, specular)| (p, exponent, specular))
 }
 
 /// The plan of Phong peaks under Phong facets: the weighted nodes of [`lobe_nodes`] when there
@@ -237,25 +245,19 @@ impl FastBrdf {
         let mut material = material.clone();
         let interactive = policy == Policy::Interactive;
         let peaks = phong_peaks_under_phong(&material).filter(|_| interactive);
+        let facets = phong_facets(&material).filter(|_| interactive);
         let kind = if let Some((p, exponent, specular)) = peaks {
-            peaks_kind(p, *exponent, *specular, MAX_NODES)
+            peaks_kind(p, exponent, specular, MAX_NODES)
         } else {
             match (&material.ndf, &material.transfer, material.form) {
-                (
-                    Ndf::Deltas(d),
-                    Transfer::Phong {
-                        exponent,
-                        specular,
-                        variant: PhongVariant::Half,
-                    },
-                    Form::MultipleSurface,
-                ) if interactive => {
+                (Ndf::Deltas(d), _, _) if facets.is_some() => {
+                    let (exponent, specular) = facets.unwrap_or_default();
                     let nodes: Vec<(DVec3, f64)> =
                         d.normals().iter().map(|n| (n.normal, n.weight)).collect();
                     let chunks = chunk(&nodes);
                     Kind::DeltaPhong {
                         chunks,
-                        exponent: *exponent as f32,
+                        exponent: exponent as f32,
                         specular: specular.map(|s| s as f32),
                     }
                 }
@@ -336,7 +338,7 @@ impl FastBrdf {
         if let Some((p, exponent, specular)) = phong_peaks_under_phong(material) {
             return FastBrdf {
                 diffuse: material.diffuse,
-                kind: peaks_kind(p, *exponent, *specular, 0),
+                kind: peaks_kind(p, exponent, specular, 0),
                 material: material.clone(),
                 policy: Policy::Preview,
                 sampled: false,
