@@ -248,21 +248,57 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
-        if self.nodes[0].count > 0 {
-            // The root is a leaf (a few primitives): test them without the box.
-            let mut best: Option<PrimHit> = None;
-            for (k, p) in self.prims.iter().enumerate() {
-                if let Some((t, a, b)) = p.intersect(ray, tmin, tmax) {
-                    tmax = t;
+        let mut best: Option<PrimHit> = None;
+        self.traverse::<true>(ray, tmin, &mut tmax, |first, prims, tmax| {
+            for (k, p) in prims.iter().enumerate() {
+                if let Some((t, a, b)) = p.intersect(ray, tmin, *tmax) {
+                    *tmax = t;
                     best = Some(PrimHit {
                         t,
                         a,
                         b,
-                        prim: k as u32,
+                        prim: (first + k) as u32,
                     });
                 }
             }
-            return best;
+            false
+        });
+        best
+    }
+
+    /// Is anything hit with `tmin < t < tmax`? The primitive at leaf position `skip` (the
+    /// one a shadow ray leaves from, when the ray cannot hit it again) is not tested; pass
+    /// `u32::MAX` to test every primitive.
+    #[inline]
+    pub(crate) fn occluded(&self, ray: &Ray, tmin: f64, mut tmax: f64, skip: u32) -> bool {
+        // Nothing to test (an empty tree, or a lone primitive that is skipped).
+        if self.prims.is_empty() || (self.prims.len() == 1 && skip == 0) {
+            return false;
+        }
+        self.traverse::<false>(ray, tmin, &mut tmax, |first, prims, tmax| {
+            prims
+                .iter()
+                .enumerate()
+                .any(|(k, p)| (first + k) as u32 != skip && p.intersect(ray, tmin, *tmax).is_some())
+        })
+    }
+
+    /// The traversal both queries share: `leaf(first, prims, tmax)` for the primitives of each
+    /// leaf whose box the ray enters within `(tmin, tmax)` (`first`: the leaf position of
+    /// `prims[0]`; `leaf` may lower `tmax`), until `leaf` returns true (then true) or the tree is
+    /// done (false). A root that is a leaf (a few primitives) is handed over without its box.
+    /// `ORDERED` visits the nearer child first along the split axis (closest hit); otherwise
+    /// the first child (any hit, which stops at the first). Needs a non-empty tree.
+    #[inline(always)]
+    fn traverse<const ORDERED: bool>(
+        &self,
+        ray: &Ray,
+        tmin: f64,
+        tmax: &mut f64,
+        mut leaf: impl FnMut(usize, &[Prim], &mut f64) -> bool,
+    ) -> bool {
+        if self.nodes[0].count > 0 {
+            return leaf(0, &self.prims, tmax);
         }
         let inv = ray.d.recip();
         let neg = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
@@ -270,29 +306,16 @@ impl Bvh {
         let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
         let mut sp = 0usize;
         let mut node = 0u32;
-        let mut best: Option<PrimHit> = None;
         loop {
             let nd = &self.nodes[node as usize];
-            if slab(nd, ray.o, inv, tmin, tmax) {
+            if slab(nd, ray.o, inv, tmin, *tmax) {
                 if nd.count > 0 {
                     let first = nd.offset as usize;
-                    for (k, p) in self.prims[first..first + nd.count as usize]
-                        .iter()
-                        .enumerate()
-                    {
-                        if let Some((t, a, b)) = p.intersect(ray, tmin, tmax) {
-                            tmax = t;
-                            best = Some(PrimHit {
-                                t,
-                                a,
-                                b,
-                                prim: (first + k) as u32,
-                            });
-                        }
+                    if leaf(first, &self.prims[first..first + nd.count as usize], tmax) {
+                        return true;
                     }
                 } else {
-                    // Visit the near child first.
-                    let (near, far) = if neg[nd.axis as usize] {
+                    let (near, far) = if ORDERED && neg[nd.axis as usize] {
                         (nd.offset, node + 1)
                     } else {
                         (node + 1, nd.offset)
@@ -301,57 +324,6 @@ impl Bvh {
                     stack[sp.min(STACK - 1)] = MaybeUninit::new(far);
                     sp = (sp + 1).min(STACK);
                     node = near;
-                    continue;
-                }
-            }
-            if sp == 0 {
-                break;
-            }
-            sp -= 1;
-            // SAFETY: every slot below `sp` has been written by a push.
-            node = unsafe { stack[sp].assume_init() };
-        }
-        best
-    }
-
-    /// Is anything hit with `tmin < t < tmax`? The primitive at leaf position `skip` (the
-    /// one a shadow ray leaves from, when the ray cannot hit it again) is not tested; pass
-    /// `u32::MAX` to test every primitive.
-    #[inline]
-    pub(crate) fn occluded(&self, ray: &Ray, tmin: f64, tmax: f64, skip: u32) -> bool {
-        // Nothing to test (an empty tree, or a lone primitive that is skipped).
-        if self.prims.is_empty() || (self.prims.len() == 1 && skip == 0) {
-            return false;
-        }
-        if self.nodes[0].count > 0 {
-            // The root is a leaf: test its primitives without the box.
-            return self
-                .prims
-                .iter()
-                .enumerate()
-                .any(|(k, p)| k as u32 != skip && p.intersect(ray, tmin, tmax).is_some());
-        }
-        let inv = ray.d.recip();
-        let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
-        let mut sp = 0usize;
-        let mut node = 0u32;
-        loop {
-            let nd = &self.nodes[node as usize];
-            if slab(nd, ray.o, inv, tmin, tmax) {
-                if nd.count > 0 {
-                    let first = nd.offset as usize;
-                    for (k, p) in self.prims[first..first + nd.count as usize]
-                        .iter()
-                        .enumerate()
-                    {
-                        if (first + k) as u32 != skip && p.intersect(ray, tmin, tmax).is_some() {
-                            return true;
-                        }
-                    }
-                } else {
-                    stack[sp.min(STACK - 1)] = MaybeUninit::new(nd.offset);
-                    sp = (sp + 1).min(STACK);
-                    node += 1;
                     continue;
                 }
             }
