@@ -187,6 +187,12 @@ fn k_by_shading_error_is_within_tolerance_of_every_fit_it_chooses_from() {
                         ..base.clone()
                     };
                     let lobes = fit(e, &params);
+                    // The shading choice runs the chain whether or not `k_chain` is set.
+                    let unchained = FitParams {
+                        k_chain: false,
+                        ..params.clone()
+                    };
+                    assert_eq!(fit(e, &unchained), lobes, "{name}, λ {lambda}, K {k}");
                     let s = err(&lobes);
                     assert!(
                         s <= least[k - 1] + tolerance + 1e-12,

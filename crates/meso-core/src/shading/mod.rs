@@ -250,18 +250,18 @@ impl FastBrdf {
             peaks_kind(p, exponent, specular, MAX_NODES)
         } else {
             match (&material.ndf, &material.transfer, material.form) {
-                (Ndf::Deltas(d), _, _) if facets.is_some() => {
-                    let (exponent, specular) = facets.unwrap_or_default();
-                    let nodes: Vec<(DVec3, f64)> =
-                        d.normals().iter().map(|n| (n.normal, n.weight)).collect();
-                    let chunks = chunk(&nodes);
-                    Kind::DeltaPhong {
-                        chunks,
-                        exponent: exponent as f32,
-                        specular: specular.map(|s| s as f32),
+                (Ndf::Deltas(d), _, _) => match facets {
+                    Some((exponent, specular)) => {
+                        let nodes: Vec<(DVec3, f64)> =
+                            d.normals().iter().map(|n| (n.normal, n.weight)).collect();
+                        Kind::DeltaPhong {
+                            chunks: chunk(&nodes),
+                            exponent: exponent as f32,
+                            specular: specular.map(|s| s as f32),
+                        }
                     }
-                }
-                (Ndf::Deltas(_), _, _) => Kind::Deltas,
+                    None => Kind::Deltas,
+                },
                 (Ndf::Microfacet(mf), Transfer::Mirror { .. }, form) => {
                     // Beckmann and GGX: Smith Λ in closed form, and `∫ n (m·z) dω = 1/A` exactly
                     // (`n = D/A` and `∫ D (m·z) dω = 1`), so nothing to tabulate or integrate.

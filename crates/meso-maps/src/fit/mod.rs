@@ -210,8 +210,9 @@ pub struct FitParams {
     /// 15.3 % against 14 %), so it stays opt-in until its objective matches shading; nor did
     /// choosing K by the shading error ([`KChoice::Shading`]) pass it (module docs).
     pub k_chain: bool,
-    /// How the K chain picks each texel's lobes (only with `k_chain`; module docs, "K by the
-    /// shading error"). Default [`KChoice::Objective`].
+    /// How each texel's lobes are picked among the K chain's candidates (module docs, "K by the
+    /// shading error"). Default [`KChoice::Objective`]: with `k_chain` the end of the chain,
+    /// without it the single fit. [`KChoice::Shading`] runs the chain whatever `k_chain` says.
     pub k_choice: KChoice,
     /// Exponent λ of the kernel `exp(λ(h·m − 1))` of the material's own facet transfer
     /// ([`facet_kernel_exponent`]: Phong η → η, Beckmann/GGX α → 2/α², Lambert → 2), by which
@@ -359,7 +360,8 @@ pub fn fit_lobes_with(
     let pts: &[Pt] = pts;
     let sdata = smooth_points(entries, pts, smooth, params);
     let mut single = Single::new(pts, params, thorough, sdata.as_deref());
-    if !params.k_chain {
+    // The shading choice picks among the chain's candidates, so it runs the chain.
+    if !params.k_chain && params.k_choice == KChoice::Objective {
         out.extend(if n <= kmax {
             exact_lobes(entries, total)
         } else {
