@@ -10,14 +10,9 @@ use meso_render::*;
 use std::sync::Arc;
 use std::time::Instant;
 
-/// User + system CPU seconds of this process (Linux `/proc/self/stat`, 100 ticks/s).
-fn cpu_seconds() -> f64 {
-    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let after = s.rsplit_once(')').map_or("", |x| x.1);
-    let f: Vec<&str> = after.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (tick(11) + tick(12)) / 100.0
-}
+#[path = "common/cpu.rs"]
+mod cpu;
+use cpu::cpu_seconds;
 
 /// The scene: `n × n` spheres of radius 0.3 on a unit grid (heights varied by a hash so that
 /// the tree is not a regular grid), on a quad, two point lights.
