@@ -9,7 +9,7 @@ use meso_render::*;
 use std::sync::Arc;
 
 mod common;
-use common::plane_scene;
+use common::render_plane;
 
 /// The light of the plane scenes (towards the light).
 const LIGHT: DVec3 = DVec3::new(-0.5, 0.3, 0.8);
@@ -262,22 +262,8 @@ fn ndf_mapped_matches_supersampled_bump_map() {
     let mut errors = Vec::new();
     for cells_per_pixel in [4.0, 16.0, 64.0, 256.0] {
         let width = cells_per_pixel * f64::from(size) / tpu;
-        let truth = render(
-            &plane_scene(bump.clone(), width, size, LIGHT),
-            &RenderOptions {
-                spp: Some(1024),
-                ..RenderOptions::default()
-            },
-            None,
-        );
-        let filtered = render(
-            &plane_scene(ndf.clone(), width, size, LIGHT),
-            &RenderOptions {
-                spp: Some(4),
-                ..RenderOptions::default()
-            },
-            None,
-        );
+        let truth = render_plane(bump.clone(), width, size, LIGHT, 1024);
+        let filtered = render_plane(ndf.clone(), width, size, LIGHT, 4);
         errors.push(mean_rel(&filtered, &truth));
     }
     eprintln!("mean relative errors at 4, 16, 64, 256 cells/pixel: {errors:?}");
@@ -309,14 +295,7 @@ fn ndf_mapped_zoom_is_smooth() {
     let ndf = Arc::new(NdfMapped::new(&pyr, &surface, 32.0, true).unwrap());
     let bump = Arc::new(BumpMapped::new(&map, &surface, 32.0, true).unwrap());
     let mean = |shader: Arc<dyn Shader>, width: f64, spp: u32| -> f64 {
-        let img = render(
-            &plane_scene(shader, width, 32, LIGHT),
-            &RenderOptions {
-                spp: Some(spp),
-                ..RenderOptions::default()
-            },
-            None,
-        );
+        let img = render_plane(shader, width, 32, LIGHT, spp);
         img.pixels()
             .iter()
             .map(|p| f64::from(p[0] + p[1] + p[2]))

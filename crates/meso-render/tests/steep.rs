@@ -12,7 +12,7 @@ use meso_render::*;
 use std::sync::Arc;
 
 mod common;
-use common::plane_scene;
+use common::{plane_scene, render_at, render_plane};
 
 /// A deterministic hash of `(a, b, c)` to `[0, 1)`.
 fn hash(a: i64, b: i64, c: i64) -> f64 {
@@ -206,23 +206,9 @@ fn measure(map: &NormalMap, texels_per_pixel: &[f64]) -> Vec<Measurement> {
             for light in [DVec3::new(-0.5, 0.3, 0.8), DVec3::new(0.2, 0.9, 0.35)] {
                 for &cells in texels_per_pixel {
                     let width = cells * f64::from(size) / tpu;
-                    let truth = render(
-                        &plane_scene(bump.clone(), width, size, light),
-                        &RenderOptions {
-                            spp: Some(256),
-                            ..RenderOptions::default()
-                        },
-                        None,
-                    );
+                    let truth = render_plane(bump.clone(), width, size, light, 256);
                     let scene = plane_scene(Arc::new(ndf.clone()), width, size, light);
-                    let filtered = render(
-                        &scene,
-                        &RenderOptions {
-                            spp: Some(1),
-                            ..RenderOptions::default()
-                        },
-                        None,
-                    );
+                    let filtered = render_at(&scene, 1);
                     let comparison = compare(&scene, &ndf, tpu, &filtered, &truth);
                     let filter = if box_filter { "box" } else { "trilinear" };
                     let mut m = Measurement {

@@ -13,7 +13,7 @@ use meso_render::*;
 use std::sync::Arc;
 
 mod common;
-use common::plane_scene;
+use common::render_plane;
 
 /// `(Σ|a − b| / Σb, Σa / Σb)` over pixels and channels: the mean pixel error and the ratio of
 /// the mean radiances.
@@ -74,23 +74,9 @@ fn measure(name: &str, map: &HeightMap, lights_deg: &[f64], texels_per_pixel: &[
             let light = DVec3::new(t.sin(), 0.0, t.cos());
             for &cells in texels_per_pixel {
                 let width = cells * f64::from(size) / tpu;
-                let truth = render(
-                    &plane_scene(bump.clone(), width, size, light),
-                    &RenderOptions {
-                        spp: Some(256),
-                        ..RenderOptions::default()
-                    },
-                    None,
-                );
+                let truth = render_plane(bump.clone(), width, size, light, 256);
                 let mut run = |model: &'static str, shader: &Arc<dyn Shader>| {
-                    let filtered = render(
-                        &plane_scene(shader.clone(), width, size, light),
-                        &RenderOptions {
-                            spp: Some(1),
-                            ..RenderOptions::default()
-                        },
-                        None,
-                    );
+                    let filtered = render_plane(shader.clone(), width, size, light, 1);
                     let (error, ratio) = compare(&filtered, &truth);
                     eprintln!(
                         "{name}, {facets}, {model}, light {deg}°, {cells} texels/px: \

@@ -1,5 +1,7 @@
 //! The plane scene of the textured-material tests (`materials.rs`, `steep.rs`,
-//! `visibility.rs`) and of `examples/bench_mapped.rs` (which includes this file by path).
+//! `visibility.rs`) and of `examples/bench_mapped.rs` (which includes this file by path), and
+//! the renders of it that those tests compare (a truth at many samples per pixel against a
+//! filtered shader at few).
 
 use glam::DVec3;
 use meso_render::*;
@@ -34,4 +36,29 @@ pub fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32, light: DVec3)
     })
     .unwrap();
     b.build().unwrap()
+}
+
+/// `scene` rendered with `spp` samples per pixel and otherwise default options.
+#[allow(dead_code)] // Not every including file renders.
+pub fn render_at(scene: &Scene, spp: u32) -> Image {
+    render(
+        scene,
+        &RenderOptions {
+            spp: Some(spp),
+            ..RenderOptions::default()
+        },
+        None,
+    )
+}
+
+/// [`plane_scene`] rendered with `spp` samples per pixel ([`render_at`]).
+#[allow(dead_code)] // Not every including file renders.
+pub fn render_plane(
+    shader: Arc<dyn Shader>,
+    width: f64,
+    size: u32,
+    light: DVec3,
+    spp: u32,
+) -> Image {
+    render_at(&plane_scene(shader, width, size, light), spp)
 }
