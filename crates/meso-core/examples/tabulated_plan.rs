@@ -2,7 +2,8 @@
 //! NDF is a 2-D table (`[ndf] kind = "tabulated"`, 512 × 64 equal-area grid, what `meso fit
 //! SAMPLES.csv --nonparametric` writes and rebuilds ≈ 16 times per fit): almost all of it is
 //! the Smith Λ table of the projected area. Prints, per table, the median of `REPEATS` builds
-//! (seconds) and the BRDF at a few pairs (so that runs before and after a change can be compared).
+//! (seconds), the BRDF at a few pairs (so that runs before and after a change can be compared),
+//! and the time per pair of the exact path (`Material::brdf`, what `meso brdf --exact` runs).
 //! Used for docs/benchmarks.md.
 //!
 //! cargo run --release -p meso-core --example tabulated_plan [-- REPEATS]
@@ -92,5 +93,20 @@ fn main() {
                 f[0], f[1], f[2]
             );
         }
+        let t0 = Instant::now();
+        let mut sum = 0.0;
+        for _ in 0..repeats.max(1) {
+            for ((ti, pi), (to, po)) in pairs {
+                let f = material.brdf(
+                    spherical_direction_deg(ti, pi),
+                    spherical_direction_deg(to, po),
+                );
+                sum += f[0];
+            }
+        }
+        println!(
+            "  exact path: {:.3} ms per pair (Σ f_r {sum:.9e})",
+            1e3 * t0.elapsed().as_secs_f64() / (repeats.max(1) * pairs.len()) as f64
+        );
     }
 }

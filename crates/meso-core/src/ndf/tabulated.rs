@@ -6,13 +6,24 @@
 
 use crate::grid::EqualAreaGrid;
 use glam::DVec3;
+use std::sync::OnceLock;
 
 /// A piecewise-constant NDF on an equal-area grid.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Tabulated {
     grid: EqualAreaGrid,
     values: Vec<f64>,
     cdf: Vec<f64>,
+    /// The bands and prefix sums of [`Tabulated::projected_areas`], built on first use (Smith
+    /// masking builds a [`ProjectedAreas`] per direction pair on the exact path).
+    areas: OnceLock<AreaTables>,
+}
+
+/// Equal grids and values (the cache of projected areas is not compared).
+impl PartialEq for Tabulated {
+    fn eq(&self, other: &Self) -> bool {
+        self.grid == other.grid && self.values == other.values && self.cdf == other.cdf
+    }
 }
 
 impl Tabulated {
@@ -49,7 +60,12 @@ impl Tabulated {
         let scale = 1.0 / (sum * grid.cell_solid_angle());
         values.iter_mut().for_each(|v| *v *= scale);
         let cdf = super::cumulative(values.iter().copied());
-        Ok(Tabulated { grid, values, cdf })
+        Ok(Tabulated {
+            grid,
+            values,
+            cdf,
+            areas: OnceLock::new(),
+        })
     }
 
     /// Tabulate any density by averaging it over `sub × sub` points per cell.
@@ -140,13 +156,20 @@ impl Tabulated {
 /// `∫ (A ψ + √(s² − z²)) dz = ½[ω_z z² ψ + asin(z/s) − |ω_z| atan(|ω_z| z / √(s² − z²)) + z √(s² − z²)]`,
 /// split at the height where the terminator crosses the meridian `x = c`.
 /// Tested against brute force and the quadrature of a general NDF.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug)]
 pub struct ProjectedAreas<'a> {
     table: &'a Tabulated,
     /// Per band above the horizon: its index, its `z` range clipped to `z ≥ 0`, and
     /// `∫_0^z √(1 − z'²) dz'` at both ends.
-    bands: Vec<AreaBand>,
+    bands: &'a [AreaBand],
     /// Per band, `n_phi + 1` prefix sums over φ of `v_c M_c`.
+    prefix: &'a [DVec3],
+}
+
+/// What [`ProjectedAreas`] reads beside the table, built once per table.
+#[derive(Clone, Debug)]
+struct AreaTables {
+    bands: Vec<AreaBand>,
     prefix: Vec<DVec3>,
 }
 
@@ -165,8 +188,19 @@ fn half_disc(z: f64) -> f64 {
 
 impl Tabulated {
     /// The exact projected areas of the table over the upper hemisphere ([`ProjectedAreas`]).
+    /// Its per-band prefix sums are computed on the first call and kept with the table.
     #[must_use]
     pub fn projected_areas(&self) -> ProjectedAreas<'_> {
+        let t = self.areas.get_or_init(|| self.area_tables());
+        ProjectedAreas {
+            table: self,
+            bands: &t.bands,
+            prefix: &t.prefix,
+        }
+    }
+
+    /// The bands and prefix sums of [`Tabulated::projected_areas`].
+    fn area_tables(&self) -> AreaTables {
         let g = self.grid;
         let n = g.n_phi;
         let dphi = 2.0 * std::f64::consts::PI / n as f64;
@@ -198,11 +232,7 @@ impl Tabulated {
                 prefix.push(acc);
             }
         }
-        ProjectedAreas {
-            table: self,
-            bands,
-            prefix,
-        }
+        AreaTables { bands, prefix }
     }
 }
 
