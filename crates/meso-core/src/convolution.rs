@@ -355,11 +355,13 @@ fn tail_cut(contrib: &[(u32, [f64; 3])], peak: f64) -> f64 {
 }
 
 /// The light a delta sum of **Lambert** facets reflects after more than one bounce inside the
-/// microgeometry, as a BRDF (RGB, 1/sr) to add to the single-bounce microfacet form, from a
-/// normal-conditioned visibility that knows each delta's sky view `s_k`
-/// ([`VisibilityModel::sky_views`]). Zero for other transfers or models.
+/// microgeometry, as a BRDF (RGB, 1/sr) to add to the single-bounce microfacet form. With
+/// `solve`, a model that solves it from the geometry ([`VisibilityModel::interreflected`]: a
+/// height map's facets, by radiosity) answers; otherwise (or without `solve`, the interactive
+/// plans) it is estimated from a normal-conditioned visibility that knows each delta's sky view
+/// `s_k` ([`VisibilityModel::sky_views`]), below. Zero for other transfers or models.
 ///
-/// # Model
+/// # Estimate from the sky views
 /// The radiance the surface sends into its own concavities is taken as uniform: the mean
 /// exitant radiance of the microsurface. Per unit irradiance of the light (weights `w_k`
 /// summing to 1 over the microsurface, albedo `ρ`, `V_i(k)` the share of delta `k`'s facets
@@ -378,12 +380,16 @@ pub fn deltas_interreflection(
     g: &dyn VisibilityModel,
     i: DVec3,
     o: DVec3,
+    solve: bool,
 ) -> [f64; 3] {
     let Transfer::Lambert { albedo } = *transfer else {
         return [0.0; 3];
     };
     if i.z <= 0.0 || o.z <= 0.0 {
         return [0.0; 3];
+    }
+    if let Some(f) = solve.then(|| g.interreflected(albedo, i, o)).flatten() {
+        return f;
     }
     let normals = d.normals();
     let Some(sky) = g.sky_views(normals) else {

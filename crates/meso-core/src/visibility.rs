@@ -57,6 +57,17 @@ pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
         None
     }
 
+    /// The BRDF (1/sr, RGB) of the light that scatters more than once between **Lambert**
+    /// facets of albedo `albedo` inside the microgeometry, for light `i` and view `o`, when the
+    /// model can solve it from the geometry itself (e.g. a height map's facets,
+    /// `meso_maps::FacetRadiosity`); what [`crate::convolution::deltas_interreflection`] adds
+    /// to the single bounce. `None` (the default) for models that cannot: the convolution then
+    /// estimates it from the deltas' sky views.
+    fn interreflected(&self, albedo: [f64; 3], i: DVec3, o: DVec3) -> Option<[f64; 3]> {
+        let _ = (albedo, i, o);
+        None
+    }
+
     /// Whether [`VisibilityModel::g_given_normal`] depends on the normal (then
     /// [`crate::material::ShadowingKind::Visibility`] is available and the default).
     fn conditions_on_normal(&self) -> bool {

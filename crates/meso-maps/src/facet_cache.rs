@@ -152,6 +152,7 @@ fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
         FacetVisibility {
             bins: Arc::new(bins),
             horizon,
+            radiosity: None,
         },
     ))
 }

@@ -7,6 +7,7 @@ use crate::facets::NormalMode;
 use crate::fit::{merge_entries, Entry};
 use crate::heightmap::HeightMap;
 use crate::horizon::HorizonStats;
+use crate::radiosity::LazyRadiosity;
 use crate::visibility::BinnedVisibility;
 use glam::DVec3;
 use meso_core::material::VisibilityModel;
@@ -22,6 +23,10 @@ pub struct FacetVisibility {
     pub bins: Arc<BinnedVisibility>,
     /// The whole map's horizon statistics.
     pub horizon: HorizonStats,
+    /// The light between the map's facets (Lambert facets, by radiosity), built on first use;
+    /// `None` where the map cannot be traced again (then the sky-view estimate of
+    /// `meso_core::convolution::deltas_interreflection` is used).
+    pub radiosity: Option<Arc<LazyRadiosity>>,
 }
 
 impl VisibilityModel for FacetVisibility {
@@ -49,6 +54,10 @@ impl VisibilityModel for FacetVisibility {
     fn sky_views(&self, normals: &[WeightedNormal]) -> Option<&[f32]> {
         // Built for this very delta sum (bin k = delta k).
         (normals.len() == self.bins.bins()).then(|| self.bins.sky_views())
+    }
+    fn interreflected(&self, albedo: [f64; 3], i: DVec3, o: DVec3) -> Option<[f64; 3]> {
+        let r = self.radiosity.as_ref()?.get().ok()?;
+        Some(r.multi_bounce(albedo, i, o, None))
     }
     fn conditions_on_normal(&self) -> bool {
         true
@@ -141,6 +150,7 @@ pub fn facets_with_visibility_progress(
         FacetVisibility {
             bins: Arc::new(bins),
             horizon,
+            radiosity: None,
         },
     ))
 }

@@ -40,6 +40,7 @@ pub mod input;
 pub mod limits;
 pub mod pyramid;
 pub mod pyramid_cache;
+pub mod radiosity;
 pub mod resolver;
 pub mod sphgrid;
 pub mod visibility;
@@ -61,5 +62,6 @@ pub use pyramid::{
     extract, extract_bytes, extract_work, lobe_stats, peak_projected_area, texel_lobe_stats,
     ExtractParams, Level, LobeStat, LobeStats, Method, Progress, Pyramid, PyramidInfo, Source,
 };
+pub use radiosity::FacetRadiosity;
 pub use resolver::{ExtractProgress, MapsResolver};
 pub use visibility::BinnedVisibility;

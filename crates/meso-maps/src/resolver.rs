@@ -427,7 +427,7 @@ impl MapsResolver {
         };
         // Built once per map content and parameters, then read from the cache
         // (`crate::facet_cache`), which reports no progress: it takes a moment.
-        let (ndf, vis, _cached) = crate::facet_cache::facets_cached(
+        let (ndf, mut vis, _cached) = crate::facet_cache::facets_cached(
             file,
             p.texel_size,
             p.height_scale,
@@ -442,6 +442,15 @@ impl MapsResolver {
                     .map_err(|e| MaterialError(format!("{what}: {e}")))
             },
         )?;
+        if p.normal_mode == NormalMode::Triangles && p.border == Border::Wrap {
+            // The light between facets (`interreflection = true`) traces the map again, once,
+            // when a material first asks for it.
+            let file = file.to_path_buf();
+            vis.radiosity = Some(Arc::new(crate::radiosity::LazyRadiosity::new(move || {
+                HeightMap::load(&file, p.texel_size, p.height_scale, p.border)
+                    .map_err(|e| e.to_string())
+            })));
+        }
         Ok(ResolvedNdf {
             ndf,
             horizon: Some(Arc::new(vis) as Arc<dyn VisibilityModel>),

@@ -1,11 +1,11 @@
 //! Light between facets (issue #11 item 6): `[shadowing] kind = "visibility"` with
-//! `interreflection = true` (Lambert facets) against the gonioreflectometer following 8
-//! bounces, on creased surfaces where the second and later bounces add a large share. Relative
-//! RMSE over the far-field pairs (θ ≤ 60°), as in `tests/visibility.rs`. `IR_DEBUG=1` prints
-//! the table.
+//! `interreflection = true` (Lambert facets; `meso_maps::FacetRadiosity`) against the
+//! gonioreflectometer following 8 bounces, on creased surfaces where the second and later
+//! bounces add a large share. Relative RMSE over the far-field pairs (θ ≤ 60°), as in
+//! `tests/visibility.rs`. `IR_DEBUG=1` prints the table.
 
 use meso_core::material::Material;
-use meso_maps::{fixtures, Border, Gonio, GonioParams, HeightMap, MapsResolver};
+use meso_maps::{fixtures, Border, FacetRadiosity, Gonio, GonioParams, HeightMap, MapsResolver};
 use std::path::Path;
 
 const LAMBERT: &str = "[transfer]\nkind = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n";
@@ -16,9 +16,19 @@ fn rel_rmse(f: &[f64], g: &[f64]) -> f64 {
     (num / den).sqrt()
 }
 
-/// (single-bounce error, inter-reflected error, gain of 8 bounces over 1 in the truth), each
-/// relative RMSE against `meso gonio --bounces 8`.
-fn errors(name: &str, map: &HeightMap) -> (f64, f64, f64) {
+/// What [`errors`] measures, each error a relative RMSE against `meso gonio --bounces 8`.
+struct Errors {
+    /// Single bounce (`interreflection = false`).
+    single: f64,
+    /// The material with `interreflection = true` (the facets' radiosity, to convergence).
+    multi: f64,
+    /// The radiosity stopped at 8 scattering events, as the ray tracer is.
+    multi8: f64,
+    /// The gain of 8 bounces over 1 in the ray tracer.
+    gain: f64,
+}
+
+fn errors(name: &str, map: &HeightMap) -> Errors {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("interreflection");
     std::fs::create_dir_all(&dir).unwrap();
     let (png, scale) = map.encode_png16().unwrap();
@@ -57,14 +67,44 @@ fn errors(name: &str, map: &HeightMap) -> (f64, f64, f64) {
     let (t1, t8) = (trace(1), trace(8));
     let f1: Vec<f64> = pairs.iter().map(|&(i, o)| single.brdf(i, o)[0]).collect();
     let f8: Vec<f64> = pairs.iter().map(|&(i, o)| multi.brdf(i, o)[0]).collect();
+    let t0 = std::time::Instant::now();
+    let radiosity = FacetRadiosity::new(&loaded).unwrap();
+    let built = t0.elapsed().as_secs_f64();
+    let b8: Vec<f64> = pairs
+        .iter()
+        .zip(&f1)
+        .map(|(&(i, o), f)| f + radiosity.multi_bounce([0.8; 3], i, o, Some(8))[0])
+        .collect();
+    let per_pair = (t0.elapsed().as_secs_f64() - built) / pairs.len() as f64;
     let gain = t8.iter().sum::<f64>() / t1.iter().sum::<f64>() - 1.0;
-    let out = (rel_rmse(&f1, &t8), rel_rmse(&f8, &t8), gain);
+    let out = Errors {
+        single: rel_rmse(&f1, &t8),
+        multi: rel_rmse(&f8, &t8),
+        multi8: rel_rmse(&b8, &t8),
+        gain,
+    };
     if std::env::var_os("IR_DEBUG").is_some() {
+        let d_model: Vec<f64> = b8.iter().zip(&f1).map(|(a, b)| a - b).collect();
+        let d_truth: Vec<f64> = t8.iter().zip(&t1).map(|(a, b)| a - b).collect();
         eprintln!(
-            "{name}: 8 bounces add {:.1}%; vs gonio --bounces 8: single bounce {:.1}%, with interreflection {:.1}%",
-            100.0 * out.2,
-            100.0 * out.0,
-            100.0 * out.1
+            "{name}: radiosity built in {built:.2} s ({} rays a patch), {:.1} ms a pair",
+            radiosity.rays_per_patch(),
+            1e3 * per_pair
+        );
+        eprintln!(
+            "{name}: single bounce vs gonio 1: {:.2}%; bounces 2-8 vs gonio's: {:.2}%; sums {:.4} / {:.4}",
+            100.0 * rel_rmse(&f1, &t1),
+            100.0 * rel_rmse(&d_model, &d_truth),
+            d_model.iter().sum::<f64>(),
+            d_truth.iter().sum::<f64>()
+        );
+        eprintln!(
+            "{name}: 8 bounces add {:.1}%; vs gonio --bounces 8: single bounce {:.1}%, \
+             with interreflection {:.1}% (radiosity to 8 bounces {:.1}%)",
+            100.0 * out.gain,
+            100.0 * out.single,
+            100.0 * out.multi,
+            100.0 * out.multi8
         );
     }
     out
@@ -86,11 +126,15 @@ fn interreflection_against_eight_bounces_on_creased_surfaces() {
         ("weave", fixtures::woven(64, 16, 0.06, s).unwrap()),
     ];
     for (name, map) in &maps {
-        let (single, multi, gain) = errors(name, map);
-        // The estimate must close most of the gap that single bounce leaves.
+        let e = errors(name, map);
+        let (single, multi, multi8, gain) = (e.single, e.multi, e.multi8, e.gain);
+        // The radiosity of the facets follows the ray tracer: within 5 % to convergence and
+        // within 3 % stopped at the same 8 bounces (measured 1.9 %, 1.7 %, 1.2 %, 0.4 % both
+        // ways; the sky-view estimate it replaced was 13.2 %, 5.5 %, 8.5 %, 1.4 % off).
         assert!(
-            multi < 0.5 * single || multi < 0.02,
-            "{name}: single {single:.3}, interreflected {multi:.3} (8 bounces add {gain:.3})"
+            multi < 0.05 && multi8 < 0.03,
+            "{name}: single {single:.3}, interreflected {multi:.3}, to 8 bounces {multi8:.3} \
+             (8 bounces add {gain:.3})"
         );
     }
 }

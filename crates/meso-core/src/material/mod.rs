@@ -208,9 +208,19 @@ impl Material {
 
     /// The convolution part of [`Material::brdf`] (Eq. 2/8 with the material's form and
     /// masking choice, no diffuse term), 1/sr: the one place a [`ShadowingKind`] becomes a
-    /// [`Visibility`].
+    /// [`Visibility`]. The light between facets (`interreflection = true`) is solved from the
+    /// geometry where the visibility model can ([`VisibilityModel::interreflected`]).
     #[must_use]
     pub fn convolved(&self, i: DVec3, o: DVec3) -> [f64; 3] {
+        self.convolved_with(i, o, true)
+    }
+
+    /// [`Material::convolved`] with the light between facets estimated from the sky views
+    /// rather than solved (`solve_bounces = false`): what the interactive plans
+    /// ([`crate::shading::Policy::Interactive`]: the renderer, the editor) evaluate, since
+    /// solving it costs a radiosity solve per direction pair.
+    #[must_use]
+    pub fn convolved_with(&self, i: DVec3, o: DVec3, solve_bounces: bool) -> [f64; 3] {
         let horizon = self.horizon.as_ref();
         let custom = |a: DVec3, b: DVec3| horizon.map_or(1.0, |h| h.g(a, b));
         let vis = match self.shadowing {
@@ -234,8 +244,14 @@ impl Material {
         if let (ShadowingKind::VisibilityInterreflected, Some(h), Ndf::Deltas(d)) =
             (self.shadowing, horizon, &self.ndf)
         {
-            let extra =
-                crate::convolution::deltas_interreflection(d, &self.transfer, h.as_ref(), i, o);
+            let extra = crate::convolution::deltas_interreflection(
+                d,
+                &self.transfer,
+                h.as_ref(),
+                i,
+                o,
+                solve_bounces,
+            );
             for (c, e) in f.iter_mut().zip(extra) {
                 *c += e;
             }

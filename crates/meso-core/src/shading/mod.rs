@@ -500,7 +500,10 @@ impl FastBrdf {
                     f64::from(specular[2]) * s,
                 ]
             }
-            Kind::Deltas | Kind::Quadrature => self.material.convolved(i, o),
+            Kind::Deltas | Kind::Quadrature => {
+                self.material
+                    .convolved_with(i, o, self.policy == Policy::Accurate)
+            }
             Kind::PhongClosed {
                 lobes,
                 exponent,
