@@ -1,11 +1,12 @@
 //! The GGX-lobe family (`meso fit --transfer ggx-lobes`) contains GGX + Lambert: its K = 1 with
 //! one GGX lobe is the `ggx` baseline held to what a meso material can write (the mirror's
-//! `specular` at most 1, docs/material-format.md) with `f0` per channel. On data of a broad GGX
-//! + Lambert inside those limits the family must fit at least as well as the baseline fitted by
-//! the same machinery, in the objective minimised and on held-out cells, and recover it. Outside
-//! them (a baseline specular amplitude `k_s > 1`, what the rough MERL fabrics get,
-//! docs/measured.md "Why the GGX lobes lose to GGX + Lambert on rough fabrics") the family stays
-//! at the limit and the baseline fits better: the cause of those losses, not a fitting failure.
+//! `specular` at most 1, docs/material-format.md), with `f0` per channel. On data of a broad
+//! GGX and Lambert inside those limits the family must fit at least as well as the baseline
+//! fitted by the same machinery, in the objective minimised and on held-out cells, and recover
+//! the truth. Outside them (a baseline specular amplitude `k_s` above 1, what the rough MERL
+//! fabrics get: docs/measured.md, "The GGX-lobe family against its own special case") the
+//! family stays at the limit and the baseline fits better: the cause of those losses, not a
+//! fitting failure.
 
 mod common;
 
