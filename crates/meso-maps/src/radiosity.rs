@@ -63,6 +63,9 @@ const MAX_ITERATIONS: usize = 1000;
 const OFFSET: f64 = 1e-7;
 /// Patches per triangle: its midpoint subdivision.
 const PATCHES: usize = 4;
+/// The most patches solved (a 256² map: ≈ 60 MB of points, rays and radiances); larger maps
+/// keep the sky-view estimate.
+pub const MAX_PATCHES: usize = 1 << 19;
 
 /// The centres of the midpoint subdivision of triangle `v`: the corner triangles at `v[0]`,
 /// `v[1]`, `v[2]`, then the middle one (the order of [`sub_triangle`]).
@@ -125,15 +128,25 @@ impl FacetRadiosity {
     /// Trace the rays between the patches of `map`.
     ///
     /// # Errors
-    /// A clamped map (the surface must tile, as in the gonioreflectometer) or one without
-    /// facets.
+    /// A clamped map (the surface must tile, as in the gonioreflectometer), one without
+    /// facets, or one of more than [`MAX_PATCHES`] / 8 cells (checked before allocating).
     pub fn new(map: &HeightMap) -> Result<FacetRadiosity, String> {
         if map.border() != Border::Wrap {
             return Err("light between facets needs a wrapped height map (--wrap)".into());
         }
+        let (cols, rows) = (map.cells_x(), map.cells_y());
+        // Checked before anything of the map's size is allocated.
+        if cols * rows * 2 * PATCHES > MAX_PATCHES {
+            return Err(format!(
+                "light between facets is solved on maps of at most {} cells ({} × {} here): \
+                 use a tile of the map",
+                MAX_PATCHES / (2 * PATCHES),
+                cols,
+                rows
+            ));
+        }
         let gonio = Gonio::new(map).map_err(|e| e.to_string())?;
         let facets = FacetNormals::from_heightmap(map, NormalMode::Triangles);
-        let (cols, rows) = (facets.cols, facets.rows);
         let n = facets.normals.len();
         if n == 0 {
             return Err("the height map has no facets".into());
@@ -237,6 +250,29 @@ impl FacetRadiosity {
         (((r * self.cols + c) * 2 + k) * PATCHES + sub_triangle(b)) as u32
     }
 
+    /// Microsurface area of patch `p` (cell units).
+    fn patch_area(&self, p: usize) -> f64 {
+        self.area[p / PATCHES] / PATCHES as f64
+    }
+
+    /// `(n_p·w)⁺` times the share of patch `p`'s points that see `w` ([`FacetRadiosity::open`]).
+    fn projected_cos(&self, p: usize, w: DVec3) -> f64 {
+        let c = self.normal[p / PATCHES].dot(w);
+        if c > 0.0 {
+            c * self.open(p, w)
+        } else {
+            0.0
+        }
+    }
+
+    /// Each patch's direct irradiance / π under a light of unit irradiance from `i`.
+    fn direct(&self, i: DVec3) -> Vec<f64> {
+        (0..self.points.len())
+            .into_par_iter()
+            .map(|p| self.projected_cos(p, i) / PI)
+            .collect()
+    }
+
     /// The share of patch `p`'s four points from which the ray towards `w` leaves the surface.
     fn open(&self, p: usize, w: DVec3) -> f64 {
         let m = self.normal[p / PATCHES] * OFFSET;
@@ -262,26 +298,11 @@ impl FacetRadiosity {
         if i.z <= 0.0 || o.z <= 0.0 {
             return [0.0; 3];
         }
-        let n = self.points.len();
-        // Direct irradiance / π and the projected area each patch shows the viewer.
-        let (direct, seen): (Vec<f64>, Vec<f64>) = (0..n)
+        let direct = self.direct(i);
+        let seen: Vec<f64> = (0..self.points.len())
             .into_par_iter()
-            .map(|p| {
-                let m = self.normal[p / PATCHES];
-                let (mi, mo) = (m.dot(i), m.dot(o));
-                let e = if mi > 0.0 {
-                    mi / PI * self.open(p, i)
-                } else {
-                    0.0
-                };
-                let v = if mo > 0.0 {
-                    self.area[p / PATCHES] / PATCHES as f64 * mo * self.open(p, o)
-                } else {
-                    0.0
-                };
-                (e, v)
-            })
-            .unzip();
+            .map(|p| self.patch_area(p) * self.projected_cos(p, o))
+            .collect();
         let iterations = bounces.map_or(MAX_ITERATIONS, |b| b.saturating_sub(1));
         let norm = 1.0 / (self.projected * o.z * i.z);
         albedo.map(|rho| {
@@ -389,18 +410,9 @@ mod tests {
                 let t = deg.to_radians();
                 let i = DVec3::new(t.sin() * 0.6, t.sin() * 0.8, t.cos());
                 let n = r.points.len();
-                let direct: Vec<f64> = (0..n)
-                    .map(|p| {
-                        let mi = r.normal[p / PATCHES].dot(i);
-                        if mi > 0.0 {
-                            mi / PI * r.open(p, i)
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect();
+                let direct = r.direct(i);
                 let l = r.solve(1.0, &direct, MAX_ITERATIONS);
-                let area = |p: usize| r.area[p / PATCHES] / PATCHES as f64;
+                let area = |p: usize| r.patch_area(p);
                 let incident: f64 = (0..n).map(|p| area(p) * PI * direct[p]).sum();
                 let escaped: f64 = (0..n)
                     .map(|p| {
@@ -439,5 +451,14 @@ mod tests {
             None,
         );
         assert_eq!(f, [0.0; 3]);
+    }
+
+    /// Maps beyond [`MAX_PATCHES`] are refused with a message, before their rays are
+    /// allocated.
+    #[test]
+    fn too_large_a_map_is_refused() {
+        let map = HeightMap::from_fn(257, 257, 1.0, Border::Wrap, |_, _| 0.0).unwrap();
+        let e = FacetRadiosity::new(&map).unwrap_err();
+        assert!(e.contains("at most 65536 cells (257 × 257 here)"), "{e}");
     }
 }
