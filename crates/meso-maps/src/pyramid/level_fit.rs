@@ -3,11 +3,13 @@
 //! children's, its lobes by the extraction's method, and the NDF residual and shading error of
 //! the texels the level samples.
 //!
-//! A texel's entries are computed depth first from the facets of its footprint: the entries of
-//! each cell, merged four children at a time up the levels below, exactly the merges (same
-//! lists, same order, so the same numbers to the last bit) that a level stored for the next one
-//! before 2026-12-03. No level's entries are kept: they were ≈ 80 bytes a cell per level, two
-//! levels of them alive at once (docs/benchmarks.md, "Extraction memory: entries recomputed").
+//! A texel's entries are computed from the facets of its footprint: below [`DENSE_LEVEL`] depth
+//! first, the entries of each cell merged four children at a time (a linear k-way merge) up the
+//! levels below; from [`DENSE_LEVEL`] on in one pass over the footprint's facets onto a dense
+//! array of the entry grid. The same entries either way, up to the order of the sums. No
+//! level's entries are kept: they were ≈ 80 bytes a cell per level, two levels of them alive at
+//! once (docs/benchmarks.md, "Extraction memory: entries recomputed", and "Extraction speed:
+//! entries in linear time").
 
 use super::{footprint_bounds, ExtractParams, Level, Method};
 use crate::compact::Horizons;
@@ -84,14 +86,17 @@ const PARALLEL_SUBTREE_LEVEL: usize = 8;
 /// grid ([`LevelFit::dense_entries`]) instead of merging their children's entries level by
 /// level: a texel there covers ≥ 4^5 cells (≥ 2048 facets), so reading out the grid's 65536
 /// bins costs less than the merges.
-const DENSE_LEVEL: usize = 5;
+pub(super) const DENSE_LEVEL: usize = 5;
 
 thread_local! {
     /// The dense entry grid of [`LevelFit::dense_entries`] (weight and summed normals per bin,
     /// all zero between uses; 2 MB per thread that uses it) and the bins hit.
-    static DENSE: std::cell::RefCell<(Vec<(f64, glam::DVec3)>, Vec<u32>)> =
+    static DENSE: std::cell::RefCell<DenseGrid> =
         const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
+
+/// Weight and summed normals per bin of the entry grid, and the bins hit.
+type DenseGrid = (Vec<(f64, glam::DVec3)>, Vec<u32>);
 
 /// A row's scratch buffers: the texel's merged entries, and per level `j` below it the merged
 /// entries of the (up to four) children being merged into a texel of level `j` (`depth[0]`
