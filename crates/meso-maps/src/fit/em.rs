@@ -143,11 +143,23 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
             // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
             2 => unsafe { pairs::e_step::<2, 1>(pts, lobes, &mut acc) },
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
-            3 => unsafe { pairs::e_step::<3, 2>(pts, lobes, &mut acc) },
+            // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
+            3 => unsafe {
+                if quads::available() {
+                    quads::e_step::<3>(pts, lobes, &mut acc)
+                } else {
+                    pairs::e_step::<3, 2>(pts, lobes, &mut acc)
+                }
+            },
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
-            4 => unsafe { pairs::e_step::<4, 2>(pts, lobes, &mut acc) },
+            // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
+            4 => unsafe {
+                if quads::available() {
+                    quads::e_step::<4>(pts, lobes, &mut acc)
+                } else {
+                    pairs::e_step::<4, 2>(pts, lobes, &mut acc)
+                }
+            },
             #[cfg(not(target_arch = "x86_64"))]
             2 => e_step::<2>(pts, lobes, &mut acc),
             #[cfg(not(target_arch = "x86_64"))]
@@ -443,6 +455,182 @@ pub(super) mod pairs {
     }
 }
 
+/// [`e_step`] for 3 and 4 lobes in one AVX2 register (four lanes), where the CPU has AVX2
+/// (detected at run time; otherwise [`pairs`]): each lane does exactly the scalar operations of
+/// its lobe, as in [`pairs`] (no fused multiply-adds, the sums over the lobes in the scalar
+/// order), so the results are bit for bit those of [`e_step`]; one register pass per point
+/// instead of two halves EM's arithmetic at K = 3–4, most of the fine levels' EM.
+#[cfg(target_arch = "x86_64")]
+pub(super) mod quads {
+    use super::{Acc, Pt, L};
+    use glam::DVec3;
+    use meso_core::fastmath::fast_ln;
+    use std::arch::x86_64::{
+        __m256d, _mm256_add_pd, _mm256_and_pd, _mm256_and_si256, _mm256_andnot_pd,
+        _mm256_castpd_si256, _mm256_castsi256_pd, _mm256_cmp_pd, _mm256_cvtepi32_pd,
+        _mm256_cvttpd_epi32, _mm256_div_pd, _mm256_max_pd, _mm256_mul_pd, _mm256_or_pd,
+        _mm256_or_si256, _mm256_set1_epi64x, _mm256_set1_pd, _mm256_setzero_pd, _mm256_slli_epi64,
+        _mm256_srli_epi64, _mm256_storeu_pd, _mm256_sub_pd, _CMP_GT_OQ, _CMP_LT_OQ,
+    };
+    use std::f64::consts::{LN_2, LOG2_E, PI, SQRT_2};
+
+    /// 2^52: or-ed onto a small integer's bits, the double `2^52 + n`.
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+
+    /// Whether this CPU has AVX2 (cached by the standard library).
+    #[inline]
+    pub(super) fn available() -> bool {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn set(v: f64) -> __m256d {
+        _mm256_set1_pd(v)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn lanes(v: __m256d) -> [f64; 4] {
+        let mut out = [0.0; 4];
+        // SAFETY: `out` has room for four doubles (unaligned store).
+        unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) };
+        out
+    }
+
+    /// `meso_core::fastmath::fast_ln` on four lanes of normal positive numbers (as
+    /// `pairs::ln`).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn ln(x: __m256d) -> __m256d {
+        let bits = _mm256_castpd_si256(x);
+        let eb = _mm256_and_si256(_mm256_srli_epi64::<52>(bits), _mm256_set1_epi64x(0x7ff));
+        let e = _mm256_sub_pd(
+            _mm256_castsi256_pd(_mm256_or_si256(eb, _mm256_castpd_si256(set(TWO52)))),
+            set(TWO52 + 1023.0),
+        );
+        let m = _mm256_castsi256_pd(_mm256_or_si256(
+            _mm256_and_si256(bits, _mm256_set1_epi64x(0x000f_ffff_ffff_ffff)),
+            _mm256_set1_epi64x(0x3ff0_0000_0000_0000),
+        ));
+        let big = _mm256_cmp_pd::<_CMP_GT_OQ>(m, set(SQRT_2));
+        let m = _mm256_or_pd(
+            _mm256_and_pd(big, _mm256_mul_pd(m, set(0.5))),
+            _mm256_andnot_pd(big, m),
+        );
+        let e = _mm256_add_pd(e, _mm256_and_pd(big, set(1.0)));
+        let s = _mm256_div_pd(_mm256_sub_pd(m, set(1.0)), _mm256_add_pd(m, set(1.0)));
+        let s2 = _mm256_mul_pd(s, s);
+        let mut p = _mm256_mul_pd(s2, set(2.0 / 9.0));
+        p = _mm256_mul_pd(s2, _mm256_add_pd(set(2.0 / 7.0), p));
+        p = _mm256_mul_pd(s2, _mm256_add_pd(set(0.4), p));
+        p = _mm256_mul_pd(s2, _mm256_add_pd(set(2.0 / 3.0), p));
+        let p = _mm256_mul_pd(s, _mm256_add_pd(set(2.0), p));
+        _mm256_add_pd(_mm256_mul_pd(e, set(LN_2)), p)
+    }
+
+    /// `meso_core::fastmath::fast_exp_neg` on four lanes (`y ≤ 0`; as `pairs::exp_neg`).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn exp_neg(y: __m256d) -> __m256d {
+        let under = _mm256_cmp_pd::<_CMP_LT_OQ>(y, set(-700.0));
+        let ki = _mm256_cvttpd_epi32(_mm256_sub_pd(_mm256_mul_pd(y, set(LOG2_E)), set(0.5)));
+        let k = _mm256_cvtepi32_pd(ki);
+        let r = _mm256_sub_pd(y, _mm256_mul_pd(k, set(LN_2)));
+        let mut p = _mm256_mul_pd(r, set(1.0 / 40320.0));
+        for c in [
+            1.0 / 5040.0,
+            1.0 / 720.0,
+            1.0 / 120.0,
+            1.0 / 24.0,
+            1.0 / 6.0,
+            0.5,
+            1.0,
+        ] {
+            p = _mm256_mul_pd(r, _mm256_add_pd(set(c), p));
+        }
+        let p = _mm256_add_pd(set(1.0), p);
+        let kb = _mm256_castpd_si256(_mm256_add_pd(_mm256_add_pd(k, set(1023.0)), set(TWO52)));
+        let scale = _mm256_castsi256_pd(_mm256_slli_epi64::<52>(kb));
+        _mm256_andnot_pd(under, _mm256_mul_pd(p, scale))
+    }
+
+    /// [`super::e_step`] for `K` ∈ 3..=4 lobes, one lobe per lane.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn e_step<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+        debug_assert!(lobes.len() == K && (3..=4).contains(&K));
+        // A missing fourth lobe has the density e^−∞ (as in `pairs::e_step`).
+        let mut p = [[0.0f64; 4]; 5];
+        p[4] = [f64::NEG_INFINITY; 4];
+        for (j, l) in lobes.iter().enumerate() {
+            p[0][j] = l.a.x;
+            p[1][j] = l.a.y;
+            p[2][j] = l.a.z;
+            p[3][j] = 0.5 * l.eta;
+            p[4][j] = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+        }
+        let quad = |q: &[f64; 4]| std::arch::x86_64::_mm256_set_pd(q[3], q[2], q[1], q[0]);
+        let (ax, ay, az, half_eta, c) = (
+            quad(&p[0]),
+            quad(&p[1]),
+            quad(&p[2]),
+            quad(&p[3]),
+            quad(&p[4]),
+        );
+        let zero = _mm256_setzero_pd();
+        let (mut acc_w, mut acc_x, mut acc_y, mut acc_z, mut acc_t) =
+            (zero, zero, zero, zero, zero);
+        let mut ll = 0.0;
+        for &(m, w) in pts {
+            let (mx, my, mz) = (set(m.x), set(m.y), set(m.z));
+            let d = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(ax, mx), _mm256_mul_pd(ay, my)),
+                _mm256_mul_pd(az, mz),
+            );
+            let x = _mm256_max_pd(
+                _mm256_mul_pd(set(0.5), _mm256_add_pd(set(1.0), d)),
+                set(1e-300),
+            );
+            let lt = ln(x);
+            let inv = _mm256_div_pd(set(0.5), _mm256_max_pd(x, set(0.5e-6)));
+            let logd = _mm256_add_pd(c, _mm256_mul_pd(half_eta, lt));
+            let ld = lanes(logd);
+            let mut top = f64::NEG_INFINITY;
+            for &l in &ld[..K] {
+                top = top.max(l);
+            }
+            let e = exp_neg(_mm256_sub_pd(logd, set(top)));
+            let el = lanes(e);
+            let mut s = 0.0;
+            for &v in &el[..K] {
+                s += v;
+            }
+            ll += w * (top + fast_ln(s));
+            let r = _mm256_mul_pd(set(w / s), e);
+            acc_w = _mm256_add_pd(acc_w, r);
+            let q = _mm256_mul_pd(r, inv);
+            acc_x = _mm256_add_pd(acc_x, _mm256_mul_pd(mx, q));
+            acc_y = _mm256_add_pd(acc_y, _mm256_mul_pd(my, q));
+            acc_z = _mm256_add_pd(acc_z, _mm256_mul_pd(mz, q));
+            acc_t = _mm256_add_pd(acc_t, _mm256_mul_pd(r, lt));
+        }
+        let (w, x, y, z, t) = (
+            lanes(acc_w),
+            lanes(acc_x),
+            lanes(acc_y),
+            lanes(acc_z),
+            lanes(acc_t),
+        );
+        for j in 0..K {
+            acc.w[j] = w[j];
+            acc.a[j] = DVec3::new(x[j], y[j], z[j]);
+            acc.t[j] = t[j];
+        }
+        ll
+    }
+}
+
 /// Split the heaviest lobe of `lobes` into a concentric pair (same axis, exponents ×2.5 and
 /// ÷2.5): the start that lets EM model a peak sharper and tails heavier than one Phong peak
 /// (e.g. the Gaussian slopes of a random surface), which k-means starts cannot.
@@ -516,6 +704,25 @@ mod tests {
                     ll_simd.to_bits(),
                     "K {k}, n {n}: log-likelihood"
                 );
+                if k >= 3 && quads::available() {
+                    let mut quad = Acc::default();
+                    // SAFETY: the CPU has AVX2 (checked).
+                    let ll_quad = unsafe {
+                        if k == 3 {
+                            quads::e_step::<3>(&pts, &lobes, &mut quad)
+                        } else {
+                            quads::e_step::<4>(&pts, &lobes, &mut quad)
+                        }
+                    };
+                    assert_eq!(ll_scalar.to_bits(), ll_quad.to_bits(), "K {k}, n {n}: AVX2");
+                    for j in 0..k {
+                        assert_eq!(scalar.w[j].to_bits(), quad.w[j].to_bits());
+                        assert_eq!(scalar.t[j].to_bits(), quad.t[j].to_bits());
+                        for c in 0..3 {
+                            assert_eq!(scalar.a[j][c].to_bits(), quad.a[j][c].to_bits());
+                        }
+                    }
+                }
                 for j in 0..k {
                     assert_eq!(
                         scalar.w[j].to_bits(),

@@ -80,7 +80,8 @@
 //! The public fit API (entries, parameters, [`fit_lobes`]) lives here; the maximum-likelihood
 //! start (k-means seeds and EM) in `em`, the smoothed Levenberg–Marquardt refinement in
 //! `smoothed`, and the binned quality measure ([`ndf_l2_error`]) in `residual`. The arrows run
-//! one way: this module uses the three, `smoothed` uses `em`'s lobe type and fast `exp`.
+//! one way: this module uses the three, `smoothed` uses `em`'s lobe type and fast `exp`, and
+//! `residual` reads the entries' bins (`entries_l2_error`).
 
 mod em;
 mod residual;
@@ -94,7 +95,9 @@ use smoothed::{rms_of_peak, Refiner, Smoothed, SMOOTH_MAX_POINTS, SMOOTH_MIN_DRO
 
 // The lobe bounds live in `crate::limits` (other crates read them there); re-exported here.
 pub use crate::limits::{AXIS_MIN_Z, ETA_MAX, ETA_MIN, MAX_LOBES};
-pub use residual::{lobe_bin_mass, ndf_bin_mass, ndf_l2_error, RESIDUAL_GRID_RES};
+pub use residual::{
+    entries_l2_error, lobe_bin_mass, ndf_bin_mass, ndf_l2_error, RESIDUAL_GRID_RES,
+};
 
 /// The bounds every fitted lobe satisfies: axis at `z ≥` [`AXIS_MIN_Z`], exponent in
 /// `[`[`ETA_MIN`]`, `[`ETA_MAX`]`]`.
@@ -174,6 +177,56 @@ pub fn merge_entries(lists: &[&[Entry]], out: &mut Vec<Entry>) {
     }
     out.truncate(k);
 }
+
+/// Merge lists each sorted by bin with no bin twice (as [`merge_entries`] leaves them) into
+/// `out` (cleared first), summing entries of equal bins in list order: a linear k-way merge,
+/// O(n·lists) against the O(n log n) of sorting the concatenation (the pyramid's recomputed
+/// merges, `level_fit::texel_entries`, ran mostly in that sort).
+pub fn merge_sorted_entries(lists: &[&[Entry]], out: &mut Vec<Entry>) {
+    out.clear();
+    debug_assert!(lists
+        .iter()
+        .all(|l| l.windows(2).all(|p| p[0].bin < p[1].bin)));
+    match lists {
+        [] => {}
+        [a] => out.extend_from_slice(a),
+        _ => {
+            out.reserve(lists.iter().map(|l| l.len()).max().unwrap_or(0));
+            let mut pos = [0usize; MAX_MERGE_LISTS];
+            assert!(lists.len() <= MAX_MERGE_LISTS, "at most four lists");
+            loop {
+                let mut bin = u32::MAX;
+                for (l, &p) in lists.iter().zip(&pos) {
+                    if let Some(e) = l.get(p) {
+                        bin = bin.min(e.bin);
+                    }
+                }
+                if bin == u32::MAX {
+                    break;
+                }
+                let mut acc: Option<Entry> = None;
+                for (l, p) in lists.iter().zip(&mut pos) {
+                    if let Some(e) = l.get(*p) {
+                        if e.bin == bin {
+                            *p += 1;
+                            match &mut acc {
+                                None => acc = Some(*e),
+                                Some(a) => {
+                                    a.w += e.w;
+                                    a.m += e.m;
+                                }
+                            }
+                        }
+                    }
+                }
+                out.extend(acc);
+            }
+        }
+    }
+}
+
+/// The most lists [`merge_sorted_entries`] merges (a texel's four children).
+const MAX_MERGE_LISTS: usize = 4;
 
 /// Parameters of the lobe fit.
 #[derive(Clone, Debug, PartialEq)]

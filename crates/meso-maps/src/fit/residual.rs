@@ -1,6 +1,7 @@
 //! The quality measure of a fit: bin probabilities of lobes or of any core NDF on an
 //! equal-area grid, and the relative L2 distance to the histogram of the footprint's normals.
 
+use super::{Entry, ENTRY_GRID_RES};
 use crate::sphgrid::SphereGrid;
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
@@ -95,10 +96,41 @@ pub fn ndf_l2_error(
     let grid = SphereGrid {
         res: RESIDUAL_GRID_RES,
     };
+    l2_of_histogram(normals.map(|(n, w)| (grid.bin(n), w)), fit_mass)
+}
+
+/// [`ndf_l2_error`] of merged entries: each entry's weight in the residual bin that holds its
+/// entry-grid bin. The entry grid's bins nest in the residual grid's
+/// ([`ENTRY_GRID_RES`] = 8 × [`RESIDUAL_GRID_RES`], the same square map; `⌊8x⌋ div 8 = ⌊x⌋`
+/// and the scaling by 8 is exact), so this is the histogram of the entries' normals, the same
+/// as [`ndf_l2_error`] of those normals up to the order of the sums, with no pass over them.
+#[must_use]
+pub fn entries_l2_error(entries: &[Entry], fit_mass: impl FnOnce(SphereGrid, &mut [f64])) -> f64 {
+    const F: usize = ENTRY_GRID_RES / RESIDUAL_GRID_RES;
+    const _: () = assert!(F * RESIDUAL_GRID_RES == ENTRY_GRID_RES);
+    l2_of_histogram(
+        entries.iter().map(|e| {
+            let b = e.bin as usize;
+            let (iu, iv) = (b % ENTRY_GRID_RES, b / ENTRY_GRID_RES);
+            ((iv / F) * RESIDUAL_GRID_RES + iu / F, e.w)
+        }),
+        fit_mass,
+    )
+}
+
+/// The relative L2 error of the fit's bin masses against the histogram of `(bin, weight)`
+/// pairs on the [`RESIDUAL_GRID_RES`]² grid.
+fn l2_of_histogram(
+    bins: impl Iterator<Item = (usize, f64)>,
+    fit_mass: impl FnOnce(SphereGrid, &mut [f64]),
+) -> f64 {
+    let grid = SphereGrid {
+        res: RESIDUAL_GRID_RES,
+    };
     let mut hist = vec![0.0; grid.bins()];
     let mut tot = 0.0;
-    for (n, w) in normals {
-        hist[grid.bin(n)] += w;
+    for (b, w) in bins {
+        hist[b] += w;
         tot += w;
     }
     if tot <= 0.0 {

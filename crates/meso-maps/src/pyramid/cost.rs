@@ -52,7 +52,8 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 /// A texel's fit costs its EM points (its footprint's facets, capped as [`extract`](super::extract)
 /// caps them) × a factor of the level's fitting regime (plain, smoothed, thorough), measured per
 /// level with `cargo run -p meso-maps --example level_times` on 64² to 256² Gaussian maps; merging
-/// costs its entries and the residual its footprint facets. Used to weight
+/// costs its entries (or, from `DENSE_LEVEL` on, its footprint's facets) and the residual its
+/// entries. Used to weight
 /// [`Progress`](super::Progress) by time rather than by texels (the coarse levels have few texels
 /// and most of the time).
 #[must_use]
@@ -86,11 +87,17 @@ pub fn extract_work(
         } else {
             FIT_WORK_PLAIN
         };
-        // Merging: a texel of level k ≥ 1 merges its footprint's entries again on every level
-        // below it (`level_fit::texel_entries`), k merges of about its entries each.
-        let merges = (k.max(1) as u64) * (entries / 4);
+        // Merging: a texel of level 1 ≤ k < DENSE_LEVEL merges its footprint's entries again on
+        // every level below it (`level_fit::texel_entries`), k linear merges of about its
+        // entries each; above, one pass over its footprint's facets (`dense_entries`).
+        let merges = if k >= super::level_fit::DENSE_LEVEL {
+            facets / 8
+        } else {
+            (k as u64) * (entries / 4)
+        };
         let fit = t * (1 + merges + per_point * points);
-        let residual = t.min(params.residual_texels.max(1) as u64) * facets / 4;
+        // The residual's histogram comes from the texel's entries.
+        let residual = t.min(params.residual_texels.max(1) as u64) * entries / 4;
         out.push(fit + residual);
         c = c.div_ceil(2);
         r = r.div_ceil(2);

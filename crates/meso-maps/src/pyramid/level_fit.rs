@@ -3,16 +3,20 @@
 //! children's, its lobes by the extraction's method, and the NDF residual and shading error of
 //! the texels the level samples.
 //!
-//! A texel's entries are computed depth first from the facets of its footprint: the entries of
-//! each cell, merged four children at a time up the levels below, exactly the merges (same
-//! lists, same order, so the same numbers to the last bit) that a level stored for the next one
-//! before 2026-12-03. No level's entries are kept: they were ≈ 80 bytes a cell per level, two
-//! levels of them alive at once (docs/benchmarks.md, "Extraction memory: entries recomputed").
+//! A texel's entries are computed from the facets of its footprint: below [`DENSE_LEVEL`] depth
+//! first, the entries of each cell merged four children at a time (a linear k-way merge) up the
+//! levels below; from [`DENSE_LEVEL`] on in one pass over the footprint's facets onto a dense
+//! array of the entry grid. The same entries either way, up to the order of the sums. No
+//! level's entries are kept: they were ≈ 80 bytes a cell per level, two levels of them alive at
+//! once (docs/benchmarks.md, "Extraction memory: entries recomputed", and "Extraction speed:
+//! entries in linear time").
 
 use super::{footprint_bounds, ExtractParams, Level, Method};
 use crate::compact::Horizons;
 use crate::facets::FacetSource;
-use crate::fit::{fit_lobes_with, merge_entries, ndf_l2_error, Entry};
+use crate::fit::{
+    entries_l2_error, fit_lobes_with, merge_entries, merge_sorted_entries, Entry, ENTRY_GRID_RES,
+};
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
 use rayon::prelude::*;
@@ -78,6 +82,22 @@ pub(super) struct LevelFit<'a> {
 /// fitted one per core) do.
 const PARALLEL_SUBTREE_LEVEL: usize = 8;
 
+/// The lowest level whose texels sum their footprint's facets onto a dense array of the entry
+/// grid ([`LevelFit::dense_entries`]) instead of merging their children's entries level by
+/// level: a texel there covers ≥ 4^5 cells (≥ 2048 facets), so reading out the grid's 65536
+/// bins costs less than the merges.
+pub(super) const DENSE_LEVEL: usize = 5;
+
+thread_local! {
+    /// The dense entry grid of [`LevelFit::dense_entries`] (weight and summed normals per bin,
+    /// all zero between uses; 2 MB per thread that uses it) and the bins hit.
+    static DENSE: std::cell::RefCell<DenseGrid> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+}
+
+/// Weight and summed normals per bin of the entry grid, and the bins hit.
+type DenseGrid = (Vec<(f64, glam::DVec3)>, Vec<u32>);
+
 /// A row's scratch buffers: the texel's merged entries, and per level `j` below it the merged
 /// entries of the (up to four) children being merged into a texel of level `j` (`depth[0]`
 /// holds a cell's single facets instead).
@@ -115,7 +135,7 @@ impl LevelFit<'_> {
             self.fit_texel(&buf.merged, &mut scratch, &mut lobes);
             if (r * cols + c).is_multiple_of(self.residual_stride) {
                 out.residual.push((
-                    self.residual(r, c, &lobes),
+                    Self::residual(&buf.merged, &lobes),
                     crate::fit::shading_error(
                         &buf.merged,
                         &lobes,
@@ -129,13 +149,11 @@ impl LevelFit<'_> {
         out
     }
 
-    /// The relative NDF L2 error of texel `(r, c)`'s lobes against its footprint's facets.
-    fn residual(&self, r: usize, c: usize, lobes: &[PhongLobe]) -> f64 {
-        let span = self.prev.map_or(1, |p| 2 * p.span);
-        let (r0, r1, c0, c1) = footprint_bounds(self.facets.rows(), self.facets.cols(), span, r, c);
-        ndf_l2_error(self.facets.footprint(r0, r1, c0, c1), |g, out| {
-            crate::fit::lobe_bin_mass(lobes, g, out)
-        })
+    /// The relative NDF L2 error of a texel's lobes against its footprint's facets, from the
+    /// texel's merged entries (the histogram of the facets themselves up to the order of the
+    /// sums: `entries_l2_error`), not from another pass over the footprint.
+    fn residual(merged: &[Entry], lobes: &[PhongLobe]) -> f64 {
+        entries_l2_error(merged, |g, out| crate::fit::lobe_bin_mass(lobes, g, out))
     }
 
     /// The entries of level-0 cell `(r, c)`: its facets merged per bin.
@@ -161,6 +179,10 @@ impl LevelFit<'_> {
     ) {
         if j == 0 {
             self.cell_entries(r, c, &mut depth[0][0], out);
+            return;
+        }
+        if (DENSE_LEVEL..PARALLEL_SUBTREE_LEVEL).contains(&j) {
+            self.dense_entries(j, r, c, out);
             return;
         }
         // Level j − 1 has ⌈cells / 2^(j−1)⌉ texels along each side.
@@ -201,7 +223,47 @@ impl LevelFit<'_> {
         for (i, list) in lists.iter_mut().enumerate().take(n) {
             *list = &children[i];
         }
-        merge_entries(&lists[..n], out);
+        merge_sorted_entries(&lists[..n], out);
+    }
+
+    /// The merged entries of texel `(r, c)` of level `j`, into `out`, in one pass: every facet
+    /// of its footprint added onto a dense array of the entry grid's bins, then the hit bins
+    /// read out in order. The same entries as the merge tree's, up to the order of the sums
+    /// (the facets' order here); one pass over the facets instead of `j` merges, for the big
+    /// footprints (≥ 4^[`DENSE_LEVEL`] cells) where reading out the whole grid costs little.
+    fn dense_entries(&self, j: usize, r: usize, c: usize, out: &mut Vec<Entry>) {
+        let (r0, r1, c0, c1) =
+            footprint_bounds(self.facets.rows(), self.facets.cols(), 1 << j, r, c);
+        DENSE.with(|d| {
+            let (grid, hit) = &mut *d.borrow_mut();
+            let bins = ENTRY_GRID_RES * ENTRY_GRID_RES;
+            if grid.len() != bins {
+                grid.clear();
+                grid.resize(bins, (0.0, glam::DVec3::ZERO));
+            }
+            hit.clear();
+            for (n, w) in self.facets.footprint(r0, r1, c0, c1) {
+                let e = Entry::new(n, w);
+                let b = &mut grid[e.bin as usize];
+                if b.0 == 0.0 && b.1 == glam::DVec3::ZERO {
+                    hit.push(e.bin);
+                }
+                b.0 += e.w;
+                b.1 += e.m;
+            }
+            // The hit bins in order, each read and cleared.
+            hit.sort_unstable();
+            hit.dedup();
+            out.clear();
+            out.extend(hit.iter().map(|&bin| {
+                let b = std::mem::take(&mut grid[bin as usize]);
+                Entry {
+                    bin,
+                    w: b.0,
+                    m: b.1,
+                }
+            }));
+        });
     }
 
     /// The horizon statistics of texel `(r, c)` of this level, merged from its (up to four)
