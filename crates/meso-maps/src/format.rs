@@ -5,7 +5,7 @@
 use crate::error::{MapError, Result};
 use crate::facets::NormalMode;
 use crate::fit::{ETA_MAX, MAX_LOBES};
-use crate::heightmap::{Border, MAX_DIMENSION, MAX_TEXELS};
+use crate::heightmap::{Border, MAX_DIMENSION, MAX_STREAM_TEXELS};
 use crate::horizon::HorizonStats;
 use crate::pyramid::{level_count, Level, Pyramid, Residual};
 use glam::DVec3;
@@ -336,7 +336,7 @@ fn read_header(r: &mut Reader<'_>) -> Result<Header> {
             return Err(r.err(format!("{name} = {v} outside 1..={MAX_DIMENSION}")));
         }
     }
-    if (width as u64) * (height as u64) > MAX_TEXELS || cols > width || rows > height {
+    if (width as u64) * (height as u64) > MAX_STREAM_TEXELS || cols > width || rows > height {
         return Err(r.err(format!(
             "sizes {width}x{height} samples / {cols}x{rows} cells exceed the limits"
         )));

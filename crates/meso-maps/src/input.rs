@@ -60,7 +60,9 @@ pub fn check_budget(path: &Path, kind: InputKind, params: &ExtractParams) -> Res
 /// # Errors
 /// [`crate::MapError::Budget`] naming the file.
 pub fn check_budget_streamed(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<()> {
-    check_budget_with(path, kind, params, extract_stream_bytes)
+    crate::heightmap::with_texel_limit(crate::heightmap::MAX_STREAM_TEXELS, || {
+        check_budget_with(path, kind, params, extract_stream_bytes)
+    })
 }
 
 fn check_budget_with(
@@ -106,7 +108,8 @@ pub fn load(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<(Inp
 }
 
 /// [`load`] for the streamed extraction ([`crate::extract_to_file`]): the budget checked by
-/// [`check_budget_streamed`].
+/// [`check_budget_streamed`], maps of up to [`crate::heightmap::MAX_STREAM_TEXELS`] samples
+/// (8192²) accepted.
 ///
 /// # Errors
 /// As [`load`].
@@ -115,8 +118,10 @@ pub fn load_streamed(
     kind: InputKind,
     params: &ExtractParams,
 ) -> Result<(Input, Vec<String>)> {
-    check_budget_streamed(path, kind, params)?;
-    load_unchecked(path, kind)
+    crate::heightmap::with_texel_limit(crate::heightmap::MAX_STREAM_TEXELS, || {
+        check_budget_streamed(path, kind, params)?;
+        load_unchecked(path, kind)
+    })
 }
 
 fn load_unchecked(path: &Path, kind: InputKind) -> Result<(Input, Vec<String>)> {
