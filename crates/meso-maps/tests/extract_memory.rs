@@ -95,7 +95,10 @@ fn extraction_and_reading_stay_within_their_estimates() {
     let used = peak_since(&mut base) as u64;
     let est = extract_stream_bytes(n, n, 2, n * n);
     eprintln!("streamed extraction: {used} bytes at the peak, estimate {est}");
-    assert!(used <= est, "streamed extraction used {used} bytes, estimated {est}");
+    assert!(
+        used <= est,
+        "streamed extraction used {used} bytes, estimated {est}"
+    );
     assert!(
         3 * used >= est,
         "estimate {est} is more than 3 × the {used} bytes used"

@@ -47,15 +47,19 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 }
 
 /// Peak memory of the streamed extraction ([`extract_to_file`](super::extract_to_file)) per
-/// level-0 cell (bytes): the previous level's horizon statistics in `f64` (72 bytes a texel of
-/// level 1, a quarter of the cells) and what the rayon pool and the allocator keep. Measured:
-/// see `docs/benchmarks.md`, "Streamed extraction"; `crates/meso-maps/tests/extract_memory.rs`
-/// requires the estimate to cover the heap peak.
-pub const STREAM_BYTES_PER_CELL: u64 = 64;
+/// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 32 bytes a
+/// sample are allocated): level 1's horizon statistics in `f64`, which level 2 reads (72 bytes a
+/// texel, a quarter of the cells: 18 bytes a cell), and a margin. Measured (2026-12-03,
+/// `docs/benchmarks.md`, "Streamed extraction"): 10.7 MB of heap at 256² against an estimate of
+/// 19.9 MB (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap peak and
+/// stay within 3× of it); peak RSS 123 / 288 / 1 032 MB at 1024² / 2048² / 4096² (the
+/// generated map's 8 bytes a sample included) against 136 / 423 / 1 450 MB estimated without it.
+pub const STREAM_BYTES_PER_CELL: u64 = 32;
 /// Peak memory of the streamed extraction per texel of a row batch of level 0
-/// ([`crate::format::BAND_ROWS`] rows): the batch's fitted rows, the band in the level's
-/// precision, its streams' columns, byte planes and deflated bytes, and the band checked back.
-pub const STREAM_BYTES_PER_BAND_TEXEL: u64 = 1_200;
+/// ([`crate::format::BAND_ROWS`] rows, the widest batch): the batch's fitted rows, the band in
+/// the level's precision, its streams' columns, byte planes and deflated bytes, and the band
+/// checked back (≈ 450 bytes measured at 256² and 2048²).
+pub const STREAM_BYTES_PER_BAND_TEXEL: u64 = 800;
 
 /// The estimated peak memory (bytes) of the streamed extraction
 /// ([`extract_to_file`](super::extract_to_file)) on a `cols × rows` cell grid with `per_cell`
