@@ -225,14 +225,12 @@ fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64)> {
         while let Some(b) = band_head(r, h, k, (cols, rows), next)? {
             let texels = (b.rows * cols) as u64;
             let mut need = 0;
-            for s in 0..n_streams {
+            for (s, &(_, per_lobe, cols_of, _, _)) in STREAMS.iter().enumerate().take(n_streams) {
                 let e = expect(s, texels, b.lobes as u64);
                 let (_, _, comp) = stream_header(r, s, e)?;
                 r.pos += comp as usize;
                 // Inflated, decoded (4 bytes a value) and built (`f64`).
-                need += e + 4
-                    * STREAMS[s].2 as u64
-                    * if STREAMS[s].1 { b.lobes as u64 } else { texels };
+                need += e + 4 * cols_of as u64 * if per_lobe { b.lobes as u64 } else { texels };
             }
             band_max = band_max.max(need + 9 * texels + b.lobes as u64 * 40 + texels * 76);
             lobes += b.lobes;
