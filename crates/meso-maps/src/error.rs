@@ -85,7 +85,7 @@ pub enum MapError {
     },
     /// A map file has a version this library does not read.
     #[error(
-        "map file {path} has format version {found}; this build reads versions 2 and {expected} \
+        "map file {path} has format version {found}; this build reads versions 2 to {expected} \
          (re-extract it with `meso extract`)"
     )]
     MapVersion {
@@ -93,7 +93,7 @@ pub enum MapError {
         path: PathBuf,
         /// Version in the file.
         found: u32,
-        /// The newest version supported (the one written; version 2 is read too).
+        /// The newest version read (versions 2 and 3 are read too; 3 and 4 are written).
         expected: u32,
     },
     /// A pyramid level or texel index is out of range.

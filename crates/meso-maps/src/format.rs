@@ -5,7 +5,7 @@
 use crate::error::{MapError, Result};
 use crate::facets::NormalMode;
 use crate::fit::{ETA_MAX, MAX_LOBES};
-use crate::heightmap::{Border, MAX_DIMENSION, MAX_TEXELS};
+use crate::heightmap::{Border, MAX_DIMENSION, MAX_STREAM_TEXELS};
 use crate::horizon::HorizonStats;
 use crate::pyramid::{level_count, Level, Pyramid, Residual};
 use glam::DVec3;
@@ -16,12 +16,16 @@ use std::path::{Path, PathBuf};
 /// The 8 magic bytes opening every map file.
 pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
 mod v3;
+mod v4;
 
 pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
+pub(crate) use v4::{check_band, write_band, write_level_end};
+pub use v4::{BAND_ROWS, VERSION_4};
 
 /// The format version written by this build: 3, quantised and compressed (`docs/map-format.md`).
-/// Versions 2 (uncompressed `f32`) and 3 are read; version 1 stored projected-area lobe weights
-/// and is refused.
+/// Versions 2 (uncompressed `f32`), 3 and 4 (format 3's streams in bands of rows, written by the
+/// streamed extraction, [`crate::pyramid::extract_to_file`], and by [`Pyramid::write_v4_to`])
+/// are read; version 1 stored projected-area lobe weights and is refused.
 pub const VERSION: u32 = v3::VERSION_3;
 /// The previous version, still read (and written by [`Pyramid::write_v2_to`]).
 pub const VERSION_2: u32 = 2;
@@ -68,30 +72,36 @@ impl Pyramid {
         v3::write_shading(self, w)
     }
 
-    /// The 48 bytes shared by versions 2 and 3.
+    /// The 48 bytes shared by every version.
     fn write_header(&self, w: &mut dyn Write, version: u32) -> std::io::Result<()> {
-        w.write_all(&MAGIC)?;
-        put_u32(w, version)?;
-        put_u32(w, self.width as u32)?;
-        put_u32(w, self.height as u32)?;
-        put_u32(w, self.levels[0].cols as u32)?;
-        put_u32(w, self.levels[0].rows as u32)?;
-        put_f64(w, self.texel_size)?;
-        let has_h = self.levels[0].horizon.is_some();
-        w.write_all(&[
-            match self.border {
-                Border::Wrap => 0,
-                Border::Clamp => 1,
-            },
-            match self.normal_mode {
-                NormalMode::Triangles => 0,
-                NormalMode::CentralDifferences => 1,
-            },
-            has_h as u8,
-            0,
-        ])?;
-        put_u32(w, self.max_lobes as u32)?;
-        put_u32(w, self.levels.len() as u32)
+        Header {
+            version,
+            width: self.width,
+            height: self.height,
+            cols: self.levels[0].cols,
+            rows: self.levels[0].rows,
+            texel_size: self.texel_size,
+            border: self.border,
+            normal_mode: self.normal_mode,
+            has_h: self.levels[0].horizon.is_some(),
+            max_lobes: self.max_lobes,
+            nlev: self.levels.len(),
+        }
+        .write(w)
+    }
+
+    /// Serialise in format version 4 ([`VERSION_4`], `docs/map-format.md`): format 3's streams
+    /// per band of [`BAND_ROWS`] rows of each level, then the level's end record; the bytes the
+    /// streamed extraction ([`crate::pyramid::extract_to_file`]) writes for the same pyramid.
+    ///
+    /// # Errors
+    /// As [`Pyramid::write_to`].
+    pub fn write_v4_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
+        if let Some(why) = v3::unstorable(self) {
+            return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, why));
+        }
+        self.write_header(w, VERSION_4)?;
+        v4::write_levels(self, w)
     }
 
     /// Serialise in the previous format, version 2 (uncompressed `f32`, 20 bytes per lobe and
@@ -199,7 +209,9 @@ impl Pyramid {
             path: path.to_path_buf(),
         };
         let h = read_header(&mut r)?;
-        let levels = if h.version == VERSION {
+        let levels = if h.version == VERSION_4 {
+            v4::read_levels(&mut r, &h, true)?
+        } else if h.version == VERSION {
             let mut levels = v3::read_levels(&mut r, &h)?;
             if let Some(sh) = v3::read_shading(&mut r, h.nlev)? {
                 for (l, (m, x)) in levels.iter_mut().zip(sh) {
@@ -239,7 +251,9 @@ impl Pyramid {
             path: path.to_path_buf(),
         };
         let h = read_header(&mut r)?;
-        if h.version == VERSION {
+        if h.version == VERSION_4 {
+            v4::read_levels(&mut r, &h, false)?;
+        } else if h.version == VERSION {
             v3::check_levels(&mut r, &h)?;
             v3::read_shading(&mut r, h.nlev)?;
         } else {
@@ -252,19 +266,46 @@ impl Pyramid {
     }
 }
 
-/// The common header of versions 2 and 3, checked.
-struct Header {
-    version: u32,
-    width: usize,
-    height: usize,
-    cols: usize,
-    rows: usize,
-    texel_size: f64,
-    border: Border,
-    normal_mode: NormalMode,
-    has_h: bool,
-    max_lobes: usize,
-    nlev: usize,
+/// The common header of every version, checked when read.
+pub(crate) struct Header {
+    pub(crate) version: u32,
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) cols: usize,
+    pub(crate) rows: usize,
+    pub(crate) texel_size: f64,
+    pub(crate) border: Border,
+    pub(crate) normal_mode: NormalMode,
+    pub(crate) has_h: bool,
+    pub(crate) max_lobes: usize,
+    pub(crate) nlev: usize,
+}
+
+impl Header {
+    /// The 48 bytes of the header.
+    pub(crate) fn write(&self, w: &mut dyn Write) -> std::io::Result<()> {
+        w.write_all(&MAGIC)?;
+        put_u32(w, self.version)?;
+        put_u32(w, self.width as u32)?;
+        put_u32(w, self.height as u32)?;
+        put_u32(w, self.cols as u32)?;
+        put_u32(w, self.rows as u32)?;
+        put_f64(w, self.texel_size)?;
+        w.write_all(&[
+            match self.border {
+                Border::Wrap => 0,
+                Border::Clamp => 1,
+            },
+            match self.normal_mode {
+                NormalMode::Triangles => 0,
+                NormalMode::CentralDifferences => 1,
+            },
+            u8::from(self.has_h),
+            0,
+        ])?;
+        put_u32(w, self.max_lobes as u32)?;
+        put_u32(w, self.nlev as u32)
+    }
 }
 
 /// Read and check the common header (magic, version, sizes, flags, `max_lobes`, level count).
@@ -274,11 +315,11 @@ fn read_header(r: &mut Reader<'_>) -> Result<Header> {
         return Err(r.err("not a meso map file (bad magic bytes)".into()));
     }
     let version = r.u32("version")?;
-    if version != VERSION && version != VERSION_2 {
+    if version != VERSION && version != VERSION_2 && version != VERSION_4 {
         return Err(MapError::MapVersion {
             path: r.path.clone(),
             found: version,
-            expected: VERSION,
+            expected: VERSION_4,
         });
     }
     let width = r.u32("width")? as usize;
@@ -295,7 +336,7 @@ fn read_header(r: &mut Reader<'_>) -> Result<Header> {
             return Err(r.err(format!("{name} = {v} outside 1..={MAX_DIMENSION}")));
         }
     }
-    if (width as u64) * (height as u64) > MAX_TEXELS || cols > width || rows > height {
+    if (width as u64) * (height as u64) > MAX_STREAM_TEXELS || cols > width || rows > height {
         return Err(r.err(format!(
             "sizes {width}x{height} samples / {cols}x{rows} cells exceed the limits"
         )));

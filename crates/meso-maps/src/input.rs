@@ -3,7 +3,7 @@
 //! warnings a user should see. The one loader of the `meso` CLI and the Python package, so both
 //! write the same map file for the same input.
 
-use crate::pyramid::{extract_bytes, ExtractParams, Source};
+use crate::pyramid::{extract_bytes, extract_stream_bytes, ExtractParams, Source};
 use crate::{Border, HeightMap, NormalConvention, NormalMap, NormalMode, Result};
 use std::path::Path;
 
@@ -51,6 +51,26 @@ impl Input {
 /// # Errors
 /// [`crate::MapError::Budget`] naming the file.
 pub fn check_budget(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<()> {
+    check_budget_with(path, kind, params, extract_bytes)
+}
+
+/// [`check_budget`] for the streamed extraction ([`crate::extract_to_file`]), whose estimate
+/// counts no pyramid ([`extract_stream_bytes`]).
+///
+/// # Errors
+/// [`crate::MapError::Budget`] naming the file.
+pub fn check_budget_streamed(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<()> {
+    crate::heightmap::with_texel_limit(crate::heightmap::MAX_STREAM_TEXELS, || {
+        check_budget_with(path, kind, params, extract_stream_bytes)
+    })
+}
+
+fn check_budget_with(
+    path: &Path,
+    kind: InputKind,
+    params: &ExtractParams,
+    extract_bytes: fn(usize, usize, usize, usize) -> u64,
+) -> Result<()> {
     if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
         return Ok(());
     }
@@ -84,6 +104,27 @@ pub fn check_budget(path: &Path, kind: InputKind, params: &ExtractParams) -> Res
 /// Budget, unreadable or invalid images, invalid parameters; messages name the file.
 pub fn load(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<(Input, Vec<String>)> {
     check_budget(path, kind, params)?;
+    load_unchecked(path, kind)
+}
+
+/// [`load`] for the streamed extraction ([`crate::extract_to_file`]): the budget checked by
+/// [`check_budget_streamed`], maps of up to [`crate::heightmap::MAX_STREAM_TEXELS`] samples
+/// (8192²) accepted.
+///
+/// # Errors
+/// As [`load`].
+pub fn load_streamed(
+    path: &Path,
+    kind: InputKind,
+    params: &ExtractParams,
+) -> Result<(Input, Vec<String>)> {
+    crate::heightmap::with_texel_limit(crate::heightmap::MAX_STREAM_TEXELS, || {
+        check_budget_streamed(path, kind, params)?;
+        load_unchecked(path, kind)
+    })
+}
+
+fn load_unchecked(path: &Path, kind: InputKind) -> Result<(Input, Vec<String>)> {
     match kind {
         InputKind::Heights {
             texel_size,

@@ -631,7 +631,7 @@ mod pyramid {
                 e,
                 MapError::MapVersion {
                     found: 1,
-                    expected: 3,
+                    expected: 4,
                     ..
                 }
             ),

@@ -1,9 +1,12 @@
 //! `meso extract HEIGHTMAP --texel-size S --height-scale H [--max-lobes K] --out MAP` — build the
-//! NDF pyramid of a height map (or normal map) and write it as a map file (docs/map-format.md).
+//! NDF pyramid of a height map (or normal map) and write it as a map file (docs/map-format.md):
+//! streamed (`meso_maps::extract_to_file`), each row batch of each level written as it is
+//! fitted (format 4), so memory never holds the pyramid.
 
 use anyhow::{bail, Context, Result};
 use meso_maps::{
-    extract, Baseline, Border, ExtractParams, InputKind, Method, NormalConvention, NormalMode,
+    extract_to_file, Baseline, Border, ExtractParams, InputKind, Method, NormalConvention,
+    NormalMode,
 };
 use std::path::PathBuf;
 
@@ -124,29 +127,30 @@ pub fn run(a: Args) -> Result<()> {
     };
     let mut phases = crate::util::Phases::default();
     let t = std::time::Instant::now();
-    let (input, warnings) = meso_maps::input::load(&a.heightmap, kind, &params)?;
+    let (input, warnings) = meso_maps::input::load_streamed(&a.heightmap, kind, &params)?;
     for w in warnings {
         note!("{}: warning: {w}", a.heightmap.display());
     }
     let source = input.source();
     phases.add("load", t.elapsed().as_secs_f64());
     let bar = crate::util::progress_work(1, "pyramid");
-    let pyr = phases
+    // The pyramid's levels are fitted and written band by band: one phase, "pyramid" (the
+    // writing included).
+    let levels = phases
         .time("pyramid", || {
-            extract(source, &params, &mut |p| {
+            extract_to_file(source, &params, &a.out, &mut |p| {
                 bar.set_length(p.work_total);
                 bar.set_position(p.work_done);
             })
         })
         .with_context(|| format!("{}", a.heightmap.display()))?;
     bar.finish_and_clear();
-    phases.time("write", || pyr.write(&a.out))?;
-    let top = pyr.top();
+    let top = levels.last().expect("a pyramid has at least one level");
     note!(
         "{}: {} levels, top level {} lobes (NDF residual {:.4}, shading error {:.2} % of peak); {}",
         a.out.display(),
-        pyr.levels.len(),
-        top.lobes.len(),
+        levels.len(),
+        top.lobes,
         top.residual.mean,
         100.0 * top.residual.shading_mean.unwrap_or(0.0),
         phases.summary()
@@ -154,8 +158,7 @@ pub fn run(a: Args) -> Result<()> {
     // Per level: the shading error (mean/max over the sampled texels, % of each texel's peak;
     // `meso map info` prints it too, with the NDF residual) and the mean lobes per texel (K is
     // chosen per texel).
-    let per_level: Vec<String> = pyr
-        .levels
+    let per_level: Vec<String> = levels
         .iter()
         .enumerate()
         .map(|(k, l)| {
@@ -163,7 +166,7 @@ pub fn run(a: Args) -> Result<()> {
                 "{k}: {:.2}/{:.2} ({:.2})",
                 100.0 * l.residual.shading_mean.unwrap_or(0.0),
                 100.0 * l.residual.shading_max.unwrap_or(0.0),
-                l.lobes.len() as f64 / (l.cols * l.rows) as f64
+                l.lobes as f64 / (l.cols * l.rows) as f64
             )
         })
         .collect();

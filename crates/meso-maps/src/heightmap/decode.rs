@@ -14,10 +14,46 @@ use std::path::Path;
 
 /// Largest accepted width or height of an image, in samples.
 pub const MAX_DIMENSION: u64 = 65_536;
-/// Largest accepted number of samples (width × height) of an image: 4096².
+/// Largest accepted number of samples (width × height) of an image: 4096² (textures, and
+/// height and normal maps loaded whole for an extraction in memory).
 pub const MAX_TEXELS: u64 = 16_777_216;
+/// Largest accepted number of samples of a height or normal map for the streamed extraction
+/// (`meso extract`, [`crate::input::load_streamed`], [`crate::extract_to_file`], which never
+/// holds the pyramid), of a height map built from heights already in memory
+/// ([`super::HeightMap::from_heights`]), and of the map files those write: 8192². Whatever
+/// then loads a whole pyramid or map file checks its memory against the budget first
+/// (`Pyramid::read`), refusing with the file and the bytes needed.
+pub const MAX_STREAM_TEXELS: u64 = 67_108_864;
+
+thread_local! {
+    /// The sample limit of the image decoding on this thread ([`with_texel_limit`]).
+    static TEXEL_LIMIT: std::cell::Cell<u64> = const { std::cell::Cell::new(MAX_TEXELS) };
+}
+
+/// Run `f` (which decodes images on this thread) with `limit` samples accepted instead of
+/// [`MAX_TEXELS`].
+pub(crate) fn with_texel_limit<R>(limit: u64, f: impl FnOnce() -> R) -> R {
+    let old = TEXEL_LIMIT.with(|c| c.replace(limit));
+    struct Restore(u64);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            TEXEL_LIMIT.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(old);
+    f()
+}
+
+fn texel_limit() -> u64 {
+    TEXEL_LIMIT.with(std::cell::Cell::get)
+}
 
 pub(super) fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
+    check_dims_within(path, w, h, texel_limit())
+}
+
+/// [`check_dims`] against `max_texels` samples.
+pub(super) fn check_dims_within(path: &Path, w: u64, h: u64, max_texels: u64) -> Result<()> {
     if w == 0 || h == 0 {
         return Err(MapError::Empty {
             path: path.to_path_buf(),
@@ -25,13 +61,13 @@ pub(super) fn check_dims(path: &Path, w: u64, h: u64) -> Result<()> {
             height: h,
         });
     }
-    if w > MAX_DIMENSION || h > MAX_DIMENSION || w.saturating_mul(h) > MAX_TEXELS {
+    if w > MAX_DIMENSION || h > MAX_DIMENSION || w.saturating_mul(h) > max_texels {
         return Err(MapError::TooLarge {
             path: path.to_path_buf(),
             width: w,
             height: h,
             max_dim: MAX_DIMENSION,
-            max_texels: MAX_TEXELS,
+            max_texels,
         });
     }
     Ok(())
@@ -217,7 +253,7 @@ pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicIm
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_DIMENSION as u32);
     limits.max_image_height = Some(MAX_DIMENSION as u32);
-    limits.max_alloc = Some(MAX_TEXELS * 16 + (1 << 20));
+    limits.max_alloc = Some(texel_limit() * 16 + (1 << 20));
     r.limits(limits);
     let img = r.decode().map_err(|e| decode_err(path, e))?;
     check_dims(path, img.width() as u64, img.height() as u64)?;

@@ -49,8 +49,9 @@ mod load;
 mod normal;
 mod terraces;
 
-use decode::check_dims;
-pub use decode::{probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_TEXELS};
+pub(crate) use decode::with_texel_limit;
+use decode::{check_dims, check_dims_within};
+pub use decode::{probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_STREAM_TEXELS, MAX_TEXELS};
 pub use normal::{NormalConvention, NormalMap, MIN_NORMAL_Z};
 pub use terraces::{DEQUANTIZE_ITERATIONS, TERRACE_FRACTION};
 
@@ -89,7 +90,8 @@ impl HeightMap {
         border: Border,
     ) -> Result<HeightMap> {
         let mem = PathBuf::from("<memory>");
-        check_dims(&mem, width as u64, height as u64)?;
+        // The heights are already in memory: the streamed extraction's limit.
+        check_dims_within(&mem, width as u64, height as u64, MAX_STREAM_TEXELS)?;
         positive("texel_size", texel_size)?;
         if heights.len() != width * height {
             return Err(MapError::InvalidParameter {

@@ -82,7 +82,6 @@ impl LevelBuilder {
     /// Level `k` (`cols × rows` texels) with its residual, and what the next level reads.
     pub(super) fn finish(mut self, k: usize, cols: usize, rows: usize) -> (Level, Carry) {
         self.lobes.shrink_to_fit();
-        let errs = &self.residual;
         let level = Level {
             cols,
             rows,
@@ -90,16 +89,78 @@ impl LevelBuilder {
             lobe_start: self.lstart,
             lobes: self.lobes,
             horizon: self.horizon,
-            residual: Residual {
-                mean: errs.iter().map(|e| e.0).sum::<f64>() / errs.len().max(1) as f64,
-                max: errs.iter().map(|e| e.0).fold(0.0, f64::max),
-                texels: errs.len() as u32,
-                shading_mean: Some(
-                    errs.iter().map(|e| e.1).sum::<f64>() / errs.len().max(1) as f64,
-                ),
-                shading_max: Some(errs.iter().map(|e| e.1).fold(0.0, f64::max)),
-            },
+            residual: residual(&self.residual),
         };
         (level, self.carry)
+    }
+}
+
+/// A level's residual from the NDF residuals and shading errors of its sampled texels.
+pub(super) fn residual(errs: &[(f64, f64)]) -> Residual {
+    Residual {
+        mean: errs.iter().map(|e| e.0).sum::<f64>() / errs.len().max(1) as f64,
+        max: errs.iter().map(|e| e.0).fold(0.0, f64::max),
+        texels: errs.len() as u32,
+        shading_mean: Some(errs.iter().map(|e| e.1).sum::<f64>() / errs.len().max(1) as f64),
+        shading_max: Some(errs.iter().map(|e| e.1).fold(0.0, f64::max)),
+    }
+}
+
+/// A level being written band by band (the streamed extraction, `extract_to_file`): only its
+/// lobe count, its sampled residuals and, for the next level, its horizon statistics in `f64`.
+#[derive(Default)]
+pub(super) struct BandLevel {
+    pub(super) lobes: usize,
+    pub(super) residual: Vec<(f64, f64)>,
+    pub(super) carry: Carry,
+}
+
+impl BandLevel {
+    /// A level whose horizon statistics the next level reads when `carry_horizon`.
+    pub(super) fn new(carry_horizon: bool) -> BandLevel {
+        BandLevel {
+            carry: Carry {
+                horizon: carry_horizon.then(Vec::new),
+            },
+            ..BandLevel::default()
+        }
+    }
+
+    /// A batch of rows (in order) of level `k` (`cols` texels a row) as a band of its own, in
+    /// the level's precision (`compact`: `f32`, as [`LevelBuilder`] stores it); its residuals
+    /// and horizon statistics kept for the level.
+    pub(super) fn band(
+        &mut self,
+        rows: Vec<RowOut>,
+        (k, cols): (usize, usize),
+        has_h: bool,
+        compact: bool,
+    ) -> Level {
+        let n = rows.len();
+        let mut lobe_start = Vec::with_capacity(n * cols + 1);
+        lobe_start.push(0u32);
+        let mut lobes = Vec::new();
+        let mut horizon = Vec::new();
+        for ro in rows {
+            for lc in &ro.lcount {
+                lobe_start.push(lobe_start.last().unwrap() + lc);
+            }
+            lobes.extend_from_slice(&ro.lobes);
+            horizon.extend_from_slice(&ro.horizon);
+            if let Some(h) = &mut self.carry.horizon {
+                h.extend_from_slice(&ro.horizon);
+            }
+            self.residual.extend_from_slice(&ro.residual);
+        }
+        self.lobes += lobes.len();
+        Level {
+            cols,
+            rows: n,
+            span: 1usize << k,
+            lobe_start,
+            lobes: Lobes::new(lobes, compact),
+            horizon: has_h.then(|| Horizons::new(horizon, compact)),
+            residual: Residual::default(),
+        }
     }
 }

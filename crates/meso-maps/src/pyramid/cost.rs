@@ -46,6 +46,38 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
         .saturating_add((samples as u64).saturating_mul(EXTRACT_BYTES_PER_SAMPLE))
 }
 
+/// Peak memory of the streamed extraction ([`extract_to_file`](super::extract_to_file)) per
+/// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 32 bytes a
+/// sample are allocated): level 1's horizon statistics in `f64`, which level 2 reads (72 bytes a
+/// texel, a quarter of the cells: 18 bytes a cell), and a margin. Measured (2026-12-03,
+/// `docs/benchmarks.md`, "Streamed extraction"): 10.7 MB of heap at 256² against an estimate of
+/// 19.9 MB (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap peak and
+/// stay within 3× of it); peak RSS 123 / 288 / 1 032 MB at 1024² / 2048² / 4096² (the
+/// generated map's 8 bytes a sample included) against 136 / 423 / 1 450 MB estimated without it.
+pub const STREAM_BYTES_PER_CELL: u64 = 32;
+/// Peak memory of the streamed extraction per texel of a row batch of level 0
+/// ([`crate::format::BAND_ROWS`] rows, the widest batch): the batch's fitted rows, the band in
+/// the level's precision, its streams' columns, byte planes and deflated bytes, and the band
+/// checked back (≈ 450 bytes measured at 256² and 2048²).
+pub const STREAM_BYTES_PER_BAND_TEXEL: u64 = 800;
+
+/// The estimated peak memory (bytes) of the streamed extraction
+/// ([`extract_to_file`](super::extract_to_file)) on a `cols × rows` cell grid with `per_cell`
+/// normals per cell and `samples` height samples (0 for a normal map): no pyramid, but the
+/// horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]), the previous level's horizon statistics and
+/// one row batch of level 0 (the widest); the source map itself is not counted.
+#[must_use]
+pub fn extract_stream_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) -> u64 {
+    let cells = (cols as u64).saturating_mul(rows as u64);
+    let band = (cols as u64).saturating_mul(rows.min(crate::format::BAND_ROWS) as u64);
+    let per_band_texel = STREAM_BYTES_PER_BAND_TEXEL
+        + EXTRACT_BYTES_PER_EXTRA_NORMAL / 2 * (per_cell.max(1) as u64 - 1);
+    cells
+        .saturating_mul(STREAM_BYTES_PER_CELL)
+        .saturating_add(band.saturating_mul(per_band_texel))
+        .saturating_add((samples as u64).saturating_mul(EXTRACT_BYTES_PER_SAMPLE))
+}
+
 /// The estimated work of [`extract`](super::extract) on a `cols × rows` cell grid with `per_cell`
 /// normals per cell (2 for triangles, 1 otherwise) and `samples` height samples (0 for a normal
 /// map): the preparation (normals, horizons) and then each level, in cost units (≈ µs of one core).

@@ -1,17 +1,22 @@
 //! The extraction driver, [`extract`]: its parameter checks, the preparation of the facets and
 //! horizon angles, and the levels fitted one after the other, each row batch in parallel on
-//! rayon's pool, with progress reported by estimated work.
+//! rayon's pool, with progress reported by estimated work. The same driver streams the map
+//! file instead of keeping the pyramid ([`extract_to_file`], [`extract_to_writer`]): each row
+//! batch is written as a band of format 4 (`docs/map-format.md`) as soon as it is fitted.
 
-use super::builder::{Carry, LevelBuilder};
+use super::builder::{BandLevel, Carry, LevelBuilder};
 use super::cost::{extract_work, pyramid_texels};
 use super::level_fit::{LevelFit, PrevHorizon, RowOut};
-use super::{level_count, ExtractParams, Level, Progress, Pyramid, Source};
+use super::{level_count, ExtractParams, Level, Progress, Pyramid, Residual, Source};
 use crate::error::{MapError, Result};
 use crate::facets::{FacetSource, NormalMode};
 use crate::fit::MAX_LOBES;
+use crate::format::{check_band, write_band, write_level_end, Header, VERSION_4};
 use crate::heightmap::Border;
 use crate::horizon::HorizonMap;
 use rayon::prelude::*;
+use std::io::Write;
+use std::path::Path;
 
 /// Extract the pyramid of `source`: meso-normals, per-texel lobe fits at every level, horizon
 /// statistics and per-level residuals. `progress` is called after every level (on the calling
@@ -21,6 +26,123 @@ pub fn extract(
     params: &ExtractParams,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Pyramid> {
+    let (h, levels) = run(source, params, progress, None)?;
+    Ok(Pyramid {
+        width: h.width,
+        height: h.height,
+        texel_size: h.texel_size,
+        border: h.border,
+        normal_mode: h.normal_mode,
+        max_lobes: h.max_lobes,
+        levels,
+    })
+}
+
+/// What the streamed extraction reports of each level it wrote.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamedLevel {
+    /// Texels along x.
+    pub cols: usize,
+    /// Texels along y.
+    pub rows: usize,
+    /// Lobes of the level.
+    pub lobes: usize,
+    /// Its fit residual.
+    pub residual: Residual,
+}
+
+/// Extract the pyramid of `source` as [`extract`] does, writing it as a map file of format 4
+/// (`docs/map-format.md`) at `path` as it goes: each row batch of each level is encoded,
+/// checked as the reader will check it, written and dropped, so that memory holds the source,
+/// the horizon angles (until level 1 is done), the previous level's horizon statistics and one
+/// row batch, never the pyramid ([`super::extract_stream_bytes`]). The file is written
+/// atomically (`meso_core::io::write_atomic_with`): on any error nothing is left and an
+/// existing `path` is untouched. It reads back ([`Pyramid::read`]) as the pyramid [`extract`]
+/// returns, written and read back, would.
+///
+/// # Errors
+/// As [`extract`]; [`MapError::MapFormat`] when a value cannot be stored; [`MapError::Write`]
+/// naming `path`.
+pub fn extract_to_file(
+    source: Source<'_>,
+    params: &ExtractParams,
+    path: &Path,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Vec<StreamedLevel>> {
+    let mut failure = None;
+    let mut levels = Vec::new();
+    let written = meso_core::io::write_atomic_with(path, |w| {
+        match extract_to_writer(source, params, w, path, progress) {
+            Ok(l) => {
+                levels = l;
+                Ok(())
+            }
+            Err(MapError::Write { source, .. }) => Err(source),
+            Err(e) => {
+                failure = Some(e);
+                Err(std::io::Error::other("the extraction failed"))
+            }
+        }
+    });
+    match (failure, written) {
+        (Some(e), _) => Err(e),
+        (None, Err(e)) => Err(MapError::Write {
+            path: path.to_path_buf(),
+            source: e,
+        }),
+        (None, Ok(())) => Ok(levels),
+    }
+}
+
+/// [`extract_to_file`] into a writer (`path` only names the output in errors): the map file's
+/// bytes in format 4, band by band. On error the writer holds a partial file.
+///
+/// # Errors
+/// As [`extract_to_file`].
+pub fn extract_to_writer(
+    source: Source<'_>,
+    params: &ExtractParams,
+    w: &mut dyn Write,
+    path: &Path,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Vec<StreamedLevel>> {
+    let mut levels = Vec::new();
+    run(
+        source,
+        params,
+        progress,
+        Some(Stream {
+            w,
+            path,
+            levels: &mut levels,
+        }),
+    )?;
+    Ok(levels)
+}
+
+/// Where the streamed extraction writes the levels it fits, band by band in format 4, and what
+/// it reports of them.
+struct Stream<'a> {
+    w: &'a mut dyn Write,
+    path: &'a Path,
+    levels: &'a mut Vec<StreamedLevel>,
+}
+
+/// A level being fitted: assembled in memory or written band by band.
+enum LevelOut {
+    Memory(LevelBuilder),
+    Stream(BandLevel),
+}
+
+/// The driver of [`extract`] and [`extract_to_writer`]: fits the levels of `source` one after
+/// the other and keeps them (returned with the map file's header) or, given a `stream`, writes
+/// them there (none returned).
+fn run(
+    source: Source<'_>,
+    params: &ExtractParams,
+    progress: &mut dyn FnMut(Progress),
+    mut stream: Option<Stream<'_>>,
+) -> Result<(Header, Vec<Level>)> {
     check_params(params)?;
     let (cells_x, cells_y, per_cell, samples) = match source {
         Source::Heights(m) => (
@@ -76,9 +198,41 @@ pub fn extract(
     let has_horizon = horizon.is_some();
     let nlev = level_count(facets.cols(), facets.rows());
     debug_assert_eq!(nlev, level_work.len());
+    let header = Header {
+        version: VERSION_4,
+        width,
+        height,
+        cols: facets.cols(),
+        rows: facets.rows(),
+        texel_size,
+        border,
+        normal_mode: params.normal_mode,
+        has_h: has_horizon,
+        max_lobes: params.fit.max_lobes,
+        nlev,
+    };
+    let write_err = |path: &Path, e: std::io::Error| {
+        if e.kind() == std::io::ErrorKind::InvalidData {
+            MapError::MapFormat {
+                path: path.to_path_buf(),
+                message: format!("not written: the map would be invalid ({e})"),
+            }
+        } else {
+            MapError::Write {
+                path: path.to_path_buf(),
+                source: e,
+            }
+        }
+    };
+    if let Some(st) = &mut stream {
+        header.write(st.w).map_err(|e| write_err(st.path, e))?;
+    }
     let mut work_done = prep_work;
     report(0, 0, work_done);
-    let mut levels: Vec<Level> = Vec::with_capacity(nlev);
+    // The previous level: in memory the last of the levels; streamed, a level of its size
+    // alone (its lobes are written), whose horizon statistics are always carried in `f64`.
+    let mut stub: Option<Level> = None;
+    let mut levels: Vec<Level> = Vec::with_capacity(if stream.is_some() { 0 } else { nlev });
     // What the next level reads of this one, beside the level itself: when the level is
     // stored in f32, its horizon statistics in f64. (Entries are not carried: each texel
     // merges its footprint's facets again, level by level, `level_fit::texel_entries`.)
@@ -89,7 +243,11 @@ pub fn extract(
         let texels = cols * rows;
         let compact = texels >= params.compact_texels;
         let last = k + 1 == nlev;
-        let prev_horizon = match (levels.last(), &horizon) {
+        let prev_level = match &stream {
+            None => levels.last(),
+            Some(_) => stub.as_ref(),
+        };
+        let prev_horizon = match (prev_level, &horizon) {
             (None, _) => PrevHorizon::None,
             (Some(_), Some(map)) if k == 1 => PrevHorizon::Samples(map),
             (Some(l), _) => match (&prev.horizon, &l.horizon) {
@@ -103,7 +261,7 @@ pub fn extract(
             cols,
             facets,
             horizon: if k == 0 { horizon.as_ref() } else { None },
-            prev: levels.last(),
+            prev: prev_level,
             prev_horizon,
             residual_stride: texels.div_ceil(params.residual_texels.max(1)).max(1),
             params,
@@ -116,26 +274,74 @@ pub fn extract(
             .fit
             .max_lobes
             .min(per_cell.saturating_mul(1usize << (2 * k.min(8))));
-        let mut acc = LevelBuilder::new(
-            texels,
-            max_per_texel,
-            has_horizon,
-            compact,
-            compact && has_horizon && !last && k > 0,
-        )
-        .map_err(oom)?;
-        // Rows in batches: each batch's rows fitted in parallel and appended at once, so that
-        // no more than a batch's row buffers exist beside the level.
+        let carry_horizon = has_horizon && !last && k > 0;
+        let mut acc = match &stream {
+            None => LevelOut::Memory(
+                LevelBuilder::new(
+                    texels,
+                    max_per_texel,
+                    has_horizon,
+                    compact,
+                    compact && carry_horizon,
+                )
+                .map_err(oom)?,
+            ),
+            Some(_) => LevelOut::Stream(BandLevel::new(carry_horizon)),
+        };
+        // Rows in batches: each batch's rows fitted in parallel and appended at once (or
+        // written as a band), so that no more than a batch's row buffers exist beside the level.
         for r0 in (0..rows).step_by(ROW_BATCH) {
             let batch: Vec<RowOut> = (r0..(r0 + ROW_BATCH).min(rows))
                 .into_par_iter()
                 .map(|r| ctx.row(r))
                 .collect();
-            acc.extend(batch);
+            match (&mut acc, &mut stream) {
+                (LevelOut::Memory(acc), _) => acc.extend(batch),
+                (LevelOut::Stream(acc), Some(Stream { w, path, .. })) => {
+                    let band = acc.band(batch, (k, cols), has_horizon, compact);
+                    let mut chunk = Vec::new();
+                    write_band(&mut chunk, k, r0, &band, has_horizon)
+                        .map_err(|e| write_err(path, e))?;
+                    drop(band);
+                    check_band(path, &header, k, (cols, rows), r0, &chunk).map_err(|e| {
+                        MapError::MapFormat {
+                            path: path.to_path_buf(),
+                            message: format!("not written: the map would be invalid ({e})"),
+                        }
+                    })?;
+                    w.write_all(&chunk).map_err(|e| write_err(path, e))?;
+                }
+                (LevelOut::Stream(_), None) => unreachable!("a streamed level has a stream"),
+            }
         }
-        let (level, carry) = acc.finish(k, cols, rows);
-        levels.push(level);
-        prev = carry;
+        match (acc, &mut stream) {
+            (LevelOut::Memory(acc), _) => {
+                let (level, carry) = acc.finish(k, cols, rows);
+                levels.push(level);
+                prev = carry;
+            }
+            (LevelOut::Stream(acc), Some(Stream { w, path, levels })) => {
+                let residual = super::builder::residual(&acc.residual);
+                write_level_end(*w, k, acc.lobes, &residual).map_err(|e| write_err(path, e))?;
+                levels.push(StreamedLevel {
+                    cols,
+                    rows,
+                    lobes: acc.lobes,
+                    residual,
+                });
+                stub = Some(Level {
+                    cols,
+                    rows,
+                    span: 1usize << k,
+                    lobe_start: Vec::new(),
+                    lobes: crate::compact::Lobes::default(),
+                    horizon: None,
+                    residual,
+                });
+                prev = acc.carry;
+            }
+            (LevelOut::Stream(_), None) => unreachable!("a streamed level has a stream"),
+        }
         if k >= 1 {
             // Level 1 has read the samples' horizon angles.
             horizon = None;
@@ -146,19 +352,14 @@ pub fn extract(
         cols = cols.div_ceil(2);
         rows = rows.div_ceil(2);
     }
-    Ok(Pyramid {
-        width,
-        height,
-        texel_size,
-        border,
-        normal_mode: params.normal_mode,
-        max_lobes: params.fit.max_lobes,
-        levels,
-    })
+    if let Some(st) = &mut stream {
+        st.w.flush().map_err(|e| write_err(st.path, e))?;
+    }
+    Ok((header, levels))
 }
 
 /// Rows of a level fitted in parallel before they are appended to the level.
-const ROW_BATCH: usize = 64;
+const ROW_BATCH: usize = crate::format::BAND_ROWS;
 
 /// The checks of [`extract`]'s parameters.
 fn check_params(params: &ExtractParams) -> Result<()> {

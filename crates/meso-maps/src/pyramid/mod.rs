@@ -32,10 +32,11 @@ mod level_fit;
 mod shares;
 
 pub use cost::{
-    extract_bytes, extract_work, EXTRACT_BYTES_PER_CELL, EXTRACT_BYTES_PER_EXTRA_NORMAL,
-    EXTRACT_BYTES_PER_SAMPLE,
+    extract_bytes, extract_stream_bytes, extract_work, EXTRACT_BYTES_PER_CELL,
+    EXTRACT_BYTES_PER_EXTRA_NORMAL, EXTRACT_BYTES_PER_SAMPLE, STREAM_BYTES_PER_BAND_TEXEL,
+    STREAM_BYTES_PER_CELL,
 };
-pub use extract::extract;
+pub use extract::{extract, extract_to_file, extract_to_writer, StreamedLevel};
 pub use info::{LevelInfo, PyramidInfo};
 pub use shares::{lobe_stats, peak_projected_area, texel_lobe_stats, LobeStat, LobeStats};
 

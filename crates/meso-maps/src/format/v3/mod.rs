@@ -40,9 +40,13 @@ mod write;
 pub use shading::SHADING_TAG;
 pub use streams::MAX_DEFLATE_RATIO;
 
-pub(in crate::format) use read::{check_levels, read_levels};
+pub(in crate::format) use read::{
+    build_level, check_levels, decode_columns, read_counts, read_levels,
+};
 pub(in crate::format) use shading::{read_shading, write_shading};
-pub(in crate::format) use write::{unstorable, write_levels};
+pub(in crate::format) use streams::{read_stream, stream_header, Layout, STREAMS};
+pub(in crate::format) use table::{pyramid_bytes, TableEntry};
+pub(in crate::format) use write::{unstorable, unstorable_level, write_levels, write_streams};
 
 /// The format version of this module.
 pub const VERSION_3: u32 = 3;

@@ -14,7 +14,7 @@ use meso_core::ndf::PhongLobe;
 
 /// The decoded columns of streams 1–5: octahedral axis codes (u, v), weight codes, exponent
 /// codes, horizon weights (`f32` bits) and the 8 horizon angle codes.
-struct Columns {
+pub(in crate::format) struct Columns {
     axes: Vec<Vec<u32>>,
     weights: Vec<u32>,
     etas: Vec<u32>,
@@ -55,13 +55,13 @@ pub(in crate::format) fn read_levels(r: &mut Reader<'_>, h: &Header) -> Result<V
     table
         .iter()
         .enumerate()
-        .map(|(k, t)| build_level(r, k, t, &layout, &columns, has_h))
+        .map(|(k, t)| build_level(r, k, t, &layout, &columns, has_h, t.compact()))
         .collect()
 }
 
 /// The lobe counts (stream 0), which lay out every other stream: each at most `max_lobes`,
 /// each level's adding up to its table entry.
-fn read_counts(
+pub(in crate::format) fn read_counts(
     r: &Reader<'_>,
     table: &[TableEntry],
     levels_at: &[(usize, usize)],
@@ -97,7 +97,7 @@ fn read_counts(
 }
 
 /// Streams 1–5 decoded, each stream's raw bytes freed once decoded.
-fn decode_columns(
+pub(in crate::format) fn decode_columns(
     r: &Reader<'_>,
     layout: &Layout,
     mut raws: Vec<(Vec<u8>, bool)>,
@@ -185,20 +185,22 @@ pub(in crate::format) fn check_levels(r: &mut Reader<'_>, h: &Header) -> Result<
 
 /// Level `k` from the decoded columns: its lobes (a texel's weights normalised by their
 /// codes' sum, which must not be 0) and horizon statistics (a weight that is negative or not
-/// finite refused), in `f32` on big levels ([`TableEntry::compact`]).
-fn build_level(
+/// finite refused), in `f32` when `compact` (format 3: [`TableEntry::compact`]; format 4, whose
+/// entry is a band of a level's rows: the level's).
+pub(in crate::format) fn build_level(
     r: &Reader<'_>,
     k: usize,
     e: &TableEntry,
     layout: &Layout,
     c: &Columns,
     has_h: bool,
+    compact: bool,
 ) -> Result<Level> {
     let (n, t0) = (e.texels(), e.t0);
     let mut lobe_start = Vec::with_capacity(n + 1);
     let g0 = layout.start[t0];
     lobe_start.extend(layout.start[t0..=t0 + n].iter().map(|&s| (s - g0) as u32));
-    let mut lobes = if e.compact() {
+    let mut lobes = if compact {
         Lobes::F32(Vec::with_capacity(e.lobes))
     } else {
         Lobes::F64(Vec::with_capacity(e.lobes))
@@ -215,7 +217,7 @@ fn build_level(
         }
     }
     let horizon = if has_h {
-        let mut h = if e.compact() {
+        let mut h = if compact {
             Horizons::F32(Vec::with_capacity(n))
         } else {
             Horizons::F64(Vec::with_capacity(n))

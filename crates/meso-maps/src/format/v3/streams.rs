@@ -15,7 +15,7 @@ const RATIO_SLACK: u64 = 1024;
 const STREAM_HEADER: usize = 20;
 /// The streams, in file order: name, per-lobe (else per-texel), columns, bytes per value,
 /// bits per value (a stored value or prediction residual above them is refused).
-pub(super) const STREAMS: [(&str, bool, usize, usize, u32); 6] = [
+pub(in crate::format) const STREAMS: [(&str, bool, usize, usize, u32); 6] = [
     ("lobe counts", false, 1, 1, 8),
     ("lobe axes", true, 2, 3, 20),
     ("lobe weights", true, 1, 2, 16),
@@ -33,7 +33,7 @@ fn mask(bits: u32) -> u32 {
 }
 
 /// Where each level's texels and lobes start in the whole-pyramid arrays.
-pub(super) struct Layout {
+pub(in crate::format) struct Layout {
     /// Per level: (first texel, texels).
     pub(super) levels: Vec<(usize, usize)>,
     /// Lobe counts of every texel, all levels, finest first.
@@ -43,7 +43,7 @@ pub(super) struct Layout {
 }
 
 impl Layout {
-    pub(super) fn new(levels: Vec<(usize, usize)>, counts: Vec<u8>) -> Layout {
+    pub(in crate::format) fn new(levels: Vec<(usize, usize)>, counts: Vec<u8>) -> Layout {
         let mut start = Vec::with_capacity(counts.len() + 1);
         let mut s = 0usize;
         start.push(0);
@@ -163,10 +163,14 @@ pub(super) fn deflate(raw: &[u8]) -> Vec<u8> {
     e.finish().expect("writing to memory cannot fail")
 }
 
-/// Stream `s`: its header checked (id, reserved bytes, filter, the raw length `expect` the
-/// table implies, deflate's largest ratio, the file's end), its bytes inflated and checked
-/// against the header. Returns the raw bytes and whether they are filtered.
-pub(super) fn read_stream(r: &mut Reader<'_>, s: usize, expect: u64) -> Result<(Vec<u8>, bool)> {
+/// The header of stream `s`, checked (id, reserved bytes, filter, the raw length `expect` the
+/// table implies, deflate's largest ratio, the file's end): its filter, raw and compressed
+/// lengths. The compressed bytes follow.
+pub(in crate::format) fn stream_header(
+    r: &mut Reader<'_>,
+    s: usize,
+    expect: u64,
+) -> Result<(u8, u64, u64)> {
     let name = STREAMS[s].0;
     let head = r.take(STREAM_HEADER, "a stream header")?;
     let (id, filter) = (head[0], head[1]);
@@ -195,6 +199,18 @@ pub(super) fn read_stream(r: &mut Reader<'_>, s: usize, expect: u64) -> Result<(
     if ((r.b.len() - r.pos) as u64) < comp_len {
         return Err(r.err(format!("truncated in stream {s} ({name})")));
     }
+    Ok((filter, raw_len, comp_len))
+}
+
+/// Stream `s`: its header checked ([`stream_header`]), its bytes inflated and checked against
+/// the header. Returns the raw bytes and whether they are filtered.
+pub(in crate::format) fn read_stream(
+    r: &mut Reader<'_>,
+    s: usize,
+    expect: u64,
+) -> Result<(Vec<u8>, bool)> {
+    let name = STREAMS[s].0;
+    let (filter, raw_len, comp_len) = stream_header(r, s, expect)?;
     let comp = r.take(comp_len as usize, name)?;
     let mut raw = Vec::with_capacity(raw_len as usize);
     let mut d = flate2::read::DeflateDecoder::new(comp);

@@ -14,22 +14,22 @@ const LOBE_MEM: u64 = 40;
 const HORIZON_MEM: u64 = 72;
 /// One entry of a format-3 level table, with where the level starts among all texels.
 #[derive(Clone, Copy)]
-pub(super) struct TableEntry {
-    pub(super) cols: usize,
-    pub(super) rows: usize,
-    pub(super) span: usize,
-    pub(super) lobes: usize,
-    pub(super) residual: Residual,
+pub(in crate::format) struct TableEntry {
+    pub(in crate::format) cols: usize,
+    pub(in crate::format) rows: usize,
+    pub(in crate::format) span: usize,
+    pub(in crate::format) lobes: usize,
+    pub(in crate::format) residual: Residual,
     /// Index of the level's first texel among the pyramid's texels.
-    pub(super) t0: usize,
+    pub(in crate::format) t0: usize,
 }
 
 impl TableEntry {
-    pub(super) fn texels(&self) -> usize {
+    pub(in crate::format) fn texels(&self) -> usize {
         self.cols * self.rows
     }
     /// Whether the level is kept in `f32` in memory ([`COMPACT_TEXELS`]).
-    pub(super) fn compact(&self) -> bool {
+    pub(in crate::format) fn compact(&self) -> bool {
         self.texels() >= COMPACT_TEXELS
     }
 }
@@ -55,7 +55,7 @@ pub(super) fn write_table(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<Vec
 
 /// The memory (bytes) of the pyramid a level table describes: per lobe 40 bytes (`f64`) or 20
 /// (`f32` levels), per texel a lobe start (4) and with horizon statistics 72 or 36.
-pub(super) fn pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
+pub(in crate::format) fn pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
     table
         .iter()
         .map(|t| {

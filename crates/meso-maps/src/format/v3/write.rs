@@ -7,12 +7,20 @@ use super::streams::{deflate, planes, Layout, STREAMS};
 use super::table::write_table;
 use crate::compact::Horizons;
 use crate::limits::ETA_MAX;
-use crate::pyramid::Pyramid;
+use crate::pyramid::{Level, Pyramid};
 use std::io::Write;
 
 /// Why `pyramid` cannot be stored (a value a map file cannot hold), or `None`.
 pub(in crate::format) fn unstorable(p: &Pyramid) -> Option<String> {
-    for (k, l) in p.levels.iter().enumerate() {
+    p.levels
+        .iter()
+        .enumerate()
+        .find_map(|(k, l)| unstorable_level(k, l))
+}
+
+/// Why level `k` (or a band of its rows, format 4) cannot be stored, or `None`.
+pub(in crate::format) fn unstorable_level(k: usize, l: &Level) -> Option<String> {
+    {
         for t in 0..l.texels() {
             let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
             let mut sum = 0.0;
@@ -60,17 +68,17 @@ pub(in crate::format) fn unstorable(p: &Pyramid) -> Option<String> {
     None
 }
 
-/// The raw (unfiltered) columns of stream `s` of `p`.
-fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
-    let lobes = || p.levels.iter().flat_map(|l| l.lobes.iter());
+/// The raw (unfiltered) columns of stream `s` of `parts` (format 3: the pyramid's levels;
+/// format 4: one band of a level's rows).
+fn columns(parts: &[&Level], s: usize) -> Vec<Vec<u32>> {
+    let lobes = || parts.iter().flat_map(|l| l.lobes.iter());
     let horizon = || {
-        p.levels
+        parts
             .iter()
             .flat_map(|l| l.horizon.iter().flat_map(Horizons::iter))
     };
     match s {
-        0 => vec![p
-            .levels
+        0 => vec![parts
             .iter()
             .flat_map(|l| l.lobe_start.windows(2).map(|w| w[1] - w[0]))
             .collect()],
@@ -83,7 +91,7 @@ fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
         }
         2 => {
             let mut col = Vec::new();
-            for l in &p.levels {
+            for l in parts {
                 for w in l.lobe_start.windows(2) {
                     let t = l.lobes.range(w[0] as usize, w[1] as usize);
                     col.extend(weight_codes(&t.map(|x| x.weight).collect::<Vec<_>>()));
@@ -117,16 +125,33 @@ fn columns(p: &Pyramid, s: usize) -> Vec<Vec<u32>> {
 /// Write the levels of `p` (after the common header) in format 3: the level table, then the
 /// streams. The caller has checked [`unstorable`].
 pub(in crate::format) fn write_levels(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()> {
-    let has_h = p.levels[0].horizon.is_some();
-    let levels = write_table(p, w)?;
-    let counts: Vec<u8> = columns(p, 0)[0].iter().map(|&c| c as u8).collect();
+    write_table(p, w)?;
+    let parts: Vec<&Level> = p.levels.iter().collect();
+    write_streams(&parts, p.levels[0].horizon.is_some(), w)
+}
+
+/// Write the streams of `parts` (format 3: every level of the pyramid; format 4: one band of a
+/// level's rows), each value predicted from the same slot of the previous texel of its part.
+/// The caller has checked [`unstorable_level`].
+pub(in crate::format) fn write_streams(
+    parts: &[&Level],
+    has_h: bool,
+    w: &mut dyn Write,
+) -> std::io::Result<()> {
+    let mut levels = Vec::with_capacity(parts.len());
+    let mut t0 = 0;
+    for l in parts {
+        levels.push((t0, l.texels()));
+        t0 += l.texels();
+    }
+    let counts: Vec<u8> = columns(parts, 0)[0].iter().map(|&c| c as u8).collect();
     let layout = Layout::new(levels, counts);
     let n = if has_h { STREAMS.len() } else { 4 };
     // One stream at a time (its columns, both byte-plane layouts and their deflated bytes are
     // all that is held beside the pyramid), compressed with and without prediction in
     // parallel; the smaller is kept.
     for (s, &(_, per_lobe, _, bytes, bits)) in STREAMS.iter().enumerate().take(n) {
-        let cols = columns(p, s);
+        let cols = columns(parts, s);
         let encode = |delta: bool| {
             let raw = planes(&layout, per_lobe, &cols, (bytes, bits), delta);
             (u8::from(delta), raw.len(), deflate(&raw))

@@ -1,0 +1,408 @@
+//! Map format version 4 (`docs/map-format.md`): the common header, then per level its rows in
+//! bands, each band a chunk of format 3's streams (the same codes, byte planes, prediction and
+//! deflate, [`super::v3`]) over the band's texels alone, then the level's end record (its lobe
+//! count and residuals). Written band by band as an extraction fits them
+//! ([`crate::pyramid::extract_to_file`]), so no pyramid is ever held in memory; read back
+//! into a [`Pyramid`] like versions 2 and 3.
+//!
+//! ```text
+//! band:      "BAND" level:u32 first_row:u32 rows:u32 lobes:u32, then the streams of
+//!            format 3 (4, or 6 with horizon statistics) over the band's rows × cols texels
+//! level end: "LEND" level:u32 lobes:u32 residual_mean:f64 residual_max:f64 texels:u32
+//!            has_shading:u32 shading_mean:f64 shading_max:f64
+//! ```
+//!
+//! Reading checks the chunks' order (levels in order, each level's bands covering its rows in
+//! order, then its end record, whose lobe count must be the bands' sum), every stream header
+//! against its band and the file's length, and the memory of the whole pyramid against the
+//! budget, all before inflating anything.
+
+use super::v3::{
+    build_level, decode_columns, pyramid_bytes, read_counts, read_stream, stream_header,
+    unstorable_level, write_streams, Layout, TableEntry, STREAMS,
+};
+use super::{Header, Reader};
+use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
+use crate::error::{MapError, Result};
+use crate::pyramid::{Level, Pyramid, Residual};
+use std::io::Write;
+use std::path::Path;
+
+/// The format version of this module.
+pub const VERSION_4: u32 = 4;
+/// Rows of a level per band when a pyramid in memory is written in format 4
+/// ([`Pyramid::write_v4_to`]); the streamed extraction writes its row batches, of as many rows.
+pub const BAND_ROWS: usize = 64;
+const BAND_TAG: [u8; 4] = *b"BAND";
+const END_TAG: [u8; 4] = *b"LEND";
+const END_BYTES: usize = 52;
+
+/// Whether a level of `texels` texels is kept in `f32` in memory (as format 3's reader keeps it).
+fn compact(texels: usize) -> bool {
+    texels >= COMPACT_TEXELS
+}
+
+/// Write band `band` (rows `row0..row0 + band.rows` of level `k`) as a chunk: checked
+/// ([`unstorable_level`]), then encoded. The caller writes the header first and the level's
+/// end record after its last band.
+///
+/// # Errors
+/// `InvalidData` naming the value a map file cannot hold; the writer's errors.
+pub(crate) fn write_band(
+    w: &mut dyn Write,
+    k: usize,
+    row0: usize,
+    band: &Level,
+    has_h: bool,
+) -> std::io::Result<()> {
+    if let Some(why) = unstorable_level(k, band) {
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, why));
+    }
+    w.write_all(&BAND_TAG)?;
+    for v in [k, row0, band.rows, band.lobes.len()] {
+        w.write_all(&(v as u32).to_le_bytes())?;
+    }
+    write_streams(&[band], has_h, w)
+}
+
+/// Write the end record of level `k`: its lobe count and residuals.
+pub(crate) fn write_level_end(
+    w: &mut dyn Write,
+    k: usize,
+    lobes: usize,
+    res: &Residual,
+) -> std::io::Result<()> {
+    w.write_all(&END_TAG)?;
+    w.write_all(&(k as u32).to_le_bytes())?;
+    w.write_all(&(lobes as u32).to_le_bytes())?;
+    w.write_all(&res.mean.to_le_bytes())?;
+    w.write_all(&res.max.to_le_bytes())?;
+    w.write_all(&res.texels.to_le_bytes())?;
+    let sh = res.shading_mean.zip(res.shading_max);
+    w.write_all(&u32::from(sh.is_some()).to_le_bytes())?;
+    let (m, x) = sh.unwrap_or((0.0, 0.0));
+    w.write_all(&m.to_le_bytes())?;
+    w.write_all(&x.to_le_bytes())
+}
+
+/// Rows `r0..r1` of level `l` as a band of its own (lobe starts from 0, lobes and horizon
+/// statistics copied in the level's precision).
+pub(crate) fn band_of(l: &Level, r0: usize, r1: usize) -> Level {
+    let (t0, t1) = (r0 * l.cols, r1 * l.cols);
+    let (a, b) = (l.lobe_start[t0] as usize, l.lobe_start[t1] as usize);
+    let lobes = match &l.lobes {
+        Lobes::F64(v) => Lobes::F64(v[a..b].to_vec()),
+        Lobes::F32(v) => Lobes::F32(v[a..b].to_vec()),
+    };
+    let horizon = l.horizon.as_ref().map(|h| match h {
+        Horizons::F64(v) => Horizons::F64(v[t0..t1].to_vec()),
+        Horizons::F32(v) => Horizons::F32(v[t0..t1].to_vec()),
+    });
+    Level {
+        cols: l.cols,
+        rows: r1 - r0,
+        span: l.span,
+        lobe_start: l.lobe_start[t0..=t1].iter().map(|s| s - a as u32).collect(),
+        lobes,
+        horizon,
+        residual: Residual::default(),
+    }
+}
+
+/// Write the levels of `p` (after the common header) in format 4, in bands of [`BAND_ROWS`]
+/// rows. The caller has checked that `p` is storable.
+pub(in crate::format) fn write_levels(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()> {
+    let has_h = p.levels[0].horizon.is_some();
+    for (k, l) in p.levels.iter().enumerate() {
+        for r0 in (0..l.rows).step_by(BAND_ROWS) {
+            let band = band_of(l, r0, (r0 + BAND_ROWS).min(l.rows));
+            write_band(w, k, r0, &band, has_h)?;
+        }
+        write_level_end(w, k, l.lobes.len(), &l.residual)?;
+    }
+    Ok(())
+}
+
+/// A band's chunk header as read: its first row, rows and lobes.
+struct BandHead {
+    row0: usize,
+    rows: usize,
+    lobes: usize,
+}
+
+/// The bytes a stream of a band of `texels` texels and `lobes` lobes inflates to.
+fn expect(s: usize, texels: u64, lobes: u64) -> u64 {
+    (if STREAMS[s].1 { lobes } else { texels }) * (STREAMS[s].2 * STREAMS[s].3) as u64
+}
+
+/// The header of the chunk at the reader (a band or the end of level `k`), checked against
+/// level `k` (`cols × rows` texels, `next_row` the first row not yet read): the band's header,
+/// or `None` for the level's end (whose record is left to read).
+fn band_head(
+    r: &mut Reader<'_>,
+    h: &Header,
+    k: usize,
+    (cols, rows): (usize, usize),
+    next_row: usize,
+) -> Result<Option<BandHead>> {
+    let at = r.pos;
+    let tag = r.take(4, "a chunk tag")?;
+    if tag == END_TAG {
+        r.pos = at;
+        return Ok(None);
+    }
+    if tag != BAND_TAG {
+        return Err(r.err(format!(
+            "level {k}: expected a band or the level's end at byte {at}, found {tag:02x?}"
+        )));
+    }
+    let lk = r.u32("band level")? as usize;
+    let row0 = r.u32("band first row")? as usize;
+    let nrows = r.u32("band rows")? as usize;
+    let lobes = r.u32("band lobes")? as usize;
+    if lk != k || row0 != next_row || nrows == 0 || nrows > rows - row0.min(rows) {
+        return Err(r.err(format!(
+            "a band of level {lk}, rows {row0}..{}, where rows {next_row}.. of level {k} \
+             ({rows} rows) were expected",
+            row0 as u64 + nrows as u64
+        )));
+    }
+    if lobes as u64 > (nrows * cols) as u64 * h.max_lobes as u64 {
+        return Err(r.err(format!(
+            "level {k}: a band of {} texels claims {lobes} lobes",
+            nrows * cols
+        )));
+    }
+    Ok(Some(BandHead {
+        row0,
+        rows: nrows,
+        lobes,
+    }))
+}
+
+/// The end record of level `k`, checked (its level, `lobes` the bands' sum, finite residuals
+/// ≥ 0): the level's residual.
+fn level_end(r: &mut Reader<'_>, k: usize, lobes: usize) -> Result<Residual> {
+    if r.b.len() - r.pos < END_BYTES {
+        return Err(r.err(format!("truncated in the end record of level {k}")));
+    }
+    let tag = r.take(4, "a chunk tag")?;
+    if tag != END_TAG {
+        return Err(r.err(format!("level {k}: expected its end record")));
+    }
+    let lk = r.u32("level")? as usize;
+    let nl = r.u32("level lobes")? as usize;
+    if lk != k || nl != lobes {
+        return Err(r.err(format!(
+            "the end of level {lk} claims {nl} lobes, where level {k}'s bands hold {lobes}"
+        )));
+    }
+    let mut res = r.residual()?;
+    let has_sh = r.u32("shading flag")?;
+    let (m, x) = (r.f64("shading error")?, r.f64("shading error")?);
+    if has_sh > 1 {
+        return Err(r.err(format!("level {k}: bad shading flag {has_sh}")));
+    }
+    if has_sh == 1 {
+        if !(m.is_finite() && x.is_finite() && m >= 0.0 && x >= 0.0) {
+            return Err(r.err(format!("level {k}: bad shading error {m}/{x}")));
+        }
+        res.shading_mean = Some(m);
+        res.shading_max = Some(x);
+    }
+    Ok(res)
+}
+
+/// Walk the chunks of a format-4 file after the common header without inflating anything:
+/// their order, every band's and stream's header against its level and the file's length.
+/// Returns the level table and the largest memory of reading one band.
+fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64)> {
+    let n_streams = if h.has_h { STREAMS.len() } else { 4 };
+    let mut table = Vec::with_capacity(h.nlev);
+    let (mut cols, mut rows, mut t0, mut band_max) = (h.cols, h.rows, 0usize, 0u64);
+    for k in 0..h.nlev {
+        let (mut next, mut lobes) = (0usize, 0usize);
+        while let Some(b) = band_head(r, h, k, (cols, rows), next)? {
+            let texels = (b.rows * cols) as u64;
+            let mut need = 0;
+            for (s, &(_, per_lobe, cols_of, _, _)) in STREAMS.iter().enumerate().take(n_streams) {
+                let e = expect(s, texels, b.lobes as u64);
+                let (_, _, comp) = stream_header(r, s, e)?;
+                r.pos += comp as usize;
+                // Inflated, decoded (4 bytes a value) and built (`f64`).
+                need += e + 4 * cols_of as u64 * if per_lobe { b.lobes as u64 } else { texels };
+            }
+            band_max = band_max.max(need + 9 * texels + b.lobes as u64 * 40 + texels * 76);
+            lobes += b.lobes;
+            next = b.row0 + b.rows;
+        }
+        if next != rows {
+            return Err(r.err(format!("level {k}: its bands end at row {next} of {rows}")));
+        }
+        let residual = level_end(r, k, lobes)?;
+        table.push(TableEntry {
+            cols,
+            rows,
+            span: 1 << k,
+            lobes,
+            residual,
+            t0,
+        });
+        t0 += cols * rows;
+        cols = cols.div_ceil(2);
+        rows = rows.div_ceil(2);
+    }
+    Ok((table, band_max))
+}
+
+/// Read the band at the reader (of level `k`, described by `e`, its header already checked by
+/// [`scan`]): its streams inflated and decoded, its lobe counts and values checked, built in
+/// the level's precision.
+fn read_band(
+    r: &mut Reader<'_>,
+    h: &Header,
+    k: usize,
+    e: &TableEntry,
+    next_row: usize,
+) -> Result<Level> {
+    let b = band_head(r, h, k, (e.cols, e.rows), next_row)?
+        .ok_or_else(|| r.err(format!("level {k}: a band expected")))?;
+    let texels = b.rows * e.cols;
+    let n_streams = if h.has_h { STREAMS.len() } else { 4 };
+    let mut raws = Vec::with_capacity(n_streams);
+    for s in 0..n_streams {
+        raws.push(read_stream(r, s, expect(s, texels as u64, b.lobes as u64))?);
+    }
+    let entry = TableEntry {
+        cols: e.cols,
+        rows: b.rows,
+        span: e.span,
+        lobes: b.lobes,
+        residual: Residual::default(),
+        t0: 0,
+    };
+    let at = vec![(0, texels)];
+    let counts = read_counts(r, &[entry], &at, texels, &raws[0], h.max_lobes)?;
+    let layout = Layout::new(at, counts);
+    let columns = decode_columns(r, &layout, raws, h.has_h)?;
+    build_level(
+        r,
+        k,
+        &entry,
+        &layout,
+        &columns,
+        h.has_h,
+        compact(e.texels()),
+    )
+}
+
+/// Append band `b` to level `l` (same precision).
+fn append(l: &mut Level, b: Level) {
+    let base = *l.lobe_start.last().unwrap_or(&0);
+    l.lobe_start
+        .extend(b.lobe_start[1..].iter().map(|s| s + base));
+    match (&mut l.lobes, b.lobes) {
+        (Lobes::F64(a), Lobes::F64(mut x)) => a.append(&mut x),
+        (Lobes::F32(a), Lobes::F32(mut x)) => a.append(&mut x),
+        _ => unreachable!("a level's bands share its precision"),
+    }
+    match (&mut l.horizon, b.horizon) {
+        (Some(Horizons::F64(a)), Some(Horizons::F64(mut x))) => a.append(&mut x),
+        (Some(Horizons::F32(a)), Some(Horizons::F32(mut x))) => a.append(&mut x),
+        (None, None) => {}
+        _ => unreachable!("a level's bands share its precision"),
+    }
+}
+
+/// Read (`build`) or only check the levels of a format-4 file after the common header: the
+/// chunks scanned ([`scan`]) and the memory checked against the budget before anything is
+/// inflated, then band by band inflated, decoded, checked and appended to its level (or
+/// dropped). Returns the levels (empty when not `build`).
+pub(in crate::format) fn read_levels(
+    r: &mut Reader<'_>,
+    h: &Header,
+    build: bool,
+) -> Result<Vec<Level>> {
+    let start = r.pos;
+    let (table, band_max) = scan(r, h)?;
+    let end = r.pos;
+    let need = if build {
+        r.b.len() as u64 + pyramid_bytes(&table, h.has_h) + band_max
+    } else {
+        band_max
+    };
+    meso_core::budget::check(&r.path, "reading the map file", need)?;
+    r.pos = start;
+    let mut levels = Vec::with_capacity(if build { h.nlev } else { 0 });
+    for (k, e) in table.iter().enumerate() {
+        let c = compact(e.texels());
+        let mut level = Level {
+            cols: e.cols,
+            rows: e.rows,
+            span: e.span,
+            lobe_start: Vec::with_capacity(if build { e.texels() + 1 } else { 1 }),
+            lobes: Lobes::new(Vec::new(), c),
+            horizon: h.has_h.then(|| Horizons::new(Vec::new(), c)),
+            residual: e.residual,
+        };
+        level.lobe_start.push(0);
+        if build {
+            match &mut level.lobes {
+                Lobes::F64(v) => v.reserve_exact(e.lobes),
+                Lobes::F32(v) => v.reserve_exact(e.lobes),
+            }
+            match &mut level.horizon {
+                Some(Horizons::F64(v)) => v.reserve_exact(e.texels()),
+                Some(Horizons::F32(v)) => v.reserve_exact(e.texels()),
+                None => {}
+            }
+        }
+        let mut next = 0;
+        while next < e.rows {
+            let band = read_band(r, h, k, e, next)?;
+            next += band.rows;
+            if build {
+                append(&mut level, band);
+            }
+        }
+        level_end(r, k, e.lobes)?;
+        if build {
+            levels.push(level);
+        }
+    }
+    debug_assert_eq!(r.pos, end);
+    Ok(levels)
+}
+
+/// Check one band chunk `bytes` (rows `row0..` of level `k` of `cols × rows` texels) as the
+/// reader will: what the streamed extraction runs on each band before writing it.
+pub(crate) fn check_band(
+    path: &Path,
+    h: &Header,
+    k: usize,
+    (cols, rows): (usize, usize),
+    row0: usize,
+    bytes: &[u8],
+) -> Result<()> {
+    let mut r = Reader {
+        b: bytes,
+        pos: 0,
+        path: path.to_path_buf(),
+    };
+    let e = TableEntry {
+        cols,
+        rows,
+        span: 1 << k,
+        lobes: 0,
+        residual: Residual::default(),
+        t0: 0,
+    };
+    read_band(&mut r, h, k, &e, row0)?;
+    if r.pos != bytes.len() {
+        return Err(MapError::MapFormat {
+            path: path.to_path_buf(),
+            message: format!("level {k}: a band with trailing bytes"),
+        });
+    }
+    Ok(())
+}
