@@ -164,13 +164,35 @@ impl Pyramid {
     /// ([`Pyramid::from_bytes`]), so a written map always reads back (a pyramid with NaN lobes,
     /// say from an extreme height scale, is refused here rather than written).
     pub fn write(&self, path: &Path) -> Result<()> {
+        self.write_checked(path, |w| self.write_to(w))
+    }
+
+    /// [`Pyramid::write`] in format 4 ([`Pyramid::write_v4_to`]): the bytes the streamed
+    /// extraction (`meso extract`) writes for the same pyramid, with the same checks.
+    ///
+    /// # Errors
+    /// As [`Pyramid::write`].
+    pub fn write_v4(&self, path: &Path) -> Result<()> {
+        self.write_checked(path, |w| self.write_v4_to(w))
+    }
+
+    /// The checks and the atomic write of [`Pyramid::write`], for the bytes `encode` writes.
+    fn write_checked(
+        &self,
+        path: &Path,
+        encode: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> Result<()> {
         if let Some(why) = v3::unstorable(self) {
             return Err(MapError::MapFormat {
                 path: path.to_path_buf(),
                 message: format!("not written: the map would be invalid ({why})"),
             });
         }
-        let bytes = self.to_bytes();
+        let mut bytes = Vec::new();
+        encode(&mut bytes).map_err(|e| MapError::MapFormat {
+            path: path.to_path_buf(),
+            message: format!("not written: the map would be invalid ({e})"),
+        })?;
         if let Err(e) = Pyramid::check_bytes(path, &bytes) {
             let why = match e {
                 MapError::MapFormat { message, .. } => message,
@@ -226,15 +248,7 @@ impl Pyramid {
         if r.pos != r.b.len() {
             return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
         }
-        Ok(Pyramid {
-            width: h.width,
-            height: h.height,
-            texel_size: h.texel_size,
-            border: h.border,
-            normal_mode: h.normal_mode,
-            max_lobes: h.max_lobes,
-            levels,
-        })
+        Ok(h.into_pyramid(levels))
     }
 
     /// Check a map file's bytes as [`Pyramid::from_bytes`] does — every check, the same
@@ -282,6 +296,19 @@ pub(crate) struct Header {
 }
 
 impl Header {
+    /// The pyramid of these dimensions and settings with `levels`.
+    pub(crate) fn into_pyramid(self, levels: Vec<Level>) -> Pyramid {
+        Pyramid {
+            width: self.width,
+            height: self.height,
+            texel_size: self.texel_size,
+            border: self.border,
+            normal_mode: self.normal_mode,
+            max_lobes: self.max_lobes,
+            levels,
+        }
+    }
+
     /// The 48 bytes of the header.
     pub(crate) fn write(&self, w: &mut dyn Write) -> std::io::Result<()> {
         w.write_all(&MAGIC)?;

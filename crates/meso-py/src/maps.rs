@@ -173,14 +173,8 @@ pub fn extract_file(
                 meso_maps::input::load(&path, kind, &p).map_err(|e| e.to_string())?;
             let pyr = meso_maps::extract(input.source(), &p, &mut |_| {})
                 .map_err(|e| format!("{}: {e}", path.display()))?;
-            // The bytes `meso extract` streams (map format 4, `Pyramid::write_v4_to`), checked
-            // by the reader before they are written, as `Pyramid::write` checks its own.
-            let mut bytes = Vec::new();
-            pyr.write_v4_to(&mut bytes)
-                .map_err(|e| format!("{}: not written: {e}", out.display()))?;
-            meso_maps::Pyramid::check_bytes(&out, &bytes).map_err(|e| e.to_string())?;
-            meso_core::io::write_atomic(&out, &bytes)
-                .map_err(|e| format!("{}: {e}", out.display()))?;
+            // The bytes `meso extract` streams (map format 4), with `Pyramid::write`'s checks.
+            pyr.write_v4(&out).map_err(|e| e.to_string())?;
             Ok((pyr, warnings))
         })
         .map_err(meso_err)?;

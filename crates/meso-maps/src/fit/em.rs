@@ -7,6 +7,19 @@ use glam::DVec3;
 use meso_core::fastmath::{fast_exp_neg, fast_ln};
 use std::f64::consts::PI;
 
+/// The Horner coefficients after `1/8!` of the Taylor polynomial of `meso_core::fastmath::fast_exp_neg`,
+/// shared by its two- and four-lane copies (`pairs::exp_neg`, `quads::exp_neg`).
+#[cfg(target_arch = "x86_64")]
+const EXP_TAYLOR: [f64; 7] = [
+    1.0 / 5040.0,
+    1.0 / 720.0,
+    1.0 / 120.0,
+    1.0 / 24.0,
+    1.0 / 6.0,
+    0.5,
+    1.0,
+];
+
 #[inline]
 pub(super) fn log_t(a: DVec3, m: DVec3) -> f64 {
     (0.5 * (1.0 + a.dot(m))).max(1e-300).ln()
@@ -333,15 +346,7 @@ pub(super) mod pairs {
         let k = _mm_cvtepi32_pd(ki);
         let r = _mm_sub_pd(y, _mm_mul_pd(k, set(LN_2)));
         let mut p = _mm_mul_pd(r, set(1.0 / 40320.0));
-        for c in [
-            1.0 / 5040.0,
-            1.0 / 720.0,
-            1.0 / 120.0,
-            1.0 / 24.0,
-            1.0 / 6.0,
-            0.5,
-            1.0,
-        ] {
+        for c in super::EXP_TAYLOR {
             p = _mm_mul_pd(r, _mm_add_pd(set(c), p));
         }
         let p = _mm_add_pd(set(1.0), p);
@@ -538,15 +543,7 @@ pub(super) mod quads {
         let k = _mm256_cvtepi32_pd(ki);
         let r = _mm256_sub_pd(y, _mm256_mul_pd(k, set(LN_2)));
         let mut p = _mm256_mul_pd(r, set(1.0 / 40320.0));
-        for c in [
-            1.0 / 5040.0,
-            1.0 / 720.0,
-            1.0 / 120.0,
-            1.0 / 24.0,
-            1.0 / 6.0,
-            0.5,
-            1.0,
-        ] {
+        for c in super::EXP_TAYLOR {
             p = _mm256_mul_pd(r, _mm256_add_pd(set(c), p));
         }
         let p = _mm256_add_pd(set(1.0), p);

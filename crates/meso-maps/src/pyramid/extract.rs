@@ -27,15 +27,7 @@ pub fn extract(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Pyramid> {
     let (h, levels) = run(source, params, progress, None)?;
-    Ok(Pyramid {
-        width: h.width,
-        height: h.height,
-        texel_size: h.texel_size,
-        border: h.border,
-        normal_mode: h.normal_mode,
-        max_lobes: h.max_lobes,
-        levels,
-    })
+    Ok(h.into_pyramid(levels))
 }
 
 /// What the streamed extraction reports of each level it wrote.
