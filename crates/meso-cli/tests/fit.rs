@@ -200,7 +200,9 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
 /// Direction pairs with θi, θo < 80°, dense near the specular configuration (θh sampled like
 /// MERL's non-linear axis), all four half/difference angles varying (low-discrepancy sequence).
 /// Run the command line in the first line of a written material file (`# meso fit …`) as
-/// written, with `--out out` added; it must succeed.
+/// written, with `--out out` added; it must succeed and fit the same data: the re-run file's
+/// command line and its description of the data (which cells were fitted and held out, e.g.
+/// "MERL binary, 8000 of … valid cells fitted") equal the original's.
 fn rerun_header(text: &str, out: &Path) {
     let header = text
         .lines()
@@ -220,6 +222,15 @@ fn rerun_header(text: &str, out: &Path) {
         "{header}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+    let again = std::fs::read_to_string(out).unwrap();
+    // Line 1: the command; line 2: "MODEL: fitted DATA DESCRIPTION in T s, N LM iterations"
+    // (the time differs between runs).
+    let data_line = |t: &str| {
+        let l = t.lines().nth(1).unwrap_or("").to_owned();
+        l.split(" in ").next().unwrap_or("").to_owned()
+    };
+    assert_eq!(text.lines().next(), again.lines().next(), "{again}");
+    assert_eq!(data_line(text), data_line(&again), "{text}\n---\n{again}");
 }
 
 fn pairs(n: usize) -> Vec<(DVec3, DVec3)> {
@@ -450,6 +461,12 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("--transfer ggx-lobes"), "{text}");
     assert!(text.contains("kind = \"mixture\""), "{text}");
+    // The engine parameters of the report are in the file's comment too.
+    let engine = stdout
+        .lines()
+        .find(|l| l.starts_with("engine (glTF metallic-roughness"))
+        .unwrap_or_else(|| panic!("no engine line in {stdout}"));
+    assert!(text.contains(&format!("# {engine}\n")), "{text}");
 
     // --transfer ggx-lobes, and the header's command line re-runs as written.
     let out2 = dir.join("ggx.toml");

@@ -380,3 +380,74 @@ fn bad_inputs_fail_cleanly() {
     );
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Issue #15's bad inputs through the command line: a corrupt and a truncated JPEG, an empty
+/// (zero-size) image file, and a 0 × 0 PNG, given to `meso extract` and to `meso export` — each
+/// one error line naming the file, a non-zero exit, and no output (no map file, no export
+/// folder).
+#[test]
+fn bad_images_fail_cleanly_in_extract_and_export() {
+    let d = tmpdir("bad-images");
+    let img = image::RgbImage::from_fn(32, 32, |c, r| {
+        image::Rgb([(c * 8) as u8, (r * 8) as u8, 90])
+    });
+    let good = d.join("good.jpg");
+    img.save(&good).unwrap();
+    let jpeg = std::fs::read(&good).unwrap();
+    let corrupt = d.join("corrupt.jpg");
+    let mut bytes = jpeg[..4].to_vec();
+    bytes.extend(std::iter::repeat_n(0x5Au8, 300));
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let cut = d.join("cut.jpg");
+    std::fs::write(&cut, &jpeg[..20]).unwrap();
+    let empty = d.join("empty.png");
+    std::fs::write(&empty, b"").unwrap();
+    // A PNG whose header says 0 × 0 pixels (valid CRC).
+    let zero = d.join("zero.png");
+    let mut png = b"\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR".to_vec();
+    let ihdr = [0u8, 0, 0, 0, 0, 0, 0, 0, 8, 0, 0, 0, 0];
+    png.extend_from_slice(&ihdr);
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in b"IHDR".iter().chain(&ihdr) {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                0xEDB8_8320 ^ (crc >> 1)
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    png.extend_from_slice(&(!crc).to_be_bytes());
+    std::fs::write(&zero, &png).unwrap();
+    for bad in [&corrupt, &cut, &empty, &zero] {
+        let name = bad.file_name().unwrap().to_string_lossy().into_owned();
+        let out = d.join("out.map");
+        let o = meso(&[
+            "extract",
+            s(bad),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "1",
+            "--out",
+            s(&out),
+        ]);
+        fails(&o, &out, &format!("extract {name}"));
+        assert!(String::from_utf8_lossy(&o.stderr).contains(&name), "{name}");
+        let dir = d.join("exported");
+        let o = meso(&["export", s(bad), "--alpha", "0.1", "--out", s(&dir)]);
+        fails(&o, &dir, &format!("export {name}"));
+        assert!(String::from_utf8_lossy(&o.stderr).contains(&name), "{name}");
+    }
+    // The good JPEG goes through both.
+    let out = d.join("good.map");
+    ok(&meso(&[
+        "extract",
+        s(&good),
+        "--normal-map",
+        "--out",
+        s(&out),
+    ]));
+    assert!(out.exists());
+}

@@ -96,6 +96,10 @@ pub struct Data {
     pub merl: Option<MerlTable>,
     /// One line: the kind of data, how many samples are fitted and held out.
     pub description: String,
+    /// The MERL cells asked for (`meso fit --samples`: the stratified subsample's target, 0 =
+    /// all valid cells) when the data is a MERL table, `None` for sample CSVs; written into the
+    /// fitted material's header so that its command line re-runs the same fit.
+    pub merl_target: Option<usize>,
 }
 
 /// Load a MERL binary (detected by its header, its size or the `.binary` extension; `target`
@@ -169,6 +173,7 @@ pub fn load(path: &Path, target: usize) -> Result<Data, LoadError> {
             ),
             samples,
             merl: Some(table),
+            merl_target: Some(target),
         });
     }
     let bytes =
@@ -224,6 +229,7 @@ pub fn scattered(samples: SampleSet, kind: &str, what: &str) -> Result<Data, Loa
         ),
         samples,
         merl: None,
+        merl_target: None,
     })
 }
 
@@ -596,6 +602,8 @@ pub struct FitSettings<'a> {
     pub axes: crate::fit::LobeAxes,
     /// `Some(c)`: channel `c` of a per-channel-lobes fit.
     pub channel: Option<usize>,
+    /// The MERL cells asked for (`--samples`, [`Data::merl_target`]); `None` for sample CSVs.
+    pub samples: Option<usize>,
 }
 
 /// The comment at the top of a fitted material file (`meso fit`'s): the command, the model,
@@ -603,12 +611,13 @@ pub struct FitSettings<'a> {
 #[must_use]
 pub fn material_comment(s: &FitSettings<'_>, description: &str, r: &FitResult) -> String {
     let mut comment = format!(
-        "meso fit {} --lobes {} --metric {} --transfer {} --axes {}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
+        "meso fit {} --lobes {} --metric {} --transfer {} --axes {}{}{}\n{}: fitted {} in {:.2} s, {} LM iterations\n",
         s.data,
         s.k,
         s.metric.cli_name(),
         s.transfer.name(),
         s.axes.name(),
+        s.samples.map(|n| format!(" --samples {n}")).unwrap_or_default(),
         if s.channel.is_some() { " --per-channel-lobes" } else { "" },
         r.model,
         description,

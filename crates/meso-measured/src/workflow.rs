@@ -203,6 +203,7 @@ pub fn run(
             transfer,
             axes: opts.axes,
             channel,
+            samples: data.merl_target,
         };
         let comment = material_comment(&settings, &data.description, r);
         let text = match channel {
@@ -243,6 +244,18 @@ pub fn run(
     step("engine parameters (GGX + Lambert)".into(), done);
     let engine = fit_engine(&data.samples, &opts)?;
     done += 1;
+    // The engine parameters go into each written file too, as a comment line after the
+    // header's (the material's meaning is unchanged; the report prints the same line).
+    let engine_line = format!("# {}\n", engine.describe());
+    for ch in &mut channels {
+        let at: usize = ch
+            .text
+            .split_inclusive('\n')
+            .take_while(|l| l.starts_with('#'))
+            .map(str::len)
+            .sum();
+        ch.text.insert_str(at, &engine_line);
+    }
     step("done".into(), done);
     Ok(FitReport {
         data_name: req.data_name.to_string(),

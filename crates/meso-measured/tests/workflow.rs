@@ -37,6 +37,7 @@ fn data() -> Data {
         samples,
         merl: Some(table),
         description: "generated GGX α 0.2".into(),
+        merl_target: Some(4000),
     }
 }
 
@@ -93,7 +94,8 @@ fn the_report_holds_the_fit_its_errors_and_the_written_material() {
     // The comment re-runs the fit as written, and the summary names the data and the choice.
     assert!(
         r.texts()[0].starts_with(
-            "# meso fit ggx.binary --lobes 1 --metric log --transfer ggx-lobes --axes normal\n"
+            "# meso fit ggx.binary --lobes 1 --metric log --transfer ggx-lobes --axes normal \
+             --samples 4000\n"
         ),
         "{}",
         r.texts()[0]

@@ -249,3 +249,82 @@ fn normal_maps_texel_by_texel_and_filtered() {
         assert!(e.contains("bad-normals.toml") && e.contains(want), "`{want}` in: {e}");
     }
 }
+
+/// Textures show the right way up (issue #15 item 1, docs/conventions.md): a grey PNG height
+/// map with bumps in its **top** half only (image rows 0 … n/2 − 1) and flat below, on a plane
+/// seen from straight above with +y up the picture over exactly one tile (`uv` ∈ [0, 1]²), must
+/// show its bumps in the top half of the rendered picture — bump-mapped and NDF-mapped alike.
+/// Measured by the spread of the radiance along each picture row: the flat half is uniform.
+#[test]
+fn a_texture_shows_the_right_way_up() {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("right_way_up");
+    std::fs::create_dir_all(&d).unwrap();
+    let n = 32u32;
+    let tau = std::f64::consts::TAU;
+    let img = ::image::GrayImage::from_fn(n, n, |c, r| {
+        let v = if r < n / 2 {
+            let (x, y) = (f64::from(c) / f64::from(n), f64::from(r) / f64::from(n));
+            0.5 + 0.5 * (tau * 4.0 * x).sin() * (tau * 4.0 * y).sin()
+        } else {
+            0.5
+        };
+        ::image::Luma([(v * 255.0).round() as u8])
+    });
+    img.save(d.join("top_bumps.png")).unwrap();
+    let surface = "[transfer]\nkind = \"phong\"\nexponent = 20.0\nspecular = [0.6, 0.6, 0.6]\n\
+                   [diffuse]\nalbedo = [0.5, 0.4, 0.3]\n";
+    for kind in ["bump-mapped", "ndf-mapped"] {
+        std::fs::write(
+            d.join(format!("{kind}.toml")),
+            format!(
+                "[texture]\nkind = \"{kind}\"\nfile = \"top_bumps.png\"\ntexel_size = 0.03125\n\
+                 height_scale = 0.04\n{surface}"
+            ),
+        )
+        .unwrap();
+        let scene = d.join(format!("{kind}.scene.toml"));
+        std::fs::write(
+            &scene,
+            format!(
+                "[camera]\nkind = \"orthographic\"\nposition = [0.5, 0.5, 10.0]\n\
+                 look_at = [0.5, 0.5, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 1.0\n\
+                 [image]\nwidth = 64\nheight = 64\nspp = 4\n\
+                 [[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
+                 tangent = [1.0, 0.0, 0.0]\nmaterial = \"{kind}.toml\"\n\
+                 [[light]]\nkind = \"directional\"\ndirection = [-0.5, 0.3, 0.8]\n\
+                 irradiance = [2.0, 2.0, 2.0]\n"
+            ),
+        )
+        .unwrap();
+        let scene = Scene::from_toml_file(&scene, &resolver).unwrap();
+        let pic = render(&scene, &RenderOptions::default(), None);
+        let (w, h) = (pic.width(), pic.height());
+        // Mean over a half of the picture of each row's standard deviation of luminance, over
+        // the mean luminance (rows 2 px away from the middle and the edges, where pixels mix
+        // the halves or wrap).
+        let spread = |rows: std::ops::Range<u32>| {
+            let mut sum = 0.0;
+            let mut all = 0.0;
+            for y in rows {
+                let l: Vec<f64> = (0..w)
+                    .map(|x| {
+                        let p = pic.get(x, y);
+                        f64::from(p[0] + p[1] + p[2])
+                    })
+                    .collect();
+                let m = l.iter().sum::<f64>() / f64::from(w);
+                let v = l.iter().map(|a| (a - m) * (a - m)).sum::<f64>() / f64::from(w);
+                sum += v.sqrt();
+                all += m;
+            }
+            sum / all.max(1e-30)
+        };
+        let (top, bottom) = (spread(2..h / 2 - 2), spread(h / 2 + 2..h - 2));
+        eprintln!("{kind}: relative spread along rows, top half {top:.4}, bottom half {bottom:.4}");
+        assert!(
+            top > 0.05 && top > 10.0 * bottom,
+            "{kind}: the bumps (top of the image file) are not at the top of the picture: \
+             spread top {top}, bottom {bottom}"
+        );
+    }
+}

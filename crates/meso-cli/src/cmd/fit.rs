@@ -59,7 +59,9 @@ pub enum AxesArg {
     Free,
 }
 
-/// Fit a measured BRDF with K Phong peaks and write a meso material.
+/// Fit a measured BRDF with a sum of K lobes (Phong peaks, or GGX / Beckmann / Student-t lobes;
+/// by default every family is fitted and the best on held-out data kept) or with a
+/// non-parametric NDF (`--nonparametric`), and write a meso material.
 ///
 /// DATA is a MERL binary (detected by its header or size) or a CSV of samples with the header
 /// `theta_i,phi_i,theta_o,phi_o,r,g,b` (degrees, BRDF in 1/sr). The report (stdout) gives the
