@@ -425,18 +425,10 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
     table.write(&merl).unwrap();
     let s = |p: &Path| p.to_str().unwrap().to_owned();
 
-    // The default transfer (auto) with --lobes auto: three families tried, GGX lobes kept, 2 lobes.
+    // The defaults, transfer auto and lobes auto (no --lobes given): three families tried, GGX
+    // lobes kept, 2 lobes.
     let out = dir.join("auto.toml");
-    let o = meso(&[
-        "fit",
-        &s(&merl),
-        "--lobes",
-        "auto",
-        "--samples",
-        "8000",
-        "--out",
-        &s(&out),
-    ]);
+    let o = meso(&["fit", &s(&merl), "--samples", "8000", "--out", &s(&out)]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         o.status.success(),

@@ -71,9 +71,9 @@ pub enum AxesArg {
 pub struct Args {
     /// Measured data: MERL binary or sample CSV.
     pub data: PathBuf,
-    /// Number of lobes (1–6), or `auto`: up to 6, stopping when one more lobe lowers the
-    /// held-out error by less than 1 % or 1e-4.
-    #[arg(long, value_parser = parse_lobes, required_unless_present = "nonparametric")]
+    /// Number of lobes (1–6), or `auto` (the default when not given): up to 6, stopping when
+    /// one more lobe lowers the held-out error by less than 1 % or 1e-4.
+    #[arg(long, value_parser = parse_lobes)]
     pub lobes: Option<LobeCount>,
     /// Fit the non-parametric NDF instead of lobes: the NDF tabulated in θm from the
     /// back-scattering cells of a MERL table, or over (θm, φm) from the back-scattering samples
@@ -183,8 +183,7 @@ pub fn run(a: Args) -> Result<()> {
     let t0 = Instant::now();
     let (k, auto_k) = match a.lobes {
         Some(LobeCount::Fixed(k)) => (k as usize, false),
-        Some(LobeCount::Auto) => (meso_measured::job::AUTO_LOBES_MAX, true),
-        None => bail!("--lobes is needed (a number or `auto`), or --nonparametric"),
+        Some(LobeCount::Auto) | None => (meso_measured::job::AUTO_LOBES_MAX, true),
     };
     let paths = out_paths(&a.out, a.per_channel_lobes);
     check_outputs(&a, &paths)?;
