@@ -57,7 +57,7 @@ fn parse_lobes(lobes: &Bound<'_, PyAny>) -> PyResult<(u32, bool)> {
     }
 }
 
-/// `lobes`: a number 1–6 (default 3) or `"auto"`.
+/// `lobes`: a number 1–6 or `"auto"` (the default, as `meso fit`'s).
 fn options(
     lobes: Option<&Bound<'_, PyAny>>,
     transfer: &str,
@@ -67,7 +67,7 @@ fn options(
     let (lobes, auto_k) = if let Some(lobes) = lobes {
         parse_lobes(lobes)?
     } else {
-        (3, false)
+        (job::AUTO_LOBES_MAX as u32, true)
     };
     let transfers = match transfer {
         "auto" => Transfer::ALL.to_vec(),
@@ -184,7 +184,7 @@ fn finish(py: Python<'_>, f: FitReport, out: Option<PathBuf>) -> PyResult<(Mater
     Ok((material, d.unbind()))
 }
 
-/// Fit a measured BRDF with `lobes` Phong peaks, as `meso fit DATA --lobes K --transfer T
+/// Fit a measured BRDF with a sum of `lobes` lobes (default `"auto"`), as `meso fit DATA --lobes K --transfer T
 /// --metric M --axes A`: `data` is a MERL binary or a sample CSV (`theta_i,phi_i,theta_o,phi_o,
 /// r,g,b`). Returns `(material, report)`; `report` holds the data's description, the number of
 /// lobes, the transfer family kept (`transfer = "auto"` fits both and keeps the one with the lower

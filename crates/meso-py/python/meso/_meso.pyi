@@ -175,7 +175,7 @@ def set_memory_budget(size: Union[int, str]) -> None:
 
 def fit(
     data: _Path,
-    lobes: Union[int, str] = 3,
+    lobes: Union[int, str] = "auto",
     transfer: str = "auto",
     metric: str = "both",
     axes: str = "auto",
@@ -207,7 +207,7 @@ def fit_samples(
     wi: _Array,
     wo: _Array,
     values: _Array,
-    lobes: Union[int, str] = 3,
+    lobes: Union[int, str] = "auto",
     transfer: str = "auto",
     metric: str = "both",
     axes: str = "auto",

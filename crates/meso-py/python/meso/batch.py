@@ -140,7 +140,7 @@ OPERATIONS: Dict[str, Operation] = {
     "fit": Operation(
         "fit",
         {
-            "lobes": ("lobes", 3),
+            "lobes": ("lobes", "auto"),
             "transfer": (str, "auto"),
             "metric": (str, "both"),
             "axes": (str, "auto"),
