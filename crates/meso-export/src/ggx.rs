@@ -42,7 +42,12 @@ pub fn roughness_to_alpha(r: f64) -> f64 {
 /// GGX normal distribution `D(h)` (1/sr) about the unit normal `n`, width `alpha`.
 #[must_use]
 pub fn d_ggx(n: DVec3, h: DVec3, alpha: f64) -> f64 {
-    let c = n.dot(h);
+    d_ggx_cos(n.dot(h), alpha)
+}
+
+/// [`d_ggx`] of the cosine `c = n·h`.
+#[inline]
+fn d_ggx_cos(c: f64, alpha: f64) -> f64 {
     if c <= 0.0 {
         return 0.0;
     }
@@ -64,17 +69,28 @@ fn lambda(c: f64, alpha: f64) -> f64 {
 /// horizon of `n`. `n`, `l`, `v` are unit vectors; `l` points to the light, `v` to the viewer.
 #[must_use]
 pub fn shaded(n: DVec3, alpha: f64, l: DVec3, v: DVec3) -> f64 {
+    cosines(n, l, v, (l + v).normalize_or_zero()).map_or(0.0, |c| shaded_cos(c, alpha))
+}
+
+/// What [`shaded`] reads of the geometry, which does not depend on the width: `[n·l, n·v, n·h]`
+/// for the normal `n`, the pair `(l, v)` and its half vector `h` (unit, or zero when `l = −v`);
+/// `None` where the shaded lobe is 0 at every width (either direction below the horizon of
+/// `n`, or no half vector). The searches over α compute it once per pair.
+#[inline]
+fn cosines(n: DVec3, l: DVec3, v: DVec3, h: DVec3) -> Option<[f64; 3]> {
     let nl = n.dot(l);
     let nv = n.dot(v);
-    if nl <= 0.0 || nv <= 0.0 {
-        return 0.0;
+    if nl <= 0.0 || nv <= 0.0 || h == DVec3::ZERO {
+        return None;
     }
-    let h = (l + v).normalize_or_zero();
-    if h == DVec3::ZERO {
-        return 0.0;
-    }
+    Some([nl, nv, n.dot(h)])
+}
+
+/// [`shaded`] from its [`cosines`] (the same operations in the same order, so the same bits).
+#[inline]
+fn shaded_cos([nl, nv, c]: [f64; 3], alpha: f64) -> f64 {
     let g2 = 1.0 / (1.0 + lambda(nl, alpha) + lambda(nv, alpha));
-    d_ggx(n, h, alpha) * g2 / (4.0 * nv)
+    d_ggx_cos(c, alpha) * g2 / (4.0 * nv)
 }
 
 /// An anisotropic GGX lobe with its frame resolved (see the module's conventions).
@@ -266,9 +282,14 @@ pub fn direction_pairs_with(nbar: DVec3, width: f64, half_phis_deg: &[f64]) -> V
 #[must_use]
 pub fn average_shaded(fine: &[FineTexel], pairs: &[(DVec3, DVec3)]) -> Vec<f64> {
     let mut acc = vec![0.0; pairs.len()];
+    // The half vectors once per pair, not once per pair and fine texel.
+    let halves: Vec<DVec3> = pairs
+        .iter()
+        .map(|&(l, v)| (l + v).normalize_or_zero())
+        .collect();
     for t in fine {
-        for (a, &(l, v)) in acc.iter_mut().zip(pairs) {
-            *a += shaded(t.normal, t.alpha, l, v);
+        for ((a, &(l, v)), &h) in acc.iter_mut().zip(pairs).zip(&halves) {
+            *a += cosines(t.normal, l, v, h).map_or(0.0, |c| shaded_cos(c, t.alpha));
         }
     }
     let n = fine.len().max(1) as f64;
@@ -291,18 +312,23 @@ pub fn rms_error_of(
     pairs: &[(DVec3, DVec3)],
     model: impl Fn(DVec3, DVec3) -> f64,
 ) -> f64 {
-    if pairs.is_empty() {
+    rms_of(target, pairs.iter().map(|&(l, v)| model(l, v)), pairs.len())
+}
+
+/// `√(Σ (target − value)² / count)` over `target` and `values` in step; 0 for `count = 0`.
+fn rms_of(target: &[f64], values: impl Iterator<Item = f64>, count: usize) -> f64 {
+    if count == 0 {
         return 0.0;
     }
     let s: f64 = target
         .iter()
-        .zip(pairs)
-        .map(|(t, &(l, v))| {
-            let d = t - model(l, v);
+        .zip(values)
+        .map(|(t, m)| {
+            let d = t - m;
             d * d
         })
         .sum();
-    (s / pairs.len() as f64).sqrt()
+    (s / count as f64).sqrt()
 }
 
 /// The outcome of fitting one coarse texel.
@@ -378,7 +404,21 @@ pub fn fit_alpha(fine: &[FineTexel], nbar: DVec3) -> AlphaFit {
 #[must_use]
 pub fn fit_alpha_on(target: &[f64], nbar: DVec3, pairs: &[(DVec3, DVec3)]) -> AlphaFit {
     let peak = target.iter().copied().fold(0.0, f64::max);
-    let (alpha, rms) = minimise_alpha(MIN_ALPHA, 1.0, |a| rms_error(target, nbar, a, pairs));
+    // The lobe's geometry once per pair; each of the search's ≈ 54 widths then costs two square
+    // roots and a few products per pair. The same numbers as `rms_error` (its operations, in
+    // its order).
+    let cos: Vec<Option<[f64; 3]>> = pairs
+        .iter()
+        .map(|&(l, v)| cosines(nbar, l, v, (l + v).normalize_or_zero()))
+        .collect();
+    let err = |a: f64| {
+        rms_of(
+            target,
+            cos.iter().map(|c| c.map_or(0.0, |c| shaded_cos(c, a))),
+            cos.len(),
+        )
+    };
+    let (alpha, rms) = minimise_alpha(MIN_ALPHA, 1.0, err);
     AlphaFit { alpha, rms, peak }
 }
 
