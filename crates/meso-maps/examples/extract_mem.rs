@@ -53,5 +53,5 @@ fn main() {
     );
     drop(map);
     let bytes = pyr.to_bytes();
-    println!("its format-3 map file: {:.1} MB", mb(bytes.len()));
+    println!("its map file (format 4): {:.1} MB", mb(bytes.len()));
 }

@@ -1,7 +1,8 @@
-//! Map-file sizes, format 2 against format 3 (docs/benchmarks.md, "Map file sizes"): extract
-//! a pyramid (K ≤ 4, default parameters) from a height map, a normal map or a generated 1024²
-//! height map written as a 16-bit PNG, write it in both formats and print the bytes, the ratio
-//! to the input file, each format-3 stream and the write and read times.
+//! Map-file sizes (docs/benchmarks.md, "Map file sizes"): extract a pyramid (K ≤ 4, default
+//! parameters) from a height map, a normal map or a generated 1024² height map written as a
+//! 16-bit PNG, write it as a map file (format 4, the one written) and print the bytes, the ratio
+//! to the input file, each stream summed over the bands, what the quantisation moved and the
+//! write and read times.
 //!
 //! ```text
 //! cargo run --release -p meso-maps --example map_sizes -- height FILE TEXEL_SIZE HEIGHT_SCALE
@@ -52,18 +53,13 @@ fn main() {
     };
     let extract_s = t.elapsed().as_secs_f64();
     let input = std::fs::metadata(&file).unwrap().len();
-    let mut v2 = Vec::new();
-    pyramid.write_v2_to(&mut v2).unwrap();
     let t = Instant::now();
-    let v3 = pyramid.to_bytes();
+    let v4 = pyramid.to_bytes();
     let write_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let back = Pyramid::from_bytes(Path::new("<v3>"), &v3).unwrap();
-    let read3_s = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    Pyramid::from_bytes(Path::new("<v2>"), &v2).unwrap();
-    let read2_s = t.elapsed().as_secs_f64();
-    // What the quantisation moved (format 3 against the pyramid as extracted).
+    let back = Pyramid::from_bytes(Path::new("<v4>"), &v4).unwrap();
+    let read_s = t.elapsed().as_secs_f64();
+    // What the quantisation moved (the file read back against the pyramid as extracted).
     let (mut axis, mut weight, mut eta) = (0.0f64, 0.0f64, 0.0f64);
     for (a, b) in pyramid.levels.iter().zip(&back.levels) {
         assert_eq!(a.lobe_start, b.lobe_start);
@@ -95,22 +91,14 @@ fn main() {
     );
     println!("input file        {input:>12} bytes");
     println!(
-        "format 2          {:>12} bytes  {:>6.1}x input",
-        v2.len(),
-        v2.len() as f64 / input as f64
+        "format 4          {:>12} bytes  {:>6.2}x input",
+        v4.len(),
+        v4.len() as f64 / input as f64
     );
     println!(
-        "format 3          {:>12} bytes  {:>6.2}x input  ({:.1}x smaller than format 2)",
-        v3.len(),
-        v3.len() as f64 / input as f64,
-        v2.len() as f64 / v3.len() as f64
-    );
-    println!(
-        "write v3 {write_s:.2} s, read v3 {read3_s:.2} s, read v2 {read2_s:.2} s; \
-         round trip: {} levels",
+        "write {write_s:.2} s, read {read_s:.2} s; round trip: {} levels",
         back.levels.len()
     );
-    // The streams (docs/map-format.md): after the 48-byte header and the level table.
     let names = [
         "lobe counts",
         "lobe axes",
@@ -119,18 +107,38 @@ fn main() {
         "horizon weights",
         "horizon angles",
     ];
-    let mut pos = 48 + 36 * pyramid.levels.len();
-    while pos < v3.len() {
-        let h = &v3[pos..pos + 20];
-        let raw = u64::from_le_bytes(h[4..12].try_into().unwrap());
-        let comp = u64::from_le_bytes(h[12..20].try_into().unwrap());
+    // The streams of every band (docs/map-format.md), summed by stream.
+    let n = if pyramid.levels[0].horizon.is_some() {
+        6
+    } else {
+        4
+    };
+    let (mut sums, mut bands, mut overhead) = ([(0u64, 0u64); 6], 0, 48u64);
+    let mut pos = 48;
+    while pos < v4.len() {
+        if &v4[pos..pos + 4] == b"LEND" {
+            pos += 52;
+            overhead += 52;
+            continue;
+        }
+        bands += 1;
+        pos += 20;
+        overhead += 20;
+        for sum in sums.iter_mut().take(n) {
+            let h = &v4[pos..pos + 20];
+            sum.0 += u64::from_le_bytes(h[4..12].try_into().unwrap());
+            let c = u64::from_le_bytes(h[12..20].try_into().unwrap());
+            sum.1 += c;
+            overhead += 20;
+            pos += 20 + c as usize;
+        }
+    }
+    println!("format 4: {bands} bands, {overhead} bytes of headers and end records");
+    for (name, (raw, comp)) in names.iter().zip(sums).take(n) {
         println!(
-            "  stream {:<16} filter {}  raw {raw:>10}  compressed {comp:>10}  ({:.1} bytes/texel)",
-            names[h[0] as usize],
-            h[1],
+            "  stream {name:<16} raw {raw:>10}  compressed {comp:>10}  ({:.1} bytes/texel)",
             comp as f64 / texels as f64
         );
-        pos += 20 + comp as usize;
     }
 }
 

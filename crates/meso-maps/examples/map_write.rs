@@ -1,5 +1,5 @@
-//! Time of writing a pyramid as a map file (format 3: quantised streams, deflated), apart from
-//! the extraction: a Gaussian random surface (the map of `extract_bench`) extracted once, then
+//! Time of writing a pyramid as a map file (format 4: quantised streams per band, deflated),
+//! apart from the extraction: a Gaussian random surface (the map of `extract_bench`) extracted once, then
 //! `Pyramid::to_bytes` three times, each with its size, wall time and CPU time
 //! (docs/benchmarks.md, "Writing map files").
 //!

@@ -22,12 +22,16 @@ pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 pub(crate) use v4::{check_band, write_band, write_level_end};
 pub use v4::{BAND_ROWS, VERSION_4};
 
-/// The format version written by this build: 3, quantised and compressed (`docs/map-format.md`).
-/// Versions 2 (uncompressed `f32`), 3 and 4 (format 3's streams in bands of rows, written by the
-/// streamed extraction, [`crate::pyramid::extract_to_file`], and by [`Pyramid::write_v4_to`])
-/// are read; version 1 stored projected-area lobe weights and is refused.
-pub const VERSION: u32 = v3::VERSION_3;
-/// The previous version, still read (and written by [`Pyramid::write_v2_to`]).
+/// The format version written by this build: 4 ([`VERSION_4`], `docs/map-format.md`): version
+/// 3's quantised, deflated streams per band of [`BAND_ROWS`] rows, then each level's end record
+/// ([`Pyramid::write`], [`Pyramid::to_bytes`], the pyramid cache and the streamed extraction,
+/// [`crate::pyramid::extract_to_file`], all write it). Versions 2 (uncompressed `f32`),
+/// [`VERSION_3`] and 4 are read; version 1 stored projected-area lobe weights and is refused.
+pub const VERSION: u32 = VERSION_4;
+/// Version 3 (quantised and compressed, one set of streams for the whole pyramid): read, no
+/// longer written.
+pub const VERSION_3: u32 = v3::VERSION_3;
+/// Version 2 (uncompressed `f32`): read, no longer written.
 pub const VERSION_2: u32 = 2;
 const LOBE_BYTES: u64 = 20;
 const HORIZON_BYTES: u64 = 36;
@@ -40,25 +44,24 @@ fn put_u32(w: &mut dyn Write, v: u32) -> std::io::Result<()> {
 fn put_f64(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
     w.write_all(&v.to_le_bytes())
 }
-fn put_f32(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
-    w.write_all(&(v as f32).to_le_bytes())
-}
 
 /// The estimated peak memory (bytes) of reading a map file of `file_bytes` bytes, before its
 /// header is read: for version 2 the file itself and the pyramid, whose lobes (20 bytes in the
 /// file, 40 in memory) and horizon statistics (36 and 72) take twice their file size: 3× the
 /// file, measured 3.0× (`meso map info` on a 120 MB map: 359 MB peak RSS), estimated 4× for a
-/// margin. A version-3 file inflates to more than this; its exact need (pyramid and streams,
-/// from the level table) is checked against the budget by [`Pyramid::from_bytes`] before any
-/// stream is inflated.
+/// margin. A version-3 or version-4 file inflates to more than this; its exact need (pyramid
+/// and streams, from the level table or the level end records) is checked against the budget
+/// by [`Pyramid::from_bytes`] before any stream is inflated.
 #[must_use]
 pub fn read_bytes(file_bytes: u64) -> u64 {
     file_bytes.saturating_mul(4)
 }
 
 impl Pyramid {
-    /// Serialise into a writer in the current format ([`VERSION`] 3, `docs/map-format.md`):
-    /// lobes and horizon statistics quantised to 16 bits, deflate-compressed.
+    /// Serialise into a writer in the current format ([`VERSION`] 4, `docs/map-format.md`):
+    /// lobes and horizon statistics quantised to 16 bits and deflated, per band of
+    /// [`BAND_ROWS`] rows of each level, then the level's end record; the bytes the streamed
+    /// extraction ([`crate::pyramid::extract_to_file`]) writes for the same pyramid.
     ///
     /// # Errors
     /// The writer's errors, and `InvalidData` naming the problem when the pyramid holds a value
@@ -67,15 +70,8 @@ impl Pyramid {
         if let Some(why) = v3::unstorable(self) {
             return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, why));
         }
-        self.write_header(w, VERSION)?;
-        v3::write_levels(self, w)?;
-        v3::write_shading(self, w)
-    }
-
-    /// The 48 bytes shared by every version.
-    fn write_header(&self, w: &mut dyn Write, version: u32) -> std::io::Result<()> {
         Header {
-            version,
+            version: VERSION,
             width: self.width,
             height: self.height,
             cols: self.levels[0].cols,
@@ -87,69 +83,12 @@ impl Pyramid {
             max_lobes: self.max_lobes,
             nlev: self.levels.len(),
         }
-        .write(w)
-    }
-
-    /// Serialise in format version 4 ([`VERSION_4`], `docs/map-format.md`): format 3's streams
-    /// per band of [`BAND_ROWS`] rows of each level, then the level's end record; the bytes the
-    /// streamed extraction ([`crate::pyramid::extract_to_file`]) writes for the same pyramid.
-    ///
-    /// # Errors
-    /// As [`Pyramid::write_to`].
-    pub fn write_v4_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
-        if let Some(why) = v3::unstorable(self) {
-            return Err(std::io::Error::new(std::io::ErrorKind::InvalidData, why));
-        }
-        self.write_header(w, VERSION_4)?;
+        .write(w)?;
         v4::write_levels(self, w)
     }
 
-    /// Serialise in the previous format, version 2 (uncompressed `f32`, 20 bytes per lobe and
-    /// 36 per texel of horizon statistics): kept to compare sizes and to test that version-2
-    /// files still read. Values are written as they are (a reader refuses non-finite ones).
-    ///
-    /// # Errors
-    /// The writer's errors.
-    pub fn write_v2_to(&self, w: &mut dyn Write) -> std::io::Result<()> {
-        self.write_header(w, VERSION_2)?;
-        for l in &self.levels {
-            put_u32(w, l.cols as u32)?;
-            put_u32(w, l.rows as u32)?;
-            put_u32(w, l.span as u32)?;
-            put_u32(w, l.lobes.len() as u32)?;
-            put_f64(w, l.residual.mean)?;
-            put_f64(w, l.residual.max)?;
-            put_u32(w, l.residual.texels)?;
-            let counts: Vec<u8> = l
-                .lobe_start
-                .windows(2)
-                .map(|p| (p[1] - p[0]) as u8)
-                .collect();
-            w.write_all(&counts)?;
-            for lobe in &l.lobes {
-                put_f32(w, lobe.axis.x)?;
-                put_f32(w, lobe.axis.y)?;
-                put_f32(w, lobe.axis.z)?;
-                put_f32(w, lobe.weight)?;
-                put_f32(w, lobe.exponent)?;
-            }
-            if let Some(h) = &l.horizon {
-                for s in h.iter() {
-                    put_f32(w, s.weight)?;
-                    for d in 0..4 {
-                        put_f32(w, s.mean[d])?;
-                    }
-                    for d in 0..4 {
-                        put_f32(w, s.var[d])?;
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// The map file as bytes (current format); empty when the pyramid holds a value a map
-    /// file cannot (see [`Pyramid::write_to`]), which every reader refuses.
+    /// The map file as bytes ([`Pyramid::write_to`]); empty when the pyramid holds a value a
+    /// map file cannot, which every reader refuses.
     #[must_use]
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut v = Vec::new();
@@ -159,49 +98,29 @@ impl Pyramid {
         v
     }
 
-    /// Write the map file atomically (`meso_core::io::write_atomic_with`): on error no partial
-    /// file is left. The pyramid is checked first and the bytes are validated by the reader
-    /// ([`Pyramid::from_bytes`]), so a written map always reads back (a pyramid with NaN lobes,
+    /// Write the map file ([`Pyramid::write_to`]: the bytes `meso extract` writes for the same
+    /// pyramid) atomically (`meso_core::io::write_atomic`): on error no partial file is left.
+    /// The pyramid is checked first and the bytes are validated by the reader
+    /// ([`Pyramid::check_bytes`]), so a written map always reads back (a pyramid with NaN lobes,
     /// say from an extreme height scale, is refused here rather than written).
-    pub fn write(&self, path: &Path) -> Result<()> {
-        self.write_checked(path, |w| self.write_to(w))
-    }
-
-    /// [`Pyramid::write`] in format 4 ([`Pyramid::write_v4_to`]): the bytes the streamed
-    /// extraction (`meso extract`) writes for the same pyramid, with the same checks.
     ///
     /// # Errors
-    /// As [`Pyramid::write`].
-    pub fn write_v4(&self, path: &Path) -> Result<()> {
-        self.write_checked(path, |w| self.write_v4_to(w))
-    }
-
-    /// The checks and the atomic write of [`Pyramid::write`], for the bytes `encode` writes.
-    fn write_checked(
-        &self,
-        path: &Path,
-        encode: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
-    ) -> Result<()> {
-        if let Some(why) = v3::unstorable(self) {
-            return Err(MapError::MapFormat {
-                path: path.to_path_buf(),
-                message: format!("not written: the map would be invalid ({why})"),
-            });
-        }
-        let mut bytes = Vec::new();
-        encode(&mut bytes).map_err(|e| MapError::MapFormat {
+    /// `MapError::MapFormat` ("not written: …") for a pyramid a map file cannot hold, and
+    /// `MapError::Write` when the file cannot be written.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let invalid = |why: String| MapError::MapFormat {
             path: path.to_path_buf(),
-            message: format!("not written: the map would be invalid ({e})"),
-        })?;
+            message: format!("not written: the map would be invalid ({why})"),
+        };
+        // `write_to` checks the pyramid first (`InvalidData` naming the value).
+        let mut bytes = Vec::new();
+        self.write_to(&mut bytes)
+            .map_err(|e| invalid(e.to_string()))?;
         if let Err(e) = Pyramid::check_bytes(path, &bytes) {
-            let why = match e {
+            return Err(invalid(match e {
                 MapError::MapFormat { message, .. } => message,
                 e => e.to_string(),
-            };
-            return Err(MapError::MapFormat {
-                path: path.to_path_buf(),
-                message: format!("not written: the map would be invalid ({why})"),
-            });
+            }));
         }
         meso_core::io::write_atomic(path, &bytes).map_err(|e| MapError::Write {
             path: path.to_path_buf(),
@@ -233,7 +152,7 @@ impl Pyramid {
         let h = read_header(&mut r)?;
         let levels = if h.version == VERSION_4 {
             v4::read_levels(&mut r, &h, true)?
-        } else if h.version == VERSION {
+        } else if h.version == VERSION_3 {
             let mut levels = v3::read_levels(&mut r, &h)?;
             if let Some(sh) = v3::read_shading(&mut r, h.nlev)? {
                 for (l, (m, x)) in levels.iter_mut().zip(sh) {
@@ -252,9 +171,10 @@ impl Pyramid {
     }
 
     /// Check a map file's bytes as [`Pyramid::from_bytes`] does — every check, the same
-    /// errors — without building the pyramid: a format-3 file's streams are inflated and
-    /// decoded one at a time and dropped (what [`Pyramid::write`] runs on the bytes it is about
-    /// to write, at a fraction of a second pyramid's memory).
+    /// errors — without building the pyramid: a format-3 or format-4 file's streams are inflated
+    /// and decoded one at a time (format 4: one band at a time) and dropped (what
+    /// [`Pyramid::write`] runs on the bytes it is about to write, at a fraction of a second
+    /// pyramid's memory).
     ///
     /// # Errors
     /// As [`Pyramid::from_bytes`].
@@ -267,7 +187,7 @@ impl Pyramid {
         let h = read_header(&mut r)?;
         if h.version == VERSION_4 {
             v4::read_levels(&mut r, &h, false)?;
-        } else if h.version == VERSION {
+        } else if h.version == VERSION_3 {
             v3::check_levels(&mut r, &h)?;
             v3::read_shading(&mut r, h.nlev)?;
         } else {
@@ -342,11 +262,11 @@ fn read_header(r: &mut Reader<'_>) -> Result<Header> {
         return Err(r.err("not a meso map file (bad magic bytes)".into()));
     }
     let version = r.u32("version")?;
-    if version != VERSION && version != VERSION_2 && version != VERSION_4 {
+    if version != VERSION_2 && version != VERSION_3 && version != VERSION_4 {
         return Err(MapError::MapVersion {
             path: r.path.clone(),
             found: version,
-            expected: VERSION_4,
+            expected: VERSION,
         });
     }
     let width = r.u32("width")? as usize;

@@ -10,16 +10,16 @@
 //!   ([`crate::disk_cache::prune`]).
 //! * The key of a height map ([`key`]): SHA-256 of the file's bytes, the texel size, height
 //!   scale and border of the map, every extraction parameter ([`ExtractParams`], lobe fit
-//!   included), the map format version ([`crate::format::VERSION`]), [`FORMAT`] and this
-//!   crate's version. The key of a normal map ([`normal_key`]): the same with the green-channel
+//!   included), [`KEY_MAP_VERSION`], [`FORMAT`] and this crate's version. The key of a normal map ([`normal_key`]): the same with the green-channel
 //!   convention in place of the texel size, height scale and border, in a separate domain (a
 //!   file's bytes never give the same key as a height map and as a normal map).
-//! * The file `pyramid-<key>.bin`: the map file's bytes (`docs/map-format.md`) sealed by
-//!   [`crate::disk_cache`] (magic, format, key, SHA-256), written atomically. A damaged,
-//!   truncated or foreign file is ignored and rebuilt, never an error.
+//! * The file `pyramid-<key>.bin`: the map file's bytes (`docs/map-format.md`; written in
+//!   version 4, [`crate::format::VERSION`], entries of version 3 written by earlier builds still
+//!   read) sealed by [`crate::disk_cache`] (magic, format, key, SHA-256), written atomically. A
+//!   damaged, truncated or foreign file is ignored and rebuilt, never an error.
 //!
 //! A pyramid from [`pyramid_cached`] or [`normal_pyramid_cached`] is always the one the map
-//! file stores (lobes and horizon statistics quantised, format 3), built or read back: the
+//! file stores (lobes and horizon statistics quantised, format 4), built or read back: the
 //! first run, the cached runs and a `.map` written by `meso extract` with the same parameters
 //! give the same pyramid, bit for bit.
 
@@ -32,6 +32,11 @@ use std::path::Path;
 pub const FORMAT: u32 = 3;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
+/// The map format version hashed into every key: 3, the version the cache wrote until
+/// 2026-12-04. It now writes version 4 ([`crate::format::VERSION`]), which stores the same codes
+/// and reads back to the very pyramid version 3 does (`tests/map_format_v3.rs`), so the keys
+/// stay and an entry of either version answers: a cache filled by an earlier build still opens.
+pub const KEY_MAP_VERSION: u32 = 3;
 /// Bytes of [`crate::disk_cache::header`]: magic, format, key.
 const HEADER: usize = 8 + 4 + 32;
 
@@ -72,7 +77,7 @@ fn hash_key(tag: &[u8], fields: &[u8], params: &ExtractParams, file_bytes: &[u8]
     h.update(tag);
     h.update(env!("CARGO_PKG_VERSION").as_bytes());
     h.update(FORMAT.to_le_bytes());
-    h.update(crate::format::VERSION.to_le_bytes());
+    h.update(KEY_MAP_VERSION.to_le_bytes());
     h.update(fields);
     let p = format!("{params:?}");
     h.update((p.len() as u64).to_le_bytes());

@@ -1,10 +1,12 @@
-//! Map format 4 and the streamed extraction (docs/map-format.md): the file `extract_to_file`
-//! streams band by band holds the bytes `Pyramid::write_v4_to` writes for the pyramid `extract`
-//! returns, and reads back to the same pyramid as that pyramid written in format 3; a damaged
-//! file is refused with an error naming the problem (never a panic); a failed extraction leaves
-//! no output and nothing of an existing file changed.
+//! Map format 4, the one written, and the streamed extraction (docs/map-format.md): the file
+//! `extract_to_file` streams band by band holds the bytes `Pyramid::write_to` (`write`,
+//! `to_bytes`) writes for the pyramid `extract` returns, and reads back to a pyramid that writes
+//! the same bytes again (that a version-3 file reads back to the same pyramid as its version-4
+//! re-encoding: `tests/map_format_v3.rs`); a damaged file is refused with an error naming the
+//! problem (never a panic); a pyramid a map file cannot hold is not written; a failed
+//! extraction leaves no output and nothing of an existing file changed.
 
-use meso_maps::format::{BAND_ROWS, VERSION_4};
+use meso_maps::format::{BAND_ROWS, VERSION, VERSION_4};
 use meso_maps::{
     extract, extract_to_file, extract_to_writer, fixtures, ExtractParams, MapError, Pyramid, Source,
 };
@@ -45,7 +47,9 @@ fn streamed_extraction_matches_the_pyramid_in_memory_and_damage_is_refused() {
     assert_eq!(last.levels_done, p.levels.len());
     assert_eq!(last.work_done, last.work_total);
     let mut v4 = Vec::new();
-    p.write_v4_to(&mut v4).unwrap();
+    p.write_to(&mut v4).unwrap();
+    assert_eq!(VERSION, VERSION_4, "the version written");
+    assert!(p.to_bytes() == v4, "to_bytes and write_to differ");
     assert_eq!(
         u32::from_le_bytes(streamed[8..12].try_into().unwrap()),
         VERSION_4
@@ -60,12 +64,13 @@ fn streamed_extraction_matches_the_pyramid_in_memory_and_damage_is_refused() {
         assert_eq!(s.residual, l.residual);
     }
 
-    // It reads back as the pyramid written in format 3 and read back does.
-    let from_v3 = Pyramid::from_bytes(&path, &p.to_bytes()).unwrap();
+    // It reads back to a pyramid that writes the same bytes again (level 0, of 65 536 texels,
+    // is kept in `f32`).
     let from_v4 = Pyramid::from_bytes(&path, &streamed).unwrap();
+    assert!(from_v4.levels[0].lobes.is_compact());
     assert!(
-        from_v4 == from_v3,
-        "format 4 reads back differently from format 3"
+        from_v4.to_bytes() == streamed,
+        "the pyramid read back writes other bytes"
     );
     Pyramid::check_bytes(&path, &streamed).unwrap();
 
@@ -73,7 +78,11 @@ fn streamed_extraction_matches_the_pyramid_in_memory_and_damage_is_refused() {
     let _ = std::fs::remove_file(&path);
     extract_to_file(Source::Heights(&map), &params, &path, &mut |_| {}).unwrap();
     assert!(std::fs::read(&path).unwrap() == streamed);
-    assert!(Pyramid::read(&path).unwrap() == from_v3);
+    assert!(Pyramid::read(&path).unwrap() == from_v4);
+    // And so does `Pyramid::write`.
+    let written = tmp("written.map");
+    p.write(&written).unwrap();
+    assert!(std::fs::read(&written).unwrap() == streamed);
 
     damaged_files_are_refused(&path, &streamed, &p);
     // In the same test: the budget set above is global to the binary.
@@ -170,6 +179,7 @@ fn damaged_files_are_refused(path: &Path, good: &[u8], p: &Pyramid) {
         e.contains("truncated") || e.contains("decompression bomb"),
         "{e}"
     );
+    stream_contents_are_checked(path, good, p, a0);
     // A level end whose lobe count is not its bands'.
     let end0 = ch.iter().find(|c| &c.1 == b"LEND").unwrap().0;
     let mut b = good.to_vec();
@@ -199,6 +209,98 @@ fn damaged_files_are_refused(path: &Path, good: &[u8], p: &Pyramid) {
         let _ = Pyramid::from_bytes(path, &b);
         let _ = Pyramid::check_bytes(path, &b);
     }
+}
+
+fn deflate(raw: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut e = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(raw).unwrap();
+    e.finish().unwrap()
+}
+
+/// `good` with stream `s` of the band at `band` replaced by `comp` (filter 0, raw length as
+/// given).
+fn replace_stream(good: &[u8], band: usize, s: usize, raw_len: usize, comp: &[u8]) -> Vec<u8> {
+    let mut pos = band + 20;
+    for _ in 0..s {
+        pos += 20 + u64::from_le_bytes(good[pos + 12..pos + 20].try_into().unwrap()) as usize;
+    }
+    let len = u64::from_le_bytes(good[pos + 12..pos + 20].try_into().unwrap()) as usize;
+    let mut out = good[..pos].to_vec();
+    out.extend_from_slice(&[s as u8, 0, 0, 0]);
+    out.extend_from_slice(&(raw_len as u64).to_le_bytes());
+    out.extend_from_slice(&(comp.len() as u64).to_le_bytes());
+    out.extend_from_slice(comp);
+    out.extend_from_slice(&good[pos + 20 + len..]);
+    out
+}
+
+/// The checks of a stream's contents (shared with version 3), on the first band (at `a0`, the
+/// first `BAND_ROWS` rows of level 0 of `p`): inflating to more or fewer bytes than its header
+/// says, corrupt deflate data, bytes after it; values out of range (a texel with more lobes
+/// than `max_lobes`, weights all 0, a NaN horizon weight).
+fn stream_contents_are_checked(path: &Path, good: &[u8], p: &Pyramid, a0: usize) {
+    let texels = BAND_ROWS * p.levels[0].cols;
+    let lobes = u32::from_le_bytes(good[a0 + 16..a0 + 20].try_into().unwrap()) as usize;
+    let counts: Vec<u8> = p.levels[0].lobe_start[..=texels]
+        .windows(2)
+        .map(|w| (w[1] - w[0]) as u8)
+        .collect();
+    assert_eq!(counts.iter().map(|&c| c as usize).sum::<usize>(), lobes);
+    // The real counts, unfiltered: the file reads back.
+    let b = replace_stream(good, a0, 0, texels, &deflate(&counts));
+    Pyramid::from_bytes(path, &b).unwrap();
+    // A stream that inflates to more than its header says is cut at one byte more and refused.
+    let mut more = counts.clone();
+    more.extend(std::iter::repeat_n(0u8, 100_000));
+    let b = replace_stream(good, a0, 0, texels, &deflate(&more));
+    refused(path, &b, "inflates to more than");
+    // Fewer bytes, garbage, or bytes after the compressed data.
+    let b = replace_stream(good, a0, 0, texels, &deflate(&counts[1..]));
+    refused(path, &b, "inflates to");
+    let b = replace_stream(good, a0, 0, texels, &[0xff; 64]);
+    refused(path, &b, "corrupt compressed data");
+    let mut padded = deflate(&counts);
+    padded.extend_from_slice(&[0; 3]);
+    let b = replace_stream(good, a0, 0, texels, &padded);
+    refused(path, &b, "after the end of the compressed data");
+    // Out-of-range values: a texel with more lobes than max_lobes, all-zero weights, a NaN
+    // horizon weight.
+    let mut c = counts.clone();
+    c[0] = 9;
+    let b = replace_stream(good, a0, 0, texels, &deflate(&c));
+    refused(path, &b, "lobes");
+    let b = replace_stream(good, a0, 2, 2 * lobes, &deflate(&vec![0; 2 * lobes]));
+    refused(path, &b, "weights are all 0");
+    let mut hw = vec![0u8; 4 * texels];
+    hw[3 * texels] = 0xff; // the top byte plane of the first weight: a negative NaN
+    hw[2 * texels] = 0xc0;
+    let b = replace_stream(good, a0, 4, 4 * texels, &deflate(&hw));
+    refused(path, &b, "horizon weight");
+}
+
+/// A pyramid holding a value a map file cannot (a NaN exponent) is refused by the writer, naming
+/// the value, and nothing is written (`to_bytes` is empty, which every reader refuses).
+#[test]
+fn a_pyramid_with_a_nan_is_not_written() {
+    let map = fixtures::gaussian(16, 2.0, 0.1, 3, 0.1).unwrap();
+    let mut nan = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let mut bad = nan.levels[0].lobes.get(0);
+    bad.exponent = f64::NAN;
+    nan.levels[0].lobes.set(0, bad);
+    let out = tmp("nan.map");
+    let _ = std::fs::remove_file(&out);
+    let e = nan.write(&out).unwrap_err().to_string();
+    assert!(e.contains("not written") && e.contains("exponent"), "{e}");
+    assert!(!out.exists());
+    assert!(nan.to_bytes().is_empty());
+    let e = nan.write_to(&mut Vec::new()).unwrap_err();
+    assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
 }
 
 /// A writer that fails after `left` bytes.

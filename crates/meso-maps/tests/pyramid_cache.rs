@@ -1,6 +1,7 @@
 //! `meso_maps::pyramid_cache`: an extraction is stored and read back by key (the map file's
-//! pyramid, bit for bit); a changed parameter is another key; `MESO_CACHE_DIR=off` stores
-//! nothing. This binary sets `MESO_CACHE_DIR` itself (one test: the variable is global).
+//! pyramid, bit for bit, in map format 4); a changed parameter is another key; an entry of map
+//! format 3 (written by earlier builds) still answers; `MESO_CACHE_DIR=off` stores nothing.
+//! This binary sets `MESO_CACHE_DIR` itself (one test: the variable is global).
 
 use meso_maps::pyramid_cache::{entry_path, key, pyramid_cached};
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Pyramid, Source};
@@ -46,6 +47,25 @@ fn stored_read_back_keyed_and_off() {
     })
     .unwrap();
     assert!(hit && p == as_stored);
+    // The entry: its 44-byte header (magic, format, key), the map file (version 4), its seal.
+    let entry = std::fs::read(entry_path(&cache, &k)).unwrap();
+    let map = &entry[44..entry.len() - 32];
+    assert_eq!(&map[..8], b"MESOMAP\0");
+    assert_eq!(map[8..12], meso_maps::format::VERSION.to_le_bytes());
+    assert!(map == build().unwrap().to_bytes());
+    // An entry written by an earlier build (map format 3, the same key) still answers.
+    let v3 = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/heights16.v3.map");
+    let v3 = std::fs::read(v3).unwrap();
+    assert_eq!(v3[8..12], meso_maps::format::VERSION_3.to_le_bytes());
+    let mut old = entry[..44].to_vec();
+    old.extend_from_slice(&v3);
+    meso_maps::disk_cache::seal(&mut old);
+    std::fs::write(entry_path(&cache, &k), &old).unwrap();
+    let (p, hit) = pyramid_cached(&file, s, h, Border::Wrap, &params, || {
+        Err::<Pyramid, String>("must not build".into())
+    })
+    .unwrap();
+    assert!(hit && p == Pyramid::from_bytes(&file, &v3).unwrap());
     // Another parameter, another key: built again.
     let mut two = params.clone();
     two.fit.max_lobes = 2;

@@ -605,8 +605,8 @@ mod pyramid {
         assert_eq!(q.levels.len(), p.levels.len());
         for (a, b) in p.levels.iter().zip(&q.levels) {
             assert_eq!(a.lobe_start, b.lobe_start);
-            // Format 3 quantises (docs/map-format.md): axes to 2.9e-6 rad, weights to
-            // 1/65 535, exponents to 1.06e-4 (1 + 1/η) relative.
+            // The map file quantises (format 3's codes, docs/map-format.md): axes to 2.9e-6
+            // rad, weights to 1/65 535, exponents to 1.06e-4 (1 + 1/η) relative.
             for (x, y) in a.lobes.iter().zip(&b.lobes) {
                 assert!(x.axis.angle_between(y.axis) < 2.9e-6);
                 assert!((y.weight - x.weight).abs() < 1.0 / 65535.0);
@@ -616,6 +616,8 @@ mod pyramid {
         }
         assert_eq!(q.info(), p.info());
         let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(bytes, p.to_bytes());
+        assert_eq!(bytes[8..12], meso_maps::format::VERSION.to_le_bytes());
         for cut in [0, 7, 30, bytes.len() / 2, bytes.len() - 1] {
             let e = Pyramid::from_bytes(&path, &bytes[..cut]).unwrap_err();
             assert!(

@@ -173,8 +173,8 @@ pub fn extract_file(
                 meso_maps::input::load(&path, kind, &p).map_err(|e| e.to_string())?;
             let pyr = meso_maps::extract(input.source(), &p, &mut |_| {})
                 .map_err(|e| format!("{}: {e}", path.display()))?;
-            // The bytes `meso extract` streams (map format 4), with `Pyramid::write`'s checks.
-            pyr.write_v4(&out).map_err(|e| e.to_string())?;
+            // The bytes `meso extract` streams (map format 4), checked, written atomically.
+            pyr.write(&out).map_err(|e| e.to_string())?;
             Ok((pyr, warnings))
         })
         .map_err(meso_err)?;

@@ -173,6 +173,11 @@ fn the_second_load_reads_the_disk_cache() {
     let bytes = extracted(&file).to_bytes();
     assert_eq!(cached.to_bytes(), bytes);
     assert_eq!(*cached, Pyramid::from_bytes(&file, &bytes).unwrap());
+    // The entry holds those very bytes (map format 4, what `meso extract` writes), after its
+    // 44-byte header and before its 32-byte seal.
+    assert_eq!(bytes[8..12], meso_maps::format::VERSION.to_le_bytes());
+    let stored = std::fs::read(&entry).unwrap();
+    assert!(stored[44..stored.len() - 32] == bytes[..]);
 }
 
 #[test]

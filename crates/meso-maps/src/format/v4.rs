@@ -1,9 +1,10 @@
 //! Map format version 4 (`docs/map-format.md`): the common header, then per level its rows in
 //! bands, each band a chunk of format 3's streams (the same codes, byte planes, prediction and
 //! deflate, [`super::v3`]) over the band's texels alone, then the level's end record (its lobe
-//! count and residuals). Written band by band as an extraction fits them
-//! ([`crate::pyramid::extract_to_file`]), so no pyramid is ever held in memory; read back
-//! into a [`Pyramid`] like versions 2 and 3.
+//! count and residuals): the one format this build writes, band by band as an extraction fits
+//! them ([`crate::pyramid::extract_to_file`], so no pyramid is ever held in memory) or from a
+//! pyramid in memory ([`Pyramid::write_to`], the same bytes); read back into a [`Pyramid`] like
+//! versions 2 and 3.
 //!
 //! ```text
 //! band:      "BAND" level:u32 first_row:u32 rows:u32 lobes:u32, then the streams of
@@ -30,8 +31,8 @@ use std::path::Path;
 
 /// The format version of this module.
 pub const VERSION_4: u32 = 4;
-/// Rows of a level per band when a pyramid in memory is written in format 4
-/// ([`Pyramid::write_v4_to`]); the streamed extraction writes its row batches, of as many rows.
+/// Rows of a level per band when a pyramid in memory is written ([`Pyramid::write_to`]); the
+/// streamed extraction writes its row batches, of as many rows.
 pub const BAND_ROWS: usize = 64;
 const BAND_TAG: [u8; 4] = *b"BAND";
 const END_TAG: [u8; 4] = *b"LEND";

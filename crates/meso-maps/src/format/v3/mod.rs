@@ -1,5 +1,6 @@
 //! Map format version 3 (`docs/map-format.md`): the pyramid's values quantised and stored as
-//! deflate-compressed streams of byte planes (structure of arrays).
+//! deflate-compressed streams of byte planes (structure of arrays). Read (old files and
+//! caches); written no longer: format 4 ([`super::v4`]) writes these streams per band.
 //!
 //! * Lobe axis: octahedral coordinates, 2 × 20 bits (the best of the four nearest codes;
 //!   angular error ≤ 2.9·10⁻⁶ rad).
@@ -20,15 +21,16 @@
 //!
 //! The parts, one concern a file:
 //!
-//! * `table` — the level table: written from a pyramid, read back checked against the
-//!   header, and the memory of the pyramid it describes;
+//! * `table` — the level table: read back checked against the header, and the memory of the
+//!   pyramid it describes;
 //! * `codes` — the quantisation codes: lobe axes (octahedral), weights (shares of the
 //!   texel), exponents, and horizon angles;
 //! * `streams` — the streams' table, the lobe layout and its predictors, byte planes,
 //!   deflate, and reading one stream with its header checked;
-//! * `write` — what a pyramid must hold to be stored, its columns, the levels written;
+//! * `write` — what a pyramid must hold to be stored, its columns, the streams written (by
+//!   format 4, per band);
 //! * `read` — the levels read back (or checked without building them);
-//! * `shading` — the optional shading-error trailer.
+//! * `shading` — the optional shading-error trailer (read).
 
 mod codes;
 mod read;
@@ -43,10 +45,10 @@ pub use streams::MAX_DEFLATE_RATIO;
 pub(in crate::format) use read::{
     build_level, check_levels, decode_columns, read_counts, read_levels,
 };
-pub(in crate::format) use shading::{read_shading, write_shading};
+pub(in crate::format) use shading::read_shading;
 pub(in crate::format) use streams::{read_stream, stream_header, Layout, STREAMS};
 pub(in crate::format) use table::{pyramid_bytes, TableEntry};
-pub(in crate::format) use write::{unstorable, unstorable_level, write_levels, write_streams};
+pub(in crate::format) use write::{unstorable, unstorable_level, write_streams};
 
 /// The format version of this module.
 pub const VERSION_3: u32 = 3;

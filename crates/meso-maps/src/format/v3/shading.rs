@@ -1,33 +1,12 @@
 //! The optional shading-error trailer of format 3 (`docs/map-format.md`): after the streams,
-//! [`SHADING_TAG`] and per level the mean and largest shading error.
+//! [`SHADING_TAG`] and per level the mean and largest shading error (read; format 4 records
+//! them in each level's end record).
 
 use crate::error::Result;
 use crate::format::Reader;
-use crate::pyramid::Pyramid;
-use std::io::Write;
 
 /// The tag of the optional shading-error trailer of a format-3 file (`docs/map-format.md`).
 pub const SHADING_TAG: [u8; 4] = *b"SHE1";
-
-/// Write the shading-error trailer (after the streams): [`SHADING_TAG`], then per level the
-/// mean and largest shading error (`f64`, fractions of the peak). Nothing when a level has
-/// none recorded.
-pub(in crate::format) fn write_shading(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()> {
-    let vals: Option<Vec<(f64, f64)>> = p
-        .levels
-        .iter()
-        .map(|l| Some((l.residual.shading_mean?, l.residual.shading_max?)))
-        .collect();
-    let Some(vals) = vals else {
-        return Ok(());
-    };
-    w.write_all(&SHADING_TAG)?;
-    for (m, x) in vals {
-        w.write_all(&m.to_le_bytes())?;
-        w.write_all(&x.to_le_bytes())?;
-    }
-    Ok(())
-}
 
 /// The shading-error trailer of a format-3 file of `nlev` levels, if the bytes after the
 /// streams start with [`SHADING_TAG`] (files written before it existed end after the streams:

@@ -1,12 +1,11 @@
 //! The level table of format 3 (module docs of `v3`): per level its size, lobe count and
-//! residuals, written from a pyramid and read back checked against the header's size and
-//! lobe limit; and the memory of the pyramid a table describes.
+//! residuals, read back checked against the header's size and lobe limit; and the memory of
+//! the pyramid a table describes (format 4 builds the same table from its level end records).
 
 use crate::compact::COMPACT_TEXELS;
 use crate::error::Result;
 use crate::format::{Header, Reader, LEVEL_HEADER_BYTES};
-use crate::pyramid::{Pyramid, Residual};
-use std::io::Write;
+use crate::pyramid::Residual;
 
 /// Bytes in memory of one `f64` lobe (`PhongLobe`) and of one texel's `f64` horizon statistics
 /// (half on the levels kept in `f32`, `crate::compact`).
@@ -32,25 +31,6 @@ impl TableEntry {
     pub(in crate::format) fn compact(&self) -> bool {
         self.texels() >= COMPACT_TEXELS
     }
-}
-
-/// Write the level table of `p` (after the common header); returns each level's first texel
-/// among the pyramid's texels and its texel count.
-pub(super) fn write_table(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<Vec<(usize, usize)>> {
-    let mut levels = Vec::with_capacity(p.levels.len());
-    let mut t0 = 0;
-    for l in &p.levels {
-        w.write_all(&(l.cols as u32).to_le_bytes())?;
-        w.write_all(&(l.rows as u32).to_le_bytes())?;
-        w.write_all(&(l.span as u32).to_le_bytes())?;
-        w.write_all(&(l.lobes.len() as u32).to_le_bytes())?;
-        w.write_all(&l.residual.mean.to_le_bytes())?;
-        w.write_all(&l.residual.max.to_le_bytes())?;
-        w.write_all(&l.residual.texels.to_le_bytes())?;
-        levels.push((t0, l.texels()));
-        t0 += l.texels();
-    }
-    Ok(levels)
 }
 
 /// The memory (bytes) of the pyramid a level table describes: per lobe 40 bytes (`f64`) or 20

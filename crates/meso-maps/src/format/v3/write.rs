@@ -1,10 +1,10 @@
-//! Writing format 3 (module docs of `v3`): what a pyramid must hold to be stored, its values
-//! as the streams' columns of codes, and the levels written (the level table, then each stream
-//! deflated with or without prediction, whichever is smaller).
+//! Format 3's encoders, which format 4 writes per band (module docs of `v3`): what a pyramid
+//! must hold to be stored, its values as the streams' columns of codes, and the streams (each
+//! deflated with or without prediction, whichever is smaller). The format-3 file layout (one
+//! level table and one set of streams for the whole pyramid) is no longer written.
 
 use super::codes::{angle_encode, eta_encode, oct_encode, weight_codes, MEAN_SPAN, SD_SPAN};
 use super::streams::{deflate, planes, Layout, STREAMS};
-use super::table::write_table;
 use crate::compact::Horizons;
 use crate::limits::ETA_MAX;
 use crate::pyramid::{Level, Pyramid};
@@ -68,8 +68,8 @@ pub(in crate::format) fn unstorable_level(k: usize, l: &Level) -> Option<String>
     None
 }
 
-/// The raw (unfiltered) columns of stream `s` of `parts` (format 3: the pyramid's levels;
-/// format 4: one band of a level's rows).
+/// The raw (unfiltered) columns of stream `s` of `parts` (format 4: one band of a level's
+/// rows).
 fn columns(parts: &[&Level], s: usize) -> Vec<Vec<u32>> {
     let lobes = || parts.iter().flat_map(|l| l.lobes.iter());
     let horizon = || {
@@ -122,16 +122,9 @@ fn columns(parts: &[&Level], s: usize) -> Vec<Vec<u32>> {
     }
 }
 
-/// Write the levels of `p` (after the common header) in format 3: the level table, then the
-/// streams. The caller has checked [`unstorable`].
-pub(in crate::format) fn write_levels(p: &Pyramid, w: &mut dyn Write) -> std::io::Result<()> {
-    write_table(p, w)?;
-    let parts: Vec<&Level> = p.levels.iter().collect();
-    write_streams(&parts, p.levels[0].horizon.is_some(), w)
-}
-
-/// Write the streams of `parts` (format 3: every level of the pyramid; format 4: one band of a
-/// level's rows), each value predicted from the same slot of the previous texel of its part.
+/// Write the streams of `parts` (format 4: one band of a level's rows; format 3 wrote every
+/// level of the pyramid at once), each value predicted from the same slot of the previous
+/// texel of its part.
 /// The caller has checked [`unstorable_level`].
 pub(in crate::format) fn write_streams(
     parts: &[&Level],
