@@ -5,7 +5,7 @@
 
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { spawn } from 'node:child_process';
+import { execFileSync, spawn } from 'node:child_process';
 import { createHash } from 'node:crypto';
 import fs from 'node:fs';
 import os from 'node:os';
@@ -668,6 +668,52 @@ test('Open texture…: a height map, a level and a clicked texel show its lobes,
   assert.equal((await material()).ndf.lobes.length, api.lobes.length);
   assert.equal(await page.isVisible('#texture-section'), false);
   assert.equal(await page.isVisible('#lobe-section'), true);
+});
+
+test('Open texture…: a map file written by meso extract opens with its levels, stored lobes and textured preview', async () => {
+  await ensureLoaded();
+  const png = path.join(artifacts, 'bumps-for-map.png');
+  fs.writeFileSync(png, bumpsPng());
+  const map = path.join(artifacts, 'bumps.map');
+  fs.rmSync(map, { force: true });
+  execFileSync(mesoBinary(), ['extract', png, '--texel-size', '1', '--height-scale', '6', '--max-lobes', '3', '--out', map]);
+  await page.setInputFiles('#texture-input', map);
+  await page.waitForSelector('#texture-dialog[open]');
+  assert.equal(await page.inputValue('#tex-kind'), 'map', 'a .map file is opened as a map');
+  assert.equal(await page.isVisible('#tex-max-lobes'), false, 'a map file has its lobes already');
+  let n = await renders();
+  await page.click('#tex-open');
+  await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel === '5/0/0');
+  assert.equal(await page.$$eval('#tex-level option', (o) => o.length), 6, '32 → 16 → 8 → 4 → 2 → 1');
+  assert.match(await page.textContent('#tex-info'), /map · 32×32 · 6 levels/);
+  await waitForRender(n);
+  await page.waitForFunction(() => /NDF-mapped/.test(window.mesoEditor.stats.lastPath));
+  // Level 1, texel [3, 5]: the table is the stored lobes the API reads from the file (at most
+  // 3 a texel, as extracted; weights summing to 1).
+  await page.selectOption('#tex-level', '1');
+  await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel.startsWith('1/'));
+  await page.waitForTimeout(300);
+  const at = await page.evaluate(() => window.mesoEditor.texelClientPosition(1, 3, 5));
+  await page.mouse.click(at.x, at.y);
+  await page.waitForFunction(() => document.getElementById('texel-lobes').dataset.texel === '1/3/5');
+  const m = await material();
+  assert.equal(m.ndf.kind, 'map');
+  const api = await page.evaluate(async (id) => (await fetch(`/api/texture/${id}/texel?level=1&row=3&col=5`)).json(), m.ndf.texture);
+  assert.ok(api.lobes.length >= 1 && api.lobes.length <= 3, JSON.stringify(api.lobes));
+  const sum = api.lobes.reduce((a, l) => a + l.weight, 0);
+  assert.ok(Math.abs(sum - 1) < 1e-4, `weights sum to ${sum}`);
+  const rows = await page.$$eval('#texel-lobes tbody tr', (trs) => trs.map((tr) => [...tr.children].map((td) => td.textContent.trim())));
+  assert.equal(rows.length, api.lobes.length);
+  api.lobes.forEach((l, i) => {
+    assert.equal(rows[i][3], l.weight.toFixed(4));
+    assert.equal(rows[i][4], l.exponent.toPrecision(4));
+  });
+  assert.equal(await page.isVisible('#error'), false, await page.textContent('#error'));
+  const toml = await page.evaluate(() => window.mesoEditor.tomlText());
+  assert.match(toml, /file = "bumps\.map"/);
+  assert.match(toml, /level = 1/);
+  assert.match(toml, /texel = \[3, 5\]/);
+  await shot('12-map-file-texel');
 });
 
 test('Open… a heightmap material asks for its file; mixture and radial materials open', async () => {
