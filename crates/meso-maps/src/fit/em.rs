@@ -484,19 +484,19 @@ pub(super) mod quads {
 
     /// Whether this CPU has AVX2 (cached by the standard library).
     #[inline]
-    pub(super) fn available() -> bool {
+    pub(in super::super) fn available() -> bool {
         std::arch::is_x86_feature_detected!("avx2")
     }
 
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn set(v: f64) -> __m256d {
+    pub(in super::super) fn set(v: f64) -> __m256d {
         _mm256_set1_pd(v)
     }
 
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn lanes(v: __m256d) -> [f64; 4] {
+    pub(in super::super) fn lanes(v: __m256d) -> [f64; 4] {
         let mut out = [0.0; 4];
         // SAFETY: `out` has room for four doubles (unaligned store).
         unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) };
@@ -537,7 +537,7 @@ pub(super) mod quads {
     /// `meso_core::fastmath::fast_exp_neg` on four lanes (`y ≤ 0`; as `pairs::exp_neg`).
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn exp_neg(y: __m256d) -> __m256d {
+    pub(in super::super) fn exp_neg(y: __m256d) -> __m256d {
         let under = _mm256_cmp_pd::<_CMP_LT_OQ>(y, set(-700.0));
         let ki = _mm256_cvttpd_epi32(_mm256_sub_pd(_mm256_mul_pd(y, set(LOG2_E)), set(0.5)));
         let k = _mm256_cvtepi32_pd(ki);
