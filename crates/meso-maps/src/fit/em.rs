@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 /// The Horner coefficients after `1/8!` of the Taylor polynomial of `meso_core::fastmath::fast_exp_neg`,
 /// shared by its two- and four-lane copies (`pairs::exp_neg`, `quads::exp_neg`).
 #[cfg(target_arch = "x86_64")]
-const EXP_TAYLOR: [f64; 7] = [
+pub(super) const EXP_TAYLOR: [f64; 7] = [
     1.0 / 5040.0,
     1.0 / 720.0,
     1.0 / 120.0,

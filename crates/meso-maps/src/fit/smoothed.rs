@@ -83,6 +83,33 @@ fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
     [g, dk, c * h.dot(l.t1), c * h.dot(l.t2)]
 }
 
+/// `JᵀJ += row rowᵀ` on the lower triangle of the row-major `np × np` matrix `jtj` (`np` a
+/// multiple of 4), four columns per AVX2 register (the CPU must have AVX2): each element the
+/// scalar `v += row[a] · row[b]`, bit for bit; the upper-triangle elements of the diagonal's
+/// blocks of four get theirs too (the caller overwrites the upper triangle from the lower).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn jtj_add_quads(jtj: &mut [f64], row: &[f64; 4 * MAX_LOBES], np: usize) {
+    use std::arch::x86_64::{
+        _mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set1_pd, _mm256_storeu_pd,
+    };
+    debug_assert!(np % 4 == 0 && np <= 4 * MAX_LOBES && jtj.len() >= np * np);
+    for a in 0..np {
+        let ra = _mm256_set1_pd(row[a]);
+        let line = &mut jtj[a * np..a * np + (a / 4 + 1) * 4];
+        for (v, r) in line.chunks_exact_mut(4).zip(row.chunks_exact(4)) {
+            // SAFETY: `v` and `r` hold four doubles each (unaligned loads and store).
+            unsafe {
+                let sum = _mm256_add_pd(
+                    _mm256_loadu_pd(v.as_ptr()),
+                    _mm256_mul_pd(ra, _mm256_loadu_pd(r.as_ptr())),
+                );
+                _mm256_storeu_pd(v.as_mut_ptr(), sum);
+            }
+        }
+    }
+}
+
 /// [`sg_response`] of each lobe of `ls` at the four half vectors `h4`, one per AVX2 lane (the
 /// CPU must have AVX2), into `out[lobe][half vector]`: each lane the scalar operations of its
 /// half vector where `r > 20` (the branch of `sg::integral_per_2pi` and `sg::mean_cos` written
@@ -184,13 +211,21 @@ fn smoothed_target(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64) -
     let mut target = vec![0.0; hs.len()];
     #[cfg(target_arch = "x86_64")]
     let done = {
-        // Four half vectors per AVX2 register where the CPU has AVX2, the rest in pairs.
-        let quads = if super::em::quads::available() {
-            // SAFETY: AVX2 is available (checked just above).
-            unsafe { target_quads(hs, unit, lambda, cut, &mut target) };
-            hs.len() / 4 * 4
+        // Eight half vectors per AVX-512 register where the CPU has AVX-512F, four per AVX2
+        // register where it has AVX2, the rest in pairs.
+        let octs = if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: AVX-512F is available (checked just above).
+            unsafe { target_octs(hs, unit, lambda, cut, &mut target) };
+            hs.len() / 8 * 8
         } else {
             0
+        };
+        let quads = if super::em::quads::available() {
+            // SAFETY: AVX2 is available (checked just above).
+            unsafe { target_quads(&hs[octs..], unit, lambda, cut, &mut target[octs..]) };
+            octs + (hs.len() - octs) / 4 * 4
+        } else {
+            octs
         };
         // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
         unsafe { target_pairs(&hs[quads..], unit, lambda, cut, &mut target[quads..]) };
@@ -274,6 +309,59 @@ fn target_quads(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out:
             );
         }
         o.copy_from_slice(&lanes(s));
+    }
+}
+
+/// [`smoothed_target`] for the half vectors eight at a time, one per AVX-512 lane (the CPU must
+/// have AVX-512F; the last `hs.len() % 8` are left to the caller), each lane the scalar
+/// operations of its half vector as in [`target_pairs`] (`fast_exp_neg` written out lane-wise):
+/// bit for bit the scalar sums.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn target_octs(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out: &mut [f64]) {
+    use std::arch::x86_64::{
+        _mm512_add_pd, _mm512_castpd_si512, _mm512_castsi512_pd, _mm512_cmp_pd_mask,
+        _mm512_cvtepi32_pd, _mm512_cvttpd_epi32, _mm512_loadu_pd, _mm512_mask_add_pd,
+        _mm512_maskz_mov_pd, _mm512_mul_pd, _mm512_set1_pd, _mm512_setzero_pd, _mm512_slli_epi64,
+        _mm512_storeu_pd, _mm512_sub_pd, _CMP_GT_OQ, _CMP_LT_OQ,
+    };
+    use std::f64::consts::{LN_2, LOG2_E};
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+    let set = _mm512_set1_pd;
+    for (ho, o) in hs.chunks_exact(8).zip(out.chunks_exact_mut(8)) {
+        let comp = |f: fn(&DVec3) -> f64| {
+            let a: [f64; 8] = std::array::from_fn(|i| f(&ho[i]));
+            // SAFETY: `a` holds eight doubles (unaligned load).
+            unsafe { _mm512_loadu_pd(a.as_ptr()) }
+        };
+        let (hx, hy, hz) = (comp(|h| h.x), comp(|h| h.y), comp(|h| h.z));
+        let mut s = _mm512_setzero_pd();
+        for &(m, w) in unit {
+            let c = _mm512_add_pd(
+                _mm512_add_pd(_mm512_mul_pd(hx, set(m.x)), _mm512_mul_pd(hy, set(m.y))),
+                _mm512_mul_pd(hz, set(m.z)),
+            );
+            // fast_exp_neg(λ(c − 1)), lane-wise (as `em::quads::exp_neg`).
+            let y = _mm512_mul_pd(set(lambda), _mm512_sub_pd(c, set(1.0)));
+            let under = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(y, set(-700.0));
+            let ki = _mm512_cvttpd_epi32(_mm512_sub_pd(_mm512_mul_pd(y, set(LOG2_E)), set(0.5)));
+            let k = _mm512_cvtepi32_pd(ki);
+            let r = _mm512_sub_pd(y, _mm512_mul_pd(k, set(LN_2)));
+            let mut p = _mm512_mul_pd(r, set(1.0 / 40320.0));
+            for cf in super::em::EXP_TAYLOR {
+                p = _mm512_mul_pd(r, _mm512_add_pd(set(cf), p));
+            }
+            let p = _mm512_add_pd(set(1.0), p);
+            let kb = _mm512_castpd_si512(_mm512_add_pd(_mm512_add_pd(k, set(1023.0)), set(TWO52)));
+            let scale = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(kb));
+            let e = _mm512_maskz_mov_pd(!under, _mm512_mul_pd(p, scale));
+            let term = _mm512_mul_pd(set(w), e);
+            // Terms at or below the cut are left out (the scalar adds nothing for them).
+            let keep = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(c, set(cut));
+            s = _mm512_mask_add_pd(s, keep, s, term);
+        }
+        // SAFETY: `o` holds eight doubles (unaligned store).
+        unsafe { _mm512_storeu_pd(o.as_mut_ptr(), s) };
     }
 }
 
@@ -491,8 +579,16 @@ impl<'a> Smoothed<'a> {
                         row[4 * j + 3] = ws[j] * gs[j][3];
                     }
                     for a in 0..np {
+                        jtr[a] += row[a] * r;
+                    }
+                    #[cfg(target_arch = "x86_64")]
+                    if quads {
+                        // SAFETY: AVX2 is available (`quads`).
+                        unsafe { jtj_add_quads(jtj, &row, np) };
+                        continue;
+                    }
+                    for a in 0..np {
                         let ra = row[a];
-                        jtr[a] += ra * r;
                         for (b, v) in jtj[a * np..=a * np + a].iter_mut().enumerate() {
                             *v += ra * row[b];
                         }
@@ -866,7 +962,8 @@ mod tests {
         assert!(slow > 0, "no lane took the scalar branch");
     }
 
-    /// The smoothed target four half vectors at a time (AVX2) is the scalar sum bit for bit.
+    /// The smoothed target four (AVX2) and eight (AVX-512) half vectors at a time is the scalar
+    /// sum bit for bit.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn quad_target_is_the_scalar_sum_bit_for_bit() {
@@ -888,6 +985,14 @@ mod tests {
             unsafe { target_pairs(&hs, &unit, lambda, cut, &mut want) };
             for (g, w) in got.iter().zip(&want) {
                 assert_eq!(g.to_bits(), w.to_bits(), "λ {lambda}");
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                let mut got = vec![0.0; hs.len()];
+                // SAFETY: AVX-512F is available (checked just above).
+                unsafe { target_octs(&hs, &unit, lambda, cut, &mut got) };
+                for (g, w) in got.iter().zip(&want) {
+                    assert_eq!(g.to_bits(), w.to_bits(), "AVX-512, λ {lambda}");
+                }
             }
         }
     }
