@@ -151,10 +151,19 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
         // The E-step with the lobe count a constant (its loops unrolled, the per-lobe values
         // in registers); the same operations in the same order at every K.
         let ll = match k {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: AVX2 only where the CPU has it.
+            1 if quads::available() => unsafe { quads::e_step_1(pts, lobes, &mut acc) },
             1 => e_step::<1>(pts, lobes, &mut acc),
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
-            2 => unsafe { pairs::e_step::<2, 1>(pts, lobes, &mut acc) },
+            // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
+            2 => unsafe {
+                if quads::available() {
+                    quads::e_step_2(pts, lobes, &mut acc)
+                } else {
+                    pairs::e_step::<2, 1>(pts, lobes, &mut acc)
+                }
+            },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
             3 => unsafe {
@@ -469,13 +478,14 @@ pub(super) mod pairs {
 pub(super) mod quads {
     use super::{Acc, Pt, L};
     use glam::DVec3;
-    use meso_core::fastmath::fast_ln;
+    use meso_core::fastmath::{fast_exp_neg, fast_ln};
     use std::arch::x86_64::{
         __m256d, _mm256_add_pd, _mm256_and_pd, _mm256_and_si256, _mm256_andnot_pd,
         _mm256_castpd_si256, _mm256_castsi256_pd, _mm256_cmp_pd, _mm256_cvtepi32_pd,
         _mm256_cvttpd_epi32, _mm256_div_pd, _mm256_max_pd, _mm256_mul_pd, _mm256_or_pd,
-        _mm256_or_si256, _mm256_set1_epi64x, _mm256_set1_pd, _mm256_setzero_pd, _mm256_slli_epi64,
-        _mm256_srli_epi64, _mm256_storeu_pd, _mm256_sub_pd, _CMP_GT_OQ, _CMP_LT_OQ,
+        _mm256_or_si256, _mm256_set1_epi64x, _mm256_set1_pd, _mm256_set_pd, _mm256_setzero_pd,
+        _mm256_slli_epi64, _mm256_srli_epi64, _mm256_storeu_pd, _mm256_sub_pd, _CMP_GT_OQ,
+        _CMP_LT_OQ,
     };
     use std::f64::consts::{LN_2, LOG2_E, PI, SQRT_2};
 
@@ -550,6 +560,187 @@ pub(super) mod quads {
         let kb = _mm256_castpd_si256(_mm256_add_pd(_mm256_add_pd(k, set(1023.0)), set(TWO52)));
         let scale = _mm256_castsi256_pd(_mm256_slli_epi64::<52>(kb));
         _mm256_andnot_pd(under, _mm256_mul_pd(p, scale))
+    }
+
+    /// [`super::e_step`] for one lobe with four points per register: each lane the scalar
+    /// operations of its point (the dot product, `fast_ln`, the division), the sums over the
+    /// points then added in the points' order, so the results are bit for bit the scalar ones.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn e_step_1(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+        debug_assert_eq!(lobes.len(), 1);
+        let l = lobes[0];
+        let c = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+        let half_eta = 0.5 * l.eta;
+        let (ax, ay, az) = (set(l.a.x), set(l.a.y), set(l.a.z));
+        let (mut acc_w, mut acc_a, mut acc_t, mut ll) = (0.0, DVec3::ZERO, 0.0, 0.0);
+        let quads = pts.chunks_exact(4);
+        let rest = quads.remainder();
+        for q in quads {
+            let comp = |f: fn(&Pt) -> f64| _mm256_set_pd(f(&q[3]), f(&q[2]), f(&q[1]), f(&q[0]));
+            let (mx, my, mz, w) = (
+                comp(|p| p.0.x),
+                comp(|p| p.0.y),
+                comp(|p| p.0.z),
+                comp(|p| p.1),
+            );
+            let d = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(ax, mx), _mm256_mul_pd(ay, my)),
+                _mm256_mul_pd(az, mz),
+            );
+            let x = _mm256_max_pd(
+                _mm256_mul_pd(set(0.5), _mm256_add_pd(set(1.0), d)),
+                set(1e-300),
+            );
+            let lt = ln(x);
+            let inv = _mm256_div_pd(set(0.5), _mm256_max_pd(x, set(0.5e-6)));
+            let logd = _mm256_add_pd(set(c), _mm256_mul_pd(set(half_eta), lt));
+            let qv = _mm256_mul_pd(w, inv);
+            let (wl, ww, wt) = (
+                lanes(_mm256_mul_pd(w, logd)),
+                lanes(w),
+                lanes(_mm256_mul_pd(w, lt)),
+            );
+            let (qx, qy, qz) = (
+                lanes(_mm256_mul_pd(mx, qv)),
+                lanes(_mm256_mul_pd(my, qv)),
+                lanes(_mm256_mul_pd(mz, qv)),
+            );
+            for i in 0..4 {
+                ll += wl[i];
+                acc_w += ww[i];
+                acc_a += DVec3::new(qx[i], qy[i], qz[i]);
+                acc_t += wt[i];
+            }
+        }
+        for &(m, w) in rest {
+            let x = (0.5 * (1.0 + l.a.dot(m))).max(1e-300);
+            let lt = fast_ln(x);
+            let inv = 0.5 / x.max(0.5e-6);
+            let logd = c + half_eta * lt;
+            ll += w * logd;
+            acc_w += w;
+            acc_a += m * (w * inv);
+            acc_t += w * lt;
+        }
+        acc.w[0] = acc_w;
+        acc.a[0] = acc_a;
+        acc.t[0] = acc_t;
+        ll
+    }
+
+    /// [`super::e_step`] for two lobes with two points per register (lanes: point 0's lobes,
+    /// then point 1's): each lane the scalar operations of its point and lobe, the maximum, the
+    /// sum over the lobes and the `ln` of each point in the scalar order, the sums over the
+    /// points added in the points' order; bit for bit the scalar results.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn e_step_2(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+        use std::arch::x86_64::{
+            _mm256_castpd256_pd128, _mm256_extractf128_pd, _mm_add_pd, _mm_setzero_pd,
+            _mm_storeu_pd,
+        };
+        debug_assert_eq!(lobes.len(), 2);
+        let cj = |l: &L| l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
+        let (l0, l1) = (lobes[0], lobes[1]);
+        let (c0, c1) = (cj(&l0), cj(&l1));
+        let two = |a: f64, b: f64| _mm256_set_pd(b, a, b, a);
+        let (ax, ay, az) = (
+            two(l0.a.x, l1.a.x),
+            two(l0.a.y, l1.a.y),
+            two(l0.a.z, l1.a.z),
+        );
+        let (half_eta, c) = (two(0.5 * l0.eta, 0.5 * l1.eta), two(c0, c1));
+        let z = _mm_setzero_pd();
+        let (mut acc_w, mut acc_x, mut acc_y, mut acc_z, mut acc_t) = (z, z, z, z, z);
+        let mut ll = 0.0;
+        let pairs = pts.chunks_exact(2);
+        let rest = pairs.remainder();
+        // Adds the low half (point 0) then the high half (point 1) of `v` onto `a`.
+        let add2 = |a: &mut std::arch::x86_64::__m128d, v: __m256d| {
+            *a = _mm_add_pd(*a, _mm256_castpd256_pd128(v));
+            *a = _mm_add_pd(*a, _mm256_extractf128_pd::<1>(v));
+        };
+        for p in pairs {
+            let ((m0, w0), (m1, w1)) = (p[0], p[1]);
+            let (mx, my, mz) = (
+                _mm256_set_pd(m1.x, m1.x, m0.x, m0.x),
+                _mm256_set_pd(m1.y, m1.y, m0.y, m0.y),
+                _mm256_set_pd(m1.z, m1.z, m0.z, m0.z),
+            );
+            let d = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(ax, mx), _mm256_mul_pd(ay, my)),
+                _mm256_mul_pd(az, mz),
+            );
+            let x = _mm256_max_pd(
+                _mm256_mul_pd(set(0.5), _mm256_add_pd(set(1.0), d)),
+                set(1e-300),
+            );
+            let lt = ln(x);
+            let inv = _mm256_div_pd(set(0.5), _mm256_max_pd(x, set(0.5e-6)));
+            let logd = _mm256_add_pd(c, _mm256_mul_pd(half_eta, lt));
+            let ld = lanes(logd);
+            let top0 = f64::NEG_INFINITY.max(ld[0]).max(ld[1]);
+            let top1 = f64::NEG_INFINITY.max(ld[2]).max(ld[3]);
+            let e = exp_neg(_mm256_sub_pd(logd, _mm256_set_pd(top1, top1, top0, top0)));
+            let el = lanes(e);
+            let s0 = 0.0 + el[0] + el[1];
+            let s1 = 0.0 + el[2] + el[3];
+            ll += w0 * (top0 + fast_ln(s0));
+            ll += w1 * (top1 + fast_ln(s1));
+            let (ws0, ws1) = (w0 / s0, w1 / s1);
+            let r = _mm256_mul_pd(_mm256_set_pd(ws1, ws1, ws0, ws0), e);
+            add2(&mut acc_w, r);
+            let q = _mm256_mul_pd(r, inv);
+            add2(&mut acc_x, _mm256_mul_pd(mx, q));
+            add2(&mut acc_y, _mm256_mul_pd(my, q));
+            add2(&mut acc_z, _mm256_mul_pd(mz, q));
+            add2(&mut acc_t, _mm256_mul_pd(r, lt));
+        }
+        let out = |v: std::arch::x86_64::__m128d| {
+            let mut o = [0.0; 2];
+            // SAFETY: `o` has room for two doubles (unaligned store).
+            unsafe { _mm_storeu_pd(o.as_mut_ptr(), v) };
+            o
+        };
+        let (w, x, y, zz, t) = (out(acc_w), out(acc_x), out(acc_y), out(acc_z), out(acc_t));
+        let mut sums = Acc::default();
+        for j in 0..2 {
+            sums.w[j] = w[j];
+            sums.a[j] = DVec3::new(x[j], y[j], zz[j]);
+            sums.t[j] = t[j];
+        }
+        // The odd last point: the scalar E-step's body, continuing the sums.
+        for &(m, w) in rest {
+            let mut logd = [0.0f64; 2];
+            let mut lt = [0.0f64; 2];
+            let mut inv = [0.0f64; 2];
+            let mut mx = f64::NEG_INFINITY;
+            for (j, l) in [l0, l1].iter().enumerate() {
+                let x = (0.5 * (1.0 + l.a.dot(m))).max(1e-300);
+                lt[j] = fast_ln(x);
+                inv[j] = 0.5 / x.max(0.5e-6);
+                logd[j] = [c0, c1][j] + 0.5 * l.eta * lt[j];
+                mx = mx.max(logd[j]);
+            }
+            let mut s = 0.0;
+            for v in &mut logd {
+                *v = fast_exp_neg(*v - mx);
+                s += *v;
+            }
+            ll += w * (mx + fast_ln(s));
+            let ws = w / s;
+            for j in 0..2 {
+                let r = ws * logd[j];
+                sums.w[j] += r;
+                sums.a[j] += m * (r * inv[j]);
+                sums.t[j] += r * lt[j];
+            }
+        }
+        acc.w[..2].copy_from_slice(&sums.w[..2]);
+        acc.a[..2].copy_from_slice(&sums.a[..2]);
+        acc.t[..2].copy_from_slice(&sums.t[..2]);
+        ll
     }
 
     /// [`super::e_step`] for `K` ∈ 3..=4 lobes, one lobe per lane.
@@ -672,6 +863,40 @@ mod tests {
             })
             .collect();
         (pts, lobes)
+    }
+
+    /// The AVX2 E-steps of one lobe (four points per register) and of two lobes (two points per
+    /// register) are the scalar E-step bit for bit, with point counts that leave a remainder.
+    #[test]
+    fn avx2_points_e_step_is_the_scalar_one_bit_for_bit() {
+        if !quads::available() {
+            return;
+        }
+        for (seed, n) in [(17u64, 257usize), (19, 1000), (23, 63), (29, 3), (31, 1)] {
+            for k in 1..=2 {
+                let (pts, lobes) = random_case(seed + k as u64, n, k);
+                let (mut scalar, mut quad) = (Acc::default(), Acc::default());
+                let (ll_scalar, ll_quad) = if k == 1 {
+                    // SAFETY: the CPU has AVX2 (checked).
+                    (e_step::<1>(&pts, &lobes, &mut scalar), unsafe {
+                        quads::e_step_1(&pts, &lobes, &mut quad)
+                    })
+                } else {
+                    // SAFETY: the CPU has AVX2 (checked).
+                    (e_step::<2>(&pts, &lobes, &mut scalar), unsafe {
+                        quads::e_step_2(&pts, &lobes, &mut quad)
+                    })
+                };
+                assert_eq!(ll_scalar.to_bits(), ll_quad.to_bits(), "K {k}, n {n}: ll");
+                for j in 0..k {
+                    assert_eq!(scalar.w[j].to_bits(), quad.w[j].to_bits(), "K {k} n {n} w");
+                    assert_eq!(scalar.t[j].to_bits(), quad.t[j].to_bits(), "K {k} n {n} t");
+                    for c in 0..3 {
+                        assert_eq!(scalar.a[j][c].to_bits(), quad.a[j][c].to_bits());
+                    }
+                }
+            }
+        }
     }
 
     /// The SSE2 E-step (two lobes per register) is the scalar E-step bit for bit: the same
