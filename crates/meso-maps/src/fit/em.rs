@@ -167,7 +167,9 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
             3 => unsafe {
-                if quads::available() {
+                if quads::avx512() {
+                    quads::e_step_x2::<3>(pts, lobes, &mut acc)
+                } else if quads::available() {
                     quads::e_step::<3>(pts, lobes, &mut acc)
                 } else {
                     pairs::e_step::<3, 2>(pts, lobes, &mut acc)
@@ -176,7 +178,9 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
             #[cfg(target_arch = "x86_64")]
             // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
             4 => unsafe {
-                if quads::available() {
+                if quads::avx512() {
+                    quads::e_step_x2::<4>(pts, lobes, &mut acc)
+                } else if quads::available() {
                     quads::e_step::<4>(pts, lobes, &mut acc)
                 } else {
                     pairs::e_step::<4, 2>(pts, lobes, &mut acc)
@@ -317,7 +321,7 @@ pub(super) mod pairs {
     /// fallback is never reached here: EM clamps its arguments to ≥ 1e-300).
     #[inline]
     #[target_feature(enable = "sse2")]
-    fn ln(x: __m128d) -> __m128d {
+    pub(super) fn ln(x: __m128d) -> __m128d {
         let bits = _mm_castpd_si128(x);
         let eb = _mm_and_si128(_mm_srli_epi64::<52>(bits), _mm_set1_epi64x(0x7ff));
         // e = biased exponent − 1023, exactly, as a double.
@@ -743,12 +747,10 @@ pub(super) mod quads {
         ll
     }
 
-    /// [`super::e_step`] for `K` ∈ 3..=4 lobes, one lobe per lane.
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    pub(super) fn e_step<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
-        debug_assert!(lobes.len() == K && (3..=4).contains(&K));
-        // A missing fourth lobe has the density e^−∞ (as in `pairs::e_step`).
+    /// The per-lobe constants of [`e_step`]'s lanes: axis components, half the exponent, and
+    /// ln-weight plus ln-normaliser (a missing fourth lobe has the density e^−∞, as in
+    /// `pairs::e_step`: its lane's responsibility is exactly 0).
+    fn lobe_lanes(lobes: &[L]) -> [[f64; 4]; 5] {
         let mut p = [[0.0f64; 4]; 5];
         p[4] = [f64::NEG_INFINITY; 4];
         for (j, l) in lobes.iter().enumerate() {
@@ -758,64 +760,266 @@ pub(super) mod quads {
             p[3][j] = 0.5 * l.eta;
             p[4][j] = l.w.max(1e-300).ln() + ((l.eta + 2.0) / (8.0 * PI)).ln();
         }
-        let quad = |q: &[f64; 4]| std::arch::x86_64::_mm256_set_pd(q[3], q[2], q[1], q[0]);
-        let (ax, ay, az, half_eta, c) = (
+        p
+    }
+
+    /// The sums of [`e_step`] over the points so far, one lobe per lane.
+    #[derive(Clone, Copy)]
+    pub(super) struct Sums {
+        w: __m256d,
+        x: __m256d,
+        y: __m256d,
+        z: __m256d,
+        t: __m256d,
+        ll: f64,
+    }
+
+    impl Sums {
+        #[inline]
+        #[target_feature(enable = "avx2")]
+        fn new() -> Sums {
+            let zero = _mm256_setzero_pd();
+            Sums {
+                w: zero,
+                x: zero,
+                y: zero,
+                z: zero,
+                t: zero,
+                ll: 0.0,
+            }
+        }
+
+        #[inline]
+        #[target_feature(enable = "avx2")]
+        fn finish<const K: usize>(&self, acc: &mut Acc) -> f64 {
+            let (w, x, y, z, t) = (
+                lanes(self.w),
+                lanes(self.x),
+                lanes(self.y),
+                lanes(self.z),
+                lanes(self.t),
+            );
+            for j in 0..K {
+                acc.w[j] = w[j];
+                acc.a[j] = DVec3::new(x[j], y[j], z[j]);
+                acc.t[j] = t[j];
+            }
+            self.ll
+        }
+    }
+
+    /// One point of [`e_step`] added onto `sums` (lobe constants as [`lobe_lanes`] lays them
+    /// out, in registers: `ax, ay, az, half_eta, c`).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn point<const K: usize>(lob: &[__m256d; 5], m: DVec3, w: f64, sums: &mut Sums) {
+        let [ax, ay, az, half_eta, c] = *lob;
+        let (mx, my, mz) = (set(m.x), set(m.y), set(m.z));
+        let d = _mm256_add_pd(
+            _mm256_add_pd(_mm256_mul_pd(ax, mx), _mm256_mul_pd(ay, my)),
+            _mm256_mul_pd(az, mz),
+        );
+        let x = _mm256_max_pd(
+            _mm256_mul_pd(set(0.5), _mm256_add_pd(set(1.0), d)),
+            set(1e-300),
+        );
+        let lt = ln(x);
+        let inv = _mm256_div_pd(set(0.5), _mm256_max_pd(x, set(0.5e-6)));
+        let logd = _mm256_add_pd(c, _mm256_mul_pd(half_eta, lt));
+        let ld = lanes(logd);
+        let mut top = f64::NEG_INFINITY;
+        for &l in &ld[..K] {
+            top = top.max(l);
+        }
+        let e = exp_neg(_mm256_sub_pd(logd, set(top)));
+        let el = lanes(e);
+        let mut s = 0.0;
+        for &v in &el[..K] {
+            s += v;
+        }
+        sums.ll += w * (top + fast_ln(s));
+        let r = _mm256_mul_pd(set(w / s), e);
+        sums.w = _mm256_add_pd(sums.w, r);
+        let q = _mm256_mul_pd(r, inv);
+        sums.x = _mm256_add_pd(sums.x, _mm256_mul_pd(mx, q));
+        sums.y = _mm256_add_pd(sums.y, _mm256_mul_pd(my, q));
+        sums.z = _mm256_add_pd(sums.z, _mm256_mul_pd(mz, q));
+        sums.t = _mm256_add_pd(sums.t, _mm256_mul_pd(r, lt));
+    }
+
+    /// [`super::e_step`] for `K` ∈ 3..=4 lobes, one lobe per lane.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn e_step<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+        debug_assert!(lobes.len() == K && (3..=4).contains(&K));
+        let p = lobe_lanes(lobes);
+        let quad = |q: &[f64; 4]| _mm256_set_pd(q[3], q[2], q[1], q[0]);
+        let lob = [
             quad(&p[0]),
             quad(&p[1]),
             quad(&p[2]),
             quad(&p[3]),
             quad(&p[4]),
-        );
-        let zero = _mm256_setzero_pd();
-        let (mut acc_w, mut acc_x, mut acc_y, mut acc_z, mut acc_t) =
-            (zero, zero, zero, zero, zero);
-        let mut ll = 0.0;
+        ];
+        let mut sums = Sums::new();
         for &(m, w) in pts {
-            let (mx, my, mz) = (set(m.x), set(m.y), set(m.z));
-            let d = _mm256_add_pd(
-                _mm256_add_pd(_mm256_mul_pd(ax, mx), _mm256_mul_pd(ay, my)),
-                _mm256_mul_pd(az, mz),
-            );
-            let x = _mm256_max_pd(
-                _mm256_mul_pd(set(0.5), _mm256_add_pd(set(1.0), d)),
-                set(1e-300),
-            );
-            let lt = ln(x);
-            let inv = _mm256_div_pd(set(0.5), _mm256_max_pd(x, set(0.5e-6)));
-            let logd = _mm256_add_pd(c, _mm256_mul_pd(half_eta, lt));
-            let ld = lanes(logd);
-            let mut top = f64::NEG_INFINITY;
-            for &l in &ld[..K] {
-                top = top.max(l);
-            }
-            let e = exp_neg(_mm256_sub_pd(logd, set(top)));
-            let el = lanes(e);
-            let mut s = 0.0;
-            for &v in &el[..K] {
-                s += v;
-            }
-            ll += w * (top + fast_ln(s));
-            let r = _mm256_mul_pd(set(w / s), e);
-            acc_w = _mm256_add_pd(acc_w, r);
-            let q = _mm256_mul_pd(r, inv);
-            acc_x = _mm256_add_pd(acc_x, _mm256_mul_pd(mx, q));
-            acc_y = _mm256_add_pd(acc_y, _mm256_mul_pd(my, q));
-            acc_z = _mm256_add_pd(acc_z, _mm256_mul_pd(mz, q));
-            acc_t = _mm256_add_pd(acc_t, _mm256_mul_pd(r, lt));
+            point::<K>(&lob, m, w, &mut sums);
         }
-        let (w, x, y, z, t) = (
-            lanes(acc_w),
-            lanes(acc_x),
-            lanes(acc_y),
-            lanes(acc_z),
-            lanes(acc_t),
+        sums.finish::<K>(acc)
+    }
+
+    /// Whether this CPU has AVX-512F (cached by the standard library).
+    #[inline]
+    pub(in super::super) fn avx512() -> bool {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+
+    /// [`e_step`] with two points per AVX-512 register (lanes 0–3 the first point's lobes, 4–7
+    /// the second's; the CPU must have AVX-512F): each lane the scalar operations of its point
+    /// and lobe (`fast_ln` and `fast_exp_neg` written out lane-wise, the `ln` of the two
+    /// points' sums over the lobes in one SSE2 pair), the maximum and sum over the lobes in the
+    /// scalar order, the sums over the points added point by point (the first point's half,
+    /// then the second's); an odd last point by [`point`]. Bit for bit [`e_step`].
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn e_step_x2<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+        use std::arch::x86_64::{
+            __m512d, _mm512_add_pd, _mm512_and_si512, _mm512_castpd512_pd256, _mm512_castpd_si512,
+            _mm512_castsi512_pd, _mm512_cmp_pd_mask, _mm512_cvtepi32_pd, _mm512_cvttpd_epi32,
+            _mm512_div_pd, _mm512_extractf64x4_pd, _mm512_loadu_pd, _mm512_mask_add_pd,
+            _mm512_mask_mul_pd, _mm512_maskz_mov_pd, _mm512_max_pd, _mm512_mul_pd, _mm512_or_si512,
+            _mm512_set1_epi64, _mm512_set1_pd, _mm512_slli_epi64, _mm512_srli_epi64,
+            _mm512_storeu_pd, _mm512_sub_pd,
+        };
+        debug_assert!(lobes.len() == K && (3..=4).contains(&K));
+        let set8 = _mm512_set1_pd;
+        let p = lobe_lanes(lobes);
+        let quad = |q: &[f64; 4]| _mm256_set_pd(q[3], q[2], q[1], q[0]);
+        let lob = [
+            quad(&p[0]),
+            quad(&p[1]),
+            quad(&p[2]),
+            quad(&p[3]),
+            quad(&p[4]),
+        ];
+        let twice = |q: &[f64; 4]| {
+            let a = [q[0], q[1], q[2], q[3], q[0], q[1], q[2], q[3]];
+            // SAFETY: `a` holds eight doubles (unaligned load).
+            unsafe { _mm512_loadu_pd(a.as_ptr()) }
+        };
+        let (ax, ay, az, half_eta, c) = (
+            twice(&p[0]),
+            twice(&p[1]),
+            twice(&p[2]),
+            twice(&p[3]),
+            twice(&p[4]),
         );
-        for j in 0..K {
-            acc.w[j] = w[j];
-            acc.a[j] = DVec3::new(x[j], y[j], z[j]);
-            acc.t[j] = t[j];
+        let halves = |a: f64, b: f64| {
+            let v = [a, a, a, a, b, b, b, b];
+            // SAFETY: `v` holds eight doubles (unaligned load).
+            unsafe { _mm512_loadu_pd(v.as_ptr()) }
+        };
+        let lanes8 = |v: __m512d| {
+            let mut o = [0.0; 8];
+            // SAFETY: `o` has room for eight doubles (unaligned store).
+            unsafe { _mm512_storeu_pd(o.as_mut_ptr(), v) };
+            o
+        };
+        // `fast_ln` on eight lanes of normal positive numbers (as `ln`).
+        let ln8 = |x: __m512d| {
+            let bits = _mm512_castpd_si512(x);
+            let eb = _mm512_and_si512(_mm512_srli_epi64::<52>(bits), _mm512_set1_epi64(0x7ff));
+            let e = _mm512_sub_pd(
+                _mm512_castsi512_pd(_mm512_or_si512(eb, _mm512_castpd_si512(set8(TWO52)))),
+                set8(TWO52 + 1023.0),
+            );
+            let m = _mm512_castsi512_pd(_mm512_or_si512(
+                _mm512_and_si512(bits, _mm512_set1_epi64(0x000f_ffff_ffff_ffff)),
+                _mm512_set1_epi64(0x3ff0_0000_0000_0000),
+            ));
+            let big = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(m, set8(SQRT_2));
+            let m = _mm512_mask_mul_pd(m, big, m, set8(0.5));
+            let e = _mm512_mask_add_pd(e, big, e, set8(1.0));
+            let s = _mm512_div_pd(_mm512_sub_pd(m, set8(1.0)), _mm512_add_pd(m, set8(1.0)));
+            let s2 = _mm512_mul_pd(s, s);
+            let mut q = _mm512_mul_pd(s2, set8(2.0 / 9.0));
+            q = _mm512_mul_pd(s2, _mm512_add_pd(set8(2.0 / 7.0), q));
+            q = _mm512_mul_pd(s2, _mm512_add_pd(set8(0.4), q));
+            q = _mm512_mul_pd(s2, _mm512_add_pd(set8(2.0 / 3.0), q));
+            let q = _mm512_mul_pd(s, _mm512_add_pd(set8(2.0), q));
+            _mm512_add_pd(_mm512_mul_pd(e, set8(LN_2)), q)
+        };
+        // `fast_exp_neg` on eight lanes (`y ≤ 0`; as `exp_neg`).
+        let exp8 = |y: __m512d| {
+            let under = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(y, set8(-700.0));
+            let ki = _mm512_cvttpd_epi32(_mm512_sub_pd(_mm512_mul_pd(y, set8(LOG2_E)), set8(0.5)));
+            let k = _mm512_cvtepi32_pd(ki);
+            let r = _mm512_sub_pd(y, _mm512_mul_pd(k, set8(LN_2)));
+            let mut q = _mm512_mul_pd(r, set8(1.0 / 40320.0));
+            for cf in super::EXP_TAYLOR {
+                q = _mm512_mul_pd(r, _mm512_add_pd(set8(cf), q));
+            }
+            let q = _mm512_add_pd(set8(1.0), q);
+            let kb =
+                _mm512_castpd_si512(_mm512_add_pd(_mm512_add_pd(k, set8(1023.0)), set8(TWO52)));
+            let scale = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(kb));
+            _mm512_maskz_mov_pd(!under, _mm512_mul_pd(q, scale))
+        };
+        // Adds the first point's half of `v` onto `a`, then the second's.
+        let add2 = |a: &mut __m256d, v: __m512d| {
+            *a = _mm256_add_pd(*a, _mm512_castpd512_pd256(v));
+            *a = _mm256_add_pd(*a, _mm512_extractf64x4_pd::<1>(v));
+        };
+        let mut sums = Sums::new();
+        let pairs = pts.chunks_exact(2);
+        let rest = pairs.remainder();
+        for pp in pairs {
+            let ((m0, w0), (m1, w1)) = (pp[0], pp[1]);
+            let (mx, my, mz) = (halves(m0.x, m1.x), halves(m0.y, m1.y), halves(m0.z, m1.z));
+            let d = _mm512_add_pd(
+                _mm512_add_pd(_mm512_mul_pd(ax, mx), _mm512_mul_pd(ay, my)),
+                _mm512_mul_pd(az, mz),
+            );
+            let x = _mm512_max_pd(
+                _mm512_mul_pd(set8(0.5), _mm512_add_pd(set8(1.0), d)),
+                set8(1e-300),
+            );
+            let lt = ln8(x);
+            let inv = _mm512_div_pd(set8(0.5), _mm512_max_pd(x, set8(0.5e-6)));
+            let logd = _mm512_add_pd(c, _mm512_mul_pd(half_eta, lt));
+            let ld = lanes8(logd);
+            let (mut top0, mut top1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+            for j in 0..K {
+                top0 = top0.max(ld[j]);
+            }
+            for j in 0..K {
+                top1 = top1.max(ld[4 + j]);
+            }
+            let e = exp8(_mm512_sub_pd(logd, halves(top0, top1)));
+            let el = lanes8(e);
+            let (mut s0, mut s1) = (0.0, 0.0);
+            for j in 0..K {
+                s0 += el[j];
+            }
+            for j in 0..K {
+                s1 += el[4 + j];
+            }
+            let [ln0, ln1] =
+                super::pairs::lanes(super::pairs::ln(std::arch::x86_64::_mm_set_pd(s1, s0)));
+            sums.ll += w0 * (top0 + ln0);
+            sums.ll += w1 * (top1 + ln1);
+            let r = _mm512_mul_pd(halves(w0 / s0, w1 / s1), e);
+            add2(&mut sums.w, r);
+            let q = _mm512_mul_pd(r, inv);
+            add2(&mut sums.x, _mm512_mul_pd(mx, q));
+            add2(&mut sums.y, _mm512_mul_pd(my, q));
+            add2(&mut sums.z, _mm512_mul_pd(mz, q));
+            add2(&mut sums.t, _mm512_mul_pd(r, lt));
         }
-        ll
+        for &(m, w) in rest {
+            point::<K>(&lob, m, w, &mut sums);
+        }
+        sums.finish::<K>(acc)
     }
 }
 
@@ -942,6 +1146,32 @@ mod tests {
                         assert_eq!(scalar.t[j].to_bits(), quad.t[j].to_bits());
                         for c in 0..3 {
                             assert_eq!(scalar.a[j][c].to_bits(), quad.a[j][c].to_bits());
+                        }
+                    }
+                }
+                if k >= 3 && quads::avx512() {
+                    for n2 in [n, n - 1] {
+                        let (mut s2, mut x2) = (Acc::default(), Acc::default());
+                        let pts = &pts[..n2];
+                        let ll_s = match k {
+                            3 => e_step::<3>(pts, &lobes, &mut s2),
+                            _ => e_step::<4>(pts, &lobes, &mut s2),
+                        };
+                        // SAFETY: the CPU has AVX-512F (checked).
+                        let ll_x = unsafe {
+                            if k == 3 {
+                                quads::e_step_x2::<3>(pts, &lobes, &mut x2)
+                            } else {
+                                quads::e_step_x2::<4>(pts, &lobes, &mut x2)
+                            }
+                        };
+                        assert_eq!(ll_s.to_bits(), ll_x.to_bits(), "K {k}, n {n2}: AVX-512");
+                        for j in 0..k {
+                            assert_eq!(s2.w[j].to_bits(), x2.w[j].to_bits(), "AVX-512 w");
+                            assert_eq!(s2.t[j].to_bits(), x2.t[j].to_bits(), "AVX-512 t");
+                            for c in 0..3 {
+                                assert_eq!(s2.a[j][c].to_bits(), x2.a[j][c].to_bits());
+                            }
                         }
                     }
                 }
