@@ -116,8 +116,19 @@ fn nearest(centres: &[DVec3], d: DVec3) -> usize {
 /// A point of EM: the mean vector of an entry (length ≤ 1) and its weight.
 pub(super) type Pt = (DVec3, f64);
 
-/// Mean log-likelihood per unit weight of the mixture.
+/// Mean log-likelihood per unit weight of the mixture: the E-step's (`e_step_k`, SIMD), whose
+/// log-likelihood is this sum bit for bit ([`loglik_scalar`]: with one lobe `ln` of the sum
+/// `e⁰ = 1` adds exactly 0; Rust's `f64` sum starts at −0, which adds nothing to the
+/// non-negative terms).
 pub(super) fn loglik(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
+    if lobes.is_empty() || lobes.len() > MAX_LOBES {
+        return loglik_scalar(pts, lobes, total);
+    }
+    e_step_k(pts, lobes, &mut Acc::default()) / total
+}
+
+/// [`loglik`] written out, one lobe at a time.
+fn loglik_scalar(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
     let k = lobes.len();
     let mut c = [0.0f64; MAX_LOBES];
     for (j, l) in lobes.iter().enumerate() {
@@ -148,55 +159,7 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
         if k == 0 {
             break;
         }
-        // The E-step with the lobe count a constant (its loops unrolled, the per-lobe values
-        // in registers); the same operations in the same order at every K.
-        let ll = match k {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 only where the CPU has it.
-            1 if quads::available() => unsafe { quads::e_step_1(pts, lobes, &mut acc) },
-            1 => e_step::<1>(pts, lobes, &mut acc),
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
-            2 => unsafe {
-                if quads::available() {
-                    quads::e_step_2(pts, lobes, &mut acc)
-                } else {
-                    pairs::e_step::<2, 1>(pts, lobes, &mut acc)
-                }
-            },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
-            3 => unsafe {
-                if quads::avx512() {
-                    quads::e_step_x2::<3>(pts, lobes, &mut acc)
-                } else if quads::available() {
-                    quads::e_step::<3>(pts, lobes, &mut acc)
-                } else {
-                    pairs::e_step::<3, 2>(pts, lobes, &mut acc)
-                }
-            },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
-            4 => unsafe {
-                if quads::avx512() {
-                    quads::e_step_x2::<4>(pts, lobes, &mut acc)
-                } else if quads::available() {
-                    quads::e_step::<4>(pts, lobes, &mut acc)
-                } else {
-                    pairs::e_step::<4, 2>(pts, lobes, &mut acc)
-                }
-            },
-            #[cfg(not(target_arch = "x86_64"))]
-            2 => e_step::<2>(pts, lobes, &mut acc),
-            #[cfg(not(target_arch = "x86_64"))]
-            3 => e_step::<3>(pts, lobes, &mut acc),
-            #[cfg(not(target_arch = "x86_64"))]
-            4 => e_step::<4>(pts, lobes, &mut acc),
-            5 => e_step::<5>(pts, lobes, &mut acc),
-            6 => e_step::<6>(pts, lobes, &mut acc),
-            7 => e_step::<7>(pts, lobes, &mut acc),
-            _ => e_step::<MAX_LOBES>(pts, lobes, &mut acc),
-        };
+        let ll = e_step_k(pts, lobes, &mut acc);
         for (j, l) in lobes.iter_mut().enumerate() {
             if acc.w[j] <= 1e-12 * total {
                 l.w = 0.0;
@@ -217,6 +180,60 @@ pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f6
         }
     }
     prev
+}
+
+/// One E-step over `lobes` (1..=[`MAX_LOBES`] of them): fills `acc` and returns the summed
+/// log-likelihood (not yet divided by the total weight). The lobe count a constant (its loops
+/// unrolled, the per-lobe values in registers), in SIMD registers where the CPU has them; the
+/// same operations in the same order at every K and on every path.
+fn e_step_k(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+    match lobes.len() {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: AVX2 only where the CPU has it.
+        1 if quads::available() => unsafe { quads::e_step_1(pts, lobes, acc) },
+        1 => e_step::<1>(pts, lobes, acc),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
+        2 => unsafe {
+            if quads::available() {
+                quads::e_step_2(pts, lobes, acc)
+            } else {
+                pairs::e_step::<2, 1>(pts, lobes, acc)
+            }
+        },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
+        3 => unsafe {
+            if quads::avx512() {
+                quads::e_step_x2::<3>(pts, lobes, acc)
+            } else if quads::available() {
+                quads::e_step::<3>(pts, lobes, acc)
+            } else {
+                pairs::e_step::<3, 2>(pts, lobes, acc)
+            }
+        },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
+        4 => unsafe {
+            if quads::avx512() {
+                quads::e_step_x2::<4>(pts, lobes, acc)
+            } else if quads::available() {
+                quads::e_step::<4>(pts, lobes, acc)
+            } else {
+                pairs::e_step::<4, 2>(pts, lobes, acc)
+            }
+        },
+        #[cfg(not(target_arch = "x86_64"))]
+        2 => e_step::<2>(pts, lobes, acc),
+        #[cfg(not(target_arch = "x86_64"))]
+        3 => e_step::<3>(pts, lobes, acc),
+        #[cfg(not(target_arch = "x86_64"))]
+        4 => e_step::<4>(pts, lobes, acc),
+        5 => e_step::<5>(pts, lobes, acc),
+        6 => e_step::<6>(pts, lobes, acc),
+        7 => e_step::<7>(pts, lobes, acc),
+        _ => e_step::<MAX_LOBES>(pts, lobes, acc),
+    }
 }
 
 /// The sums of one E-step per lobe: the responsibilities, the responsibility-weighted normals
@@ -1067,6 +1084,22 @@ mod tests {
             })
             .collect();
         (pts, lobes)
+    }
+
+    /// The log-likelihood from the (SIMD) E-step is the one written out, bit for bit.
+    #[test]
+    fn loglik_is_the_scalar_one_bit_for_bit() {
+        for (seed, n) in [(37u64, 257usize), (41, 64), (43, 5), (47, 1)] {
+            for k in 1..=MAX_LOBES {
+                let (pts, lobes) = random_case(seed + k as u64, n, k);
+                let total: f64 = pts.iter().map(|p| p.1).sum();
+                assert_eq!(
+                    loglik(&pts, &lobes, total).to_bits(),
+                    loglik_scalar(&pts, &lobes, total).to_bits(),
+                    "K {k}, n {n}"
+                );
+            }
+        }
     }
 
     /// The AVX2 E-steps of one lobe (four points per register) and of two lobes (two points per
