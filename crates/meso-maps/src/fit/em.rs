@@ -1006,20 +1006,20 @@ pub(super) mod quads {
             let logd = _mm512_add_pd(c, _mm512_mul_pd(half_eta, lt));
             let ld = lanes8(logd);
             let (mut top0, mut top1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-            for j in 0..K {
-                top0 = top0.max(ld[j]);
+            for &l in &ld[..K] {
+                top0 = top0.max(l);
             }
-            for j in 0..K {
-                top1 = top1.max(ld[4 + j]);
+            for &l in &ld[4..4 + K] {
+                top1 = top1.max(l);
             }
             let e = exp8(_mm512_sub_pd(logd, halves(top0, top1)));
             let el = lanes8(e);
             let (mut s0, mut s1) = (0.0, 0.0);
-            for j in 0..K {
-                s0 += el[j];
+            for &v in &el[..K] {
+                s0 += v;
             }
-            for j in 0..K {
-                s1 += el[4 + j];
+            for &v in &el[4..4 + K] {
+                s1 += v;
             }
             let [ln0, ln1] =
                 super::pairs::lanes(super::pairs::ln(std::arch::x86_64::_mm_set_pd(s1, s0)));

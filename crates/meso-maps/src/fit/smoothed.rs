@@ -93,7 +93,7 @@ fn jtj_add_quads(jtj: &mut [f64], row: &[f64; 4 * MAX_LOBES], np: usize) {
     use std::arch::x86_64::{
         _mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set1_pd, _mm256_storeu_pd,
     };
-    debug_assert!(np % 4 == 0 && np <= 4 * MAX_LOBES && jtj.len() >= np * np);
+    debug_assert!(np.is_multiple_of(4) && np <= 4 * MAX_LOBES && jtj.len() >= np * np);
     for a in 0..np {
         let ra = _mm256_set1_pd(row[a]);
         let line = &mut jtj[a * np..a * np + (a / 4 + 1) * 4];
@@ -562,8 +562,7 @@ impl<'a> Smoothed<'a> {
                 }
                 1
             };
-            for q in 0..len {
-                let t = self.target[i0 + q];
+            for (q, &t) in self.target[i0..i0 + len].iter().enumerate() {
                 let mut m = 0.0;
                 for j in 0..k {
                     gs[j] = block[j][q];
