@@ -237,20 +237,4 @@ impl FacetSource<'_> {
             }
         }
     }
-    /// `(normal, weight)` of the cells in rows `r0..r1`, columns `c0..c1`, in the order of
-    /// [`FacetNormals::footprint`].
-    pub(crate) fn footprint(
-        &self,
-        r0: usize,
-        r1: usize,
-        c0: usize,
-        c1: usize,
-    ) -> impl Iterator<Item = (DVec3, f64)> + '_ {
-        (r0..r1).flat_map(move |r| {
-            (c0..c1).flat_map(move |c| {
-                let (f, n) = self.cell(r, c);
-                f.into_iter().take(n)
-            })
-        })
-    }
 }

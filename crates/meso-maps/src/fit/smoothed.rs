@@ -83,6 +83,118 @@ fn sg_response(l: &SgLobe, lambda: f64, h: DVec3, grad: bool) -> [f64; 4] {
     [g, dk, c * h.dot(l.t1), c * h.dot(l.t2)]
 }
 
+/// `JᵀJ += row rowᵀ` on the lower triangle of the row-major `np × np` matrix `jtj` (`np` a
+/// multiple of 4), four columns per AVX2 register (the CPU must have AVX2): each element the
+/// scalar `v += row[a] · row[b]`, bit for bit; the upper-triangle elements of the diagonal's
+/// blocks of four get theirs too (the caller overwrites the upper triangle from the lower).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn jtj_add_quads(jtj: &mut [f64], row: &[f64; 4 * MAX_LOBES], np: usize) {
+    use std::arch::x86_64::{
+        _mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_set1_pd, _mm256_storeu_pd,
+    };
+    debug_assert!(np.is_multiple_of(4) && np <= 4 * MAX_LOBES && jtj.len() >= np * np);
+    for a in 0..np {
+        let ra = _mm256_set1_pd(row[a]);
+        let line = &mut jtj[a * np..a * np + (a / 4 + 1) * 4];
+        for (v, r) in line.chunks_exact_mut(4).zip(row.chunks_exact(4)) {
+            // SAFETY: `v` and `r` hold four doubles each (unaligned loads and store).
+            unsafe {
+                let sum = _mm256_add_pd(
+                    _mm256_loadu_pd(v.as_ptr()),
+                    _mm256_mul_pd(ra, _mm256_loadu_pd(r.as_ptr())),
+                );
+                _mm256_storeu_pd(v.as_mut_ptr(), sum);
+            }
+        }
+    }
+}
+
+/// [`sg_response`] of each lobe of `ls` at the four half vectors `h4`, one per AVX2 lane (the
+/// CPU must have AVX2), into `out[lobe][half vector]`: each lane the scalar operations of its
+/// half vector where `r > 20` (the branch of `sg::integral_per_2pi` and `sg::mean_cos` written
+/// out: `1/r` and `1 − 1/r`), the scalar [`sg_response`] itself in the lanes where not; so bit
+/// for bit the scalar responses.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn responses_quad(
+    ls: &[SgLobe],
+    lambda: f64,
+    h4: &[DVec3],
+    grad: bool,
+    out: &mut [[[f64; 4]; 4]; MAX_LOBES],
+) {
+    use super::em::quads::{exp_neg, lanes, set};
+    use std::arch::x86_64::{
+        _mm256_add_pd, _mm256_cmp_pd, _mm256_div_pd, _mm256_max_pd, _mm256_min_pd,
+        _mm256_movemask_pd, _mm256_mul_pd, _mm256_set_pd, _mm256_setzero_pd, _mm256_sqrt_pd,
+        _mm256_sub_pd, _CMP_GT_OQ,
+    };
+    let hx = _mm256_set_pd(h4[3].x, h4[2].x, h4[1].x, h4[0].x);
+    let hy = _mm256_set_pd(h4[3].y, h4[2].y, h4[1].y, h4[0].y);
+    let hz = _mm256_set_pd(h4[3].z, h4[2].z, h4[1].z, h4[0].z);
+    let zero = _mm256_setzero_pd();
+    let dot = |v: DVec3| {
+        _mm256_add_pd(
+            _mm256_add_pd(_mm256_mul_pd(set(v.x), hx), _mm256_mul_pd(set(v.y), hy)),
+            _mm256_mul_pd(set(v.z), hz),
+        )
+    };
+    for (l, o) in ls.iter().zip(out.iter_mut()) {
+        let kappa = l.kappa;
+        let ah = dot(l.a);
+        // r = √max(κ² + λ(λ + 2κ a·h), 0), in the scalar order.
+        let r2 = _mm256_add_pd(
+            set(kappa * kappa),
+            _mm256_mul_pd(
+                set(lambda),
+                _mm256_add_pd(set(lambda), _mm256_mul_pd(set(2.0 * kappa), ah)),
+            ),
+        );
+        let r = _mm256_sqrt_pd(_mm256_max_pd(r2, zero));
+        let fast = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(r, set(20.0)));
+        let expo = _mm256_div_pd(
+            _mm256_mul_pd(set(2.0 * kappa * lambda), _mm256_sub_pd(ah, set(1.0))),
+            _mm256_add_pd(_mm256_add_pd(r, set(kappa)), set(lambda)),
+        );
+        let inv_r = _mm256_div_pd(set(1.0), r);
+        let g = _mm256_mul_pd(
+            _mm256_mul_pd(set(l.norm), inv_r),
+            exp_neg(_mm256_min_pd(expo, zero)),
+        );
+        let gl = lanes(g);
+        if grad {
+            let lr = _mm256_div_pd(_mm256_sub_pd(set(1.0), inv_r), r);
+            let dk = _mm256_mul_pd(
+                _mm256_mul_pd(g, set(kappa)),
+                _mm256_sub_pd(
+                    _mm256_mul_pd(
+                        lr,
+                        _mm256_add_pd(set(kappa), _mm256_mul_pd(set(lambda), ah)),
+                    ),
+                    set(l.lang),
+                ),
+            );
+            let c = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(g, lr), set(kappa)), set(lambda));
+            let d1 = lanes(_mm256_mul_pd(c, dot(l.t1)));
+            let d2 = lanes(_mm256_mul_pd(c, dot(l.t2)));
+            let dk = lanes(dk);
+            for q in 0..4 {
+                o[q] = [gl[q], dk[q], d1[q], d2[q]];
+            }
+        } else {
+            for q in 0..4 {
+                o[q] = [gl[q], 0.0, 0.0, 0.0];
+            }
+        }
+        if fast != 0b1111 {
+            for q in (0..4).filter(|q| fast & (1 << q) == 0) {
+                o[q] = sg_response(l, lambda, h4[q], grad);
+            }
+        }
+    }
+}
+
 /// Two unit tangents orthogonal to `a` and to each other.
 fn tangents(a: DVec3) -> (DVec3, DVec3) {
     let t = if a.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
@@ -99,9 +211,25 @@ fn smoothed_target(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64) -
     let mut target = vec![0.0; hs.len()];
     #[cfg(target_arch = "x86_64")]
     let done = {
+        // Eight half vectors per AVX-512 register where the CPU has AVX-512F, four per AVX2
+        // register where it has AVX2, the rest in pairs.
+        let octs = if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: AVX-512F is available (checked just above).
+            unsafe { target_octs(hs, unit, lambda, cut, &mut target) };
+            hs.len() / 8 * 8
+        } else {
+            0
+        };
+        let quads = if super::em::quads::available() {
+            // SAFETY: AVX2 is available (checked just above).
+            unsafe { target_quads(&hs[octs..], unit, lambda, cut, &mut target[octs..]) };
+            octs + (hs.len() - octs) / 4 * 4
+        } else {
+            octs
+        };
         // SAFETY: SSE2 is part of every x86-64 CPU (the target's baseline).
-        unsafe { target_pairs(hs, unit, lambda, cut, &mut target) };
-        hs.len() / 2 * 2
+        unsafe { target_pairs(&hs[quads..], unit, lambda, cut, &mut target[quads..]) };
+        quads + (hs.len() - quads) / 2 * 2
     };
     #[cfg(not(target_arch = "x86_64"))]
     let done = 0;
@@ -146,6 +274,94 @@ fn target_pairs(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out:
         let [s0, s1] = lanes(s);
         o[0] = s0;
         o[1] = s1;
+    }
+}
+
+/// [`smoothed_target`] for the half vectors four at a time, one per AVX2 lane (the CPU must have
+/// AVX2; the last `hs.len() % 4` are left to the caller), each lane the scalar operations of
+/// its half vector as in [`target_pairs`]: bit for bit the scalar sums.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn target_quads(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out: &mut [f64]) {
+    use super::em::quads::{exp_neg, lanes, set};
+    use std::arch::x86_64::{
+        _mm256_add_pd, _mm256_and_pd, _mm256_cmp_pd, _mm256_mul_pd, _mm256_set_pd,
+        _mm256_setzero_pd, _mm256_sub_pd, _CMP_GT_OQ,
+    };
+    for (hq, o) in hs.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
+        let hx = _mm256_set_pd(hq[3].x, hq[2].x, hq[1].x, hq[0].x);
+        let hy = _mm256_set_pd(hq[3].y, hq[2].y, hq[1].y, hq[0].y);
+        let hz = _mm256_set_pd(hq[3].z, hq[2].z, hq[1].z, hq[0].z);
+        let mut s = _mm256_setzero_pd();
+        for &(m, w) in unit {
+            let c = _mm256_add_pd(
+                _mm256_add_pd(_mm256_mul_pd(hx, set(m.x)), _mm256_mul_pd(hy, set(m.y))),
+                _mm256_mul_pd(hz, set(m.z)),
+            );
+            let term = _mm256_mul_pd(
+                set(w),
+                exp_neg(_mm256_mul_pd(set(lambda), _mm256_sub_pd(c, set(1.0)))),
+            );
+            // Terms at or below the cut add +0 (the sums are ≥ +0, so exactly nothing).
+            s = _mm256_add_pd(
+                s,
+                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(c, set(cut)), term),
+            );
+        }
+        o.copy_from_slice(&lanes(s));
+    }
+}
+
+/// [`smoothed_target`] for the half vectors eight at a time, one per AVX-512 lane (the CPU must
+/// have AVX-512F; the last `hs.len() % 8` are left to the caller), each lane the scalar
+/// operations of its half vector as in [`target_pairs`] (`fast_exp_neg` written out lane-wise):
+/// bit for bit the scalar sums.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn target_octs(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out: &mut [f64]) {
+    use std::arch::x86_64::{
+        _mm512_add_pd, _mm512_castpd_si512, _mm512_castsi512_pd, _mm512_cmp_pd_mask,
+        _mm512_cvtepi32_pd, _mm512_cvttpd_epi32, _mm512_loadu_pd, _mm512_mask_add_pd,
+        _mm512_maskz_mov_pd, _mm512_mul_pd, _mm512_set1_pd, _mm512_setzero_pd, _mm512_slli_epi64,
+        _mm512_storeu_pd, _mm512_sub_pd, _CMP_GT_OQ, _CMP_LT_OQ,
+    };
+    use std::f64::consts::{LN_2, LOG2_E};
+    const TWO52: f64 = 4_503_599_627_370_496.0;
+    let set = _mm512_set1_pd;
+    for (ho, o) in hs.chunks_exact(8).zip(out.chunks_exact_mut(8)) {
+        let comp = |f: fn(&DVec3) -> f64| {
+            let a: [f64; 8] = std::array::from_fn(|i| f(&ho[i]));
+            // SAFETY: `a` holds eight doubles (unaligned load).
+            unsafe { _mm512_loadu_pd(a.as_ptr()) }
+        };
+        let (hx, hy, hz) = (comp(|h| h.x), comp(|h| h.y), comp(|h| h.z));
+        let mut s = _mm512_setzero_pd();
+        for &(m, w) in unit {
+            let c = _mm512_add_pd(
+                _mm512_add_pd(_mm512_mul_pd(hx, set(m.x)), _mm512_mul_pd(hy, set(m.y))),
+                _mm512_mul_pd(hz, set(m.z)),
+            );
+            // fast_exp_neg(λ(c − 1)), lane-wise (as `em::quads::exp_neg`).
+            let y = _mm512_mul_pd(set(lambda), _mm512_sub_pd(c, set(1.0)));
+            let under = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(y, set(-700.0));
+            let ki = _mm512_cvttpd_epi32(_mm512_sub_pd(_mm512_mul_pd(y, set(LOG2_E)), set(0.5)));
+            let k = _mm512_cvtepi32_pd(ki);
+            let r = _mm512_sub_pd(y, _mm512_mul_pd(k, set(LN_2)));
+            let mut p = _mm512_mul_pd(r, set(1.0 / 40320.0));
+            for cf in super::em::EXP_TAYLOR {
+                p = _mm512_mul_pd(r, _mm512_add_pd(set(cf), p));
+            }
+            let p = _mm512_add_pd(set(1.0), p);
+            let kb = _mm512_castpd_si512(_mm512_add_pd(_mm512_add_pd(k, set(1023.0)), set(TWO52)));
+            let scale = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(kb));
+            let e = _mm512_maskz_mov_pd(!under, _mm512_mul_pd(p, scale));
+            let term = _mm512_mul_pd(set(w), e);
+            // Terms at or below the cut are left out (the scalar adds nothing for them).
+            let keep = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(c, set(cut));
+            s = _mm512_mask_add_pd(s, keep, s, term);
+        }
+        // SAFETY: `o` holds eight doubles (unaligned store).
+        unsafe { _mm512_storeu_pd(o.as_mut_ptr(), s) };
     }
 }
 
@@ -318,29 +534,67 @@ impl<'a> Smoothed<'a> {
         let mut obj = 0.0;
         let mut row = [0.0; 4 * MAX_LOBES];
         let mut gs = [[0.0; 4]; MAX_LOBES];
-        for (&h, &t) in self.hs.iter().zip(&self.target) {
-            let mut m = 0.0;
-            for j in 0..k {
-                gs[j] = sg_response(&ls[j], self.lambda, h, grad);
-                m += ws[j] * gs[j][0];
-            }
-            let r = m - t;
-            obj += r * r;
-            if let Some((jtj, jtr)) = jac.as_mut() {
-                for j in 0..k {
-                    row[4 * j] = ws[j] * (gs[j][0] - m);
-                    row[4 * j + 1] = ws[j] * gs[j][1];
-                    row[4 * j + 2] = ws[j] * gs[j][2];
-                    row[4 * j + 3] = ws[j] * gs[j][3];
+        // The responses of every lobe at up to four half vectors: [lobe][half vector][part].
+        let mut block = [[[0.0; 4]; 4]; MAX_LOBES];
+        #[cfg(target_arch = "x86_64")]
+        let quads = super::em::quads::available();
+        #[cfg(not(target_arch = "x86_64"))]
+        let quads = false;
+        let n = self.hs.len();
+        let mut i0 = 0;
+        while i0 < n {
+            let len = if quads && i0 + 4 <= n {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: AVX2 is available (`quads`).
+                unsafe {
+                    responses_quad(
+                        &ls[..k],
+                        self.lambda,
+                        &self.hs[i0..i0 + 4],
+                        grad,
+                        &mut block,
+                    );
                 }
-                for a in 0..np {
-                    let ra = row[a];
-                    jtr[a] += ra * r;
-                    for (b, v) in jtj[a * np..=a * np + a].iter_mut().enumerate() {
-                        *v += ra * row[b];
+                4
+            } else {
+                for (b, l) in block.iter_mut().zip(&ls[..k]) {
+                    b[0] = sg_response(l, self.lambda, self.hs[i0], grad);
+                }
+                1
+            };
+            for (q, &t) in self.target[i0..i0 + len].iter().enumerate() {
+                let mut m = 0.0;
+                for j in 0..k {
+                    gs[j] = block[j][q];
+                    m += ws[j] * gs[j][0];
+                }
+                let r = m - t;
+                obj += r * r;
+                if let Some((jtj, jtr)) = jac.as_mut() {
+                    for j in 0..k {
+                        row[4 * j] = ws[j] * (gs[j][0] - m);
+                        row[4 * j + 1] = ws[j] * gs[j][1];
+                        row[4 * j + 2] = ws[j] * gs[j][2];
+                        row[4 * j + 3] = ws[j] * gs[j][3];
+                    }
+                    for a in 0..np {
+                        jtr[a] += row[a] * r;
+                    }
+                    #[cfg(target_arch = "x86_64")]
+                    if quads {
+                        // SAFETY: AVX2 is available (`quads`).
+                        unsafe { jtj_add_quads(jtj, &row, np) };
+                        continue;
+                    }
+                    for a in 0..np {
+                        let ra = row[a];
+                        for (b, v) in jtj[a * np..=a * np + a].iter_mut().enumerate() {
+                            *v += ra * row[b];
+                        }
                     }
                 }
             }
+            i0 += len;
         }
         obj
     }
@@ -660,6 +914,83 @@ mod tests {
                         want.to_bits(),
                         "n {n}, λ {lambda}: {g} vs {want}"
                     );
+                }
+            }
+        }
+    }
+
+    /// The responses four half vectors at a time (AVX2) are the scalar ones bit for bit, the
+    /// gradient's too, with lanes of `r ≤ 20` (broad lobes facing away) among them.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn quad_responses_are_the_scalar_ones_bit_for_bit() {
+        use super::super::test_dirs::random_dir;
+        if !super::super::em::quads::available() {
+            return;
+        }
+        let mut rng = meso_testkit::rng(0x5eed_0003);
+        let lambda = 40.0;
+        let mut slow = 0;
+        for kappa in [1e-3, 0.7, 5.0, 39.0, 41.0, 300.0, 2.5e5] {
+            let ls: Vec<SgLobe> = (0..MAX_LOBES)
+                .map(|_| SgLobe::new(random_dir(&mut rng, 1.2), kappa))
+                .collect();
+            for _ in 0..50 {
+                let mut h4: Vec<DVec3> = (0..4).map(|_| random_dir(&mut rng, 3.0)).collect();
+                // Some half vectors opposite a lobe: r = |κa + λh| small near κ = λ.
+                h4[3] = -ls[0].a;
+                for grad in [false, true] {
+                    let mut out = [[[0.0; 4]; 4]; MAX_LOBES];
+                    // SAFETY: AVX2 is available (checked above).
+                    unsafe { responses_quad(&ls, lambda, &h4, grad, &mut out) };
+                    for (l, o) in ls.iter().zip(&out) {
+                        for (q, &h) in h4.iter().enumerate() {
+                            let want = sg_response(l, lambda, h, grad);
+                            let r = (kappa * kappa + lambda * (lambda + 2.0 * kappa * l.a.dot(h)))
+                                .max(0.0)
+                                .sqrt();
+                            slow += usize::from(r <= 20.0);
+                            for p in 0..if grad { 4 } else { 1 } {
+                                assert_eq!(o[q][p].to_bits(), want[p].to_bits(), "κ {kappa}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(slow > 0, "no lane took the scalar branch");
+    }
+
+    /// The smoothed target four (AVX2) and eight (AVX-512) half vectors at a time is the scalar
+    /// sum bit for bit.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn quad_target_is_the_scalar_sum_bit_for_bit() {
+        use super::super::test_dirs::random_dir;
+        if !super::super::em::quads::available() {
+            return;
+        }
+        let mut rng = meso_testkit::rng(0x5eed_0004);
+        let unit: Vec<(DVec3, f64)> = (0..200)
+            .map(|k| (random_dir(&mut rng, 2.0), 1.0 / 200.0 + 1e-5 * f64::from(k)))
+            .collect();
+        let hs: Vec<DVec3> = (0..40).map(|_| random_dir(&mut rng, 1.5)).collect();
+        for (lambda, cut) in [(3.0, -1.0), (40.0, 0.5), (2000.0, 0.9)] {
+            let mut got = vec![0.0; hs.len()];
+            // SAFETY: AVX2 is available (checked above).
+            unsafe { target_quads(&hs, &unit, lambda, cut, &mut got) };
+            let mut want = vec![0.0; hs.len()];
+            // SAFETY: SSE2 is part of every x86-64 CPU.
+            unsafe { target_pairs(&hs, &unit, lambda, cut, &mut want) };
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!(g.to_bits(), w.to_bits(), "λ {lambda}");
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                let mut got = vec![0.0; hs.len()];
+                // SAFETY: AVX-512F is available (checked just above).
+                unsafe { target_octs(&hs, &unit, lambda, cut, &mut got) };
+                for (g, w) in got.iter().zip(&want) {
+                    assert_eq!(g.to_bits(), w.to_bits(), "AVX-512, λ {lambda}");
                 }
             }
         }

@@ -49,7 +49,8 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 /// Peak memory of the streamed extraction ([`extract_to_file`](super::extract_to_file)) per
 /// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 32 bytes a
 /// sample are allocated): level 1's horizon statistics in `f64`, which level 2 reads (72 bytes a
-/// texel, a quarter of the cells: 18 bytes a cell), and a margin. Measured (2026-12-03,
+/// texel, a quarter of the cells: 18 bytes a cell), the facets' entry-grid bins that every level
+/// reads (`level_fit::facet_bins`, 4 bytes a cell since 2026-12-04), and a margin. Measured (2026-12-03,
 /// `docs/benchmarks.md`, "Streamed extraction"): 10.7 MB of heap at 256² against an estimate of
 /// 19.9 MB (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap peak and
 /// stay within 3× of it); peak RSS 123 / 288 / 1 032 MB at 1024² / 2048² / 4096² (the

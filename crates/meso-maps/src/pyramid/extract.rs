@@ -188,6 +188,11 @@ fn run(
         ),
     };
     let has_horizon = horizon.is_some();
+    // Every facet's bin of the entry grid, once (2 bytes a facet), for every level's merges.
+    let bins = super::level_fit::facet_bins(&facets).map_err(|e| MapError::OutOfMemory {
+        what: "the facets' bins".into(),
+        source: e,
+    })?;
     let nlev = level_count(facets.cols(), facets.rows());
     debug_assert_eq!(nlev, level_work.len());
     let header = Header {
@@ -254,6 +259,7 @@ fn run(
             facets,
             horizon: if k == 0 { horizon.as_ref() } else { None },
             prev: prev_level,
+            bins: &bins,
             prev_horizon,
             residual_stride: texels.div_ceil(params.residual_texels.max(1)).max(1),
             params,

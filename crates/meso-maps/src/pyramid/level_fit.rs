@@ -10,6 +10,8 @@
 //! level's entries are kept: they were ≈ 80 bytes a cell per level, two levels of them alive at
 //! once (docs/benchmarks.md, "Extraction memory: entries recomputed", and "Extraction speed:
 //! entries in linear time").
+//! Each facet's bin of the entry grid is computed once for the whole extraction
+//! ([`facet_bins`], 2 bytes a facet) and read by every level's merges.
 
 use super::{footprint_bounds, ExtractParams, Level, Method};
 use crate::compact::Horizons;
@@ -68,6 +70,9 @@ pub(super) struct LevelFit<'a> {
     /// The samples' horizon angles (level 0 only).
     pub(super) horizon: Option<&'a HorizonMap>,
     pub(super) prev: Option<&'a Level>,
+    /// Every facet's bin of the entry grid ([`facet_bins`]): the merges of every level read
+    /// them instead of binning each facet again.
+    pub(super) bins: &'a [u16],
     pub(super) prev_horizon: PrevHorizon<'a>,
     /// Texels `0, s, 2s, …` get their NDF residual measured.
     pub(super) residual_stride: usize,
@@ -75,6 +80,41 @@ pub(super) struct LevelFit<'a> {
     pub(super) em_cap: usize,
     pub(super) thorough: bool,
     pub(super) smooth: bool,
+}
+
+/// Slots of [`facet_bins`] per cell (a cell has at most two facets; the second slot of a cell of
+/// one facet is unused).
+const BIN_SLOTS: usize = 2;
+
+// The entry grid's bins fit the cache's `u16`.
+const _: () = assert!(ENTRY_GRID_RES * ENTRY_GRID_RES <= 1 << 16);
+
+/// The bin of the entry grid ([`Entry::new`]'s) of every facet of `facets`, [`BIN_SLOTS`] a cell
+/// in row-major order (2 bytes a facet: 4 MB at 1024² triangles): computed once, in parallel,
+/// and read by every level's merges (`cell_entries`, `dense_entries`) instead of an `atan` per
+/// facet per level (the entries recomputed from the facets level by level, docs/benchmarks.md,
+/// "Extraction speed (2026-12-04)"). The same bins, so the same entries.
+///
+/// # Errors
+/// [`meso_core::budget::AllocError`] when the memory is not there.
+pub(super) fn facet_bins(
+    facets: &FacetSource<'_>,
+) -> Result<Vec<u16>, meso_core::budget::AllocError> {
+    let cols = facets.cols();
+    let mut bins = meso_core::budget::try_vec(0u16, facets.rows() * cols * BIN_SLOTS)?;
+    if cols > 0 {
+        bins.par_chunks_mut(cols * BIN_SLOTS)
+            .enumerate()
+            .for_each(|(r, row)| {
+                for (c, slots) in row.chunks_exact_mut(BIN_SLOTS).enumerate() {
+                    let (f, n) = facets.cell(r, c);
+                    for (slot, &(m, w)) in slots.iter_mut().zip(&f[..n]) {
+                        *slot = Entry::new(m, w).bin as u16;
+                    }
+                }
+            });
+    }
+    Ok(bins)
 }
 
 /// The lowest level whose texels compute their children's entries in parallel: a texel there
@@ -159,10 +199,24 @@ impl LevelFit<'_> {
     /// The entries of level-0 cell `(r, c)`: its facets merged per bin.
     fn cell_entries(&self, r: usize, c: usize, singles: &mut Vec<Entry>, out: &mut Vec<Entry>) {
         singles.clear();
-        for (n, w) in self.facets.footprint(r, r + 1, c, c + 1) {
-            singles.push(Entry::new(n, w));
-        }
+        self.push_cell(r, c, singles);
         merge_entries(&[singles], out);
+    }
+
+    /// The entries of the facets of cell `(r, c)` (each its own, unmerged; bins from the
+    /// cache), pushed onto `out` in the facets' order (as `FacetNormals::footprint` orders a footprint's
+    /// facets: rows, then columns, then a cell's facets).
+    #[inline]
+    fn push_cell(&self, r: usize, c: usize, out: &mut Vec<Entry>) {
+        let (f, n) = self.facets.cell(r, c);
+        let at = (r * self.facets.cols() + c) * BIN_SLOTS;
+        for (&(m, w), &bin) in f[..n].iter().zip(&self.bins[at..at + n]) {
+            out.push(Entry {
+                bin: u32::from(bin),
+                w,
+                m: m * w,
+            });
+        }
     }
 
     /// The merged entries of texel `(r, c)` of level `j`, into `out`: a cell's facets merged
@@ -242,14 +296,20 @@ impl LevelFit<'_> {
                 grid.resize(bins, (0.0, glam::DVec3::ZERO));
             }
             hit.clear();
-            for (n, w) in self.facets.footprint(r0, r1, c0, c1) {
-                let e = Entry::new(n, w);
-                let b = &mut grid[e.bin as usize];
-                if b.0 == 0.0 && b.1 == glam::DVec3::ZERO {
-                    hit.push(e.bin);
+            let cols = self.facets.cols();
+            for r in r0..r1 {
+                for c in c0..c1 {
+                    let (f, n) = self.facets.cell(r, c);
+                    let at = (r * cols + c) * BIN_SLOTS;
+                    for (&(m, w), &bin) in f[..n].iter().zip(&self.bins[at..at + n]) {
+                        let b = &mut grid[usize::from(bin)];
+                        if b.0 == 0.0 && b.1 == glam::DVec3::ZERO {
+                            hit.push(u32::from(bin));
+                        }
+                        b.0 += w;
+                        b.1 += m * w;
+                    }
                 }
-                b.0 += e.w;
-                b.1 += e.m;
             }
             // The hit bins in order, each read and cleared.
             hit.sort_unstable();
