@@ -705,6 +705,12 @@ fn nonparametric_on_anisotropic_samples_writes_a_tabulated_ndf() {
     let m = Material::from_toml_str(&text).expect("the output is a valid material");
     assert_eq!(m.ndf.kind(), "tabulated");
     assert!(text.contains("--nonparametric --grid 64,16"), "{text}");
+    // The engine parameters (glTF) are reported and written into the file, as for lobe fits.
+    let engine = stdout
+        .lines()
+        .find(|l| l.starts_with("engine (glTF metallic-roughness"))
+        .unwrap_or_else(|| panic!("no engine line in {stdout}"));
+    assert!(text.contains(&format!("# {engine}\n")), "{text}");
 
     // Too fine a grid for these back-scattering samples: a clear error, no output.
     let out2 = dir.join("np2.toml");

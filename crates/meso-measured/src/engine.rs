@@ -91,6 +91,18 @@ pub fn fit_engine(data: &SampleSet, opts: &FitOptions) -> Result<EngineParams, F
 }
 
 impl EngineParams {
+    /// Write [`EngineParams::describe`] into the material file `text` as a comment line, after
+    /// its leading comment lines (the header): what every `meso fit` writes beside its NDF, so
+    /// that the file carries what an engine needs. The material's meaning is unchanged.
+    pub fn annotate(&self, text: &mut String) {
+        let at: usize = text
+            .split_inclusive('\n')
+            .take_while(|l| l.starts_with('#'))
+            .map(str::len)
+            .sum();
+        text.insert_str(at, &format!("# {}\n", self.describe()));
+    }
+
     /// One report line: `engine (glTF metallic-roughness, from a GGX + Lambert fit): …`.
     #[must_use]
     pub fn describe(&self) -> String {

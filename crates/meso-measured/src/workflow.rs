@@ -244,17 +244,9 @@ pub fn run(
     step("engine parameters (GGX + Lambert)".into(), done);
     let engine = fit_engine(&data.samples, &opts)?;
     done += 1;
-    // The engine parameters go into each written file too, as a comment line after the
-    // header's (the material's meaning is unchanged; the report prints the same line).
-    let engine_line = format!("# {}\n", engine.describe());
+    // The engine parameters go into each written file too (the report prints the same line).
     for ch in &mut channels {
-        let at: usize = ch
-            .text
-            .split_inclusive('\n')
-            .take_while(|l| l.starts_with('#'))
-            .map(str::len)
-            .sum();
-        ch.text.insert_str(at, &engine_line);
+        engine.annotate(&mut ch.text);
     }
     step("done".into(), done);
     Ok(FitReport {

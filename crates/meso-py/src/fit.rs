@@ -127,6 +127,24 @@ fn run_fit(data: &Data, name: &str, o: &Options) -> Result<FitReport, String> {
     workflow::run(data, &request, &mut |_| {}).map_err(|e| chain_message(&e))
 }
 
+/// The report's `engine` entry: glTF metallic–roughness parameters of the best single GGX +
+/// Lambert fit (`meso_measured::engine`).
+pub(crate) fn engine_dict<'py>(
+    py: Python<'py>,
+    engine: &meso_measured::engine::EngineParams,
+) -> PyResult<Bound<'py, PyDict>> {
+    let e = PyDict::new(py);
+    e.set_item("base_color", engine.base_color)?;
+    e.set_item("metallic", engine.metallic)?;
+    e.set_item("roughness", engine.roughness)?;
+    e.set_item("alpha", engine.alpha)?;
+    e.set_item("diffuse", engine.diffuse)?;
+    e.set_item("specular_f0", engine.specular_f0)?;
+    e.set_item("mismatch", engine.mismatch)?;
+    e.set_item("held_out_low_log", engine.fit.held_out.map(|h| h.low_log))?;
+    Ok(e)
+}
+
 pub(crate) fn errors_dict<'py>(
     py: Python<'py>,
     e: &FitErrors,
@@ -160,16 +178,7 @@ fn finish(py: Python<'_>, f: FitReport, out: Option<PathBuf>) -> PyResult<(Mater
         tried.set_item(t.transfer.name(), t.error)?;
     }
     d.set_item("transfers_tried", tried)?;
-    let e = PyDict::new(py);
-    e.set_item("base_color", f.engine.base_color)?;
-    e.set_item("metallic", f.engine.metallic)?;
-    e.set_item("roughness", f.engine.roughness)?;
-    e.set_item("alpha", f.engine.alpha)?;
-    e.set_item("diffuse", f.engine.diffuse)?;
-    e.set_item("specular_f0", f.engine.specular_f0)?;
-    e.set_item("mismatch", f.engine.mismatch)?;
-    e.set_item("held_out_low_log", f.engine.fit.held_out.map(|h| h.low_log))?;
-    d.set_item("engine", e)?;
+    d.set_item("engine", engine_dict(py, &f.engine)?)?;
     d.set_item("metric", f.metric.name())?;
     d.set_item("axes", f.axes.name())?;
     d.set_item("fitted", errors_dict(py, &f.fitted, f.fitted_count)?)?;

@@ -4,7 +4,7 @@
 //! (meso_measured::nonparametric_aniso); returns the material and a report.
 
 use crate::error::{meso_err, require_input_not_output};
-use crate::fit::{chain_message, errors_dict};
+use crate::fit::{chain_message, engine_dict, errors_dict};
 use crate::material::Material;
 use meso_measured::fit::FitErrors;
 use meso_measured::job;
@@ -27,7 +27,8 @@ use std::path::PathBuf;
 ///   `cells_needed` (upper cells up to `max_theta_deg`).
 ///
 /// Both report `description`, `kind` (`"radial"` or `"tabulated"`), `f0`, `specular`,
-/// `albedo`, `specular_at_limit`, the errors per channel (`ngan_l2` in 1/sr, `low_log`) on the
+/// `albedo`, `specular_at_limit`, `engine` (glTF metallic–roughness parameters of the best
+/// single GGX + Lambert fit, as `meso.fit`'s, also written into the file as a comment), the errors per channel (`ngan_l2` in 1/sr, `low_log`) on the
 /// `fitted` and `held_out` samples (None without any), and `toml`, the material file (the CLI's
 /// bytes but for the comment lines). `out`: also write the file (atomically).
 #[pyfunction]
@@ -41,7 +42,7 @@ pub fn fit_nonparametric(
 ) -> PyResult<(Material, Py<PyDict>)> {
     require_input_not_output(&data, out.as_deref())?;
     let name = data.display().to_string();
-    let (fitted, description, n_fit, n_held) = py
+    let (fitted, engine, description, n_fit, n_held) = py
         .detach(|| {
             let d = job::load(&data, samples).map_err(|e| chain_message(&e))?;
             let fitted = match (&d.merl, grid) {
@@ -66,8 +67,11 @@ pub fn fit_nonparametric(
                     )
                 }
             };
+            let engine = meso_measured::engine::fit_engine(&d.samples, &Default::default())
+                .map_err(|e| format!("{name}: engine parameters: {e}"))?;
             Ok((
                 fitted,
+                engine,
                 d.description.clone(),
                 d.samples.samples.len(),
                 d.samples.held_out.len(),
@@ -77,7 +81,7 @@ pub fn fit_nonparametric(
     let d = PyDict::new(py);
     d.set_item("description", &description)?;
     let counts = (n_fit, n_held);
-    let text = match &fitted {
+    let mut text = match &fitted {
         Fitted::Radial(r) => {
             d.set_item("kind", "radial")?;
             d.set_item("nodes", r.nodes)?;
@@ -108,6 +112,8 @@ pub fn fit_nonparametric(
             nonparametric_aniso::material_toml(r, &comment)
         }
     };
+    engine.annotate(&mut text);
+    d.set_item("engine", engine_dict(py, &engine)?)?;
     let material = Material::from_text(&text)?;
     if let Some(out) = &out {
         meso_core::io::write_atomic(out, text.as_bytes())

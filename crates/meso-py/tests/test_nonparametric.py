@@ -72,6 +72,14 @@ def test_recovers_the_material_and_equals_the_cli(merl, tmp_path):
     run_cli("fit", str(path), "--nonparametric", "--out", str(tmp_path / "cli.toml"))
     strip = lambda s: re.sub(r"^#.*\n", "", s, flags=re.M)  # noqa: E731
     assert strip((tmp_path / "cli.toml").read_text()) == strip((tmp_path / "py.toml").read_text())
+    # The engine parameters (glTF metallic-roughness of the best single GGX + Lambert): in the
+    # report, and in both files as the same comment line. The truth's Schlick f0 is red > green >
+    # blue, and so is the base colour.
+    e = report["engine"]
+    assert 0 < e["alpha"] <= 1.5 and 0 <= e["metallic"] <= 1, e
+    assert e["base_color"][0] > e["base_color"][1] > e["base_color"][2], e
+    line = next(s for s in (tmp_path / "py.toml").read_text().splitlines() if s.startswith("# engine (glTF"))
+    assert line in (tmp_path / "cli.toml").read_text().splitlines()
 
 
 def test_bad_inputs_raise(tmp_path):

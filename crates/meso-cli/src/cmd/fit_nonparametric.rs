@@ -106,8 +106,8 @@ struct Terms<'a> {
     held_out: Option<&'a meso_measured::fit::FitErrors>,
 }
 
-/// The report's common part (the terms, the error table), the material written atomically to
-/// `--out`, and the report printed.
+/// The report's common part (the terms, the error table, the engine parameters, also written
+/// into the file), the material written atomically to `--out`, and the report printed.
 fn finish(
     a: &Args,
     samples: &meso_measured::samples::SampleSet,
@@ -116,6 +116,10 @@ fn finish(
     mut report: String,
     t0: Instant,
 ) -> Result<()> {
+    let engine = meso_measured::engine::fit_engine(samples, &Default::default())
+        .with_context(|| format!("{}: engine parameters", a.data.display()))?;
+    let mut text = text.to_owned();
+    engine.annotate(&mut text);
     let _ = writeln!(
         report,
         "  transfer mirror, Schlick f0 [{}], specular [{}], Smith masking-shadowing from the NDF",
@@ -152,6 +156,7 @@ fn finish(
             )
         );
     }
+    let _ = writeln!(report, "{}", engine.describe());
     meso_core::io::write_atomic(&a.out, text.as_bytes())
         .with_context(|| format!("writing {}", a.out.display()))?;
     let _ = writeln!(report, "\nwrote {}", a.out.display());

@@ -200,7 +200,8 @@ def fit_nonparametric(
     over an equal-area grid of ``grid = (n_z, n_phi)`` cells (default 512 × 64, ``n_z`` even) from
     its back-scattering samples (``kind`` ``"tabulated"``; report ``grid``, ``back_samples``,
     ``cells_covered``, ``cells_needed``). Both: Smith derived from the NDF, Schlick ``f0``,
-    ``specular`` and ``albedo`` fitted, ``fitted``/``held_out`` errors per channel, the TOML;
+    ``specular`` and ``albedo`` fitted, ``engine`` (glTF metallic-roughness of the best single
+    GGX + Lambert, as ``fit``'s), ``fitted``/``held_out`` errors per channel, the TOML;
     ``out`` also writes the file."""
 
 def fit_samples(
