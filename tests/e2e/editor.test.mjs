@@ -714,6 +714,19 @@ test('Open texture…: a map file written by meso extract opens with its levels,
   assert.match(toml, /level = 1/);
   assert.match(toml, /texel = \[3, 5\]/);
   await shot('12-map-file-texel');
+  // The textured preview follows the object: the plane, then the sphere again; each asks the
+  // texture renderer for that object and shows a new picture.
+  for (const object of ['plane', 'sphere']) {
+    const before = await previewHash();
+    const n2 = await renders();
+    const reply = page.waitForResponse((r) => r.url().endsWith('/api/texture/render')
+      && (JSON.parse(r.request().postData() || '{}').view || {}).object === object, { timeout: 60000 });
+    await page.click(`#object-seg button[data-object="${object}"]`);
+    assert.equal((await reply).status(), 200);
+    await waitForRender(n2);
+    await page.waitForTimeout(300);
+    assert.notEqual(await previewHash(), before, `the ${object} preview is a new picture`);
+  }
 });
 
 test('Open… a heightmap material asks for its file; mixture and radial materials open', async () => {
