@@ -288,3 +288,36 @@ test('--anisotropic on a 1 × 1 map fails with the file and the reason named', (
   assert.match(r.stderr, /1 × 1/);
   assert.equal(fs.existsSync(path.join(art, 'out-one')), false);
 });
+
+test('a material file exports its engine parameters: gltf-validator reports zero errors, the factors are the material\'s', async () => {
+  // A dielectric GGX + Lambert material (α 0.09: glTF roughness 0.3, F0 0.04: metallic 0, the
+  // Lambert albedo as base colour), as `meso fit` writes materials.
+  const mat = path.join(art, 'dielectric.toml');
+  fs.writeFileSync(mat, 'form = "microfacet"\n[ndf]\nkind = "ggx"\nalpha = 0.09\n[transfer]\nkind = "mirror"\n'
+    + 'fresnel = "schlick"\nf0 = [0.04, 0.04, 0.04]\n[shadowing]\nkind = "smith"\n[diffuse]\nalbedo = [0.5, 0.3, 0.2]\n');
+  const dir = path.join(art, 'out-material');
+  fs.rmSync(dir, { recursive: true, force: true });
+  const r = spawnSync(bin, ['export', mat, '--out', dir], { encoding: 'utf8' });
+  assert.equal(r.status, 0, r.stderr);
+  assert.match(r.stderr, /engine \(glTF metallic-roughness/);
+  const result = await validate(dir);
+  fs.writeFileSync(path.join(art, 'validator-material.json'), JSON.stringify(result, null, 2));
+  const i = result.issues;
+  console.log(`gltf-validator (material file): ${i.numErrors} errors, ${i.numWarnings} warnings`);
+  assert.equal(i.numErrors, 0, JSON.stringify(i.messages.filter((m) => m.severity === 0)));
+  assert.equal(i.numWarnings, 0, JSON.stringify(i.messages.filter((m) => m.severity === 1)));
+  const doc = JSON.parse(fs.readFileSync(path.join(dir, 'scene.gltf'), 'utf8'));
+  const bc = doc.materials[0].pbrMetallicRoughness.baseColorFactor;
+  [0.5, 0.3, 0.2].forEach((a, c) => assert.ok(Math.abs(bc[c] - a) < 0.06, `base colour ${bc}`));
+  // metallicRoughness: G = roughness, B = metallic, the same in every texel of every level.
+  const c = readKtx(new Uint8Array(fs.readFileSync(path.join(dir, 'metallic_roughness.ktx2'))));
+  assert.equal(c.vkFormat, 37, 'VK_FORMAT_R8G8B8A8_UNORM');
+  assert.equal(c.levelCount, 3, 'a flat 4 × 4 map: 4, 2, 1');
+  for (const l of c.levels) {
+    for (let t = 0; t < l.levelData.length; t += 4) {
+      const g = l.levelData[t + 1] / 255, b = l.levelData[t + 2] / 255;
+      assert.ok(Math.abs(g - 0.3) < 0.03, `roughness ${g}`);
+      assert.ok(b < 0.1, `metallic ${b}`);
+    }
+  }
+});

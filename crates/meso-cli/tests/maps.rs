@@ -451,3 +451,42 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     ]));
     assert!(out.exists());
 }
+
+/// `meso export MATERIAL.toml`: a metal (GGX α 0.16, Schlick f0 0.9 / 0.6 / 0.3, no diffuse term)
+/// exports as glTF metallic–roughness with metallic ≈ 1, base colour ≈ f0 and roughness ≈ √α
+/// (the tolerances of the engine parameters' own test, crates/meso-py/tests/test_fit.py); the
+/// material path takes no map option (one error line, no folder).
+#[test]
+fn a_material_file_exports_its_engine_parameters() {
+    let d = tmpdir("material-export");
+    let m = d.join("metal.toml");
+    std::fs::write(
+        &m,
+        "form = \"microfacet\"\n[ndf]\nkind = \"ggx\"\nalpha = 0.16\n[transfer]\nkind = \"mirror\"\n\
+         fresnel = \"schlick\"\nf0 = [0.9, 0.6, 0.3]\n[shadowing]\nkind = \"smith\"\n",
+    )
+    .unwrap();
+    let out = d.join("metal");
+    let o = meso(&["export", s(&m), "--out", s(&out)]);
+    ok(&o);
+    let gltf = std::fs::read_to_string(out.join("scene.gltf")).unwrap();
+    let doc: serde_json::Value = serde_json::from_str(&gltf).unwrap();
+    let bc = &doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"];
+    for (c, want) in [0.9, 0.6, 0.3].into_iter().enumerate() {
+        let got = bc[c].as_f64().unwrap();
+        assert!((got - want).abs() < 0.06, "base colour {bc}");
+    }
+    let mr = image::open(out.join("metallic_roughness_mip0.png"))
+        .unwrap()
+        .to_rgb8();
+    for p in mr.pixels() {
+        let (rough, metal) = (f64::from(p.0[1]) / 255.0, f64::from(p.0[2]) / 255.0);
+        assert!((rough - 0.4).abs() < 0.03, "roughness {rough}");
+        assert!(metal > 0.9, "metallic {metal}");
+    }
+    // Map options do not apply to a material file.
+    let refused = d.join("refused");
+    let o = meso(&["export", s(&m), "--alpha", "0.3", "--out", s(&refused)]);
+    fails(&o, &refused, "material with --alpha");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("metal.toml"));
+}

@@ -350,6 +350,25 @@ impl Inputs {
             anisotropic: false,
         }
     }
+    /// Inputs of a uniform material with no normal map (a flat 4 × 4 map, +z everywhere): GGX
+    /// width `alpha`, `metallic` and the linear base colour `base_color` as the glTF factor —
+    /// the export of a material given by its parameters alone (`meso export MATERIAL.toml`,
+    /// the engine parameters of a fitted material). Every level's α is `alpha` (a flat map loses
+    /// no variance).
+    #[must_use]
+    pub fn uniform(alpha: f64, metallic: f64, base_color: [f64; 3]) -> Inputs {
+        Inputs {
+            width: 4,
+            height: 4,
+            normals: vec![DVec3::Z; 16],
+            roughness: Roughness::Alpha(alpha),
+            metallic,
+            base_color: None,
+            base_color_factor: [base_color[0], base_color[1], base_color[2], 1.0],
+            anisotropic: false,
+        }
+    }
+
     /// Inputs from a height map (normals by [`normals_from_heightmap`]) with a constant α.
     #[must_use]
     pub fn from_heightmap(map: &HeightMap, alpha: f64) -> Inputs {

@@ -18,10 +18,15 @@ pub enum Convention {
     Dx,
 }
 
-/// Export a normal map (or height map) and its roughness as engine-ready textures.
+/// Export a normal map (or height map) and its roughness as engine-ready textures; or a material
+/// file (`.toml`, e.g. one `meso fit` wrote) as its engine parameters: the best single GGX +
+/// Lambert of its BRDF as glTF metallic–roughness, on a flat map.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Tangent-space normal map (RGB) or, with --texel-size and --height-scale, a height map.
+    /// Tangent-space normal map (RGB) or, with --texel-size and --height-scale, a height map; or
+    /// a material file (`.toml`): its engine parameters (GGX α, metallic, base colour) fitted to
+    /// its BRDF as `meso fit` reports them, exported as a uniform material (no other option
+    /// applies).
     pub map: PathBuf,
     /// Output folder (created; every file written atomically, all or nothing).
     #[arg(long, short)]
@@ -65,6 +70,45 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
+    let is_material = a
+        .map
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    let (mut inputs, material) = if is_material {
+        if a.texel_size.is_some()
+            || a.roughness_map.is_some()
+            || a.base_color.is_some()
+            || a.lobes.is_some()
+            || a.anisotropic
+            || a.alpha != 0.1
+            || a.metallic != 0.0
+        {
+            bail!(
+                "{}: a material file gives its own roughness, metallic and base colour; no other \
+                 option applies",
+                a.map.display()
+            );
+        }
+        let m = meso_core::material::Material::from_file(&a.map, &meso_maps::MapsResolver::new())?;
+        let e = meso_measured::engine::of_material(&m)
+            .with_context(|| format!("{}: engine parameters", a.map.display()))?;
+        eprintln!("{}: {}", a.map.display(), e.describe());
+        (
+            Inputs::uniform(e.alpha.clamp(1e-3, 1.0), e.metallic, e.base_color),
+            true,
+        )
+    } else {
+        (maps_inputs(&a)?, false)
+    };
+    if !material {
+        inputs.metallic = a.metallic;
+        inputs.anisotropic = a.anisotropic;
+    }
+    export_inputs(&a, &inputs)
+}
+
+/// The inputs of a normal-map or height-map export, with the roughness map and base colour.
+fn maps_inputs(a: &Args) -> Result<Inputs> {
     export::check_budget_for(
         &a.map,
         a.texel_size.is_some(),
@@ -112,9 +156,12 @@ pub fn run(a: Args) -> Result<()> {
         }
         inputs.base_color = Some(bc);
     }
-    inputs.metallic = a.metallic;
-    inputs.anisotropic = a.anisotropic;
-    let mut ex = export::build(&inputs).with_context(|| a.map.display().to_string())?;
+    Ok(inputs)
+}
+
+/// Build the export of `inputs` (and the lobe textures of `--lobes`), write it, print the levels.
+fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
+    let mut ex = export::build(inputs).with_context(|| a.map.display().to_string())?;
     if let Some(p) = &a.lobes {
         let pyr = meso_maps::Pyramid::read(p)?;
         if (pyr.width, pyr.height) != (inputs.width, inputs.height) {
