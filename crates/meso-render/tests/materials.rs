@@ -393,3 +393,58 @@ fn mapped_materials_reject_bad_scale() {
     let e = BumpMapped::new(&map, &surface, 0.0, false).unwrap_err();
     assert!(e.contains("texels_per_uv"), "{e}");
 }
+
+/// A measured (non-parametric) NDF renders as the NDF it tabulates (issue #13 item 3: usable
+/// where an NDF is): a `radial` table of GGX α = 0.25 every 0.5° (what `meso fit
+/// --nonparametric` writes), under the same Schlick mirror facets and Smith masking (derived
+/// numerically from the table), shades a sphere like the closed-form GGX material: the images
+/// differ by less than 0.5 % (sum of absolute differences over the sum; measured 0.03 %).
+#[test]
+fn a_tabulated_ndf_renders_as_its_closed_form() {
+    let alpha: f64 = 0.25;
+    let a2 = alpha * alpha;
+    let thetas: Vec<f64> = (0..180).map(|k| f64::from(k) * 0.5).collect();
+    let density: Vec<String> = thetas
+        .iter()
+        .map(|t| {
+            let c = t.to_radians().cos();
+            let d = c * c * (a2 - 1.0) + 1.0;
+            format!("{:e}", a2 / (std::f64::consts::PI * d * d))
+        })
+        .collect();
+    let theta: Vec<String> = thetas.iter().map(|t| format!("{t:.1}")).collect();
+    let facets = "[transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\nf0 = [0.9, 0.6, 0.3]\n\
+                  [shadowing]\nkind = \"smith\"\n[diffuse]\nalbedo = [0.05, 0.05, 0.05]\n";
+    let tabulated = format!(
+        "form = \"microfacet\"\n[ndf]\nkind = \"radial\"\ntheta = [{}]\ndensity = [{}]\n{facets}",
+        theta.join(", "),
+        density.join(", ")
+    );
+    let closed = format!("form = \"microfacet\"\n[ndf]\nkind = \"ggx\"\nalpha = {alpha}\n{facets}");
+    let light = Light::Directional {
+        direction: DVec3::new(0.4, 0.3, 0.866).normalize(),
+        irradiance: DVec3::splat(2.0),
+    };
+    let render_of = |text: &str| {
+        let m = Material::from_toml_str(text).unwrap();
+        render(
+            &ortho_sphere_scene(Arc::new(MaterialShader::new(&m)), 48, 1, light.clone()),
+            &RenderOptions::default(),
+            None,
+        )
+    };
+    let (a, b) = (render_of(&tabulated), render_of(&closed));
+    let (mut num, mut den) = (0.0, 0.0);
+    for (p, q) in a.pixels().iter().zip(b.pixels()) {
+        for c in 0..3 {
+            num += f64::from((p[c] - q[c]).abs());
+            den += f64::from(q[c]);
+        }
+    }
+    let err = num / den;
+    eprintln!(
+        "radial table against closed-form GGX: {:.3} % of the image",
+        100.0 * err
+    );
+    assert!(den > 0.0 && err < 0.005, "relative image difference {err}");
+}
