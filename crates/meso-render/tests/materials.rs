@@ -428,7 +428,7 @@ fn a_tabulated_ndf_renders_as_its_closed_form() {
     let render_of = |text: &str| {
         let m = Material::from_toml_str(text).unwrap();
         render(
-            &ortho_sphere_scene(Arc::new(MaterialShader::new(&m)), 48, 1, light.clone()),
+            &ortho_sphere_scene(Arc::new(MaterialShader::new(&m)), 48, 1, light),
             &RenderOptions::default(),
             None,
         )
