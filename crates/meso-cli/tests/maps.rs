@@ -490,3 +490,90 @@ fn a_material_file_exports_its_engine_parameters() {
     fails(&o, &refused, "material with --alpha");
     assert!(String::from_utf8_lossy(&o.stderr).contains("metal.toml"));
 }
+
+/// `meso extract --facet-alpha A` reports the shading error under the facet's own kernel
+/// (λ = 2/α²: α = 0.1 → λ = 200, sharper than the default λ = 40, so the same lobes show a
+/// larger error on the coarse levels), with the lobes unchanged; `--k-choice shading` picks each
+/// texel's lobes by that error (never more lobes per texel on average than the default, whose
+/// lobes are among its candidates); a roughness outside (0, 1] is refused.
+#[test]
+fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
+    let d = tmpdir("facet-alpha");
+    let png = d.join("gravel.png");
+    gravel_png(&png, 32, 5);
+    let run = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "extract",
+            s(&png),
+            "--texel-size",
+            "0.01",
+            "--height-scale",
+            "0.1",
+            "--out",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        let o = meso(&args);
+        ok(&o);
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    // (kernel λ, [(mean shading error %, mean lobes per texel)] per level) from the report line.
+    let parse = |err: &str| -> (String, Vec<(f64, f64)>) {
+        let line = err
+            .lines()
+            .find(|l| l.starts_with("shading error per level"))
+            .unwrap_or_else(|| panic!("no shading line in {err}"));
+        let lam = line[line.find("exp(").unwrap() + 4..line.find("(h·m").unwrap()].to_owned();
+        let levels = line[line.find("texel): ").unwrap() + 8..]
+            .split(", ")
+            .map(|f| {
+                let (_, rest) = f.split_once(": ").unwrap();
+                let (errs, lobes) = rest.split_once(" (").unwrap();
+                let mean: f64 = errs.split('/').next().unwrap().parse().unwrap();
+                (mean, lobes.trim_end_matches(')').parse().unwrap())
+            })
+            .collect();
+        (lam, levels)
+    };
+    let (a, b, c) = (d.join("a.map"), d.join("b.map"), d.join("c.map"));
+    let (lam_a, la) = parse(&run(&[], &a));
+    let (lam_b, lb) = parse(&run(&["--facet-alpha", "0.1"], &b));
+    let (lam_c, lc) = parse(&run(&["--facet-alpha", "0.1", "--k-choice", "shading"], &c));
+    assert_eq!(
+        (lam_a.as_str(), lam_b.as_str(), lam_c.as_str()),
+        ("40", "200", "200")
+    );
+    // The same lobes (the facet only changes the reported error, which the file records too) …
+    let (pa, pb) = (
+        meso_maps::Pyramid::read(&a).unwrap(),
+        meso_maps::Pyramid::read(&b).unwrap(),
+    );
+    for (x, y) in pa.levels.iter().zip(&pb.levels) {
+        assert!(x.lobe_start == y.lobe_start && x.lobes == y.lobes);
+    }
+    // … seen through a sharper kernel: a larger error on the top level.
+    assert!(lb.last().unwrap().0 > la.last().unwrap().0, "{la:?} {lb:?}");
+    // K by the shading error: never more lobes per texel than the default on average.
+    for (k, (x, y)) in lb.iter().zip(&lc).enumerate() {
+        assert!(
+            y.1 <= x.1 + 1e-9,
+            "level {k}: {} lobes against {}",
+            y.1,
+            x.1
+        );
+    }
+    let bad = d.join("bad.map");
+    let o = meso(&[
+        "extract",
+        s(&png),
+        "--texel-size",
+        "0.01",
+        "--height-scale",
+        "0.1",
+        "--facet-alpha",
+        "0",
+        "--out",
+        s(&bad),
+    ]);
+    fails(&o, &bad, "--facet-alpha 0");
+}
