@@ -489,6 +489,22 @@ fn a_material_file_exports_its_engine_parameters() {
     let o = meso(&["export", s(&m), "--alpha", "0.3", "--out", s(&refused)]);
     fails(&o, &refused, "material with --alpha");
     assert!(String::from_utf8_lossy(&o.stderr).contains("metal.toml"));
+    // A height map's material exports through its map (its BRDF at every MERL cell would take
+    // hours): refused with the map named, before the map is read.
+    let hm = d.join("bumps.toml");
+    std::fs::write(
+        &hm,
+        "[ndf]\nkind = \"heightmap\"\nfile = \"bumps.png\"\ntexel_size = 1\nheight_scale = 1\n\
+         [transfer]\nkind = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n",
+    )
+    .unwrap();
+    let o = meso(&["export", s(&hm), "--out", s(&refused)]);
+    fails(&o, &refused, "heightmap material");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("bumps.toml") && err.contains("bumps.png") && err.contains("export that map"),
+        "{err}"
+    );
 }
 
 /// `meso extract --facet-alpha A` reports the shading error under the facet's own kernel

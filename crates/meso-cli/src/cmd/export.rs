@@ -74,37 +74,55 @@ pub fn run(a: Args) -> Result<()> {
         .map
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let (mut inputs, material) = if is_material {
-        if a.texel_size.is_some()
-            || a.roughness_map.is_some()
-            || a.base_color.is_some()
-            || a.lobes.is_some()
-            || a.anisotropic
-            || a.alpha != 0.1
-            || a.metallic != 0.0
-        {
-            bail!(
-                "{}: a material file gives its own roughness, metallic and base colour; no other \
-                 option applies",
-                a.map.display()
-            );
-        }
-        let m = meso_core::material::Material::from_file(&a.map, &meso_maps::MapsResolver::new())?;
-        let e = meso_measured::engine::of_material(&m)
-            .with_context(|| format!("{}: engine parameters", a.map.display()))?;
-        eprintln!("{}: {}", a.map.display(), e.describe());
-        (
-            Inputs::uniform(e.alpha.clamp(1e-3, 1.0), e.metallic, e.base_color),
-            true,
-        )
+    let inputs = if is_material {
+        material_inputs(&a)?
     } else {
-        (maps_inputs(&a)?, false)
+        maps_inputs(&a)?
     };
-    if !material {
-        inputs.metallic = a.metallic;
-        inputs.anisotropic = a.anisotropic;
-    }
     export_inputs(&a, &inputs)
+}
+
+/// The inputs of a material file's export: its engine parameters on a flat map. Only materials
+/// whose NDF is in the file (a height map's material exports through the map itself, and its
+/// BRDF at every MERL cell would take hours).
+fn material_inputs(a: &Args) -> Result<Inputs> {
+    use meso_core::material::{read_limited, MaterialSpec, NdfSpec, NoExternalNdfs};
+    if a.texel_size.is_some()
+        || a.roughness_map.is_some()
+        || a.base_color.is_some()
+        || a.lobes.is_some()
+        || a.anisotropic
+        || a.alpha != 0.1
+        || a.metallic != 0.0
+    {
+        bail!(
+            "{}: a material file gives its own roughness, metallic and base colour; no other \
+             option applies",
+            a.map.display()
+        );
+    }
+    let dir = a.map.parent().unwrap_or(std::path::Path::new("."));
+    let spec = MaterialSpec::parse(&read_limited(&a.map)?, dir)
+        .with_context(|| a.map.display().to_string())?;
+    if let NdfSpec::External { kind, file, .. } = &spec.ndf {
+        bail!(
+            "{}: its NDF comes from {} ([ndf] kind = \"{kind}\"); export that map instead \
+             (meso export MAP --out DIR)",
+            a.map.display(),
+            file.display()
+        );
+    }
+    let m = spec
+        .build(&NoExternalNdfs)
+        .with_context(|| a.map.display().to_string())?;
+    let e = meso_measured::engine::of_material(&m)
+        .with_context(|| format!("{}: engine parameters", a.map.display()))?;
+    eprintln!("{}: {}", a.map.display(), e.describe());
+    Ok(Inputs::uniform(
+        e.alpha.clamp(1e-3, 1.0),
+        e.metallic,
+        e.base_color,
+    ))
 }
 
 /// The inputs of a normal-map or height-map export, with the roughness map and base colour.
@@ -156,6 +174,8 @@ fn maps_inputs(a: &Args) -> Result<Inputs> {
         }
         inputs.base_color = Some(bc);
     }
+    inputs.metallic = a.metallic;
+    inputs.anisotropic = a.anisotropic;
     Ok(inputs)
 }
 
