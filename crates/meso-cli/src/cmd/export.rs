@@ -9,6 +9,9 @@ use meso_export::export::{self, Inputs, Roughness};
 use meso_maps::{Border, HeightMap, NormalConvention, NormalMap};
 use std::path::PathBuf;
 
+/// `--alpha`'s default: the base GGX width of a map export (a material file gives its own).
+const DEFAULT_ALPHA: f64 = 0.1;
+
 /// Green-channel convention of the input normal map.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Convention {
@@ -41,7 +44,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "gl")]
     pub convention: Convention,
     /// Constant base GGX width α in (0, 1] (glTF roughness is √α).
-    #[arg(long, default_value_t = 0.1, conflicts_with = "roughness_map")]
+    #[arg(long, default_value_t = DEFAULT_ALPHA, conflicts_with = "roughness_map")]
     pub alpha: f64,
     /// Per-texel roughness image holding glTF perceptual roughness r (α = r²): grey, or a
     /// metallicRoughness image (G is used). Same size as the map.
@@ -92,7 +95,7 @@ fn material_inputs(a: &Args) -> Result<Inputs> {
         || a.base_color.is_some()
         || a.lobes.is_some()
         || a.anisotropic
-        || a.alpha != 0.1
+        || a.alpha != DEFAULT_ALPHA
         || a.metallic != 0.0
     {
         bail!(

@@ -202,27 +202,9 @@ fn e_step_k(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
             }
         },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
-        3 => unsafe {
-            if quads::avx512() {
-                quads::e_step_x2::<3>(pts, lobes, acc)
-            } else if quads::available() {
-                quads::e_step::<3>(pts, lobes, acc)
-            } else {
-                pairs::e_step::<3, 2>(pts, lobes, acc)
-            }
-        },
+        3 => e_step_3_4::<3>(pts, lobes, acc),
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: AVX2 only where the CPU has it; SSE2 is part of every x86-64 CPU.
-        4 => unsafe {
-            if quads::avx512() {
-                quads::e_step_x2::<4>(pts, lobes, acc)
-            } else if quads::available() {
-                quads::e_step::<4>(pts, lobes, acc)
-            } else {
-                pairs::e_step::<4, 2>(pts, lobes, acc)
-            }
-        },
+        4 => e_step_3_4::<4>(pts, lobes, acc),
         #[cfg(not(target_arch = "x86_64"))]
         2 => e_step::<2>(pts, lobes, acc),
         #[cfg(not(target_arch = "x86_64"))]
@@ -233,6 +215,22 @@ fn e_step_k(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
         6 => e_step::<6>(pts, lobes, acc),
         7 => e_step::<7>(pts, lobes, acc),
         _ => e_step::<MAX_LOBES>(pts, lobes, acc),
+    }
+}
+
+/// [`e_step_k`] for `K` = 3 or 4 lobes on x86-64: two points per AVX-512 register where the CPU
+/// has it, else one per AVX2 register, else two lobes per SSE2 register.
+#[cfg(target_arch = "x86_64")]
+fn e_step_3_4<const K: usize>(pts: &[Pt], lobes: &[L], acc: &mut Acc) -> f64 {
+    // SAFETY: AVX-512 and AVX2 only where the CPU has them; SSE2 is part of every x86-64 CPU.
+    unsafe {
+        if quads::avx512() {
+            quads::e_step_x2::<K>(pts, lobes, acc)
+        } else if quads::available() {
+            quads::e_step::<K>(pts, lobes, acc)
+        } else {
+            pairs::e_step::<K, 2>(pts, lobes, acc)
+        }
     }
 }
 

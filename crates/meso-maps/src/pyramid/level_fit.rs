@@ -199,24 +199,24 @@ impl LevelFit<'_> {
     /// The entries of level-0 cell `(r, c)`: its facets merged per bin.
     fn cell_entries(&self, r: usize, c: usize, singles: &mut Vec<Entry>, out: &mut Vec<Entry>) {
         singles.clear();
-        self.push_cell(r, c, singles);
+        singles.extend(self.cell_facet_entries(r, c));
         merge_entries(&[singles], out);
     }
 
-    /// The entries of the facets of cell `(r, c)` (each its own, unmerged; bins from the
-    /// cache), pushed onto `out` in the facets' order (as `FacetNormals::footprint` orders a footprint's
+    /// The entries of the facets of cell `(r, c)` (each its own, unmerged; bins from
+    /// [`facet_bins`]), in the facets' order (as `FacetNormals::footprint` orders a footprint's
     /// facets: rows, then columns, then a cell's facets).
     #[inline]
-    fn push_cell(&self, r: usize, c: usize, out: &mut Vec<Entry>) {
+    fn cell_facet_entries(&self, r: usize, c: usize) -> impl Iterator<Item = Entry> + '_ {
         let (f, n) = self.facets.cell(r, c);
         let at = (r * self.facets.cols() + c) * BIN_SLOTS;
-        for (&(m, w), &bin) in f[..n].iter().zip(&self.bins[at..at + n]) {
-            out.push(Entry {
+        f.into_iter()
+            .zip(&self.bins[at..at + n])
+            .map(|((m, w), &bin)| Entry {
                 bin: u32::from(bin),
                 w,
                 m: m * w,
-            });
-        }
+            })
     }
 
     /// The merged entries of texel `(r, c)` of level `j`, into `out`: a cell's facets merged
@@ -296,18 +296,15 @@ impl LevelFit<'_> {
                 grid.resize(bins, (0.0, glam::DVec3::ZERO));
             }
             hit.clear();
-            let cols = self.facets.cols();
             for r in r0..r1 {
                 for c in c0..c1 {
-                    let (f, n) = self.facets.cell(r, c);
-                    let at = (r * cols + c) * BIN_SLOTS;
-                    for (&(m, w), &bin) in f[..n].iter().zip(&self.bins[at..at + n]) {
-                        let b = &mut grid[usize::from(bin)];
+                    for e in self.cell_facet_entries(r, c) {
+                        let b = &mut grid[e.bin as usize];
                         if b.0 == 0.0 && b.1 == glam::DVec3::ZERO {
-                            hit.push(u32::from(bin));
+                            hit.push(e.bin);
                         }
-                        b.0 += w;
-                        b.1 += m * w;
+                        b.0 += e.w;
+                        b.1 += e.m;
                     }
                 }
             }
