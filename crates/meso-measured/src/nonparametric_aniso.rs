@@ -50,7 +50,10 @@
 //! red: the error of a piecewise-constant table on this grid, not of the fit). A Beckmann
 //! material α = (0.35, 0.2) turned by −60°: f0, specular and albedo within 0.6 %, the table
 //! within 7.0 % rms (worst cell 45 %: its tail falls by orders of magnitude across a cell),
-//! held-out 1.05–1.06× the truth's own table.
+//! held-out 1.05–1.06× the truth's own table. Data drawn from a table on the fit's own grid
+//! (the family's own parameters) come back within 10⁻³ in every cell, f0, specular and albedo
+//! (GGX cell means; 10⁻⁶ for Beckmann's): the fit's fixed point is the truth, and the errors
+//! above are those of a piecewise-constant table sampled by a few samples a cell.
 
 //! `s = u + g` and `f0 = u/(u + g)` are written as the mirror's `specular` and `f0`.
 //!

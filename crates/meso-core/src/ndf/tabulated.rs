@@ -127,9 +127,17 @@ impl Tabulated {
         &self.values
     }
 
-    /// Density in 1/sr.
+    /// Density in 1/sr: the value of the cell that holds `m`. At the poles themselves (`m` on
+    /// ±z), where the first and last bands' wedge cells all meet and no cell holds `m` more than
+    /// another, the mean of that band's cells, so that turning the table about z by whole
+    /// sectors turns its values everywhere (a MERL table's first θh row sits on the pole).
     #[must_use]
     pub fn eval(&self, m: DVec3) -> f64 {
+        if m.x == 0.0 && m.y == 0.0 {
+            let band = self.grid.cell_of(m) / self.grid.n_phi * self.grid.n_phi;
+            let cells = &self.values[band..band + self.grid.n_phi];
+            return cells.iter().sum::<f64>() / cells.len() as f64;
+        }
         self.values[self.grid.cell_of(m)]
     }
 
@@ -484,5 +492,38 @@ impl ProjectedAreas<'_> {
             }
         }
         total
+    }
+}
+
+#[cfg(test)]
+mod pole_tests {
+    use super::*;
+
+    /// A table whose value depends on the sector, turned by whole sectors, has the turned
+    /// values everywhere, the poles included (where every sector's wedge meets).
+    #[test]
+    fn the_poles_take_their_bands_mean() {
+        let g = EqualAreaGrid::new(8, 8);
+        let t = Tabulated::from_values(g, (0..g.len()).map(|c| 1.0 + (c % 8) as f64).collect())
+            .unwrap();
+        let top = &t.values()[7 * 8..];
+        let mean = top.iter().sum::<f64>() / 8.0;
+        assert!((t.eval(DVec3::Z) - mean).abs() < 1e-15);
+        assert!((t.eval(-DVec3::Z) - mean).abs() < 1e-15);
+        // Just off the pole, the wedge that holds the direction.
+        let near = DVec3::new(1e-9, 1e-9, 1.0).normalize();
+        assert_eq!(t.eval(near), t.values()[g.cell_of(near)]);
+        // Turned by three sectors.
+        let turned: Vec<f64> = (0..g.len())
+            .map(|c| t.values()[c / 8 * 8 + (c % 8 + 3) % 8])
+            .collect();
+        let u = Tabulated::from_values(g, turned).unwrap();
+        let q = glam::DQuat::from_rotation_z(-3.0 * std::f64::consts::TAU / 8.0);
+        for m in [DVec3::Z, -DVec3::Z, DVec3::new(0.3, 0.2, 0.9).normalize()] {
+            assert!(
+                (u.eval(q * m) - t.eval(m)).abs() < 1e-12 * t.eval(m),
+                "{m:?}"
+            );
+        }
     }
 }
