@@ -66,13 +66,20 @@ pub struct Gonio {
     zmax: f64,
 }
 
-/// A hit: the facet normal (macro frame).
+/// A hit: where on which triangle of the map, and its facet normal (macro frame).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     /// Ray parameter (cell units).
     pub t: f64,
     /// Unit facet normal.
     pub normal: DVec3,
+    /// The cell hit, `[row, col]` of the map (wrapped into the tile).
+    pub cell: [usize; 2],
+    /// The triangle of the cell: 0 for the one holding `y ≤ x` (cell-local coordinates, the
+    /// triangle `(0,0)–(1,0)–(1,1)` of `crate::facets`), 1 for the other.
+    pub triangle: u8,
+    /// The hit point in the cell's own coordinates, `[x, y]` ∈ [0, 1]² (x along columns).
+    pub local: [f64; 2],
 }
 
 impl Gonio {
@@ -233,6 +240,12 @@ impl Gonio {
                 best = Some(Hit {
                     t,
                     normal: DVec3::new(-gx, -gy, 1.0).normalize(),
+                    cell: [
+                        cy.rem_euclid(self.h as i64) as usize,
+                        cx.rem_euclid(self.w as i64) as usize,
+                    ],
+                    triangle: u8::from(!tri_a),
+                    local: [x.clamp(0.0, 1.0), y.clamp(0.0, 1.0)],
                 });
             }
         }
@@ -319,5 +332,63 @@ impl Gonio {
         }
         let k = 1.0 / ((n * n) as f64 * i.z);
         tot.map(|v| v * k)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A hit names the cell (wrapped into the tile), the triangle and the cell-local point of
+    /// the hit point, and its normal is that triangle's.
+    #[test]
+    fn a_hit_names_its_cell_triangle_and_point() {
+        let (w, h) = (8usize, 8usize);
+        let heights: Vec<f64> = (0..w * h)
+            .map(|k| 0.3 * ((k % w) as f64 * 0.9).sin() + 0.2 * ((k / w) as f64 * 1.3).cos())
+            .collect();
+        let map = HeightMap::from_heights(w, h, heights, 1.0, Border::Wrap).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let mut seen = [0usize; 2];
+        for _ in 0..2000 {
+            let (x, y): (f64, f64) = (
+                rng.random::<f64>() * 40.0 - 16.0,
+                rng.random::<f64>() * 40.0 - 16.0,
+            );
+            let d =
+                DVec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, -1.0).normalize();
+            let o = DVec3::new(x, y, 5.0);
+            let hit = g
+                .intersect(o, d, 0.0)
+                .expect("a downward ray hits the tiled surface");
+            let p = o + d * hit.t;
+            let (fx, fy) = (p.x - p.x.floor(), p.y - p.y.floor());
+            let [r, c] = hit.cell;
+            assert_eq!(
+                c,
+                (p.x.floor() as i64).rem_euclid(w as i64) as usize,
+                "{p:?}"
+            );
+            assert_eq!(
+                r,
+                (p.y.floor() as i64).rem_euclid(h as i64) as usize,
+                "{p:?}"
+            );
+            assert!((hit.local[0] - fx).abs() < 1e-9 && (hit.local[1] - fy).abs() < 1e-9);
+            assert_eq!(hit.triangle, u8::from(fy > fx), "{p:?}");
+            // The point lies on the plane of that triangle, whose normal is the hit's.
+            let z = |rr: usize, cc: usize| map.heights()[(rr % h) * w + cc % w];
+            let (h00, h01, h10, h11) = (z(r, c), z(r, c + 1), z(r + 1, c), z(r + 1, c + 1));
+            let (gx, gy) = if hit.triangle == 0 {
+                (h01 - h00, h11 - h01)
+            } else {
+                (h11 - h10, h10 - h00)
+            };
+            assert!((h00 + gx * fx + gy * fy - p.z).abs() < 1e-9, "{p:?}");
+            assert!((hit.normal - DVec3::new(-gx, -gy, 1.0).normalize()).length() < 1e-12);
+            seen[usize::from(hit.triangle)] += 1;
+        }
+        assert!(seen[0] > 500 && seen[1] > 500, "{seen:?}");
     }
 }

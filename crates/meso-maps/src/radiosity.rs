@@ -121,7 +121,6 @@ pub struct FacetRadiosity {
     /// `hits[p · rays + k]`: the patch the `k`-th ray of patch `p` hits, or [`SKY`].
     hits: Vec<u32>,
     cols: usize,
-    rows: usize,
 }
 
 impl FacetRadiosity {
@@ -192,7 +191,6 @@ impl FacetRadiosity {
             rays,
             hits: Vec::new(),
             cols,
-            rows,
         };
         let hits: Vec<Vec<u32>> = (0..patches)
             .into_par_iter()
@@ -235,17 +233,15 @@ impl FacetRadiosity {
         let Some(hit) = self.gonio.intersect(origin, d, 1e-9) else {
             return SKY;
         };
-        let p = origin + d * hit.t;
-        let (cx, cy) = (p.x.floor(), p.y.floor());
-        let (fx, fy) = ((p.x - cx).clamp(0.0, 1.0), (p.y - cy).clamp(0.0, 1.0));
-        let c = (cx as i64).rem_euclid(self.cols as i64) as usize;
-        let r = (cy as i64).rem_euclid(self.rows as i64) as usize;
-        // Triangle A holds y ≤ x within the cell (as `Gonio`'s cell test); barycentric
-        // coordinates on the vertex order of `new`.
-        let (k, b) = if fy <= fx {
-            (0, [1.0 - fx, fx - fy, fy])
+        // The tracer's own cell and triangle (triangle 0 holds y ≤ x within the cell);
+        // barycentric coordinates on the vertex order of `new`.
+        let [r, c] = hit.cell;
+        let [fx, fy] = hit.local;
+        let k = usize::from(hit.triangle);
+        let b = if k == 0 {
+            [1.0 - fx, fx - fy, fy]
         } else {
-            (1, [1.0 - fy, fx, fy - fx])
+            [1.0 - fy, fx, fy - fx]
         };
         (((r * self.cols + c) * 2 + k) * PATCHES + sub_triangle(b)) as u32
     }
