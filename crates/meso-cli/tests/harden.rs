@@ -458,6 +458,25 @@ fn item8_map_info_piped_into_head_1_does_not_panic() {
         assert_eq!(o.status.code(), Some(141), "{args:?}: {:?} {e}", o.status);
         assert!(e.is_empty(), "{args:?}: quiet, got {e}");
     }
+    // `meso export` prints its table of levels on standard output (its progress and the file
+    // count on standard error): the same exit, no panic, and its files are written.
+    let out = d.join("exported");
+    let png = d.join("h.png");
+    let args = [
+        "export",
+        s(&png),
+        "--texel-size",
+        "0.01",
+        "--height-scale",
+        "0.05",
+        "--out",
+        s(&out),
+    ];
+    let o = run_into_closed_pipe(&args);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(141), "export: {:?} {e}", o.status);
+    assert!(!e.contains("panicked"), "export: {e}");
+    assert!(out.join("scene.gltf").exists(), "export: {e}");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -400,6 +400,10 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     std::fs::write(&corrupt, &bytes).unwrap();
     let cut = d.join("cut.jpg");
     std::fs::write(&cut, &jpeg[..20]).unwrap();
+    // Cut half way through the scan's data (the decoder alone fills the rest with grey).
+    let cut_data = d.join("cut-in-data.jpg");
+    let sos = jpeg.windows(2).rposition(|w| w == [0xFF, 0xDA]).unwrap();
+    std::fs::write(&cut_data, &jpeg[..sos + (jpeg.len() - sos) / 2]).unwrap();
     let empty = d.join("empty.png");
     std::fs::write(&empty, b"").unwrap();
     // A PNG whose header says 0 × 0 pixels (valid CRC).
@@ -420,7 +424,7 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     }
     png.extend_from_slice(&(!crc).to_be_bytes());
     std::fs::write(&zero, &png).unwrap();
-    for bad in [&corrupt, &cut, &empty, &zero] {
+    for bad in [&corrupt, &cut, &cut_data, &empty, &zero] {
         let name = bad.file_name().unwrap().to_string_lossy().into_owned();
         let out = d.join("out.map");
         let o = meso(&[
@@ -440,6 +444,27 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
         fails(&o, &dir, &format!("export {name}"));
         assert!(String::from_utf8_lossy(&o.stderr).contains(&name), "{name}");
     }
+    // `--convention` reads a normal map's green channel: given with a height map it is refused,
+    // not silently ignored.
+    let dir = d.join("exported-dx");
+    let o = meso(&[
+        "export",
+        s(&good),
+        "--texel-size",
+        "1",
+        "--height-scale",
+        "1",
+        "--convention",
+        "dx",
+        "--out",
+        s(&dir),
+    ]);
+    fails(&o, &dir, "export a height map with --convention dx");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("--convention applies to a normal-map input"),
+        "{e}"
+    );
     // The good JPEG goes through both.
     let out = d.join("good.map");
     ok(&meso(&[

@@ -251,18 +251,7 @@ fn open(
     task: &str,
     estimate: impl Fn(&meso_maps::ImageHeader) -> u64,
 ) -> Result<image::DynamicImage, ExportError> {
-    if let Some(h) = header(path)? {
-        meso_core::budget::check(path, task, estimate(&h))?;
-    }
-    let bytes = std::fs::read(path).map_err(|e| ExportError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
-    let img = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| ExportError::Invalid(format!("{}: {e}", path.display())))?
-        .decode()
-        .map_err(|e| ExportError::Invalid(format!("{}: {e}", path.display())))?;
+    let img = meso_maps::heightmap::decode_image(path, task, estimate)?;
     if img.width() == 0 || img.height() == 0 {
         return Err(ExportError::Invalid(format!(
             "{}: empty image",

@@ -84,6 +84,41 @@ fn colour_images_and_normal_maps_given_as_height_maps_are_warned_about() {
         "{:?}",
         plain.warnings()
     );
+    // The same grey values stored as RGB (and as a float image, R = G = B): not colour.
+    for rgb in [grey(16).into_rgb8().into(), grey(16).into_rgb32f().into()] {
+        let rgb: image::DynamicImage = rgb;
+        let fmt = if matches!(rgb, image::DynamicImage::ImageRgb32F(_)) {
+            image::ImageFormat::OpenExr
+        } else {
+            image::ImageFormat::Png
+        };
+        let name = if fmt == image::ImageFormat::Png {
+            "grey-rgb.png"
+        } else {
+            "grey-rgb.exr"
+        };
+        let m = HeightMap::from_bytes(Path::new(name), &encode(&rgb, fmt), 1.0, 1.0, Border::Wrap)
+            .unwrap();
+        assert!(
+            m.warnings().iter().all(|w| !w.contains("colour")),
+            "{name}: {:?}",
+            m.warnings()
+        );
+    }
+    // A colour float image: its first channel is used, and said so.
+    let colour_f = image::DynamicImage::ImageRgb32F(image::Rgb32FImage::from_fn(16, 16, |c, r| {
+        image::Rgb([c as f32 / 16.0, r as f32 / 16.0, 0.5])
+    }));
+    let m = HeightMap::from_bytes(
+        Path::new("colour.exr"),
+        &encode(&colour_f, image::ImageFormat::OpenExr),
+        1.0,
+        1.0,
+        Border::Wrap,
+    )
+    .unwrap();
+    let w = m.warnings().join("\n");
+    assert!(w.contains("first (red) channel"), "{w}");
     // A colour photograph-like image: converted to luminance, and said so.
     let colour = image::DynamicImage::ImageRgb8(image::RgbImage::from_fn(16, 16, |c, r| {
         image::Rgb([(c * 15) as u8, (r * 15) as u8, 40])
@@ -107,8 +142,13 @@ fn corrupt_jpegs_are_refused_naming_the_file() {
     assert!(NormalMap::from_bytes(Path::new("ok.jpg"), &jpeg, NormalConvention::Gl).is_ok());
     // Cut inside the header (before the frame is described), and garbage after the JPEG
     // signature: both are decode errors that name the file.
-    let cases: [(&str, Vec<u8>); 2] = [
+    // Where the (last) scan starts: a cut half way through its entropy-coded data, which the
+    // decoder alone would fill with grey and accept.
+    let sos = jpeg.windows(2).rposition(|w| w == [0xFF, 0xDA]).unwrap();
+    let half = sos + (jpeg.len() - sos) / 2;
+    let cases: [(&str, Vec<u8>); 3] = [
         ("cut.jpg", jpeg[..20].to_vec()),
+        ("cut-in-data.jpg", jpeg[..half].to_vec()),
         ("garbage.jpg", {
             let mut b = jpeg[..4].to_vec();
             b.extend(std::iter::repeat_n(0x5Au8, 200));

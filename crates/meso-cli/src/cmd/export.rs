@@ -137,6 +137,13 @@ fn maps_inputs(a: &Args) -> Result<Inputs> {
         a.base_color.as_deref(),
         a.anisotropic,
     )?;
+    if a.texel_size.is_some() && a.convention == Convention::Dx {
+        bail!(
+            "{}: --convention applies to a normal-map input; a height map has no green channel to \
+             read (the exported normal map is always OpenGL / glTF: green = +Y = up)",
+            a.map.display()
+        );
+    }
     let mut inputs = match (a.texel_size, a.height_scale) {
         (Some(s), Some(h)) => {
             let map = HeightMap::load(&a.map, s, h, Border::Wrap)?;
@@ -207,17 +214,26 @@ fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
         );
     }
     let files = export::write(&ex, &a.out)?;
+    use std::fmt::Write as _;
+    let mut table = String::new();
     if a.anisotropic {
-        println!(
+        writeln!(
+            table,
             "level  size        mean α_b  mean α_t  strength   aniso fit error % (mean / max)   \
              iso fit %   standard mip %"
-        );
+        )
+        .ok();
     } else {
-        println!("level  size        mean α   fit error % of peak (mean / max)   standard mip %");
+        writeln!(
+            table,
+            "level  size        mean α   fit error % of peak (mean / max)   standard mip %"
+        )
+        .ok();
     }
     for s in &ex.stats {
         if let Some(an) = &s.aniso {
-            println!(
+            writeln!(
+                table,
                 "{:>5}  {:>4} × {:<4}  {:.4}    {:.4}    {:.4}    {:>8.3} / {:<8.3}              \
                  {:>8.3}    {:>8.3}",
                 s.level,
@@ -230,9 +246,11 @@ fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
                 s.max_error_pct,
                 an.mean_iso_error_pct,
                 s.mean_plain_error_pct
-            );
+            )
+            .ok();
         } else {
-            println!(
+            writeln!(
+                table,
                 "{:>5}  {:>4} × {:<4}  {:.4}   {:>8.3} / {:<8.3}                {:>8.3}",
                 s.level,
                 s.width,
@@ -241,9 +259,11 @@ fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
                 s.mean_error_pct,
                 s.max_error_pct,
                 s.mean_plain_error_pct
-            );
+            )
+            .ok();
         }
     }
+    crate::util::print_stdout(&table)?;
     eprintln!("{}: {} files", a.out.display(), files.len());
     Ok(())
 }

@@ -222,6 +222,35 @@ pub(super) fn open_image_budgeted(
     open_image(path)
 }
 
+/// True when the JPEG `bytes` hold an end-of-image marker (`FF D9`) after the start of their
+/// last scan (`FF DA`): a file cut off inside its entropy-coded data has none there (within a
+/// scan a data byte `FF` is always followed by `00` or a restart marker, so `FF D9` is the end).
+/// Markers inside an embedded thumbnail come before the main scan and do not count; bytes after
+/// the end marker are allowed.
+fn jpeg_has_end(bytes: &[u8]) -> bool {
+    let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    let Some(start) = last_scan else {
+        return false;
+    };
+    bytes[start..].windows(2).any(|w| w == [0xFF, 0xD9])
+}
+
+/// Read and decode the image file `path` as every meso input is read: its memory (`estimate`
+/// from the header, for `task`) checked against the budget first, then the size limits, the
+/// decoder's own limits, and a JPEG cut off inside its data refused (the decoder would fill it
+/// with grey).
+///
+/// # Errors
+/// [`MapError`] naming `path`: unreadable, empty, too large, over the memory budget, not an
+/// image, truncated, or corrupt.
+pub fn decode_image(
+    path: &Path,
+    task: &str,
+    estimate: impl Fn(&ImageHeader) -> u64,
+) -> Result<image::DynamicImage> {
+    open_image_budgeted(path, task, estimate)
+}
+
 pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicImage> {
     if bytes.is_empty() {
         return Err(MapError::Empty {
@@ -255,7 +284,36 @@ pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicIm
     limits.max_image_height = Some(MAX_DIMENSION as u32);
     limits.max_alloc = Some(texel_limit() * 16 + (1 << 20));
     r.limits(limits);
+    if r.format() == Some(image::ImageFormat::Jpeg) && !jpeg_has_end(bytes) {
+        // The decoder fills a cut-off scan with grey and reports nothing.
+        return Err(decode_err(
+            path,
+            "truncated JPEG: no end-of-image marker after its last scan (the file is cut off)",
+        ));
+    }
     let img = r.decode().map_err(|e| decode_err(path, e))?;
     check_dims(path, img.width() as u64, img.height() as u64)?;
     Ok(img)
+}
+
+#[cfg(test)]
+mod jpeg_tests {
+    use super::jpeg_has_end;
+
+    #[test]
+    fn the_end_marker_must_follow_the_last_scan() {
+        // SOI, an APP1 holding a thumbnail (its own SOS … EOI), the main scan, EOI.
+        let thumb = [0xFF, 0xD8, 0xFF, 0xE1, 0xFF, 0xDA, 1, 2, 0xFF, 0xD9];
+        let mut whole = thumb.to_vec();
+        whole.extend([0xFF, 0xDA, 7, 0xFF, 0x00, 9, 0xFF, 0xD0, 4, 0xFF, 0xD9]);
+        assert!(jpeg_has_end(&whole));
+        // Padding after the end marker is allowed.
+        let mut padded = whole.clone();
+        padded.extend([0, 0, 0]);
+        assert!(jpeg_has_end(&padded));
+        // Cut inside the main scan: only the thumbnail's end marker remains, before it.
+        assert!(!jpeg_has_end(&whole[..whole.len() - 3]));
+        // No scan at all.
+        assert!(!jpeg_has_end(&[0xFF, 0xD8, 0xFF, 0xD9]));
+    }
 }

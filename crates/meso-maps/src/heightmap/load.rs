@@ -14,6 +14,11 @@ use super::{Border, HeightMap};
 use crate::error::{positive, MapError, Result};
 use std::path::Path;
 
+/// A height image of a colour type is taken as colour (and warned about) only when some pixel's
+/// channels differ by more than this (of full scale): 2.5 codes of 8 bits, above the chroma
+/// noise of a grey image saved as a colour JPEG; a grey map stored as RGB is not colour.
+const GREY_SPREAD: f32 = 2.5 / 255.0;
+
 impl HeightMap {
     /// Load a grey PNG (8/16-bit), 16-bit TIFF or float EXR height map with texel size `S` and
     /// height scale `H` (both in the same length unit, > 0). See the module docs for the scale.
@@ -58,7 +63,18 @@ impl HeightMap {
         use image::DynamicImage as D;
         let (w, h) = (img.width() as usize, img.height() as usize);
         let mut warnings = Vec::new();
-        if img.color().has_color() {
+        // A colour type with colour in it: some pixel whose channels differ by more than JPEG's
+        // chroma noise (a grey map stored as RGB is not warned about).
+        let coloured = img.color().has_color()
+            && img.to_rgb32f().pixels().any(|p| {
+                let (lo, hi) =
+                    p.0.iter()
+                        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                            (a.min(v), b.max(v))
+                        });
+                hi - lo > GREY_SPREAD
+            });
+        if coloured {
             let rgb = img.to_rgb32f();
             let n = (w * h) as f64;
             let mean = rgb.pixels().fold([0.0f64; 3], |a, p| {
@@ -75,6 +91,12 @@ impl HeightMap {
                      not a height map: give it as a normal map instead",
                     mean[0], mean[1], mean[2]
                 ));
+            } else if matches!(img, D::ImageRgb32F(_) | D::ImageRgba32F(_)) {
+                warnings.push(
+                    "colour image used as a height map: its first (red) channel is used (prefer \
+                     a grey image)"
+                        .into(),
+                );
             } else {
                 warnings.push(
                     "colour image used as a height map: converted to luminance (prefer a grey image)"

@@ -51,7 +51,9 @@ mod terraces;
 
 pub(crate) use decode::with_texel_limit;
 use decode::{check_dims, check_dims_within};
-pub use decode::{probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_STREAM_TEXELS, MAX_TEXELS};
+pub use decode::{
+    decode_image, probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_STREAM_TEXELS, MAX_TEXELS,
+};
 pub use normal::{NormalConvention, NormalMap, MIN_NORMAL_Z};
 pub use terraces::{DEQUANTIZE_ITERATIONS, TERRACE_FRACTION};
 
