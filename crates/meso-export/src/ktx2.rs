@@ -277,14 +277,19 @@ pub fn read(bytes: &[u8]) -> Result<Texture, ExportError> {
         return Err(bad("unexpected supercompression global data".into()));
     }
     let want = dfd(format);
-    if bytes.get(dfd_off..dfd_off + dfd_len) != Some(&want[..]) {
+    if dfd_off
+        .checked_add(dfd_len)
+        .and_then(|end| bytes.get(dfd_off..end))
+        != Some(&want[..])
+    {
         return Err(bad(
             "data format descriptor does not match the vkFormat".into()
         ));
     }
     let mut key_values = Vec::new();
-    let kvd = bytes
-        .get(kvd_off..kvd_off + kvd_len)
+    let kvd = kvd_off
+        .checked_add(kvd_len)
+        .and_then(|end| bytes.get(kvd_off..end))
         .ok_or_else(|| bad("key/value data out of range".into()))?;
     let mut p = 0;
     while p + 4 <= kvd.len() {
@@ -302,6 +307,15 @@ pub fn read(bytes: &[u8]) -> Result<Texture, ExportError> {
         key_values.push((key, String::from_utf8_lossy(val).into_owned()));
         p = align(p + 4 + len, 4);
     }
+    // A 2-D texture of at most 2³² texels a side has at most 32 levels, and the level index
+    // (24 bytes a level after the 80-byte header) must lie in the file: checked before anything
+    // is allocated for the levels.
+    if n == 0 || n > 32 || 80 + 24 * n > bytes.len() {
+        return Err(bad(format!(
+            "{n} mip levels do not fit a {w} × {h} texture in {} bytes",
+            bytes.len()
+        )));
+    }
     let mut levels = Vec::with_capacity(n);
     for k in 0..n {
         let e = 80 + 24 * k;
@@ -313,8 +327,9 @@ pub fn read(bytes: &[u8]) -> Result<Texture, ExportError> {
         if len != ulen || off % lcm(format.bytes_per_texel(), 4) != 0 {
             return Err(bad(format!("level {k}: misaligned or compressed")));
         }
-        let data = bytes
-            .get(off..off + len)
+        let data = off
+            .checked_add(len)
+            .and_then(|end| bytes.get(off..end))
             .ok_or_else(|| bad(format!("level {k} out of range")))?
             .to_vec();
         levels.push(Level {
@@ -433,5 +448,67 @@ mod tests {
             b"not a ktx file at all, not at all, no, not at all, no no no no no no no no no no"
         )
         .is_err());
+    }
+}
+
+#[cfg(test)]
+mod damaged {
+    use super::*;
+
+    /// A written texture cut at every length, and with a corrupt level count or level offsets:
+    /// an error each time, never a panic or a huge allocation.
+    #[test]
+    fn truncated_and_corrupt_files_are_errors() {
+        let tex = tests_chain();
+        let b = write(&tex).unwrap();
+        assert!(read(&b).is_ok());
+        for cut in 0..b.len() {
+            assert!(read(&b[..cut]).is_err(), "cut at {cut} of {}", b.len());
+        }
+        let set_u32 = |o: usize, v: u32| {
+            let mut c = b.clone();
+            c[o..o + 4].copy_from_slice(&v.to_le_bytes());
+            c
+        };
+        for n in [0, 33, u32::MAX] {
+            let e = read(&set_u32(40, n)).unwrap_err().to_string();
+            assert!(e.contains("mip levels"), "{n}: {e}");
+        }
+        // A level whose offset + length overflows, and one past the end.
+        let set_u64 = |o: usize, v: u64| {
+            let mut c = b.clone();
+            c[o..o + 8].copy_from_slice(&v.to_le_bytes());
+            c
+        };
+        let mut c = set_u64(80, u64::MAX - 3);
+        c[88..96].copy_from_slice(&8u64.to_le_bytes());
+        c[96..104].copy_from_slice(&8u64.to_le_bytes());
+        assert!(read(&c).is_err());
+        assert!(read(&set_u64(80, b.len() as u64 + 4)).is_err());
+        // DFD and key/value ranges that overflow.
+        assert!(read(&set_u32(48, u32::MAX)).is_err());
+        assert!(read(&set_u32(56, u32::MAX)).is_err());
+    }
+
+    /// An 8 × 4 RGBA8 chain with key/values (what `meso export` writes).
+    fn tests_chain() -> Texture {
+        let mut levels = Vec::new();
+        let (mut w, mut h) = (8u32, 4u32);
+        loop {
+            levels.push(Level {
+                width: w,
+                height: h,
+                data: (0..w * h * 4).map(|k| k as u8).collect(),
+            });
+            if w == 1 && h == 1 {
+                break;
+            }
+            (w, h) = ((w / 2).max(1), (h / 2).max(1));
+        }
+        Texture {
+            format: Format::Rgba8Unorm,
+            levels,
+            key_values: vec![("KTXorientation".into(), "rd".into())],
+        }
     }
 }

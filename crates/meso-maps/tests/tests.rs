@@ -328,6 +328,49 @@ mod inputs {
             (m.normals()[0].z - meso_maps::heightmap::MIN_NORMAL_Z).abs() < 1e-12
                 && m.normals()[0].x > 0.99
         );
+        // A "no data" grey texel (128, 128, 128) off-centre in an 8 × 8 map: refused, the
+        // texel named by its image row (from the top) and column.
+        let grey = image::RgbImage::from_fn(8, 8, |x, y| {
+            image::Rgb(if (x, y) == (2, 1) {
+                [128, 128, 128]
+            } else {
+                [128, 128, 255]
+            })
+        });
+        let p5 = dir_.join("grey.png");
+        grey.save(&p5).unwrap();
+        let e = NormalMap::load(&p5, NormalConvention::Gl)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("grey.png") && e.contains("image row 1 (from the top), column 2"),
+            "{e}"
+        );
+        assert!(e.contains("not a normal") && e.contains("no data"), "{e}");
+        // A NaN in a float map at the same place: the same image row.
+        let mut f = image::Rgb32FImage::from_fn(8, 8, |_, _| image::Rgb([0.5, 0.5, 1.0]));
+        f.put_pixel(2, 1, image::Rgb([f32::NAN, 0.5, 1.0]));
+        let p6 = dir_.join("nan.exr");
+        image::DynamicImage::ImageRgb32F(f).save(&p6).unwrap();
+        let e = NormalMap::load(&p6, NormalConvention::Gl)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("nan.exr") && e.contains("image row 1 (from the top), column 2"),
+            "{e}"
+        );
+        // A NaN height in a float height map: named by its image row too.
+        let mut hf = image::Rgb32FImage::from_fn(8, 8, |_, _| image::Rgb([0.5, 0.5, 0.5]));
+        hf.put_pixel(2, 1, image::Rgb([f32::NAN, f32::NAN, f32::NAN]));
+        let p7 = dir_.join("hnan.exr");
+        image::DynamicImage::ImageRgb32F(hf).save(&p7).unwrap();
+        let e = HeightMap::load(&p7, 1.0, 1.0, Border::Wrap)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("hnan.exr") && e.contains("image row 1 (from the top), column 2"),
+            "{e}"
+        );
         std::fs::remove_dir_all(&dir_).unwrap();
         let e = NormalMap::from_normals(1, 1, vec![DVec3::ZERO]).unwrap_err();
         assert!(e.to_string().contains("row 0, column 0"), "{e}");

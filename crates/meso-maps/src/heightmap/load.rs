@@ -19,6 +19,23 @@ use std::path::Path;
 /// noise of a grey image saved as a colour JPEG; a grey map stored as RGB is not colour.
 const GREY_SPREAD: f32 = 2.5 / 255.0;
 
+/// An error of loading the image `path` (`h` rows) as a height map, said of the file: memory
+/// refused names it, and a texel is named by its image row (from the top), not by the map's row
+/// (which counts from the bottom: +y is up in the image).
+fn in_image_rows(path: &Path, h: usize, e: MapError) -> MapError {
+    match e {
+        MapError::OutOfMemory { source, .. } => oom(path, source),
+        MapError::NonFinite { what, row, col } => decode_err(
+            path,
+            format!(
+                "{what} at image row {} (from the top), column {col} is not finite",
+                h - 1 - row
+            ),
+        ),
+        e => e,
+    }
+}
+
 impl HeightMap {
     /// Load a grey PNG (8/16-bit), 16-bit TIFF or float EXR height map with texel size `S` and
     /// height scale `H` (both in the same length unit, > 0). See the module docs for the scale.
@@ -34,10 +51,9 @@ impl HeightMap {
             "loading the height map",
             ImageHeader::height_map_bytes,
         )?;
-        Self::from_image(img, texel_size, height_scale, border).map_err(|e| match e {
-            MapError::OutOfMemory { source, .. } => oom(path, source),
-            e => e,
-        })
+        let h = img.height() as usize;
+        Self::from_image(img, texel_size, height_scale, border)
+            .map_err(|e| in_image_rows(path, h, e))
     }
 
     /// Like [`HeightMap::load`], from the bytes of an image file (`name` chooses the format
@@ -51,7 +67,9 @@ impl HeightMap {
     ) -> Result<HeightMap> {
         check_scales(texel_size, height_scale)?;
         let img = decode_bytes(name, bytes)?;
+        let h = img.height() as usize;
         Self::from_image(img, texel_size, height_scale, border)
+            .map_err(|e| in_image_rows(name, h, e))
     }
 
     fn from_image(

@@ -54,7 +54,7 @@ use decode::{check_dims, check_dims_within};
 pub use decode::{
     decode_image, probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_STREAM_TEXELS, MAX_TEXELS,
 };
-pub use normal::{NormalConvention, NormalMap, MIN_NORMAL_Z};
+pub use normal::{NormalConvention, NormalMap, MIN_CODED_LENGTH, MIN_NORMAL_Z};
 pub use terraces::{DEQUANTIZE_ITERATIONS, TERRACE_FRACTION};
 
 use crate::error::{positive, MapError, Result};

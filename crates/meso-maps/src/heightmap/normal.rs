@@ -48,6 +48,11 @@ fn clamp_above_horizon(n: DVec3) -> DVec3 {
 /// this height (≈ 0.57° above the horizon) instead of refusing the map.
 pub const MIN_NORMAL_Z: f64 = 0.01;
 
+/// The shortest decoded vector an integer (8- or 16-bit) normal-map texel may hold: shorter,
+/// it is no direction (the grey (128, 128, 128) decodes to length 0.007) and the map is
+/// refused, naming the texel. Unit normals decode to within a few codes of length 1.
+pub const MIN_CODED_LENGTH: f64 = 0.5;
+
 impl NormalMap {
     /// Load a tangent-space normal map (PNG 8/16-bit, JPEG, TGA, TIFF, EXR).
     ///
@@ -98,6 +103,14 @@ impl NormalMap {
             img.to_rgb32f()
         };
         let rebuild_z = two_channel || rgb.pixels().all(|p| p.0[2] == 0.0);
+        // Integer codes cannot hold a zero vector: the nearest an 8-bit texel comes is the grey
+        // (128, 128, 128) that tools write for "no data", length 0.007. A decoded vector shorter
+        // than MIN_CODED_LENGTH is not a normal (a unit normal's codes are within a few codes of
+        // length 1).
+        let integer = !matches!(
+            img.color(),
+            image::ColorType::Rgb32F | image::ColorType::Rgba32F
+        );
         // Green up in the image is meso's +y.
         let gsign = match convention {
             NormalConvention::Gl => 1.0,
@@ -117,18 +130,40 @@ impl NormalMap {
             } else {
                 2.0 * p.0[2] as f64 - 1.0
             };
-            normals.push(DVec3::new(x, y, z));
+            let n = DVec3::new(x, y, z);
+            if integer && !rebuild_z && n.length() < MIN_CODED_LENGTH {
+                let c = p.0;
+                return Err(MapError::Decode {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "the texel at image row {} (from the top), column {} is not a normal: \
+                         its colour ({:.3}, {:.3}, {:.3}) of full scale decodes to a vector of \
+                         length {:.3} (a \"no data\" grey?); every texel must hold a direction",
+                        h - 1 - normals.len() / w,
+                        normals.len() % w,
+                        c[0],
+                        c[1],
+                        c[2],
+                        n.length()
+                    ),
+                });
+            }
+            normals.push(n);
         }
         NormalMap::from_normals(w, h, normals).map_err(|e| match e {
             MapError::NonFinite { what, row, col } => MapError::Decode {
                 path: path.to_path_buf(),
-                message: format!("{what} at row {row}, column {col} is not a usable direction"),
+                message: format!(
+                    "{what} at image row {} (from the top), column {col} is not a usable direction",
+                    h - 1 - row
+                ),
             },
             other => other,
         })
     }
 
-    /// A normal map from (not necessarily unit) normals, row-major; validated and renormalised.
+    /// A normal map from (not necessarily unit) normals, row-major (row 0 at y = 0, the image's
+    /// bottom); validated and renormalised.
     /// Normals at or below the horizon are tilted up to `n_z =` [`MIN_NORMAL_Z`] (keeping their
     /// azimuth) and counted; a NaN, infinite or (near) zero-length normal is an error.
     pub fn from_normals(width: usize, height: usize, normals: Vec<DVec3>) -> Result<NormalMap> {
