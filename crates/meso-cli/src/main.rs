@@ -28,8 +28,16 @@ pub(crate) fn load_material(
 ) -> anyhow::Result<meso_core::material::Material> {
     Ok(meso_core::material::Material::from_file(
         path,
-        &meso_maps::MapsResolver::new(),
+        &meso_maps::MapsResolver::new().with_warnings(print_warning()),
     )?)
+}
+
+/// What loading an input found and corrected, printed on standard error as
+/// `FILE: warning: …` (the form of `meso extract`'s warnings).
+pub(crate) fn print_warning() -> meso_maps::resolver::Warnings {
+    std::sync::Arc::new(|file: &std::path::Path, w: &str| {
+        eprintln!("{}: warning: {w}", file.display());
+    })
 }
 
 /// meso: normal distribution functions and multiple surfaces (Fournier 1992).

@@ -618,3 +618,47 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
     ]);
     fails(&o, &bad, "--facet-alpha 0");
 }
+
+/// What loading a height map finds (here a colour image given as heights) is said on every
+/// path that loads it, not only by `meso extract`: `meso brdf` of a height-map material (facets,
+/// the default, and lobes) and `meso gonio` print the same `FILE: warning: …` line, once.
+#[test]
+fn material_paths_say_what_loading_the_height_map_found() {
+    let d = tmpdir("material-warnings");
+    let img = image::RgbImage::from_fn(16, 16, |c, r| {
+        image::Rgb([(c * 15) as u8, (r * 15) as u8, 40])
+    });
+    img.save(d.join("colour.png")).unwrap();
+    let pairs = d.join("pairs.csv");
+    std::fs::write(&pairs, "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n").unwrap();
+    for represent in ["facets", "lobes"] {
+        let m = d.join(format!("{represent}.toml"));
+        std::fs::write(
+            &m,
+            format!(
+                "[ndf]\nkind = \"heightmap\"\nfile = \"colour.png\"\ntexel_size = 1\n\
+                 height_scale = 1\nmax_lobes = 2\nrepresent = \"{represent}\"\n\
+                 [transfer]\nkind = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n"
+            ),
+        )
+        .unwrap();
+        for cmd in ["brdf", "gonio"] {
+            if cmd == "gonio" && represent == "lobes" {
+                continue;
+            }
+            let mut args = vec![cmd, s(&m), "--pairs", s(&pairs)];
+            if cmd == "gonio" {
+                args.extend(["--rays", "16"]);
+            }
+            let o = Command::new(env!("CARGO_BIN_EXE_meso"))
+                .args(&args)
+                .env("MESO_CACHE_DIR", d.join(format!("cache-{represent}-{cmd}")))
+                .output()
+                .unwrap();
+            ok(&o);
+            let e = String::from_utf8_lossy(&o.stderr);
+            let line = "colour.png: warning: colour image used as a height map";
+            assert_eq!(e.matches(line).count(), 1, "{cmd} {represent}: {e}");
+        }
+    }
+}

@@ -114,7 +114,15 @@ pub struct MapsResolver {
     cache: Mutex<HashMap<CacheKey, Arc<Pyramid>>>,
     disk_hits: std::sync::atomic::AtomicUsize,
     progress: Option<ExtractProgress>,
+    warnings: Option<Warnings>,
+    /// `(file, warning)` pairs already reported (each once per resolver).
+    warned: Mutex<std::collections::HashSet<(PathBuf, String)>>,
 }
+
+/// A hook for what loading an input found and corrected (a colour image given as heights,
+/// 8-bit terraces dequantised, normal-map texels tilted up to the horizon, …): the input's path
+/// and one line. The CLI prints them on standard error; without a hook they are dropped.
+pub type Warnings = Arc<dyn Fn(&Path, &str) + Send + Sync>;
 
 /// A progress hook for pyramid extractions: the height map's path and the extraction's
 /// [`crate::pyramid::Progress`] (called from the extracting thread). `represent = "facets"`
@@ -234,6 +242,46 @@ impl MapsResolver {
         self
     }
 
+    /// Report what loading inputs finds and corrects to `warnings` (each warning once per file
+    /// and resolver). Inputs read from a cache (a pyramid or facet cache hit) are not decoded,
+    /// so they report nothing.
+    #[must_use]
+    pub fn with_warnings(mut self, warnings: Warnings) -> MapsResolver {
+        self.warnings = Some(warnings);
+        self
+    }
+
+    /// Report `warning` about the input `file` to the hook of [`MapsResolver::with_warnings`],
+    /// unless this resolver reported it before.
+    pub fn warn(&self, file: &Path, warning: &str) {
+        if let Some(hook) = &self.warnings {
+            let fresh = self
+                .warned
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .insert((file.to_path_buf(), warning.to_owned()));
+            if fresh {
+                hook(file, warning);
+            }
+        }
+    }
+
+    /// [`MapsResolver::heightmap`], its load warnings reported ([`MapsResolver::warn`]).
+    ///
+    /// # Errors
+    /// As [`MapsResolver::heightmap`].
+    pub fn load_heightmap(
+        &self,
+        table: &toml::Table,
+        file: &Path,
+    ) -> Result<HeightMap, MaterialError> {
+        let map = Self::heightmap(table, file)?;
+        for w in map.warnings() {
+            self.warn(file, w);
+        }
+        Ok(map)
+    }
+
     /// Parse and check a `kind = "heightmap"` table (module docs).
     ///
     /// # Errors
@@ -347,6 +395,9 @@ impl MapsResolver {
                 )?;
                 let map = HeightMap::load(file, texel_size, height_scale, border)
                     .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+                for w in map.warnings() {
+                    self.warn(file, w);
+                }
                 extract(Source::Heights(&map), &params, &mut |p| {
                     if let Some(f) = &self.progress {
                         f(file, p);
@@ -395,8 +446,9 @@ impl MapsResolver {
     fn heightmap_facets_with(
         table: &toml::Table,
         file: &Path,
-        progress: Option<&ExtractProgress>,
+        resolver: Option<&MapsResolver>,
     ) -> Result<ResolvedNdf, MaterialError> {
+        let progress = resolver.and_then(|r| r.progress.as_ref());
         let p = Self::heightmap_params(table)?;
         check_heightmap_budget(
             file,
@@ -434,8 +486,14 @@ impl MapsResolver {
             p.border,
             p.normal_mode,
             || {
-                HeightMap::load(file, p.texel_size, p.height_scale, p.border)
-                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))
+                let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
+                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+                if let Some(r) = resolver {
+                    for w in map.warnings() {
+                        r.warn(file, w);
+                    }
+                }
+                Ok(map)
             },
             |map| {
                 facets_with_visibility_progress(map, p.normal_mode, &report)
@@ -531,7 +589,7 @@ impl NdfResolver for MapsResolver {
     ) -> Result<ResolvedNdf, MaterialError> {
         match kind {
             "heightmap" if choice(table, "represent", &["lobes", "facets"])? != Some("lobes") => {
-                Self::heightmap_facets_with(table, file, self.progress.as_ref())
+                Self::heightmap_facets_with(table, file, Some(self))
             }
             "heightmap" => {
                 let pyr = self.heightmap_pyramid(table, file)?;

@@ -231,7 +231,10 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
     let surface = t.surface()?;
     Ok(match t.kind {
         "bump-mapped" => {
-            let map = MapsResolver::heightmap(&map_table, file).map_err(texture_err)?;
+            let map = t
+                .maps
+                .load_heightmap(&map_table, file)
+                .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, map.cells_x())?;
             Arc::new(BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?)
         }
@@ -399,7 +402,20 @@ fn normal_mapped(
     file: &Path,
     convention: NormalConvention,
 ) -> Result<Arc<dyn Shader>, String> {
-    let load = || NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"));
+    let load = || {
+        let map = NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"))?;
+        if map.clamped() > 0 {
+            t.maps.warn(
+                file,
+                &format!(
+                    "{} of {} texels point at or below the horizon; tilted up to it",
+                    map.clamped(),
+                    map.width() * map.height()
+                ),
+            );
+        }
+        Ok::<_, String>(map)
+    };
     let surface = t.surface()?;
     if t.kind == "bump-mapped" {
         let map = load()?;

@@ -55,8 +55,8 @@ pub enum KChoiceArg {
 /// Extract the NDF pyramid of a height map (docs/heightmaps.md) and write a map file.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Height map (8/16-bit grey PNG, 16-bit TIFF, float EXR) or, with --normal-map, an RGB
-    /// tangent-space normal map.
+    /// Height map (8/16-bit grey PNG, JPEG, TGA, 16-bit TIFF, float EXR) or, with --normal-map,
+    /// an RGB (or two-channel) tangent-space normal map in the same formats.
     pub heightmap: PathBuf,
     /// Distance between samples S (length units, > 0); required for height maps.
     #[arg(long)]

@@ -49,7 +49,9 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(out) = &a.table.out {
         crate::util::check_outputs(&[out], &[&a.material, &a.table.pairs, file])?;
     }
-    let map = MapsResolver::heightmap(table, file)
+    let map = MapsResolver::new()
+        .with_warnings(crate::print_warning())
+        .load_heightmap(table, file)
         .with_context(|| format!("{}", a.material.display()))?;
     let gonio = Gonio::new(&map).with_context(|| format!("{}", file.display()))?;
     let pairs = a.table.read_pairs()?;

@@ -78,29 +78,31 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
     let bar = Arc::new(std::sync::OnceLock::<indicatif::ProgressBar>::new());
     let shown = bar.clone();
     let st = std::sync::Mutex::new(None::<std::time::Instant>);
-    let maps = meso_maps::MapsResolver::new().with_progress(Arc::new(move |_, p| {
-        // `levels == 0`: the horizon march of a facet NDF, not a pyramid.
-        let facets = p.levels == 0;
-        let b = shown.get_or_init(|| {
-            crate::util::progress_work(p.work_total, if facets { "facets" } else { "pyramid" })
-        });
-        b.set_length(p.work_total);
-        b.set_position(p.work_done);
-        let mut s = st.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        if p.work_done == 0 && p.levels_done == 0 && s.is_none() {
-            *s = Some(std::time::Instant::now());
-        } else if p.work_done >= p.work_total {
-            if let Some(t) = s.take() {
-                let ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
-                let total = if facets {
-                    &FACETS_NANOS
-                } else {
-                    &PYRAMID_NANOS
-                };
-                total.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+    let maps = meso_maps::MapsResolver::new()
+        .with_warnings(crate::print_warning())
+        .with_progress(Arc::new(move |_, p| {
+            // `levels == 0`: the horizon march of a facet NDF, not a pyramid.
+            let facets = p.levels == 0;
+            let b = shown.get_or_init(|| {
+                crate::util::progress_work(p.work_total, if facets { "facets" } else { "pyramid" })
+            });
+            b.set_length(p.work_total);
+            b.set_position(p.work_done);
+            let mut s = st.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            if p.work_done == 0 && p.levels_done == 0 && s.is_none() {
+                *s = Some(std::time::Instant::now());
+            } else if p.work_done >= p.work_total {
+                if let Some(t) = s.take() {
+                    let ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
+                    let total = if facets {
+                        &FACETS_NANOS
+                    } else {
+                        &PYRAMID_NANOS
+                    };
+                    total.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+                }
             }
-        }
-    }));
+        }));
     let result = meso_render::resolve_material_file(path, &maps);
     if let Some(b) = bar.get() {
         b.finish_and_clear();
