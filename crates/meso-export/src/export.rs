@@ -566,31 +566,42 @@ pub fn errors_csv(stats: &[LevelStats]) -> String {
     s
 }
 
-/// Write the export's files into `dir` (created if missing), each atomically
-/// (`meso_core::io::write_atomic`). All or nothing: if any file cannot be written, the files
-/// already written by this call are removed (and `dir`, if this call created it).
+/// Write the export's files into `dir` (created if missing). All or nothing, and nothing of
+/// the user's lost: every file is first written in full to a temporary file beside its target
+/// (`meso_core::io::stage_with`); only when all are written are they renamed into place
+/// (`meso_core::io::commit_all`). A file that cannot be written (a full disk, a directory in the
+/// way) leaves `dir` as it was — the files of an earlier export there untouched — and removes
+/// `dir` if this call created it.
 ///
 /// # Errors
 /// [`ExportError::Io`] naming the path that failed.
 pub fn write(export: &Export, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
+    use std::io::Write as _;
     let existed = dir.is_dir();
     std::fs::create_dir_all(dir).map_err(|e| ExportError::Io {
         path: dir.to_path_buf(),
         source: e,
     })?;
-    let mut written = Vec::new();
+    let undo = |path: PathBuf, source: std::io::Error| {
+        if !existed {
+            let _ = std::fs::remove_dir(dir);
+        }
+        ExportError::Io { path, source }
+    };
+    let mut staged = Vec::with_capacity(export.files.len());
+    let mut written = Vec::with_capacity(export.files.len());
     for (name, bytes) in &export.files {
         let path = dir.join(name);
-        if let Err(e) = meso_core::io::write_atomic(&path, bytes) {
-            for p in &written {
-                let _ = std::fs::remove_file(p);
+        match meso_core::io::stage_with(&path, |w| w.write_all(bytes)) {
+            Ok(s) => staged.push(s),
+            Err(e) => {
+                // Dropping the staged files removes their temporary files.
+                drop(staged);
+                return Err(undo(path, e));
             }
-            if !existed {
-                let _ = std::fs::remove_dir(dir);
-            }
-            return Err(ExportError::Io { path, source: e });
         }
         written.push(path);
     }
+    meso_core::io::commit_all(staged).map_err(|e| undo(e.path, e.source))?;
     Ok(written)
 }

@@ -307,8 +307,8 @@ fn bad_inputs_and_unwritable_targets() {
         .to_string();
     assert!(e.contains("plain-file"), "{e}");
 
-    // The last file cannot be written (a non-empty folder of that name): earlier ones are
-    // removed, the folder holds exactly what it held before.
+    // The last file cannot be written (a non-empty folder of that name): none is put in place,
+    // the folder holds exactly what it held before.
     let out = dir.join("out");
     let blocker = out.join(export::ERRORS_CSV);
     std::fs::create_dir_all(blocker.join("x")).unwrap();
@@ -319,7 +319,6 @@ fn bad_inputs_and_unwritable_targets() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(left, vec![std::ffi::OsString::from(export::ERRORS_CSV)]);
-    // A new folder that fails is removed again.
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -371,5 +370,42 @@ fn roughness_and_base_color_loading() {
     assert!(w.len() == 1 && w[0].contains("8-bit"), "{w:?}");
     let back = image::load_from_memory(&bc.png).unwrap().to_rgba8();
     assert_eq!(back.as_raw(), &vec![255, 0, 0, 255]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Writing is all or nothing and loses nothing of the user's: with a directory in the way of
+/// the last file, the export fails naming it, an earlier export's files in the folder keep
+/// their bytes, and no temporary file is left.
+#[test]
+fn a_failed_write_leaves_the_folder_as_it_was() {
+    let (w, h) = (8, 8);
+    let ex = export::build(&Inputs {
+        width: w,
+        height: h,
+        normals: bumpy(w, h),
+        ..Inputs::uniform(0.1, 0.0, [0.5, 0.5, 0.5])
+    })
+    .unwrap();
+    let names: Vec<&str> = ex.files.iter().map(|(n, _)| n.as_str()).collect();
+    let (first, last) = (names[0], *names.last().unwrap());
+    assert_ne!(first, last);
+    // An earlier export's first file, and a non-empty directory where the last file goes.
+    let dir = scratch("failed-write");
+    std::fs::write(dir.join(first), b"the user's earlier file").unwrap();
+    std::fs::create_dir_all(dir.join(last).join("inside")).unwrap();
+    let e = export::write(&ex, &dir).unwrap_err().to_string();
+    assert!(e.contains(last), "{e}");
+    assert_eq!(
+        std::fs::read(dir.join(first)).unwrap(),
+        b"the user's earlier file"
+    );
+    let mut left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    let mut expected = vec![first.to_owned(), last.to_owned()];
+    expected.sort();
+    assert_eq!(left, expected, "only the user's entries remain");
     std::fs::remove_dir_all(&dir).unwrap();
 }
