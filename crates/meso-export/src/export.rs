@@ -576,7 +576,6 @@ pub fn errors_csv(stats: &[LevelStats]) -> String {
 /// # Errors
 /// [`ExportError::Io`] naming the path that failed.
 pub fn write(export: &Export, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
-    use std::io::Write as _;
     let existed = dir.is_dir();
     std::fs::create_dir_all(dir).map_err(|e| ExportError::Io {
         path: dir.to_path_buf(),

@@ -63,3 +63,42 @@ pub fn set_memory_budget(size: &Bound<'_, PyAny>) -> PyResult<()> {
     meso_core::budget::set_budget(bytes);
     Ok(())
 }
+
+/// A resolver whose load warnings (`MapsResolver::with_warnings`: a colour image given as
+/// heights, 8-bit terraces dequantised, normal-map texels tilted to the horizon) are kept, to be
+/// raised as Python warnings by [`emit_warnings`] once the GIL is held again.
+pub fn collecting_resolver() -> (
+    meso_maps::MapsResolver,
+    std::sync::Arc<std::sync::Mutex<Vec<String>>>,
+) {
+    let said = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    let hook = said.clone();
+    let maps = meso_maps::MapsResolver::new().with_warnings(std::sync::Arc::new(
+        move |file: &Path, w: &str| {
+            hook.lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .push(format!("{}: {w}", file.display()));
+        },
+    ));
+    (maps, said)
+}
+
+/// Raise each message as a `UserWarning` (Python's `warnings.warn`), in order.
+///
+/// # Errors
+/// What `warnings.warn` raises (an error when warnings are turned into errors).
+pub fn emit_warnings(py: Python<'_>, said: &std::sync::Mutex<Vec<String>>) -> PyResult<()> {
+    let msgs = std::mem::take(
+        &mut *said
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner),
+    );
+    if msgs.is_empty() {
+        return Ok(());
+    }
+    let warnings = py.import("warnings")?;
+    for m in msgs {
+        warnings.call_method1("warn", (m,))?;
+    }
+    Ok(())
+}

@@ -163,7 +163,7 @@ fn finish(py: Python<'_>, f: FitReport, out: Option<PathBuf>) -> PyResult<(Mater
         return Err(meso_err("internal error: one pass of lobes expected"));
     };
     let (_, r) = ch.last();
-    let material = Material::from_text(&ch.text)?;
+    let material = Material::from_text(py, &ch.text)?;
     if let Some(out) = &out {
         meso_core::io::write_atomic(out, ch.text.as_bytes())
             .map_err(|e| meso_err(format!("{}: cannot write: {e}", out.display())))?;

@@ -114,7 +114,7 @@ pub fn fit_nonparametric(
     };
     engine.annotate(&mut text);
     d.set_item("engine", engine_dict(py, &engine)?)?;
-    let material = Material::from_text(&text)?;
+    let material = Material::from_text(py, &text)?;
     if let Some(out) = &out {
         meso_core::io::write_atomic(out, text.as_bytes())
             .map_err(|e| meso_err(format!("{}: cannot write: {e}", out.display())))?;

@@ -31,13 +31,16 @@ pub struct Material {
     plan: OnceLock<FastBrdf>,
 }
 
-fn build(text: &str, dir: &Path, label: Option<&Path>) -> PyResult<CoreMaterial> {
-    MaterialSpec::parse(text, dir)
-        .and_then(|s| s.build(&meso_maps::MapsResolver::new()))
+fn build(py: Python<'_>, text: &str, dir: &Path, label: Option<&Path>) -> PyResult<CoreMaterial> {
+    let (maps, said) = crate::error::collecting_resolver();
+    let m = MaterialSpec::parse(text, dir)
+        .and_then(|s| s.build(&maps))
         .map_err(|e| match label {
             Some(p) => meso_err(format!("{}: {}", p.display(), e.0)),
             None => meso_err(e.0),
-        })
+        })?;
+    crate::error::emit_warnings(py, &said)?;
+    Ok(m)
 }
 
 /// Evaluate `f(row)` over `n` rows across cores, in chunks, with the GIL released.
@@ -62,8 +65,8 @@ pub(crate) fn par_rows<T: Send + Default + Clone>(
 impl Material {
     /// A material from TOML text (relative paths resolved against the current directory), as
     /// `Material.from_toml(text)`.
-    pub(crate) fn from_text(text: &str) -> PyResult<Material> {
-        Material::from_toml(text, None)
+    pub(crate) fn from_text(py: Python<'_>, text: &str) -> PyResult<Material> {
+        Material::from_toml(py, text, None)
     }
 }
 
@@ -73,10 +76,10 @@ impl Material {
     /// against `base_dir` (default: the current directory).
     #[staticmethod]
     #[pyo3(signature = (text, base_dir = None))]
-    fn from_toml(text: &str, base_dir: Option<PathBuf>) -> PyResult<Material> {
+    fn from_toml(py: Python<'_>, text: &str, base_dir: Option<PathBuf>) -> PyResult<Material> {
         let dir = base_dir.unwrap_or_else(|| PathBuf::from("."));
         Ok(Material {
-            inner: Arc::new(build(text, &dir, None)?),
+            inner: Arc::new(build(py, text, &dir, None)?),
             toml: text.to_owned(),
             plan: OnceLock::new(),
         })
@@ -85,12 +88,12 @@ impl Material {
     /// A material from a TOML file (as `meso brdf MATERIAL` reads it; height-map NDFs are loaded
     /// and their facets cached like the CLI's).
     #[staticmethod]
-    fn from_file(path: PathBuf) -> PyResult<Material> {
+    fn from_file(py: Python<'_>, path: PathBuf) -> PyResult<Material> {
         require_exists(&path)?;
         let text = meso_core::material::read_limited(&path).map_err(|e| meso_err(e.0))?;
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
         Ok(Material {
-            inner: Arc::new(build(&text, &dir, Some(&path))?),
+            inner: Arc::new(build(py, &text, &dir, Some(&path))?),
             toml: text,
             plan: OnceLock::new(),
         })
@@ -112,7 +115,7 @@ impl Material {
             .getattr("material_toml")?
             .call((), tables)?
             .extract()?;
-        Material::from_toml(&text, base_dir)
+        Material::from_toml(py, &text, base_dir)
     }
 
     /// The optional display name (`name = "…"`).
@@ -261,7 +264,7 @@ impl Ndf {
     /// a material without `[transfer]` gets a Lambert one, which does not change the NDF).
     #[staticmethod]
     #[pyo3(signature = (text, base_dir = None))]
-    fn from_toml(text: &str, base_dir: Option<PathBuf>) -> PyResult<Ndf> {
+    fn from_toml(py: Python<'_>, text: &str, base_dir: Option<PathBuf>) -> PyResult<Ndf> {
         let dir = base_dir.unwrap_or_else(|| PathBuf::from("."));
         let has_transfer = text
             .parse::<toml::Table>()
@@ -273,7 +276,7 @@ impl Ndf {
             format!("{text}\n[transfer]\nkind = \"lambert\"\n")
         };
         Ok(Ndf {
-            inner: Arc::new(build(&text, &dir, None)?.ndf),
+            inner: Arc::new(build(py, &text, &dir, None)?.ndf),
         })
     }
 
@@ -297,7 +300,7 @@ impl Ndf {
             .getattr("material_toml")?
             .call((), Some(&kwargs))?
             .extract()?;
-        Ndf::from_toml(&text, base_dir)
+        Ndf::from_toml(py, &text, base_dir)
     }
 
     /// The kind, as in the material format (`"beckmann"`, `"phong-peaks"`, …).

@@ -35,9 +35,9 @@ pub fn render<'py>(
             return Err(value_err(format!("spp must be in 1..=65536, got {s}")));
         }
     }
+    let (maps, said) = crate::error::collecting_resolver();
     let img = py
         .detach(|| -> Result<_, String> {
-            let maps = meso_maps::MapsResolver::new();
             let resolver = |p: &std::path::Path| meso_render::resolve_material_file(p, &maps);
             let sc = Scene::from_toml_file(&scene, &resolver)
                 .map_err(|e| format!("cannot load the scene {}: {e:#}", scene.display()))?;
@@ -59,6 +59,7 @@ pub fn render<'py>(
             Ok(meso_render::render(&sc, &opts, None))
         })
         .map_err(meso_err)?;
+    crate::error::emit_warnings(py, &said)?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let flat: Vec<f32> = img.pixels().iter().flatten().copied().collect();
     PyArray1::from_vec(py, flat).reshape([h, w, 3])

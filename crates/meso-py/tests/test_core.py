@@ -6,12 +6,13 @@ from __future__ import annotations
 import math
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
 
 import meso
-from conftest import bumps, directions_deg, run_cli, write_gray16
+from conftest import bumps, directions_deg, run_cli, write_gray16, write_rgb8
 
 GLOSSY = """form = "microfacet"
 [ndf]
@@ -332,3 +333,24 @@ def test_brdf_releases_the_gil():
     t.join()
     during = [x for x in ticks if start < x < end]
     assert end - start > 0.05 and len(during) >= 3, (end - start, len(during))
+
+
+def test_loading_a_height_map_says_what_it_found(tmp_path, monkeypatch):
+    """A colour image given as heights is converted and said so, as the CLI prints it: a Python
+    UserWarning naming the file (not a silent conversion)."""
+    monkeypatch.setenv("MESO_CACHE_DIR", str(tmp_path / "cache"))
+    y, x = np.mgrid[0:16, 0:16]
+    write_rgb8(tmp_path / "colour.png", np.stack([x * 15, y * 15, np.full_like(x, 40)], axis=-1))
+    text = (
+        '[ndf]\nkind = "heightmap"\nfile = "colour.png"\ntexel_size = 1.0\nheight_scale = 1.0\n'
+        '[transfer]\nkind = "lambert"\n'
+    )
+    (tmp_path / "m.toml").write_text(text)
+    with pytest.warns(UserWarning, match=r"colour\.png: colour image used as a height map"):
+        meso.Material.from_file(tmp_path / "m.toml")
+    # A grey map says nothing.
+    write_gray16(tmp_path / "grey.png", bumps(16))
+    (tmp_path / "g.toml").write_text(text.replace("colour.png", "grey.png"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        meso.Material.from_file(tmp_path / "g.toml")

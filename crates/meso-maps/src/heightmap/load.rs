@@ -83,17 +83,19 @@ impl HeightMap {
         let mut warnings = Vec::new();
         // A colour type with colour in it: some pixel whose channels differ by more than JPEG's
         // chroma noise (a grey map stored as RGB is not warned about).
-        let coloured = img.color().has_color()
-            && img.to_rgb32f().pixels().any(|p| {
+        // (One conversion, as before this check, and only for colour types.)
+        let rgb = img.color().has_color().then(|| img.to_rgb32f());
+        let coloured = rgb.as_ref().is_some_and(|rgb| {
+            rgb.pixels().any(|p| {
                 let (lo, hi) =
                     p.0.iter()
                         .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
                             (a.min(v), b.max(v))
                         });
                 hi - lo > GREY_SPREAD
-            });
-        if coloured {
-            let rgb = img.to_rgb32f();
+            })
+        });
+        if let (true, Some(rgb)) = (coloured, &rgb) {
             let n = (w * h) as f64;
             let mean = rgb.pixels().fold([0.0f64; 3], |a, p| {
                 [
@@ -122,6 +124,7 @@ impl HeightMap {
                 );
             }
         }
+        drop(rgb);
         let eight_bit = matches!(
             img.color(),
             image::ColorType::L8
