@@ -49,9 +49,11 @@ fn clamp_above_horizon(n: DVec3) -> DVec3 {
 pub const MIN_NORMAL_Z: f64 = 0.01;
 
 /// The shortest decoded vector an integer (8- or 16-bit) normal-map texel may hold: shorter,
-/// it is no direction (the grey (128, 128, 128) decodes to length 0.007) and the map is
-/// refused, naming the texel. Unit normals decode to within a few codes of length 1.
-pub const MIN_CODED_LENGTH: f64 = 0.5;
+/// it is no direction and the map is refused, naming the texel. The "no data" grey
+/// (128, 128, 128) decodes to length 0.007; 0.25 is every channel within ≈ 18 codes of 128. Unit
+/// normals decode to within a few codes of length 1; texels between 0.25 and 1 (odd but
+/// directions) are renormalised.
+pub const MIN_CODED_LENGTH: f64 = 0.25;
 
 impl NormalMap {
     /// Load a tangent-space normal map (PNG 8/16-bit, JPEG, TGA, TIFF, EXR).
