@@ -662,3 +662,38 @@ fn material_paths_say_what_loading_the_height_map_found() {
         }
     }
 }
+
+/// `meso extract --k-chain` reaches the K chain (`FitParams::k_chain`; its monotone objective is
+/// tested in `crates/meso-maps/tests/k_chain.rs`): on the real 256² facade height map
+/// (`crates/meso-maps/tests/data`) it writes a different, readable pyramid than the default
+/// single fit.
+#[test]
+fn extract_k_chain_reaches_the_chain() {
+    let d = tmpdir("k-chain");
+    let png =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../meso-maps/tests/data/facade_disp_256.png");
+    let run = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "extract",
+            s(&png),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "20",
+            "--max-lobes",
+            "4",
+            "--out",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        ok(&meso(&args));
+    };
+    let (single, chain) = (d.join("single.map"), d.join("chain.map"));
+    run(&[], &single);
+    run(&["--k-chain"], &chain);
+    assert_ne!(
+        std::fs::read(&single).unwrap(),
+        std::fs::read(&chain).unwrap()
+    );
+    ok(&meso(&["map", "info", s(&chain)]));
+}

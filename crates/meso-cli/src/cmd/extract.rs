@@ -98,6 +98,12 @@ pub struct Args {
     /// (docs/heightmaps.md, "Lobe fits that cannot go wrong") and costs ≈ 2× the time.
     #[arg(long, value_enum, default_value = "likelihood")]
     pub k_choice: KChoiceArg,
+    /// Fit K = 1, 2, … up to --max-lobes, each from the fit before, and keep the end of the
+    /// chain: the fit's own objective never rises with --max-lobes (the default single fit at
+    /// --max-lobes can rise). Opt-in: it rendered a steep test map worse (docs/heightmaps.md,
+    /// "Lobe fits that cannot go wrong"); costs ≈ 2× the time.
+    #[arg(long)]
+    pub k_chain: bool,
     /// Output map file (written atomically).
     #[arg(long, short)]
     pub out: PathBuf,
@@ -135,6 +141,7 @@ pub fn run(a: Args) -> Result<()> {
         }
         params.fit.facet_exponent = (2.0 / (alpha * alpha)).clamp(1.0, 1e4);
     }
+    params.fit.k_chain = a.k_chain;
     if a.k_choice == KChoiceArg::Shading {
         params.fit.k_choice = meso_maps::fit::KChoice::Shading { tolerance: 0.0 };
     }
