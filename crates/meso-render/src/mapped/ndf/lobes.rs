@@ -32,10 +32,9 @@ pub(super) const NO_LOBE: u32 = u32::MAX;
 /// [`meso_core::sg`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct SgLobe {
-    /// Unit axis.
+    /// Unit axis (`κ · axis`, which the response reads, is formed where it is read: the
+    /// same product, 24 bytes a lobe less to hold).
     axis: DVec3,
-    /// `κ · axis`.
-    ka: DVec3,
     /// Concentration κ.
     kappa: f64,
     /// `η/2` of the Phong peak.
@@ -58,7 +57,6 @@ impl SgLobe {
         let ratio = 0.25 * (eta + 2.0) / sg::normaliser_2pi(kappa);
         SgLobe {
             axis,
-            ka: axis * kappa,
             kappa,
             half_eta: 0.5 * eta,
             ln_ratio: ratio.ln(),
@@ -108,7 +106,7 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
 /// (`m_z`-weighted, normalised), in closed form from its lobes (see
 /// [`NdfMapped`](super::NdfMapped)). `lambda = η + 1` is the Gaussian of the transfer (same
 /// integral over the sphere: [`sg::kappa_transfer`]). The product of the lobe and the
-/// transfer's Gaussian is [`sg::product`] written out on the lobe's precomputed `κa`, with its
+/// transfer's Gaussian is [`sg::product`] written out on the lobe's `κa`, with its
 /// `r − κ` kept apart for the shape corrections (no allocation, one `exp` per lobe). Each
 /// lobe's term is multiplied by `vis(lobe)` (its visibility of the light, in `[0, 1]`; `1`
 /// without shadowing), which is called only for lobes that reflect something.
@@ -123,13 +121,14 @@ pub(super) fn phong_texel(
 ) -> f64 {
     let mut sum = 0.0;
     for l in lobes {
-        let kah = l.ka.dot(h);
+        let ka = l.axis * l.kappa;
+        let kah = ka.dot(h);
         let r = (l.kappa * l.kappa + lambda * (2.0 * kah + lambda))
             .max(1e-24)
             .sqrt();
         let inv_r = 1.0 / r;
         // Axis of the product Gaussian (unnormalised: × r).
-        let m = l.ka + lambda * h;
+        let m = ka + lambda * h;
         let mh = (kah + lambda) * inv_r;
         // Nothing to reflect when the product's axis faces away from the half vector or lies
         // below the macro surface (it has no projected area there).

@@ -43,11 +43,16 @@ struct NodeLevel {
     /// Nodes for a general facet transfer (empty otherwise).
     node_start: Vec<u32>,
     nodes: Vec<Node>,
-    /// Per texel, its horizon statistics (with shadowing).
-    horizon: Option<Vec<HorizonStats>>,
+    /// Per texel, its horizon statistics (with shadowing), in the pyramid level's precision
+    /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
+    horizon: Option<Horizons>,
     /// Per lobe of the pyramid level (the `src` of [`SgLobe`] and [`Node`]), the horizon
-    /// statistics of the cells it stands for (with shadowing).
+    /// statistics of the cells it stands for (with shadowing); on level 0
+    /// (`lobe_horizon_by_texel`) per texel instead, each its cell's, which all the texel's lobes
+    /// stand for (`meso_maps::lobe_stats_by_cell`).
     lobe_horizon: Option<Horizons>,
+    /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
+    lobe_horizon_by_texel: bool,
 }
 
 /// A material reading an NDF pyramid (see the module docs): the filtered bump map.
@@ -141,7 +146,9 @@ impl NdfMapped {
             match (dir, &l.lobe_horizon, &l.horizon) {
                 (Some(d), Some(lh), Some(th)) => {
                     if src == NO_LOBE {
-                        th[t].visibility_along(d)
+                        th.get(t).visibility_along(d)
+                    } else if l.lobe_horizon_by_texel {
+                        lh.get(t).visibility_along(d)
                     } else {
                         lh.get(src as usize).visibility_along(d)
                     }
@@ -239,7 +246,7 @@ impl Shader for NdfMapped {
                 }
                 if !per_lobe {
                     if let Some(hz) = &l.horizon {
-                        vis += w * hz[t].visibility_along(&dir);
+                        vis += w * hz.get(t).visibility_along(&dir);
                     }
                 }
             }
