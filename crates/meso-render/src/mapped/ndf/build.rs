@@ -10,7 +10,7 @@
 //!   `meso_maps::limits::ETA_MAX` on the normal; one node on the normal).
 //! * Each texel's node weights sum to 1.
 
-use super::lobes::{lobe_nodes, Node, SgLobe, NO_LOBE};
+use super::lobes::{lobe_nodes, Node, SgLobe, Shapes, NO_LOBE};
 use super::{NdfMapped, NodeLevel};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
@@ -147,6 +147,7 @@ fn node_level(
     let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
     let mut lobe_start = Vec::with_capacity(l.texels() + 1);
     let mut lobes = Vec::with_capacity(l.lobes.len());
+    let mut shapes = Shapes::default();
     let mut node_start = Vec::new();
     let mut nodes = Vec::new();
     let mut tmp = Vec::new();
@@ -172,23 +173,17 @@ fn node_level(
                 continue;
             }
             any = true;
-            let kappa = sg::kappa_same_mean_cos(p.exponent);
-            let norm = sg::normaliser_2pi(kappa);
-            lobes.push(SgLobe::new(
-                p.axis,
-                p.exponent,
-                kappa,
-                sh / e * norm,
-                first + j as u32,
-            ));
+            let shape = shapes.intern(p.exponent);
+            let norm = sg::normaliser_2pi(shapes.list[shape as usize].kappa);
+            lobes.push(SgLobe::new(p.axis, shape, sh / e * norm, first + j as u32));
         }
         if !any {
             // No lobe faces up: shade as the flat surface.
-            let kappa = sg::kappa_same_mean_cos(meso_maps::limits::ETA_MAX);
+            let shape = shapes.intern(meso_maps::limits::ETA_MAX);
+            let kappa = shapes.list[shape as usize].kappa;
             lobes.push(SgLobe::new(
                 DVec3::Z,
-                meso_maps::limits::ETA_MAX,
-                kappa,
+                shape,
                 sg::normaliser_2pi(kappa) / sg::phong_peak_mean_cos(meso_maps::limits::ETA_MAX),
                 NO_LOBE,
             ));
@@ -234,11 +229,75 @@ fn node_level(
         span: l.span as f64,
         lobe_start,
         lobes,
+        shapes: shapes.list,
         node_start,
         nodes,
         horizon,
         // `lobe_stats_by_cell`: level 0's lobe horizons are per texel (its cell's).
         lobe_horizon_by_texel: l.span == 1,
         lobe_horizon,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use meso_maps::{extract, fixtures, lobe_stats, ExtractParams, Source};
+
+    /// [`NdfMapped::from_pyramid`] builds the very tables of [`NdfMapped::new`]; every lobe is
+    /// shadowed with the statistics [`lobe_stats`] gives it (level 0's held once per texel),
+    /// every texel with its pyramid texel's, and a texel's lobes and shapes are the pyramid's
+    /// lobes' (axis, η) — on compact (`f32`) and `f64` levels, Phong and Lambert facets.
+    #[test]
+    fn from_pyramid_builds_the_tables_of_new() {
+        let map = fixtures::half_cylinders(32, 16, 1.0, 1.0).unwrap();
+        for compact_texels in [usize::MAX, 64] {
+            let params = ExtractParams {
+                compact_texels,
+                ..ExtractParams::default()
+            };
+            let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
+            let stats = lobe_stats(&pyr, true);
+            let hz = stats.horizon.as_ref().unwrap();
+            for transfer in ["kind = \"phong\"\nexponent = 20.0", "kind = \"lambert\""] {
+                let surface =
+                    Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
+                for shadowing in [true, false] {
+                    let a = NdfMapped::new(&pyr, &surface, 32.0, shadowing).unwrap();
+                    let b =
+                        NdfMapped::from_pyramid(pyr.clone(), &surface, 32.0, shadowing).unwrap();
+                    assert_eq!(a.levels, b.levels);
+                    for (k, (l, nl)) in pyr.levels.iter().zip(&a.levels).enumerate() {
+                        assert_eq!(nl.lobe_horizon_by_texel, k == 0);
+                        for t in 0..l.texels() {
+                            let (s, e) = (nl.lobe_start[t] as usize, nl.lobe_start[t + 1] as usize);
+                            for sg in &nl.lobes[s..e] {
+                                let got = nl.lobe_horizon(t, sg.src);
+                                if !shadowing {
+                                    assert!(got.is_none());
+                                    continue;
+                                }
+                                let want = if sg.src == NO_LOBE {
+                                    l.horizon.as_ref().unwrap().get(t)
+                                } else {
+                                    hz[k].get(sg.src as usize)
+                                };
+                                assert_eq!(got, Some(want), "level {k} texel {t}");
+                            }
+                        }
+                        for sg in &nl.lobes {
+                            if sg.src != NO_LOBE {
+                                let p = l.lobes.get(sg.src as usize);
+                                assert_eq!(sg.axis(), p.axis);
+                                assert_eq!(
+                                    nl.shapes[sg.shape()],
+                                    super::super::lobes::Shape::new(p.exponent)
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 }
