@@ -4,9 +4,10 @@
 //! This module holds the material (its per-level tables, options and the [`Shader`] entry
 //! points, which blend the taps' per-texel responses); the sub-modules hold its parts:
 //!
-//! * `build` — [`NdfMapped::new`]: the per-level tables from a pyramid, with each lobe's
-//!   share of its texel's projected area and its horizon statistics from
-//!   [`meso_maps::lobe_stats`] (handed down from the level-0 normals);
+//! * `build` — [`NdfMapped::new`] (and [`NdfMapped::from_pyramid`], which frees the pyramid's
+//!   levels as it goes): the per-level tables from a pyramid, with each lobe's share of its
+//!   texel's projected area and its horizon statistics from [`meso_maps::lobe_stats_by_cell`]
+//!   (handed down from the level-0 normals; level 0's once per texel);
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
 //!   Phong facets, and the 7-node form of a lobe for other facets;
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
