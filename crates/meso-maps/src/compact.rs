@@ -272,6 +272,11 @@ impl Horizons {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    /// Whether the statistics are stored in `f32`.
+    #[must_use]
+    pub fn is_compact(&self) -> bool {
+        matches!(self, Horizons::F32(_))
+    }
     /// The statistics of texel `t`.
     ///
     /// # Panics

@@ -93,6 +93,21 @@ pub struct LobeStats {
 /// (8 bytes per lobe) and the horizon statistics (72 or 36 bytes per lobe).
 #[must_use]
 pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
+    stats(pyramid, horizons, false)
+}
+
+/// [`lobe_stats`] with level 0's horizon statistics stored once per level-0 texel rather than
+/// once per lobe: `horizon[0]` is indexed like level 0's texels (`row · cols + col`), each its
+/// cell's statistics, which every lobe of the texel takes in [`lobe_stats`] (the same values,
+/// about half the memory on a height map's level 0, whose texels hold two lobes). The other
+/// levels and the shares are [`lobe_stats`]'s.
+#[must_use]
+pub fn lobe_stats_by_cell(pyramid: &Pyramid, horizons: bool) -> LobeStats {
+    stats(pyramid, horizons, true)
+}
+
+/// [`lobe_stats`] (`by_cell` false) or [`lobe_stats_by_cell`].
+fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     use rayon::prelude::*;
     let Some(l0) = pyramid.levels.first() else {
         return LobeStats {
@@ -110,8 +125,17 @@ pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
     for t in 0..l0.texels() {
         cell_shares(l0, t, &mut base);
     }
-    let base_horizon = h0.as_ref().map(|h| {
-        let mut out = Horizons::new(Vec::new(), l0.lobes.is_compact());
+    let coarse: Vec<(Vec<f64>, Option<Horizons>)> = pyramid.levels[1..]
+        .par_iter()
+        .enumerate()
+        .map(|(k1, l)| hand_down(l0, &base, h0.as_deref(), l, k1 + 1))
+        .collect();
+    let compact = l0.lobes.is_compact();
+    let base_horizon = h0.map(|h| {
+        if by_cell {
+            return Horizons::new(h, compact);
+        }
+        let mut out = Horizons::new(Vec::new(), compact);
         for (t, s) in h.iter().enumerate() {
             for _ in l0.lobe_start[t]..l0.lobe_start[t + 1] {
                 out.extend_from_slice(&[*s]);
@@ -119,11 +143,6 @@ pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
         }
         out
     });
-    let coarse: Vec<(Vec<f64>, Option<Horizons>)> = pyramid.levels[1..]
-        .par_iter()
-        .enumerate()
-        .map(|(k1, l)| hand_down(l0, &base, h0.as_deref(), l, k1 + 1))
-        .collect();
     let mut shares = vec![base];
     let mut horizon = base_horizon.map(|h| vec![h]);
     for (s, h) in coarse {
@@ -428,6 +447,37 @@ mod tests {
             } else {
                 assert!(hs < 0.5 * hf, "grooves: flat {hf} steep {hs}");
             }
+        }
+    }
+
+    /// [`lobe_stats_by_cell`] holds level 0's horizon statistics once per texel, each the very
+    /// statistics (same bits) that every lobe of the texel gets from [`lobe_stats`]; the other
+    /// levels and all shares are identical. Compact (`f32`) and `f64` levels both.
+    #[test]
+    fn lobe_stats_by_cell_is_lobe_stats_with_level_0_per_texel() {
+        // Rough enough that level-0 texels hold two lobes (their triangles' normals).
+        let map = fixtures::gaussian(32, 4.0, 0.1, 3, 0.01).unwrap();
+        for compact_texels in [usize::MAX, 64] {
+            let params = ExtractParams {
+                compact_texels,
+                ..ExtractParams::default()
+            };
+            let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
+            let (a, b) = (lobe_stats(&pyr, true), lobe_stats_by_cell(&pyr, true));
+            assert_eq!(a.shares, b.shares);
+            let (ha, hb) = (a.horizon.unwrap(), b.horizon.unwrap());
+            assert_eq!(ha[1..], hb[1..]);
+            let l0 = &pyr.levels[0];
+            assert_eq!(hb[0].len(), l0.texels());
+            assert_eq!(hb[0].is_compact(), compact_texels == 64);
+            assert!(l0.lobes.len() > l0.texels(), "two lobes a texel somewhere");
+            for t in 0..l0.texels() {
+                for j in l0.lobe_start[t] as usize..l0.lobe_start[t + 1] as usize {
+                    assert_eq!(ha[0].get(j), hb[0].get(t), "texel {t} lobe {j}");
+                }
+            }
+            // Without horizons: no statistics either way.
+            assert!(lobe_stats_by_cell(&pyr, false).horizon.is_none());
         }
     }
 }

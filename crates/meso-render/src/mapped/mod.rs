@@ -137,7 +137,7 @@ use meso_core::frame::Frame;
 use meso_core::material::Material;
 use meso_core::sg;
 use meso_core::transfer::{PhongVariant, Transfer};
-use meso_maps::{FacetNormals, HeightMap, HorizonMap, HorizonStats, NormalMap, NormalMode};
+use meso_maps::{FacetNormals, HeightMap, HorizonMap, NormalMap, NormalMode};
 use std::f64::consts::FRAC_1_PI;
 
 /// The facet transfer function, with fast paths for Phong (half vector) and Lambert.

@@ -26,45 +26,91 @@ pub(super) struct Node {
 /// facing up shaded as the flat surface): it takes its texel's horizon statistics.
 pub(super) const NO_LOBE: u32 = u32::MAX;
 
-/// One fitted lobe of a texel, as the spherical Gaussian `c·exp(κ(a·m − 1))` of the same mean
-/// cosine ([`sg::kappa_same_mean_cos`]: the lobe's projected area normalises it, see
-/// [`NdfMapped`](super::NdfMapped)'s docs): the constants of [`phong_texel`]'s loop, built by
-/// [`meso_core::sg`].
+/// The constants of a lobe's spherical Gaussian that depend on its Phong exponent η alone
+/// (what [`phong_texel`]'s loop reads besides the axis and weight), held once per distinct η
+/// of a level ([`Shapes`]): a map file's exponents are 16-bit codes, so a level has at most
+/// 65 536 of them (a height map's level 0 one or a few), where its lobes number millions.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct SgLobe {
-    /// Unit axis.
-    axis: DVec3,
-    /// `κ · axis`.
-    ka: DVec3,
-    /// Concentration κ.
-    kappa: f64,
+pub(super) struct Shape {
+    /// Concentration κ ([`sg::kappa_same_mean_cos`] of η).
+    pub(super) kappa: f64,
     /// `η/2` of the Phong peak.
     half_eta: f64,
     /// `ln` of the Phong peak's normalisation over the Gaussian's.
     ln_ratio: f64,
+}
+
+impl Shape {
+    /// The constants of the Phong peak of exponent `eta`.
+    pub(super) fn new(eta: f64) -> Shape {
+        let kappa = sg::kappa_same_mean_cos(eta);
+        // Phong: (η + 2)/(8π); Gaussian: sg::normaliser(κ) = κ/(2π(1 − e^{−2κ})).
+        let ratio = 0.25 * (eta + 2.0) / sg::normaliser_2pi(kappa);
+        Shape {
+            kappa,
+            half_eta: 0.5 * eta,
+            ln_ratio: ratio.ln(),
+        }
+    }
+}
+
+/// A level's [`Shape`]s, one per distinct exponent (by its bits: the same η gives the very
+/// constants a lobe of its own would hold), built as the level's lobes are.
+#[derive(Debug, Default)]
+pub(super) struct Shapes {
+    pub(super) list: Vec<Shape>,
+    index: std::collections::HashMap<u64, u32>,
+}
+
+impl Shapes {
+    /// The index of the shape of exponent `eta` in `list`, added if new.
+    pub(super) fn intern(&mut self, eta: f64) -> u32 {
+        let list = &mut self.list;
+        *self.index.entry(eta.to_bits()).or_insert_with(|| {
+            list.push(Shape::new(eta));
+            (list.len() - 1) as u32
+        })
+    }
+}
+
+/// One fitted lobe of a texel, as the spherical Gaussian `c·exp(κ(a·m − 1))` of the same mean
+/// cosine ([`sg::kappa_same_mean_cos`]: the lobe's projected area normalises it, see
+/// [`NdfMapped`](super::NdfMapped)'s docs): its axis, weight and the index of its [`Shape`]
+/// (40 bytes; the constants of [`phong_texel`]'s loop, built by [`meso_core::sg`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct SgLobe {
+    /// Unit axis (`κ · axis`, which the response reads, is formed where it is read).
+    axis: DVec3,
     /// Area weight ÷ the texel's projected area × the Gaussian's normalisation `κ/(1 − e^{−2κ})`
     /// (without its `1/2π`, which the product integral's `2π` cancels).
     w: f64,
     /// Index of the lobe among the pyramid level's lobes (for its horizon statistics), or
     /// [`NO_LOBE`].
     pub(super) src: u32,
+    /// Index of its [`Shape`] among the level's.
+    shape: u32,
 }
 
 impl SgLobe {
-    /// The lobe of the Phong peak `(axis, η)` with Gaussian concentration `kappa` and weight
-    /// `w` (normalisation included), lobe `src` of its pyramid level (or [`NO_LOBE`]).
-    pub(super) fn new(axis: DVec3, eta: f64, kappa: f64, w: f64, src: u32) -> SgLobe {
-        // Phong: (η + 2)/(8π); Gaussian: sg::normaliser(κ) = κ/(2π(1 − e^{−2κ})).
-        let ratio = 0.25 * (eta + 2.0) / sg::normaliser_2pi(kappa);
+    /// The lobe of axis `axis` and shape `shape` (an index into the level's [`Shapes`]) with
+    /// weight `w` (normalisation included), lobe `src` of its pyramid level (or [`NO_LOBE`]).
+    pub(super) fn new(axis: DVec3, shape: u32, w: f64, src: u32) -> SgLobe {
         SgLobe {
             axis,
-            ka: axis * kappa,
-            kappa,
-            half_eta: 0.5 * eta,
-            ln_ratio: ratio.ln(),
             w,
             src,
+            shape,
         }
+    }
+    /// Its axis.
+    #[cfg(test)]
+    pub(super) fn axis(&self) -> DVec3 {
+        self.axis
+    }
+    /// The index of its shape.
+    #[cfg(test)]
+    pub(super) fn shape(&self) -> usize {
+        self.shape as usize
     }
 }
 
@@ -108,13 +154,14 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
 /// (`m_z`-weighted, normalised), in closed form from its lobes (see
 /// [`NdfMapped`](super::NdfMapped)). `lambda = η + 1` is the Gaussian of the transfer (same
 /// integral over the sphere: [`sg::kappa_transfer`]). The product of the lobe and the
-/// transfer's Gaussian is [`sg::product`] written out on the lobe's precomputed `κa`, with its
+/// transfer's Gaussian is [`sg::product`] written out on the lobe's `κa`, with its
 /// `r − κ` kept apart for the shape corrections (no allocation, one `exp` per lobe). Each
 /// lobe's term is multiplied by `vis(lobe)` (its visibility of the light, in `[0, 1]`; `1`
 /// without shadowing), which is called only for lobes that reflect something.
 #[inline]
 pub(super) fn phong_texel(
     lobes: &[SgLobe],
+    shapes: &[Shape],
     wi: DVec3,
     h: DVec3,
     eta: f64,
@@ -122,14 +169,16 @@ pub(super) fn phong_texel(
     vis: impl Fn(&SgLobe) -> f64,
 ) -> f64 {
     let mut sum = 0.0;
-    for l in lobes {
-        let kah = l.ka.dot(h);
+    for lobe in lobes {
+        let l = &shapes[lobe.shape as usize];
+        let ka = lobe.axis * l.kappa;
+        let kah = ka.dot(h);
         let r = (l.kappa * l.kappa + lambda * (2.0 * kah + lambda))
             .max(1e-24)
             .sqrt();
         let inv_r = 1.0 / r;
         // Axis of the product Gaussian (unnormalised: × r).
-        let m = l.ka + lambda * h;
+        let m = ka + lambda * h;
         let mh = (kah + lambda) * inv_r;
         // Nothing to reflect when the product's axis faces away from the half vector or lies
         // below the macro surface (it has no projected area there).
@@ -143,8 +192,8 @@ pub(super) fn phong_texel(
         // (a·h)^η, a lobe much broader than the transfer its exact density at h. In between
         // the peak's ratio varies over the product's spread; β = (λ/(λ + κ))² (calibrated
         // against a quadrature, see the tests) keeps the error under 1% of the peak.
-        let am = (l.kappa + lambda * l.axis.dot(h)) * inv_r;
-        let am_minus_1 = -(r_minus_k - lambda * l.axis.dot(h)) * inv_r;
+        let am = (l.kappa + lambda * lobe.axis.dot(h)) * inv_r;
+        let am_minus_1 = -(r_minus_k - lambda * lobe.axis.dot(h)) * inv_r;
         let beta = lambda / (lambda + l.kappa);
         let beta = beta * beta;
         let e = (r_minus_k - lambda * mh
@@ -157,7 +206,7 @@ pub(super) fn phong_texel(
         let (mass, a_r) = (sg::integral_per_2pi(r), sg::mean_cos(r) * inv_r);
         let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
         if q > 0.0 {
-            sum += l.w * mass * q * e * vis(l);
+            sum += lobe.w * mass * q * e * vis(lobe);
         }
     }
     sum
@@ -182,16 +231,33 @@ mod tests {
     }
 
     fn closed(axis: DVec3, eta_n: f64, wi: DVec3, h: DVec3, eta: f64) -> f64 {
-        let kappa = sg::kappa_same_mean_cos(eta_n);
+        let mut shapes = Shapes::default();
+        let shape = shapes.intern(eta_n);
+        let kappa = shapes.list[shape as usize].kappa;
         let area = eta_n / (eta_n + 4.0) * axis.z;
-        let lobe = SgLobe::new(
-            axis,
-            eta_n,
-            kappa,
-            sg::normaliser_2pi(kappa) / area,
-            NO_LOBE,
-        );
-        phong_texel(&[lobe], wi, h, eta, sg::kappa_transfer(eta), |_| 1.0)
+        let lobe = SgLobe::new(axis, shape, sg::normaliser_2pi(kappa) / area, NO_LOBE);
+        phong_texel(
+            &[lobe],
+            &shapes.list,
+            wi,
+            h,
+            eta,
+            sg::kappa_transfer(eta),
+            |_| 1.0,
+        )
+    }
+
+    /// A lobe is 40 bytes (axis, weight, source and shape index) and a level's shapes are one
+    /// per distinct exponent, the same constants (bits) for the same exponent.
+    #[test]
+    fn lobes_share_their_shapes() {
+        assert_eq!(std::mem::size_of::<SgLobe>(), 40);
+        let mut shapes = Shapes::default();
+        let (a, b, c) = (shapes.intern(1e6), shapes.intern(40.0), shapes.intern(1e6));
+        assert_eq!((a, b, c), (0, 1, 0));
+        assert_eq!(shapes.list.len(), 2);
+        assert_eq!(shapes.list[0], Shape::new(1e6));
+        assert_eq!(shapes.list[1].kappa, sg::kappa_same_mean_cos(40.0));
     }
 
     /// The closed form of one lobe under Phong facets agrees with the quadrature, from a

@@ -4,9 +4,10 @@
 //! This module holds the material (its per-level tables, options and the [`Shader`] entry
 //! points, which blend the taps' per-texel responses); the sub-modules hold its parts:
 //!
-//! * `build` — [`NdfMapped::new`]: the per-level tables from a pyramid, with each lobe's
-//!   share of its texel's projected area and its horizon statistics from
-//!   [`meso_maps::lobe_stats`] (handed down from the level-0 normals);
+//! * `build` — [`NdfMapped::new`] (and [`NdfMapped::from_pyramid`], which frees the pyramid's
+//!   levels as it goes): the per-level tables from a pyramid, with each lobe's share of its
+//!   texel's projected area and its horizon statistics from [`meso_maps::lobe_stats_by_cell`]
+//!   (handed down from the level-0 normals; level 0's once per texel);
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
 //!   Phong facets, and the 7-node form of a lobe for other facets;
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
@@ -28,11 +29,11 @@ mod lobes;
 #[cfg(test)]
 mod peak_quadrature;
 
-use lobes::{phong_texel, Node, SgLobe, NO_LOBE};
+use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 
 /// One level of the filtered pyramid.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 struct NodeLevel {
     cols: usize,
     rows: usize,
@@ -40,14 +41,40 @@ struct NodeLevel {
     /// Per texel, its lobes `lobes[lobe_start[t]..lobe_start[t + 1]]`.
     lobe_start: Vec<u32>,
     lobes: Vec<SgLobe>,
+    /// The shapes the lobes index (one per distinct exponent of the level).
+    shapes: Vec<Shape>,
     /// Nodes for a general facet transfer (empty otherwise).
     node_start: Vec<u32>,
     nodes: Vec<Node>,
-    /// Per texel, its horizon statistics (with shadowing).
-    horizon: Option<Vec<HorizonStats>>,
+    /// Per texel, its horizon statistics (with shadowing), in the pyramid level's precision
+    /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
+    horizon: Option<Horizons>,
     /// Per lobe of the pyramid level (the `src` of [`SgLobe`] and [`Node`]), the horizon
-    /// statistics of the cells it stands for (with shadowing).
+    /// statistics of the cells it stands for (with shadowing); on level 0
+    /// (`lobe_horizon_by_texel`) per texel instead, each its cell's, which all the texel's lobes
+    /// stand for (`meso_maps::lobe_stats_by_cell`).
     lobe_horizon: Option<Horizons>,
+    /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
+    lobe_horizon_by_texel: bool,
+}
+
+impl NodeLevel {
+    /// The horizon statistics that lobe `src` of texel `t` is shadowed with: the lobe's own
+    /// (per texel on level 0, where all of a texel's lobes stand for its cell), or the texel's
+    /// for [`NO_LOBE`]; `None` without shadowing.
+    #[inline]
+    fn lobe_horizon(&self, t: usize, src: u32) -> Option<meso_maps::HorizonStats> {
+        match (&self.lobe_horizon, &self.horizon) {
+            (Some(lh), Some(th)) => Some(if src == NO_LOBE {
+                th.get(t)
+            } else if self.lobe_horizon_by_texel {
+                lh.get(t)
+            } else {
+                lh.get(src as usize)
+            }),
+            _ => None,
+        }
+    }
 }
 
 /// A material reading an NDF pyramid (see the module docs): the filtered bump map.
@@ -138,15 +165,11 @@ impl NdfMapped {
         dir: Option<&HorizonDirection>,
     ) -> [f64; 3] {
         let vis = |src: u32| -> f64 {
-            match (dir, &l.lobe_horizon, &l.horizon) {
-                (Some(d), Some(lh), Some(th)) => {
-                    if src == NO_LOBE {
-                        th[t].visibility_along(d)
-                    } else {
-                        lh.get(src as usize).visibility_along(d)
-                    }
-                }
-                _ => 1.0,
+            match dir {
+                Some(d) => l
+                    .lobe_horizon(t, src)
+                    .map_or(1.0, |s| s.visibility_along(d)),
+                None => 1.0,
             }
         };
         match self.facet {
@@ -154,7 +177,15 @@ impl NdfMapped {
                 let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
                 let eta = f64::from(exponent);
                 [
-                    phong_texel(lobes, wi, h, eta, sg::kappa_transfer(eta), |lb| vis(lb.src)),
+                    phong_texel(
+                        lobes,
+                        &l.shapes,
+                        wi,
+                        h,
+                        eta,
+                        sg::kappa_transfer(eta),
+                        |lb| vis(lb.src),
+                    ),
                     0.0,
                     0.0,
                 ]
@@ -239,7 +270,7 @@ impl Shader for NdfMapped {
                 }
                 if !per_lobe {
                     if let Some(hz) = &l.horizon {
-                        vis += w * hz[t].visibility_along(&dir);
+                        vis += w * hz.get(t).visibility_along(&dir);
                     }
                 }
             }
