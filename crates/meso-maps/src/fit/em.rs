@@ -45,36 +45,69 @@ pub(super) struct L {
 /// Spherical k-means with a greedy weighted k-means++ start (first centre: the heaviest entry;
 /// then the entry maximising weight × squared chord distance to the nearest centre), 5 Lloyd
 /// steps, then lobes with the cluster shares and the closed-form exponent of each cluster.
+#[cfg(test)]
 pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
-    // The unit directions of the points, normalised once (the seeding passes read them k − 1
-    // times).
-    let dirs: Vec<DVec3> = pts.iter().map(|e| e.0.normalize()).collect();
-    let mut centres: Vec<DVec3> = Vec::with_capacity(k);
-    let first = pts
-        .iter()
-        .zip(&dirs)
-        .max_by(|a, b| a.0 .1.total_cmp(&b.0 .1))
-        .map(|e| *e.1)
-        .unwrap_or(DVec3::Z);
-    centres.push(first);
-    while centres.len() < k {
-        let mut best = (-1.0, DVec3::Z);
-        for (e, &d) in pts.iter().zip(&dirs) {
-            let dist = centres
-                .iter()
-                .map(|c| 2.0 - 2.0 * c.dot(d))
-                .fold(f64::INFINITY, f64::min);
-            if e.1 * dist > best.0 {
-                best = (e.1 * dist, d);
-            }
-        }
-        centres.push(best.1);
+    kmeans_from(pts, &mut KmeansSeeds::new(pts), k)
+}
+
+/// The unit directions of a set of k-means points and their greedy k-means++ seeds
+/// ([`kmeans_from`]), computed once for every K: the seeds of k centres are the first k of the
+/// seeds of more (each seed depends only on those before it), so the fits at K = 2, 3, 4 share
+/// the directions and the seeding passes (the same numbers as seeding each K afresh).
+pub(super) struct KmeansSeeds {
+    dirs: Vec<DVec3>,
+    centres: Vec<DVec3>,
+}
+
+impl KmeansSeeds {
+    /// The directions of `pts`, normalised once, and the first seed (the heaviest point's).
+    pub(super) fn new(pts: &[Pt]) -> KmeansSeeds {
+        let dirs: Vec<DVec3> = pts.iter().map(|e| e.0.normalize()).collect();
+        let first = pts
+            .iter()
+            .zip(&dirs)
+            .max_by(|a, b| a.0 .1.total_cmp(&b.0 .1))
+            .map(|e| *e.1)
+            .unwrap_or(DVec3::Z);
+        let mut centres = Vec::with_capacity(MAX_LOBES);
+        centres.push(first);
+        KmeansSeeds { dirs, centres }
     }
-    let mut sums = vec![(DVec3::ZERO, 0.0f64, 0.0f64); k];
+
+    /// The first `k` seeds of `pts` (the points `new` was given), seeded as far as needed.
+    fn seeds(&mut self, pts: &[Pt], k: usize) -> &[DVec3] {
+        while self.centres.len() < k {
+            let mut best = (-1.0, DVec3::Z);
+            for (e, &d) in pts.iter().zip(&self.dirs) {
+                let dist = self
+                    .centres
+                    .iter()
+                    .map(|c| 2.0 - 2.0 * c.dot(d))
+                    .fold(f64::INFINITY, f64::min);
+                if e.1 * dist > best.0 {
+                    best = (e.1 * dist, d);
+                }
+            }
+            self.centres.push(best.1);
+        }
+        &self.centres[..k]
+    }
+}
+
+/// Spherical k-means of `pts` into `k` ≤ [`MAX_LOBES`] clusters from the seeds of `seeds` (made
+/// by [`KmeansSeeds::new`] from the same points): 5 Lloyd steps, then lobes with the cluster
+/// shares and the closed-form exponent of each cluster.
+pub(super) fn kmeans_from(pts: &[Pt], seeds: &mut KmeansSeeds, k: usize) -> Vec<L> {
+    assert!(k <= MAX_LOBES, "at most MAX_LOBES clusters");
+    let mut centres = [DVec3::Z; MAX_LOBES];
+    centres[..k].copy_from_slice(seeds.seeds(pts, k));
+    let centres = &mut centres[..k];
+    let mut sums = [(DVec3::ZERO, 0.0f64, 0.0f64); MAX_LOBES];
+    let sums = &mut sums[..k];
     for _ in 0..5 {
         sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
         for &(d, w) in pts {
-            let j = nearest(&centres, d);
+            let j = nearest(centres, d);
             sums[j].0 += d * w;
             sums[j].1 += w;
         }
@@ -85,7 +118,7 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
         }
     }
     for &(d, w) in pts {
-        let j = nearest(&centres, d);
+        let j = nearest(centres, d);
         sums[j].2 += w * log_t(centres[j], d);
     }
     let total: f64 = sums.iter().map(|s| s.1).sum();
@@ -1085,6 +1118,29 @@ mod tests {
     }
 
     /// The log-likelihood from the (SIMD) E-step is the one written out, bit for bit.
+    #[test]
+    fn shared_kmeans_seeds_give_each_k_its_own_fit_bit_for_bit() {
+        for seed in 0..20 {
+            let (pts, _) = random_case(seed, 5 + 7 * seed as usize, 1);
+            for order in [[1, 2, 3, 4], [4, 2, 3, 1], [3, 1, 4, 2]] {
+                let mut shared = KmeansSeeds::new(&pts);
+                for k in order {
+                    let a = kmeans_from(&pts, &mut shared, k);
+                    let b = kmeans_init(&pts, k);
+                    assert_eq!(a.len(), b.len());
+                    for (x, y) in a.iter().zip(&b) {
+                        assert_eq!(
+                            x.a.to_array().map(f64::to_bits),
+                            y.a.to_array().map(f64::to_bits)
+                        );
+                        assert_eq!(x.w.to_bits(), y.w.to_bits());
+                        assert_eq!(x.eta.to_bits(), y.eta.to_bits());
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn loglik_is_the_scalar_one_bit_for_bit() {
         for (seed, n) in [(37u64, 257usize), (41, 64), (43, 5), (47, 1)] {

@@ -88,7 +88,7 @@ mod residual;
 mod smoothed;
 
 use crate::sphgrid::SphereGrid;
-use em::{em, eta_from_mean_t, kmeans_init, log_t, loglik, split_heaviest, Pt, L};
+use em::{em, eta_from_mean_t, kmeans_from, log_t, loglik, split_heaviest, KmeansSeeds, Pt, L};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
 use smoothed::{rms_of_peak, Refiner, Smoothed, SMOOTH_MAX_POINTS, SMOOTH_MIN_DROP};
@@ -409,17 +409,20 @@ pub fn fit_lobes_with(
         out.extend(exact_lobes(entries, total));
         return;
     }
+    // The shading choice picks among the chain's candidates, so it runs the chain.
+    let chain = params.k_chain || params.k_choice != KChoice::Objective;
+    if !chain && n <= kmax {
+        // Every entry its own lobe: nothing of the EM fit is read (level 0's cells of two
+        // facets, and every footprint of at most `max_lobes` bins).
+        out.extend(exact_lobes(entries, total));
+        return;
+    }
     fill_em_points(entries, params, max_points, pts);
     let pts: &[Pt] = pts;
     let sdata = smooth_points(entries, pts, smooth, params);
     let mut single = Single::new(pts, params, thorough, sdata.as_deref());
-    // The shading choice picks among the chain's candidates, so it runs the chain.
-    if !params.k_chain && params.k_choice == KChoice::Objective {
-        out.extend(if n <= kmax {
-            exact_lobes(entries, total)
-        } else {
-            single.fit(kmax)
-        });
+    if !chain {
+        out.extend(single.fit(kmax));
         return;
     }
     // The chain: the fit at K is the best (lowest objective) of the fit at K − 1, the single
@@ -618,6 +621,9 @@ struct Single<'a> {
     /// Nearly identical normals: one delta-like lobe at every K.
     delta: bool,
     chains: [EmChain; 2],
+    /// The k-means points' directions and seeds, shared by the starts at every K (made at the
+    /// first k-means start).
+    seeds: Option<KmeansSeeds>,
     /// EM fits polished after the choice of K, by id.
     polished: Vec<(usize, Vec<L>)>,
     refiner: Option<Refiner<'a>>,
@@ -671,6 +677,7 @@ impl<'a> Single<'a> {
             min_gain: params.min_gain,
             delta,
             chains: [chain(), chain()],
+            seeds: None,
             polished: Vec::new(),
             refiner: sdata.map(|d| Refiner::new(d, params.smooth_exponent)),
             smooth_exponent: params.smooth_exponent,
@@ -726,6 +733,7 @@ impl<'a> Single<'a> {
     fn extend(&mut self, small: bool, k: usize) {
         let (pts, ptotal, full, sel_iters) = (self.pts, self.ptotal, self.full, self.sel_iters);
         let ch = &mut self.chains[usize::from(small)];
+        let seeds = &mut self.seeds;
         while ch.states.len() < k {
             let kk = ch.states.len() + 1;
             let (lobes, last) = ch.states.last().unwrap().clone();
@@ -746,7 +754,7 @@ impl<'a> Single<'a> {
             };
             for &start in starts {
                 let mut trial = if start == 0 {
-                    kmeans_init(pts, kk)
+                    kmeans_from(pts, seeds.get_or_insert_with(|| KmeansSeeds::new(pts)), kk)
                 } else {
                     split_heaviest(&lobes)
                 };
