@@ -57,6 +57,11 @@ pub(super) fn kmeans_init(pts: &[Pt], k: usize) -> Vec<L> {
 pub(super) struct KmeansSeeds {
     dirs: Vec<DVec3>,
     centres: Vec<DVec3>,
+    /// Each point's squared chord distance to its nearest seed so far (the running
+    /// `f64::min`, in the seeds' order, of the seeding pass).
+    near: Vec<f64>,
+    /// The Lloyd steps' cluster of each point ([`kmeans_from`]'s buffer).
+    assign: Vec<u8>,
 }
 
 impl KmeansSeeds {
@@ -71,19 +76,25 @@ impl KmeansSeeds {
             .unwrap_or(DVec3::Z);
         let mut centres = Vec::with_capacity(MAX_LOBES);
         centres.push(first);
-        KmeansSeeds { dirs, centres }
+        let near = vec![f64::INFINITY; pts.len()];
+        KmeansSeeds {
+            dirs,
+            centres,
+            near,
+            assign: Vec::new(),
+        }
     }
 
     /// The first `k` seeds of `pts` (the points `new` was given), seeded as far as needed.
     fn seeds(&mut self, pts: &[Pt], k: usize) -> &[DVec3] {
         while self.centres.len() < k {
+            // The distance to the newest seed folded into each point's running minimum: the
+            // same `f64::min` fold over the seeds as recomputing it from the first.
+            let last = *self.centres.last().unwrap();
             let mut best = (-1.0, DVec3::Z);
-            for (e, &d) in pts.iter().zip(&self.dirs) {
-                let dist = self
-                    .centres
-                    .iter()
-                    .map(|c| 2.0 - 2.0 * c.dot(d))
-                    .fold(f64::INFINITY, f64::min);
+            for ((e, &d), near) in pts.iter().zip(&self.dirs).zip(&mut self.near) {
+                *near = near.min(2.0 - 2.0 * last.dot(d));
+                let dist = *near;
                 if e.1 * dist > best.0 {
                     best = (e.1 * dist, d);
                 }
@@ -104,12 +115,27 @@ pub(super) fn kmeans_from(pts: &[Pt], seeds: &mut KmeansSeeds, k: usize) -> Vec<
     let centres = &mut centres[..k];
     let mut sums = [(DVec3::ZERO, 0.0f64, 0.0f64); MAX_LOBES];
     let sums = &mut sums[..k];
+    // Each point's cluster in the last Lloyd step. When a step assigns every point as the one
+    // before, its sums, hence its centres, are those of the step before (an empty cluster keeps
+    // its centre either way), and so are every later step's: the steps left are skipped, with
+    // the same centres to the last bit.
+    let mut assign = std::mem::take(&mut seeds.assign);
+    assign.clear();
+    assign.resize(pts.len(), u8::MAX);
+    let mut settled = false;
     for _ in 0..5 {
         sums.iter_mut().for_each(|s| *s = (DVec3::ZERO, 0.0, 0.0));
-        for &(d, w) in pts {
+        let mut same = true;
+        for (&(d, w), a) in pts.iter().zip(assign.iter_mut()) {
             let j = nearest(centres, d);
+            same &= usize::from(*a) == j;
+            *a = j as u8;
             sums[j].0 += d * w;
             sums[j].1 += w;
+        }
+        if same {
+            settled = true;
+            break;
         }
         for j in 0..k {
             if sums[j].0.length_squared() > 0.0 {
@@ -117,10 +143,16 @@ pub(super) fn kmeans_from(pts: &[Pt], seeds: &mut KmeansSeeds, k: usize) -> Vec<
             }
         }
     }
-    for &(d, w) in pts {
-        let j = nearest(centres, d);
+    for (&(d, w), a) in pts.iter().zip(&assign) {
+        // Settled: the last step's clusters are those of the final centres.
+        let j = if settled {
+            usize::from(*a)
+        } else {
+            nearest(centres, d)
+        };
         sums[j].2 += w * log_t(centres[j], d);
     }
+    seeds.assign = assign;
     let total: f64 = sums.iter().map(|s| s.1).sum();
     (0..k)
         .filter(|&j| sums[j].1 > 0.0)
