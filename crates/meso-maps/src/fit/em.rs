@@ -184,11 +184,11 @@ pub(super) type Pt = (DVec3, f64);
 /// Mean log-likelihood per unit weight of the mixture: the E-step's (`e_step_k`, SIMD), whose
 /// log-likelihood is [`loglik_scalar`]'s sum (with one lobe `ln` of the sum `e⁰ = 1` adds
 /// exactly 0), bit for bit with 5–8 lobes, with 1–4 in the lanes' order ([`e_step_lanes`]).
-pub(super) fn loglik(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
+pub(super) fn loglik(pts: &[Pt], lanes: &PtLanes, lobes: &[L], total: f64) -> f64 {
     if lobes.is_empty() || lobes.len() > MAX_LOBES {
         return loglik_scalar(pts, lobes, total);
     }
-    e_step_k(pts, &PtLanes::new(pts), lobes, &mut Acc::default()) / total
+    e_step_k(pts, lanes, lobes, &mut Acc::default()) / total
 }
 
 /// [`loglik`] written out, one lobe at a time.
@@ -215,16 +215,15 @@ fn loglik_scalar(pts: &[Pt], lobes: &[L], total: f64) -> f64 {
 
 /// EM on the mixture (module docs), at most `iters` iterations; returns the mean
 /// log-likelihood per unit weight of the last E-step. One `ln` and one `exp` per point and lobe.
-pub(super) fn em(pts: &[Pt], lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
+pub(super) fn em(pts: &[Pt], lanes: &PtLanes, lobes: &mut Vec<L>, total: f64, iters: usize) -> f64 {
     let mut prev = f64::NEG_INFINITY;
     let mut acc = Acc::default();
-    let lanes = PtLanes::new(pts);
     for _ in 0..iters.max(1) {
         let k = lobes.len();
         if k == 0 {
             break;
         }
-        let ll = e_step_k(pts, &lanes, lobes, &mut acc);
+        let ll = e_step_k(pts, lanes, lobes, &mut acc);
         for (j, l) in lobes.iter_mut().enumerate() {
             if acc.w[j] <= 1e-12 * total {
                 l.w = 0.0;
@@ -901,7 +900,7 @@ mod tests {
                 let (pts, lobes) = random_case(seed + k as u64, n, k);
                 let total: f64 = pts.iter().map(|p| p.1).sum();
                 let (a, b) = (
-                    loglik(&pts, &lobes, total),
+                    loglik(&pts, &PtLanes::new(&pts), &lobes, total),
                     loglik_scalar(&pts, &lobes, total),
                 );
                 if k > 4 {

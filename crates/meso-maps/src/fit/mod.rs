@@ -88,7 +88,9 @@ mod residual;
 mod smoothed;
 
 use crate::sphgrid::SphereGrid;
-use em::{em, eta_from_mean_t, kmeans_from, log_t, loglik, split_heaviest, KmeansSeeds, Pt, L};
+use em::{
+    em, eta_from_mean_t, kmeans_from, log_t, loglik, split_heaviest, KmeansSeeds, Pt, PtLanes, L,
+};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
 use smoothed::{rms_of_peak, Refiner, Smoothed, SMOOTH_MAX_POINTS, SMOOTH_MIN_DROP};
@@ -613,6 +615,8 @@ struct EmChain {
 /// exactly the single fit with `max_lobes = k`.
 struct Single<'a> {
     pts: &'a [Pt],
+    /// `pts` in the E-step's lanes, laid out once for every EM run and likelihood.
+    lanes: PtLanes,
     ptotal: f64,
     full: bool,
     iters: usize,
@@ -656,8 +660,10 @@ impl<'a> Single<'a> {
             w: 1.0,
             eta: 0.0,
         }];
+        let lanes = PtLanes::new(pts);
         let ll = em(
             pts,
+            &lanes,
             &mut lobes,
             ptotal,
             if full { iters } else { iters.min(10) },
@@ -670,6 +676,7 @@ impl<'a> Single<'a> {
         };
         Single {
             pts,
+            lanes,
             ptotal,
             full,
             iters,
@@ -688,7 +695,7 @@ impl<'a> Single<'a> {
     fn objective(&self, lobes: &[PhongLobe]) -> f64 {
         match &self.refiner {
             Some(r) => r.sm.objective_of(&to_l(lobes)),
-            None => -loglik(self.pts, &to_l(lobes), self.ptotal),
+            None => -loglik(self.pts, &self.lanes, &to_l(lobes), self.ptotal),
         }
     }
 
@@ -732,6 +739,7 @@ impl<'a> Single<'a> {
     /// The EM chain of flag `small` up to K = `k`.
     fn extend(&mut self, small: bool, k: usize) {
         let (pts, ptotal, full, sel_iters) = (self.pts, self.ptotal, self.full, self.sel_iters);
+        let lanes = &self.lanes;
         let ch = &mut self.chains[usize::from(small)];
         let seeds = &mut self.seeds;
         while ch.states.len() < k {
@@ -760,9 +768,9 @@ impl<'a> Single<'a> {
                 };
                 // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
                 let l2 = if small {
-                    loglik(pts, &trial, ptotal)
+                    loglik(pts, lanes, &trial, ptotal)
                 } else {
-                    em(pts, &mut trial, ptotal, sel_iters)
+                    em(pts, lanes, &mut trial, ptotal, sel_iters)
                 };
                 if trial.len() == kk && best.as_ref().is_none_or(|b| l2 > b.0) {
                     best = Some((l2, trial));
@@ -798,6 +806,7 @@ impl<'a> Single<'a> {
                 let mut l = lobes;
                 em(
                     self.pts,
+                    &self.lanes,
                     &mut l,
                     self.ptotal,
                     (self.iters - self.sel_iters).min(10),
@@ -824,7 +833,7 @@ impl<'a> Single<'a> {
             Some(r) => to_phong(&r.plus_one(&lobes, k)),
             None => {
                 let mut l = split_heaviest(&lobes);
-                em(self.pts, &mut l, self.ptotal, self.sel_iters);
+                em(self.pts, &self.lanes, &mut l, self.ptotal, self.sel_iters);
                 to_phong(&l)
             }
         }
