@@ -246,10 +246,11 @@ pub(super) fn em(pts: &[Pt], lanes: &PtLanes, lobes: &mut Vec<L>, total: f64, it
     prev
 }
 
-/// One E-step over `lobes` (1..=[`MAX_LOBES`] of them): fills `acc` and returns the summed
-/// log-likelihood (not yet divided by the total weight). The lobe count a constant (its loops
-/// unrolled, the per-lobe values in registers), in SIMD registers where the CPU has them; the
-/// same operations in the same order at every K and on every path.
+/// One E-step over `lobes` (1..=[`MAX_LOBES`] of them; `lanes` laid out from `pts`): fills
+/// `acc` and returns the summed log-likelihood (not yet divided by the total weight). The lobe
+/// count a constant (its loops unrolled, the per-lobe values in registers); 1–4 lobes over the
+/// points in lanes ([`e_step_lanes`], in SIMD registers where the CPU has them, the same bits on
+/// every path), 5–8 point by point ([`e_step`]).
 fn e_step_k(pts: &[Pt], lanes: &PtLanes, lobes: &[L], acc: &mut Acc) -> f64 {
     match lobes.len() {
         1 => e_step_lanes::<1>(lanes, lobes, acc),
