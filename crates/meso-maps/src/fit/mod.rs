@@ -88,7 +88,9 @@ mod residual;
 mod smoothed;
 
 use crate::sphgrid::SphereGrid;
-use em::{em, eta_from_mean_t, kmeans_init, log_t, loglik, split_heaviest, Pt, L};
+use em::{
+    em, eta_from_mean_t, kmeans_from, log_t, loglik, split_heaviest, KmeansSeeds, Pt, PtLanes, L,
+};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
 use smoothed::{rms_of_peak, Refiner, Smoothed, SMOOTH_MAX_POINTS, SMOOTH_MIN_DROP};
@@ -409,17 +411,20 @@ pub fn fit_lobes_with(
         out.extend(exact_lobes(entries, total));
         return;
     }
+    // The shading choice picks among the chain's candidates, so it runs the chain.
+    let chain = params.k_chain || params.k_choice != KChoice::Objective;
+    if !chain && n <= kmax {
+        // Every entry its own lobe: nothing of the EM fit is read (level 0's cells of two
+        // facets, and every footprint of at most `max_lobes` bins).
+        out.extend(exact_lobes(entries, total));
+        return;
+    }
     fill_em_points(entries, params, max_points, pts);
     let pts: &[Pt] = pts;
     let sdata = smooth_points(entries, pts, smooth, params);
     let mut single = Single::new(pts, params, thorough, sdata.as_deref());
-    // The shading choice picks among the chain's candidates, so it runs the chain.
-    if !params.k_chain && params.k_choice == KChoice::Objective {
-        out.extend(if n <= kmax {
-            exact_lobes(entries, total)
-        } else {
-            single.fit(kmax)
-        });
+    if !chain {
+        out.extend(single.fit(kmax));
         return;
     }
     // The chain: the fit at K is the best (lowest objective) of the fit at K − 1, the single
@@ -610,6 +615,8 @@ struct EmChain {
 /// exactly the single fit with `max_lobes = k`.
 struct Single<'a> {
     pts: &'a [Pt],
+    /// `pts` in the E-step's lanes, laid out once for every EM run and likelihood.
+    lanes: PtLanes,
     ptotal: f64,
     full: bool,
     iters: usize,
@@ -618,6 +625,9 @@ struct Single<'a> {
     /// Nearly identical normals: one delta-like lobe at every K.
     delta: bool,
     chains: [EmChain; 2],
+    /// The k-means points' directions and seeds, shared by the starts at every K (made at the
+    /// first k-means start).
+    seeds: Option<KmeansSeeds>,
     /// EM fits polished after the choice of K, by id.
     polished: Vec<(usize, Vec<L>)>,
     refiner: Option<Refiner<'a>>,
@@ -650,8 +660,10 @@ impl<'a> Single<'a> {
             w: 1.0,
             eta: 0.0,
         }];
+        let lanes = PtLanes::new(pts);
         let ll = em(
             pts,
+            &lanes,
             &mut lobes,
             ptotal,
             if full { iters } else { iters.min(10) },
@@ -664,6 +676,7 @@ impl<'a> Single<'a> {
         };
         Single {
             pts,
+            lanes,
             ptotal,
             full,
             iters,
@@ -671,6 +684,7 @@ impl<'a> Single<'a> {
             min_gain: params.min_gain,
             delta,
             chains: [chain(), chain()],
+            seeds: None,
             polished: Vec::new(),
             refiner: sdata.map(|d| Refiner::new(d, params.smooth_exponent)),
             smooth_exponent: params.smooth_exponent,
@@ -681,7 +695,7 @@ impl<'a> Single<'a> {
     fn objective(&self, lobes: &[PhongLobe]) -> f64 {
         match &self.refiner {
             Some(r) => r.sm.objective_of(&to_l(lobes)),
-            None => -loglik(self.pts, &to_l(lobes), self.ptotal),
+            None => -loglik(self.pts, &self.lanes, &to_l(lobes), self.ptotal),
         }
     }
 
@@ -725,7 +739,9 @@ impl<'a> Single<'a> {
     /// The EM chain of flag `small` up to K = `k`.
     fn extend(&mut self, small: bool, k: usize) {
         let (pts, ptotal, full, sel_iters) = (self.pts, self.ptotal, self.full, self.sel_iters);
+        let lanes = &self.lanes;
         let ch = &mut self.chains[usize::from(small)];
+        let seeds = &mut self.seeds;
         while ch.states.len() < k {
             let kk = ch.states.len() + 1;
             let (lobes, last) = ch.states.last().unwrap().clone();
@@ -746,15 +762,15 @@ impl<'a> Single<'a> {
             };
             for &start in starts {
                 let mut trial = if start == 0 {
-                    kmeans_init(pts, kk)
+                    kmeans_from(pts, seeds.get_or_insert_with(|| KmeansSeeds::new(pts)), kk)
                 } else {
                     split_heaviest(&lobes)
                 };
                 // Small footprints (≤ 4 entries per lobe): the starts are used as they are.
                 let l2 = if small {
-                    loglik(pts, &trial, ptotal)
+                    loglik(pts, lanes, &trial, ptotal)
                 } else {
-                    em(pts, &mut trial, ptotal, sel_iters)
+                    em(pts, lanes, &mut trial, ptotal, sel_iters)
                 };
                 if trial.len() == kk && best.as_ref().is_none_or(|b| l2 > b.0) {
                     best = Some((l2, trial));
@@ -790,6 +806,7 @@ impl<'a> Single<'a> {
                 let mut l = lobes;
                 em(
                     self.pts,
+                    &self.lanes,
                     &mut l,
                     self.ptotal,
                     (self.iters - self.sel_iters).min(10),
@@ -816,7 +833,7 @@ impl<'a> Single<'a> {
             Some(r) => to_phong(&r.plus_one(&lobes, k)),
             None => {
                 let mut l = split_heaviest(&lobes);
-                em(self.pts, &mut l, self.ptotal, self.sel_iters);
+                em(self.pts, &self.lanes, &mut l, self.ptotal, self.sel_iters);
                 to_phong(&l)
             }
         }

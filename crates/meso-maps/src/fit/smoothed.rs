@@ -285,8 +285,8 @@ fn target_pairs(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out:
 fn target_quads(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out: &mut [f64]) {
     use super::em::quads::{exp_neg, lanes, set};
     use std::arch::x86_64::{
-        _mm256_add_pd, _mm256_and_pd, _mm256_cmp_pd, _mm256_mul_pd, _mm256_set_pd,
-        _mm256_setzero_pd, _mm256_sub_pd, _CMP_GT_OQ,
+        _mm256_add_pd, _mm256_and_pd, _mm256_cmp_pd, _mm256_movemask_pd, _mm256_mul_pd,
+        _mm256_set_pd, _mm256_setzero_pd, _mm256_sub_pd, _CMP_GT_OQ,
     };
     for (hq, o) in hs.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
         let hx = _mm256_set_pd(hq[3].x, hq[2].x, hq[1].x, hq[0].x);
@@ -298,15 +298,17 @@ fn target_quads(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out:
                 _mm256_add_pd(_mm256_mul_pd(hx, set(m.x)), _mm256_mul_pd(hy, set(m.y))),
                 _mm256_mul_pd(hz, set(m.z)),
             );
+            let keep = _mm256_cmp_pd::<_CMP_GT_OQ>(c, set(cut));
+            // A normal beyond the cut of all four half vectors adds nothing (+0 to each lane).
+            if _mm256_movemask_pd(keep) == 0 {
+                continue;
+            }
             let term = _mm256_mul_pd(
                 set(w),
                 exp_neg(_mm256_mul_pd(set(lambda), _mm256_sub_pd(c, set(1.0)))),
             );
             // Terms at or below the cut add +0 (the sums are ≥ +0, so exactly nothing).
-            s = _mm256_add_pd(
-                s,
-                _mm256_and_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(c, set(cut)), term),
-            );
+            s = _mm256_add_pd(s, _mm256_and_pd(keep, term));
         }
         o.copy_from_slice(&lanes(s));
     }
@@ -341,6 +343,12 @@ fn target_octs(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out: 
                 _mm512_add_pd(_mm512_mul_pd(hx, set(m.x)), _mm512_mul_pd(hy, set(m.y))),
                 _mm512_mul_pd(hz, set(m.z)),
             );
+            // Terms at or below the cut are left out (the scalar adds nothing for them): a
+            // normal beyond the cut of all eight half vectors adds nothing at all.
+            let keep = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(c, set(cut));
+            if keep == 0 {
+                continue;
+            }
             // fast_exp_neg(λ(c − 1)), lane-wise (as `em::quads::exp_neg`).
             let y = _mm512_mul_pd(set(lambda), _mm512_sub_pd(c, set(1.0)));
             let under = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(y, set(-700.0));
@@ -356,8 +364,6 @@ fn target_octs(hs: &[DVec3], unit: &[(DVec3, f64)], lambda: f64, cut: f64, out: 
             let scale = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(kb));
             let e = _mm512_maskz_mov_pd(!under, _mm512_mul_pd(p, scale));
             let term = _mm512_mul_pd(set(w), e);
-            // Terms at or below the cut are left out (the scalar adds nothing for them).
-            let keep = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(c, set(cut));
             s = _mm512_mask_add_pd(s, keep, s, term);
         }
         // SAFETY: `o` holds eight doubles (unaligned store).
