@@ -10,51 +10,10 @@ use meso_maps::{
     extract, extract_bytes, extract_stream_bytes, extract_to_file, fixtures, ExtractParams,
     Pyramid, Source,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-
-struct Counting;
-
-static NOW: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(l) };
-        if !p.is_null() {
-            let now = NOW.fetch_add(l.size(), Relaxed) + l.size();
-            PEAK.fetch_max(now, Relaxed);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) };
-        NOW.fetch_sub(l.size(), Relaxed);
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
-        let q = unsafe { System.realloc(p, l, new) };
-        if !q.is_null() {
-            if new >= l.size() {
-                let now = NOW.fetch_add(new - l.size(), Relaxed) + new - l.size();
-                PEAK.fetch_max(now, Relaxed);
-            } else {
-                NOW.fetch_sub(l.size() - new, Relaxed);
-            }
-        }
-        q
-    }
-}
+use meso_testkit::alloc::peak_since;
 
 #[global_allocator]
-static A: Counting = Counting;
-
-/// Bytes allocated at the peak since the last call, above what was allocated then.
-fn peak_since(reset: &mut usize) -> usize {
-    let p = PEAK.load(Relaxed).saturating_sub(*reset);
-    *reset = NOW.load(Relaxed);
-    PEAK.store(*reset, Relaxed);
-    p
-}
+static A: meso_testkit::alloc::Counting = meso_testkit::alloc::Counting;
 
 #[test]
 fn extraction_and_reading_stay_within_their_estimates() {

@@ -95,8 +95,9 @@ struct TableTruth {
 }
 
 impl TableTruth {
-    fn new(table: Tabulated) -> TableTruth {
-        let (f0, specular, albedo) = ([0.9, 0.6, 0.3], 0.8, [0.05, 0.1, 0.2]);
+    /// The table with the Fresnel, specular scale and albedo of `like`.
+    fn new(table: Tabulated, like: &Truth) -> TableTruth {
+        let (f0, specular, albedo) = (like.f0, like.specular, like.albedo);
         let spec =
             meso_measured::model::mirror_material(Ndf::Tabulated(table), f0, [specular; 3], albedo);
         let m = Material::from_toml_str(&spec.to_toml_with_comment("")).unwrap();
@@ -421,7 +422,7 @@ fn a_table_on_the_fits_grid_is_recovered_within_one_percent() {
 fn table_round_trip(shape: &Truth) {
     let opts = AnisoOptions::default();
     let grid = EqualAreaGrid::new(opts.n_z, opts.n_phi);
-    let t = TableTruth::new(truth_table(shape, grid));
+    let t = TableTruth::new(truth_table(shape, grid), shape);
     let d = data(&t, grid, 4, 20_000, 10_000, 5);
     let r = fit(&d, &opts).unwrap();
     let peak = t.table.values().iter().copied().fold(0.0, f64::max);

@@ -1,7 +1,7 @@
 //! The memory of building the NDF-mapped material of a map file's pyramid
 //! (`NdfMapped::from_pyramid`, what `meso render` does for `[texture] map = "…"`) against what
 //! is really allocated: this test binary counts every heap byte (a counting global allocator,
-//! as `meso-maps`' `extract_memory.rs`). On a 256² Gaussian height map's pyramid (two lobes a
+//! `meso_testkit::alloc`, as `meso-maps`' `extract_memory.rs`). On a 256² Gaussian height map's pyramid (two lobes a
 //! level-0 texel, level 0 compact) the peak of building it, the pyramid included, is the model
 //! of docs/map-format.md ("Rendering a map file") to within −25 %/+10 %: the pyramid, the lobe
 //! statistics (8 B a lobe for the shares; horizons 36 or 72 B a level-0 texel and a coarser lobe)
@@ -13,51 +13,10 @@
 use meso_core::material::Material;
 use meso_maps::{extract, fixtures, ExtractParams, Pyramid, Source};
 use meso_render::NdfMapped;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
-
-struct Counting;
-
-static NOW: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(l) };
-        if !p.is_null() {
-            let now = NOW.fetch_add(l.size(), Relaxed) + l.size();
-            PEAK.fetch_max(now, Relaxed);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) };
-        NOW.fetch_sub(l.size(), Relaxed);
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
-        let q = unsafe { System.realloc(p, l, new) };
-        if !q.is_null() {
-            if new >= l.size() {
-                let now = NOW.fetch_add(new - l.size(), Relaxed) + new - l.size();
-                PEAK.fetch_max(now, Relaxed);
-            } else {
-                NOW.fetch_sub(l.size() - new, Relaxed);
-            }
-        }
-        q
-    }
-}
+use meso_testkit::alloc::peak_since;
 
 #[global_allocator]
-static A: Counting = Counting;
-
-/// Bytes allocated at the peak since the last call, above what was allocated then.
-fn peak_since(reset: &mut usize) -> usize {
-    let p = PEAK.load(Relaxed).saturating_sub(*reset);
-    *reset = NOW.load(Relaxed);
-    PEAK.store(*reset, Relaxed);
-    p
-}
+static A: meso_testkit::alloc::Counting = meso_testkit::alloc::Counting;
 
 /// Heap bytes of a pyramid's levels (lobes, horizon statistics, lobe starts).
 fn pyramid_bytes(p: &Pyramid) -> usize {

@@ -12,6 +12,7 @@
 //! * [`reference`](mod@reference) — samplers with known densities (uniform sphere / hemisphere, cosine).
 //! * [`rng`] — the seeded generator handed to samplers.
 //! * [`lobes`] — fine reference quadratures over sums of Phong peaks.
+//! * [`alloc`] — a counting global allocator for memory tests.
 //!
 //! ```
 //! use meso_testkit::{reference, ChiSquareTest};
@@ -28,6 +29,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod alloc;
 pub mod chi2;
 pub mod furnace;
 pub mod gamma;
