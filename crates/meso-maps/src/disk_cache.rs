@@ -103,6 +103,63 @@ pub fn open<'a>(bytes: &'a [u8], magic: &[u8; 8], format: u32, key: &[u8; 32]) -
     (stored_key == key).then_some(rest)
 }
 
+/// What a cache lookup answered ([`crate::pyramid_cache`], [`crate::facet_cache`]): the value,
+/// whether the cache had it, and the warnings that loading its source gave (a colour image
+/// read as heights, 8-bit terraces dequantised, …). The warnings are kept in the entry, so a
+/// hit says them as the build did, although the image is then not decoded.
+#[derive(Clone, Debug)]
+pub struct Cached<T> {
+    /// The pyramid or facet NDF.
+    pub value: T,
+    /// Whether it was read from the cache (not built).
+    pub hit: bool,
+    /// The source's load warnings, in the order they were given.
+    pub warnings: Vec<String>,
+}
+
+/// The most warnings kept with an entry ([`put_warnings`]); more are dropped.
+pub const MAX_WARNINGS: usize = 64;
+/// The longest warning kept with an entry, in bytes; a longer one is cut at a character.
+pub const MAX_WARNING_BYTES: usize = 4096;
+
+/// Append `warnings` to an entry's payload: their count (`u32` LE), then each one's length in
+/// bytes (`u32` LE) and UTF-8 text, at most [`MAX_WARNINGS`] of at most [`MAX_WARNING_BYTES`].
+pub fn put_warnings(out: &mut Vec<u8>, warnings: &[String]) {
+    let kept = &warnings[..warnings.len().min(MAX_WARNINGS)];
+    out.extend_from_slice(&(kept.len() as u32).to_le_bytes());
+    for w in kept {
+        let mut end = w.len().min(MAX_WARNING_BYTES);
+        while !w.is_char_boundary(end) {
+            end -= 1;
+        }
+        out.extend_from_slice(&(end as u32).to_le_bytes());
+        out.extend_from_slice(&w.as_bytes()[..end]);
+    }
+}
+
+/// Read what [`put_warnings`] wrote from the front of `bytes`, advancing it; `None` when it is
+/// not well formed (a count or length over the limits, short data, text not UTF-8).
+#[must_use]
+pub fn take_warnings(bytes: &mut &[u8]) -> Option<Vec<String>> {
+    let (n, mut b) = bytes.split_first_chunk::<4>()?;
+    let n = u32::from_le_bytes(*n) as usize;
+    if n > MAX_WARNINGS {
+        return None;
+    }
+    let mut out = Vec::with_capacity(n);
+    for _ in 0..n {
+        let (len, rest) = b.split_first_chunk::<4>()?;
+        let len = u32::from_le_bytes(*len) as usize;
+        if len > MAX_WARNING_BYTES || len > rest.len() {
+            return None;
+        }
+        out.push(std::str::from_utf8(&rest[..len]).ok()?.to_string());
+        b = &rest[len..];
+    }
+    *bytes = b;
+    Some(out)
+}
+
 /// The bytes of the entry `prefix`-`key` in `dir`, if it can be read (not yet checked: see
 /// [`open`]). A read entry's modification time is set to now (its last use, for [`prune`]).
 #[must_use]

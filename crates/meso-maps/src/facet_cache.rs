@@ -12,7 +12,8 @@
 //! * The key: SHA-256 of the height map file's bytes, the parameters that shape the result
 //!   (texel size, height scale, border, normal mode), this crate's version and [`FORMAT`]. A
 //!   changed file or parameter is a different key; nothing is ever looked up by path alone.
-//! * The file `facets-<key>.bin`: magic, format, the key again, the deltas (unit normal and
+//! * The file `facets-<key>.bin`: magic, format, the key again, the height map's load warnings
+//!   ([`crate::disk_cache::put_warnings`]: said again on a hit), the deltas (unit normal and
 //!   weight, `f64`), the map's horizon statistics and the [`BinnedVisibility`] arrays, all
 //!   little-endian, and the SHA-256 of all that. Written atomically (`meso_core::io::write_atomic`); read with a size limit
 //!   and checked (every length, offset and value) before use: a damaged or foreign file is
@@ -20,6 +21,7 @@
 //! * Failing to create the folder or write the file only costs the next run the build; it is
 //!   not an error.
 
+pub use crate::disk_cache::Cached;
 use crate::facet_ndf::FacetVisibility;
 use crate::facets::NormalMode;
 use crate::heightmap::{Border, HeightMap};
@@ -31,8 +33,9 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// The cache file format; bumped whenever what is stored or how it is built changes.
-pub const FORMAT: u32 = 2;
+/// The cache file format; bumped whenever what is stored or how it is built changes (3 since
+/// 2026-12-04: the height map's load warnings are kept in the entry).
+pub const FORMAT: u32 = 3;
 const MAGIC: &[u8; 8] = b"MESOFCT\0";
 /// The largest cache file read back (4 GiB).
 pub const MAX_CACHE_BYTES: u64 = crate::disk_cache::MAX_CACHE_BYTES;
@@ -72,12 +75,17 @@ pub fn key(
 /// The facets and visibility stored under `key` in `dir`, if a valid entry is there.
 #[must_use]
 pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
+    load_with_warnings(dir, key).map(|(ndf, vis, _)| (ndf, vis))
+}
+
+/// [`load_entry`] with the load warnings kept in the entry.
+fn load_with_warnings(dir: &Path, key: &[u8; 32]) -> Option<(Ndf, FacetVisibility, Vec<String>)> {
     let bytes = crate::disk_cache::read(dir, PREFIX, key)?;
     decode(&bytes, key)
 }
 
-/// Store the facets and visibility under `key` in `dir` (creating it); errors are returned
-/// for the caller to ignore or report.
+/// Store the facets and visibility under `key` in `dir` with the height map's load
+/// `warnings` (creating the folder); errors are returned for the caller to ignore or report.
 ///
 /// # Errors
 /// The folder cannot be created or the file written.
@@ -86,12 +94,19 @@ pub fn store(
     key: &[u8; 32],
     deltas: &DeltaSum,
     vis: &FacetVisibility,
+    warnings: &[String],
 ) -> std::io::Result<()> {
-    crate::disk_cache::write(dir, PREFIX, key, &encode(key, deltas, vis))
+    crate::disk_cache::write(dir, PREFIX, key, &encode(key, deltas, vis, warnings))
 }
 
-fn encode(key: &[u8; 32], deltas: &DeltaSum, vis: &FacetVisibility) -> Vec<u8> {
+fn encode(
+    key: &[u8; 32],
+    deltas: &DeltaSum,
+    vis: &FacetVisibility,
+    warnings: &[String],
+) -> Vec<u8> {
     let mut out = crate::disk_cache::header(MAGIC, FORMAT, key);
+    crate::disk_cache::put_warnings(&mut out, warnings);
     out.extend_from_slice(&(deltas.normals().len() as u64).to_le_bytes());
     for n in deltas.normals() {
         for v in [n.normal.x, n.normal.y, n.normal.z, n.weight] {
@@ -120,8 +135,9 @@ fn f64s<const N: usize>(bytes: &mut &[u8]) -> Option<[f64; N]> {
     Some(out)
 }
 
-fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
-    let payload = crate::disk_cache::open(bytes, MAGIC, FORMAT, key)?;
+fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility, Vec<String>)> {
+    let mut payload = crate::disk_cache::open(bytes, MAGIC, FORMAT, key)?;
+    let warnings = crate::disk_cache::take_warnings(&mut payload)?;
     let (n, mut b) = payload.split_first_chunk::<8>()?;
     let n = usize::try_from(u64::from_le_bytes(*n)).ok()?;
     if n == 0 || n > b.len() / 32 {
@@ -154,6 +170,7 @@ fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility)> {
             horizon,
             radiosity: None,
         },
+        warnings,
     ))
 }
 
@@ -163,7 +180,8 @@ pub const MAX_HASHED_BYTES: u64 = crate::disk_cache::MAX_HASHED_BYTES;
 /// The facets of the height map in `file` with their visibility, from the cache when it has
 /// them (the image is then not even decoded), else loaded with `load`, built with `build`
 /// (e.g. [`crate::facet_ndf::facets_with_visibility`]) and stored. Returns whether the cache
-/// answered.
+/// answered and the map's load warnings ([`HeightMap::warnings`], kept in the entry: a hit
+/// returns those of the load that built it).
 ///
 /// # Errors
 /// `load`'s and `build`'s errors.
@@ -175,22 +193,31 @@ pub fn facets_cached<E>(
     mode: NormalMode,
     load: impl FnOnce() -> Result<HeightMap, E>,
     build: impl FnOnce(&HeightMap) -> Result<(Ndf, FacetVisibility), E>,
-) -> Result<(Ndf, FacetVisibility, bool), E> {
+) -> Result<Cached<(Ndf, FacetVisibility)>, E> {
     let dir = cache_dir();
     let k = dir.as_ref().and_then(|_| {
         let bytes = crate::disk_cache::source_bytes(file)?;
         Some(key(&bytes, texel_size, height_scale, border, mode))
     });
     if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
-        if let Some((ndf, vis)) = load_entry(d, k) {
-            return Ok((ndf, vis, true));
+        if let Some((ndf, vis, warnings)) = load_with_warnings(d, k) {
+            return Ok(Cached {
+                value: (ndf, vis),
+                hit: true,
+                warnings,
+            });
         }
     }
     let map = load()?;
+    let warnings = map.warnings().to_vec();
     let (ndf, vis) = build(&map)?;
     if let (Some(d), Some(k), Ndf::Deltas(deltas)) = (dir.as_deref(), &k, &ndf) {
         // A cache that cannot be written only costs the next run the build.
-        let _ = store(d, k, deltas, &vis);
+        let _ = store(d, k, deltas, &vis, &warnings);
     }
-    Ok((ndf, vis, false))
+    Ok(Cached {
+        value: (ndf, vis),
+        hit: false,
+        warnings,
+    })
 }

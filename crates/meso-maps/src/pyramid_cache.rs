@@ -13,7 +13,9 @@
 //!   included), [`KEY_MAP_VERSION`], [`FORMAT`] and this crate's version. The key of a normal map ([`normal_key`]): the same with the green-channel
 //!   convention in place of the texel size, height scale and border, in a separate domain (a
 //!   file's bytes never give the same key as a height map and as a normal map).
-//! * The file `pyramid-<key>.bin`: the map file's bytes (`docs/map-format.md`; written in
+//! * The file `pyramid-<key>.bin`: the load warnings of the source
+//!   ([`crate::disk_cache::put_warnings`]: said again on a hit), then the map file's bytes
+//!   (`docs/map-format.md`; written in
 //!   version 4, [`crate::format::VERSION`], entries of version 3 written by earlier builds still
 //!   read) sealed by [`crate::disk_cache`] (magic, format, key, SHA-256), written atomically. A
 //!   damaged, truncated or foreign file is ignored and rebuilt, never an error.
@@ -23,6 +25,7 @@
 //! first run, the cached runs and a `.map` written by `meso extract` with the same parameters
 //! give the same pyramid, bit for bit.
 
+pub use crate::disk_cache::Cached;
 use crate::heightmap::{Border, NormalConvention};
 use crate::pyramid::{ExtractParams, Pyramid};
 use sha2::{Digest, Sha256};
@@ -30,8 +33,10 @@ use std::path::Path;
 
 /// The cache entry format; bumped whenever what is stored or how it is built changes. 4 since
 /// 2026-12-04: EM's E-step sums over the points in lanes, so a fresh extraction differs from
-/// an entry of format 3 in the last bits (a format-3 entry is then rebuilt, not read).
-pub const FORMAT: u32 = 4;
+/// an entry of format 3 in the last bits (a format-3 entry is then rebuilt, not read). 5 since
+/// 2026-12-04 (evening): the entry keeps the source's load warnings before the map file's bytes
+/// ([`crate::disk_cache::put_warnings`]).
+pub const FORMAT: u32 = 5;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// The map format version hashed into every key: 3, the version the cache wrote until
@@ -39,8 +44,6 @@ const PREFIX: &str = "pyramid";
 /// and reads back to the very pyramid version 3 does (`tests/map_format_v3.rs`), so the keys
 /// stay and an entry of either version answers: a cache filled by an earlier build still opens.
 pub const KEY_MAP_VERSION: u32 = 3;
-/// Bytes of [`crate::disk_cache::header`]: magic, format, key.
-const HEADER: usize = 8 + 4 + 32;
 
 /// The cache key of a height map file's bytes, its texel size, height scale and border, and
 /// the extraction parameters.
@@ -106,26 +109,43 @@ pub fn load_entry(dir: &Path, key: &[u8; 32]) -> Option<Pyramid> {
         crate::format::read_bytes(len),
     )
     .ok()?;
-    let bytes = crate::disk_cache::read(dir, PREFIX, key)?;
-    let map = crate::disk_cache::open(&bytes, MAGIC, FORMAT, key)?;
-    Pyramid::from_bytes(&entry_path(dir, key), map).ok()
+    load_with_warnings(dir, key).map(|(p, _)| p)
 }
 
-/// Store `pyramid` under `key` in `dir` (creating it; then the folder is pruned).
+/// [`load_entry`] with the load warnings kept in the entry.
+fn load_with_warnings(dir: &Path, key: &[u8; 32]) -> Option<(Pyramid, Vec<String>)> {
+    let bytes = crate::disk_cache::read(dir, PREFIX, key)?;
+    let mut map = crate::disk_cache::open(&bytes, MAGIC, FORMAT, key)?;
+    let warnings = crate::disk_cache::take_warnings(&mut map)?;
+    Some((
+        Pyramid::from_bytes(&entry_path(dir, key), map).ok()?,
+        warnings,
+    ))
+}
+
+/// Store `pyramid` under `key` in `dir` with its source's load `warnings` (creating the
+/// folder; then it is pruned).
 ///
 /// # Errors
 /// The folder cannot be created or the file written, or the pyramid holds values a map file
 /// cannot (`InvalidData`).
-pub fn store(dir: &Path, key: &[u8; 32], pyramid: &Pyramid) -> std::io::Result<()> {
+pub fn store(
+    dir: &Path,
+    key: &[u8; 32],
+    pyramid: &Pyramid,
+    warnings: &[String],
+) -> std::io::Result<()> {
     let mut entry = crate::disk_cache::header(MAGIC, FORMAT, key);
+    crate::disk_cache::put_warnings(&mut entry, warnings);
     pyramid.write_to(&mut entry)?;
     crate::disk_cache::seal(&mut entry);
     crate::disk_cache::write(dir, PREFIX, key, &entry)
 }
 
 /// The pyramid of the height map in `file`, from the cache when it has it (the image is then
-/// not decoded), else built by `build` (which loads and extracts), stored and returned as the
-/// map file stores it (module docs). Returns whether the cache answered.
+/// not decoded), else built by `build` (which loads and extracts, and returns the load's
+/// warnings), stored and returned as the map file stores it (module docs), with whether the
+/// cache answered and the load's warnings (kept in the entry: a hit returns the build's).
 ///
 /// # Errors
 /// `build`'s errors; the cache's own failures are misses, never errors.
@@ -135,8 +155,8 @@ pub fn pyramid_cached<E>(
     height_scale: f64,
     border: Border,
     params: &ExtractParams,
-    build: impl FnOnce() -> Result<Pyramid, E>,
-) -> Result<(Pyramid, bool), E> {
+    build: impl FnOnce() -> Result<(Pyramid, Vec<String>), E>,
+) -> Result<Cached<Pyramid>, E> {
     cached(
         file,
         |bytes| key(bytes, texel_size, height_scale, border, params),
@@ -153,35 +173,46 @@ pub fn normal_pyramid_cached<E>(
     file: &Path,
     convention: NormalConvention,
     params: &ExtractParams,
-    build: impl FnOnce() -> Result<Pyramid, E>,
-) -> Result<(Pyramid, bool), E> {
+    build: impl FnOnce() -> Result<(Pyramid, Vec<String>), E>,
+) -> Result<Cached<Pyramid>, E> {
     cached(file, |bytes| normal_key(bytes, convention, params), build)
 }
 
 fn cached<E>(
     file: &Path,
     key_of: impl FnOnce(&[u8]) -> [u8; 32],
-    build: impl FnOnce() -> Result<Pyramid, E>,
-) -> Result<(Pyramid, bool), E> {
+    build: impl FnOnce() -> Result<(Pyramid, Vec<String>), E>,
+) -> Result<Cached<Pyramid>, E> {
     let dir = crate::disk_cache::cache_dir();
     let k = dir.as_ref().and_then(|_| {
         let bytes = crate::disk_cache::source_bytes(file)?;
         Some(key_of(&bytes))
     });
     if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
-        if let Some(p) = load_entry(d, k) {
-            return Ok((p, true));
+        if let Some((value, warnings)) = load_with_warnings(d, k) {
+            return Ok(Cached {
+                value,
+                hit: true,
+                warnings,
+            });
         }
     }
-    let built = build()?;
-    // The entry is built in place: header, the map file's bytes, then the seal. A pyramid the
-    // format cannot hold (non-finite values) is used as built and not cached.
+    let (built, warnings) = build()?;
+    let as_built = |value| Cached {
+        value,
+        hit: false,
+        warnings: warnings.clone(),
+    };
+    // The entry is built in place: header, warnings, the map file's bytes, then the seal. A
+    // pyramid the format cannot hold (non-finite values) is used as built and not cached.
     let mut entry = crate::disk_cache::header(MAGIC, FORMAT, k.as_ref().unwrap_or(&[0; 32]));
+    crate::disk_cache::put_warnings(&mut entry, &warnings);
+    let map_start = entry.len();
     if built.write_to(&mut entry).is_err() {
-        return Ok((built, false));
+        return Ok(as_built(built));
     }
-    let Ok(pyramid) = Pyramid::from_bytes(file, &entry[HEADER..]) else {
-        return Ok((built, false));
+    let Ok(pyramid) = Pyramid::from_bytes(file, &entry[map_start..]) else {
+        return Ok(as_built(built));
     };
     drop(built);
     if let (Some(d), Some(k)) = (dir.as_deref(), &k) {
@@ -189,5 +220,5 @@ fn cached<E>(
         // A cache that cannot be written only costs the next run the extraction.
         let _ = crate::disk_cache::write(d, PREFIX, k, &entry);
     }
-    Ok((pyramid, false))
+    Ok(as_built(pyramid))
 }

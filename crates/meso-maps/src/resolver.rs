@@ -374,7 +374,7 @@ impl MapsResolver {
         };
         params.fit.max_lobes = max_lobes;
         // From the disk cache (`crate::pyramid_cache`) when it has this map and parameters.
-        let (pyr, hit) = crate::pyramid_cache::pyramid_cached(
+        let got = crate::pyramid_cache::pyramid_cached(
             file,
             texel_size,
             height_scale,
@@ -395,17 +395,20 @@ impl MapsResolver {
                 )?;
                 let map = HeightMap::load(file, texel_size, height_scale, border)
                     .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
-                for w in map.warnings() {
-                    self.warn(file, w);
-                }
-                extract(Source::Heights(&map), &params, &mut |p| {
+                let pyramid = extract(Source::Heights(&map), &params, &mut |p| {
                     if let Some(f) = &self.progress {
                         f(file, p);
                     }
                 })
-                .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))
+                .map_err(|e| MaterialError(format!("[ndf] {}: {e}", file.display())))?;
+                Ok((pyramid, map.warnings().to_vec()))
             },
         )?;
+        // Said whether the cache answered or not: the entry keeps them.
+        for w in &got.warnings {
+            self.warn(file, w);
+        }
+        let (pyr, hit) = (got.value, got.hit);
         if hit {
             self.disk_hits
                 .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -479,27 +482,28 @@ impl MapsResolver {
         };
         // Built once per map content and parameters, then read from the cache
         // (`crate::facet_cache`), which reports no progress: it takes a moment.
-        let (ndf, mut vis, _cached) = crate::facet_cache::facets_cached(
+        let got = crate::facet_cache::facets_cached(
             file,
             p.texel_size,
             p.height_scale,
             p.border,
             p.normal_mode,
             || {
-                let map = HeightMap::load(file, p.texel_size, p.height_scale, p.border)
-                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
-                if let Some(r) = resolver {
-                    for w in map.warnings() {
-                        r.warn(file, w);
-                    }
-                }
-                Ok(map)
+                HeightMap::load(file, p.texel_size, p.height_scale, p.border)
+                    .map_err(|e| MaterialError(format!("[ndf]: {e}")))
             },
             |map| {
                 facets_with_visibility_progress(map, p.normal_mode, &report)
                     .map_err(|e| MaterialError(format!("{what}: {e}")))
             },
         )?;
+        // Said whether the cache answered or not: the entry keeps them.
+        if let Some(r) = resolver {
+            for w in &got.warnings {
+                r.warn(file, w);
+            }
+        }
+        let (ndf, mut vis) = got.value;
         if p.normal_mode == NormalMode::Triangles && p.border == Border::Wrap {
             // The light between facets (`interreflection = true`) traces the map again, once,
             // when a material first asks for it.

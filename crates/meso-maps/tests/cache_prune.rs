@@ -63,24 +63,27 @@ fn normal_maps_cached_and_the_folder_pruned_least_recently_used_first() {
     let build = |conv| {
         builds.set(builds.get() + 1);
         let map = NormalMap::load(&file, conv).map_err(|e| e.to_string())?;
-        extract(Source::Normals(&map), &params, &mut |_| {}).map_err(|e| e.to_string())
+        let p = extract(Source::Normals(&map), &params, &mut |_| {}).map_err(|e| e.to_string())?;
+        Ok::<_, String>((p, Vec::new()))
     };
 
     std::env::set_var("MESO_CACHE_DIR", &cache);
     let gl = NormalConvention::Gl;
-    let (p1, hit) = normal_pyramid_cached(&file, gl, &params, || build(gl)).unwrap();
+    let got = normal_pyramid_cached(&file, gl, &params, || build(gl)).unwrap();
+    let (p1, hit) = (got.value, got.hit);
     assert!(!hit);
     let e_gl = entry_path(&cache, &normal_key(&bytes, gl, &params));
     assert!(e_gl.is_file(), "{:?}", entries(&cache));
-    let (p2, hit) = normal_pyramid_cached(&file, gl, &params, || build(gl)).unwrap();
+    let got = normal_pyramid_cached(&file, gl, &params, || build(gl)).unwrap();
+    let (p2, hit) = (got.value, got.hit);
     assert!(hit);
     assert_eq!(builds.get(), 1, "the second run does not extract");
     assert_eq!(p1, p2);
     assert_eq!(p1, Pyramid::from_bytes(&file, &p1.to_bytes()).unwrap());
     // The other convention, other parameters: other keys; a height map's key never collides.
     let dx = NormalConvention::Dx;
-    let (p3, hit) = normal_pyramid_cached(&file, dx, &params, || build(dx)).unwrap();
-    assert!(!hit && p3 != p1 && builds.get() == 2);
+    let got = normal_pyramid_cached(&file, dx, &params, || build(dx)).unwrap();
+    assert!(!got.hit && got.value != p1 && builds.get() == 2);
     let mut two = params.clone();
     two.fit.max_lobes = 2;
     assert_ne!(
@@ -118,8 +121,11 @@ fn normal_maps_cached_and_the_folder_pruned_least_recently_used_first() {
 
     // After a write in the real cache: a 1-byte cap leaves only the entry just written.
     std::env::set_var(MAX_BYTES_VAR, "1");
-    let (_, hit) = normal_pyramid_cached(&file, gl, &two, || build(gl)).unwrap();
-    assert!(!hit);
+    assert!(
+        !normal_pyramid_cached(&file, gl, &two, || build(gl))
+            .unwrap()
+            .hit
+    );
     let left = entries(&cache);
     assert_eq!(left.len(), 1, "{left:?}");
     assert!(entry_path(&cache, &normal_key(&bytes, gl, &two)).is_file());

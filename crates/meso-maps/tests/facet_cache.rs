@@ -73,7 +73,7 @@ fn facet_cache_round_trip_damage_and_keys() {
             |m| facets_with_visibility(m, NormalMode::Triangles),
         )
         .unwrap()
-        .2
+        .hit
     };
     assert!(cached(&load), "the second load is answered by the cache");
     // On a hit the image is not decoded at all.
@@ -123,4 +123,57 @@ fn facet_cache_round_trip_damage_and_keys() {
     let _ = std::fs::remove_dir_all(&cache);
     assert!(same(&values(), &first));
     assert!(!cache.exists());
+
+    a_hit_says_the_loads_warnings();
+}
+
+/// A hit says the warnings of the load that built the entry: a colour image given as a height
+/// map is warned about on the second load too, although the image is then not decoded. (Called
+/// from the one test function: `MESO_CACHE_DIR` is global.)
+fn a_hit_says_the_loads_warnings() {
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("facet_cache_warnings");
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(&root).unwrap();
+    let file = root.join("colour.png");
+    image::RgbImage::from_fn(16, 16, |x, y| {
+        image::Rgb([(x * 16) as u8, (y * 16) as u8, ((x + y) * 8) as u8])
+    })
+    .save(&file)
+    .unwrap();
+    let dir = root.join("cache");
+    let run = |load_allowed: bool| facets_cached_in(&dir, &file, load_allowed);
+    let first = run(true);
+    assert!(!first.hit);
+    assert!(
+        first.warnings.iter().any(|w| w.contains("colour")),
+        "{:?}",
+        first.warnings
+    );
+    let second = run(false);
+    assert!(second.hit, "the second load is answered by the cache");
+    assert_eq!(second.warnings, first.warnings);
+}
+
+fn facets_cached_in(
+    dir: &Path,
+    file: &Path,
+    load_allowed: bool,
+) -> meso_maps::disk_cache::Cached<(meso_core::ndf::Ndf, meso_maps::FacetVisibility)> {
+    std::env::set_var("MESO_CACHE_DIR", dir);
+    facets_cached(
+        file,
+        0.1,
+        0.1,
+        Border::Wrap,
+        NormalMode::Triangles,
+        || {
+            if load_allowed {
+                HeightMap::load(file, 0.1, 0.1, Border::Wrap).map_err(|e| e.to_string())
+            } else {
+                Err("must not be decoded".to_string())
+            }
+        },
+        |m| facets_with_visibility(m, NormalMode::Triangles),
+    )
+    .unwrap()
 }

@@ -405,23 +405,27 @@ fn normal_mapped(
     file: &Path,
     convention: NormalConvention,
 ) -> Result<Arc<dyn Shader>, String> {
+    // The load's warnings: said by the caller, kept in the pyramid cache's entry.
     let load = || {
         let map = NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"))?;
-        if map.clamped() > 0 {
-            t.maps.warn(
-                file,
-                &format!(
+        let warnings: Vec<String> = (map.clamped() > 0)
+            .then(|| {
+                format!(
                     "{} of {} texels point at or below the horizon; tilted up to it",
                     map.clamped(),
                     map.width() * map.height()
-                ),
-            );
-        }
-        Ok::<_, String>(map)
+                )
+            })
+            .into_iter()
+            .collect();
+        Ok::<_, String>((map, warnings))
     };
     let surface = t.surface()?;
     if t.kind == "bump-mapped" {
-        let map = load()?;
+        let (map, warnings) = load()?;
+        for w in &warnings {
+            t.maps.warn(file, w);
+        }
         let texels_per_uv = texels_per_uv(t.tex, map.width())?;
         return Ok(Arc::new(BumpMapped::from_normal_map(
             &map,
@@ -435,11 +439,16 @@ fn normal_mapped(
     }
     // From the disk cache (keyed by the file's bytes, convention and parameters) or extracted
     // and stored there: the normal map is only decoded to extract.
-    let (pyramid, _) =
-        meso_maps::pyramid_cache::normal_pyramid_cached(file, convention, &params, || {
-            extract(Source::Normals(&load()?), &params, &mut |_| {})
-                .map_err(|e| format!("[texture] {}: {e}", file.display()))
-        })?;
+    let got = meso_maps::pyramid_cache::normal_pyramid_cached(file, convention, &params, || {
+        let (map, warnings) = load()?;
+        let pyramid = extract(Source::Normals(&map), &params, &mut |_| {})
+            .map_err(|e| format!("[texture] {}: {e}", file.display()))?;
+        Ok::<_, String>((pyramid, warnings))
+    })?;
+    for w in &got.warnings {
+        t.maps.warn(file, w);
+    }
+    let pyramid = got.value;
     let texels_per_uv = texels_per_uv(t.tex, pyramid.width)?;
     Ok(Arc::new(
         NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(t.box_filter),
