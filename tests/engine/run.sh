@@ -18,14 +18,11 @@ fail() {
   echo "e2e: 0 passed, 1 failed"
   exit 1
 }
+# shellcheck source=../../scripts/lib/setup.sh
+. "$root/scripts/lib/setup.sh"
+ensure_node || fail "Node.js ≥ 20.10 and npm"
 
-if [ ! -x "${CHROMIUM:-/usr/bin/chromium}" ]; then
-  sudo_cmd=""
-  if [ "$(id -u)" != "0" ] && command -v sudo >/dev/null 2>&1; then sudo_cmd="sudo"; fi
-  echo "engine: installing chromium (apt-get)" >&2
-  $sudo_cmd apt-get update && DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y chromium \
-    || fail "cannot install chromium"
-fi
+ensure_chromium || fail "cannot install chromium"
 
 if [ ! -d node_modules/playwright-core ] || [ ! -d node_modules/three ]; then
   npm ci --no-audit --no-fund || npm install --no-audit --no-fund || fail "npm install"

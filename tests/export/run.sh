@@ -14,6 +14,9 @@ fail() {
   echo "e2e: 0 passed, 1 failed"
   exit 1
 }
+# shellcheck source=../../scripts/lib/setup.sh
+. "$root/scripts/lib/setup.sh"
+ensure_node || fail "Node.js ≥ 20.10 and npm"
 
 if [ ! -d node_modules/ktx-parse ] || [ ! -d node_modules/gltf-validator ]; then
   npm ci --no-audit --no-fund || npm install --no-audit --no-fund || fail "npm install"

@@ -66,7 +66,9 @@ enum Command {
     /// Inspect an NDF: plot it or print its statistics.
     #[command(subcommand)]
     Ndf(cmd::ndf::NdfCommand),
-    /// Fit a measured BRDF (MERL binary or sample CSV) with K Phong peaks; write a material.
+    /// Fit a measured BRDF (MERL binary or sample CSV) with a sum of K lobes (Phong peaks,
+    /// microfacet Phong peaks or GGX lobes; the best on held-out data), or a tabulated NDF
+    /// (`--nonparametric`); write a material.
     Fit(cmd::fit::Args),
     /// Extract the NDF pyramid of a height map (or normal map) into a map file.
     Extract(cmd::extract::Args),

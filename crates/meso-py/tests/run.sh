@@ -18,9 +18,9 @@ fail() {
   exit 1
 }
 
-if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv" || fail "python3 -m venv"
-fi
+# shellcheck source=../../../scripts/lib/setup.sh
+. "$root/scripts/lib/setup.sh"
+ensure_venv "$venv" || fail "python3 -m venv (Debian: python3-venv)"
 "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$here/requirements-test.txt" \
   || fail "pip install -r crates/meso-py/tests/requirements-test.txt"
 if [ -f "$here/setup-system.sh" ]; then

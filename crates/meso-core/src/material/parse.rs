@@ -55,7 +55,8 @@ impl<'a> Fields<'a> {
                 let known = self.used.join(", ");
                 // A textured material (height map over uv) only means something on an object.
                 let hint = if self.name == "material" && k == "texture" {
-                    "; a [texture] table makes a bump- or NDF-mapped material for scene files                      (`meso render`, docs/scene-format.md)"
+                    "; a [texture] table makes a bump- or NDF-mapped material for scene files \
+                     (`meso render`, docs/scene-format.md)"
                 } else {
                     ""
                 };
