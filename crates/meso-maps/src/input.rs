@@ -90,7 +90,7 @@ fn check_budget_with(
                 NormalMode::Triangles => 2,
                 NormalMode::CentralDifferences => 1,
             };
-            h.height_map_bytes() + extract_bytes(cols, rows, per_cell, w * hgt)
+            h.height_map_then(extract_bytes(cols, rows, per_cell, w * hgt))
         }
     };
     meso_core::budget::check(path, "extracting the NDF pyramid", estimate)?;

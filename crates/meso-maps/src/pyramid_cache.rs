@@ -35,7 +35,8 @@ use std::path::Path;
 /// 2026-12-04: EM's E-step sums over the points in lanes, so a fresh extraction differs from
 /// an entry of format 3 in the last bits (a format-3 entry is then rebuilt, not read). 5 since
 /// 2026-12-04 (evening): the entry keeps the source's load warnings before the map file's bytes
-/// ([`crate::disk_cache::put_warnings`]).
+/// ([`crate::disk_cache::put_warnings`]), and the horizon angles are held in 16 bits
+/// ([`crate::horizon::ANGLE_STEP`]), which moves the last bits of the horizon statistics.
 pub const FORMAT: u32 = 5;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";

@@ -63,9 +63,7 @@ fn check_heightmap_budget(
         NormalMode::Triangles => 2,
         NormalMode::CentralDifferences => 1,
     };
-    let estimate = h
-        .height_map_bytes()
-        .saturating_add(work(cols, rows, per_cell, w * hgt));
+    let estimate = h.height_map_then(work(cols, rows, per_cell, w * hgt));
     meso_core::budget::check(file, task, estimate).map_err(|e| MaterialError(format!("[ndf]: {e}")))
 }
 

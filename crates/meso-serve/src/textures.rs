@@ -614,7 +614,7 @@ pub fn open(bytes: &[u8], c: &Checked, id: String) -> Result<Texture, ApiError> 
                         NormalMode::Triangles => 2,
                         NormalMode::CentralDifferences => 1,
                     };
-                    h.height_map_bytes() + extract_bytes(cols, rows, per_cell, w * hh)
+                    h.height_map_then(extract_bytes(cols, rows, per_cell, w * hh))
                 }
             };
             meso_core::budget::check_named(&c.name, "extracting the NDF pyramid", estimate)

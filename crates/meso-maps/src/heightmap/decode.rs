@@ -118,6 +118,16 @@ impl ImageHeader {
         self.file_bytes + self.pixels().saturating_mul(per_pixel)
     }
 
+    /// Peak memory (bytes) of loading the image as a height map and then doing `work` bytes of
+    /// work with the map held: the larger of the load's peak ([`Self::height_map_bytes`]) and
+    /// the loaded map (its heights, 8 bytes a sample; the file, the decoded image and the
+    /// load's buffers are freed by then) plus `work`.
+    #[must_use]
+    pub fn height_map_then(&self, work: u64) -> u64 {
+        self.height_map_bytes()
+            .max(self.pixels().saturating_mul(8).saturating_add(work))
+    }
+
     /// Peak memory (bytes) of loading the image as a normal map
     /// ([`NormalMap::load`](super::NormalMap::load)): the file, the decoded image, its float RGB
     /// conversion and two arrays of normals (f64).

@@ -29,8 +29,10 @@ pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
 /// Extra peak memory of [`extract`](super::extract) per cell for each further normal of the cell
 /// (triangles: 2).
 pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
-/// Peak memory of [`extract`](super::extract) per height sample (horizon angles, bytes).
-pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 40;
+/// Peak memory of [`extract`](super::extract) per height sample: the four horizon angles
+/// (`u16`, [`crate::horizon::ANGLE_STEP`]: 8 bytes) and a margin (bytes). 40 until 2026-12-04,
+/// when the angles were `f64`.
+pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 12;
 
 /// The estimated peak memory (bytes) of [`extract`](super::extract) on a `cols × rows` cell grid
 /// with `per_cell` normals per cell and `samples` height samples (0 for a normal map), including
@@ -47,7 +49,7 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 }
 
 /// Peak memory of the streamed extraction ([`extract_to_file`](super::extract_to_file)) per
-/// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 32 bytes a
+/// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 8 bytes a
 /// sample are allocated): level 1's horizon statistics in `f64`, which level 2 reads (72 bytes a
 /// texel, a quarter of the cells: 18 bytes a cell), the facets' entry-grid bins that every level
 /// reads (`level_fit::facet_bins`, 4 bytes a cell since 2026-12-04), and a margin. Measured (2026-12-03,
