@@ -34,8 +34,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The cache file format; bumped whenever what is stored or how it is built changes (3 since
-/// 2026-12-04: the height map's load warnings are kept in the entry).
-pub const FORMAT: u32 = 3;
+/// 2026-12-04: the height map's load warnings are kept in the entry; 4: the facets' horizons
+/// are marched from random points, `crate::visibility::jitter`).
+pub const FORMAT: u32 = 4;
 const MAGIC: &[u8; 8] = b"MESOFCT\0";
 /// The largest cache file read back (4 GiB).
 pub const MAX_CACHE_BYTES: u64 = crate::disk_cache::MAX_CACHE_BYTES;
