@@ -117,6 +117,20 @@ mod inputs {
             assert!(matches!(e, MapError::InvalidParameter { .. }), "{e}");
             assert!(e.to_string().contains("must be a finite number > 0"));
         }
+        // Scales whose facets would overflow or underflow (a texel size of 1e-300 with a height
+        // scale of 1e300 gave NaN lobes and a zero BRDF from the gonioreflectometer).
+        for (s, h, what) in [
+            (1e-300, 1e300, "between 1e-12 and 1e12"),
+            (1e-13, 1e-13, "between 1e-12 and 1e12"),
+            (1.0, 1e13, "between 1e-12 and 1e12"),
+            (1e-3, 2e3, "height_scale / texel_size must be at most 1e6"),
+        ] {
+            let e = HeightMap::from_bytes(p, &good, s, h, Border::Wrap).unwrap_err();
+            assert!(matches!(e, MapError::InvalidParameter { .. }), "{e}");
+            assert!(e.to_string().contains(what), "{e}");
+        }
+        // The bounds themselves are usable.
+        assert!(HeightMap::from_bytes(p, &good, 1e-3, 1e3, Border::Wrap).is_ok());
         let e = HeightMap::from_heights(2, 2, vec![0.0, f64::NAN, 0.0, 0.0], 1.0, Border::Wrap)
             .unwrap_err();
         assert_eq!(e.to_string(), "height at row 0, column 1 is not finite");

@@ -40,7 +40,7 @@ pub fn render<'py>(
         .detach(|| -> Result<_, String> {
             let resolver = |p: &std::path::Path| meso_render::resolve_material_file(p, &maps);
             let sc = Scene::from_toml_file(&scene, &resolver)
-                .map_err(|e| format!("cannot load the scene {}: {e:#}", scene.display()))?;
+                .map_err(|e| format!("cannot load the scene: {e:#}"))?;
             let w = width.unwrap_or(sc.image.width);
             let h = height.unwrap_or(sc.image.height);
             meso_core::budget::check(

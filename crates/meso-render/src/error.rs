@@ -10,6 +10,19 @@ fn ctx(file: &Option<PathBuf>) -> String {
     }
 }
 
+/// `PATH: MESSAGE` for a material's error, without repeating the path when the resolver's
+/// message already starts with it.
+fn material_message(resolved: &Path, message: &str) -> String {
+    let path = resolved.display().to_string();
+    match message
+        .strip_prefix(&path)
+        .and_then(|m| m.strip_prefix(": "))
+    {
+        Some(rest) => format!("{path}: {rest}"),
+        None => format!("{path}: {message}"),
+    }
+}
+
 /// Why a scene could not be loaded or built.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -41,7 +54,11 @@ pub enum SceneError {
         problem: String,
     },
     /// The material resolver failed.
-    #[error("{}{field}: material {}: {message}", ctx(file), resolved.display())]
+    #[error(
+        "{}{field}: material {}",
+        ctx(file),
+        material_message(resolved, message)
+    )]
     Material {
         /// The scene file, if any.
         file: Option<PathBuf>,
@@ -145,4 +162,34 @@ pub enum ImageError {
         /// The encoder's message.
         message: String,
     },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A material's error names its file once, whether or not the resolver's message starts
+    /// with it.
+    #[test]
+    fn a_material_error_names_its_file_once() {
+        let e = |message: &str| SceneError::Material {
+            file: Some(PathBuf::from("s.toml")),
+            field: "object[0].material".into(),
+            resolved: PathBuf::from("t1.toml"),
+            message: message.into(),
+        };
+        assert_eq!(
+            e("t1.toml: [ndf]: cannot read nope.png").to_string(),
+            "s.toml: object[0].material: material t1.toml: [ndf]: cannot read nope.png"
+        );
+        assert_eq!(
+            e("[ndf]: cannot read nope.png").to_string(),
+            "s.toml: object[0].material: material t1.toml: [ndf]: cannot read nope.png"
+        );
+        // Only a whole leading path counts.
+        assert_eq!(
+            e("t1.tomlx: bad").to_string(),
+            "s.toml: object[0].material: material t1.toml: t1.tomlx: bad"
+        );
+    }
 }

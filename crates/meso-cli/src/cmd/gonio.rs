@@ -18,10 +18,10 @@ pub struct Args {
     pub material: PathBuf,
     #[command(flatten)]
     pub table: crate::util::BrdfTable,
-    /// Rays per side of the stratified grid: N² rays per direction pair.
+    /// Rays per side of the stratified grid: N² rays per direction pair (1–8192).
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub rays: u32,
-    /// Scattering events per path (1 = single bounce; more adds inter-reflection).
+    /// Scattering events per path (1–64; 1 = single bounce; more adds inter-reflection).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub bounces: u32,
     /// Seed of the ray jitter.

@@ -188,7 +188,8 @@ pub fn run(a: Args) -> Result<()> {
     FACETS_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let t = std::time::Instant::now();
     let scene = Scene::from_toml_file(&a.scene, &resolver)
-        .with_context(|| format!("cannot load the scene {}", a.scene.display()))?;
+        // The scene's errors start with the file they are about (the scene or a file it names).
+        .context("cannot load the scene")?;
     let pyramid = PYRAMID_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
     let facets = FACETS_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
     phases.add(

@@ -216,8 +216,35 @@ impl HeightMap {
 }
 
 /// Both scales of a height map file finite and > 0 (texel size first, as the error names it).
+/// The range of a texel size or height scale (any length unit): beyond it the facets' cross
+/// products underflow or overflow `f64`.
+pub const SCALE_RANGE: (f64, f64) = (1e-12, 1e12);
+/// The largest ratio `height_scale / texel_size`: the slope of a full-range step between two
+/// neighbouring samples (10⁶, a wall within 6·10⁻⁵ ° of vertical; a one-code step of a 16-bit
+/// map is then a slope of 15). Larger ratios give no usable normals.
+pub const MAX_SLOPE_SCALE: f64 = 1e6;
+
 fn check_scales(texel_size: f64, height_scale: f64) -> Result<()> {
     positive("texel_size", texel_size)?;
     positive("height_scale", height_scale)?;
+    let within = |v: f64| (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&v);
+    for (name, v) in [("texel_size", texel_size), ("height_scale", height_scale)] {
+        if !within(v) {
+            return Err(MapError::InvalidParameter {
+                name,
+                value: format!("{v}"),
+                reason: "must be between 1e-12 and 1e12 (any length unit: choose one in which \
+                         the map's scales are moderate)",
+            });
+        }
+    }
+    if height_scale / texel_size > MAX_SLOPE_SCALE {
+        return Err(MapError::InvalidParameter {
+            name: "height_scale",
+            value: format!("{height_scale} (texel_size {texel_size})"),
+            reason: "height_scale / texel_size must be at most 1e6: a full-range step between \
+                     neighbouring samples would be a wall steeper than 89.99994°",
+        });
+    }
     Ok(())
 }
