@@ -45,36 +45,57 @@ impl std::fmt::Display for PyramidInfo {
             self.texel_size,
             self.levels.len()
         )?;
+        let hists: Vec<String> = self
+            .levels
+            .iter()
+            .map(|l| {
+                let hist: Vec<String> = l
+                    .lobe_counts
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, c)| **c > 0)
+                    .map(|(n, c)| format!("{n}:{c}"))
+                    .collect();
+                hist.join(" ")
+            })
+            .collect();
+        // The histogram column is as wide as its widest entry, so no row runs into the next.
+        let hw = hists
+            .iter()
+            .map(|h| h.chars().count())
+            .max()
+            .unwrap_or(0)
+            .max("lobe-count histogram".len());
         writeln!(
             f,
-            "level  texels       span  lobes     lobes/texel  lobe-count histogram  residual mean/max (n)  shading error mean/max (% of peak)"
+            "level  texels       span  lobes     lobes/texel  {:<hw$}  residual mean/max (n)  shading error mean/max (% of peak)",
+            "lobe-count histogram"
         )?;
-        for (k, l) in self.levels.iter().enumerate() {
-            let hist: Vec<String> = l
-                .lobe_counts
-                .iter()
-                .enumerate()
-                .filter(|(_, c)| **c > 0)
-                .map(|(n, c)| format!("{n}:{c}"))
-                .collect();
+        for ((k, l), hist) in self.levels.iter().enumerate().zip(&hists) {
             let shading = match (l.residual.shading_mean, l.residual.shading_max) {
                 (Some(m), Some(x)) => format!("{:.2}/{:.2}", 100.0 * m, 100.0 * x),
                 _ => "not recorded".to_string(),
             };
             writeln!(
                 f,
-                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {:<21} {:<22} {shading}",
+                "{k:<5}  {:<11}  {:<5} {:<9} {:<12.3} {hist:<hw$}  {:<22} {shading}",
                 format!("{}x{}", l.cols, l.rows),
                 l.span,
                 l.lobes,
                 l.lobes as f64 / (l.cols * l.rows) as f64,
-                hist.join(" "),
                 format!(
                     "{:.4}/{:.4} ({})",
                     l.residual.mean, l.residual.max, l.residual.texels
                 ),
             )?;
         }
+        writeln!(
+            f,
+            "residual: the NDF residual over n texels sampled per level (at most 64, spread over \
+             the level), mean and max of those; shading error: the BRDF error of the lobes as a \
+             % of its peak, for the facet kernel `meso extract` printed (the file does not \
+             record it)"
+        )?;
         Ok(())
     }
 }
