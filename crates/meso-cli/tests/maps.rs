@@ -408,21 +408,7 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     std::fs::write(&empty, b"").unwrap();
     // A PNG whose header says 0 × 0 pixels (valid CRC).
     let zero = d.join("zero.png");
-    let mut png = b"\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR".to_vec();
-    let ihdr = [0u8, 0, 0, 0, 0, 0, 0, 0, 8, 0, 0, 0, 0];
-    png.extend_from_slice(&ihdr);
-    let mut crc = 0xFFFF_FFFFu32;
-    for &b in b"IHDR".iter().chain(&ihdr) {
-        crc ^= u32::from(b);
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 {
-                0xEDB8_8320 ^ (crc >> 1)
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    png.extend_from_slice(&(!crc).to_be_bytes());
+    let png = meso_testkit::png::header_only(0, 0, 8, 0);
     std::fs::write(&zero, &png).unwrap();
     for bad in [&corrupt, &cut, &cut_data, &empty, &zero] {
         let name = bad.file_name().unwrap().to_string_lossy().into_owned();

@@ -13,6 +13,7 @@
 //! * [`rng`] — the seeded generator handed to samplers.
 //! * [`lobes`] — fine reference quadratures over sums of Phong peaks.
 //! * [`alloc`] — a counting global allocator for memory tests.
+//! * [`png`] — PNG headers of any size built byte by byte, for image readers' size checks.
 //!
 //! ```
 //! use meso_testkit::{reference, ChiSquareTest};
@@ -34,6 +35,7 @@ pub mod chi2;
 pub mod furnace;
 pub mod gamma;
 pub mod lobes;
+pub mod png;
 pub mod reference;
 
 pub use chi2::{check_normalization, CellResidual, ChiSquareReport, ChiSquareTest};
