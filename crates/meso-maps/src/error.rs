@@ -75,6 +75,15 @@ pub enum MapError {
         /// What is required.
         reason: &'static str,
     },
+    /// A height map's texel size or height scale outside the range whose facets `f64` holds
+    /// (`heightmap::load::SCALE_RANGE`, `MAX_SLOPE_SCALE`).
+    #[error("{path}: {what}")]
+    Scale {
+        /// The height map.
+        path: PathBuf,
+        /// Which scale, its value and what is required.
+        what: String,
+    },
     /// A map file is malformed.
     #[error("map file {path}: {message}")]
     MapFormat {

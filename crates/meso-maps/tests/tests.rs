@@ -123,10 +123,15 @@ mod inputs {
             (1e-300, 1e300, "between 1e-12 and 1e12"),
             (1e-13, 1e-13, "between 1e-12 and 1e12"),
             (1.0, 1e13, "between 1e-12 and 1e12"),
-            (1e-3, 2e3, "height_scale / texel_size must be at most 1e6"),
+            (
+                1e-3,
+                2e3,
+                "height_scale / texel_size = 2e6 must be at most 1e6",
+            ),
         ] {
             let e = HeightMap::from_bytes(p, &good, s, h, Border::Wrap).unwrap_err();
-            assert!(matches!(e, MapError::InvalidParameter { .. }), "{e}");
+            assert!(matches!(e, MapError::Scale { .. }), "{e}");
+            assert!(e.to_string().starts_with("x.png: "), "names the file: {e}");
             assert!(e.to_string().contains(what), "{e}");
         }
         // The bounds themselves are usable.

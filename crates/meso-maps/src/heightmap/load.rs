@@ -45,7 +45,7 @@ impl HeightMap {
         height_scale: f64,
         border: Border,
     ) -> Result<HeightMap> {
-        check_scales(texel_size, height_scale)?;
+        check_scales(path, texel_size, height_scale)?;
         let img = open_image_budgeted(
             path,
             "loading the height map",
@@ -65,7 +65,7 @@ impl HeightMap {
         height_scale: f64,
         border: Border,
     ) -> Result<HeightMap> {
-        check_scales(texel_size, height_scale)?;
+        check_scales(name, texel_size, height_scale)?;
         let img = decode_bytes(name, bytes)?;
         let h = img.height() as usize;
         Self::from_image(img, texel_size, height_scale, border)
@@ -224,26 +224,31 @@ pub const SCALE_RANGE: (f64, f64) = (1e-12, 1e12);
 /// map is then a slope of 15). Larger ratios give no usable normals.
 pub const MAX_SLOPE_SCALE: f64 = 1e6;
 
-fn check_scales(texel_size: f64, height_scale: f64) -> Result<()> {
+/// Check the scales of the height map `path` (named in the error): each finite and positive,
+/// within [`SCALE_RANGE`], and their ratio at most [`MAX_SLOPE_SCALE`].
+fn check_scales(path: &Path, texel_size: f64, height_scale: f64) -> Result<()> {
     positive("texel_size", texel_size)?;
     positive("height_scale", height_scale)?;
     let within = |v: f64| (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&v);
     for (name, v) in [("texel_size", texel_size), ("height_scale", height_scale)] {
         if !within(v) {
-            return Err(MapError::InvalidParameter {
-                name,
-                value: format!("{v}"),
-                reason: "must be between 1e-12 and 1e12 (any length unit: choose one in which \
-                         the map's scales are moderate)",
+            return Err(MapError::Scale {
+                path: path.to_path_buf(),
+                what: format!(
+                    "{name} = {v:e} must be between 1e-12 and 1e12 (any length unit: choose one \
+                     in which the map's scales are moderate)"
+                ),
             });
         }
     }
     if height_scale / texel_size > MAX_SLOPE_SCALE {
-        return Err(MapError::InvalidParameter {
-            name: "height_scale",
-            value: format!("{height_scale} (texel_size {texel_size})"),
-            reason: "height_scale / texel_size must be at most 1e6: a full-range step between \
-                     neighbouring samples would be a wall steeper than 89.99994°",
+        return Err(MapError::Scale {
+            path: path.to_path_buf(),
+            what: format!(
+                "height_scale / texel_size = {:e} must be at most 1e6: a full-range step between \
+                 neighbouring samples would be a wall steeper than 89.99994°",
+                height_scale / texel_size
+            ),
         });
     }
     Ok(())
