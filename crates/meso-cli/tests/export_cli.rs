@@ -128,7 +128,10 @@ fn lobes_must_match_the_mip_chain() {
         err.contains("level 1 is 3 × 2 in the pyramid") && err.contains("2 × 1 in the mip chain"),
         "{err}"
     );
-    assert!(err.contains("4 levels") && err.contains("3 levels"), "{err}");
+    assert!(
+        err.contains("4 levels") && err.contains("3 levels"),
+        "{err}"
+    );
     // Refused up front: no fit table was printed.
     assert!(o.stdout.is_empty());
 
@@ -309,7 +312,9 @@ fn messages_say_what_to_do() {
         "rgb height map as normals",
     );
     assert!(
-        err.contains("height map") && err.contains("--texel-size") && !err.contains("cannot decode"),
+        err.contains("height map")
+            && err.contains("--texel-size")
+            && !err.contains("cannot decode"),
         "{err}"
     );
     // --out naming a file.

@@ -63,7 +63,10 @@ const HEIGHT_HINT: &str = "it looks like a height map: give --texel-size and --h
 /// # Errors
 /// [`ExportError::Invalid`] for a grey image or a texel that is no direction (with the hint);
 /// the loader's other errors.
-pub fn load_normal_map(path: &Path, convention: NormalConvention) -> Result<NormalMap, ExportError> {
+pub fn load_normal_map(
+    path: &Path,
+    convention: NormalConvention,
+) -> Result<NormalMap, ExportError> {
     if let Some(h) = export::header(path)? {
         if !h.color {
             let img = meso_maps::heightmap::decode_image(
@@ -71,10 +74,7 @@ pub fn load_normal_map(path: &Path, convention: NormalConvention) -> Result<Norm
                 "loading the normal map",
                 meso_maps::ImageHeader::normal_map_bytes,
             )?;
-            if matches!(
-                img.color(),
-                image::ColorType::L8 | image::ColorType::L16
-            ) {
+            if matches!(img.color(), image::ColorType::L8 | image::ColorType::L16) {
                 return Err(ExportError::Invalid(format!(
                     "{}: a single-channel grey image, read as a normal map; {HEIGHT_HINT}",
                     path.display()
@@ -264,7 +264,12 @@ pub fn lobe_files(
 ) -> Result<(Vec<(String, Vec<u8>)>, String), ExportError> {
     let pyr = meso_maps::Pyramid::read(path)?;
     let l0 = &pyr.levels[0];
-    check_lobe_grid(path, (pyr.width, pyr.height, l0.cols, l0.rows), width, height)?;
+    check_lobe_grid(
+        path,
+        (pyr.width, pyr.height, l0.cols, l0.rows),
+        width,
+        height,
+    )?;
     let tex = crate::lobes::pack(&pyr);
     let files = crate::lobes::files(&tex)?;
     let line = format!(

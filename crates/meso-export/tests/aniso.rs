@@ -348,8 +348,8 @@ fn anisotropic_export_of_a_single_texel_is_refused() {
 /// H = 3: the map rows `meso export crop64.png --texel-size 1 --height-scale 3` reads from the
 /// image's top-left 64 × 64 pixels.
 fn facade_crop() -> HeightMap {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../meso-maps/tests/data/facade_disp_256.png");
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../meso-maps/tests/data/facade_disp_256.png");
     let full = HeightMap::load(&path, 1.0, 3.0, Border::Wrap).unwrap();
     let (w, h) = (full.width(), full.height());
     assert_eq!((w, h), (256, 256));
@@ -378,7 +378,10 @@ fn anisotropic_widths_are_never_below_the_base_alpha() {
     for (k, l) in ex.levels.iter().enumerate() {
         let a = l.aniso.as_ref().unwrap();
         for (t, (&ab, &at)) in l.alphas.iter().zip(&a.alpha_t).enumerate() {
-            assert!(ab >= 0.05 - 1e-12 && at >= ab, "level {k} texel {t}: α_b {ab}, α_t {at}");
+            assert!(
+                ab >= 0.05 - 1e-12 && at >= ab,
+                "level {k} texel {t}: α_b {ab}, α_t {at}"
+            );
             lowest = lowest.min(ab);
         }
     }

@@ -29,8 +29,14 @@ fn level_sizes_by_both_rules() {
     assert_eq!(prepare::lobe_level_sizes(64, 64), p2);
     assert_eq!(prepare::mip_level_sizes(64, 64), p2);
     // 8 × 2 agrees (8×2, 4×1, 2×1, 1×1 both ways); 6 × 6 does not (6, 3, 2, 1 against 6, 3, 1).
-    assert_eq!(prepare::lobe_level_sizes(8, 2), prepare::mip_level_sizes(8, 2));
-    assert_ne!(prepare::lobe_level_sizes(6, 6), prepare::mip_level_sizes(6, 6));
+    assert_eq!(
+        prepare::lobe_level_sizes(8, 2),
+        prepare::mip_level_sizes(8, 2)
+    );
+    assert_ne!(
+        prepare::lobe_level_sizes(6, 6),
+        prepare::mip_level_sizes(6, 6)
+    );
 }
 
 /// The grid check: a 5 × 3 pyramid, a clamped one (63 × 63 cells of a 64² map), one of another
@@ -115,7 +121,10 @@ fn material_options_are_named() {
     let e = prepare::refuse_material_options(m, &["--convention"])
         .unwrap_err()
         .to_string();
-    assert!(e.contains("ggx.toml") && e.contains("--convention does not apply"), "{e}");
+    assert!(
+        e.contains("ggx.toml") && e.contains("--convention does not apply"),
+        "{e}"
+    );
     let e = prepare::refuse_material_options(m, &["--alpha", "--metallic"])
         .unwrap_err()
         .to_string();

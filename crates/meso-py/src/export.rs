@@ -42,7 +42,11 @@ pub fn export<'py>(
     lobes: Option<PathBuf>,
 ) -> PyResult<(Vec<String>, Vec<Bound<'py, PyDict>>, Vec<String>)> {
     require_exists(&path)?;
-    for p in roughness_map.iter().chain(base_color.iter()).chain(lobes.iter()) {
+    for p in roughness_map
+        .iter()
+        .chain(base_color.iter())
+        .chain(lobes.iter())
+    {
         require_exists(p)?;
     }
     let conv = match convention.unwrap_or("gl") {
@@ -137,8 +141,7 @@ pub fn export<'py>(
                 inputs.anisotropic = anisotropic;
                 inputs
             };
-            let mut ex =
-                ex_lib::build(&inputs).map_err(|e| format!("{}: {e}", path.display()))?;
+            let mut ex = ex_lib::build(&inputs).map_err(|e| format!("{}: {e}", path.display()))?;
             if let Some(l) = &lobes {
                 let (files, _line) =
                     prepare::lobe_files(l, inputs.width, inputs.height).map_err(s)?;
