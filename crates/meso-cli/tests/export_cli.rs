@@ -339,3 +339,53 @@ fn messages_say_what_to_do() {
     assert!(o.stdout.is_empty(), "refused before the fit");
     assert_eq!(std::fs::read(&file).unwrap(), b"keep");
 }
+
+/// The lobe pyramid's memory is part of the up-front budget check: a map file whose header is a
+/// 64² pyramid's and whose size is 64 MB (sparse; estimated 4.8× its size to read) is refused
+/// under a 64 MB budget before anything is decoded, while the same export without `--lobes`
+/// fits.
+#[test]
+fn the_lobe_pyramid_counts_in_the_budget() {
+    let d = tmpdir("lobes-budget");
+    let h = d.join("h.png");
+    height_png(&h, 64);
+    let big = d.join("big.map");
+    let mut head = b"MESOMAP\0".to_vec();
+    for v in [4u32, 64, 64, 64, 64] {
+        head.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(&big, &head).unwrap();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&big)
+        .unwrap()
+        .set_len(64 << 20)
+        .unwrap();
+    let out = d.join("out");
+    let args = |lobes: bool| {
+        let mut a = vec![
+            "--memory-budget",
+            "64M",
+            "export",
+            s(&h),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "4",
+            "--out",
+            s(&out),
+        ];
+        if lobes {
+            a.extend(["--lobes", s(&big)]);
+        }
+        a
+    };
+    let o = meso(&args(true));
+    let err = fails(&o, &out, "lobes above the budget");
+    assert!(
+        err.contains("h.png") && err.contains("reading the lobe pyramid") && err.contains("budget"),
+        "{err}"
+    );
+    assert!(o.stdout.is_empty(), "refused before the fit");
+    ok(&meso(&args(false)));
+}

@@ -197,9 +197,9 @@ pub fn check_budget_for(
     check_budget_extra(map, heights, roughness_map, base_color, anisotropic, 0)
 }
 
-/// [`check_budget_for`] with `extra` bytes held during the export besides its own (a lobe
+/// [`check_budget_for`] with `extra_bytes` held during the export besides its own (a lobe
 /// pyramid read while every file is in memory, `crate::prepare::check_export`), added to the
-/// map's estimate.
+/// map's estimate (whose task then names the pyramid).
 ///
 /// # Errors
 /// As [`check_budget`].
@@ -229,7 +229,14 @@ pub fn check_budget_extra(
             .saturating_add(export_bytes(h.width, h.height))
             .saturating_add(extra)
             .saturating_add(extra_bytes);
-        let task = format!("exporting {} × {} texels", h.width, h.height);
+        let task = if extra_bytes > 0 {
+            format!(
+                "exporting {} × {} texels and reading the lobe pyramid",
+                h.width, h.height
+            )
+        } else {
+            format!("exporting {} × {} texels", h.width, h.height)
+        };
         check(map, &task, estimate)?;
     }
     if let Some(r) = roughness_map {
