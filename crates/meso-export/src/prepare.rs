@@ -10,6 +10,9 @@ use meso_maps::{NormalConvention, NormalMap};
 use std::io::Read;
 use std::path::Path;
 
+/// Files of an export in memory: `(file name, bytes)`, as [`export::Export::files`].
+pub type Files = Vec<(String, Vec<u8>)>;
+
 /// Whether the file at `path` opens with meso's map-file magic ([`meso_maps::format::MAGIC`]).
 #[must_use]
 pub fn is_map_file(path: &Path) -> bool {
@@ -261,7 +264,7 @@ pub fn lobe_files(
     path: &Path,
     width: usize,
     height: usize,
-) -> Result<(Vec<(String, Vec<u8>)>, String), ExportError> {
+) -> Result<(Files, String), ExportError> {
     let pyr = meso_maps::Pyramid::read(path)?;
     let l0 = &pyr.levels[0];
     check_lobe_grid(
