@@ -67,7 +67,9 @@ pub struct Args {
     pub anisotropic: bool,
     /// A lobe pyramid (`.map` file of `meso extract`) of the same map: also write its lobes
     /// as `lobes<k>_mip<l>.png` (RGBA16, one per lobe slot and level) and the shader functions
-    /// `meso_lobes.wgsl` and `meso_lobes.glsl` that evaluate them (docs/export.md).
+    /// `meso_lobes.wgsl` and `meso_lobes.glsl` that evaluate them (docs/export.md). Lobe level
+    /// l must be mip level l: the pyramid of a wrapped extraction (no --clamp) of a map whose
+    /// sizes halve evenly (e.g. powers of two); others are refused before the fit.
     #[arg(long)]
     pub lobes: Option<PathBuf>,
 }
