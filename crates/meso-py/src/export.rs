@@ -141,10 +141,14 @@ pub fn export<'py>(
                 inputs.anisotropic = anisotropic;
                 inputs
             };
+            // The lobe pyramid read, checked and packed before the fit, as the CLI does.
+            let lobe_files = lobes
+                .as_ref()
+                .map(|l| prepare::lobe_files(l, inputs.width, inputs.height))
+                .transpose()
+                .map_err(s)?;
             let mut ex = ex_lib::build(&inputs).map_err(|e| format!("{}: {e}", path.display()))?;
-            if let Some(l) = &lobes {
-                let (files, _line) =
-                    prepare::lobe_files(l, inputs.width, inputs.height).map_err(s)?;
+            if let Some((files, _line)) = lobe_files {
                 ex.files.extend(files);
             }
             let files = ex_lib::write(&ex, &out).map_err(s)?;

@@ -177,9 +177,15 @@ fn maps_inputs(a: &Args) -> Result<Inputs> {
 
 /// Build the export of `inputs` (and the lobe textures of `--lobes`), write it, print the levels.
 fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
+    // The lobe pyramid is read, checked and packed before the (slow) fit: a bad map file fails
+    // at once, and only its encoded textures are held while fitting.
+    let lobes = a
+        .lobes
+        .as_ref()
+        .map(|p| prepare::lobe_files(p, inputs.width, inputs.height))
+        .transpose()?;
     let mut ex = export::build(inputs).with_context(|| a.map.display().to_string())?;
-    if let Some(p) = &a.lobes {
-        let (files, line) = prepare::lobe_files(p, inputs.width, inputs.height)?;
+    if let Some((files, line)) = lobes {
         ex.files.extend(files);
         eprintln!("{line}");
     }
