@@ -170,6 +170,15 @@ test('scene.gltf: gltf-validator reports zero errors', async () => {
   assert.equal(result.info.drawCallCount, 2);
 });
 
+test('with --base-color the glTF draws the texture at full strength: baseColorFactor = 1', () => {
+  // glTF multiplies baseColorTexture by baseColorFactor; the 0.8 grey is only the colour of an
+  // export without a texture (before 2026-12-04 it stayed, drawing the texture at 80 %).
+  const doc = JSON.parse(fs.readFileSync(path.join(outDir, 'scene.gltf'), 'utf8'));
+  const pbr = doc.materials[0].pbrMetallicRoughness;
+  assert.equal(doc.images[doc.textures[pbr.baseColorTexture.index].source].uri, 'base_color.png');
+  assert.deepEqual(pbr.baseColorFactor, [1, 1, 1, 1]);
+});
+
 test('an unwritable target fails with the path named and leaves no files', () => {
   const blocker = path.join(art, 'plain-file');
   fs.writeFileSync(blocker, 'x');

@@ -194,6 +194,23 @@ pub fn check_budget_for(
     base_color: Option<&Path>,
     anisotropic: bool,
 ) -> Result<(), ExportError> {
+    check_budget_extra(map, heights, roughness_map, base_color, anisotropic, 0)
+}
+
+/// [`check_budget_for`] with `extra_bytes` held during the export besides its own (a lobe
+/// pyramid read while every file is in memory, `crate::prepare::check_export`), added to the
+/// map's estimate (whose task then names the pyramid).
+///
+/// # Errors
+/// As [`check_budget`].
+pub fn check_budget_extra(
+    map: &Path,
+    heights: bool,
+    roughness_map: Option<&Path>,
+    base_color: Option<&Path>,
+    anisotropic: bool,
+    extra_bytes: u64,
+) -> Result<(), ExportError> {
     use meso_core::budget::check;
     if let Some(h) = header(map)? {
         let load = if heights {
@@ -210,8 +227,16 @@ pub fn check_budget_for(
         };
         let estimate = load
             .saturating_add(export_bytes(h.width, h.height))
-            .saturating_add(extra);
-        let task = format!("exporting {} × {} texels", h.width, h.height);
+            .saturating_add(extra)
+            .saturating_add(extra_bytes);
+        let task = if extra_bytes > 0 {
+            format!(
+                "exporting {} × {} texels and reading the lobe pyramid",
+                h.width, h.height
+            )
+        } else {
+            format!("exporting {} × {} texels", h.width, h.height)
+        };
         check(map, &task, estimate)?;
     }
     if let Some(r) = roughness_map {
@@ -315,7 +340,9 @@ pub struct Inputs {
     pub metallic: f64,
     /// Base colour texture, if any.
     pub base_color: Option<BaseColor>,
-    /// Linear base colour factor (RGBA, `[0, 1]`).
+    /// Linear base colour factor (RGBA, `[0, 1]`) of a material without a base colour
+    /// texture. With [`Inputs::base_color`] the glTF factor is `[1, 1, 1, 1]` whatever this
+    /// holds: glTF multiplies the texture by the factor, and the texture is the colour.
     pub base_color_factor: [f64; 4],
     /// Fit anisotropic GGX lobes (`α_t`, `α_b`, direction; [`crate::ggx::fit_aniso`]) and
     /// write them the KHR_materials_anisotropy way: the metallicRoughness G channel carries
@@ -517,7 +544,7 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
         ("sphere", gltf::uv_sphere(1.0, 64, 32, 2.0)),
         ("plane", gltf::plane(2.0, 1.0)),
     ];
-    let (bin, doc) = gltf::asset(&meshes, &tex, GLTF_BIN, inputs.base_color_factor);
+    let (bin, doc) = gltf::asset(&meshes, &tex, GLTF_BIN, base_color_factor(inputs));
     files.push((GLTF_BIN.to_string(), bin));
     let json = serde_json::to_vec_pretty(&doc)
         .map_err(|e| ExportError::Invalid(format!("glTF JSON: {e}")))?;
@@ -528,6 +555,18 @@ pub fn build(inputs: &Inputs) -> Result<Export, ExportError> {
         stats,
         levels,
     })
+}
+
+/// The glTF `baseColorFactor` of an export: `[1, 1, 1, 1]` with a base colour texture (glTF
+/// multiplies the texture by the factor, so anything else would darken or tint it), else
+/// [`Inputs::base_color_factor`].
+#[must_use]
+pub fn base_color_factor(inputs: &Inputs) -> [f64; 4] {
+    if inputs.base_color.is_some() {
+        [1.0; 4]
+    } else {
+        inputs.base_color_factor
+    }
 }
 
 /// The per-level statistics as CSV:
@@ -574,8 +613,10 @@ pub fn errors_csv(stats: &[LevelStats]) -> String {
 /// `dir` if this call created it.
 ///
 /// # Errors
-/// [`ExportError::Io`] naming the path that failed.
+/// [`ExportError::Invalid`] when `dir` is an existing file; [`ExportError::Io`] naming the
+/// path that failed.
 pub fn write(export: &Export, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
+    crate::prepare::check_out_dir(dir)?;
     let existed = dir.is_dir();
     std::fs::create_dir_all(dir).map_err(|e| ExportError::Io {
         path: dir.to_path_buf(),

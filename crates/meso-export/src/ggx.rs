@@ -403,6 +403,19 @@ pub fn fit_alpha(fine: &[FineTexel], nbar: DVec3) -> AlphaFit {
 /// [`fit_alpha`] with the direction set and the supersampled target given.
 #[must_use]
 pub fn fit_alpha_on(target: &[f64], nbar: DVec3, pairs: &[(DVec3, DVec3)]) -> AlphaFit {
+    fit_alpha_on_range(target, nbar, pairs, MIN_ALPHA)
+}
+
+/// [`fit_alpha_on`] with the search over `[lo, 1]` instead of `[MIN_ALPHA, 1]` (`lo` clamped to
+/// `[MIN_ALPHA, 1]`).
+#[must_use]
+pub fn fit_alpha_on_range(
+    target: &[f64],
+    nbar: DVec3,
+    pairs: &[(DVec3, DVec3)],
+    lo: f64,
+) -> AlphaFit {
+    let lo = lo.clamp(MIN_ALPHA, 1.0);
     let peak = target.iter().copied().fold(0.0, f64::max);
     // The lobe's geometry once per pair; each of the search's ≈ 54 widths then costs two square
     // roots and a few products per pair. The same numbers as `rms_error` (its operations, in
@@ -418,7 +431,7 @@ pub fn fit_alpha_on(target: &[f64], nbar: DVec3, pairs: &[(DVec3, DVec3)]) -> Al
             cos.len(),
         )
     };
-    let (alpha, rms) = minimise_alpha(MIN_ALPHA, 1.0, err);
+    let (alpha, rms) = minimise_alpha(lo, 1.0, err);
     AlphaFit { alpha, rms, peak }
 }
 
@@ -426,9 +439,9 @@ pub fn fit_alpha_on(target: &[f64], nbar: DVec3, pairs: &[(DVec3, DVec3)]) -> Al
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AnisoFit {
     /// Width along the direction `angle` (the larger one: `alpha_t ≥ alpha_b`), in
-    /// `[MIN_ALPHA, 1]`.
+    /// `[α₀, 1]` with `α₀` the footprint's smallest base α ([`base_alpha_floor`]).
     pub alpha_t: f64,
-    /// Width across it, in `[MIN_ALPHA, 1]`.
+    /// Width across it, in `[α₀, 1]`.
     pub alpha_b: f64,
     /// Direction of `alpha_t` in the texture's tangent frame, radians in `[0, π)`,
     /// counter-clockwise from +x (right) towards +y (up the image); see [`AnisoGgx::new`].
@@ -436,7 +449,8 @@ pub struct AnisoFit {
     pub angle: f64,
     /// RMS error of the anisotropic lobe against the supersampled average (1/sr).
     pub rms: f64,
-    /// The isotropic fit on the same direction set ([`fit_alpha_on`]): its α …
+    /// The isotropic fit on the same direction set ([`fit_alpha_on`], refitted on `[α₀, 1]`
+    /// when it falls below the footprint's smallest base α `α₀`): its α …
     pub iso_alpha: f64,
     /// … and its RMS error (1/sr); `rms ≤ iso_rms` always (the isotropic lobe is kept when
     /// the anisotropic search finds nothing better).
@@ -537,6 +551,18 @@ pub fn moment_start(fine: &[FineTexel], nbar: DVec3, iso_alpha: f64) -> (f64, f6
     (iso_alpha * ratio, iso_alpha / ratio, psi)
 }
 
+/// The smallest base α of the `fine` texels, clamped to `[MIN_ALPHA, 1]` ([`MIN_ALPHA`] for
+/// none): the lower bound of both widths of an anisotropic fit ([`fit_aniso_on`]), since the
+/// base lobes convolved with the footprint's spread of normals are nowhere narrower than the
+/// narrowest of them.
+#[must_use]
+pub fn base_alpha_floor(fine: &[FineTexel]) -> f64 {
+    fine.iter()
+        .map(|t| t.alpha)
+        .fold(f64::INFINITY, f64::min)
+        .clamp(MIN_ALPHA, 1.0)
+}
+
 /// Fit one coarse texel with an anisotropic GGX lobe about `nbar`: `α_t`, `α_b` and the
 /// direction of `α_t` minimising the same RMS difference as [`fit_alpha`] ([`rms_error_of`]),
 /// to the average of the `fine` texels' lobes, on the direction set with half-vector azimuths
@@ -552,7 +578,8 @@ pub fn fit_aniso(fine: &[FineTexel], nbar: DVec3) -> AnisoFit {
 /// [`fit_aniso`] with the direction set and the supersampled target given (`fine` only
 /// supplies the starting point, [`moment_start`]). The isotropic fit on the same set comes
 /// first; Levenberg–Marquardt ([`meso_core::lm::minimize_boxed`], `ln α` in
-/// `[ln MIN_ALPHA, 0]`) then starts from the moments; the result is put in canonical form
+/// `[ln α₀, 0]` with `α₀` the footprint's smallest base α, [`base_alpha_floor`]: no width
+/// narrower than the base lobe) then starts from the moments; the result is put in canonical form
 /// (`α_t ≥ α_b`, `angle ∈ [0, π)`), and the isotropic lobe is returned instead when it is at
 /// least as good.
 #[must_use]
@@ -562,7 +589,13 @@ pub fn fit_aniso_on(
     nbar: DVec3,
     pairs: &[(DVec3, DVec3)],
 ) -> AnisoFit {
-    let iso = fit_alpha_on(target, nbar, pairs);
+    // A filtered lobe (the base lobes spread by the footprint's normals) is nowhere narrower
+    // than the narrowest base lobe it averages: both widths are kept at or above it.
+    let floor = base_alpha_floor(fine);
+    let mut iso = fit_alpha_on(target, nbar, pairs);
+    if iso.alpha < floor {
+        iso = fit_alpha_on_range(target, nbar, pairs, floor);
+    }
     let mut best = AnisoFit {
         alpha_t: iso.alpha,
         alpha_b: iso.alpha,
@@ -581,7 +614,7 @@ pub fn fit_aniso_on(
         nbar,
     };
     let (ax, ay, psi) = moment_start(fine, nbar, iso.alpha);
-    let lo = MIN_ALPHA.ln();
+    let lo = floor.ln();
     let bounds = [(lo, 0.0), (lo, 0.0), (psi - 2.0 * PI, psi + 2.0 * PI)];
     let opts = meso_core::lm::LmOptions {
         max_iterations: ANISO_LM_ITERATIONS,

@@ -19,6 +19,7 @@ pub mod gltf;
 pub mod ktx2;
 pub mod lobes;
 pub mod mips;
+pub mod prepare;
 pub mod texture;
 
 pub use export::{build, write, Export, Inputs, Roughness};

@@ -409,3 +409,28 @@ fn a_failed_write_leaves_the_folder_as_it_was() {
     assert_eq!(left, expected, "only the user's entries remain");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// glTF multiplies `baseColorTexture` by `baseColorFactor`: with a base colour texture the
+/// written factor is 1 whatever `Inputs::base_color_factor` holds (the 0.8 grey of the
+/// constructors would draw the texture at 80 %); without one it is that factor.
+#[test]
+fn a_base_color_texture_gets_factor_one() {
+    let map = meso_maps::NormalMap::from_normals(2, 2, vec![DVec3::Z; 4]).unwrap();
+    let mut inputs = Inputs::from_normal_map(&map, 0.1);
+    let factor = |inputs: &Inputs| -> Vec<f64> {
+        let ex = export::build(inputs).unwrap();
+        let json = &ex.files.iter().find(|(n, _)| n == export::GLTF).unwrap().1;
+        let doc: serde_json::Value = serde_json::from_slice(json).unwrap();
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    assert_eq!(factor(&inputs), vec![0.8, 0.8, 0.8, 1.0]);
+    let png = meso_export::texture::encode_png(1, 1, 4, &[200, 100, 50, 255]).unwrap();
+    inputs.base_color = Some(export::BaseColor { png });
+    assert_eq!(factor(&inputs), vec![1.0; 4]);
+    assert_eq!(export::base_color_factor(&inputs), [1.0; 4]);
+}

@@ -101,8 +101,10 @@ fn check_budget_with(
 /// at the horizon, …) are returned for the caller to show, each without the file name.
 ///
 /// # Errors
-/// Budget, unreadable or invalid images, invalid parameters; messages name the file.
+/// Budget, unreadable or invalid images, a map file given as the image, invalid parameters;
+/// messages name the file.
 pub fn load(path: &Path, kind: InputKind, params: &ExtractParams) -> Result<(Input, Vec<String>)> {
+    refuse_map_file(path)?;
     check_budget(path, kind, params)?;
     load_unchecked(path, kind)
 }
@@ -119,9 +121,33 @@ pub fn load_streamed(
     params: &ExtractParams,
 ) -> Result<(Input, Vec<String>)> {
     crate::heightmap::with_texel_limit(crate::heightmap::MAX_STREAM_TEXELS, || {
+        refuse_map_file(path)?;
         check_budget_streamed(path, kind, params)?;
         load_unchecked(path, kind)
     })
+}
+
+/// Refuse a map file (opening with [`crate::format::MAGIC`]) given as the image to extract, saying
+/// what to do instead (the decoder would only say that it is no PNG).
+fn refuse_map_file(path: &Path) -> Result<()> {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    let is_map = std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok()
+        && magic == crate::format::MAGIC;
+    if is_map {
+        return Err(crate::MapError::MapFormat {
+            path: path.to_path_buf(),
+            message: format!(
+                "this is a meso map file (written by `meso extract`), not an image: extract from \
+                 the image it was extracted from (`meso extract IMAGE …`); `meso map info {}` \
+                 shows what the map holds",
+                path.display()
+            ),
+        });
+    }
+    Ok(())
 }
 
 fn load_unchecked(path: &Path, kind: InputKind) -> Result<(Input, Vec<String>)> {

@@ -6,7 +6,8 @@
 
 use anyhow::{bail, Context, Result};
 use meso_export::export::{self, Inputs, Roughness};
-use meso_maps::{Border, HeightMap, NormalConvention, NormalMap};
+use meso_export::prepare;
+use meso_maps::{Border, HeightMap, NormalConvention};
 use std::path::PathBuf;
 
 /// `--alpha`'s default: the base GGX width of a map export (a material file gives its own).
@@ -40,19 +41,19 @@ pub struct Args {
     /// The input is a height map: height of the full code range H (same unit, > 0).
     #[arg(long, requires = "texel_size")]
     pub height_scale: Option<f64>,
-    /// Green-channel convention of a normal-map input.
-    #[arg(long, value_enum, default_value = "gl")]
-    pub convention: Convention,
-    /// Constant base GGX width α in (0, 1] (glTF roughness is √α).
-    #[arg(long, default_value_t = DEFAULT_ALPHA, conflicts_with = "roughness_map")]
-    pub alpha: f64,
+    /// Green-channel convention of a normal-map input [default: gl].
+    #[arg(long, value_enum)]
+    pub convention: Option<Convention>,
+    /// Constant base GGX width α in (0, 1] (glTF roughness is √α) [default: 0.1].
+    #[arg(long, conflicts_with = "roughness_map")]
+    pub alpha: Option<f64>,
     /// Per-texel roughness image holding glTF perceptual roughness r (α = r²): grey, or a
     /// metallicRoughness image (G is used). Same size as the map.
     #[arg(long)]
     pub roughness_map: Option<PathBuf>,
-    /// Metallic value written to the B channel, in [0, 1].
-    #[arg(long, default_value_t = 0.0)]
-    pub metallic: f64,
+    /// Metallic value written to the B channel, in [0, 1] [default: 0].
+    #[arg(long)]
+    pub metallic: Option<f64>,
     /// Base colour image (sRGB) for the glTF material; a constant grey without it.
     #[arg(long)]
     pub base_color: Option<PathBuf>,
@@ -66,18 +67,17 @@ pub struct Args {
     pub anisotropic: bool,
     /// A lobe pyramid (`.map` file of `meso extract`) of the same map: also write its lobes
     /// as `lobes<k>_mip<l>.png` (RGBA16, one per lobe slot and level) and the shader functions
-    /// `meso_lobes.wgsl` and `meso_lobes.glsl` that evaluate them (docs/export.md).
+    /// `meso_lobes.wgsl` and `meso_lobes.glsl` that evaluate them (docs/export.md). Lobe level
+    /// l must be mip level l: the pyramid of a wrapped extraction (no --clamp) of a map whose
+    /// sizes halve evenly (e.g. powers of two); others are refused before the fit.
     #[arg(long)]
     pub lobes: Option<PathBuf>,
 }
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    let is_material = a
-        .map
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
-    let inputs = if is_material {
+    prepare::check_out_dir(&a.out)?;
+    let inputs = if prepare::is_material_file(&a.map) {
         material_inputs(&a)?
     } else {
         maps_inputs(&a)?
@@ -85,79 +85,65 @@ pub fn run(a: Args) -> Result<()> {
     export_inputs(&a, &inputs)
 }
 
-/// The inputs of a material file's export: its engine parameters on a flat map. Only materials
-/// whose NDF is in the file (a height map's material exports through the map itself, and its
-/// BRDF at every MERL cell would take hours).
+/// The map options given with `a` (by their flags), which a material file refuses.
+fn given_map_options(a: &Args) -> Vec<&'static str> {
+    [
+        ("--texel-size", a.texel_size.is_some()),
+        ("--height-scale", a.height_scale.is_some()),
+        ("--convention", a.convention.is_some()),
+        ("--alpha", a.alpha.is_some()),
+        ("--roughness-map", a.roughness_map.is_some()),
+        ("--metallic", a.metallic.is_some()),
+        ("--base-color", a.base_color.is_some()),
+        ("--anisotropic", a.anisotropic),
+        ("--lobes", a.lobes.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(name, given)| given.then_some(name))
+    .collect()
+}
+
+/// The inputs of a material file's export: its engine parameters on a flat map
+/// ([`prepare::material_inputs`]); every map option refused.
 fn material_inputs(a: &Args) -> Result<Inputs> {
-    use meso_core::material::{read_limited, MaterialSpec, NdfSpec, NoExternalNdfs};
-    if a.texel_size.is_some()
-        || a.roughness_map.is_some()
-        || a.base_color.is_some()
-        || a.lobes.is_some()
-        || a.anisotropic
-        || a.alpha != DEFAULT_ALPHA
-        || a.metallic != 0.0
-    {
-        bail!(
-            "{}: a material file gives its own roughness, metallic and base colour; no other \
-             option applies",
-            a.map.display()
-        );
-    }
-    let dir = a.map.parent().unwrap_or(std::path::Path::new("."));
-    let spec = MaterialSpec::parse(&read_limited(&a.map)?, dir)
-        .with_context(|| a.map.display().to_string())?;
-    if let NdfSpec::External { kind, file, .. } = &spec.ndf {
-        bail!(
-            "{}: its NDF comes from {} ([ndf] kind = \"{kind}\"); export that map instead \
-             (meso export MAP --out DIR)",
-            a.map.display(),
-            file.display()
-        );
-    }
-    let m = spec
-        .build(&NoExternalNdfs)
-        .with_context(|| a.map.display().to_string())?;
-    let e = meso_measured::engine::of_material(&m)
-        .with_context(|| format!("{}: engine parameters", a.map.display()))?;
-    eprintln!("{}: {}", a.map.display(), e.describe());
-    Ok(Inputs::uniform(
-        e.alpha.clamp(1e-3, 1.0),
-        e.metallic,
-        e.base_color,
-    ))
+    prepare::refuse_material_options(&a.map, &given_map_options(a))?;
+    let (inputs, line) = prepare::material_inputs(&a.map)?;
+    eprintln!("{line}");
+    Ok(inputs)
 }
 
 /// The inputs of a normal-map or height-map export, with the roughness map and base colour.
 fn maps_inputs(a: &Args) -> Result<Inputs> {
-    export::check_budget_for(
+    prepare::check_export(
         &a.map,
         a.texel_size.is_some(),
         a.roughness_map.as_deref(),
         a.base_color.as_deref(),
         a.anisotropic,
+        a.lobes.as_deref(),
     )?;
-    if a.texel_size.is_some() && a.convention == Convention::Dx {
+    if a.texel_size.is_some() && a.convention == Some(Convention::Dx) {
         bail!(
             "{}: --convention applies to a normal-map input; a height map has no green channel to \
              read (the exported normal map is always OpenGL / glTF: green = +Y = up)",
             a.map.display()
         );
     }
+    let alpha = a.alpha.unwrap_or(DEFAULT_ALPHA);
     let mut inputs = match (a.texel_size, a.height_scale) {
         (Some(s), Some(h)) => {
             let map = HeightMap::load(&a.map, s, h, Border::Wrap)?;
             for w in map.warnings() {
                 eprintln!("{}: warning: {w}", a.map.display());
             }
-            Inputs::from_heightmap(&map, a.alpha)
+            Inputs::from_heightmap(&map, alpha)
         }
         (None, None) => {
-            let conv = match a.convention {
+            let conv = match a.convention.unwrap_or(Convention::Gl) {
                 Convention::Gl => NormalConvention::Gl,
                 Convention::Dx => NormalConvention::Dx,
             };
-            let map = NormalMap::load(&a.map, conv)?;
+            let map = prepare::load_normal_map(&a.map, conv)?;
             if map.clamped() > 0 {
                 eprintln!(
                     "{}: warning: {} of {} texels point at or below the horizon; tilted up to it",
@@ -166,7 +152,7 @@ fn maps_inputs(a: &Args) -> Result<Inputs> {
                     map.width() * map.height()
                 );
             }
-            Inputs::from_normal_map(&map, a.alpha)
+            Inputs::from_normal_map(&map, alpha)
         }
         _ => bail!("a height map needs both --texel-size and --height-scale"),
     };
@@ -184,34 +170,24 @@ fn maps_inputs(a: &Args) -> Result<Inputs> {
         }
         inputs.base_color = Some(bc);
     }
-    inputs.metallic = a.metallic;
+    inputs.metallic = a.metallic.unwrap_or(0.0);
     inputs.anisotropic = a.anisotropic;
     Ok(inputs)
 }
 
 /// Build the export of `inputs` (and the lobe textures of `--lobes`), write it, print the levels.
 fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
+    // The lobe pyramid is read, checked and packed before the (slow) fit: a bad map file fails
+    // at once, and only its encoded textures are held while fitting.
+    let lobes = a
+        .lobes
+        .as_ref()
+        .map(|p| prepare::lobe_files(p, inputs.width, inputs.height))
+        .transpose()?;
     let mut ex = export::build(inputs).with_context(|| a.map.display().to_string())?;
-    if let Some(p) = &a.lobes {
-        let pyr = meso_maps::Pyramid::read(p)?;
-        if (pyr.width, pyr.height) != (inputs.width, inputs.height) {
-            bail!(
-                "{}: the lobe pyramid is {} × {}, the map {} × {}",
-                p.display(),
-                pyr.width,
-                pyr.height,
-                inputs.width,
-                inputs.height
-            );
-        }
-        let tex = meso_export::lobes::pack(&pyr);
-        ex.files.extend(meso_export::lobes::files(&tex)?);
-        eprintln!(
-            "{}: {} lobe slots × {} levels",
-            p.display(),
-            tex.k,
-            tex.levels.len()
-        );
+    if let Some((files, line)) = lobes {
+        ex.files.extend(files);
+        eprintln!("{line}");
     }
     let files = export::write(&ex, &a.out)?;
     use std::fmt::Write as _;

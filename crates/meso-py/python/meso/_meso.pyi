@@ -162,13 +162,20 @@ def export(
     out: _Path,
     texel_size: Optional[float] = None,
     height_scale: Optional[float] = None,
-    convention: str = "gl",
-    alpha: float = 0.1,
+    convention: Optional[str] = None,
+    alpha: Optional[float] = None,
     roughness_map: Optional[_Path] = None,
-    metallic: float = 0.0,
+    metallic: Optional[float] = None,
     base_color: Optional[_Path] = None,
+    anisotropic: bool = False,
+    lobes: Optional[_Path] = None,
 ) -> tuple[list[str], list[dict[str, Any]], list[str]]:
-    """``meso export PATH --out OUT``: written files, per-level statistics, warnings."""
+    """``meso export PATH --out OUT``: written files, per-level statistics, warnings. ``path``: a
+    normal map, a height map (with ``texel_size`` and ``height_scale``) or a material file
+    (``.toml``, no other option). ``convention`` defaults to ``"gl"``, ``alpha`` to 0.1,
+    ``metallic`` to 0 (None: the default; a material file refuses any given option);
+    ``anisotropic``: KHR_materials_anisotropy lobes (``--anisotropic``); ``lobes``: a lobe
+    pyramid's map file (``--lobes``)."""
 
 def set_memory_budget(size: Union[int, str]) -> None:
     """The memory budget (bytes or "8G"); larger work raises MesoError before it starts."""

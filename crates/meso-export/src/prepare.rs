@@ -1,0 +1,342 @@
+//! The checks and loaders shared by `meso export` and the Python package's `meso.export`, run
+//! before the (slow) fit: the input is an image and not a map file, the output a folder, a lobe
+//! pyramid (`--lobes`) lines up with the export's mip chain, a normal map is one (not a grey
+//! height map), and a material file's export takes no map option.
+
+use crate::export::{self, Inputs};
+use crate::mips;
+use crate::ExportError;
+use meso_maps::{NormalConvention, NormalMap};
+use std::io::Read;
+use std::path::Path;
+
+/// Files of an export in memory: `(file name, bytes)`, as [`export::Export::files`].
+pub type Files = Vec<(String, Vec<u8>)>;
+
+/// Whether the file at `path` opens with meso's map-file magic ([`meso_maps::format::MAGIC`]).
+#[must_use]
+pub fn is_map_file(path: &Path) -> bool {
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok()
+        && magic == meso_maps::format::MAGIC
+}
+
+/// Refuse a map file (`meso extract`'s output) given where an image is expected, saying what to
+/// do instead.
+///
+/// # Errors
+/// [`ExportError::Invalid`] when `path` is a meso map file.
+pub fn refuse_map_file(path: &Path) -> Result<(), ExportError> {
+    if is_map_file(path) {
+        let p = path.display();
+        return Err(ExportError::Invalid(format!(
+            "{p} is a meso map file (written by `meso extract`), not an image: export the image \
+             it was extracted from (`meso export IMAGE …`), and pass the map as `--lobes {p}`"
+        )));
+    }
+    Ok(())
+}
+
+/// Refuse an output path that exists and is not a folder (the export writes a folder of files).
+///
+/// # Errors
+/// [`ExportError::Invalid`] naming the path.
+pub fn check_out_dir(dir: &Path) -> Result<(), ExportError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(ExportError::Invalid(format!(
+            "{}: an existing file; the export's output (--out) must be a folder (it writes \
+             several files into it)",
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// What a height map passed as a normal map needs, for the messages of [`load_normal_map`].
+const HEIGHT_HINT: &str = "it looks like a height map: give --texel-size and --height-scale \
+                           (Python: texel_size=, height_scale=) to export it from its heights";
+
+/// Load a tangent-space normal map as `meso export` does ([`NormalMap::load`]), saying when the
+/// image looks like a height map instead: a single-channel grey image (no normal map is one),
+/// or a texel that decodes to no direction (the mid-grey of a height map reads as the "no data"
+/// grey of a normal map).
+///
+/// # Errors
+/// [`ExportError::Invalid`] for a grey image or a texel that is no direction (with the hint);
+/// the loader's other errors.
+pub fn load_normal_map(
+    path: &Path,
+    convention: NormalConvention,
+) -> Result<NormalMap, ExportError> {
+    if let Some(h) = export::header(path)? {
+        if !h.color {
+            let img = meso_maps::heightmap::decode_image(
+                path,
+                "loading the normal map",
+                meso_maps::ImageHeader::normal_map_bytes,
+            )?;
+            if matches!(img.color(), image::ColorType::L8 | image::ColorType::L16) {
+                return Err(ExportError::Invalid(format!(
+                    "{}: a single-channel grey image, read as a normal map; {HEIGHT_HINT}",
+                    path.display()
+                )));
+            }
+        }
+    }
+    NormalMap::load(path, convention).map_err(|e| match e {
+        meso_maps::MapError::Decode { path, message }
+            if message.contains("is not a normal") || message.contains("usable direction") =>
+        {
+            ExportError::Invalid(format!(
+                "{}: read as a normal map, {message}; {HEIGHT_HINT}",
+                path.display()
+            ))
+        }
+        e => e.into(),
+    })
+}
+
+/// The grid of a lobe pyramid's map file, from its first 28 bytes (magic, version, then the
+/// source's `width`, `height` in samples and level 0's `cols`, `rows` in cells, little-endian
+/// `u32`, docs/map-format.md): `(width, height, cols, rows)`. The rest of the file is
+/// validated when it is read ([`meso_maps::Pyramid::read`]).
+///
+/// # Errors
+/// [`ExportError::Invalid`] for a file too short or without the map magic; [`ExportError::Io`]
+/// when it cannot be read.
+pub fn lobe_grid(path: &Path) -> Result<(usize, usize, usize, usize), ExportError> {
+    let mut b = [0u8; 28];
+    let io = |e: std::io::Error| ExportError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let n = f.read(&mut b).map_err(io)?;
+    let mut rest = &mut b[n..];
+    while !rest.is_empty() {
+        let k = f.read(rest).map_err(io)?;
+        if k == 0 {
+            break;
+        }
+        rest = &mut rest[k..];
+    }
+    if !rest.is_empty() || b[..8] != meso_maps::format::MAGIC {
+        return Err(ExportError::Invalid(format!(
+            "{}: not a meso map file (--lobes takes the map file `meso extract` wrote)",
+            path.display()
+        )));
+    }
+    let u = |k: usize| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]) as usize;
+    Ok((u(12), u(16), u(20), u(24)))
+}
+
+/// Sizes `(cols, rows)` of a lobe pyramid's levels from level 0's `cols × rows`: halved rounding
+/// up, down to 1 × 1 (`meso_maps::pyramid::level_count`).
+#[must_use]
+pub fn lobe_level_sizes(cols: usize, rows: usize) -> Vec<(usize, usize)> {
+    let mut v = vec![(cols, rows)];
+    let (mut c, mut r) = (cols, rows);
+    while c > 1 || r > 1 {
+        c = c.div_ceil(2);
+        r = r.div_ceil(2);
+        v.push((c, r));
+    }
+    v
+}
+
+/// Sizes `(width, height)` of the export's mip levels ([`mips::level_size`]: halved rounding
+/// down, the KTX2 rule).
+#[must_use]
+pub fn mip_level_sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
+    (0..mips::level_count(width, height))
+        .map(|k| mips::level_size(width, height, k))
+        .collect()
+}
+
+/// Check that a lobe pyramid of a `width × height` map, level 0 `cols × rows` cells, has
+/// exactly the export's mip levels (same count, same size at every level), so that
+/// `lobes<k>_mip<l>.png` is mip level `l`.
+///
+/// # Errors
+/// [`ExportError::Invalid`] naming `path`, the sizes that differ and what to do.
+pub fn check_lobe_grid(
+    path: &Path,
+    (pw, ph, cols, rows): (usize, usize, usize, usize),
+    width: usize,
+    height: usize,
+) -> Result<(), ExportError> {
+    let p = path.display();
+    if (pw, ph) != (width, height) {
+        return Err(ExportError::Invalid(format!(
+            "{p}: the lobe pyramid is of a {pw} × {ph} map, the export's map is \
+             {width} × {height}; pass the pyramid `meso extract` wrote for this map"
+        )));
+    }
+    if (cols, rows) != (width, height) {
+        return Err(ExportError::Invalid(format!(
+            "{p}: the lobe pyramid's level 0 is {cols} × {rows} cells, the export's level 0 \
+             {width} × {height} texels (the pyramid was extracted with --clamp, one cell between \
+             each pair of samples); extract it with the export's wrapped border (`meso extract` \
+             without --clamp) for --lobes"
+        )));
+    }
+    let lobes = lobe_level_sizes(cols, rows);
+    let mips = mip_level_sizes(width, height);
+    if lobes != mips {
+        let l = lobes
+            .iter()
+            .zip(&mips)
+            .position(|(a, b)| a != b)
+            .unwrap_or(lobes.len().min(mips.len()));
+        let at = |v: &[(usize, usize)]| {
+            v.get(l)
+                .map_or("none".to_string(), |(c, r)| format!("{c} × {r}"))
+        };
+        return Err(ExportError::Invalid(format!(
+            "{p}: the lobe pyramid's levels do not match the export's mip chain: level {l} is {} \
+             in the pyramid ({} levels; its sizes halve rounding up) and {} in the mip chain ({} \
+             levels; KTX2 halves rounding down), so lobes<k>_mip<l>.png would not be mip level \
+             l; a {width} × {height} map cannot be exported with --lobes (sizes that halve \
+             evenly down to 1, such as powers of two, can)",
+            at(&lobes),
+            lobes.len(),
+            at(&mips),
+            mips.len()
+        )));
+    }
+    Ok(())
+}
+
+/// Estimated peak bytes of reading the lobe pyramid at `path` and packing its textures: the
+/// reader's estimate ([`meso_maps::format::read_bytes`]) plus the packed textures, at most
+/// the file's inflated lobes again (counted as the same estimate once more would double-count:
+/// the packed RGBA16 texels are 8 B per lobe against 40 B in the pyramid).
+///
+/// # Errors
+/// [`ExportError::Io`] when the file's size cannot be read.
+pub fn lobe_bytes(path: &Path) -> Result<u64, ExportError> {
+    let m = std::fs::metadata(path).map_err(|e| ExportError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let read = meso_maps::format::read_bytes(m.len());
+    Ok(read.saturating_add(read / 5))
+}
+
+/// Everything [`export::check_budget_for`] checks, and a lobe pyramid's (`lobes`): its grid
+/// against the export's mip chain ([`check_lobe_grid`], from the image's header and the map
+/// file's first bytes), and its memory ([`lobe_bytes`]) added to the export's, which holds every
+/// file while the pyramid is read. The one up-front check of `meso export` and `meso.export`,
+/// before anything is decoded or fitted.
+///
+/// # Errors
+/// As [`export::check_budget_for`] and [`check_lobe_grid`].
+pub fn check_export(
+    map: &Path,
+    heights: bool,
+    roughness_map: Option<&Path>,
+    base_color: Option<&Path>,
+    anisotropic: bool,
+    lobes: Option<&Path>,
+) -> Result<(), ExportError> {
+    refuse_map_file(map)?;
+    let mut extra = 0;
+    if let Some(l) = lobes {
+        let grid = lobe_grid(l)?;
+        if let Some(h) = export::header(map)? {
+            check_lobe_grid(l, grid, h.width as usize, h.height as usize)?;
+        }
+        extra = lobe_bytes(l)?;
+    }
+    export::check_budget_extra(map, heights, roughness_map, base_color, anisotropic, extra)
+}
+
+/// The lobe textures of the pyramid at `path` for an export of `width × height` texels: the
+/// pyramid read, its levels checked against the mip chain ([`check_lobe_grid`]), packed and
+/// encoded ([`crate::lobes::pack`], [`crate::lobes::files`]). Returns the files and a line for
+/// the user (slots × levels).
+///
+/// # Errors
+/// The reader's errors, a pyramid whose levels are not the mip chain's, encoding errors.
+pub fn lobe_files(
+    path: &Path,
+    width: usize,
+    height: usize,
+) -> Result<(Files, String), ExportError> {
+    let pyr = meso_maps::Pyramid::read(path)?;
+    let l0 = &pyr.levels[0];
+    check_lobe_grid(
+        path,
+        (pyr.width, pyr.height, l0.cols, l0.rows),
+        width,
+        height,
+    )?;
+    let tex = crate::lobes::pack(&pyr);
+    let files = crate::lobes::files(&tex)?;
+    let line = format!(
+        "{}: {} lobe slots × {} levels",
+        path.display(),
+        tex.k,
+        tex.levels.len()
+    );
+    Ok((files, line))
+}
+
+/// Whether `path` names a material file (`.toml`), exported by [`material_inputs`].
+#[must_use]
+pub fn is_material_file(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+}
+
+/// Refuse map options (`given`: their names as the caller spells them) for a material file,
+/// which gives its own roughness, metallic and base colour.
+///
+/// # Errors
+/// [`ExportError::Invalid`] naming the file and every given option.
+pub fn refuse_material_options(path: &Path, given: &[&str]) -> Result<(), ExportError> {
+    if given.is_empty() {
+        return Ok(());
+    }
+    Err(ExportError::Invalid(format!(
+        "{}: a material file gives its own roughness, metallic and base colour; {} {} not apply \
+         (map options only)",
+        path.display(),
+        given.join(", "),
+        if given.len() == 1 { "does" } else { "do" }
+    )))
+}
+
+/// The inputs of a material file's export (`meso export MATERIAL.toml`): its engine parameters
+/// (`meso_measured::engine::of_material`: GGX α clamped to `[0.001, 1]`, metallic, linear base
+/// colour) as a uniform material on a flat map ([`Inputs::uniform`]), and the parameters
+/// described in a line for the user. Only materials whose NDF is in the file: a height map's
+/// material exports through the map itself (its BRDF at every MERL cell would take hours).
+///
+/// # Errors
+/// [`ExportError::Invalid`] naming the file: unreadable or invalid material files, an NDF from
+/// a map file or image, a material without engine parameters.
+pub fn material_inputs(path: &Path) -> Result<(Inputs, String), ExportError> {
+    use meso_core::material::{read_limited, MaterialSpec, NdfSpec, NoExternalNdfs};
+    let p = path.display();
+    let bad = |e: &dyn std::fmt::Display| ExportError::Invalid(format!("{p}: {e}"));
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let text = read_limited(path).map_err(|e| bad(&e))?;
+    let spec = MaterialSpec::parse(&text, dir).map_err(|e| bad(&e))?;
+    if let NdfSpec::External { kind, file, .. } = &spec.ndf {
+        return Err(ExportError::Invalid(format!(
+            "{p}: its NDF comes from {} ([ndf] kind = \"{kind}\"); export that map instead \
+             (meso export MAP --out DIR)",
+            file.display()
+        )));
+    }
+    let m = spec.build(&NoExternalNdfs).map_err(|e| bad(&e))?;
+    let e = meso_measured::engine::of_material(&m)
+        .map_err(|e| ExportError::Invalid(format!("{p}: engine parameters: {e}")))?;
+    Ok((
+        Inputs::uniform(e.alpha.clamp(1e-3, 1.0), e.metallic, e.base_color),
+        format!("{p}: {}", e.describe()),
+    ))
+}
