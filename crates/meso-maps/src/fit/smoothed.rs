@@ -826,6 +826,26 @@ impl<'a> Refiner<'a> {
         out
     }
 
+    /// The smoothed fit from the one start `lobes` (the children's lobes reduced to K, parent
+    /// module's [`super::fit_lobes_seeded`]; no EM start, no greedy start): `lobes` as they are
+    /// when within [`SMOOTH_KEEP`] (relative smoothed L2, as [`Self::refine`] keeps an EM fit),
+    /// else LM-polished with dead lobes re-seeded ([`Smoothed::polish`], as each start of
+    /// [`Self::refine`]) and then to convergence (as its better start). `None` when the data
+    /// give fewer than `4 · lobes.len()` half vectors ([`Self::refine`] leaves its EM fit as it
+    /// is there; the caller fits by EM instead).
+    pub(super) fn refine_from(&self, lobes: &[L]) -> Option<Vec<L>> {
+        if lobes.is_empty() || self.sm.hs.len() < 4 * lobes.len() {
+            return None;
+        }
+        let mut st = SgState::from_lobes(lobes);
+        if self.sm.eval(&st, None) <= SMOOTH_KEEP * SMOOTH_KEEP * self.energy {
+            return Some(lobes.to_vec());
+        }
+        self.sm.polish(&mut st, SMOOTH_START_ITERATIONS);
+        self.sm.lm(&mut st, SMOOTH_ITERATIONS, SMOOTH_TOL);
+        Some(st.to_lobes())
+    }
+
     /// The greedy fit with at most `kmax` lobes ([`Smoothed::greedy`]), as an index into
     /// `self.greedy` (states of 1, 2, … lobes, computed as far as needed).
     fn greedy_at(&mut self, kmax: usize) -> usize {

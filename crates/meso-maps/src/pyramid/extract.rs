@@ -6,8 +6,8 @@
 
 use super::builder::{BandLevel, Carry, LevelBuilder};
 use super::cost::{extract_work, pyramid_texels};
-use super::level_fit::{LevelFit, PrevHorizon, RowOut};
-use super::{level_count, ExtractParams, Level, Progress, Pyramid, Residual, Source};
+use super::level_fit::{ChildLobes, LevelFit, PrevHorizon, RowOut};
+use super::{level_count, ExtractParams, Level, Method, Progress, Pyramid, Residual, Source};
 use crate::error::{MapError, Result};
 use crate::facets::{FacetSource, NormalMode};
 use crate::fit::MAX_LOBES;
@@ -234,6 +234,8 @@ fn run(
     // stored in f32, its horizon statistics in f64. (Entries are not carried: each texel
     // merges its footprint's facets again, level by level, `level_fit::texel_entries`.)
     let mut prev = Carry::default();
+    // The previous level's lobes, for a level that starts its smoothed refinement from them.
+    let mut children: Option<ChildLobes> = None;
     let mut done = 0u64;
     let (mut cols, mut rows) = (facets.cols(), facets.rows());
     for (k, &work) in level_work.iter().enumerate() {
@@ -267,7 +269,22 @@ fn run(
                 .clamp(64, params.fit.max_em_points.max(64)),
             thorough: texels <= params.fit.thorough_texels,
             smooth: texels <= params.fit.smooth_texels,
+            children: children.as_ref(),
         };
+        // This level's lobes are kept for the next one when that one fits its smoothed levels
+        // from its children's lobes (`FitParams::smooth_from_children`; ≤ 4 × `smooth_texels`
+        // texels, a few hundred KB).
+        let (next_cols, next_rows) = (cols.div_ceil(2), rows.div_ceil(2));
+        let mut next_children = (!last
+            && params.fit.smooth_from_children
+            && params.method == Method::Lobes
+            && params.fit.smooth_exponent > 0.0
+            && next_cols * next_rows <= params.fit.smooth_texels)
+            .then(|| ChildLobes {
+                cols,
+                rows,
+                ..Default::default()
+            });
         let max_per_texel = params
             .fit
             .max_lobes
@@ -293,6 +310,9 @@ fn run(
                 .into_par_iter()
                 .map(|r| ctx.row(r))
                 .collect();
+            if let Some(ch) = &mut next_children {
+                ch.extend(&batch);
+            }
             match (&mut acc, &mut stream) {
                 (LevelOut::Memory(acc), _) => acc.extend(batch),
                 (LevelOut::Stream(acc), Some(Stream { w, path, .. })) => {
@@ -344,6 +364,7 @@ fn run(
             // Level 1 has read the samples' horizon angles.
             horizon = None;
         }
+        children = next_children;
         done += texels as u64;
         work_done += work;
         report(k + 1, done, if last { work_total } else { work_done });
