@@ -48,8 +48,9 @@
 //!   share of the facet weight) are merged pairwise down to `max_lobes` by a moment-preserving
 //!   mixture reduction (`reduce`: least Ward cost of the lobes' mean normals `a·η/(η+4)`; a
 //!   merged lobe keeps the pair's weight and mean normal), and that one start is refined on
-//!   the smoothed objective as above (kept when within 5%, else LM with dead lobes re-seeded,
-//!   then to convergence). No EM, no k-means, no greedy start: those were ≈ 16% of a 1024²
+//!   the smoothed objective as above (kept when within 5%, else LM with dead lobes re-seeded;
+//!   when that leaves more than 3%, the lightest lobe moved once to where the data most exceed
+//!   the fit, kept if better; then LM to convergence). No EM, no k-means, no greedy start: those were ≈ 16% of a 1024²
 //!   extraction's CPU. Footprints of at most `max_lobes` entries stay exact; the K chain
 //!   ignores the children.
 //!
@@ -274,8 +275,10 @@ pub struct FitParams {
     /// `max_lobes` (moment-preserving mixture reduction) and refined on the smoothed objective
     /// from that one start, instead of EM and the refinement's EM and greedy starts (module
     /// docs, "Coarse levels from their children"; [`fit_lobes_seeded`]). Default `true`
-    /// (docs/benchmarks.md, "Extraction speed, 2026-12-04 (evening)": the 1024² extraction
-    /// −16 % CPU, shading error of the coarse levels within 1.5 %). Not read with the K chain.
+    /// (docs/benchmarks.md, "Extraction speed, 2026-12-04 (evening)": the 1024² Gaussian map
+    /// −11 % CPU, the facade −16 %; the coarse levels' shading error within +0.5 % on the
+    /// Gaussian map, +4 % on the facade's level 5). `false`: the fit before (EM, then the
+    /// refinement's EM and greedy starts). Not read with the K chain.
     pub smooth_from_children: bool,
     /// Whether the lobes come from the K chain (module docs, "The K chain"): the fit's
     /// objective never rises with `max_lobes`. Default `false`, the single fit at `max_lobes`

@@ -828,11 +828,14 @@ impl<'a> Refiner<'a> {
 
     /// The smoothed fit from the one start `lobes` (the children's lobes reduced to K, parent
     /// module's [`super::fit_lobes_seeded`]; no EM start, no greedy start): `lobes` as they are
-    /// when within [`SMOOTH_KEEP`] (relative smoothed L2, as [`Self::refine`] keeps an EM fit),
+    /// when within [`SMOOTH_KEEP`] (relative smoothed L2, as [`Self::refine`] keeps an EM fit);
     /// else LM-polished with dead lobes re-seeded ([`Smoothed::polish`], as each start of
-    /// [`Self::refine`]) and then to convergence (as its better start). `None` when the data
-    /// give fewer than `4 · lobes.len()` half vectors ([`Self::refine`] leaves its EM fit as it
-    /// is there; the caller fits by EM instead).
+    /// [`Self::refine`]); when that leaves more than [`SMOOTH_GOOD`] (where [`Self::refine`]
+    /// would try its greedy start), the lightest lobe is moved once to where the data most
+    /// exceed the fit ([`Smoothed::add_lobe`], LM-polished) and kept if that lowers the
+    /// objective; then LM to convergence (as [`Self::refine`]'s better start). `None` when the
+    /// data give fewer than `4 · lobes.len()` half vectors ([`Self::refine`] leaves its EM fit
+    /// as it is there; the caller fits by EM instead).
     pub(super) fn refine_from(&self, lobes: &[L]) -> Option<Vec<L>> {
         if lobes.is_empty() || self.sm.hs.len() < 4 * lobes.len() {
             return None;
@@ -841,7 +844,27 @@ impl<'a> Refiner<'a> {
         if self.sm.eval(&st, None) <= SMOOTH_KEEP * SMOOTH_KEEP * self.energy {
             return Some(lobes.to_vec());
         }
-        self.sm.polish(&mut st, SMOOTH_START_ITERATIONS);
+        let o = self.sm.polish(&mut st, SMOOTH_START_ITERATIONS);
+        if o > SMOOTH_GOOD * SMOOTH_GOOD * self.energy && st.k > 1 {
+            // The children's lobes can sit where the children's (maximum-likelihood, on the
+            // finest smoothed level) fits put them; one lobe moved where the fit is most short
+            // recovers most of what the greedy start won there (docs/benchmarks.md, "Extraction
+            // speed, 2026-12-04 (evening)").
+            let w = st.weights();
+            let j = (0..st.k)
+                .min_by(|&a, &b| w[a].total_cmp(&w[b]))
+                .unwrap_or(0);
+            let mut t = st.clone();
+            t.remove(j);
+            self.sm.add_lobe(&mut t, 1.0 / st.k as f64);
+            if self
+                .sm
+                .lm(&mut t, SMOOTH_START_ITERATIONS, SMOOTH_TOL_START)
+                < o
+            {
+                st = t;
+            }
+        }
         self.sm.lm(&mut st, SMOOTH_ITERATIONS, SMOOTH_TOL);
         Some(st.to_lobes())
     }
