@@ -30,10 +30,8 @@ use std::path::Path;
 
 /// The cache entry format; bumped whenever what is stored or how it is built changes. 4 since
 /// 2026-12-04: EM's E-step sums over the points in lanes, so a fresh extraction differs from
-/// an entry of format 3 in the last bits (a format-3 entry is then rebuilt, not read). 5 since
-/// 2026-12-04 (evening): the smoothed levels are fitted from their children's lobes
-/// (`FitParams::smooth_from_children`), so their lobes differ from a format-4 entry's.
-pub const FORMAT: u32 = 5;
+/// an entry of format 3 in the last bits (a format-3 entry is then rebuilt, not read).
+pub const FORMAT: u32 = 4;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// The map format version hashed into every key: 3, the version the cache wrote until

@@ -368,7 +368,7 @@ impl Default for FitParams {
             thorough_texels: 64,
             smooth_exponent: 40.0,
             smooth_texels: 1024,
-            smooth_from_children: true,
+            smooth_from_children: false,
             k_chain: false,
             k_choice: KChoice::Objective,
             facet_exponent: 0.0,
