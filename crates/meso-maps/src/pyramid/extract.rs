@@ -398,3 +398,50 @@ fn check_params(params: &ExtractParams) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{AXIS_MIN_Z, ETA_MAX, ETA_MIN};
+
+    /// The coarse levels fitted from their children's lobes (`FitParams::smooth_from_children`)
+    /// on a 256² Gaussian surface: every lobe in the fit's bounds (axis at z ≥ `AXIS_MIN_Z`,
+    /// exponent in `[ETA_MIN, ETA_MAX]`), at most `max_lobes` a texel, weights summing to 1; the
+    /// levels below the smoothed ones identical to the default fit's; and each smoothed level's
+    /// mean shading error within 3 % of the default fit's (measured: within ±1 %, docs/
+    /// benchmarks.md, "Extraction speed, 2026-12-04 (evening)").
+    #[test]
+    fn coarse_levels_from_children_keep_bounds_and_shading() {
+        let map = crate::fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
+        let base = ExtractParams::default();
+        let mut from = ExtractParams::default();
+        from.fit.smooth_from_children = true;
+        let a = extract(Source::Heights(&map), &base, &mut |_| {}).unwrap();
+        let b = extract(Source::Heights(&map), &from, &mut |_| {}).unwrap();
+        assert_eq!(a.levels.len(), b.levels.len());
+        let mut smoothed = 0;
+        for (k, (la, lb)) in a.levels.iter().zip(&b.levels).enumerate() {
+            for t in 0..lb.texels() {
+                let (s, e) = (lb.lobe_start[t] as usize, lb.lobe_start[t + 1] as usize);
+                assert!(e > s && e - s <= from.fit.max_lobes, "level {k} texel {t}");
+                let mut w = 0.0;
+                for l in lb.lobes.range(s, e) {
+                    assert!(l.axis.z >= AXIS_MIN_Z - 1e-6, "level {k}: axis {}", l.axis);
+                    assert!((ETA_MIN..=ETA_MAX).contains(&l.exponent), "level {k}");
+                    w += l.weight;
+                }
+                assert!((w - 1.0).abs() < 1e-5, "level {k} texel {t}: weights {w}");
+            }
+            let (ra, rb) = (la.residual, lb.residual);
+            if k == 0 || la.texels() > base.fit.smooth_texels {
+                assert_eq!(la.lobes, lb.lobes, "level {k} is not a smoothed level");
+                continue;
+            }
+            smoothed += 1;
+            let (sa, sb) = (ra.shading_mean.unwrap(), rb.shading_mean.unwrap());
+            println!("level {k}: shading {sa:.6} default, {sb:.6} from the children");
+            assert!(sb <= 1.03 * sa, "level {k}: shading {sb} against {sa}");
+        }
+        assert!(smoothed >= 5, "{smoothed} smoothed levels");
+    }
+}
