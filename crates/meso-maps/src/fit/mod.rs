@@ -42,17 +42,18 @@
 //!   smoothed objective above the EM fit's; it can raise the binned L2 residual below (which
 //!   rewards detail finer than any facet BRDF sees).
 //!
-//! * **Coarse levels from their children** ([`FitParams::smooth_from_children`], the default;
-//!   [`fit_lobes_seeded`]). A texel's NDF is the weight-averaged mixture of its four children's,
-//!   so on the pyramid's smoothed levels the children's lobes (each weight times its child's
-//!   share of the facet weight) are merged pairwise down to `max_lobes` by a moment-preserving
-//!   mixture reduction (`reduce`: least Ward cost of the lobes' mean normals `a·η/(η+4)`; a
-//!   merged lobe keeps the pair's weight and mean normal), and that one start is refined on
-//!   the smoothed objective as above (kept when within 5%, else LM with dead lobes re-seeded;
-//!   when that leaves more than 3%, the lightest lobe moved once to where the data most exceed
-//!   the fit, kept if better; then LM to convergence). No EM, no k-means, no greedy start: those were ≈ 16% of a 1024²
-//!   extraction's CPU. Footprints of at most `max_lobes` entries stay exact; the K chain
-//!   ignores the children.
+//! * **Coarse levels from their children** ([`FitParams::smooth_from_children`], opt-in: the
+//!   steep render test fails with it; [`fit_lobes_seeded`]). A texel's NDF is the
+//!   weight-averaged mixture of its four children's, so on the pyramid's smoothed levels the
+//!   children's lobes (each weight times its child's share of the facet weight) are merged
+//!   pairwise down to `max_lobes` by a moment-preserving mixture reduction (`reduce`: least
+//!   Ward cost of the lobes' mean normals `a·η/(η+4)`; a merged lobe keeps the pair's weight
+//!   and mean normal), and that one start is refined on the smoothed objective as above (kept
+//!   when within 5%, else LM with dead lobes re-seeded; when that leaves more than 3%, the
+//!   lightest lobe moved once to where the data most exceed the fit, kept if better; then LM to
+//!   convergence). No EM, no k-means, no greedy start: a 1024² extraction takes ≈ 11–16% less
+//!   CPU. Footprints of at most `max_lobes` entries stay exact; the K chain ignores the
+//!   children.
 //!
 //! * **The K chain** ([`FitParams::k_chain`], opt-in; issue #11 item 4). Everything above is the
 //!   *single* fit at one `max_lobes`; its objective can rise with `max_lobes` (EM's choice of K
@@ -274,11 +275,13 @@ pub struct FitParams {
     /// from their children's lobes: each texel's four children's lobes merged down to
     /// `max_lobes` (moment-preserving mixture reduction) and refined on the smoothed objective
     /// from that one start, instead of EM and the refinement's EM and greedy starts (module
-    /// docs, "Coarse levels from their children"; [`fit_lobes_seeded`]). Default `true`
-    /// (docs/benchmarks.md, "Extraction speed, 2026-12-04 (evening)": the 1024² Gaussian map
-    /// −11 % CPU, the facade −16 %; the coarse levels' shading error within +0.5 % on the
-    /// Gaussian map, +4 % on the facade's level 5). `false`: the fit before (EM, then the
-    /// refinement's EM and greedy starts). Not read with the K chain.
+    /// docs, "Coarse levels from their children"; [`fit_lobes_seeded`]). Default `false`,
+    /// **opt-in**: it takes 11 % less CPU on a 1024² Gaussian map and 16 % less on the facade
+    /// texture, with the coarse levels' mean shading error within +0.5 % and +4 % of the default
+    /// fit's, but the steep render test (`crates/meso-render/tests/steep.rs`) fails with it
+    /// (Phong 20, box, 8 texels/px 3.08 % against the 3 % bound; Lambert, trilinear, 4
+    /// texels/px 14.4 % and 15.9 % against 14 %) (docs/benchmarks.md, "Extraction speed,
+    /// 2026-12-04 (evening)"). Not read with the K chain.
     pub smooth_from_children: bool,
     /// Whether the lobes come from the K chain (module docs, "The K chain"): the fit's
     /// objective never rises with `max_lobes`. Default `false`, the single fit at `max_lobes`
