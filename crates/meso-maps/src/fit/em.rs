@@ -34,7 +34,7 @@ pub(super) fn eta_from_mean_t(t: f64) -> f64 {
     }
 }
 
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 /// A lobe while fitting: axis `a` (unit), weight `w`, Phong exponent `eta`.
 pub(super) struct L {
     pub(super) a: DVec3,

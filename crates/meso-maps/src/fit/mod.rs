@@ -42,6 +42,19 @@
 //!   smoothed objective above the EM fit's; it can raise the binned L2 residual below (which
 //!   rewards detail finer than any facet BRDF sees).
 //!
+//! * **Coarse levels from their children** ([`FitParams::smooth_from_children`], opt-in: the
+//!   steep render test fails with it; [`fit_lobes_seeded`]). A texel's NDF is the
+//!   weight-averaged mixture of its four children's, so on the pyramid's smoothed levels the
+//!   children's lobes (each weight times its child's share of the facet weight) are merged
+//!   pairwise down to `max_lobes` by a moment-preserving mixture reduction (`reduce`: least
+//!   Ward cost of the lobes' mean normals `a·η/(η+4)`; a merged lobe keeps the pair's weight
+//!   and mean normal), and that one start is refined on the smoothed objective as above (kept
+//!   when within 5%, else LM with dead lobes re-seeded; when that leaves more than 3%, the
+//!   lightest lobe moved once to where the data most exceed the fit, kept if better; then LM to
+//!   convergence). No EM, no k-means, no greedy start: a 1024² extraction takes ≈ 11–16% less
+//!   CPU. Footprints of at most `max_lobes` entries stay exact; the K chain ignores the
+//!   children.
+//!
 //! * **The K chain** ([`FitParams::k_chain`], opt-in; issue #11 item 4). Everything above is the
 //!   *single* fit at one `max_lobes`; its objective can rise with `max_lobes` (EM's choice of K
 //!   and the refinement's starts change with it). The lobes returned for `max_lobes` = K are the
@@ -84,6 +97,7 @@
 //! `residual` reads the entries' bins (`entries_l2_error`).
 
 mod em;
+mod reduce;
 mod residual;
 mod smoothed;
 
@@ -257,6 +271,18 @@ pub struct FitParams {
     /// Levels with at most this many texels get the smoothed refinement (default 1024; it
     /// costs ≈ 1 ms per texel, so the big fine levels keep the EM fit).
     pub smooth_texels: usize,
+    /// Whether the pyramid fits its smoothed levels (≤ `smooth_texels` texels, above level 0)
+    /// from their children's lobes: each texel's four children's lobes merged down to
+    /// `max_lobes` (moment-preserving mixture reduction) and refined on the smoothed objective
+    /// from that one start, instead of EM and the refinement's EM and greedy starts (module
+    /// docs, "Coarse levels from their children"; [`fit_lobes_seeded`]). Default `false`,
+    /// **opt-in**: it takes 11 % less CPU on a 1024² Gaussian map and 16 % less on the facade
+    /// texture, with the coarse levels' mean shading error within +0.5 % and +4 % of the default
+    /// fit's, but the steep render test (`crates/meso-render/tests/steep.rs`) fails with it
+    /// (Phong 20, box, 8 texels/px 3.08 % against the 3 % bound; Lambert, trilinear, 4
+    /// texels/px 14.4 % and 15.9 % against 14 %) (docs/benchmarks.md, "Extraction speed,
+    /// 2026-12-04 (evening)"). Not read with the K chain.
+    pub smooth_from_children: bool,
     /// Whether the lobes come from the K chain (module docs, "The K chain"): the fit's
     /// objective never rises with `max_lobes`. Default `false`, the single fit at `max_lobes`
     /// (one of the chain's candidates): on the steep stone-wall render test
@@ -345,6 +371,7 @@ impl Default for FitParams {
             thorough_texels: 64,
             smooth_exponent: 40.0,
             smooth_texels: 1024,
+            smooth_from_children: false,
             k_chain: false,
             k_choice: KChoice::Objective,
             facet_exponent: 0.0,
@@ -400,6 +427,31 @@ pub fn fit_lobes_with(
     pts: &mut Vec<(DVec3, f64)>,
     out: &mut Vec<PhongLobe>,
 ) {
+    fit_lobes_seeded(
+        entries, params, max_points, thorough, smooth, None, pts, out,
+    );
+}
+
+/// [`fit_lobes_with`] given the lobes of the footprint's children (`children`: each lobe's
+/// weight times its child's share of the footprint's weight, so that they sum to 1; the
+/// footprint's NDF is their mixture). Where the smoothed refinement runs (`smooth` and
+/// `params.smooth_exponent > 0`) and the K chain does not (`params.k_chain` false, the
+/// objective choice of K), the lobes are the children's merged down to `max_lobes` (`reduce`'s
+/// moment-preserving reduction: weights and mean normal kept) and refined on the smoothed
+/// objective from that one start: no EM, no greedy start (module docs, "Coarse levels from
+/// their children"). Otherwise, or with `children` `None` or empty, or too few half vectors
+/// for the refinement: exactly [`fit_lobes_with`].
+#[allow(clippy::too_many_arguments)]
+pub fn fit_lobes_seeded(
+    entries: &[Entry],
+    params: &FitParams,
+    max_points: usize,
+    thorough: bool,
+    smooth: bool,
+    children: Option<&[PhongLobe]>,
+    pts: &mut Vec<(DVec3, f64)>,
+    out: &mut Vec<PhongLobe>,
+) {
     out.clear();
     let total: f64 = entries.iter().map(|e| e.w).sum();
     if entries.is_empty() || total <= 0.0 {
@@ -422,6 +474,14 @@ pub fn fit_lobes_with(
     fill_em_points(entries, params, max_points, pts);
     let pts: &[Pt] = pts;
     let sdata = smooth_points(entries, pts, smooth, params);
+    if let (false, Some(d), Some(c)) = (chain, &sdata, children) {
+        // The children's lobes reduced to K, refined on the smoothed objective alone.
+        let start = reduce::reduce_lobes(&to_l(c), kmax);
+        if let Some(l) = Refiner::new(d, params.smooth_exponent).refine_from(&start) {
+            out.extend(to_phong(&l));
+            return;
+        }
+    }
     let mut single = Single::new(pts, params, thorough, sdata.as_deref());
     if !chain {
         out.extend(single.fit(kmax));

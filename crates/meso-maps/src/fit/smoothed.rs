@@ -826,6 +826,49 @@ impl<'a> Refiner<'a> {
         out
     }
 
+    /// The smoothed fit from the one start `lobes` (the children's lobes reduced to K, parent
+    /// module's [`super::fit_lobes_seeded`]; no EM start, no greedy start): `lobes` as they are
+    /// when within [`SMOOTH_KEEP`] (relative smoothed L2, as [`Self::refine`] keeps an EM fit);
+    /// else LM-polished with dead lobes re-seeded ([`Smoothed::polish`], as each start of
+    /// [`Self::refine`]); when that leaves more than [`SMOOTH_GOOD`] (where [`Self::refine`]
+    /// would try its greedy start), the lightest lobe is moved once to where the data most
+    /// exceed the fit ([`Smoothed::add_lobe`], LM-polished) and kept if that lowers the
+    /// objective; then LM to convergence (as [`Self::refine`]'s better start). `None` when the
+    /// data give fewer than `4 · lobes.len()` half vectors ([`Self::refine`] leaves its EM fit
+    /// as it is there; the caller fits by EM instead).
+    pub(super) fn refine_from(&self, lobes: &[L]) -> Option<Vec<L>> {
+        if lobes.is_empty() || self.sm.hs.len() < 4 * lobes.len() {
+            return None;
+        }
+        let mut st = SgState::from_lobes(lobes);
+        if self.sm.eval(&st, None) <= SMOOTH_KEEP * SMOOTH_KEEP * self.energy {
+            return Some(lobes.to_vec());
+        }
+        let o = self.sm.polish(&mut st, SMOOTH_START_ITERATIONS);
+        if o > SMOOTH_GOOD * SMOOTH_GOOD * self.energy && st.k > 1 {
+            // The children's lobes can sit where the children's (maximum-likelihood, on the
+            // finest smoothed level) fits put them; one lobe moved where the fit is most short
+            // recovers most of what the greedy start won there (docs/benchmarks.md, "Extraction
+            // speed, 2026-12-04 (evening)").
+            let w = st.weights();
+            let j = (0..st.k)
+                .min_by(|&a, &b| w[a].total_cmp(&w[b]))
+                .unwrap_or(0);
+            let mut t = st.clone();
+            t.remove(j);
+            self.sm.add_lobe(&mut t, 1.0 / st.k as f64);
+            if self
+                .sm
+                .lm(&mut t, SMOOTH_START_ITERATIONS, SMOOTH_TOL_START)
+                < o
+            {
+                st = t;
+            }
+        }
+        self.sm.lm(&mut st, SMOOTH_ITERATIONS, SMOOTH_TOL);
+        Some(st.to_lobes())
+    }
+
     /// The greedy fit with at most `kmax` lobes ([`Smoothed::greedy`]), as an index into
     /// `self.greedy` (states of 1, 2, … lobes, computed as far as needed).
     fn greedy_at(&mut self, kmax: usize) -> usize {

@@ -6,8 +6,8 @@
 
 use super::builder::{BandLevel, Carry, LevelBuilder};
 use super::cost::{extract_work, pyramid_texels};
-use super::level_fit::{LevelFit, PrevHorizon, RowOut};
-use super::{level_count, ExtractParams, Level, Progress, Pyramid, Residual, Source};
+use super::level_fit::{ChildLobes, LevelFit, PrevHorizon, RowOut};
+use super::{level_count, ExtractParams, Level, Method, Progress, Pyramid, Residual, Source};
 use crate::error::{MapError, Result};
 use crate::facets::{FacetSource, NormalMode};
 use crate::fit::MAX_LOBES;
@@ -234,6 +234,8 @@ fn run(
     // stored in f32, its horizon statistics in f64. (Entries are not carried: each texel
     // merges its footprint's facets again, level by level, `level_fit::texel_entries`.)
     let mut prev = Carry::default();
+    // The previous level's lobes, for a level that starts its smoothed refinement from them.
+    let mut children: Option<ChildLobes> = None;
     let mut done = 0u64;
     let (mut cols, mut rows) = (facets.cols(), facets.rows());
     for (k, &work) in level_work.iter().enumerate() {
@@ -267,7 +269,22 @@ fn run(
                 .clamp(64, params.fit.max_em_points.max(64)),
             thorough: texels <= params.fit.thorough_texels,
             smooth: texels <= params.fit.smooth_texels,
+            children: children.as_ref(),
         };
+        // This level's lobes are kept for the next one when that one fits its smoothed levels
+        // from its children's lobes (`FitParams::smooth_from_children`; ≤ 4 × `smooth_texels`
+        // texels, a few hundred KB).
+        let (next_cols, next_rows) = (cols.div_ceil(2), rows.div_ceil(2));
+        let mut next_children = (!last
+            && params.fit.smooth_from_children
+            && params.method == Method::Lobes
+            && params.fit.smooth_exponent > 0.0
+            && next_cols * next_rows <= params.fit.smooth_texels)
+            .then(|| ChildLobes {
+                cols,
+                rows,
+                ..Default::default()
+            });
         let max_per_texel = params
             .fit
             .max_lobes
@@ -293,6 +310,9 @@ fn run(
                 .into_par_iter()
                 .map(|r| ctx.row(r))
                 .collect();
+            if let Some(ch) = &mut next_children {
+                ch.extend(&batch);
+            }
             match (&mut acc, &mut stream) {
                 (LevelOut::Memory(acc), _) => acc.extend(batch),
                 (LevelOut::Stream(acc), Some(Stream { w, path, .. })) => {
@@ -344,6 +364,7 @@ fn run(
             // Level 1 has read the samples' horizon angles.
             horizon = None;
         }
+        children = next_children;
         done += texels as u64;
         work_done += work;
         report(k + 1, done, if last { work_total } else { work_done });
@@ -376,4 +397,51 @@ fn check_params(params: &ExtractParams) -> Result<()> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::{AXIS_MIN_Z, ETA_MAX, ETA_MIN};
+
+    /// The coarse levels fitted from their children's lobes (`FitParams::smooth_from_children`)
+    /// on a 256² Gaussian surface: every lobe in the fit's bounds (axis at z ≥ `AXIS_MIN_Z`,
+    /// exponent in `[ETA_MIN, ETA_MAX]`), at most `max_lobes` a texel, weights summing to 1; the
+    /// levels below the smoothed ones identical to the default fit's; and each smoothed level's
+    /// mean shading error within 3 % of the default fit's (measured: within ±1 %, docs/
+    /// benchmarks.md, "Extraction speed, 2026-12-04 (evening)").
+    #[test]
+    fn coarse_levels_from_children_keep_bounds_and_shading() {
+        let map = crate::fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
+        let base = ExtractParams::default();
+        let mut from = ExtractParams::default();
+        from.fit.smooth_from_children = true;
+        let a = extract(Source::Heights(&map), &base, &mut |_| {}).unwrap();
+        let b = extract(Source::Heights(&map), &from, &mut |_| {}).unwrap();
+        assert_eq!(a.levels.len(), b.levels.len());
+        let mut smoothed = 0;
+        for (k, (la, lb)) in a.levels.iter().zip(&b.levels).enumerate() {
+            for t in 0..lb.texels() {
+                let (s, e) = (lb.lobe_start[t] as usize, lb.lobe_start[t + 1] as usize);
+                assert!(e > s && e - s <= from.fit.max_lobes, "level {k} texel {t}");
+                let mut w = 0.0;
+                for l in lb.lobes.range(s, e) {
+                    assert!(l.axis.z >= AXIS_MIN_Z - 1e-6, "level {k}: axis {}", l.axis);
+                    assert!((ETA_MIN..=ETA_MAX).contains(&l.exponent), "level {k}");
+                    w += l.weight;
+                }
+                assert!((w - 1.0).abs() < 1e-5, "level {k} texel {t}: weights {w}");
+            }
+            let (ra, rb) = (la.residual, lb.residual);
+            if k == 0 || la.texels() > base.fit.smooth_texels {
+                assert_eq!(la.lobes, lb.lobes, "level {k} is not a smoothed level");
+                continue;
+            }
+            smoothed += 1;
+            let (sa, sb) = (ra.shading_mean.unwrap(), rb.shading_mean.unwrap());
+            println!("level {k}: shading {sa:.6} default, {sb:.6} from the children");
+            assert!(sb <= 1.03 * sa, "level {k}: shading {sb} against {sa}");
+        }
+        assert!(smoothed >= 5, "{smoothed} smoothed levels");
+    }
 }

@@ -17,7 +17,7 @@ use super::{footprint_bounds, ExtractParams, Level, Method};
 use crate::compact::Horizons;
 use crate::facets::FacetSource;
 use crate::fit::{
-    entries_l2_error, fit_lobes_with, merge_entries, merge_sorted_entries, Entry, ENTRY_GRID_RES,
+    entries_l2_error, fit_lobes_seeded, merge_entries, merge_sorted_entries, Entry, ENTRY_GRID_RES,
 };
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
@@ -31,6 +31,68 @@ pub(super) struct RowOut {
     /// The NDF residual and shading error of the row's texels that the level's residual
     /// samples, in order.
     pub(super) residual: Vec<(f64, f64)>,
+    /// Each texel's total facet weight (the sum of its entries' weights).
+    pub(super) weight: Vec<f64>,
+}
+
+/// The lobes of a level kept for the next level's fits ([`fit_lobes_seeded`]'s children), with
+/// each texel's total facet weight: only for levels whose parents get the smoothed refinement
+/// (≤ 4 × `smooth_texels` texels, a few hundred KB).
+#[derive(Default)]
+pub(super) struct ChildLobes {
+    /// Texels along x.
+    pub(super) cols: usize,
+    /// Texels along y.
+    pub(super) rows: usize,
+    /// `start[t]..start[t + 1]` indexes `lobes` for texel `t`.
+    pub(super) start: Vec<u32>,
+    pub(super) lobes: Vec<PhongLobe>,
+    /// Each texel's total facet weight.
+    pub(super) weight: Vec<f64>,
+}
+
+impl ChildLobes {
+    /// Append a batch of rows (in order).
+    pub(super) fn extend(&mut self, rows: &[RowOut]) {
+        if self.start.is_empty() {
+            self.start.push(0);
+        }
+        for row in rows {
+            let mut at = *self.start.last().unwrap_or(&0);
+            for &n in &row.lcount {
+                at += n;
+                self.start.push(at);
+            }
+            self.lobes.extend_from_slice(&row.lobes);
+            self.weight.extend_from_slice(&row.weight);
+        }
+    }
+
+    /// The lobes of the (up to four) children of texel `(r, c)` of the next level into `out`
+    /// (cleared first), each weight times its child's share of their total weight.
+    fn children_of(&self, r: usize, c: usize, out: &mut Vec<PhongLobe>) {
+        out.clear();
+        let mut total = 0.0;
+        for cr in 2 * r..(2 * r + 2).min(self.rows) {
+            for cc in 2 * c..(2 * c + 2).min(self.cols) {
+                total += self.weight[cr * self.cols + cc];
+            }
+        }
+        if total <= 0.0 {
+            return;
+        }
+        for cr in 2 * r..(2 * r + 2).min(self.rows) {
+            for cc in 2 * c..(2 * c + 2).min(self.cols) {
+                let t = cr * self.cols + cc;
+                let share = self.weight[t] / total;
+                let (a, b) = (self.start[t] as usize, self.start[t + 1] as usize);
+                out.extend(self.lobes[a..b].iter().map(|l| PhongLobe {
+                    weight: l.weight * share,
+                    ..*l
+                }));
+            }
+        }
+    }
 }
 
 /// Where a level reads the horizon statistics of its children, in `f64`.
@@ -80,6 +142,9 @@ pub(super) struct LevelFit<'a> {
     pub(super) em_cap: usize,
     pub(super) thorough: bool,
     pub(super) smooth: bool,
+    /// The previous level's lobes, when this level starts its smoothed refinement from its
+    /// children's lobes ([`fit_lobes_seeded`]).
+    pub(super) children: Option<&'a ChildLobes>,
 }
 
 /// Slots of [`facet_bins`] per cell (a cell has at most two facets; the second slot of a cell of
@@ -157,7 +222,9 @@ impl LevelFit<'_> {
             lcount: Vec::with_capacity(cols),
             horizon: Vec::new(),
             residual: Vec::new(),
+            weight: Vec::with_capacity(cols),
         };
+        let mut kids = Vec::new();
         let mut buf = Scratch::default();
         buf.depth.resize_with(self.k + 1, Default::default);
         let mut scratch = Vec::new();
@@ -172,7 +239,12 @@ impl LevelFit<'_> {
                 }
                 Some(prev) => self.merge_child_horizons(prev, r, c, &mut out.horizon),
             }
-            self.fit_texel(&buf.merged, &mut scratch, &mut lobes);
+            out.weight.push(buf.merged.iter().map(|e| e.w).sum());
+            let children = self.children.map(|ch| {
+                ch.children_of(r, c, &mut kids);
+                &kids[..]
+            });
+            self.fit_texel(&buf.merged, children, &mut scratch, &mut lobes);
             if (r * cols + c).is_multiple_of(self.residual_stride) {
                 out.residual.push((
                     Self::residual(&buf.merged, &lobes),
@@ -351,16 +423,18 @@ impl LevelFit<'_> {
     fn fit_texel(
         &self,
         merged: &[Entry],
+        children: Option<&[PhongLobe]>,
         scratch: &mut Vec<(glam::DVec3, f64)>,
         lobes: &mut Vec<PhongLobe>,
     ) {
         match self.params.method {
-            Method::Lobes => fit_lobes_with(
+            Method::Lobes => fit_lobes_seeded(
                 merged,
                 &self.params.fit,
                 self.em_cap,
                 self.thorough,
                 self.smooth,
+                children,
                 scratch,
                 lobes,
             ),
