@@ -174,10 +174,13 @@ fn the_second_load_reads_the_disk_cache() {
     assert_eq!(cached.to_bytes(), bytes);
     assert_eq!(*cached, Pyramid::from_bytes(&file, &bytes).unwrap());
     // The entry holds those very bytes (map format 4, what `meso extract` writes), after its
-    // 44-byte header and before its 32-byte seal.
+    // 44-byte header and the load's warnings (none for this map), before its 32-byte seal.
     assert_eq!(bytes[8..12], meso_maps::format::VERSION.to_le_bytes());
     let stored = std::fs::read(&entry).unwrap();
-    assert!(stored[44..stored.len() - 32] == bytes[..]);
+    let mut payload = &stored[44..stored.len() - 32];
+    let warnings = meso_maps::disk_cache::take_warnings(&mut payload).unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(payload == &bytes[..]);
 }
 
 #[test]
