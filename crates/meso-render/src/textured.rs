@@ -351,8 +351,8 @@ fn map_mapped(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
     };
     let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
     let surface = t.surface()?;
-    // The pyramid is read for this material alone: hand it over, so that its levels are
-    // freed as their tables are built (a 4096² map's peak, docs/benchmarks.md).
+    // The pyramid is read for this material alone: hand it over; its tables are built tile by
+    // tile as the render reads them (a 4096² map's peak, docs/benchmarks.md).
     Ok(Arc::new(
         NdfMapped::from_pyramid(pyramid, &surface, texels_per_uv, shadowing)?
             .with_box_filter(t.box_filter),

@@ -30,18 +30,25 @@ mod lobes;
 mod peak_quadrature;
 
 use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
+use build::Source;
 use meso_maps::{HorizonDirection, Horizons};
+use std::sync::OnceLock;
 
-/// One level of the filtered pyramid.
+/// The tables of one tile of a level of the filtered pyramid (a rectangle of its texels; a
+/// whole level when built eagerly, [`NdfMapped::new`]): texels are indexed row-major within
+/// the tile, and lobe sources (`src`) among the tile's pyramid lobes, in texel order.
 #[derive(Clone, Debug, PartialEq)]
 struct NodeLevel {
+    /// Texels along x of the tile.
     cols: usize,
+    /// Texels along y of the tile.
     rows: usize,
+    /// Level-0 cells a texel of the level spans.
     span: f64,
     /// Per texel, its lobes `lobes[lobe_start[t]..lobe_start[t + 1]]`.
     lobe_start: Vec<u32>,
     lobes: Vec<SgLobe>,
-    /// The shapes the lobes index (one per distinct exponent of the level).
+    /// The shapes the lobes index (one per distinct exponent of the tile).
     shapes: Vec<Shape>,
     /// Nodes for a general facet transfer (empty otherwise).
     node_start: Vec<u32>,
@@ -49,13 +56,44 @@ struct NodeLevel {
     /// Per texel, its horizon statistics (with shadowing), in the pyramid level's precision
     /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
     horizon: Option<Horizons>,
-    /// Per lobe of the pyramid level (the `src` of [`SgLobe`] and [`Node`]), the horizon
+    /// Per pyramid lobe of the tile (the `src` of [`SgLobe`] and [`Node`]), the horizon
     /// statistics of the cells it stands for (with shadowing); on level 0
     /// (`lobe_horizon_by_texel`) per texel instead, each its cell's, which all the texel's lobes
     /// stand for (`meso_maps::lobe_stats_by_cell`).
     lobe_horizon: Option<Horizons>,
     /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
     lobe_horizon_by_texel: bool,
+}
+
+/// One level of the material: its size and its tables, one per tile of `tile × tile` texels
+/// (the last row and column of tiles narrower), each built when a shading call first reads
+/// it (`NdfMapped::from_pyramid`) or all at once (`NdfMapped::new`, one tile a level).
+#[derive(Clone, Debug)]
+struct TexLevel {
+    /// Texels along x.
+    cols: usize,
+    /// Texels along y.
+    rows: usize,
+    /// Level-0 cells a texel spans.
+    span: f64,
+    /// Side of a tile, in texels.
+    tile: usize,
+    /// Tiles along x.
+    tiles_x: usize,
+    /// The tiles, row-major.
+    tiles: Vec<OnceLock<NodeLevel>>,
+}
+
+impl TexLevel {
+    /// Tile `(tr, tc)`'s rows and columns of the level.
+    fn tile_rect(&self, i: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+        let (tr, tc) = (i / self.tiles_x, i % self.tiles_x);
+        let (r0, c0) = (tr * self.tile, tc * self.tile);
+        (
+            r0..(r0 + self.tile).min(self.rows),
+            c0..(c0 + self.tile).min(self.cols),
+        )
+    }
 }
 
 impl NodeLevel {
@@ -80,7 +118,10 @@ impl NodeLevel {
 /// A material reading an NDF pyramid (see the module docs): the filtered bump map.
 #[derive(Clone, Debug)]
 pub struct NdfMapped {
-    levels: Vec<NodeLevel>,
+    levels: Vec<TexLevel>,
+    /// The pyramid the tiles not yet built are built from (`NdfMapped::from_pyramid`);
+    /// `None` when every tile was built up front (`NdfMapped::new`).
+    source: Option<Source>,
     facet: Facet,
     diffuse: [f32; 3],
     texels_per_uv: f64,
@@ -92,6 +133,28 @@ pub struct NdfMapped {
 }
 
 impl NdfMapped {
+    /// The tables of texel `t` of level `lev` (built now if no shading call has read its tile
+    /// yet) and the texel's index among them.
+    #[inline]
+    fn table(&self, lev: usize, t: usize) -> (&NodeLevel, usize) {
+        let l = &self.levels[lev];
+        let (r, c) = (t / l.cols, t % l.cols);
+        let (tr, tc) = (r / l.tile, c / l.tile);
+        let i = tr * l.tiles_x + tc;
+        let nl = l.tiles[i].get_or_init(|| self.build_tile(lev, i));
+        (nl, (r - tr * l.tile) * nl.cols + (c - tc * l.tile))
+    }
+
+    /// Number of tiles built so far over all levels (each a level's whole table for
+    /// [`NdfMapped::new`]; those shading calls have read for [`NdfMapped::from_pyramid`]).
+    #[must_use]
+    pub fn tiles_built(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| l.tiles.iter().filter(|t| t.get().is_some()).count())
+            .sum()
+    }
+
     /// Number of pyramid levels in use.
     #[must_use]
     pub fn levels(&self) -> usize {
@@ -259,7 +322,7 @@ impl Shader for NdfMapped {
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for &(lev, t, w) in &taps[..ntaps] {
-                let l = &self.levels[lev];
+                let (l, t) = self.table(lev, t);
                 let v = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir));
                 if scalar {
                     acc[0] += w * v[0];
