@@ -46,7 +46,9 @@ pub mod sphgrid;
 pub mod visibility;
 
 pub use baseline::{baseline_lobes, fit_baseline, Baseline, Lean};
-pub use compact::{Horizon32, HorizonIter, Horizons, Lobe32, LobeIter, Lobes, COMPACT_TEXELS};
+pub use compact::{
+    Horizon32, HorizonCode, HorizonIter, Horizons, Lobe32, LobeCode, LobeIter, Lobes, COMPACT_TEXELS,
+};
 pub use error::{MapError, Result};
 pub use facet_ndf::{
     facets_bytes, facets_with_visibility, facets_with_visibility_progress, FacetVisibility,
