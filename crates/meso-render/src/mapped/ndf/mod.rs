@@ -250,6 +250,7 @@ impl NdfMapped {
         {
             let mut st = self.cache.state.lock().unwrap_or_else(|e| e.into_inner());
             st.bytes += bytes;
+            st.peak = st.peak.max(st.bytes);
             st.order.push_back((lev, i));
             let mut passes = 2 * st.order.len();
             while st.bytes > self.cache.cap && passes > 0 {
@@ -269,7 +270,6 @@ impl NdfMapped {
                     st.order.push_back((vl, vi));
                 }
             }
-            st.peak = st.peak.max(st.bytes);
         }
         for (vl, vi) in victims {
             self.levels[vl].tiles[vi]
@@ -291,7 +291,8 @@ impl NdfMapped {
             .sum()
     }
 
-    /// The tile cache's figures: bytes of tables held now, the most held at once, and tiles
+    /// The tile cache's figures: bytes of tables held now, the most held at once (a tile just
+    /// built counted before others are dropped for it), and tiles
     /// dropped to stay under its cap ([`NdfMapped::with_table_cap`]); all 0 for
     /// [`NdfMapped::new`], whose tables are not counted.
     #[must_use]
