@@ -498,7 +498,12 @@ mod tests {
     fn coded_levels_read_back_as_f32_levels() {
         use crate::{extract, fixtures, ExtractParams, Pyramid, Source};
         let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
-        let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |_| {}).unwrap();
+        let pyr = extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap();
         let dir = std::env::temp_dir().join(format!("meso-coded-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("g256.map");

@@ -18,10 +18,10 @@ pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
 mod v3;
 mod v4;
 
-pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 pub(crate) use v3::{
     angle_decode, angle_encode, eta_decode, eta_encode, oct_decode, oct_encode, MEAN_SPAN, SD_SPAN,
 };
+pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 pub(crate) use v4::{check_band, write_band, write_level_end};
 pub use v4::{BAND_ROWS, VERSION_4};
 

@@ -47,7 +47,8 @@ pub mod visibility;
 
 pub use baseline::{baseline_lobes, fit_baseline, Baseline, Lean};
 pub use compact::{
-    Horizon32, HorizonCode, HorizonIter, Horizons, Lobe32, LobeCode, LobeIter, Lobes, COMPACT_TEXELS,
+    Horizon32, HorizonCode, HorizonIter, Horizons, Lobe32, LobeCode, LobeIter, Lobes,
+    COMPACT_TEXELS,
 };
 pub use error::{MapError, Result};
 pub use facet_ndf::{

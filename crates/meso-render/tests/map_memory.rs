@@ -88,7 +88,10 @@ fn rendering_a_map_file_peaks_at_its_model() {
         read_peak as f64 / 1e6
     );
     assert_eq!(p_bytes, model_pyramid);
-    assert!(read_peak >= p_bytes && read_peak <= p_bytes + band, "{read_peak}");
+    assert!(
+        read_peak >= p_bytes && read_peak <= p_bytes + band,
+        "{read_peak}"
+    );
 
     let surface =
         Material::from_toml_str("[transfer]\nkind = \"phong\"\nexponent = 20.0\n").unwrap();
@@ -121,8 +124,14 @@ fn rendering_a_map_file_peaks_at_its_model() {
                 (peak - p_bytes) as f64 / 1e6
             );
             assert!(m.tiles_built() > 0);
-            assert!(peak >= p_bytes + cache_peak, "{peak} against {p_bytes} + {cache_peak}");
-            assert!(peak <= p_bytes + cache_peak + tile, "{peak} against the model");
+            assert!(
+                peak >= p_bytes + cache_peak,
+                "{peak} against {p_bytes} + {cache_peak}"
+            );
+            assert!(
+                peak <= p_bytes + cache_peak + tile,
+                "{peak} against the model"
+            );
             if cap < usize::MAX {
                 assert!(dropped > 0);
                 // The cap, passed by at most the tile just built before others are dropped.

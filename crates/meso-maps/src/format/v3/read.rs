@@ -185,8 +185,10 @@ pub(in crate::format) fn check_levels(r: &mut Reader<'_>, h: &Header) -> Result<
 
 /// Level `k` from the decoded columns: its lobes (a texel's weights normalised by their
 /// codes' sum, which must not be 0) and horizon statistics (a weight that is negative or not
-/// finite refused), in `f32` when `compact` (format 3: [`TableEntry::compact`]; format 4, whose
+/// finite refused), as the file's codes when `compact` and `coded` (`Pyramid::read_coded`),
+/// in `f32` when `compact` (format 3: [`TableEntry::compact`]; format 4, whose
 /// entry is a band of a level's rows: the level's).
+#[allow(clippy::too_many_arguments)]
 pub(in crate::format) fn build_level(
     r: &Reader<'_>,
     k: usize,

@@ -16,9 +16,11 @@ use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
 use meso_core::sg;
-use meso_maps::{lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, Horizons, Pyramid};
-use std::sync::Arc;
+use meso_maps::{
+    lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, Horizons, Pyramid,
+};
 use std::f64::consts::FRAC_1_PI;
+use std::sync::Arc;
 
 /// Side of a tile of [`NdfMapped::from_pyramid`]'s tables, in texels: 64 × 64 texels (a
 /// level-0 tile of a height map ≈ 8 k lobes, ≈ 0.5 MB of tables with shadowing).
@@ -33,7 +35,13 @@ pub(super) struct Source {
 impl std::fmt::Debug for Source {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let p = &self.pyramid;
-        write!(f, "Source({} levels, {}×{} texels)", p.levels.len(), p.width, p.height)
+        write!(
+            f,
+            "Source({} levels, {}×{} texels)",
+            p.levels.len(),
+            p.width,
+            p.height
+        )
     }
 }
 
@@ -381,8 +389,8 @@ fn node_level(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shader::Shader;
     use crate::shader::local_point;
+    use crate::shader::Shader;
     use glam::DVec2;
     use meso_maps::{extract, fixtures, lobe_stats, ExtractParams, Source};
 

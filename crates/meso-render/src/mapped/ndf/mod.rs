@@ -29,9 +29,9 @@ mod lobes;
 #[cfg(test)]
 mod peak_quadrature;
 
+use build::Source;
 use filter::MAX_TAPS;
 use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
-use build::Source;
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -220,7 +220,11 @@ impl NdfMapped {
         let (r, c) = (t / l.cols, t % l.cols);
         let (tr, tc) = (r / l.tile, c / l.tile);
         let width = ((tc + 1) * l.tile).min(l.cols) - tc * l.tile;
-        (tr * l.tiles_x + tc, (r - tr * l.tile) * width + (c - tc * l.tile), width)
+        (
+            tr * l.tiles_x + tc,
+            (r - tr * l.tile) * width + (c - tc * l.tile),
+            width,
+        )
     }
 
     /// The tables of tile `i` of level `lev`, built now if not held (and others dropped if the
