@@ -4,10 +4,12 @@
 //! This module holds the material (its per-level tables, options and the [`Shader`] entry
 //! points, which blend the taps' per-texel responses); the sub-modules hold its parts:
 //!
-//! * `build` — [`NdfMapped::new`] (and [`NdfMapped::from_pyramid`], which frees the pyramid's
-//!   levels as it goes): the per-level tables from a pyramid, with each lobe's share of its
+//! * `build` — [`NdfMapped::new`] (every level's table up front, one tile a level) and
+//!   [`NdfMapped::from_pyramid`] (tiles of 64² texels built when first read, under a byte cap,
+//!   [`NdfMapped::with_table_cap`]): the tables from a pyramid, with each lobe's share of its
 //!   texel's projected area and its horizon statistics from [`meso_maps::lobe_stats_by_cell`]
-//!   (handed down from the level-0 normals; level 0's once per texel);
+//!   or, per tile, [`meso_maps::rect_lobe_stats_by_cell`] (handed down from the level-0
+//!   normals; level 0's once per texel);
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
 //!   Phong facets, and the 7-node form of a lobe for other facets;
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
@@ -18,8 +20,9 @@
 //! # Conventions
 //! * Texels are indexed row-major per level (`row · cols + col`), wrapped periodically;
 //!   positions are in level-0 cells (`uv · texels_per_uv`).
-//! * A texel's lobes are `lobes[lobe_start[t]..lobe_start[t + 1]]`, its nodes (Lambert and
-//!   general facets) `nodes[node_start[t]..node_start[t + 1]]`.
+//! * Within a tile's tables, a texel's lobes are `lobes[lobe_start[t]..lobe_start[t + 1]]`,
+//!   its nodes (Lambert and general facets) `nodes[node_start[t]..node_start[t + 1]]`, `t` its
+//!   row-major index in the tile.
 
 use super::*;
 
