@@ -329,7 +329,22 @@ impl NdfMapped {
     /// coarse levels whose lobe fit is worse (compare their residuals in `meso map info`).
     #[must_use]
     pub fn with_max_level(mut self, max_level: usize) -> NdfMapped {
-        self.levels.truncate(max_level.saturating_add(1).max(1));
+        let n = max_level.saturating_add(1).max(1);
+        self.levels.truncate(n);
+        // The tile cache forgets the tiles of the levels dropped.
+        let levels = &self.levels;
+        let st = self
+            .cache
+            .state
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner());
+        st.order.retain(|&(l, _)| l < n);
+        st.bytes = st
+            .order
+            .iter()
+            .filter_map(|&(l, i)| levels[l].tiles[i].get())
+            .map(|t| t.bytes())
+            .sum();
         self
     }
 
