@@ -59,13 +59,71 @@ impl Lobe32 {
     }
 }
 
-/// The lobes of a level, in `f64` or in `f32` (module docs). Read them as [`PhongLobe`]s.
+/// A lobe as a map file codes it (11 bytes): its axis as the file's two 20-bit octahedral
+/// coordinates, its exponent as the file's 16-bit code, and its weight (the file's 16-bit code
+/// over its texel's sum) in `f32`. It reads back as the [`Lobe32`] of the decoded lobe, bit for
+/// bit ([`LobeCode::to_phong`]): a map file's compact level kept at about half its `f32` size
+/// (what `meso render` holds, [`crate::Pyramid::read_coded`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct LobeCode([u8; 11]);
+
+impl LobeCode {
+    /// The lobe of axis code `(u, v)` (20 bits each), exponent code `eta` and weight `weight`.
+    #[must_use]
+    pub fn new(u: u32, v: u32, eta: u16, weight: f32) -> LobeCode {
+        let a = (u64::from(u) & 0xF_FFFF) | ((u64::from(v) & 0xF_FFFF) << 20);
+        let mut b = [0u8; 11];
+        b[..5].copy_from_slice(&a.to_le_bytes()[..5]);
+        b[5..7].copy_from_slice(&eta.to_le_bytes());
+        b[7..].copy_from_slice(&weight.to_le_bytes());
+        LobeCode(b)
+    }
+    /// The lobe coded: axis and exponent to the map file's nearest codes, weight to `f32`.
+    #[must_use]
+    pub fn from_phong(l: &PhongLobe) -> LobeCode {
+        let (u, v) = crate::format::oct_encode(l.axis);
+        LobeCode::new(u, v, crate::format::eta_encode(l.exponent), l.weight as f32)
+    }
+    /// The axis code `(u, v)`.
+    #[must_use]
+    pub fn axis_code(&self) -> (u32, u32) {
+        let mut a = [0u8; 8];
+        a[..5].copy_from_slice(&self.0[..5]);
+        let a = u64::from_le_bytes(a);
+        ((a & 0xF_FFFF) as u32, ((a >> 20) & 0xF_FFFF) as u32)
+    }
+    /// The exponent code.
+    #[must_use]
+    pub fn eta_code(&self) -> u16 {
+        u16::from_le_bytes([self.0[5], self.0[6]])
+    }
+    /// The lobe as the map file's reader decodes it, rounded to `f32` as a compact level keeps
+    /// it ([`Lobe32`]), in `f64` with its axis renormalised: [`Lobe32::to_phong`] of that.
+    #[inline]
+    #[must_use]
+    pub fn to_phong(&self) -> PhongLobe {
+        let (u, v) = self.axis_code();
+        let a = crate::format::oct_decode(u, v);
+        let w = f32::from_le_bytes([self.0[7], self.0[8], self.0[9], self.0[10]]);
+        Lobe32 {
+            axis: [a.x as f32, a.y as f32, a.z as f32],
+            weight: w,
+            exponent: crate::format::eta_decode(self.eta_code()) as f32,
+        }
+        .to_phong()
+    }
+}
+
+/// The lobes of a level, in `f64`, in `f32`, or as a map file's codes (module docs). Read them
+/// as [`PhongLobe`]s.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Lobes {
     /// Full precision.
     F64(Vec<PhongLobe>),
     /// Rounded to `f32`.
     F32(Vec<Lobe32>),
+    /// A map file's codes (reading back as `F32` would: [`LobeCode`]).
+    Coded(Vec<LobeCode>),
 }
 
 impl Default for Lobes {
@@ -90,6 +148,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => v.len(),
             Lobes::F32(v) => v.len(),
+            Lobes::Coded(v) => v.len(),
         }
     }
     /// Whether there are none.
@@ -97,10 +156,10 @@ impl Lobes {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// Whether the lobes are stored in `f32`.
+    /// Whether the lobes are stored in `f32` (or coded, which reads back as `f32`).
     #[must_use]
     pub fn is_compact(&self) -> bool {
-        matches!(self, Lobes::F32(_))
+        matches!(self, Lobes::F32(_) | Lobes::Coded(_))
     }
     /// Lobe `i`.
     ///
@@ -112,6 +171,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => v[i],
             Lobes::F32(v) => v[i].to_phong(),
+            Lobes::Coded(v) => v[i].to_phong(),
         }
     }
     /// Lobes `a..b`.
@@ -123,6 +183,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => LobeIter::F64(v[a..b].iter()),
             Lobes::F32(v) => LobeIter::F32(v[a..b].iter()),
+            Lobes::Coded(v) => LobeIter::Coded(v[a..b].iter()),
         }
     }
     /// All lobes.
@@ -130,15 +191,16 @@ impl Lobes {
     pub fn iter(&self) -> LobeIter<'_> {
         self.range(0, self.len())
     }
-    /// Bytes the lobes occupy (their number × 40 or 20).
+    /// Bytes the lobes occupy (their number × 40, 20 or 11).
     #[must_use]
     pub fn bytes(&self) -> usize {
         match self {
             Lobes::F64(v) => v.len() * std::mem::size_of::<PhongLobe>(),
             Lobes::F32(v) => v.len() * std::mem::size_of::<Lobe32>(),
+            Lobes::Coded(v) => v.len() * std::mem::size_of::<LobeCode>(),
         }
     }
-    /// Replace lobe `i` (rounded when compact).
+    /// Replace lobe `i` (rounded when compact, coded when coded).
     ///
     /// # Panics
     /// `i ≥ len()`.
@@ -146,6 +208,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => v[i] = l,
             Lobes::F32(v) => v[i] = Lobe32::from_phong(&l),
+            Lobes::Coded(v) => v[i] = LobeCode::from_phong(&l),
         }
     }
     /// Append one lobe (rounded when compact).
@@ -153,6 +216,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => v.push(l),
             Lobes::F32(v) => v.push(Lobe32::from_phong(&l)),
+            Lobes::Coded(v) => v.push(LobeCode::from_phong(&l)),
         }
     }
     /// Append lobes (rounded when compact).
@@ -160,6 +224,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => v.extend_from_slice(ls),
             Lobes::F32(v) => v.extend(ls.iter().map(Lobe32::from_phong)),
+            Lobes::Coded(v) => v.extend(ls.iter().map(LobeCode::from_phong)),
         }
     }
     /// Release unused capacity.
@@ -167,6 +232,7 @@ impl Lobes {
         match self {
             Lobes::F64(v) => v.shrink_to_fit(),
             Lobes::F32(v) => v.shrink_to_fit(),
+            Lobes::Coded(v) => v.shrink_to_fit(),
         }
     }
 }
@@ -178,6 +244,8 @@ pub enum LobeIter<'a> {
     F64(std::slice::Iter<'a, PhongLobe>),
     /// Over `f32` lobes.
     F32(std::slice::Iter<'a, Lobe32>),
+    /// Over coded lobes.
+    Coded(std::slice::Iter<'a, LobeCode>),
 }
 
 impl Iterator for LobeIter<'_> {
@@ -187,12 +255,14 @@ impl Iterator for LobeIter<'_> {
         match self {
             LobeIter::F64(i) => i.next().copied(),
             LobeIter::F32(i) => i.next().map(Lobe32::to_phong),
+            LobeIter::Coded(i) => i.next().map(LobeCode::to_phong),
         }
     }
     fn size_hint(&self) -> (usize, Option<usize>) {
         match self {
             LobeIter::F64(i) => i.size_hint(),
             LobeIter::F32(i) => i.size_hint(),
+            LobeIter::Coded(i) => i.size_hint(),
         }
     }
 }
@@ -240,13 +310,71 @@ impl Horizon32 {
     }
 }
 
-/// The horizon statistics of a level's texels, in `f64` or in `f32` (module docs).
+/// Horizon statistics as a map file codes them (16 bytes): the weight in `f32` and per
+/// direction the 12-bit codes of the mean horizon angle and of its standard deviation. It
+/// reads back as the [`Horizon32`] of the decoded statistics, bit for bit
+/// ([`HorizonCode::to_stats`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct HorizonCode([u8; 16]);
+
+impl HorizonCode {
+    /// The statistics of weight `weight` and codes `mean` and `sd` (12 bits each; larger codes
+    /// are kept as 4 095, which the map file's decoder reads them as).
+    #[must_use]
+    pub fn new(weight: f32, mean: [u16; 4], sd: [u16; 4]) -> HorizonCode {
+        let mut b = [0u8; 16];
+        b[..4].copy_from_slice(&weight.to_le_bytes());
+        let mut bits = 0u128;
+        for (i, q) in mean.iter().chain(&sd).enumerate() {
+            // A code reads as at most 4 095 (the decoder's clamp): kept so.
+            bits |= u128::from((*q).min(0xFFF)) << (12 * i);
+        }
+        b[4..].copy_from_slice(&bits.to_le_bytes()[..12]);
+        HorizonCode(b)
+    }
+    /// The statistics coded: the angles to the map file's nearest codes, weight to `f32`.
+    #[must_use]
+    pub fn from_stats(h: &HorizonStats) -> HorizonCode {
+        use crate::format::{angle_encode, MEAN_SPAN, SD_SPAN};
+        HorizonCode::new(
+            h.weight as f32,
+            h.mean.map(|m| angle_encode(m, MEAN_SPAN)),
+            h.var.map(|v| angle_encode(v.max(0.0).sqrt(), SD_SPAN)),
+        )
+    }
+    /// The statistics as the map file's reader decodes them, rounded to `f32` as a compact
+    /// level keeps them ([`Horizon32`]), in `f64`.
+    #[inline]
+    #[must_use]
+    pub fn to_stats(&self) -> HorizonStats {
+        use crate::format::{angle_decode, MEAN_SPAN, SD_SPAN};
+        let mut a = [0u8; 16];
+        a[..12].copy_from_slice(&self.0[4..]);
+        let bits = u128::from_le_bytes(a);
+        let q = |i: usize| ((bits >> (12 * i)) & 0xFFF) as u16;
+        let mut h = Horizon32 {
+            weight: f32::from_le_bytes([self.0[0], self.0[1], self.0[2], self.0[3]]),
+            ..Horizon32::default()
+        };
+        for d in 0..4 {
+            h.mean[d] = angle_decode(q(d), MEAN_SPAN) as f32;
+            let sd = angle_decode(q(4 + d), SD_SPAN);
+            h.var[d] = (sd * sd) as f32;
+        }
+        h.to_stats()
+    }
+}
+
+/// The horizon statistics of a level's texels, in `f64`, in `f32`, or as a map file's codes
+/// (module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Horizons {
     /// Full precision.
     F64(Vec<HorizonStats>),
     /// Rounded to `f32`.
     F32(Vec<Horizon32>),
+    /// A map file's codes (reading back as `F32` would: [`HorizonCode`]).
+    Coded(Vec<HorizonCode>),
 }
 
 impl Horizons {
@@ -265,6 +393,7 @@ impl Horizons {
         match self {
             Horizons::F64(v) => v.len(),
             Horizons::F32(v) => v.len(),
+            Horizons::Coded(v) => v.len(),
         }
     }
     /// Whether there are none.
@@ -272,10 +401,10 @@ impl Horizons {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-    /// Whether the statistics are stored in `f32`.
+    /// Whether the statistics are stored in `f32` (or coded, which reads back as `f32`).
     #[must_use]
     pub fn is_compact(&self) -> bool {
-        matches!(self, Horizons::F32(_))
+        matches!(self, Horizons::F32(_) | Horizons::Coded(_))
     }
     /// The statistics of texel `t`.
     ///
@@ -287,6 +416,7 @@ impl Horizons {
         match self {
             Horizons::F64(v) => v[t],
             Horizons::F32(v) => v[t].to_stats(),
+            Horizons::Coded(v) => v[t].to_stats(),
         }
     }
     /// All of them, in `f64`.
@@ -303,19 +433,21 @@ impl Horizons {
     pub fn to_vec(&self) -> Vec<HorizonStats> {
         self.iter().collect()
     }
-    /// Bytes they occupy (texels × 72 or 36).
+    /// Bytes they occupy (texels × 72, 36 or 16).
     #[must_use]
     pub fn bytes(&self) -> usize {
         match self {
             Horizons::F64(v) => v.len() * std::mem::size_of::<HorizonStats>(),
             Horizons::F32(v) => v.len() * std::mem::size_of::<Horizon32>(),
+            Horizons::Coded(v) => v.len() * std::mem::size_of::<HorizonCode>(),
         }
     }
-    /// Append statistics (rounded when compact).
+    /// Append statistics (rounded when compact, coded when coded).
     pub fn extend_from_slice(&mut self, hs: &[HorizonStats]) {
         match self {
             Horizons::F64(v) => v.extend_from_slice(hs),
             Horizons::F32(v) => v.extend(hs.iter().map(Horizon32::from_stats)),
+            Horizons::Coded(v) => v.extend(hs.iter().map(HorizonCode::from_stats)),
         }
     }
 }
@@ -356,6 +488,66 @@ impl<'a> IntoIterator for &'a Horizons {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`crate::Pyramid::read_coded`] keeps the compact levels of a format-4 file as codes
+    /// (11 bytes a lobe, 16 a texel's horizons) that read back bit for bit as
+    /// [`crate::Pyramid::read`]'s `f32` levels; the small levels are the same `f64` ones. A
+    /// coded level pushed to and read back gives the codes' values; a texel written from a
+    /// coded pyramid gives the same file.
+    #[test]
+    fn coded_levels_read_back_as_f32_levels() {
+        use crate::{extract, fixtures, ExtractParams, Pyramid, Source};
+        let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
+        let pyr = extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap();
+        let dir = std::env::temp_dir().join(format!("meso-coded-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("g256.map");
+        pyr.write(&path).unwrap();
+        let full = Pyramid::read(&path).unwrap();
+        let coded = Pyramid::read_coded(&path).unwrap();
+        assert_eq!(full.levels.len(), coded.levels.len());
+        let mut n_coded = 0;
+        for (a, b) in full.levels.iter().zip(&coded.levels) {
+            assert_eq!(a.lobe_start, b.lobe_start);
+            assert_eq!(a.lobes.len(), b.lobes.len());
+            let big = a.texels() >= COMPACT_TEXELS;
+            assert_eq!(matches!(b.lobes, Lobes::Coded(_)), big);
+            assert_eq!(matches!(b.horizon, Some(Horizons::Coded(_))), big);
+            assert_eq!(a.lobes.is_compact(), b.lobes.is_compact());
+            for i in 0..a.lobes.len() {
+                assert_eq!(a.lobes.get(i), b.lobes.get(i), "lobe {i}");
+            }
+            let (ha, hb) = (a.horizon.as_ref().unwrap(), b.horizon.as_ref().unwrap());
+            for t in 0..a.texels() {
+                assert_eq!(ha.get(t), hb.get(t), "texel {t}");
+            }
+            if big {
+                n_coded += 1;
+                assert_eq!(b.lobes.bytes(), 11 * b.lobes.len());
+                assert_eq!(hb.bytes(), 16 * b.texels());
+            }
+        }
+        assert_eq!(n_coded, 1, "level 0 (256²) is coded");
+        assert_eq!(coded.to_bytes(), full.to_bytes());
+        // Pushing to a coded level codes the lobe: it reads back as its codes decode.
+        let mut l = Lobes::Coded(Vec::new());
+        let p = full.levels[0].lobes.get(5);
+        l.push(p);
+        let q = l.get(0);
+        assert!(q.axis.angle_between(p.axis) < 3e-6);
+        assert_eq!(q.weight, f64::from(p.weight as f32));
+        assert!((q.exponent - p.exponent).abs() <= 1e-3 * p.exponent);
+        let mut h = Horizons::Coded(Vec::new());
+        let s = full.levels[0].horizon.as_ref().unwrap().get(7);
+        h.extend_from_slice(&[s]);
+        assert_eq!(h.get(0), s, "a decoded horizon codes to itself");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     #[test]
     fn f32_lobes_and_horizons_round_trip_within_f32_rounding() {

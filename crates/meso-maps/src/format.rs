@@ -18,6 +18,9 @@ pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
 mod v3;
 mod v4;
 
+pub(crate) use v3::{
+    angle_decode, angle_encode, eta_decode, eta_encode, oct_decode, oct_encode, MEAN_SPAN, SD_SPAN,
+};
 pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 pub(crate) use v4::{check_band, write_band, write_level_end};
 pub use v4::{BAND_ROWS, VERSION_4};
@@ -142,16 +145,61 @@ impl Pyramid {
         Pyramid::from_bytes(path, &bytes)
     }
 
+    /// [`Pyramid::read`] keeping the compact levels (those of at least
+    /// [`crate::COMPACT_TEXELS`] texels) of a format-4 file as the file codes them
+    /// ([`crate::Lobes::Coded`], 11 bytes a lobe; [`crate::Horizons::Coded`], 16 bytes a texel,
+    /// against 20 and 36 in `f32`), which read back as the very values [`Pyramid::read`] gives
+    /// (each `Lobes::get` and `Horizons::get` decodes one). On unix the file is mapped and its
+    /// pages handed back band by band as they are read, so the memory is the coded pyramid and
+    /// one band (a 4096² height map: 1.04 GB, where [`Pyramid::read`] holds 1.97 GB and the
+    /// 0.5 GB file); checked against the budget before anything is inflated. Other versions
+    /// are read as [`Pyramid::read`] does. What `meso render` holds a map file's pyramid as.
+    ///
+    /// # Errors
+    /// As [`Pyramid::read`].
+    pub fn read_coded(path: &Path) -> Result<Pyramid> {
+        let io = |e| MapError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        };
+        #[cfg(unix)]
+        {
+            let map = Mapped::open(path).map_err(io)?;
+            let mut r = Reader::new(map.bytes(), path);
+            r.mapped = true;
+            let h = read_header(&mut r)?;
+            if h.version != VERSION_4 {
+                drop(map);
+                return Pyramid::read(path);
+            }
+            let levels = v4::read_levels(&mut r, &h, true, true)?;
+            if r.pos != r.b.len() {
+                return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
+            }
+            Ok(h.into_pyramid(levels))
+        }
+        #[cfg(not(unix))]
+        {
+            let bytes = std::fs::read(path).map_err(io)?;
+            let mut r = Reader::new(&bytes, path);
+            let h = read_header(&mut r)?;
+            if h.version != VERSION_4 {
+                return Pyramid::from_bytes(path, &bytes);
+            }
+            let levels = v4::read_levels(&mut r, &h, true, true)?;
+            if r.pos != r.b.len() {
+                return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
+            }
+            Ok(h.into_pyramid(levels))
+        }
+    }
+
     /// Parse a map file from bytes; `path` only names the source in errors.
     pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Pyramid> {
-        let mut r = Reader {
-            b: bytes,
-            pos: 0,
-            path: path.to_path_buf(),
-        };
+        let mut r = Reader::new(bytes, path);
         let h = read_header(&mut r)?;
         let levels = if h.version == VERSION_4 {
-            v4::read_levels(&mut r, &h, true)?
+            v4::read_levels(&mut r, &h, true, false)?
         } else if h.version == VERSION_3 {
             let mut levels = v3::read_levels(&mut r, &h)?;
             if let Some(sh) = v3::read_shading(&mut r, h.nlev)? {
@@ -179,14 +227,10 @@ impl Pyramid {
     /// # Errors
     /// As [`Pyramid::from_bytes`].
     pub fn check_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
-        let mut r = Reader {
-            b: bytes,
-            pos: 0,
-            path: path.to_path_buf(),
-        };
+        let mut r = Reader::new(bytes, path);
         let h = read_header(&mut r)?;
         if h.version == VERSION_4 {
-            v4::read_levels(&mut r, &h, false)?;
+            v4::read_levels(&mut r, &h, false, false)?;
         } else if h.version == VERSION_3 {
             v3::check_levels(&mut r, &h)?;
             v3::read_shading(&mut r, h.nlev)?;
@@ -433,9 +477,53 @@ struct Reader<'a> {
     b: &'a [u8],
     pos: usize,
     path: PathBuf,
+    /// Whether `b` is a mapped file whose pages [`Reader::release`] hands back.
+    mapped: bool,
+    /// The bytes before this (a page boundary) are released.
+    released: usize,
 }
 
 impl<'a> Reader<'a> {
+    /// A reader of `b` from its start; `path` names it in errors.
+    fn new(b: &'a [u8], path: &Path) -> Reader<'a> {
+        Reader {
+            b,
+            pos: 0,
+            path: path.to_path_buf(),
+            mapped: false,
+            released: 0,
+        }
+    }
+
+    /// Whether the bytes read are released as they are read (a mapped file).
+    fn releases(&self) -> bool {
+        self.mapped
+    }
+
+    /// Hand the whole pages before the reader's position back to the system when the reader
+    /// holds a mapped file (they are read again from the file if read again): the file then
+    /// takes no more of the process's memory than the pages between two calls.
+    fn release(&mut self) {
+        #[cfg(unix)]
+        if self.mapped {
+            const PAGE: usize = 1 << 16; // a multiple of every page size in use
+            let to = self.pos / PAGE * PAGE;
+            if to > self.released {
+                // SAFETY: `b` is a read-only private mapping of whole pages starting at a page
+                // boundary (`Mapped`); dropping pages of it only makes later reads fault them
+                // in from the file again, with the same bytes.
+                unsafe {
+                    libc::madvise(
+                        self.b.as_ptr().add(self.released) as *mut libc::c_void,
+                        to - self.released,
+                        libc::MADV_DONTNEED,
+                    );
+                }
+                self.released = to;
+            }
+        }
+    }
+
     /// The header of level `k` (texels along x and y, span, lobe count), checked against the
     /// expected `ec × er` texels, span `2^k` and at most `max_lobes` per texel (both formats);
     /// returns the lobe count.
@@ -497,5 +585,67 @@ impl<'a> Reader<'a> {
     }
     fn f32(&mut self, what: &str) -> Result<f64> {
         Ok(f32::from_le_bytes(self.take(4, what)?.try_into().unwrap()) as f64)
+    }
+}
+
+/// A file mapped read-only into memory ([`Pyramid::read_coded`]), unmapped when dropped.
+#[cfg(unix)]
+struct Mapped {
+    ptr: *mut libc::c_void,
+    len: usize,
+}
+
+#[cfg(unix)]
+impl Mapped {
+    /// Map the file at `path` (an empty file maps to no bytes).
+    fn open(path: &Path) -> std::io::Result<Mapped> {
+        use std::os::unix::io::AsRawFd;
+        let f = std::fs::File::open(path)?;
+        let len = usize::try_from(f.metadata()?.len())
+            .map_err(|_| std::io::Error::other("file too large to map"))?;
+        if len == 0 {
+            return Ok(Mapped {
+                ptr: std::ptr::null_mut(),
+                len: 0,
+            });
+        }
+        // SAFETY: a fresh read-only private mapping of the whole file; the pointer is checked.
+        let ptr = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                len,
+                libc::PROT_READ,
+                libc::MAP_PRIVATE,
+                f.as_raw_fd(),
+                0,
+            )
+        };
+        if ptr == libc::MAP_FAILED {
+            return Err(std::io::Error::last_os_error());
+        }
+        Ok(Mapped { ptr, len })
+    }
+
+    /// The file's bytes.
+    fn bytes(&self) -> &[u8] {
+        if self.len == 0 {
+            return &[];
+        }
+        // SAFETY: `ptr` maps `len` readable bytes for as long as `self` lives. (A file truncated
+        // by another process while mapped would fault; map files are replaced by renaming,
+        // `meso_core::io::write_atomic`, which leaves a mapped file whole.)
+        unsafe { std::slice::from_raw_parts(self.ptr as *const u8, self.len) }
+    }
+}
+
+#[cfg(unix)]
+impl Drop for Mapped {
+    fn drop(&mut self) {
+        if self.len > 0 {
+            // SAFETY: the mapping made in `open`, unmapped once.
+            unsafe {
+                libc::munmap(self.ptr, self.len);
+            }
+        }
     }
 }

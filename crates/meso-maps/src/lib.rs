@@ -46,7 +46,10 @@ pub mod sphgrid;
 pub mod visibility;
 
 pub use baseline::{baseline_lobes, fit_baseline, Baseline, Lean};
-pub use compact::{Horizon32, HorizonIter, Horizons, Lobe32, LobeIter, Lobes, COMPACT_TEXELS};
+pub use compact::{
+    Horizon32, HorizonCode, HorizonIter, Horizons, Lobe32, LobeCode, LobeIter, Lobes,
+    COMPACT_TEXELS,
+};
 pub use error::{MapError, Result};
 pub use facet_ndf::{
     facets_bytes, facets_with_visibility, facets_with_visibility_progress, FacetVisibility,
@@ -60,8 +63,9 @@ pub use horizon::{HorizonDirection, HorizonMap, HorizonStats};
 pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_stream_bytes, extract_to_file, extract_to_writer, extract_work,
-    lobe_stats, lobe_stats_by_cell, peak_projected_area, texel_lobe_stats, ExtractParams, Level,
-    LobeStat, LobeStats, Method, Progress, Pyramid, PyramidInfo, Source, StreamedLevel,
+    lobe_stats, lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, texel_lobe_stats,
+    ExtractParams, Level, LevelStats, LobeStat, LobeStats, Method, Progress, Pyramid, PyramidInfo,
+    Source, StreamedLevel,
 };
 pub use radiosity::FacetRadiosity;
 pub use resolver::{ExtractProgress, MapsResolver};

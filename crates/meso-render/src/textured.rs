@@ -285,7 +285,8 @@ fn map_mapped(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
             ));
         }
     }
-    let pyramid = Pyramid::read(file).map_err(|e| format!("[texture] map: {e}"))?;
+    // Kept as the file codes it (half the memory of `f32` levels, the same values read).
+    let pyramid = Pyramid::read_coded(file).map_err(|e| format!("[texture] map: {e}"))?;
     let conflict = |key: &str, given: &dyn std::fmt::Display, stored: &dyn std::fmt::Display| {
         format!(
             "[texture] {key} = {given} conflicts with the map file {shown}, extracted with \
@@ -351,12 +352,47 @@ fn map_mapped(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
     };
     let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
     let surface = t.surface()?;
-    // The pyramid is read for this material alone: hand it over, so that its levels are
-    // freed as their tables are built (a 4096² map's peak, docs/benchmarks.md).
+    // The pyramid is read for this material alone: hand it over; its tables are built tile by
+    // tile as the render reads them (a 4096² map's peak, docs/benchmarks.md), under a cap
+    // from the memory budget (docs/limits.md).
+    let cap = table_cap(file, &pyramid, &surface, shadowing)?;
     Ok(Arc::new(
         NdfMapped::from_pyramid(pyramid, &surface, texels_per_uv, shadowing)?
-            .with_box_filter(t.box_filter),
+            .with_box_filter(t.box_filter)
+            .with_table_cap(cap),
     ))
+}
+
+/// The least memory for an NDF-mapped material's tables built on demand (a few hundred
+/// level-0 tiles of a height map, ≈ 0.5 MB each).
+pub const MIN_TABLE_CACHE: u64 = 64 << 20;
+
+/// The cap on the tables `meso render` builds on demand for the map file `file` (its
+/// `pyramid` held besides): half of what the memory budget leaves beside the pyramid, at
+/// least [`MIN_TABLE_CACHE`], at most every tile's tables
+/// ([`NdfMapped::tables_bytes_bound`]). The material's estimate, the pyramid and the least
+/// cache, is checked against the budget first.
+///
+/// # Errors
+/// The budget's message naming `file` when the pyramid and the least cache do not fit.
+fn table_cap(
+    file: &Path,
+    pyramid: &Pyramid,
+    surface: &meso_core::material::Material,
+    shadowing: bool,
+) -> Result<usize, String> {
+    let held = NdfMapped::pyramid_bytes(pyramid);
+    let bound = NdfMapped::tables_bytes_bound(pyramid, surface, shadowing);
+    let least = MIN_TABLE_CACHE.min(bound);
+    meso_core::budget::check(
+        file,
+        "rendering the map file (its pyramid and the least cache of tables)",
+        held + least,
+    )
+    .map_err(|e| format!("[texture] map: {e}"))?;
+    let left = meso_core::budget::budget().bytes.saturating_sub(held);
+    let cap = (left / 2).max(least).min(bound);
+    Ok(usize::try_from(cap).unwrap_or(usize::MAX))
 }
 
 /// `filter` of a `[texture]` table: `"box"` (default: the closer to the supersampled bump map

@@ -1,35 +1,51 @@
-//! The memory of building the NDF-mapped material of a map file's pyramid
-//! (`NdfMapped::from_pyramid`, what `meso render` does for `[texture] map = "…"`) against what
-//! is really allocated: this test binary counts every heap byte (a counting global allocator,
-//! `meso_testkit::alloc`, as `meso-maps`' `extract_memory.rs`). On a 256² Gaussian height map's pyramid (two lobes a
-//! level-0 texel, level 0 compact) the peak of building it, the pyramid included, is the model
-//! of docs/map-format.md ("Rendering a map file") to within −25 %/+10 %: the pyramid, the lobe
-//! statistics (8 B a lobe for the shares; horizons 36 or 72 B a level-0 texel and a coarser lobe)
-//! and level 0's table (40 B a lobe, 4 B a texel) — which the layout before 2026-12-04 (88-byte
-//! lobes, horizons copied to `f64`, level 0's lobe horizons per lobe) exceeded by far — and it
-//! stays under `NdfMapped::new`'s peak with the pyramid kept. One test per binary: the counter
-//! sees only this test's allocations.
+//! The memory of rendering a map file's material (what `meso render` does for
+//! `[texture] map = "…"`: `Pyramid::read_coded`, then `NdfMapped::from_pyramid`, whose tables
+//! are built tile by tile as shading reads them, under a cap) against what is really
+//! allocated: this test binary counts every heap byte (a counting global allocator,
+//! `meso_testkit::alloc`, as `meso-maps`' `extract_memory.rs`). On a 256² Gaussian height
+//! map's file (two lobes a level-0 texel, level 0 compact: coded) the model of
+//! docs/map-format.md ("Rendering a map file"):
+//!
+//! * reading: the coded pyramid (11 B a lobe, 4 + 16 B a texel on compact levels; 40 B a lobe,
+//!   4 + 72 B a texel on the others) and one band being decoded;
+//! * building and shading: the pyramid, the tables of the tiles held (the cache's own count)
+//!   and one tile being built (its lobe statistics), whatever the view; under a cap, at most
+//!   the cap, the tile being built and the tiles a shading call holds.
+//!
+//! One test per binary: the counter sees only this test's allocations.
 
+use glam::{DVec2, DVec3};
 use meso_core::material::Material;
-use meso_maps::{extract, fixtures, ExtractParams, Pyramid, Source};
-use meso_render::NdfMapped;
+use meso_maps::{extract, fixtures, ExtractParams, Pyramid, Source, COMPACT_TEXELS};
+use meso_render::material::local_point;
+use meso_render::{NdfMapped, Shader};
 use meso_testkit::alloc::peak_since;
 
 #[global_allocator]
 static A: meso_testkit::alloc::Counting = meso_testkit::alloc::Counting;
 
-/// Heap bytes of a pyramid's levels (lobes, horizon statistics, lobe starts).
-fn pyramid_bytes(p: &Pyramid) -> usize {
-    p.levels
-        .iter()
-        .map(|l| {
-            l.lobes.bytes() + l.horizon.as_ref().map_or(0, |h| h.bytes()) + 4 * l.lobe_start.len()
-        })
-        .sum()
+/// Shade a `n × n` grid of points over `span` uv units from `(0.3, 0.6)` with a footprint of
+/// `fp` uv units.
+fn shade(m: &NdfMapped, n: usize, span: f64, fp: f64) -> f64 {
+    let wi = [DVec3::new(0.3, 0.4, 0.866)];
+    let wo = DVec3::new(0.0, -0.5, 0.866);
+    let mut out = [[0.0f32; 3]];
+    let mut sum = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let uv = DVec2::new(
+                0.3 + span * i as f64 / n as f64,
+                0.6 + span * j as f64 / n as f64,
+            );
+            m.eval_many(&local_point(uv, fp), wo, &wi, &mut out);
+            sum += f64::from(out[0][0]);
+        }
+    }
+    sum
 }
 
 #[test]
-fn building_from_a_map_pyramid_peaks_at_its_model() {
+fn rendering_a_map_file_peaks_at_its_model() {
     let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
     let pyr = extract(
         Source::Heights(&map),
@@ -38,60 +54,90 @@ fn building_from_a_map_pyramid_peaks_at_its_model() {
     )
     .unwrap();
     drop(map);
-    let read = pyramid_to_file_and_back(&pyr);
+    let dir = std::env::temp_dir().join(format!("meso-map-memory-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g256.map");
+    pyr.write(&path).unwrap();
     let lobes: usize = pyr.levels.iter().map(|l| l.lobes.len()).sum();
-    assert!(pyr.levels[0].lobes.is_compact());
     assert!(pyr.levels[0].lobes.len() > pyr.levels[0].texels() * 3 / 2);
-    let surface =
-        Material::from_toml_str("[transfer]\nkind = \"phong\"\nexponent = 20.0\n").unwrap();
-    let p_bytes = pyramid_bytes(&read);
-
-    let mut reset = 0;
-    peak_since(&mut reset);
-    let kept = NdfMapped::new(&read, &surface, 256.0, true).unwrap();
-    let new_peak = peak_since(&mut reset) + p_bytes;
-    drop(kept);
-    peak_since(&mut reset);
-    // The pyramid (allocated before the reset) is part of `from_pyramid`'s peak.
-    let built = NdfMapped::from_pyramid(read, &surface, 256.0, true).unwrap();
-    let from_peak = peak_since(&mut reset) + p_bytes;
-    let per_lobe = from_peak as f64 / lobes as f64;
-    eprintln!(
-        "{lobes} lobes, pyramid {:.1} MB: from_pyramid peak {:.1} MB ({per_lobe:.1} B a lobe), \
-         new with the pyramid kept {:.1} MB ({:.1} B a lobe)",
-        p_bytes as f64 / 1e6,
-        from_peak as f64 / 1e6,
-        new_peak as f64 / 1e6,
-        new_peak as f64 / lobes as f64
-    );
-    assert!(built.levels() == pyr.levels.len());
-    // The model: the pyramid, the lobe statistics, level 0's table.
-    let hz = |c: bool| if c { 36 } else { 72 };
-    let l0 = &pyr.levels[0];
-    let stats: usize = pyr
+    let model_pyramid: usize = pyr
         .levels
         .iter()
-        .enumerate()
-        .map(|(k, l)| {
-            let c = l.lobes.is_compact();
-            8 * l.lobes.len()
-                + if k == 0 {
-                    hz(c) * l.texels()
-                } else {
-                    hz(c) * l.lobes.len()
-                }
+        .map(|l| {
+            if l.texels() >= COMPACT_TEXELS {
+                11 * l.lobes.len() + 20 * l.texels() + 4
+            } else {
+                40 * l.lobes.len() + 76 * l.texels() + 4
+            }
         })
         .sum();
-    let model = p_bytes + stats + 40 * l0.lobes.len() + 4 * l0.texels();
-    eprintln!("model {:.1} MB", model as f64 / 1e6);
-    assert!(
-        from_peak as f64 <= 1.1 * model as f64 && from_peak as f64 >= 0.75 * model as f64,
-        "peak {from_peak} B against the model's {model} B"
-    );
-    assert!(from_peak < new_peak, "{from_peak} against {new_peak}");
-}
+    drop(pyr);
 
-/// The pyramid as `meso render` gets it from a map file: written and read back.
-fn pyramid_to_file_and_back(p: &Pyramid) -> Pyramid {
-    Pyramid::from_bytes(std::path::Path::new("g256.map"), &p.to_bytes()).unwrap()
+    // Reading: the coded pyramid and one band (64 rows of level 0: its streams inflated and
+    // decoded, its lobes and horizons built in `f64`, ≈ 250 B a texel and lobe).
+    let mut reset = 0;
+    peak_since(&mut reset);
+    let read = Pyramid::read_coded(&path).unwrap();
+    let read_peak = peak_since(&mut reset);
+    let p_bytes = NdfMapped::pyramid_bytes(&read) as usize;
+    let band = 64 * 256 * 250;
+    eprintln!(
+        "{lobes} lobes: coded pyramid {:.2} MB (model {:.2} MB), reading peak {:.2} MB",
+        p_bytes as f64 / 1e6,
+        model_pyramid as f64 / 1e6,
+        read_peak as f64 / 1e6
+    );
+    assert_eq!(p_bytes, model_pyramid);
+    assert!(
+        read_peak >= p_bytes && read_peak <= p_bytes + band,
+        "{read_peak}"
+    );
+
+    let surface =
+        Material::from_toml_str("[transfer]\nkind = \"phong\"\nexponent = 20.0\n").unwrap();
+    // One tile being built, at most: 64² texels of up to 4 lobes (a coarse level's, in
+    // `f64`), each lobe's share, horizon statistics and table entry (8 + 72 + 40 B, vectors
+    // grown up to twice), each texel's horizon statistics and lobe start (72 + 4 B).
+    let tile = 64 * 64 * (4 * (8 + 72 + 40) * 2 + 76);
+    // A far view (8 cells a point: levels 2 and 3), a zoomed one (half a cell: level 0, over
+    // 128² cells, 4 to 9 tiles), and the zoomed one under a cap of about two tiles.
+    for (view, n, span, fp, cap) in [
+        ("far", 64, 1.0, 8.0 / 256.0, usize::MAX),
+        ("zoom", 128, 0.5, 0.5 / 256.0, usize::MAX),
+        ("zoom", 128, 0.5, 0.5 / 256.0, 3 << 19),
+    ] {
+        {
+            peak_since(&mut reset);
+            let m = NdfMapped::from_pyramid(read.clone(), &surface, 256.0, true)
+                .unwrap()
+                .with_table_cap(cap);
+            let sum = shade(&m, n, span, fp);
+            // The pyramid's copy (allocated after the reset) is part of the peak.
+            let peak = peak_since(&mut reset);
+            let (held, cache_peak, dropped) = m.table_cache_stats();
+            eprintln!(
+                "{view}, cap {cap}: {} tiles held ({:.2} MB, peak {:.2} MB, {dropped} dropped), \
+                 heap peak beyond the pyramid {:.2} MB (shaded sum {sum:.3})",
+                m.tiles_built(),
+                held as f64 / 1e6,
+                cache_peak as f64 / 1e6,
+                (peak - p_bytes) as f64 / 1e6
+            );
+            assert!(m.tiles_built() > 0);
+            assert!(
+                peak >= p_bytes + cache_peak,
+                "{peak} against {p_bytes} + {cache_peak}"
+            );
+            assert!(
+                peak <= p_bytes + cache_peak + tile,
+                "{peak} against the model"
+            );
+            if cap < usize::MAX {
+                assert!(dropped > 0);
+                // The cap, passed by at most the tile just built before others are dropped.
+                assert!(cache_peak <= cap + tile, "{cache_peak} over the cap {cap}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -94,10 +94,12 @@ pub(crate) fn band_of(l: &Level, r0: usize, r1: usize) -> Level {
     let lobes = match &l.lobes {
         Lobes::F64(v) => Lobes::F64(v[a..b].to_vec()),
         Lobes::F32(v) => Lobes::F32(v[a..b].to_vec()),
+        Lobes::Coded(v) => Lobes::Coded(v[a..b].to_vec()),
     };
     let horizon = l.horizon.as_ref().map(|h| match h {
         Horizons::F64(v) => Horizons::F64(v[t0..t1].to_vec()),
         Horizons::F32(v) => Horizons::F32(v[t0..t1].to_vec()),
+        Horizons::Coded(v) => Horizons::Coded(v[t0..t1].to_vec()),
     });
     Level {
         cols: l.cols,
@@ -265,6 +267,7 @@ fn read_band(
     k: usize,
     e: &TableEntry,
     next_row: usize,
+    coded: bool,
 ) -> Result<Level> {
     let b = band_head(r, h, k, (e.cols, e.rows), next_row)?
         .ok_or_else(|| r.err(format!("level {k}: a band expected")))?;
@@ -294,7 +297,25 @@ fn read_band(
         &columns,
         h.has_h,
         compact(e.texels()),
+        coded,
     )
+}
+
+/// The memory (bytes) of the levels of `table` read with their codes kept on the compact
+/// levels ([`read_levels`] with `coded`): per lobe 11 bytes ([`crate::compact::LobeCode`]) and
+/// per texel its lobe start (4) and horizon codes (16, [`crate::compact::HorizonCode`]) on the
+/// compact levels, [`pyramid_bytes`]'s on the others.
+fn coded_pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
+    table
+        .iter()
+        .map(|t| {
+            if compact(t.texels()) {
+                t.lobes as u64 * 11 + t.texels() as u64 * (4 + if has_h { 16 } else { 0 })
+            } else {
+                pyramid_bytes(std::slice::from_ref(t), has_h)
+            }
+        })
+        .sum()
 }
 
 /// Append band `b` to level `l` (same precision).
@@ -305,11 +326,13 @@ fn append(l: &mut Level, b: Level) {
     match (&mut l.lobes, b.lobes) {
         (Lobes::F64(a), Lobes::F64(mut x)) => a.append(&mut x),
         (Lobes::F32(a), Lobes::F32(mut x)) => a.append(&mut x),
+        (Lobes::Coded(a), Lobes::Coded(mut x)) => a.append(&mut x),
         _ => unreachable!("a level's bands share its precision"),
     }
     match (&mut l.horizon, b.horizon) {
         (Some(Horizons::F64(a)), Some(Horizons::F64(mut x))) => a.append(&mut x),
         (Some(Horizons::F32(a)), Some(Horizons::F32(mut x))) => a.append(&mut x),
+        (Some(Horizons::Coded(a)), Some(Horizons::Coded(mut x))) => a.append(&mut x),
         (None, None) => {}
         _ => unreachable!("a level's bands share its precision"),
     }
@@ -318,16 +341,23 @@ fn append(l: &mut Level, b: Level) {
 /// Read (`build`) or only check the levels of a format-4 file after the common header: the
 /// chunks scanned ([`scan`]) and the memory checked against the budget before anything is
 /// inflated, then band by band inflated, decoded, checked and appended to its level (or
-/// dropped). Returns the levels (empty when not `build`).
+/// dropped). Returns the levels (empty when not `build`). With `coded`, the compact levels
+/// keep the file's codes ([`Lobes::Coded`], [`Horizons::Coded`]); the reader's bytes are
+/// released as they are read when it holds a mapped file (`Reader::release`), so that the
+/// memory is the coded pyramid and one band, not the file besides.
 pub(in crate::format) fn read_levels(
     r: &mut Reader<'_>,
     h: &Header,
     build: bool,
+    coded: bool,
 ) -> Result<Vec<Level>> {
     let start = r.pos;
     let (table, band_max) = scan(r, h)?;
     let end = r.pos;
-    let need = if build {
+    let need = if build && coded {
+        let file = if r.releases() { 0 } else { r.b.len() as u64 };
+        file + coded_pyramid_bytes(&table, h.has_h) + band_max
+    } else if build {
         r.b.len() as u64 + pyramid_bytes(&table, h.has_h) + band_max
     } else {
         band_max
@@ -348,23 +378,32 @@ pub(in crate::format) fn read_levels(
         };
         level.lobe_start.push(0);
         if build {
+            if c && coded {
+                level.lobes = Lobes::Coded(Vec::with_capacity(e.lobes));
+                if h.has_h {
+                    level.horizon = Some(Horizons::Coded(Vec::with_capacity(e.texels())));
+                }
+            }
             match &mut level.lobes {
                 Lobes::F64(v) => v.reserve_exact(e.lobes),
                 Lobes::F32(v) => v.reserve_exact(e.lobes),
+                Lobes::Coded(v) => v.reserve_exact(e.lobes),
             }
             match &mut level.horizon {
                 Some(Horizons::F64(v)) => v.reserve_exact(e.texels()),
                 Some(Horizons::F32(v)) => v.reserve_exact(e.texels()),
+                Some(Horizons::Coded(v)) => v.reserve_exact(e.texels()),
                 None => {}
             }
         }
         let mut next = 0;
         while next < e.rows {
-            let band = read_band(r, h, k, e, next)?;
+            let band = read_band(r, h, k, e, next, coded)?;
             next += band.rows;
             if build {
                 append(&mut level, band);
             }
+            r.release();
         }
         level_end(r, k, e.lobes)?;
         if build {
@@ -385,11 +424,7 @@ pub(crate) fn check_band(
     row0: usize,
     bytes: &[u8],
 ) -> Result<()> {
-    let mut r = Reader {
-        b: bytes,
-        pos: 0,
-        path: path.to_path_buf(),
-    };
+    let mut r = Reader::new(bytes, path);
     let e = TableEntry {
         cols,
         rows,
@@ -398,7 +433,7 @@ pub(crate) fn check_band(
         residual: Residual::default(),
         t0: 0,
     };
-    read_band(&mut r, h, k, &e, row0)?;
+    read_band(&mut r, h, k, &e, row0, false)?;
     if r.pos != bytes.len() {
         return Err(MapError::MapFormat {
             path: path.to_path_buf(),

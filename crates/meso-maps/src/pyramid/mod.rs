@@ -39,7 +39,8 @@ pub use cost::{
 pub use extract::{extract, extract_to_file, extract_to_writer, StreamedLevel};
 pub use info::{LevelInfo, PyramidInfo};
 pub use shares::{
-    lobe_stats, lobe_stats_by_cell, peak_projected_area, texel_lobe_stats, LobeStat, LobeStats,
+    lobe_stats, lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, texel_lobe_stats,
+    LevelStats, LobeStat, LobeStats,
 };
 
 use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};

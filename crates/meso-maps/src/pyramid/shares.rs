@@ -154,6 +154,94 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     LobeStats { shares, horizon }
 }
 
+/// [`lobe_stats_by_cell`] of the texels of a rectangle of one level: rows `rows` and columns
+/// `cols` of level `level`, row-major. `shares` holds the rectangle's lobes' shares in order
+/// (texel by texel, each texel's lobes as in [`Level::lobes`]); `horizon` (when `horizons` is
+/// true and the pyramid has horizon statistics) on level 0 one entry per texel of the
+/// rectangle (its cell's, as [`lobe_stats_by_cell`]), on coarser levels one per lobe, in the
+/// level's precision. The very values (same bits) of [`lobe_stats_by_cell`]'s entries for
+/// those texels: a coarse texel's cells are visited in the same order (row by row of its
+/// footprint) and their shares and horizons computed alike. Cost: the level-0 cells under the
+/// rectangle (a whole coarse level's rectangle visits all of level 0, as [`lobe_stats`] does
+/// per level); what a renderer building its tables on demand calls per tile.
+///
+/// # Panics
+/// `level`, `rows` or `cols` out of range.
+#[must_use]
+pub fn rect_lobe_stats_by_cell(
+    pyramid: &Pyramid,
+    level: usize,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
+    horizons: bool,
+) -> LevelStats {
+    let l = &pyramid.levels[level];
+    let l0 = &pyramid.levels[0];
+    assert!(
+        rows.end <= l.rows && cols.end <= l.cols,
+        "rectangle out of level {level}"
+    );
+    let h0 = l0.horizon.as_ref().filter(|_| horizons);
+    let compact = l.lobes.is_compact();
+    let mut shares = Vec::new();
+    let mut hz: Option<Vec<HorizonStats>> = h0.map(|_| Vec::new());
+    let (mut cell, mut logr, mut mass, mut acc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for row in rows {
+        for col in cols.clone() {
+            let t = row * l.cols + col;
+            if level == 0 {
+                cell_shares(l0, t, &mut shares);
+                if let (Some(v), Some(h)) = (&mut hz, h0) {
+                    v.push(cell_horizon(pyramid, h, t));
+                }
+                continue;
+            }
+            let (pa, pb) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
+            mass.clear();
+            mass.resize(pb - pa, 0.0f64);
+            acc.clear();
+            acc.resize(pb - pa, HorizonStats::default());
+            for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
+                for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
+                    let ct = r * l0.cols + c;
+                    cell.clear();
+                    cell_shares(l0, ct, &mut cell);
+                    let cell_h = h0.map(|h| cell_horizon(pyramid, h, ct));
+                    hand_cell(l0, ct, &cell, l, pa, pb, &mut logr, |j, m| {
+                        mass[j - pa] += m;
+                        if let Some(mut s) = cell_h {
+                            s.weight = m;
+                            acc[j - pa].merge(&s);
+                        }
+                    });
+                }
+            }
+            let total: f64 = mass.iter().sum();
+            shares.extend(
+                mass.iter()
+                    .map(|&m| if total > 0.0 { m / total } else { 0.0 }),
+            );
+            if let Some(v) = &mut hz {
+                v.extend_from_slice(&acc);
+            }
+        }
+    }
+    LevelStats {
+        shares,
+        horizon: hz.map(|v| Horizons::new(v, compact)),
+    }
+}
+
+/// What the lobes of part of one level stand for: [`rect_lobe_stats_by_cell`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelStats {
+    /// Per lobe, its share of its texel's projected area (as [`LobeStats::shares`]).
+    pub shares: Vec<f64>,
+    /// The horizon statistics: per texel on level 0, per lobe on coarser levels (as
+    /// [`lobe_stats_by_cell`]'s); `None` without.
+    pub horizon: Option<Horizons>,
+}
+
 /// What one lobe of a texel stands for ([`texel_lobe_stats`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LobeStat {
@@ -478,6 +566,50 @@ mod tests {
             }
             // Without horizons: no statistics either way.
             assert!(lobe_stats_by_cell(&pyr, false).horizon.is_none());
+        }
+    }
+
+    /// [`rect_lobe_stats_by_cell`] of any rectangle gives the very bits of
+    /// [`lobe_stats_by_cell`]'s entries for its texels, on every level, compact or not.
+    #[test]
+    fn rect_lobe_stats_are_lobe_stats_by_cell() {
+        let map = fixtures::gaussian(32, 4.0, 0.1, 3, 0.01).unwrap();
+        for compact_texels in [usize::MAX, 64] {
+            let params = ExtractParams {
+                compact_texels,
+                ..ExtractParams::default()
+            };
+            let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
+            let all = lobe_stats_by_cell(&pyr, true);
+            let hz = all.horizon.as_ref().unwrap();
+            for (k, l) in pyr.levels.iter().enumerate() {
+                let (r0, c0) = (l.rows / 3, l.cols / 2);
+                let (r1, c1) = ((r0 + 5).min(l.rows), (c0 + 3).min(l.cols));
+                let got = rect_lobe_stats_by_cell(&pyr, k, r0..r1, c0..c1, true);
+                let gh = got.horizon.as_ref().unwrap();
+                assert_eq!(gh.is_compact(), hz[k].is_compact());
+                let (mut i, mut n) = (0, 0);
+                for r in r0..r1 {
+                    for c in c0..c1 {
+                        let t = r * l.cols + c;
+                        if k == 0 {
+                            assert_eq!(gh.get(n), hz[0].get(t), "level 0 texel {t}");
+                        }
+                        n += 1;
+                        for j in l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize {
+                            assert_eq!(got.shares[i].to_bits(), all.shares[k][j].to_bits());
+                            if k > 0 {
+                                assert_eq!(gh.get(i), hz[k].get(j), "level {k} lobe {j}");
+                            }
+                            i += 1;
+                        }
+                    }
+                }
+                assert_eq!(got.shares.len(), i);
+                assert!(i > 0);
+            }
+            let none = rect_lobe_stats_by_cell(&pyr, 1, 0..1, 0..1, false);
+            assert!(none.horizon.is_none());
         }
     }
 }

@@ -14,11 +14,11 @@ const QA: f64 = 1_048_575.0;
 const QH: f64 = 4095.0;
 /// The ranges of the horizon mean and standard deviation codes (radians): horizon angles lie in
 /// [0, π/2), so their means do and their standard deviations are at most π/4.
-pub(super) const MEAN_SPAN: f64 = FRAC_PI_2;
-pub(super) const SD_SPAN: f64 = FRAC_PI_4;
+pub(crate) const MEAN_SPAN: f64 = FRAC_PI_2;
+pub(crate) const SD_SPAN: f64 = FRAC_PI_4;
 
 /// Octahedral code of a unit vector (2 × 20 bits): the best of the four nearest codes.
-pub(super) fn oct_encode(a: DVec3) -> (u32, u32) {
+pub(crate) fn oct_encode(a: DVec3) -> (u32, u32) {
     let l1 = a.x.abs() + a.y.abs() + a.z.abs();
     let (mut u, mut v) = (a.x / l1, a.y / l1);
     if a.z < 0.0 {
@@ -41,7 +41,7 @@ pub(super) fn oct_encode(a: DVec3) -> (u32, u32) {
 }
 
 /// The unit vector of an octahedral code.
-pub(super) fn oct_decode(qu: u32, qv: u32) -> DVec3 {
+pub(crate) fn oct_decode(qu: u32, qv: u32) -> DVec3 {
     let u = f64::from(qu) / QA * 2.0 - 1.0;
     let v = f64::from(qv) / QA * 2.0 - 1.0;
     let z = 1.0 - u.abs() - v.abs();
@@ -58,22 +58,22 @@ fn eta_scale() -> f64 {
     (1.0 + ETA_MAX).log2()
 }
 
-pub(super) fn eta_encode(eta: f64) -> u16 {
+pub(crate) fn eta_encode(eta: f64) -> u16 {
     ((1.0 + eta.clamp(0.0, ETA_MAX)).log2() / eta_scale() * Q).round() as u16
 }
 
-pub(super) fn eta_decode(q: u16) -> f64 {
+pub(crate) fn eta_decode(q: u16) -> f64 {
     if q == u16::MAX {
         return ETA_MAX;
     }
     ((f64::from(q) / Q * eta_scale()).exp2() - 1.0).clamp(0.0, ETA_MAX)
 }
 
-pub(super) fn angle_encode(x: f64, span: f64) -> u16 {
+pub(crate) fn angle_encode(x: f64, span: f64) -> u16 {
     (x / span * QH).round().clamp(0.0, QH) as u16
 }
 
-pub(super) fn angle_decode(q: u16, span: f64) -> f64 {
+pub(crate) fn angle_decode(q: u16, span: f64) -> f64 {
     f64::from(q.min(QH as u16)) / QH * span
 }
 

@@ -33,6 +33,9 @@
 //! * `shading` — the optional shading-error trailer (read).
 
 mod codes;
+pub(crate) use codes::{
+    angle_decode, angle_encode, eta_decode, eta_encode, oct_decode, oct_encode, MEAN_SPAN, SD_SPAN,
+};
 mod read;
 mod shading;
 mod streams;

@@ -5,7 +5,7 @@
 use super::codes::{angle_decode, eta_decode, oct_decode, MEAN_SPAN, SD_SPAN};
 use super::streams::{decode, read_stream, Layout, STREAMS};
 use super::table::{pyramid_bytes, read_table, TableEntry};
-use crate::compact::{Horizons, Lobes};
+use crate::compact::{HorizonCode, Horizons, LobeCode, Lobes};
 use crate::error::Result;
 use crate::format::{Header, Reader};
 use crate::horizon::HorizonStats;
@@ -55,7 +55,7 @@ pub(in crate::format) fn read_levels(r: &mut Reader<'_>, h: &Header) -> Result<V
     table
         .iter()
         .enumerate()
-        .map(|(k, t)| build_level(r, k, t, &layout, &columns, has_h, t.compact()))
+        .map(|(k, t)| build_level(r, k, t, &layout, &columns, has_h, t.compact(), false))
         .collect()
 }
 
@@ -185,8 +185,10 @@ pub(in crate::format) fn check_levels(r: &mut Reader<'_>, h: &Header) -> Result<
 
 /// Level `k` from the decoded columns: its lobes (a texel's weights normalised by their
 /// codes' sum, which must not be 0) and horizon statistics (a weight that is negative or not
-/// finite refused), in `f32` when `compact` (format 3: [`TableEntry::compact`]; format 4, whose
+/// finite refused), as the file's codes when `compact` and `coded` (`Pyramid::read_coded`),
+/// in `f32` when `compact` (format 3: [`TableEntry::compact`]; format 4, whose
 /// entry is a band of a level's rows: the level's).
+#[allow(clippy::too_many_arguments)]
 pub(in crate::format) fn build_level(
     r: &Reader<'_>,
     k: usize,
@@ -195,12 +197,16 @@ pub(in crate::format) fn build_level(
     c: &Columns,
     has_h: bool,
     compact: bool,
+    coded: bool,
 ) -> Result<Level> {
     let (n, t0) = (e.texels(), e.t0);
     let mut lobe_start = Vec::with_capacity(n + 1);
     let g0 = layout.start[t0];
     lobe_start.extend(layout.start[t0..=t0 + n].iter().map(|&s| (s - g0) as u32));
-    let mut lobes = if compact {
+    let coded = compact && coded;
+    let mut lobes = if coded {
+        Lobes::Coded(Vec::with_capacity(e.lobes))
+    } else if compact {
         Lobes::F32(Vec::with_capacity(e.lobes))
     } else {
         Lobes::F64(Vec::with_capacity(e.lobes))
@@ -208,6 +214,14 @@ pub(in crate::format) fn build_level(
     for t in t0..t0 + n {
         let (a, b) = (layout.start[t], layout.start[t + 1]);
         let sum = weight_sum(r, k, t - t0, &c.weights[a..b])?;
+        if let Lobes::Coded(v) = &mut lobes {
+            // The codes as they are, the weight as `Lobe32` rounds it.
+            v.extend((a..b).map(|i| {
+                let w = f64::from(c.weights[i]) / f64::from(sum);
+                LobeCode::new(c.axes[0][i], c.axes[1][i], c.etas[i] as u16, w as f32)
+            }));
+            continue;
+        }
         for i in a..b {
             lobes.push(PhongLobe {
                 axis: oct_decode(c.axes[0][i], c.axes[1][i]),
@@ -217,13 +231,23 @@ pub(in crate::format) fn build_level(
         }
     }
     let horizon = if has_h {
-        let mut h = if compact {
+        let mut h = if coded {
+            Horizons::Coded(Vec::with_capacity(n))
+        } else if compact {
             Horizons::F32(Vec::with_capacity(n))
         } else {
             Horizons::F64(Vec::with_capacity(n))
         };
         for t in t0..t0 + n {
             let weight = horizon_weight(r, k, c.hw[t])?;
+            if let Horizons::Coded(v) = &mut h {
+                v.push(HorizonCode::new(
+                    weight as f32,
+                    std::array::from_fn(|d| c.ha[d][t] as u16),
+                    std::array::from_fn(|d| c.ha[4 + d][t] as u16),
+                ));
+                continue;
+            }
             let mut s = HorizonStats {
                 weight,
                 ..HorizonStats::default()

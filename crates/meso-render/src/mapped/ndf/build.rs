@@ -11,19 +11,46 @@
 //! * Each texel's node weights sum to 1.
 
 use super::lobes::{lobe_nodes, Node, SgLobe, Shapes, NO_LOBE};
-use super::{NdfMapped, NodeLevel};
+use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
 use meso_core::sg;
-use meso_maps::{lobe_stats_by_cell, peak_projected_area, Pyramid};
+use meso_maps::{
+    lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, Horizons, Pyramid,
+};
 use std::f64::consts::FRAC_1_PI;
+use std::sync::Arc;
+
+/// Side of a tile of [`NdfMapped::from_pyramid`]'s tables, in texels: 64 × 64 texels (a
+/// level-0 tile of a height map ≈ 8 k lobes, ≈ 0.5 MB of tables with shadowing).
+pub const TILE_TEXELS: usize = 64;
+
+/// The pyramid a lazily built material builds its tiles from.
+#[derive(Clone)]
+pub(super) struct Source {
+    pyramid: Arc<Pyramid>,
+}
+
+impl std::fmt::Debug for Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = &self.pyramid;
+        write!(
+            f,
+            "Source({} levels, {}×{} texels)",
+            p.levels.len(),
+            p.width,
+            p.height
+        )
+    }
+}
 
 impl NdfMapped {
     /// The filtered material of `pyramid` with the facet transfer and diffuse term of
     /// `surface` (its NDF is ignored), `texels_per_uv` level-0 cells per unit of texture
     /// coordinate, and horizon shadowing of the light when `shadowing` is true (needs a
-    /// pyramid extracted from a height map).
+    /// pyramid extracted from a height map). Every level's table is built now, one tile a
+    /// level ([`NdfMapped::from_pyramid`] builds them as they are read).
     ///
     /// # Errors
     /// A message for a bad `texels_per_uv`, or shadowing asked of a pyramid without horizon
@@ -45,11 +72,28 @@ impl NdfMapped {
             .map(|(l, shares)| {
                 let horizon = if shadowing { l.horizon.clone() } else { None };
                 let lobe_horizon = lobe_horizons.as_mut().and_then(Iterator::next);
-                node_level(l, shares, &facet, horizon, lobe_horizon)
+                let table = node_level(
+                    l,
+                    0..l.rows,
+                    0..l.cols,
+                    shares,
+                    &facet,
+                    horizon,
+                    lobe_horizon,
+                );
+                TexLevel {
+                    cols: l.cols,
+                    rows: l.rows,
+                    span: l.span as f64,
+                    tile: l.cols.max(l.rows),
+                    tiles_x: 1,
+                    tiles: vec![Slot::built(table)],
+                }
             })
             .collect();
         Ok(NdfMapped::with_levels(
             levels,
+            None,
             facet,
             surface,
             texels_per_uv,
@@ -57,34 +101,46 @@ impl NdfMapped {
         ))
     }
 
-    /// [`NdfMapped::new`] taking the pyramid: the same material, built with less memory at
-    /// its peak (what `meso render` does with a map file's pyramid, which nothing else
-    /// reads). Each level's horizon statistics move into the material instead of being
-    /// copied, and each level's lobes, shares and lobe horizons are freed as soon as its
-    /// table is built, so the peak is the pyramid, its lobe statistics and the finest level's
-    /// table (`docs/benchmarks.md`, "Rendering a 4K map").
+    /// [`NdfMapped::new`] taking the pyramid: the same material (the same shading, bit for
+    /// bit), whose tables are built tile by tile ([`TILE_TEXELS`]² texels of a level) when a
+    /// shading call first reads them, each tile's lobe statistics with it
+    /// ([`meso_maps::rect_lobe_stats_by_cell`]); the pyramid stays held to build them from.
+    /// What `meso render` does with a map file's pyramid: a far view of a big map reads only
+    /// coarse levels, a zoomed view the few level-0 tiles in sight, so the memory beyond the
+    /// pyramid is the tables of the tiles read (`docs/map-format.md`, "Rendering a map file").
     ///
     /// # Errors
     /// As [`NdfMapped::new`].
     pub fn from_pyramid(
-        mut pyramid: Pyramid,
+        pyramid: Pyramid,
         surface: &Material,
         texels_per_uv: f64,
         shadowing: bool,
     ) -> Result<NdfMapped, String> {
         check_levels(&pyramid, texels_per_uv, shadowing)?;
         let facet = Facet::new(&surface.transfer);
-        let stats = lobe_stats_by_cell(&pyramid, shadowing);
-        let mut lobe_horizons = stats.horizon.map(Vec::into_iter);
-        let mut levels = Vec::with_capacity(pyramid.levels.len());
-        for (mut l, shares) in pyramid.levels.drain(..).zip(stats.shares) {
-            let horizon = if shadowing { l.horizon.take() } else { None };
-            let lobe_horizon = lobe_horizons.as_mut().and_then(Iterator::next);
-            levels.push(node_level(&l, &shares, &facet, horizon, lobe_horizon));
-            // `l` (its lobes) and `shares` are dropped here, before the next level's table.
-        }
+        let levels = pyramid
+            .levels
+            .iter()
+            .map(|l| {
+                let tiles_x = l.cols.div_ceil(TILE_TEXELS);
+                let tiles_y = l.rows.div_ceil(TILE_TEXELS);
+                TexLevel {
+                    cols: l.cols,
+                    rows: l.rows,
+                    span: l.span as f64,
+                    tile: TILE_TEXELS,
+                    tiles_x,
+                    tiles: (0..tiles_x * tiles_y).map(|_| Slot::default()).collect(),
+                }
+            })
+            .collect();
+        let source = Source {
+            pyramid: Arc::new(pyramid),
+        };
         Ok(NdfMapped::with_levels(
             levels,
+            Some(source),
             facet,
             surface,
             texels_per_uv,
@@ -92,9 +148,89 @@ impl NdfMapped {
         ))
     }
 
+    /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
+    /// tile of `pyramid` is built (a view reading all of every level), with the facet
+    /// transfer of `surface` and `shadowing`: per lobe its [`SgLobe`] (40 bytes; with
+    /// Lambert or general facets also its nodes, at most 7 of 40 bytes), per texel its lobe
+    /// start (4, and 4 more for the node start) and with shadowing its horizon statistics
+    /// (36 bytes in `f32`, 72 in `f64`, twice: the texel's and, on level 0, its cell's), per
+    /// coarser lobe its horizon statistics (36 or 72). What `meso render` checks against the
+    /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
+    #[must_use]
+    pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
+        let general = matches!(
+            Facet::new(&surface.transfer),
+            Facet::General(_) | Facet::Lambert { .. }
+        );
+        let mut total = 0u64;
+        for (k, l) in pyramid.levels.iter().enumerate() {
+            let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
+            let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
+            total += lobes * 40 + texels * 4;
+            if general {
+                total += lobes * 7 * 40 + texels * 4;
+            }
+            if shadowing {
+                total += texels * hz + if k == 0 { texels * hz } else { lobes * hz };
+            }
+        }
+        total
+    }
+
+    /// Bytes of a pyramid as held in memory: its lobes, lobe starts and horizon statistics
+    /// (what [`NdfMapped::from_pyramid`] keeps besides its tables).
+    #[must_use]
+    pub fn pyramid_bytes(pyramid: &Pyramid) -> u64 {
+        pyramid
+            .levels
+            .iter()
+            .map(|l| {
+                (l.lobes.bytes()
+                    + l.lobe_start.len() * 4
+                    + l.horizon.as_ref().map_or(0, Horizons::bytes)) as u64
+            })
+            .sum()
+    }
+
+    /// Build tile `i` of level `lev` from the source pyramid.
+    ///
+    /// # Panics
+    /// Without a source (every tile of [`NdfMapped::new`] is built up front).
+    pub(super) fn build_tile(&self, lev: usize, i: usize) -> NodeLevel {
+        let src = self
+            .source
+            .as_ref()
+            .expect("a material built by NdfMapped::new has all its tiles");
+        let p = &*src.pyramid;
+        let l = &p.levels[lev];
+        let (rows, cols) = self.levels[lev].tile_rect(i);
+        let stats = rect_lobe_stats_by_cell(p, lev, rows.clone(), cols.clone(), self.shadowing);
+        let horizon = if self.shadowing {
+            l.horizon.as_ref().map(|h| {
+                let mut v = Vec::with_capacity(rows.len() * cols.len());
+                for r in rows.clone() {
+                    v.extend(cols.clone().map(|c| h.get(r * l.cols + c)));
+                }
+                Horizons::new(v, h.is_compact())
+            })
+        } else {
+            None
+        };
+        node_level(
+            l,
+            rows,
+            cols,
+            &stats.shares,
+            &self.facet,
+            horizon,
+            stats.horizon,
+        )
+    }
+
     /// The material of these level tables, with the defaults of the options.
     fn with_levels(
-        levels: Vec<NodeLevel>,
+        levels: Vec<TexLevel>,
+        source: Option<Source>,
         facet: Facet,
         surface: &Material,
         texels_per_uv: f64,
@@ -102,6 +238,11 @@ impl NdfMapped {
     ) -> NdfMapped {
         NdfMapped {
             levels,
+            source,
+            cache: TileCache {
+                cap: usize::MAX,
+                ..TileCache::default()
+            },
             facet,
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
@@ -132,12 +273,15 @@ fn check_levels(pyramid: &Pyramid, texels_per_uv: f64, shadowing: bool) -> Resul
     Ok(())
 }
 
-/// The table of one pyramid level `l`: per texel its lobes as spherical Gaussians weighted by
-/// `shares` (each lobe's share of its texel's projected area, [`meso_maps::lobe_stats`]), and for Lambert
-/// and general facets its nodes; with the level's texel and lobe horizon statistics when
-/// shadowing (`None` otherwise).
+/// The table of the texels `rows × cols` of pyramid level `l` (a tile, or the whole level):
+/// per texel its lobes as spherical Gaussians weighted by `shares` (each lobe's share of its
+/// texel's projected area, [`meso_maps::lobe_stats`], for the tile's lobes in texel order), and
+/// for Lambert and general facets its nodes; with the tile's texel and lobe horizon statistics
+/// when shadowing (`None` otherwise). Lobe sources (`src`) count the tile's lobes.
 fn node_level(
     l: &meso_maps::Level,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
     shares: &[f64],
     facet: &Facet,
     horizon: Option<meso_maps::Horizons>,
@@ -145,8 +289,9 @@ fn node_level(
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
     let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
-    let mut lobe_start = Vec::with_capacity(l.texels() + 1);
-    let mut lobes = Vec::with_capacity(l.lobes.len());
+    let (ncols, nrows) = (cols.len(), rows.len());
+    let mut lobe_start = Vec::with_capacity(ncols * nrows + 1);
+    let mut lobes = Vec::with_capacity(shares.len());
     let mut shapes = Shapes::default();
     let mut node_start = Vec::new();
     let mut nodes = Vec::new();
@@ -156,7 +301,9 @@ fn node_level(
         node_start.push(0u32);
     }
     let mut src = Vec::new();
-    for t in 0..l.texels() {
+    // The tile's lobes seen so far: the first lobe of the texel among them.
+    let mut first = 0u32;
+    for t in rows.flat_map(|r| cols.clone().map(move |c| r * l.cols + c)) {
         src.clear();
         src.extend(
             l.lobes
@@ -164,9 +311,8 @@ fn node_level(
         );
         // Each lobe's share of the texel's projected area (see `projected_shares`)
         // and its own projected area E[m_z⁺] per unit of weight.
-        let share = &shares[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
+        let share = &shares[first as usize..first as usize + src.len()];
         let mut any = false;
-        let first = l.lobe_start[t];
         for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
             let e = peak_projected_area(p.axis.z, p.exponent);
             if sh <= 0.0 || e <= 1e-12 {
@@ -222,10 +368,11 @@ fn node_level(
             }
             node_start.push(nodes.len() as u32);
         }
+        first += src.len() as u32;
     }
     NodeLevel {
-        cols: l.cols,
-        rows: l.rows,
+        cols: ncols,
+        rows: nrows,
         span: l.span as f64,
         lobe_start,
         lobes,
@@ -242,14 +389,17 @@ fn node_level(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::shader::local_point;
+    use crate::shader::Shader;
+    use glam::DVec2;
     use meso_maps::{extract, fixtures, lobe_stats, ExtractParams, Source};
 
-    /// [`NdfMapped::from_pyramid`] builds the very tables of [`NdfMapped::new`]; every lobe is
-    /// shadowed with the statistics [`lobe_stats`] gives it (level 0's held once per texel),
-    /// every texel with its pyramid texel's, and a texel's lobes and shapes are the pyramid's
-    /// lobes' (axis, η) — on compact (`f32`) and `f64` levels, Phong and Lambert facets.
+    /// [`NdfMapped::new`] builds one tile a level whose lobes are shadowed with the statistics
+    /// [`lobe_stats`] gives them (level 0's held once per texel), every texel with its
+    /// pyramid texel's, and whose lobes and shapes are the pyramid's lobes' (axis, η) — on
+    /// compact (`f32`) and `f64` levels, Phong and Lambert facets.
     #[test]
-    fn from_pyramid_builds_the_tables_of_new() {
+    fn new_builds_whole_level_tables_of_the_lobe_stats() {
         // Rough enough that level-0 texels hold two lobes (their triangles' normals).
         let map = fixtures::gaussian(32, 4.0, 0.1, 3, 0.01).unwrap();
         for compact_texels in [usize::MAX, 64] {
@@ -265,12 +415,12 @@ mod tests {
                     Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
                 for shadowing in [true, false] {
                     let a = NdfMapped::new(&pyr, &surface, 32.0, shadowing).unwrap();
-                    let b =
-                        NdfMapped::from_pyramid(pyr.clone(), &surface, 32.0, shadowing).unwrap();
-                    assert_eq!(a.levels, b.levels);
+                    assert_eq!(a.tiles_built(), pyr.levels.len());
                     let l0 = &pyr.levels[0];
                     assert!(l0.lobes.len() > l0.texels(), "two lobes a texel somewhere");
-                    for (k, (l, nl)) in pyr.levels.iter().zip(&a.levels).enumerate() {
+                    for (k, (l, tl)) in pyr.levels.iter().zip(&a.levels).enumerate() {
+                        let nl = tl.tiles[0].get().unwrap();
+                        let nl = &*nl;
                         assert_eq!(nl.lobe_horizon_by_texel, k == 0);
                         for t in 0..l.texels() {
                             let (s, e) = (nl.lobe_start[t] as usize, nl.lobe_start[t + 1] as usize);
@@ -299,6 +449,112 @@ mod tests {
                             }
                         }
                     }
+                }
+            }
+        }
+    }
+
+    /// [`NdfMapped::from_pyramid`] (tables built tile by tile as they are read) shades every
+    /// point bit for bit as [`NdfMapped::new`] (all built up front): over footprints from
+    /// below level 0 to the whole map (every level read), both filters, Phong, Lambert and
+    /// general facets, with and without shadowing, on a map of several tiles a level
+    /// (128², tiles of 64²: level 0 four tiles). A small footprint builds few tiles.
+    #[test]
+    fn lazy_tiles_shade_as_the_eager_tables() {
+        let map = fixtures::gaussian(128, 4.0, 0.1, 3, 0.01).unwrap();
+        let params = ExtractParams {
+            compact_texels: 64 * 64,
+            ..ExtractParams::default()
+        };
+        let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
+        assert!(pyr.levels[0].lobes.len() > pyr.levels[0].texels());
+        let total_tiles: usize = pyr
+            .levels
+            .iter()
+            .map(|l| l.cols.div_ceil(TILE_TEXELS) * l.rows.div_ceil(TILE_TEXELS))
+            .sum();
+        assert_eq!(total_tiles, 4 + 1 + 1 + 1 + 1 + 1 + 1 + 1);
+        let transfers = [
+            "kind = \"phong\"\nexponent = 20.0",
+            "kind = \"lambert\"",
+            "kind = \"microfacet\"\nalpha = 0.3",
+        ];
+        let wi: Vec<DVec3> = [(0.3, 0.4), (-0.6, 0.1), (0.05, -0.8), (0.9, 0.2)]
+            .iter()
+            .map(|&(x, y)| DVec3::new(x, y, (1.0f64 - x * x - y * y).sqrt()))
+            .collect();
+        let wo = DVec3::new(-0.2, 0.3, 0.93).normalize();
+        let tpu = 128.0;
+        for transfer in transfers {
+            let surface = Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
+            for shadowing in [true, false] {
+                for box_filter in [true, false] {
+                    let eager = NdfMapped::new(&pyr, &surface, tpu, shadowing)
+                        .unwrap()
+                        .with_box_filter(box_filter);
+                    let lazy = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, shadowing)
+                        .unwrap()
+                        .with_box_filter(box_filter);
+                    // Capped at 1 byte: every tile dropped as soon as another is built (bar
+                    // those read since the last pass), rebuilt when read again.
+                    let capped = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, shadowing)
+                        .unwrap()
+                        .with_box_filter(box_filter)
+                        .with_table_cap(1);
+                    let mut c = vec![[0.0f32; 3]; 4];
+                    assert_eq!(lazy.tiles_built(), 0);
+                    // One point, a footprint under a cell: level 0 (and 1) only.
+                    let sp = local_point(DVec2::new(0.1, 0.2), 0.3 / tpu);
+                    let (mut a, mut b) = (vec![[0.0f32; 3]; 4], vec![[0.0f32; 3]; 4]);
+                    eager.eval_many(&sp, wo, &wi, &mut a);
+                    lazy.eval_many(&sp, wo, &wi, &mut b);
+                    assert_eq!(a, b);
+                    let few = lazy.tiles_built();
+                    assert!((1..=3).contains(&few), "{few} tiles built");
+                    // Every level-0 tile's centre under a cell, the whole map, then a sweep.
+                    let mut points: Vec<(DVec2, f64)> = [0.25, 0.75]
+                        .iter()
+                        .flat_map(|&u| [0.25, 0.75].map(|v| (DVec2::new(u, v), 0.5 / tpu)))
+                        .collect();
+                    points.push((DVec2::new(0.5, 0.5), 1000.0 / tpu));
+                    for i in 0..200u32 {
+                        let f = f64::from(i);
+                        let uv = DVec2::new(
+                            (f * 0.618_034).fract() * 1.3 - 0.1,
+                            (f * 0.414_214).fract(),
+                        );
+                        // Footprints 2⁻³ … 2⁸ cells.
+                        points.push((uv, (2.0f64).powf(-3.0 + 11.0 * (f * 0.7548).fract()) / tpu));
+                    }
+                    for (i, &(uv, fp)) in points.iter().enumerate() {
+                        let sp = local_point(uv, fp);
+                        eager.eval_many(&sp, wo, &wi, &mut a);
+                        lazy.eval_many(&sp, wo, &wi, &mut b);
+                        // (Rebuilding the coarse tiles visits all of level 0 each time: the
+                        // capped material only over the first points.)
+                        let check_capped = transfer.contains("phong");
+                        if i < 40 && check_capped {
+                            capped.eval_many(&sp, wo, &wi, &mut c);
+                        } else {
+                            c.copy_from_slice(&a);
+                        }
+                        for ((x, y), z) in a.iter().zip(&b).zip(&c) {
+                            for ch in 0..3 {
+                                assert_eq!(x[ch].to_bits(), y[ch].to_bits(), "{transfer} {i}");
+                                assert_eq!(x[ch].to_bits(), z[ch].to_bits(), "{transfer} {i}");
+                            }
+                        }
+                    }
+                    assert_eq!(lazy.tiles_built(), total_tiles);
+                    let (bytes, peak, dropped) = lazy.table_cache_stats();
+                    assert_eq!((bytes, dropped), (peak, 0));
+                    assert!(bytes > 0);
+                    if transfer.contains("phong") {
+                        let (_, _, dropped) = capped.table_cache_stats();
+                        assert!(dropped > 10, "{dropped} tiles dropped");
+                        assert!(capped.tiles_built() < total_tiles);
+                    }
+                    assert_eq!(eager.table_cache_stats(), (0, 0, 0));
                 }
             }
         }

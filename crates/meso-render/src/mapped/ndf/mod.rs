@@ -4,10 +4,12 @@
 //! This module holds the material (its per-level tables, options and the [`Shader`] entry
 //! points, which blend the taps' per-texel responses); the sub-modules hold its parts:
 //!
-//! * `build` — [`NdfMapped::new`] (and [`NdfMapped::from_pyramid`], which frees the pyramid's
-//!   levels as it goes): the per-level tables from a pyramid, with each lobe's share of its
+//! * `build` — [`NdfMapped::new`] (every level's table up front, one tile a level) and
+//!   [`NdfMapped::from_pyramid`] (tiles of 64² texels built when first read, under a byte cap,
+//!   [`NdfMapped::with_table_cap`]): the tables from a pyramid, with each lobe's share of its
 //!   texel's projected area and its horizon statistics from [`meso_maps::lobe_stats_by_cell`]
-//!   (handed down from the level-0 normals; level 0's once per texel);
+//!   or, per tile, [`meso_maps::rect_lobe_stats_by_cell`] (handed down from the level-0
+//!   normals; level 0's once per texel);
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
 //!   Phong facets, and the 7-node form of a lobe for other facets;
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
@@ -18,8 +20,9 @@
 //! # Conventions
 //! * Texels are indexed row-major per level (`row · cols + col`), wrapped periodically;
 //!   positions are in level-0 cells (`uv · texels_per_uv`).
-//! * A texel's lobes are `lobes[lobe_start[t]..lobe_start[t + 1]]`, its nodes (Lambert and
-//!   general facets) `nodes[node_start[t]..node_start[t + 1]]`.
+//! * Within a tile's tables, a texel's lobes are `lobes[lobe_start[t]..lobe_start[t + 1]]`,
+//!   its nodes (Lambert and general facets) `nodes[node_start[t]..node_start[t + 1]]`, `t` its
+//!   row-major index in the tile.
 
 use super::*;
 
@@ -29,19 +32,28 @@ mod lobes;
 #[cfg(test)]
 mod peak_quadrature;
 
+use build::Source;
+use filter::MAX_TAPS;
 use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
-/// One level of the filtered pyramid.
+/// The tables of one tile of a level of the filtered pyramid (a rectangle of its texels; a
+/// whole level when built eagerly, [`NdfMapped::new`]): texels are indexed row-major within
+/// the tile, and lobe sources (`src`) among the tile's pyramid lobes, in texel order.
 #[derive(Clone, Debug, PartialEq)]
 struct NodeLevel {
+    /// Texels along x of the tile.
     cols: usize,
+    /// Texels along y of the tile.
     rows: usize,
+    /// Level-0 cells a texel of the level spans.
     span: f64,
     /// Per texel, its lobes `lobes[lobe_start[t]..lobe_start[t + 1]]`.
     lobe_start: Vec<u32>,
     lobes: Vec<SgLobe>,
-    /// The shapes the lobes index (one per distinct exponent of the level).
+    /// The shapes the lobes index (one per distinct exponent of the tile).
     shapes: Vec<Shape>,
     /// Nodes for a general facet transfer (empty otherwise).
     node_start: Vec<u32>,
@@ -49,13 +61,120 @@ struct NodeLevel {
     /// Per texel, its horizon statistics (with shadowing), in the pyramid level's precision
     /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
     horizon: Option<Horizons>,
-    /// Per lobe of the pyramid level (the `src` of [`SgLobe`] and [`Node`]), the horizon
+    /// Per pyramid lobe of the tile (the `src` of [`SgLobe`] and [`Node`]), the horizon
     /// statistics of the cells it stands for (with shadowing); on level 0
     /// (`lobe_horizon_by_texel`) per texel instead, each its cell's, which all the texel's lobes
     /// stand for (`meso_maps::lobe_stats_by_cell`).
     lobe_horizon: Option<Horizons>,
     /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
     lobe_horizon_by_texel: bool,
+}
+
+/// One level of the material: its size and its tables, one per tile of `tile × tile` texels
+/// (the last row and column of tiles narrower), each built when a shading call first reads
+/// it (`NdfMapped::from_pyramid`) or all at once (`NdfMapped::new`, one tile a level).
+#[derive(Clone, Debug)]
+struct TexLevel {
+    /// Texels along x.
+    cols: usize,
+    /// Texels along y.
+    rows: usize,
+    /// Level-0 cells a texel spans.
+    span: f64,
+    /// Side of a tile, in texels.
+    tile: usize,
+    /// Tiles along x.
+    tiles_x: usize,
+    /// The tiles, row-major.
+    tiles: Vec<Slot>,
+}
+
+/// One tile of a level: its tables once built (and until the cache drops them, `TileCache`),
+/// and whether a shading call read it since the cache last looked.
+#[derive(Debug, Default)]
+struct Slot {
+    table: Mutex<Option<Arc<NodeLevel>>>,
+    used: AtomicBool,
+}
+
+impl Slot {
+    /// A slot holding `table`.
+    fn built(table: NodeLevel) -> Slot {
+        Slot {
+            table: Mutex::new(Some(Arc::new(table))),
+            used: AtomicBool::new(false),
+        }
+    }
+    /// The tables, if built.
+    fn get(&self) -> Option<Arc<NodeLevel>> {
+        self.table.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+}
+
+impl Clone for Slot {
+    fn clone(&self) -> Slot {
+        Slot {
+            table: Mutex::new(self.get()),
+            used: AtomicBool::new(self.used.load(Ordering::Relaxed)),
+        }
+    }
+}
+
+/// The tiles built on demand and their memory, dropped oldest first (a tile read since the
+/// last pass is kept one more) when they pass `cap` bytes.
+#[derive(Debug, Default)]
+struct TileCache {
+    /// Most bytes of tables held (`usize::MAX`: no limit).
+    cap: usize,
+    state: Mutex<CacheState>,
+}
+
+#[derive(Debug, Default, Clone)]
+struct CacheState {
+    /// Bytes of the tables held.
+    bytes: usize,
+    /// Most bytes held at once.
+    peak: usize,
+    /// Tiles built and held, oldest first: (level, tile).
+    order: std::collections::VecDeque<(usize, usize)>,
+    /// Tiles dropped to stay under the cap.
+    dropped: usize,
+}
+
+impl Clone for TileCache {
+    fn clone(&self) -> TileCache {
+        TileCache {
+            cap: self.cap,
+            state: Mutex::new(self.state.lock().unwrap_or_else(|e| e.into_inner()).clone()),
+        }
+    }
+}
+
+impl NodeLevel {
+    /// Bytes of the tables (what the tile cache counts).
+    fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.lobe_start.len() * 4
+            + self.lobes.len() * size_of::<SgLobe>()
+            + self.shapes.len() * size_of::<Shape>()
+            + self.node_start.len() * 4
+            + self.nodes.len() * size_of::<Node>()
+            + self.horizon.as_ref().map_or(0, Horizons::bytes)
+            + self.lobe_horizon.as_ref().map_or(0, Horizons::bytes)
+            + size_of::<NodeLevel>()
+    }
+}
+
+impl TexLevel {
+    /// Tile `(tr, tc)`'s rows and columns of the level.
+    fn tile_rect(&self, i: usize) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+        let (tr, tc) = (i / self.tiles_x, i % self.tiles_x);
+        let (r0, c0) = (tr * self.tile, tc * self.tile);
+        (
+            r0..(r0 + self.tile).min(self.rows),
+            c0..(c0 + self.tile).min(self.cols),
+        )
+    }
 }
 
 impl NodeLevel {
@@ -80,7 +199,12 @@ impl NodeLevel {
 /// A material reading an NDF pyramid (see the module docs): the filtered bump map.
 #[derive(Clone, Debug)]
 pub struct NdfMapped {
-    levels: Vec<NodeLevel>,
+    levels: Vec<TexLevel>,
+    /// The pyramid the tiles not yet built are built from (`NdfMapped::from_pyramid`);
+    /// `None` when every tile was built up front (`NdfMapped::new`).
+    source: Option<Source>,
+    /// The tiles built on demand, under a memory cap.
+    cache: TileCache,
     facet: Facet,
     diffuse: [f32; 3],
     texels_per_uv: f64,
@@ -92,6 +216,108 @@ pub struct NdfMapped {
 }
 
 impl NdfMapped {
+    /// Tile `i` of level `lev` and texel `t`'s index in it: the tile and the texel's index.
+    #[inline]
+    fn tile_of(&self, lev: usize, t: usize) -> (usize, usize, usize) {
+        let l = &self.levels[lev];
+        let (r, c) = (t / l.cols, t % l.cols);
+        let (tr, tc) = (r / l.tile, c / l.tile);
+        let width = ((tc + 1) * l.tile).min(l.cols) - tc * l.tile;
+        (
+            tr * l.tiles_x + tc,
+            (r - tr * l.tile) * width + (c - tc * l.tile),
+            width,
+        )
+    }
+
+    /// The tables of tile `i` of level `lev`, built now if not held (and others dropped if the
+    /// cache passes its cap).
+    fn tile(&self, lev: usize, i: usize) -> Arc<NodeLevel> {
+        let slot = &self.levels[lev].tiles[i];
+        slot.used.store(true, Ordering::Relaxed);
+        let built = {
+            let mut g = slot.table.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(t) = &*g {
+                return Arc::clone(t);
+            }
+            // Built under the slot's lock: a second reader waits for it instead of building it
+            // again. No other lock is taken while it is held.
+            let t = Arc::new(self.build_tile(lev, i));
+            *g = Some(Arc::clone(&t));
+            t
+        };
+        self.account(lev, i, built.bytes());
+        built
+    }
+
+    /// Count a tile just built and drop the oldest tiles (a tile read since the last pass
+    /// gets a second chance) while the cache is over its cap.
+    fn account(&self, lev: usize, i: usize, bytes: usize) {
+        let mut victims = Vec::new();
+        {
+            let mut st = self.cache.state.lock().unwrap_or_else(|e| e.into_inner());
+            st.bytes += bytes;
+            st.peak = st.peak.max(st.bytes);
+            st.order.push_back((lev, i));
+            let mut passes = 2 * st.order.len();
+            while st.bytes > self.cache.cap && passes > 0 {
+                passes -= 1;
+                let Some((vl, vi)) = st.order.pop_front() else {
+                    break;
+                };
+                let slot = &self.levels[vl].tiles[vi];
+                if (vl, vi) != (lev, i) && !slot.used.swap(false, Ordering::Relaxed) {
+                    victims.push((vl, vi));
+                    // Counted out now; the tables are freed below (or when the last reader
+                    // holding them is done).
+                    let held = slot.get().map_or(0, |t| t.bytes());
+                    st.bytes = st.bytes.saturating_sub(held);
+                    st.dropped += 1;
+                } else {
+                    st.order.push_back((vl, vi));
+                }
+            }
+        }
+        for (vl, vi) in victims {
+            self.levels[vl].tiles[vi]
+                .table
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take();
+        }
+    }
+
+    /// Number of tiles held over all levels (each a level's whole table for
+    /// [`NdfMapped::new`]; those shading calls have read and the cache kept for
+    /// [`NdfMapped::from_pyramid`]).
+    #[must_use]
+    pub fn tiles_built(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| l.tiles.iter().filter(|t| t.get().is_some()).count())
+            .sum()
+    }
+
+    /// The tile cache's figures: bytes of tables held now, the most held at once (a tile just
+    /// built counted before others are dropped for it), and tiles
+    /// dropped to stay under its cap ([`NdfMapped::with_table_cap`]); all 0 for
+    /// [`NdfMapped::new`], whose tables are not counted.
+    #[must_use]
+    pub fn table_cache_stats(&self) -> (usize, usize, usize) {
+        let st = self.cache.state.lock().unwrap_or_else(|e| e.into_inner());
+        (st.bytes, st.peak, st.dropped)
+    }
+
+    /// Hold at most `bytes` of tables built on demand ([`NdfMapped::from_pyramid`]), dropping
+    /// the oldest (a tile read since the last pass kept one more) to build another: rebuilt
+    /// if read again, the same tables. Default: no cap. Tiles of the eager
+    /// [`NdfMapped::new`] are not counted.
+    #[must_use]
+    pub fn with_table_cap(mut self, bytes: usize) -> NdfMapped {
+        self.cache.cap = bytes;
+        self
+    }
+
     /// Number of pyramid levels in use.
     #[must_use]
     pub fn levels(&self) -> usize {
@@ -103,7 +329,22 @@ impl NdfMapped {
     /// coarse levels whose lobe fit is worse (compare their residuals in `meso map info`).
     #[must_use]
     pub fn with_max_level(mut self, max_level: usize) -> NdfMapped {
-        self.levels.truncate(max_level.saturating_add(1).max(1));
+        let n = max_level.saturating_add(1).max(1);
+        self.levels.truncate(n);
+        // The tile cache forgets the tiles of the levels dropped.
+        let levels = &self.levels;
+        let st = self
+            .cache
+            .state
+            .get_mut()
+            .unwrap_or_else(|e| e.into_inner());
+        st.order.retain(|&(l, _)| l < n);
+        st.bytes = st
+            .order
+            .iter()
+            .filter_map(|&(l, i)| levels[l].tiles[i].get())
+            .map(|t| t.bytes())
+            .sum();
         self
     }
 
@@ -241,6 +482,35 @@ impl Shader for NdfMapped {
         };
         let scalar = !matches!(self.facet, Facet::General(_));
         let (taps, ntaps) = self.taps(sp);
+        // Each tap's tile (fetched once per call; the taps of a call share a few) and its
+        // texel's index in it.
+        // A call's taps lie on at most two levels, within 2 × 2 tiles on each (a footprint
+        // spans at most 10 texels of a level, a tile 64): 8 places, more on the heap.
+        let mut held: [(usize, usize, Option<Arc<NodeLevel>>); 8] = Default::default();
+        let mut more: Vec<(usize, usize, Option<Arc<NodeLevel>>)> = Vec::new();
+        let mut nheld = 0;
+        let mut at = [(0usize, 0usize); MAX_TAPS];
+        for (k, &(lev, t, _)) in taps[..ntaps].iter().enumerate() {
+            let (i, local, _) = self.tile_of(lev, t);
+            let h = match held[..nheld.min(8)]
+                .iter()
+                .chain(&more)
+                .position(|(hl, hi, _)| (*hl, *hi) == (lev, i))
+            {
+                Some(h) => h,
+                None => {
+                    let e = (lev, i, Some(self.tile(lev, i)));
+                    if nheld < 8 {
+                        held[nheld] = e;
+                    } else {
+                        more.push(e);
+                    }
+                    nheld += 1;
+                    nheld - 1
+                }
+            };
+            at[k] = (h, local);
+        }
         for (k, &i) in wi.iter().enumerate() {
             let s = i + wo;
             let len = s.length();
@@ -258,8 +528,10 @@ impl Shader for NdfMapped {
             let per_lobe = self.shadowing && !self.texel_visibility;
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
-            for &(lev, t, w) in &taps[..ntaps] {
-                let l = &self.levels[lev];
+            for (k, &(_, _, w)) in taps[..ntaps].iter().enumerate() {
+                let (hi, t) = at[k];
+                let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
+                let l = l.as_deref().expect("fetched above");
                 let v = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir));
                 if scalar {
                     acc[0] += w * v[0];
