@@ -13,23 +13,13 @@ use std::path::Path;
 /// Files of an export in memory: `(file name, bytes)`, as [`export::Export::files`].
 pub type Files = Vec<(String, Vec<u8>)>;
 
-/// Whether the file at `path` opens with meso's map-file magic ([`meso_maps::format::MAGIC`]).
-#[must_use]
-pub fn is_map_file(path: &Path) -> bool {
-    let mut magic = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok()
-        && magic == meso_maps::format::MAGIC
-}
-
 /// Refuse a map file (`meso extract`'s output) given where an image is expected, saying what to
 /// do instead.
 ///
 /// # Errors
 /// [`ExportError::Invalid`] when `path` is a meso map file.
 pub fn refuse_map_file(path: &Path) -> Result<(), ExportError> {
-    if is_map_file(path) {
+    if meso_maps::format::is_map_file(path) {
         let p = path.display();
         return Err(ExportError::Invalid(format!(
             "{p} is a meso map file (written by `meso extract`), not an image: export the image \

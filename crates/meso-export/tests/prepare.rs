@@ -93,7 +93,7 @@ fn lobe_grid_is_read_from_the_header() {
         (pyr.width, pyr.height, l0.cols, l0.rows)
     );
     assert_eq!((l0.cols, l0.rows), (7, 3));
-    assert!(prepare::is_map_file(&f));
+    assert!(meso_maps::format::is_map_file(&f));
     let e = prepare::refuse_map_file(&f).unwrap_err().to_string();
     assert!(
         e.contains("p.map is a meso map file (written by `meso extract`), not an image")
@@ -103,7 +103,7 @@ fn lobe_grid_is_read_from_the_header() {
     let not = d.join("n.map");
     std::fs::write(&not, b"not a map file at all, but long enough").unwrap();
     assert!(prepare::lobe_grid(&not).is_err());
-    assert!(!prepare::is_map_file(&not));
+    assert!(!meso_maps::format::is_map_file(&not));
     prepare::refuse_map_file(&not).unwrap();
     // An output path that is a file.
     let e = prepare::check_out_dir(&not).unwrap_err().to_string();

@@ -15,6 +15,18 @@ use std::path::{Path, PathBuf};
 
 /// The 8 magic bytes opening every map file.
 pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
+
+/// Whether the file at `path` opens with [`MAGIC`]: a map file written by `meso extract`, given
+/// where an image or a material is expected (the callers' messages say what to do instead).
+/// Unreadable or shorter files are not map files.
+#[must_use]
+pub fn is_map_file(path: &std::path::Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok_and(|()| magic == MAGIC)
+}
 mod v3;
 mod v4;
 

@@ -130,13 +130,7 @@ pub fn load_streamed(
 /// Refuse a map file (opening with [`crate::format::MAGIC`]) given as the image to extract, saying
 /// what to do instead (the decoder would only say that it is no PNG).
 fn refuse_map_file(path: &Path) -> Result<()> {
-    use std::io::Read;
-    let mut magic = [0u8; 8];
-    let is_map = std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok()
-        && magic == crate::format::MAGIC;
-    if is_map {
+    if crate::format::is_map_file(path) {
         return Err(crate::MapError::MapFormat {
             path: path.to_path_buf(),
             message: format!(

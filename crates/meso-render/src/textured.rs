@@ -204,7 +204,7 @@ fn normal_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
 /// pyramid (from the resolver's memory, the disk cache, or extracted).
 fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
     let tex = t.tex;
-    if is_map_file(file) {
+    if meso_maps::format::is_map_file(file) {
         return Err(format!(
             "[texture] file: {} is a meso map file (`meso extract`), not a height map: give it \
              as `map = \"…\"` (without `height_scale`)",
@@ -252,15 +252,6 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
             )
         }
     })
-}
-
-/// Whether `file` opens with the magic bytes of a map file (`meso_maps::format::MAGIC`).
-fn is_map_file(file: &Path) -> bool {
-    use std::io::Read;
-    let mut magic = [0u8; 8];
-    std::fs::File::open(file)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok_and(|()| magic == meso_maps::format::MAGIC)
 }
 
 /// A `[texture]` over a map file written by `meso extract` (`map = "…"`): NDF-mapped through
