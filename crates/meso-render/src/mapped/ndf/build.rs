@@ -102,7 +102,7 @@ impl NdfMapped {
     }
 
     /// [`NdfMapped::new`] taking the pyramid: the same material (the same shading, bit for
-    /// bit), whose tables are built tile by tile ([`TILE_TEXELS`]² texels of a level) when a
+    /// bit), whose tables are built tile by tile (`TILE_TEXELS`² texels of a level) when a
     /// shading call first reads them, each tile's lobe statistics with it
     /// ([`meso_maps::rect_lobe_stats_by_cell`]); the pyramid stays held to build them from.
     /// What `meso render` does with a map file's pyramid: a far view of a big map reads only
@@ -150,7 +150,7 @@ impl NdfMapped {
 
     /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
     /// tile of `pyramid` is built (a view reading all of every level), with the facet
-    /// transfer of `surface` and `shadowing`: per lobe its [`SgLobe`] (40 bytes; with
+    /// transfer of `surface` and `shadowing`: per lobe its `SgLobe` (40 bytes; with
     /// Lambert or general facets also its nodes, at most 7 of 40 bytes), per texel its lobe
     /// start (4, and 4 more for the node start) and with shadowing its horizon statistics
     /// (36 bytes in `f32`, 72 in `f64`, twice: the texel's and, on level 0, its cell's), per
