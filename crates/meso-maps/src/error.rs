@@ -30,6 +30,12 @@ pub enum MapError {
         /// What the decoder said.
         message: String,
     },
+    /// The file holds no bytes at all.
+    #[error("{path} is an empty file (0 bytes), not an image")]
+    EmptyFile {
+        /// The file (or `<memory>`).
+        path: PathBuf,
+    },
     /// The image has no pixels.
     #[error("image {path} is empty ({width}×{height} pixels)")]
     Empty {

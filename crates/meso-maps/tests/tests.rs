@@ -111,7 +111,11 @@ mod inputs {
             .unwrap_err();
         assert!(matches!(e, MapError::Decode { .. }), "corrupt: {e}");
         let e = HeightMap::from_bytes(p, b"", 1.0, 1.0, Border::Wrap).unwrap_err();
-        assert!(matches!(e, MapError::Empty { .. }), "empty: {e}");
+        assert!(matches!(e, MapError::EmptyFile { .. }), "empty: {e}");
+        assert_eq!(
+            e.to_string(),
+            "x.png is an empty file (0 bytes), not an image"
+        );
         for (s, h) in [(0.0, 1.0), (-1.0, 1.0), (1.0, 0.0), (1.0, f64::NAN)] {
             let e = HeightMap::from_bytes(p, &good, s, h, Border::Wrap).unwrap_err();
             assert!(matches!(e, MapError::InvalidParameter { .. }), "{e}");

@@ -184,10 +184,8 @@ fn header_of(path: &Path, d: &impl image::ImageDecoder, file_bytes: u64) -> Resu
 /// Empty bytes, an unknown or broken header, an image above the size limits.
 pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
     if bytes.is_empty() {
-        return Err(MapError::Empty {
+        return Err(MapError::EmptyFile {
             path: name.to_path_buf(),
-            width: 0,
-            height: 0,
         });
     }
     let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
@@ -263,10 +261,8 @@ pub fn decode_image(
 
 pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicImage> {
     if bytes.is_empty() {
-        return Err(MapError::Empty {
+        return Err(MapError::EmptyFile {
             path: path.to_path_buf(),
-            width: 0,
-            height: 0,
         });
     }
     // PNG: the size is in the IHDR chunk at a fixed offset; check it before the decoder reads on.
