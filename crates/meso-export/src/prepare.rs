@@ -123,17 +123,10 @@ pub fn lobe_grid(path: &Path) -> Result<(usize, usize, usize, usize), ExportErro
 }
 
 /// Sizes `(cols, rows)` of a lobe pyramid's levels from level 0's `cols × rows`: halved rounding
-/// up, down to 1 × 1 (`meso_maps::pyramid::level_count`).
+/// up, down to 1 × 1 (the pyramid's own rule, [`meso_maps::pyramid::level_sizes`]).
 #[must_use]
 pub fn lobe_level_sizes(cols: usize, rows: usize) -> Vec<(usize, usize)> {
-    let mut v = vec![(cols, rows)];
-    let (mut c, mut r) = (cols, rows);
-    while c > 1 || r > 1 {
-        c = c.div_ceil(2);
-        r = r.div_ceil(2);
-        v.push((c, r));
-    }
-    v
+    meso_maps::pyramid::level_sizes(cols, rows).collect()
 }
 
 /// Sizes `(width, height)` of the export's mip levels ([`mips::level_size`]: halved rounding

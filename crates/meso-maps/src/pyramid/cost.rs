@@ -149,11 +149,8 @@ pub fn extract_work(
 
 /// Texels of all `levels` levels of a pyramid over `cols × rows` cells.
 pub(super) fn pyramid_texels(cols: usize, rows: usize, levels: usize) -> u64 {
-    let (mut c, mut r, mut t) = (cols, rows, 0u64);
-    for _ in 0..levels {
-        t += (c * r) as u64;
-        c = c.div_ceil(2);
-        r = r.div_ceil(2);
-    }
-    t
+    super::level_sizes(cols, rows)
+        .take(levels)
+        .map(|(c, r)| (c * r) as u64)
+        .sum()
 }

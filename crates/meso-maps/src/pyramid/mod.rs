@@ -186,14 +186,16 @@ pub struct Pyramid {
 /// Number of levels of a `cols × rows` cell grid (level 0 … the first 1×1 level).
 #[must_use]
 pub fn level_count(cols: usize, rows: usize) -> usize {
-    let mut n = 1;
-    let (mut c, mut r) = (cols, rows);
-    while c > 1 || r > 1 {
-        c = c.div_ceil(2);
-        r = r.div_ceil(2);
-        n += 1;
-    }
-    n
+    level_sizes(cols, rows).count()
+}
+
+/// The `(cols, rows)` of every level of a `cols × rows` cell grid, level 0 first: each level
+/// halves the one below rounding up (a texel covers 2 × 2 texels below, fewer at an odd edge),
+/// down to the first 1 × 1 level.
+pub fn level_sizes(cols: usize, rows: usize) -> impl Iterator<Item = (usize, usize)> {
+    std::iter::successors(Some((cols, rows)), |&(c, r)| {
+        (c > 1 || r > 1).then(|| (c.div_ceil(2), r.div_ceil(2)))
+    })
 }
 
 /// Cells covered by texel `(r, c)` of a level with footprint side `span`.
