@@ -1,25 +1,34 @@
 //! Shapes, triangle meshes and the shading point a hit produces.
 //!
+//! **Texture coordinates follow glTF**: `uv = (0, 0)` is the texture image's top-left corner,
+//! `u` grows to the right and `v` grows **down** the image (docs/conventions.md). OBJ files store
+//! OpenGL's `v` (growing up the image); [`Mesh::from_obj`] turns it into `1 − v` on load, as
+//! glTF exporters do, so an OBJ from Blender shows its textures the right way up.
+//!
 //! Every hit carries a **consistent tangent frame** (the paper's §4 requirement: lobe normals
 //! are defined in the local frame, so the tangent must be defined everywhere):
 //!
-//! * [`Sphere`]: `u = φ/2π`, `v = 1 − θ/π` with θ measured from the sphere's `pole` (default
-//!   `+y`) and φ around it; the tangent is `∂p/∂φ` (along the parallels, i.e. around the polar
-//!   axis), the bitangent points towards the pole (along `∂p/∂v`). At the two poles the tangent
-//!   is undefined and an arbitrary orthonormal one is used.
-//! * [`Quad`]: `p = origin + u·edge_u + v·edge_v`, `(u, v) ∈ [0,1]²`; normal `edge_u × edge_v`;
-//!   tangent along `edge_u`.
-//! * [`Plane`]: infinite; tangent = the given tangent made orthogonal to the normal;
-//!   `uv = ((p − point)·t, (p − point)·b) / uv_scale`.
+//! * [`Sphere`]: `u = φ/2π`, `v = θ/π` with θ measured from the sphere's `pole` (default
+//!   `+y`) and φ around it (an equirectangular image: its top row at the pole); the tangent is
+//!   `∂p/∂φ` (along the parallels, i.e. around the polar axis), the bitangent points towards
+//!   the pole (up the image, along `−∂p/∂v`). At the two poles the tangent is undefined and an
+//!   arbitrary orthonormal one is used.
+//! * [`Quad`]: `p = origin + s·edge_u + t·edge_v`, `(s, t) ∈ [0,1]²`, `uv = (s, 1 − t)`:
+//!   `origin` is the image's bottom-left corner, `edge_u` runs along its bottom edge and
+//!   `edge_v` up its left edge; normal `edge_u × edge_v`; tangent along `edge_u`.
+//! * [`Plane`]: infinite; tangent = the given tangent made orthogonal to the normal, bitangent
+//!   `b = n × t`; `uv = ((p − point)·t, −(p − point)·b) / uv_scale` (the image's up along `b`).
 //! * [`Mesh`]: per-vertex tangents from UV derivatives (MikkTSpace-style: per-triangle
 //!   `∂p/∂u`, accumulated at each corner weighted by the corner angle, then Gram–Schmidt against
 //!   the vertex normal). Without UVs the tangent is world `+x` projected onto the tangent plane
 //!   (world `+y` where the normal is near `±x`).
 //!
 //! In every case the shading frame is right-handed (`t × b = n`, [`Frame`]), the tangent is
-//! along `∂p/∂u`, and the bitangent has a positive component along `∂p/∂v` (except on meshes
-//! with mirrored UVs, where `b = n × t` points against `∂p/∂v`). When the viewer is behind the
-//! surface, `n` and `b` are flipped (`t` kept) so that the frame faces the viewer.
+//! along `∂p/∂u`, and the bitangent points **up the texture image**: it has a positive
+//! component along `−∂p/∂v` (except on meshes with mirrored UVs, where `b = n × t` points along
+//! `∂p/∂v`). A map's +y (green = up in a `gl` normal map) is therefore the frame's `b`. When
+//! the viewer is behind the surface, `n` and `b` are flipped (`t` kept) so that the frame faces
+//! the viewer.
 
 use crate::camera::{Ray, RayDifferential};
 use crate::error::SceneError;
@@ -45,14 +54,15 @@ pub struct Sphere {
     pub material: MaterialId,
 }
 
-/// A parallelogram `origin + u·edge_u + v·edge_v`, `(u, v) ∈ [0,1]²`, two-sided.
+/// A parallelogram `origin + s·edge_u + t·edge_v`, `(s, t) ∈ [0,1]²`, two-sided, textured
+/// the right way up: `uv = (s, 1 − t)` (glTF's `v` grows down the image).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quad {
-    /// Corner at `uv = (0, 0)`.
+    /// The texture image's bottom-left corner, `uv = (0, 1)`.
     pub origin: DVec3,
-    /// Edge to `uv = (1, 0)`; the tangent direction.
+    /// Edge to the image's bottom-right corner, `uv = (1, 1)`; the tangent direction.
     pub edge_u: DVec3,
-    /// Edge to `uv = (0, 1)`.
+    /// Edge to the image's top-left corner, `uv = (0, 0)`.
     pub edge_v: DVec3,
     /// Material.
     pub material: MaterialId,
@@ -61,7 +71,7 @@ pub struct Quad {
 /// An infinite plane, two-sided.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Plane {
-    /// A point of the plane (`uv = 0` there).
+    /// A point of the plane (`uv = 0` there: a corner of the texture image's top-left copy).
     pub point: DVec3,
     /// Unit normal.
     pub normal: DVec3,
@@ -141,7 +151,8 @@ pub struct ShadingPoint {
     /// Shading frame (world vectors): tangent `t` (+x local), bitangent `b` (+y), normal `n`
     /// (+z), facing the viewer.
     pub frame: Frame,
-    /// Surface parameters (texture coordinates).
+    /// Texture coordinates, glTF's orientation: `(0, 0)` at the texture image's top-left
+    /// corner, `v` growing down the image (module docs).
     pub uv: DVec2,
     /// `∂p/∂u` (world units per unit u).
     pub dpdu: DVec3,
@@ -222,7 +233,8 @@ pub fn obj_bytes(file_bytes: u64) -> u64 {
 }
 
 impl Mesh {
-    /// A mesh from raw arrays. `normals`, `uvs` and `tangents`, when given, are per vertex.
+    /// A mesh from raw arrays. `normals`, `uvs` and `tangents`, when given, are per vertex;
+    /// `uvs` follow glTF (`v` grows down the texture image, see the module docs).
     /// Missing tangents are generated (see the module docs). Inconsistent arrays give a
     /// [`SceneError::Invalid`] on the field `mesh` naming the problem.
     pub fn new(
@@ -362,7 +374,8 @@ impl Mesh {
                 uvs.extend(
                     mm.texcoords
                         .chunks_exact(2)
-                        .map(|p| DVec2::new(f64::from(p[0]), f64::from(p[1]))),
+                        // OBJ's v grows up the image; meso's (glTF's) grows down it.
+                        .map(|p| DVec2::new(f64::from(p[0]), 1.0 - f64::from(p[1]))),
                 );
             } else {
                 all_uvs = false;
@@ -402,7 +415,7 @@ impl Mesh {
     pub fn normals(&self) -> Option<&[DVec3]> {
         self.normals.as_deref()
     }
-    /// Per-vertex UVs, if the mesh has them.
+    /// Per-vertex UVs (glTF's orientation: `v` down the image), if the mesh has them.
     #[must_use]
     pub fn uvs(&self) -> Option<&[DVec2]> {
         self.uvs.as_deref()
@@ -600,7 +613,7 @@ impl Sphere {
             if phi < 0.0 {
                 phi += 2.0 * PI;
             }
-            DVec2::new(phi / (2.0 * PI), 1.0 - theta / PI)
+            DVec2::new(phi / (2.0 * PI), theta / PI)
         } else {
             DVec2::ZERO
         };
@@ -614,13 +627,14 @@ impl Sphere {
             tangent: t,
             uv,
             dpdu: t * (2.0 * PI * self.radius * sin_t),
-            dpdv: b * (PI * self.radius),
+            dpdv: b * (-PI * self.radius),
             material: self.material,
         }
     }
 }
 
 impl Quad {
+    /// The surface at the quad's parameters `(s, t)`: `origin + s·edge_u + t·edge_v`.
     pub(crate) fn surface(&self, u: f64, v: f64) -> SurfaceGeom {
         let n = self.edge_u.cross(self.edge_v).normalize();
         SurfaceGeom {
@@ -628,9 +642,9 @@ impl Quad {
             ng: n,
             ns: n,
             tangent: self.edge_u,
-            uv: DVec2::new(u, v),
+            uv: DVec2::new(u, 1.0 - v),
             dpdu: self.edge_u,
-            dpdv: self.edge_v,
+            dpdv: -self.edge_v,
             material: self.material,
 
             frame: None,
@@ -656,9 +670,9 @@ impl Plane {
             ng: self.normal,
             ns: self.normal,
             tangent: f.t,
-            uv: DVec2::new(d.dot(f.t), d.dot(f.b)) / self.uv_scale,
+            uv: DVec2::new(d.dot(f.t), -d.dot(f.b)) / self.uv_scale,
             dpdu: f.t * self.uv_scale,
-            dpdv: f.b * self.uv_scale,
+            dpdv: f.b * -self.uv_scale,
             material: self.material,
 
             frame: None,

@@ -347,8 +347,9 @@ fn ndf_mapped_sharp_magnification_reads_the_cell() {
         // Cell (i, j) and a point inside it.
         let (j, i) = ((k * 7) % 32, (k * 13) % 32);
         let (fx, fy) = (0.3 + 0.01 * f64::from(k % 5), 0.6);
+        // Map point (x, y) in cells (y up the image, the map's 32 rows) → uv (v down it).
         let at = |x: f64, y: f64| {
-            let mut sp = materials_point(DVec2::new(x / tpu, y / tpu));
+            let mut sp = materials_point(DVec2::new(x / tpu, (32.0 - y) / tpu));
             // A footprint of a tenth of a cell: the single cell.
             sp.duvdx = DVec2::new(0.1 / tpu, 0.0);
             sp.duvdy = DVec2::new(0.0, 0.1 / tpu);

@@ -516,8 +516,12 @@ fn sphere_tangents_are_orthonormal_and_follow_the_uv_directions() {
             assert!((f.t.cross(f.b) - f.n).length() < 1e-12);
             assert!(f.t.dot(pole).abs() < 1e-12, "tangent goes around the pole");
             assert!((f.t.dot(sp.dpdu.normalize()) - 1.0).abs() < 1e-12);
-            assert!(f.b.dot(sp.dpdv) > 0.0);
-            // Finite differences: moving along +t increases u; along +b increases v.
+            assert!(
+                f.b.dot(sp.dpdv) < 0.0,
+                "b points up the image, against ∂p/∂v"
+            );
+            // Finite differences: moving along +t increases u; along +b (towards the pole, up
+            // the image) decreases v (glTF's v grows down the image).
             let p = sp.position;
             let probe = |q: DVec3| {
                 let c = DVec3::new(0.1, 0.0, 0.0);
@@ -530,7 +534,7 @@ fn sphere_tangents_are_orthonormal_and_follow_the_uv_directions() {
             if du.abs() < 0.5 {
                 assert!(du > 0.0, "u grows along t");
             }
-            assert!(dv > 0.0, "v grows along b");
+            assert!(dv < 0.0, "v falls along b");
         }
     }
     assert!(n > 150, "{n} hits");
@@ -605,7 +609,9 @@ material = "white.toml"
             // The tangent follows ∂p/∂u of the hit triangle (smoothly averaged: within ~10°).
             let dpdu = sp.dpdu.normalize();
             assert!(f.t.dot(dpdu) > 0.98, "t·dpdu = {}", f.t.dot(dpdu));
-            assert!(f.b.dot(sp.dpdv) > 0.0);
+            // The OBJ's v grows up the image; loaded as glTF's (down the image), ∂p/∂v points
+            // down it, and b up it.
+            assert!(f.b.dot(sp.dpdv) < 0.0);
             // The projection on the x/z plane of ∂p/∂u is the 30° rotated axis.
             let flat = DVec3::new(dpdu.x, 0.0, dpdu.z).normalize();
             let expect = DVec3::new(30f64.to_radians().cos(), 0.0, 30f64.to_radians().sin());
@@ -620,7 +626,8 @@ material = "white.toml"
 
 #[test]
 fn generated_mesh_tangents_on_a_uv_sphere_follow_the_parallels() {
-    // A lat-long sphere mesh (pole +y) with normals and UVs u = φ/2π.
+    // A lat-long sphere mesh (pole +y) with normals and UVs u = φ/2π, v = θ/π (glTF: the
+    // image's top row at the pole).
     let (nu, nv) = (48usize, 24usize);
     let (mut pos, mut nrm, mut uv, mut idx) = (vec![], vec![], vec![], vec![]);
     for j in 0..=nv {
@@ -630,7 +637,7 @@ fn generated_mesh_tangents_on_a_uv_sphere_follow_the_parallels() {
             let p = DVec3::new(th.sin() * ph.cos(), th.cos(), -th.sin() * ph.sin());
             pos.push(p);
             nrm.push(p);
-            uv.push(DVec2::new(u, 1.0 - v));
+            uv.push(DVec2::new(u, v));
         }
     }
     for j in 0..nv {

@@ -251,7 +251,8 @@ fn normal_maps_texel_by_texel_and_filtered() {
 }
 
 /// Textures show the right way up (issue #15 item 1, docs/conventions.md): a grey PNG height
-/// map with bumps in its **top** half only (image rows 0 … n/2 − 1) and flat below, on a plane
+/// map with bumps in its **top** half only (image rows 0 … n/2 − 1) and flat below, on a plane,
+/// a quad (`edge_v` up) and an OBJ square (OpenGL `vt`, v up the image, read as glTF's `1 − v`)
 /// seen from straight above with +y up the picture over exactly one tile (`uv` ∈ [0, 1]²), must
 /// show its bumps in the top half of the rendered picture — bump-mapped and NDF-mapped alike.
 /// Measured by the spread of the radiance along each picture row: the flat half is uniform.
@@ -273,7 +274,23 @@ fn a_texture_shows_the_right_way_up() {
     img.save(d.join("top_bumps.png")).unwrap();
     let surface = "[transfer]\nkind = \"phong\"\nexponent = 20.0\nspecular = [0.6, 0.6, 0.6]\n\
                    [diffuse]\nalbedo = [0.5, 0.4, 0.3]\n";
-    for kind in ["bump-mapped", "ndf-mapped"] {
+    std::fs::write(
+        d.join("square.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+         f 1/1 2/2 3/3 4/4\n",
+    )
+    .unwrap();
+    let objects = [
+        "kind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
+         tangent = [1.0, 0.0, 0.0]",
+        "kind = \"quad\"\norigin = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\n\
+         edge_v = [0.0, 1.0, 0.0]",
+        "kind = \"mesh\"\nfile = \"square.obj\"",
+    ];
+    for (kind, object) in ["bump-mapped", "ndf-mapped"]
+        .into_iter()
+        .flat_map(|k| objects.iter().map(move |o| (k, o)))
+    {
         std::fs::write(
             d.join(format!("{kind}.toml")),
             format!(
@@ -289,8 +306,7 @@ fn a_texture_shows_the_right_way_up() {
                 "[camera]\nkind = \"orthographic\"\nposition = [0.5, 0.5, 10.0]\n\
                  look_at = [0.5, 0.5, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 1.0\n\
                  [image]\nwidth = 64\nheight = 64\nspp = 4\n\
-                 [[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
-                 tangent = [1.0, 0.0, 0.0]\nmaterial = \"{kind}.toml\"\n\
+                 [[object]]\n{object}\nmaterial = \"{kind}.toml\"\n\
                  [[light]]\nkind = \"directional\"\ndirection = [-0.5, 0.3, 0.8]\n\
                  irradiance = [2.0, 2.0, 2.0]\n"
             ),
@@ -320,10 +336,13 @@ fn a_texture_shows_the_right_way_up() {
             sum / all.max(1e-30)
         };
         let (top, bottom) = (spread(2..h / 2 - 2), spread(h / 2 + 2..h - 2));
-        eprintln!("{kind}: relative spread along rows, top half {top:.4}, bottom half {bottom:.4}");
+        let what = object.lines().next().unwrap_or_default();
+        eprintln!(
+            "{kind} on {what}: relative spread along rows, top half {top:.4}, bottom half {bottom:.4}"
+        );
         assert!(
             top > 0.05 && top > 10.0 * bottom,
-            "{kind}: the bumps (top of the image file) are not at the top of the picture: \
+            "{kind} on {what}: the bumps (top of the image file) are not at the top of the picture: \
              spread top {top}, bottom {bottom}"
         );
     }

@@ -280,7 +280,7 @@ fn cloth_height(x: f64, z: f64) -> f64 {
 const CLOTH_RADIUS: f64 = 1.5;
 
 /// The draped cloth mesh (built once): a round height field with radial folds, UVs along x/z
-/// (so the tangent is +x).
+/// (so the tangent is +x; the texture image's top towards −z, glTF's v growing towards +z).
 fn cloth_mesh() -> Result<Arc<Mesh>, String> {
     static MESH: OnceLock<Result<Arc<Mesh>, String>> = OnceLock::new();
     MESH.get_or_init(|| {
@@ -300,7 +300,7 @@ fn cloth_mesh() -> Result<Arc<Mesh>, String> {
                 let dz = (cloth_height(x, z + e) - cloth_height(x, z - e)) / (2.0 * e);
                 pos.push(DVec3::new(x, y, z));
                 nor.push(DVec3::new(-dx, 1.0, -dz).normalize());
-                uv.push(DVec2::new(u, v));
+                uv.push(DVec2::new(u, 1.0 - v));
             }
         }
         let mut idx = Vec::with_capacity(n * n * 2);

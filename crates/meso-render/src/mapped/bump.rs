@@ -70,11 +70,12 @@ impl BumpMapped {
         })
     }
 
-    /// The facet normal (local frame) at texture coordinates `(u, v)`: of the triangulated
+    /// The facet normal (local frame) at texture coordinates `(u, v)` (glTF's orientation, `v`
+    /// down the image): of the triangulated
     /// height map, or of the normal map's texel.
     #[must_use]
     pub fn normal_at(&self, u: f64, v: f64) -> DVec3 {
-        let (x, y) = (u * self.texels_per_uv, v * self.texels_per_uv);
+        let (x, y) = super::map_xy(u, v, self.texels_per_uv, self.rows);
         let (fx, fy) = (x.floor(), y.floor());
         let j = (fx as i64).rem_euclid(self.cols as i64) as usize;
         let i = (fy as i64).rem_euclid(self.rows as i64) as usize;
@@ -87,7 +88,7 @@ impl BumpMapped {
         let Some(h) = &self.horizon else {
             return 1.0;
         };
-        let (x, y) = (u * self.texels_per_uv, v * self.texels_per_uv);
+        let (x, y) = super::map_xy(u, v, self.texels_per_uv, self.rows);
         let j = (x.round() as i64).rem_euclid(h.width as i64) as usize;
         let i = (y.round() as i64).rem_euclid(h.height as i64) as usize;
         h.sample_stats(i, j).visibility(wi) as f32

@@ -198,6 +198,16 @@ impl Facet {
     }
 }
 
+/// Map coordinates of texture coordinates `(u, v)` on a map of `rows` level-0 cell rows with
+/// `texels_per_uv` cells per unit of uv: `x = u·texels_per_uv` (cells, to the right) and
+/// `y = rows − v·texels_per_uv` (cells, **up** the image as the map's rows run, docs/conventions.md),
+/// since meso's `v` follows glTF and grows down the image: `uv = (0, 0)` is the image's top-left
+/// corner. Callers wrap both (the texture repeats).
+#[inline(always)]
+pub(crate) fn map_xy(u: f64, v: f64, texels_per_uv: f64, rows: usize) -> (f64, f64) {
+    (u * texels_per_uv, rows as f64 - v * texels_per_uv)
+}
+
 fn check_scale(texels_per_uv: f64) -> Result<(), String> {
     if texels_per_uv.is_finite() && texels_per_uv > 0.0 {
         Ok(())

@@ -48,9 +48,11 @@ impl NdfMapped {
     pub(super) fn taps(&self, sp: &ShadingPoint) -> Taps {
         let fp = self.footprint_cells(sp);
         // Centred where the renderer puts the sample's filter (its stratum's centre).
-        let (x, y) = (
-            sp.filter_uv.x * self.texels_per_uv,
-            sp.filter_uv.y * self.texels_per_uv,
+        let (x, y) = crate::mapped::map_xy(
+            sp.filter_uv.x,
+            sp.filter_uv.y,
+            self.texels_per_uv,
+            self.levels[0].rows,
         );
         let mut taps = [(0usize, 0usize, 0.0f64); MAX_TAPS];
         let mut n = 0;
