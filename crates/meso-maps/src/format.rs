@@ -174,36 +174,25 @@ impl Pyramid {
             path: path.to_path_buf(),
             source: e,
         };
-        #[cfg(unix)]
-        {
-            let map = Mapped::open(path).map_err(io)?;
-            let mut r = Reader::new(map.bytes(), path);
-            r.mapped = true;
-            let h = read_header(&mut r)?;
-            if h.version != VERSION_4 {
-                drop(map);
-                return Pyramid::read(path);
-            }
-            let levels = v4::read_levels(&mut r, &h, true, true)?;
-            if r.pos != r.b.len() {
-                return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
-            }
-            Ok(h.into_pyramid(levels))
+        let file = std::fs::File::open(path).map_err(io)?;
+        if file.metadata().map_err(io)?.len() == 0 {
+            return Pyramid::read(path); // its error for an empty file
         }
-        #[cfg(not(unix))]
-        {
-            let bytes = std::fs::read(path).map_err(io)?;
-            let mut r = Reader::new(&bytes, path);
-            let h = read_header(&mut r)?;
-            if h.version != VERSION_4 {
-                return Pyramid::from_bytes(path, &bytes);
-            }
-            let levels = v4::read_levels(&mut r, &h, true, true)?;
-            if r.pos != r.b.len() {
-                return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
-            }
-            Ok(h.into_pyramid(levels))
+        // SAFETY: a read-only mapping of the file. A file truncated by another process while
+        // mapped would fault; map files are replaced by renaming (`meso_core::io::write_atomic`),
+        // which leaves a mapped file whole.
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
+        let mut r = Reader::new(&map, path);
+        r.mapped = Some(&map);
+        let h = read_header(&mut r)?;
+        if h.version != VERSION_4 {
+            return Pyramid::read(path);
         }
+        let levels = v4::read_levels(&mut r, &h, true, true)?;
+        if r.pos != r.b.len() {
+            return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
+        }
+        Ok(h.into_pyramid(levels))
     }
 
     /// Parse a map file from bytes; `path` only names the source in errors.
@@ -489,8 +478,8 @@ struct Reader<'a> {
     b: &'a [u8],
     pos: usize,
     path: PathBuf,
-    /// Whether `b` is a mapped file whose pages [`Reader::release`] hands back.
-    mapped: bool,
+    /// The mapped file `b` is, whose pages [`Reader::release`] hands back.
+    mapped: Option<&'a memmap2::Mmap>,
     /// The bytes before this (a page boundary) are released.
     released: usize,
 }
@@ -502,14 +491,14 @@ impl<'a> Reader<'a> {
             b,
             pos: 0,
             path: path.to_path_buf(),
-            mapped: false,
+            mapped: None,
             released: 0,
         }
     }
 
     /// Whether the bytes read are released as they are read (a mapped file).
     fn releases(&self) -> bool {
-        self.mapped
+        self.mapped.is_some()
     }
 
     /// Hand the whole pages before the reader's position back to the system when the reader
@@ -517,20 +506,20 @@ impl<'a> Reader<'a> {
     /// takes no more of the process's memory than the pages between two calls.
     fn release(&mut self) {
         #[cfg(unix)]
-        if self.mapped {
+        if let Some(map) = self.mapped {
             const PAGE: usize = 1 << 16; // a multiple of every page size in use
             let to = self.pos / PAGE * PAGE;
             if to > self.released {
-                // SAFETY: `b` is a read-only private mapping of whole pages starting at a page
-                // boundary (`Mapped`); dropping pages of it only makes later reads fault them
-                // in from the file again, with the same bytes.
-                unsafe {
-                    libc::madvise(
-                        self.b.as_ptr().add(self.released) as *mut libc::c_void,
+                // SAFETY: `map` is a read-only private mapping of the file; dropping pages of it
+                // only makes later reads fault them in from the file again, with the same
+                // bytes. (An error leaves the pages resident: nothing to handle.)
+                let _ = unsafe {
+                    map.unchecked_advise_range(
+                        memmap2::UncheckedAdvice::DontNeed,
+                        self.released,
                         to - self.released,
-                        libc::MADV_DONTNEED,
-                    );
-                }
+                    )
+                };
                 self.released = to;
             }
         }
@@ -597,67 +586,5 @@ impl<'a> Reader<'a> {
     }
     fn f32(&mut self, what: &str) -> Result<f64> {
         Ok(f32::from_le_bytes(self.take(4, what)?.try_into().unwrap()) as f64)
-    }
-}
-
-/// A file mapped read-only into memory ([`Pyramid::read_coded`]), unmapped when dropped.
-#[cfg(unix)]
-struct Mapped {
-    ptr: *mut libc::c_void,
-    len: usize,
-}
-
-#[cfg(unix)]
-impl Mapped {
-    /// Map the file at `path` (an empty file maps to no bytes).
-    fn open(path: &Path) -> std::io::Result<Mapped> {
-        use std::os::unix::io::AsRawFd;
-        let f = std::fs::File::open(path)?;
-        let len = usize::try_from(f.metadata()?.len())
-            .map_err(|_| std::io::Error::other("file too large to map"))?;
-        if len == 0 {
-            return Ok(Mapped {
-                ptr: std::ptr::null_mut(),
-                len: 0,
-            });
-        }
-        // SAFETY: a fresh read-only private mapping of the whole file; the pointer is checked.
-        let ptr = unsafe {
-            libc::mmap(
-                std::ptr::null_mut(),
-                len,
-                libc::PROT_READ,
-                libc::MAP_PRIVATE,
-                f.as_raw_fd(),
-                0,
-            )
-        };
-        if ptr == libc::MAP_FAILED {
-            return Err(std::io::Error::last_os_error());
-        }
-        Ok(Mapped { ptr, len })
-    }
-
-    /// The file's bytes.
-    fn bytes(&self) -> &[u8] {
-        if self.len == 0 {
-            return &[];
-        }
-        // SAFETY: `ptr` maps `len` readable bytes for as long as `self` lives. (A file truncated
-        // by another process while mapped would fault; map files are replaced by renaming,
-        // `meso_core::io::write_atomic`, which leaves a mapped file whole.)
-        unsafe { std::slice::from_raw_parts(self.ptr as *const u8, self.len) }
-    }
-}
-
-#[cfg(unix)]
-impl Drop for Mapped {
-    fn drop(&mut self) {
-        if self.len > 0 {
-            // SAFETY: the mapping made in `open`, unmapped once.
-            unsafe {
-                libc::munmap(self.ptr, self.len);
-            }
-        }
     }
 }
