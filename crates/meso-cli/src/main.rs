@@ -90,6 +90,9 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // No output of a command may replace a file it read (a scene's material, a material's
+    // height map, …): meso_core::io's input log.
+    meso_core::io::record_inputs();
     if let Some(b) = cli.memory_budget {
         meso_core::budget::set_budget(b);
     } else if let Some(Err(e)) = meso_core::budget::env_budget() {

@@ -267,10 +267,13 @@ fn output_identity(p: &Path) -> std::path::PathBuf {
 }
 
 /// Refuse outputs that would overwrite one of the command's inputs
-/// ([`meso_core::io::check_not_input`]) or name the same file twice.
+/// ([`meso_core::io::check_not_input`]: those given, and every file read so far, the input
+/// log) or name the same file twice.
 pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
     for (j, out) in outputs.iter().enumerate() {
         meso_core::io::check_not_input(out, inputs)?;
+        // And every file read so far (a scene's materials, their height maps, …).
+        meso_core::io::check_not_recorded_input(out)?;
         if std::fs::symlink_metadata(out).is_err() {
             // Fail before the work, not after it: the output's directory must exist.
             let dir = match out.parent() {

@@ -1,18 +1,8 @@
 //! `meso brdf` and `meso ndf` through the binary: the issue's example against an independent
 //! quadrature of Eq. 2, and bad input giving one error line, a non-zero exit and no output file.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn meso() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_meso"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-cli-brdf-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{cmd, tmpdir};
 
 const EXAMPLE: &str = r#"[ndf]
 kind = "phong-peaks"            # Eq. 12; weights are normalised to sum to 1
@@ -72,7 +62,7 @@ fn independent(i: [f64; 3], o: [f64; 3]) -> f64 {
 
 #[test]
 fn brdf_matches_an_independent_quadrature_within_one_percent() {
-    let d = tmp("ok");
+    let d = tmpdir("cli-brdf", "ok");
     std::fs::write(d.join("m.toml"), EXAMPLE).unwrap();
     let rows = [
         (0.0, 0.0, 0.0, 0.0),
@@ -85,7 +75,7 @@ fn brdf_matches_an_independent_quadrature_within_one_percent() {
         csv += &format!("{},{},{},{}\n", r.0, r.1, r.2, r.3);
     }
     std::fs::write(d.join("p.csv"), csv).unwrap();
-    let st = meso()
+    let st = cmd()
         .arg("brdf")
         .arg(d.join("m.toml"))
         .arg("--pairs")
@@ -118,7 +108,7 @@ fn brdf_matches_an_independent_quadrature_within_one_percent() {
 
 #[test]
 fn bad_inputs_fail_cleanly() {
-    let d = tmp("bad");
+    let d = tmpdir("cli-brdf", "bad");
     std::fs::write(d.join("m.toml"), EXAMPLE).unwrap();
     std::fs::write(d.join("bad.toml"), "[ndf]\nkind = \"phong-peaks\"\nlobes = [{ axis = [0, 0], weight = nan, exponent = 1 }]\n[transfer]\nkind = \"lambert\"\n").unwrap();
     std::fs::write(
@@ -155,7 +145,7 @@ fn bad_inputs_fail_cleanly() {
     ];
     for (m, p, needle) in cases {
         let out = d.join("out.csv");
-        let o = meso()
+        let o = cmd()
             .arg("brdf")
             .arg(d.join(m))
             .arg("--pairs")
@@ -176,9 +166,9 @@ fn bad_inputs_fail_cleanly() {
 
 #[test]
 fn ndf_stats_and_plot() {
-    let d = tmp("ndf");
+    let d = tmpdir("cli-brdf", "ndf");
     std::fs::write(d.join("m.toml"), EXAMPLE).unwrap();
-    let o = meso()
+    let o = cmd()
         .args(["ndf", "stats"])
         .arg(d.join("m.toml"))
         .arg("--json")
@@ -197,7 +187,7 @@ fn ndf_stats_and_plot() {
         .unwrap();
     assert!((integral - 1.0).abs() < 1e-3, "{s}");
     let png = d.join("n.png");
-    assert!(meso()
+    assert!(cmd()
         .args(["ndf", "plot"])
         .arg(d.join("m.toml"))
         .arg("--out")

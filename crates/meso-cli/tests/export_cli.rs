@@ -3,34 +3,11 @@
 //! a material file, and the messages for a map file, a height map read as a normal map and an
 //! `--out` that is a file.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::{ok, run, s, tmpdir};
 
-fn meso(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_meso"))
-        .args(args)
-        .output()
-        .expect("run meso")
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-export-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "meso failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
+use std::path::Path;
+use std::process::Output;
 
 /// A failed command: non-zero exit, exactly one error line, no output folder; the error line.
 fn fails(o: &Output, out: &Path, what: &str) -> String {
@@ -71,7 +48,7 @@ fn height_png(path: &Path, n: u32) {
 /// only the colour of an export without a texture).
 #[test]
 fn a_base_color_texture_has_factor_one() {
-    let d = tmpdir("base-color");
+    let d = tmpdir("export-cli", "base-color");
     let (n, c) = (d.join("n.png"), d.join("color.png"));
     normal_png(&n, 8, 8);
     image::RgbImage::from_pixel(8, 8, image::Rgb([200, 100, 50]))
@@ -89,7 +66,7 @@ fn a_base_color_texture_has_factor_one() {
             .collect()
     };
     let with = d.join("with");
-    ok(&meso(&[
+    ok(&run(&[
         "export",
         s(&n),
         "--base-color",
@@ -99,7 +76,7 @@ fn a_base_color_texture_has_factor_one() {
     ]));
     assert_eq!(factor(&with), vec![1.0; 4]);
     let without = d.join("without");
-    ok(&meso(&["export", s(&n), "--out", s(&without)]));
+    ok(&run(&["export", s(&n), "--out", s(&without)]));
     assert_eq!(factor(&without), vec![0.8, 0.8, 0.8, 1.0]);
 }
 
@@ -109,11 +86,11 @@ fn a_base_color_texture_has_factor_one() {
 /// is accepted and writes one lobe level per mip level.
 #[test]
 fn lobes_must_match_the_mip_chain() {
-    let d = tmpdir("lobes");
+    let d = tmpdir("export-cli", "lobes");
     let odd = d.join("odd.png");
     normal_png(&odd, 5, 3);
     let odd_map = d.join("odd.map");
-    ok(&meso(&[
+    ok(&run(&[
         "extract",
         s(&odd),
         "--normal-map",
@@ -121,7 +98,7 @@ fn lobes_must_match_the_mip_chain() {
         s(&odd_map),
     ]));
     let out = d.join("odd-out");
-    let o = meso(&["export", s(&odd), "--lobes", s(&odd_map), "--out", s(&out)]);
+    let o = run(&["export", s(&odd), "--lobes", s(&odd_map), "--out", s(&out)]);
     let err = fails(&o, &out, "5 × 3 lobes");
     assert!(err.contains("odd.map"), "{err}");
     assert!(
@@ -138,7 +115,7 @@ fn lobes_must_match_the_mip_chain() {
     let h = d.join("h.png");
     height_png(&h, 64);
     let clamped = d.join("clamped.map");
-    ok(&meso(&[
+    ok(&run(&[
         "extract",
         s(&h),
         "--texel-size",
@@ -152,7 +129,7 @@ fn lobes_must_match_the_mip_chain() {
         s(&clamped),
     ]));
     let out = d.join("clamped-out");
-    let o = meso(&[
+    let o = run(&[
         "export",
         s(&h),
         "--texel-size",
@@ -172,7 +149,7 @@ fn lobes_must_match_the_mip_chain() {
     assert!(err.contains("without --clamp"), "{err}");
 
     let wrapped = d.join("wrapped.map");
-    ok(&meso(&[
+    ok(&run(&[
         "extract",
         s(&h),
         "--texel-size",
@@ -185,7 +162,7 @@ fn lobes_must_match_the_mip_chain() {
         s(&wrapped),
     ]));
     let out = d.join("wrapped-out");
-    ok(&meso(&[
+    ok(&run(&[
         "export",
         s(&h),
         "--texel-size",
@@ -209,7 +186,7 @@ fn lobes_must_match_the_mip_chain() {
 /// the map defaults (`--alpha 0.1`, `--metallic 0`) and `--convention`.
 #[test]
 fn a_material_file_refuses_every_map_option() {
-    let d = tmpdir("material");
+    let d = tmpdir("export-cli", "material");
     let m = d.join("ggx.toml");
     std::fs::write(
         &m,
@@ -229,24 +206,24 @@ fn a_material_file_refuses_every_map_option() {
     ] {
         let mut a = vec!["export", s(&m), "--out", s(&out)];
         a.extend(&args);
-        let err = fails(&meso(&a), &out, &format!("material with {args:?}"));
+        let err = fails(&run(&a), &out, &format!("material with {args:?}"));
         assert!(err.contains("ggx.toml"), "{err}");
         for n in names {
             assert!(err.contains(n), "{args:?}: {err}");
         }
     }
-    ok(&meso(&["export", s(&m), "--out", s(&out)]));
+    ok(&run(&["export", s(&m), "--out", s(&out)]));
 }
 
 /// The messages: a map file given as the image (export and extract), a grey height map without
 /// `--texel-size`/`--height-scale`, and `--out` naming a file.
 #[test]
 fn messages_say_what_to_do() {
-    let d = tmpdir("messages");
+    let d = tmpdir("export-cli", "messages");
     let h = d.join("d64.png");
     height_png(&h, 16);
     let map = d.join("h.map");
-    ok(&meso(&[
+    ok(&run(&[
         "extract",
         s(&h),
         "--texel-size",
@@ -260,7 +237,7 @@ fn messages_say_what_to_do() {
     ]));
     let out = d.join("out");
     let err = fails(
-        &meso(&["export", s(&map), "--out", s(&out)]),
+        &run(&["export", s(&map), "--out", s(&out)]),
         &out,
         "map as export input",
     );
@@ -272,7 +249,7 @@ fn messages_say_what_to_do() {
     );
     let out_map = d.join("again.map");
     let err = fails(
-        &meso(&[
+        &run(&[
             "extract",
             s(&map),
             "--texel-size",
@@ -291,7 +268,7 @@ fn messages_say_what_to_do() {
     );
     // A grey height map read as a normal map.
     let err = fails(
-        &meso(&["export", s(&h), "--out", s(&out)]),
+        &run(&["export", s(&h), "--out", s(&out)]),
         &out,
         "height map as normals",
     );
@@ -307,7 +284,7 @@ fn messages_say_what_to_do() {
     let rgb = d.join("d64rgb.png");
     image::open(&h).unwrap().to_rgb8().save(&rgb).unwrap();
     let err = fails(
-        &meso(&["export", s(&rgb), "--out", s(&out)]),
+        &run(&["export", s(&rgb), "--out", s(&out)]),
         &out,
         "rgb height map as normals",
     );
@@ -320,7 +297,7 @@ fn messages_say_what_to_do() {
     // --out naming a file.
     let file = d.join("afile");
     std::fs::write(&file, b"keep").unwrap();
-    let o = meso(&[
+    let o = run(&[
         "export",
         s(&h),
         "--texel-size",
@@ -346,7 +323,7 @@ fn messages_say_what_to_do() {
 /// fits.
 #[test]
 fn the_lobe_pyramid_counts_in_the_budget() {
-    let d = tmpdir("lobes-budget");
+    let d = tmpdir("export-cli", "lobes-budget");
     let h = d.join("h.png");
     height_png(&h, 64);
     let big = d.join("big.map");
@@ -380,12 +357,12 @@ fn the_lobe_pyramid_counts_in_the_budget() {
         }
         a
     };
-    let o = meso(&args(true));
+    let o = run(&args(true));
     let err = fails(&o, &out, "lobes above the budget");
     assert!(
         err.contains("h.png") && err.contains("reading the lobe pyramid") && err.contains("budget"),
         "{err}"
     );
     assert!(o.stdout.is_empty(), "refused before the fit");
-    ok(&meso(&args(false)));
+    ok(&run(&args(false)));
 }

@@ -2,6 +2,9 @@
 //! written material is read by meso-core and reproduces the generating BRDF; bad input fails
 //! cleanly with one error line and no output file.
 
+mod common;
+use common::{run, tmpdir};
+
 use glam::DVec3;
 use meso_core::frame::spherical_direction_deg;
 use meso_core::material::Material;
@@ -9,21 +12,6 @@ use meso_core::ndf::PhongLobe;
 use meso_measured::merl::{CellPosition, MerlTable};
 use meso_measured::model::LobeParams;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-cli-fit-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn meso(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_meso"))
-        .args(args)
-        .output()
-        .expect("meso runs")
-}
 
 /// The generating material: one Phong peak on the normal, Phong transfer, diffuse term.
 fn truth() -> LobeParams {
@@ -45,10 +33,10 @@ fn write_merl(dir: &Path) -> PathBuf {
 
 #[test]
 fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
-    let dir = temp_dir("merl");
+    let dir = tmpdir("cli-fit", "merl");
     let merl = write_merl(&dir);
     let out = dir.join("fitted.toml");
-    let o = meso(&[
+    let o = run(&[
         "fit",
         merl.to_str().unwrap(),
         "--lobes",
@@ -128,7 +116,7 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
     let cut = dir.join("cut.binary");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let out2 = dir.join("never.toml");
-    let o = meso(&[
+    let o = run(&[
         "fit",
         cut.to_str().unwrap(),
         "--lobes",
@@ -150,7 +138,7 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
     bad[0] = 91;
     let badp = dir.join("header.binary");
     std::fs::write(&badp, &bad).unwrap();
-    let o = meso(&[
+    let o = run(&[
         "fit",
         badp.to_str().unwrap(),
         "--lobes",
@@ -180,7 +168,7 @@ fn fit_reproduces_the_generating_brdf_and_bad_input_fails_cleanly() {
     ] {
         let p = dir.join(name);
         std::fs::write(&p, text).unwrap();
-        let o = meso(&[
+        let o = run(&[
             "fit",
             p.to_str().unwrap(),
             "--lobes",
@@ -216,7 +204,7 @@ fn rerun_header(text: &str, out: &Path) {
         .map(str::to_owned)
         .collect();
     args.extend(["--out".into(), out.to_str().unwrap().to_owned()]);
-    let o = meso(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let o = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(
         o.status.success(),
         "{header}: {}",
@@ -317,7 +305,7 @@ fn per_channel_lobes_recover_each_channels_geometry() {
         .into_iter()
         .map(|(wi, wo)| CsvSample::from_dirs(wi, wo, [0, 1, 2].map(|c| truths[c].eval(wi, wo)[c])))
         .collect();
-    let dir = temp_dir("per-channel");
+    let dir = tmpdir("cli-fit", "per-channel");
     let csv = dir.join("rgb.csv");
     write_csv(&csv, &samples).unwrap();
 
@@ -331,7 +319,7 @@ fn per_channel_lobes_recover_each_channels_geometry() {
             out.to_str().unwrap(),
         ];
         args.extend_from_slice(extra);
-        let o = meso(&args);
+        let o = run(&args);
         let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
         assert!(
             o.status.success(),
@@ -413,7 +401,7 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
     use meso_core::ndf::Ndf;
     use meso_core::shading::{FastBrdf, Policy};
     use meso_measured::model::{GgxLobe, LobeGgxParams};
-    let dir = temp_dir("ggx");
+    let dir = tmpdir("cli-fit", "ggx");
     let truth_text = "form = \"microfacet\"\n[ndf]\nkind = \"mixture\"\n\
         lobes = [{ kind = \"ggx\", alpha = 0.06, weight = 0.6 }, { kind = \"ggx\", alpha = 0.35, weight = 0.4 }]\n\
         [transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\nf0 = [0.9, 0.6, 0.3]\nspecular = [0.8, 0.8, 0.8]\n\
@@ -428,7 +416,7 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
     // The defaults, transfer auto and lobes auto (no --lobes given): three families tried, GGX
     // lobes kept, 2 lobes.
     let out = dir.join("auto.toml");
-    let o = meso(&["fit", &s(&merl), "--samples", "8000", "--out", &s(&out)]);
+    let o = run(&["fit", &s(&merl), "--samples", "8000", "--out", &s(&out)]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         o.status.success(),
@@ -462,7 +450,7 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
 
     // --transfer ggx-lobes, and the header's command line re-runs as written.
     let out2 = dir.join("ggx.toml");
-    let o = meso(&[
+    let o = run(&[
         "fit",
         &s(&merl),
         "--lobes",
@@ -521,7 +509,7 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
     let pairs_csv = dir.join("pairs.csv");
     std::fs::write(&pairs_csv, csv).unwrap();
     let values = dir.join("values.csv");
-    let o = meso(&[
+    let o = run(&[
         "brdf",
         &s(&out2),
         "--pairs",
@@ -565,7 +553,7 @@ fn ggx_lobes_fit_writes_a_mixture_that_meso_brdf_reproduces() {
 #[test]
 fn student_t_lobes_fit_recovers_the_tail_exponent() {
     use meso_core::shading::{FastBrdf, Policy};
-    let dir = temp_dir("student-t");
+    let dir = tmpdir("cli-fit", "student-t");
     let truth_text = "form = \"microfacet\"\n[ndf]\nkind = \"mixture\"\n\
         lobes = [{ kind = \"student-t\", gamma = 3.5, alpha = 0.08, weight = 1.0 }]\n\
         [transfer]\nkind = \"mirror\"\nfresnel = \"schlick\"\nf0 = [0.9, 0.6, 0.3]\nspecular = [0.8, 0.8, 0.8]\n\
@@ -577,7 +565,7 @@ fn student_t_lobes_fit_recovers_the_tail_exponent() {
     table.write(&merl).unwrap();
     let s = |p: &Path| p.to_str().unwrap().to_owned();
     let out = dir.join("st.toml");
-    let o = meso(&[
+    let o = run(&[
         "fit",
         &s(&merl),
         "--lobes",
@@ -666,12 +654,12 @@ fn aniso_csv(path: &Path, n_z: usize, n_phi: usize, back: bool, n: usize) {
 
 #[test]
 fn nonparametric_on_anisotropic_samples_writes_a_tabulated_ndf() {
-    let dir = temp_dir("np-aniso");
+    let dir = tmpdir("cli-fit", "np-aniso");
     let csv = dir.join("aniso.csv");
     aniso_csv(&csv, 64, 16, true, 6000);
     let out = dir.join("np.toml");
     let (csv_s, out_s) = (csv.to_str().unwrap(), out.to_str().unwrap());
-    let o = meso(&[
+    let o = run(&[
         "fit",
         csv_s,
         "--nonparametric",
@@ -714,7 +702,7 @@ fn nonparametric_on_anisotropic_samples_writes_a_tabulated_ndf() {
 
     // Too fine a grid for these back-scattering samples: a clear error, no output.
     let out2 = dir.join("np2.toml");
-    let o = meso(&[
+    let o = run(&[
         "fit",
         csv_s,
         "--nonparametric",
@@ -732,7 +720,7 @@ fn nonparametric_on_anisotropic_samples_writes_a_tabulated_ndf() {
     // No back-scattering samples at all.
     let bare = dir.join("bare.csv");
     aniso_csv(&bare, 64, 16, false, 3000);
-    let o = meso(&[
+    let o = run(&[
         "fit",
         bare.to_str().unwrap(),
         "--nonparametric",
@@ -743,7 +731,7 @@ fn nonparametric_on_anisotropic_samples_writes_a_tabulated_ndf() {
     assert!(!o.status.success() && !out2.exists(), "{stderr}");
     assert!(stderr.contains("cover 0"), "{stderr}");
     // A bad grid is refused by the argument parser.
-    let o = meso(&[
+    let o = run(&[
         "fit",
         csv_s,
         "--nonparametric",

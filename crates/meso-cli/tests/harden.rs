@@ -2,31 +2,11 @@
 //! (item 1), no partial outputs (item 6), declared limits (item 7), broken pipes and full
 //! streams (item 8), messages (item 12).
 
+mod common;
+use common::{cmd, ok, run, s, stderr, tmpdir};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-
-fn meso() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_meso"))
-}
-
-fn run(args: &[&str]) -> Output {
-    meso().args(args).output().expect("run meso")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-harden-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A failed run: status 1 (never a panic's 101), one error line on stderr containing `what`.
 fn fails_with(o: &Output, what: &str) {
@@ -38,10 +18,6 @@ fn fails_with(o: &Output, what: &str) {
     assert!(e.contains(what), "expected {what:?} in: {e}");
 }
 
-fn ok(o: &Output) {
-    assert!(o.status.success(), "status {:?}: {}", o.status, stderr(o));
-}
-
 const PHONG: &str = "[ndf]\nkind = \"phong-peaks\"\nlobes = [{ axis = [0.0, 0.0], weight = 1.0, exponent = 40.0 }]\n\
 [transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n";
 
@@ -49,7 +25,7 @@ const PAIRS: &str = "theta_i,phi_i,theta_o,phi_o\n0,0,0,0\n30,0,30,180\n45,0,45,
 
 /// A material and a pairs file in a fresh directory.
 fn brdf_inputs(name: &str) -> (PathBuf, PathBuf, PathBuf) {
-    let d = tmp(name);
+    let d = tmpdir("harden", name);
     let m = d.join("m.toml");
     let p = d.join("pairs.csv");
     std::fs::write(&m, PHONG).unwrap();
@@ -106,7 +82,7 @@ fn item1_out_dev_stdout_writes_to_standard_output() {
     let f = std::fs::File::create(&file).unwrap();
     let ino = |p: &Path| std::os::unix::fs::MetadataExt::ino(&std::fs::metadata(p).unwrap());
     let before = ino(&file);
-    let st = meso()
+    let st = cmd()
         .args(["brdf", s(&m), "--pairs", s(&p), "--out", "/dev/stdout"])
         .stdout(f)
         .status()
@@ -191,7 +167,7 @@ fn item2_temp_file_of_a_killed_run_is_cleaned() {
         .status()
         .unwrap()
         .success());
-    let mut child = meso()
+    let mut child = cmd()
         .args(["brdf", s(&fifo), "--pairs", s(&p), "--out", s(&out)])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -304,7 +280,7 @@ fn fit_csv(dir: &Path) -> PathBuf {
 
 #[test]
 fn item6_fit_per_channel_failure_leaves_no_file() {
-    let d = tmp("item6-fit");
+    let d = tmpdir("harden", "item6-fit");
     let csv = fit_csv(&d);
     // The third per-channel file cannot be written (a directory of that name).
     std::fs::create_dir(d.join("m.blue.toml")).unwrap();
@@ -377,7 +353,7 @@ fn run_into_closed_pipe(args: &[&str]) -> Output {
     // SAFETY: both descriptors were just created and are owned here only.
     let (read, write) = unsafe { (OwnedFd::from_raw_fd(fds[0]), OwnedFd::from_raw_fd(fds[1])) };
     drop(read);
-    meso()
+    cmd()
         .args(args)
         .stdout(Stdio::from(write))
         .stderr(Stdio::piped())
@@ -413,7 +389,7 @@ fn map_file(dir: &Path) -> PathBuf {
 #[cfg(unix)]
 #[test]
 fn item8_map_info_piped_into_head_1_does_not_panic() {
-    let d = tmp("item8-head");
+    let d = tmpdir("harden", "item8-head");
     let map = map_file(&d);
     let bin = env!("CARGO_BIN_EXE_meso");
     let o = Command::new("bash")
@@ -487,7 +463,7 @@ fn run_full(args: &[&str], stderr_full: bool) -> Output {
         .write(true)
         .open("/dev/full")
         .unwrap();
-    let mut c = meso();
+    let mut c = cmd();
     c.args(args);
     if stderr_full {
         c.stderr(full).stdout(Stdio::piped());
@@ -500,7 +476,7 @@ fn run_full(args: &[&str], stderr_full: bool) -> Output {
 #[cfg(unix)]
 #[test]
 fn item8_stdout_on_dev_full_is_an_error_not_a_panic() {
-    let d = tmp("item8-full");
+    let d = tmpdir("harden", "item8-full");
     let map = map_file(&d);
     std::fs::write(d.join("m.toml"), PHONG).unwrap();
     std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
@@ -531,7 +507,7 @@ fn item8_stdout_on_dev_full_is_an_error_not_a_panic() {
 #[cfg(unix)]
 #[test]
 fn item8_stderr_on_dev_full_does_not_panic() {
-    let d = tmp("item8-stderr");
+    let d = tmpdir("harden", "item8-stderr");
     std::fs::write(d.join("m.toml"), PHONG).unwrap();
     std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
     // An error with nowhere to report it: status 1.
@@ -550,7 +526,7 @@ fn item8_stderr_on_dev_full_does_not_panic() {
 
 #[test]
 fn item12_os_errors_are_printed_once() {
-    let d = tmp("item12-os");
+    let d = tmpdir("harden", "item12-os");
     let missing = d.join("missing.toml");
     for args in [
         vec!["ndf", "stats", s(&missing)],
@@ -579,7 +555,7 @@ fn item12_os_errors_are_printed_once() {
 
 #[test]
 fn item5_a_written_map_always_passes_map_info() {
-    let d = tmp("item5");
+    let d = tmpdir("harden", "item5");
     let n = 16u32;
     let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |x, y| {
         image::Luma([((x * 7 + y * 13) % 64 * 1000) as u16])
@@ -637,13 +613,13 @@ fn flat_png(path: &Path, w: u32, h: u32) {
 
 #[test]
 fn item3_extract_above_the_memory_budget_is_refused_from_the_header() {
-    let d = tmp("item3-extract");
+    let d = tmpdir("harden", "item3-extract");
     let png = d.join("wide.png");
     flat_png(&png, 65536, 256);
     assert!(std::fs::metadata(&png).unwrap().len() < 200_000);
     let map = d.join("wide.map");
     let t = std::time::Instant::now();
-    let o = meso()
+    let o = cmd()
         .args([
             "extract",
             s(&png),
@@ -675,27 +651,27 @@ fn item3_extract_above_the_memory_budget_is_refused_from_the_header() {
         "--out",
         s(&map),
     ];
-    let o = meso()
+    let o = cmd()
         .args(["--memory-budget", "100K"])
         .args(args)
         .output()
         .unwrap();
     fails_with(&o, "small.png: extracting the NDF pyramid needs about");
     assert!(stderr(&o).contains("(--memory-budget;"), "{}", stderr(&o));
-    let o = meso()
+    let o = cmd()
         .args(args)
         .env("MESO_MEMORY_BUDGET", "100K")
         .output()
         .unwrap();
     fails_with(&o, "(MESO_MEMORY_BUDGET;");
-    let o = meso()
+    let o = cmd()
         .args(args)
         .env("MESO_MEMORY_BUDGET", "lots")
         .output()
         .unwrap();
     fails_with(&o, "MESO_MEMORY_BUDGET=\"lots\": not a size");
     assert!(!map.exists());
-    ok(&meso()
+    ok(&cmd()
         .args(["--memory-budget", "1G"])
         .args(args)
         .output()
@@ -711,7 +687,7 @@ fn item3_memory_capped_run_is_an_error_not_an_abort() {
         eprintln!("skipped: no prlimit");
         return;
     }
-    let d = tmp("item3-capped");
+    let d = tmpdir("harden", "item3-capped");
     let png = d.join("wide.png");
     flat_png(&png, 65536, 256);
     let map = d.join("wide.map");
@@ -786,7 +762,7 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
     std::fs::write(&sc, scene("m.toml")).unwrap();
     let out = d.join("big.png");
     // The largest render the options allow, under the default budget (4 GiB at most).
-    let o = meso()
+    let o = cmd()
         .args(["render", s(&sc), "--width", "16384", "--height", "16384"])
         .args(["--out", s(&out)])
         .env_remove("MESO_MEMORY_BUDGET")
@@ -804,13 +780,13 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
     img.save(&env).unwrap();
     let with_env = format!("{}[environment]\nfile = \"sky.png\"\n", scene("m.toml"));
     std::fs::write(&sc, with_env).unwrap();
-    let o = meso()
+    let o = cmd()
         .args(["--memory-budget", "64M", "render", s(&sc), "--out", s(&out)])
         .output()
         .unwrap();
     fails_with(&o, "sky.png: loading the environment map needs about");
     assert!(!out.exists());
-    ok(&meso()
+    ok(&cmd()
         .args(["--memory-budget", "1G", "render", s(&sc), "--out", s(&out)])
         .output()
         .unwrap());
@@ -825,7 +801,7 @@ fn item3_render_and_environment_map_above_the_budget_are_refused() {
         "kind = \"mesh\"\nfile = \"tri.obj\"\n",
     );
     std::fs::write(&sc, with_mesh).unwrap();
-    let o = meso()
+    let o = cmd()
         .args([
             "--memory-budget",
             "10K",
@@ -853,7 +829,7 @@ fn flat_rgb_png(path: &Path, w: u32, h: u32) {
 
 #[test]
 fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
-    let d = tmp("item3-export");
+    let d = tmpdir("harden", "item3-export");
     // A normal map of some 150 KB whose header declares 65536 × 256 texels.
     let wide = d.join("wide.png");
     flat_rgb_png(&wide, 65536, 256);
@@ -899,14 +875,14 @@ fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
     flat_png(&big, 4096, 4096);
     assert!(std::fs::metadata(&big).unwrap().len() < 200_000);
     let budget = ["--memory-budget", "64M", "export"];
-    let o = meso()
+    let o = cmd()
         .args(budget)
         .args([s(&small), "--roughness-map", s(&big), "--out", s(&out)])
         .output()
         .unwrap();
     fails_with(&o, "big.png: loading the roughness map needs about");
     assert!(!out.exists());
-    let o = meso()
+    let o = cmd()
         .args(budget)
         .args([s(&small), "--base-color", s(&big), "--out", s(&out)])
         .output()
@@ -914,7 +890,7 @@ fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
     fails_with(&o, "big.png: loading the base colour image needs about");
     assert!(!out.exists());
     // The budget from the environment.
-    let o = meso()
+    let o = cmd()
         .args([
             "export",
             s(&small),
@@ -932,7 +908,7 @@ fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
     let huge = d.join("huge.png");
     flat_png(&huge, 8192, 8192);
     for opt in ["--roughness-map", "--base-color"] {
-        let o = meso()
+        let o = cmd()
             .args([
                 "--memory-budget",
                 "100G",
@@ -950,7 +926,7 @@ fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
     // Within the budget: written.
     let rough = d.join("rough.png");
     flat_png(&rough, 16, 16);
-    ok(&meso()
+    ok(&cmd()
         .args(budget)
         .args([s(&small), "--roughness-map", s(&rough), "--out", s(&out)])
         .output()
@@ -961,7 +937,7 @@ fn item3_export_above_the_memory_budget_is_refused_from_the_header() {
 
 #[test]
 fn item3_merl_fit_above_the_memory_budget_is_refused() {
-    let d = tmp("item3-merl");
+    let d = tmpdir("harden", "item3-merl");
     // A valid MERL binary (every cell 0): 35 MB on disk, a fixed 70 MB to read it and a few
     // hundred to sample it.
     let merl = d.join("zero.binary");
@@ -997,7 +973,7 @@ fn item3_merl_fit_above_the_memory_budget_is_refused() {
 
 #[test]
 fn item13_extract_and_render_report_each_phase_time() {
-    let d = tmp("item13");
+    let d = tmpdir("harden", "item13");
     let map = map_file(&d);
     let _ = map;
     // `meso extract` (run by map_file again, to see its report).
@@ -1042,7 +1018,7 @@ fn item13_extract_and_render_report_each_phase_time() {
     // A cache folder of this test's own: a pyramid or facet set cached by an earlier run of
     // the same map would skip the phase this test looks for.
     let render = || {
-        meso()
+        cmd()
             .env("MESO_CACHE_DIR", d.join("cache"))
             .args([
                 "render",
@@ -1064,5 +1040,121 @@ fn item13_extract_and_render_report_each_phase_time() {
     let o = render();
     ok(&o);
     phases(&stderr(&o), &["load", "facets", "render", "write"]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+/// No output replaces a file the command read, however it was named: a scene's environment
+/// map and a texture's height map, a material's height map (`brdf`, `ndf plot`, `render`), and
+/// `meso export`'s inputs lying in its output folder under the name of a file it writes. Each
+/// is refused with the clash named, exit 1, and the input left byte for byte.
+#[test]
+fn outputs_never_replace_files_the_inputs_name() {
+    let d = tmpdir("harden", "indirect-inputs");
+    let n = 16u32;
+    let heights = image::ImageBuffer::<image::Luma<u8>, Vec<u8>>::from_fn(n, n, |x, y| {
+        image::Luma([((x * 37 + y * 11) % 97 + 60) as u8])
+    });
+    let h = d.join("h.png");
+    heights.save(&h).unwrap();
+    let h_bytes = std::fs::read(&h).unwrap();
+    let same = |p: &Path| {
+        assert_eq!(
+            std::fs::read(p).unwrap(),
+            h_bytes,
+            "{} changed",
+            p.display()
+        )
+    };
+    std::fs::write(
+        d.join("hm.toml"),
+        "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 0.01\nheight_scale = 0.002\n\
+         [transfer]\nkind = \"microfacet\"\nalpha = 0.2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("tex.toml"),
+        "[texture]\nkind = \"bump-mapped\"\nfile = \"h.png\"\ntexel_size = 0.0625\n\
+         height_scale = 0.01\n[transfer]\nkind = \"phong\"\nexponent = 20.0\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("pairs.csv"),
+        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
+    )
+    .unwrap();
+    let head = "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\n\
+                look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 2.0\n\
+                [image]\nwidth = 8\nheight = 8\nspp = 1\n";
+    let plane = |m: &str| {
+        format!(
+            "[[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
+             material = \"{m}\"\n"
+        )
+    };
+    std::fs::write(
+        d.join("env.scene.toml"),
+        format!(
+            "{head}[environment]\nfile = \"h.png\"\n{}",
+            plane("hm.toml")
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("tex.scene.toml"),
+        format!("{head}{}", plane("tex.toml")),
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("hm.scene.toml"),
+        format!("{head}{}", plane("hm.toml")),
+    )
+    .unwrap();
+    let p = |f: &str| d.join(f);
+    for args in [
+        vec![
+            "brdf",
+            s(&p("hm.toml")),
+            "--pairs",
+            s(&p("pairs.csv")),
+            "--out",
+            s(&h),
+        ],
+        vec!["ndf", "plot", s(&p("hm.toml")), "--out", s(&h)],
+        vec!["render", s(&p("hm.scene.toml")), "--out", s(&h)],
+        vec!["render", s(&p("tex.scene.toml")), "--out", s(&h)],
+    ] {
+        fails_with(&run(&args), "is the same file as the input");
+        same(&h);
+    }
+    // An environment map must be an EXR: the scene fails on it, but never by replacing it.
+    let o = run(&["render", s(&p("env.scene.toml")), "--out", s(&h)]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    same(&h);
+    // meso export: the main image, and a base colour, inside the output folder under the
+    // names the export writes. The folder is left as it was.
+    let out = d.join("out");
+    std::fs::create_dir(&out).unwrap();
+    let normal = image::RgbImage::from_pixel(n, n, image::Rgb([128, 128, 255]));
+    let main = out.join("normal_mip0.png");
+    normal.save(&main).unwrap();
+    let main_bytes = std::fs::read(&main).unwrap();
+    let o = run(&["export", s(&main), "--out", s(&out)]);
+    fails_with(&o, "is the same file as the input");
+    assert_eq!(std::fs::read(&main).unwrap(), main_bytes);
+    assert_eq!(names(&out), ["normal_mip0.png"], "nothing else written");
+    let outside = d.join("normal.png");
+    normal.save(&outside).unwrap();
+    let colour = out.join("base_color.png");
+    std::fs::copy(&outside, &colour).unwrap();
+    let o = run(&[
+        "export",
+        s(&outside),
+        "--base-color",
+        s(&colour),
+        "--out",
+        s(&out),
+    ]);
+    fails_with(&o, "base_color.png");
+    assert_eq!(std::fs::read(&colour).unwrap(), main_bytes);
     std::fs::remove_dir_all(&d).unwrap();
 }

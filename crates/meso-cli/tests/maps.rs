@@ -1,26 +1,11 @@
 //! End-to-end tests of the height-map commands: `meso extract`, `meso map info`, `meso brdf` on
 //! height-map and map-file materials, `meso gonio`, and bad inputs.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::{ok, run, s, tmpdir};
 
-fn meso(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_meso"))
-        .args(args)
-        .output()
-        .expect("run meso")
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-maps-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use std::path::Path;
+use std::process::Output;
 
 /// A periodic Gaussian-like random surface (a sum of random waves with a Gaussian spectrum) as a
 /// 16-bit grey PNG, codes within the middle of the range ("gravel").
@@ -83,14 +68,6 @@ fn read_csv(path: &Path) -> Vec<[f64; 7]> {
         .collect()
 }
 
-fn ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "meso failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-}
-
 /// A failed command: non-zero exit, exactly one error line, no output file.
 fn fails(o: &Output, out: &Path, what: &str) {
     assert!(!o.status.success(), "{what}: should fail");
@@ -104,12 +81,12 @@ const PAIRS: &str = "theta_i,phi_i,theta_o,phi_o\n0,0,0,0\n30,0,30,180\n30,0,20,
 
 #[test]
 fn extract_info_brdf_and_gonio() {
-    let d = tmpdir("e2e");
+    let d = tmpdir("maps-cli", "e2e");
     gravel_png(&d.join("gravel.png"), 64, 7);
     std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
     // Extract + info.
     let map = d.join("gravel.map");
-    let extracted = meso(&[
+    let extracted = run(&[
         "extract",
         s(&d.join("gravel.png")),
         "--texel-size",
@@ -125,7 +102,7 @@ fn extract_info_brdf_and_gonio() {
     // Issue #11 item 4: per level the shading error and the mean lobes per texel.
     let said = String::from_utf8_lossy(&extracted.stderr);
     assert!(said.contains("(mean lobes per texel): 0: "), "{said}");
-    let info = meso(&["map", "info", s(&map)]);
+    let info = run(&["map", "info", s(&map)]);
     ok(&info);
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(text.contains("map 64x64 samples"), "{text}");
@@ -153,7 +130,7 @@ fn extract_info_brdf_and_gonio() {
         let m = d.join(format!("{name}.toml"));
         std::fs::write(&m, material(&ndf, "horizon")).unwrap();
         let out = d.join(format!("{name}.csv"));
-        ok(&meso(&[
+        ok(&run(&[
             "brdf",
             s(&m),
             "--pairs",
@@ -180,7 +157,7 @@ fn extract_info_brdf_and_gonio() {
         ),
     )
     .unwrap();
-    ok(&meso(&[
+    ok(&run(&[
         "brdf",
         s(&m),
         "--pairs",
@@ -192,7 +169,7 @@ fn extract_info_brdf_and_gonio() {
     // Gonio vs the fitted-lobe BRDF with shadowing, θ ≤ 60°.
     let hm = d.join("hm.toml");
     let gout = d.join("gonio.csv");
-    ok(&meso(&[
+    ok(&run(&[
         "gonio",
         s(&hm),
         "--pairs",
@@ -216,7 +193,7 @@ fn extract_info_brdf_and_gonio() {
         let m = d.join(format!("{shadow}.toml"));
         std::fs::write(&m, material(ndf, shadow)).unwrap();
         let out = d.join(format!("{shadow}.csv"));
-        ok(&meso(&[
+        ok(&run(&[
             "brdf",
             s(&m),
             "--pairs",
@@ -247,7 +224,7 @@ fn extract_info_brdf_and_gonio() {
 
 #[test]
 fn bad_inputs_fail_cleanly() {
-    let d = tmpdir("bad");
+    let d = tmpdir("maps-cli", "bad");
     gravel_png(&d.join("gravel.png"), 16, 3);
     let out = d.join("out.map");
     let extract = |input: &Path, extra: &[&str]| {
@@ -262,7 +239,7 @@ fn bad_inputs_fail_cleanly() {
             s(&out),
         ];
         args.extend_from_slice(extra);
-        meso(&args)
+        run(&args)
     };
     // Corrupt PNG: a valid signature followed by garbage.
     let corrupt = d.join("corrupt.png");
@@ -285,7 +262,7 @@ fn bad_inputs_fail_cleanly() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("not finite"));
     // Zero and negative scales.
     let png = d.join("gravel.png");
-    let o = meso(&[
+    let o = run(&[
         "extract",
         s(&png),
         "--texel-size",
@@ -296,7 +273,7 @@ fn bad_inputs_fail_cleanly() {
         s(&out),
     ]);
     fails(&o, &out, "zero texel size");
-    let o = meso(&[
+    let o = run(&[
         "extract",
         s(&png),
         "--texel-size",
@@ -313,11 +290,7 @@ fn bad_inputs_fail_cleanly() {
     let tmap = d.join("trunc.map");
     std::fs::write(&tmap, &full[..full.len() - 7]).unwrap();
     let info_out = d.join("never.txt");
-    fails(
-        &meso(&["map", "info", s(&tmap)]),
-        &info_out,
-        "truncated map",
-    );
+    fails(&run(&["map", "info", s(&tmap)]), &info_out, "truncated map");
     std::fs::write(d.join("pairs.csv"), PAIRS).unwrap();
     let m = d.join("m.toml");
     std::fs::write(
@@ -330,7 +303,7 @@ fn bad_inputs_fail_cleanly() {
     .unwrap();
     let bout = d.join("b.csv");
     fails(
-        &meso(&[
+        &run(&[
             "brdf",
             s(&m),
             "--pairs",
@@ -350,7 +323,7 @@ fn bad_inputs_fail_cleanly() {
         ),
     ] {
         std::fs::write(&m, material(&ndf, "smith")).unwrap();
-        let o = meso(&[
+        let o = run(&[
             "brdf",
             s(&m),
             "--pairs",
@@ -367,7 +340,7 @@ fn bad_inputs_fail_cleanly() {
     )
     .unwrap();
     fails(
-        &meso(&[
+        &run(&[
             "gonio",
             s(&m),
             "--pairs",
@@ -387,7 +360,7 @@ fn bad_inputs_fail_cleanly() {
 /// folder).
 #[test]
 fn bad_images_fail_cleanly_in_extract_and_export() {
-    let d = tmpdir("bad-images");
+    let d = tmpdir("maps-cli", "bad-images");
     let img = image::RgbImage::from_fn(32, 32, |c, r| {
         image::Rgb([(c * 8) as u8, (r * 8) as u8, 90])
     });
@@ -413,7 +386,7 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     for bad in [&corrupt, &cut, &cut_data, &empty, &zero] {
         let name = bad.file_name().unwrap().to_string_lossy().into_owned();
         let out = d.join("out.map");
-        let o = meso(&[
+        let o = run(&[
             "extract",
             s(bad),
             "--texel-size",
@@ -426,14 +399,14 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
         fails(&o, &out, &format!("extract {name}"));
         assert!(String::from_utf8_lossy(&o.stderr).contains(&name), "{name}");
         let dir = d.join("exported");
-        let o = meso(&["export", s(bad), "--alpha", "0.1", "--out", s(&dir)]);
+        let o = run(&["export", s(bad), "--alpha", "0.1", "--out", s(&dir)]);
         fails(&o, &dir, &format!("export {name}"));
         assert!(String::from_utf8_lossy(&o.stderr).contains(&name), "{name}");
     }
     // `--convention` reads a normal map's green channel: given with a height map it is refused,
     // not silently ignored.
     let dir = d.join("exported-dx");
-    let o = meso(&[
+    let o = run(&[
         "export",
         s(&good),
         "--texel-size",
@@ -453,7 +426,7 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     );
     // The good JPEG goes through both.
     let out = d.join("good.map");
-    ok(&meso(&[
+    ok(&run(&[
         "extract",
         s(&good),
         "--normal-map",
@@ -469,7 +442,7 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
 /// material path takes no map option (one error line, no folder).
 #[test]
 fn a_material_file_exports_its_engine_parameters() {
-    let d = tmpdir("material-export");
+    let d = tmpdir("maps-cli", "material-export");
     let m = d.join("metal.toml");
     std::fs::write(
         &m,
@@ -478,7 +451,7 @@ fn a_material_file_exports_its_engine_parameters() {
     )
     .unwrap();
     let out = d.join("metal");
-    let o = meso(&["export", s(&m), "--out", s(&out)]);
+    let o = run(&["export", s(&m), "--out", s(&out)]);
     ok(&o);
     let gltf = std::fs::read_to_string(out.join("scene.gltf")).unwrap();
     let doc: serde_json::Value = serde_json::from_str(&gltf).unwrap();
@@ -497,7 +470,7 @@ fn a_material_file_exports_its_engine_parameters() {
     }
     // Map options do not apply to a material file.
     let refused = d.join("refused");
-    let o = meso(&["export", s(&m), "--alpha", "0.3", "--out", s(&refused)]);
+    let o = run(&["export", s(&m), "--alpha", "0.3", "--out", s(&refused)]);
     fails(&o, &refused, "material with --alpha");
     assert!(String::from_utf8_lossy(&o.stderr).contains("metal.toml"));
     // A height map's material exports through its map (its BRDF at every MERL cell would take
@@ -509,7 +482,7 @@ fn a_material_file_exports_its_engine_parameters() {
          [transfer]\nkind = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n",
     )
     .unwrap();
-    let o = meso(&["export", s(&hm), "--out", s(&refused)]);
+    let o = run(&["export", s(&hm), "--out", s(&refused)]);
     fails(&o, &refused, "heightmap material");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -525,10 +498,10 @@ fn a_material_file_exports_its_engine_parameters() {
 /// lobes are among its candidates); a roughness outside (0, 1] is refused.
 #[test]
 fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
-    let d = tmpdir("facet-alpha");
+    let d = tmpdir("maps-cli", "facet-alpha");
     let png = d.join("gravel.png");
     gravel_png(&png, 32, 5);
-    let run = |extra: &[&str], out: &Path| {
+    let extract_to = |extra: &[&str], out: &Path| {
         let mut args = vec![
             "extract",
             s(&png),
@@ -540,7 +513,7 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
             s(out),
         ];
         args.extend_from_slice(extra);
-        let o = meso(&args);
+        let o = run(&args);
         ok(&o);
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
@@ -563,9 +536,12 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
         (lam, levels)
     };
     let (a, b, c) = (d.join("a.map"), d.join("b.map"), d.join("c.map"));
-    let (lam_a, la) = parse(&run(&[], &a));
-    let (lam_b, lb) = parse(&run(&["--facet-alpha", "0.1"], &b));
-    let (lam_c, lc) = parse(&run(&["--facet-alpha", "0.1", "--k-choice", "shading"], &c));
+    let (lam_a, la) = parse(&extract_to(&[], &a));
+    let (lam_b, lb) = parse(&extract_to(&["--facet-alpha", "0.1"], &b));
+    let (lam_c, lc) = parse(&extract_to(
+        &["--facet-alpha", "0.1", "--k-choice", "shading"],
+        &c,
+    ));
     assert_eq!(
         (lam_a.as_str(), lam_b.as_str(), lam_c.as_str()),
         ("40", "200", "200")
@@ -590,7 +566,7 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
         );
     }
     let bad = d.join("bad.map");
-    let o = meso(&[
+    let o = run(&[
         "extract",
         s(&png),
         "--texel-size",
@@ -611,7 +587,7 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
 /// cache (the entry keeps the warnings).
 #[test]
 fn material_paths_say_what_loading_the_height_map_found() {
-    let d = tmpdir("material-warnings");
+    let d = tmpdir("maps-cli", "material-warnings");
     let img = image::RgbImage::from_fn(16, 16, |c, r| {
         image::Rgb([(c * 15) as u8, (r * 15) as u8, 40])
     });
@@ -640,7 +616,7 @@ fn material_paths_say_what_loading_the_height_map_found() {
             // Twice: the second run reads the pyramid or facets from the cache, without
             // decoding the image, and says the warning all the same (the entry keeps it).
             for run in ["first", "cached"] {
-                let o = Command::new(env!("CARGO_BIN_EXE_meso"))
+                let o = common::cmd()
                     .args(&args)
                     .env("MESO_CACHE_DIR", d.join(format!("cache-{represent}-{cmd}")))
                     .output()
@@ -660,10 +636,10 @@ fn material_paths_say_what_loading_the_height_map_found() {
 /// single fit.
 #[test]
 fn extract_k_chain_reaches_the_chain() {
-    let d = tmpdir("k-chain");
+    let d = tmpdir("maps-cli", "k-chain");
     let png =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../meso-maps/tests/data/facade_disp_256.png");
-    let run = |extra: &[&str], out: &Path| {
+    let extract_to = |extra: &[&str], out: &Path| {
         let mut args = vec![
             "extract",
             s(&png),
@@ -677,14 +653,14 @@ fn extract_k_chain_reaches_the_chain() {
             s(out),
         ];
         args.extend_from_slice(extra);
-        ok(&meso(&args));
+        ok(&run(&args));
     };
     let (single, chain) = (d.join("single.map"), d.join("chain.map"));
-    run(&[], &single);
-    run(&["--k-chain"], &chain);
+    extract_to(&[], &single);
+    extract_to(&["--k-chain"], &chain);
     assert_ne!(
         std::fs::read(&single).unwrap(),
         std::fs::read(&chain).unwrap()
     );
-    ok(&meso(&["map", "info", s(&chain)]));
+    ok(&run(&["map", "info", s(&chain)]));
 }

@@ -1,18 +1,8 @@
 //! `meso render` through the binary: the issue's Lambert sphere against the analytic image,
 //! PNG output, and bad input giving an error naming the file, a non-zero exit and no image.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn meso() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_meso"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meso-cli-render-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
+use common::{cmd, tmpdir};
 
 const SCENE: &str = r#"[camera]
 kind = "orthographic"
@@ -41,12 +31,12 @@ const WHITE: &str = "[ndf]\nkind = \"deltas\"\nlobes = [ { axis = [0.0, 0.0], we
 /// The issue's scene: radiance = (1/π)·max(0, n·l) at every pixel fully inside the sphere.
 #[test]
 fn lambert_sphere_matches_analytic_image() {
-    let d = tmp("lambert");
+    let d = tmpdir("cli-render", "lambert");
     std::fs::write(d.join("scene.toml"), SCENE).unwrap();
     std::fs::write(d.join("white.toml"), WHITE).unwrap();
     let exr = d.join("out.exr");
     let png = d.join("out.png");
-    let st = meso()
+    let st = cmd()
         .arg("render")
         .arg(d.join("scene.toml"))
         .arg("-o")
@@ -92,7 +82,7 @@ fn lambert_sphere_matches_analytic_image() {
 /// Bad scenes and materials: an error naming the file, non-zero exit, no image written.
 #[test]
 fn bad_inputs_fail_cleanly() {
-    let d = tmp("bad");
+    let d = tmpdir("cli-render", "bad");
     std::fs::write(d.join("white.toml"), WHITE).unwrap();
     let cases = [
         (
@@ -114,7 +104,7 @@ fn bad_inputs_fail_cleanly() {
     for (name, text, needle) in cases {
         std::fs::write(d.join(name), text).unwrap();
         let out = d.join(format!("{name}.exr"));
-        let o = meso()
+        let o = cmd()
             .arg("render")
             .arg(d.join(name))
             .arg("-o")
@@ -135,7 +125,7 @@ fn bad_inputs_fail_cleanly() {
     }
     // Unknown output format.
     std::fs::write(d.join("ok.toml"), SCENE).unwrap();
-    let o = meso()
+    let o = cmd()
         .arg("render")
         .arg(d.join("ok.toml"))
         .arg("-o")
@@ -150,7 +140,7 @@ fn bad_inputs_fail_cleanly() {
 /// renders; the same scene with the height map missing fails naming the map, writing nothing.
 #[test]
 fn textured_material_files_render() {
-    let d = tmp("textured");
+    let d = tmpdir("cli-render", "textured");
     let n = 16usize;
     let values: Vec<f32> = (0..n * n)
         .map(|k| {
@@ -185,7 +175,7 @@ fn textured_material_files_render() {
     )
     .unwrap();
     let out = d.join("ok.png");
-    let o = meso()
+    let o = cmd()
         .arg("render")
         .arg(d.join("ok.scene.toml"))
         .arg("-o")
@@ -195,7 +185,7 @@ fn textured_material_files_render() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::metadata(&out).unwrap().len() > 0);
     let bad_out = d.join("broken.png");
-    let o = meso()
+    let o = cmd()
         .arg("render")
         .arg(d.join("broken.scene.toml"))
         .arg("-o")

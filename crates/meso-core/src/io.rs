@@ -22,6 +22,15 @@
 //! [`check_not_input`] refuses an output that is the same file as one of a command's inputs, and
 //! [`read_limited`] reads a file with a limit on the bytes actually read (which also holds for
 //! `/dev/zero`, FIFOs and `/proc` files, whose reported size is 0).
+//!
+//! **The input log.** A command's inputs are not only the files on its command line: a scene
+//! names materials, a material a height map or map file, a texture an image, a scene an
+//! environment map and meshes. With [`record_inputs`] on (the `meso` command line turns it on
+//! at start; a library user may too), every file meso reads as an input is noted
+//! ([`note_input`]: by [`read_limited`], the image and map readers of `meso-maps`, …), and
+//! every write ([`write_atomic_with`], [`stage_with`]) refuses a target that is the same file
+//! as a noted input — so no output can overwrite a file the command read, however it was named.
+//! Off (the default), nothing is noted and nothing is kept.
 
 use std::fs::File;
 use std::io::{Read, Write};
@@ -40,6 +49,7 @@ pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
+    check_not_recorded_input(path)?;
     if path.file_name().is_some() {
         if let Resolved::Direct(target) = resolve(path)? {
             let mut w = std::io::BufWriter::new(open_direct(&target)?);
@@ -298,6 +308,7 @@ pub fn stage_with(
     path: &Path,
     fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> std::io::Result<Staged> {
+    check_not_recorded_input(path)?;
     if path.file_name().is_none() {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
@@ -486,6 +497,44 @@ pub fn check_not_input(out: &Path, inputs: &[&Path]) -> std::io::Result<()> {
     Ok(())
 }
 
+/// The files read as inputs since [`record_inputs`] (`None`: not recording).
+static INPUT_LOG: std::sync::Mutex<Option<Vec<PathBuf>>> = std::sync::Mutex::new(None);
+
+fn input_log() -> std::sync::MutexGuard<'static, Option<Vec<PathBuf>>> {
+    INPUT_LOG
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Start noting the files this process reads as inputs (module docs, "The input log"); from
+/// then on no write replaces one of them. Calling it again forgets what was noted.
+pub fn record_inputs() {
+    *input_log() = Some(Vec::new());
+}
+
+/// Note `path` as an input of the running command, when [`record_inputs`] is on (otherwise
+/// nothing). Readers of input files call it before reading.
+pub fn note_input(path: &Path) {
+    if let Some(log) = input_log().as_mut() {
+        if !log.iter().any(|p| p == path) {
+            log.push(path.to_path_buf());
+        }
+    }
+}
+
+/// The inputs noted so far (empty when not recording).
+#[must_use]
+pub fn recorded_inputs() -> Vec<PathBuf> {
+    input_log().clone().unwrap_or_default()
+}
+
+/// [`check_not_input`] against the noted inputs ([`record_inputs`]).
+pub fn check_not_recorded_input(out: &Path) -> std::io::Result<()> {
+    let inputs = recorded_inputs();
+    let refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    check_not_input(out, &refs)
+}
+
 #[cfg(unix)]
 fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
     use std::os::unix::fs::MetadataExt;
@@ -501,6 +550,13 @@ fn same_file(_a: &std::fs::Metadata, _b: &std::fs::Metadata) -> bool {
 /// system reports, which is 0 for `/dev/zero`, FIFOs and `/proc` files). A longer file is an
 /// error of kind [`std::io::ErrorKind::FileTooLarge`] whose message gives the limit.
 pub fn read_limited(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    note_input(path);
+    read_limited_unnoted(path, limit)
+}
+
+/// [`read_limited`] of a file that is not an input of the command (a cache entry, which the
+/// command may write again): not noted in the input log.
+pub fn read_limited_unnoted(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     let f = File::open(path)?;
     if let Ok(m) = f.metadata() {
         if m.is_file() && m.len() > limit {

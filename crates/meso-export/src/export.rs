@@ -612,11 +612,26 @@ pub fn errors_csv(stats: &[LevelStats]) -> String {
 /// way) leaves `dir` as it was — the files of an earlier export there untouched — and removes
 /// `dir` if this call created it.
 ///
+/// No file is written over one of `inputs` (the files the export was made from), nor over a
+/// file in `meso_core::io`'s input log when it records: such an export is refused before
+/// anything is written.
+///
 /// # Errors
-/// [`ExportError::Invalid`] when `dir` is an existing file; [`ExportError::Io`] naming the
-/// path that failed.
-pub fn write(export: &Export, dir: &Path) -> Result<Vec<PathBuf>, ExportError> {
+/// [`ExportError::Invalid`] when `dir` is an existing file or one of the files would replace
+/// an input; [`ExportError::Io`] naming the path that failed.
+pub fn write(export: &Export, dir: &Path, inputs: &[&Path]) -> Result<Vec<PathBuf>, ExportError> {
     crate::prepare::check_out_dir(dir)?;
+    for (name, _) in &export.files {
+        let path = dir.join(name);
+        meso_core::io::check_not_input(&path, inputs)
+            .and_then(|()| meso_core::io::check_not_recorded_input(&path))
+            .map_err(|e| {
+                ExportError::Invalid(format!(
+                    "{e} (the export writes {name} into {})",
+                    dir.display()
+                ))
+            })?;
+    }
     let existed = dir.is_dir();
     std::fs::create_dir_all(dir).map_err(|e| ExportError::Io {
         path: dir.to_path_buf(),

@@ -102,6 +102,7 @@ pub fn lobe_grid(path: &Path) -> Result<(usize, usize, usize, usize), ExportErro
         path: path.to_path_buf(),
         source: e,
     };
+    meso_core::io::note_input(path);
     let mut f = std::fs::File::open(path).map_err(io)?;
     let n = f.read(&mut b).map_err(io)?;
     let mut rest = &mut b[n..];

@@ -231,7 +231,7 @@ fn written_anisotropy_decodes_to_the_fitted_values() {
     write_png(&path, &grooves(8.0, 8.0), 16);
     let ex = export_png(&path, 1.0, 0.05);
     let out = dir.join("out");
-    export::write(&ex, &out).unwrap();
+    export::write(&ex, &out, &[]).unwrap();
     let read = |name: &str| -> Vec<Vec<u8>> {
         let bytes = std::fs::read(out.join(name)).unwrap();
         let r = ::ktx2::Reader::new(&bytes[..]).expect("ktx2 crate parses the file");

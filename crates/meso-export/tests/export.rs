@@ -200,7 +200,7 @@ fn export_round_trip_through_independent_readers() {
         anisotropic: false,
     })
     .unwrap();
-    export::write(&ex, &dir).unwrap();
+    export::write(&ex, &dir, &[]).unwrap();
     for name in [export::NORMAL_KTX2, export::ROUGHNESS_KTX2] {
         let bytes = std::fs::read(dir.join(name)).unwrap();
         let own = ktx2::read(&bytes).unwrap();
@@ -302,7 +302,7 @@ fn bad_inputs_and_unwritable_targets() {
     let dir = scratch("unwritable");
     let file = dir.join("plain-file");
     std::fs::write(&file, b"x").unwrap();
-    let e = export::write(&ex, &file.join("out"))
+    let e = export::write(&ex, &file.join("out"), &[])
         .unwrap_err()
         .to_string();
     assert!(e.contains("plain-file"), "{e}");
@@ -312,7 +312,7 @@ fn bad_inputs_and_unwritable_targets() {
     let out = dir.join("out");
     let blocker = out.join(export::ERRORS_CSV);
     std::fs::create_dir_all(blocker.join("x")).unwrap();
-    let e = export::write(&ex, &out).unwrap_err().to_string();
+    let e = export::write(&ex, &out, &[]).unwrap_err().to_string();
     assert!(e.contains(export::ERRORS_CSV), "{e}");
     let left: Vec<_> = std::fs::read_dir(&out)
         .unwrap()
@@ -393,7 +393,7 @@ fn a_failed_write_leaves_the_folder_as_it_was() {
     let dir = scratch("failed-write");
     std::fs::write(dir.join(first), b"the user's earlier file").unwrap();
     std::fs::create_dir_all(dir.join(last).join("inside")).unwrap();
-    let e = export::write(&ex, &dir).unwrap_err().to_string();
+    let e = export::write(&ex, &dir, &[]).unwrap_err().to_string();
     assert!(e.contains(last), "{e}");
     assert_eq!(
         std::fs::read(dir.join(first)).unwrap(),

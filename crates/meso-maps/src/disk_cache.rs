@@ -165,7 +165,7 @@ pub fn take_warnings(bytes: &mut &[u8]) -> Option<Vec<String>> {
 #[must_use]
 pub fn read(dir: &Path, prefix: &str, key: &[u8; 32]) -> Option<Vec<u8>> {
     let path = entry_path(dir, prefix, key);
-    let bytes = meso_core::io::read_limited(&path, MAX_CACHE_BYTES).ok()?;
+    let bytes = meso_core::io::read_limited_unnoted(&path, MAX_CACHE_BYTES).ok()?;
     touch(&path);
     Some(bytes)
 }

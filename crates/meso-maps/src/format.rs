@@ -145,6 +145,7 @@ impl Pyramid {
 
     /// Read a map file, validating magic, version, sizes (before allocating) and every value.
     pub fn read(path: &Path) -> Result<Pyramid> {
+        meso_core::io::note_input(path);
         if let Ok(m) = std::fs::metadata(path) {
             if m.is_file() {
                 meso_core::budget::check(path, "reading the map file", read_bytes(m.len()))?;
@@ -170,6 +171,7 @@ impl Pyramid {
     /// # Errors
     /// As [`Pyramid::read`].
     pub fn read_coded(path: &Path) -> Result<Pyramid> {
+        meso_core::io::note_input(path);
         let io = |e| MapError::Io {
             path: path.to_path_buf(),
             source: e,

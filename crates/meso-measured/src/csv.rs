@@ -229,6 +229,7 @@ pub fn parse_csv(text: &str) -> Result<Vec<CsvSample>, CsvError> {
 
 /// Read a sample CSV file.
 pub fn read_csv(path: &Path) -> Result<Vec<CsvSample>, CsvError> {
+    meso_core::io::note_input(path);
     let text = std::fs::read_to_string(path).map_err(|source| CsvError::Io {
         path: path.display().to_string(),
         source,

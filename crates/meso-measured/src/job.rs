@@ -118,6 +118,7 @@ pub fn load(path: &Path, target: usize) -> Result<Data, LoadError> {
     let mut head = [0u8; 12];
     let n = {
         use std::io::Read;
+        meso_core::io::note_input(path);
         let mut f = std::fs::File::open(path).map_err(io)?;
         let mut n = 0;
         while n < 12 {

@@ -349,6 +349,7 @@ impl MerlTable {
             path: p.clone(),
             source,
         };
+        meso_core::io::note_input(path);
         let mut f = std::fs::File::open(path).map_err(io)?;
         let size = f.metadata().map_err(io)?.len();
         if size < 12 {

@@ -151,7 +151,17 @@ pub fn export<'py>(
             if let Some((files, _line)) = lobe_files {
                 ex.files.extend(files);
             }
-            let files = ex_lib::write(&ex, &out).map_err(s)?;
+            let inputs: Vec<&std::path::Path> = [
+                Some(&path),
+                base_color.as_ref(),
+                roughness_map.as_ref(),
+                lobes.as_ref(),
+            ]
+            .into_iter()
+            .flatten()
+            .map(std::path::PathBuf::as_path)
+            .collect();
+            let files = ex_lib::write(&ex, &out, &inputs).map_err(s)?;
             Ok((files, ex.stats, warnings))
         })
         .map_err(meso_err)?;

@@ -142,6 +142,8 @@ pub fn extract_file(
 ) -> PyResult<(Pyramid, Vec<String>)> {
     let p = params(max_lobes, normals, method)?;
     require_exists(&path)?;
+    // The map file must not replace the image it is made from (as `meso extract` refuses).
+    meso_core::io::check_not_input(&out, &[&path]).map_err(|e| value_err(e.to_string()))?;
     let kind = if normal_map {
         if texel_size.is_some() || height_scale.is_some() {
             return Err(value_err(

@@ -94,3 +94,24 @@ def test_batch_export_passes_anisotropic_and_lobes_through(tmp_path):
     op.call(str(tmp_path / "ggx.toml"), str(tmp_path / "batch-mat"), **params)
     run_cli("export", tmp_path / "ggx.toml", "--out", tmp_path / "cli-mat")
     same_folders(tmp_path / "batch-mat", tmp_path / "cli-mat")
+
+
+def test_outputs_never_replace_their_inputs(tmp_path):
+    """As the CLI: extract_file refuses to write its map over the image it reads, and export
+    refuses an output folder where one of its files would replace the input (ValueError / the
+    meso error, naming the clash), leaving the input byte for byte."""
+    h = tmp_path / "h.png"
+    write_gray16(h, bumps(16, seed=7))
+    before = h.read_bytes()
+    with pytest.raises(ValueError, match="same file as the input"):
+        meso.extract_file(h, h, texel_size=1.0, height_scale=1.0)
+    assert h.read_bytes() == before
+    out = tmp_path / "out"
+    out.mkdir()
+    inside = out / "normal_mip0.png"  # a height map, under a name the export writes
+    inside.write_bytes(before)
+    names_before = sorted(p.name for p in out.iterdir())
+    with pytest.raises(Exception, match="same file as the input"):
+        meso.export(inside, out, texel_size=1.0, height_scale=1.0)
+    assert inside.read_bytes() == before
+    assert sorted(p.name for p in out.iterdir()) == names_before

@@ -32,6 +32,10 @@ pub fn run(a: Args) -> Result<()> {
     }
     let material = crate::load_material(&a.material)?;
     let pairs = a.table.read_pairs()?;
+    if let Some(out) = &a.table.out {
+        // Again, now that the files the material names (a height map, a map file) are read.
+        crate::util::check_outputs(&[out], &[])?;
+    }
     let bar = crate::progress(pairs.len() as u64, "brdf");
     let values = if a.exact {
         crate::par_map_progress(&pairs, &bar, |p| material.brdf(p.i, p.o))

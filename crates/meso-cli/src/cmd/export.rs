@@ -189,7 +189,17 @@ fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
         ex.files.extend(files);
         eprintln!("{line}");
     }
-    let files = export::write(&ex, &a.out)?;
+    let inputs: Vec<&std::path::Path> = [
+        Some(&a.map),
+        a.base_color.as_ref(),
+        a.roughness_map.as_ref(),
+        a.lobes.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .map(std::path::PathBuf::as_path)
+    .collect();
+    let files = export::write(&ex, &a.out, &inputs)?;
     use std::fmt::Write as _;
     let mut table = String::new();
     if a.anisotropic {

@@ -40,6 +40,8 @@ pub enum Scale {
 pub fn plot(a: &PlotArgs) -> Result<()> {
     crate::util::check_outputs(&[&a.out], &[&a.material])?;
     let m = crate::load_material(&a.material)?;
+    // Again, now that the files the material names (a height map, a map file) are read.
+    crate::util::check_outputs(&[&a.out], &[])?;
     let title = format!(
         "NDF of {} ({})",
         m.name.clone().unwrap_or_else(|| a

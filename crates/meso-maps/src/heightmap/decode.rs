@@ -143,6 +143,7 @@ impl ImageHeader {
 /// # Errors
 /// The file cannot be read, is not an image meso reads, or is too large.
 pub fn probe(path: &Path) -> Result<ImageHeader> {
+    meso_core::io::note_input(path);
     let io = |e: std::io::Error| MapError::Io {
         path: path.to_path_buf(),
         source: e,
@@ -205,6 +206,7 @@ pub(super) fn oom(path: &Path, e: meso_core::budget::AllocError) -> MapError {
 
 /// Read the header, check the size limits, then decode (with decoder limits set as well).
 fn open_image(path: &Path) -> Result<image::DynamicImage> {
+    meso_core::io::note_input(path);
     let io = |e: std::io::Error| MapError::Io {
         path: path.to_path_buf(),
         source: e,
