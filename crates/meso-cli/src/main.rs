@@ -91,8 +91,11 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // No output of a command may replace a file it read (a scene's material, a material's
-    // height map, …): meso_core::io's input log.
-    meso_core::io::record_inputs();
+    // height map, …): meso_core::io's input log. (The editor's server writes no files and runs
+    // for long: it keeps no log.)
+    if !matches!(cli.command, Command::Serve(_)) {
+        meso_core::io::record_inputs();
+    }
     if let Some(b) = cli.memory_budget {
         meso_core::budget::set_budget(b);
     } else if let Some(Err(e)) = meso_core::budget::env_budget() {
