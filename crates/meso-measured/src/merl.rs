@@ -462,6 +462,30 @@ impl MerlTable {
         Ok(MerlTable { data })
     }
 
+    /// A table whose red value in every above-horizon cell is the cell's flat index (as `f64`,
+    /// green and blue 0), and "not measured" where `wi` or `wo` is below the horizon, as
+    /// [`MerlTable::from_fn`] marks them: what [`crate::samples::SampleSet::from_merl_fn`]
+    /// samples to learn which cells a sampling keeps before evaluating any.
+    pub(crate) fn cell_index_table(pos: CellPosition) -> MerlTable {
+        let mut data = vec![0.0; 3 * N_CELLS];
+        for k in 0..N_CELLS {
+            let (ih, id, ip) = (
+                k / (N_THETA_D * N_PHI_D),
+                (k / N_PHI_D) % N_THETA_D,
+                k % N_PHI_D,
+            );
+            let (wi, wo) = dirs_from_half_diff(cell_angles(ih, id, ip, pos));
+            if wi.z <= 0.0 || wo.z <= 0.0 {
+                for c in 0..3 {
+                    data[c * N_CELLS + k] = -1.0;
+                }
+            } else {
+                data[k] = k as f64;
+            }
+        }
+        MerlTable { data }
+    }
+
     /// Write the table as a MERL binary (atomically: nothing is left behind on error). Values are
     /// divided by the channel scales; missing cells are written as −1.
     pub fn write(&self, path: &Path) -> Result<(), MerlError> {

@@ -202,6 +202,56 @@ impl SampleSet {
         (set, stats)
     }
 
+    /// [`SampleSet::from_merl`] of the table [`crate::merl::MerlTable::from_fn`] would make of
+    /// `f` — the same samples, weights and values, bit for bit — evaluating `f` only at the
+    /// cells the sampling keeps (fitted and held out: with the defaults 50 000 of the table's
+    /// 1.46 M cells), in parallel. What a material's engine parameters are fitted to
+    /// ([`crate::engine::of_material`]).
+    ///
+    /// # Errors
+    /// [`MerlError::BadValue`] when `f` is negative, NaN or infinite at a kept cell.
+    pub fn from_merl_fn<F>(
+        pos: CellPosition,
+        opts: &MerlSampling,
+        f: F,
+    ) -> Result<(SampleSet, MerlSamplingStats), crate::merl::MerlError>
+    where
+        F: Fn(DVec3, DVec3) -> [f64; 3] + Sync,
+    {
+        use crate::merl::{cell_angles, MerlError, MerlTable, N_PHI_D, N_THETA_D};
+        use rayon::prelude::*;
+        // Sample a table of cell indices: the selection depends on which cells are measured
+        // (all above the horizon, as `from_fn` makes them) and on their order, not on values.
+        let index = MerlTable::cell_index_table(pos);
+        let (mut set, stats) = SampleSet::from_merl(
+            &index,
+            &MerlSampling {
+                position: pos,
+                ..*opts
+            },
+        );
+        let fill = |s: &mut Sample| -> Result<(), MerlError> {
+            let k = s.rgb[0] as usize;
+            let (ih, id, ip) = (
+                k / (N_THETA_D * N_PHI_D),
+                (k / N_PHI_D) % N_THETA_D,
+                k % N_PHI_D,
+            );
+            // The cell's own pair (φh = 0), as `from_fn` evaluates it; the sample keeps its
+            // turned copy (`spread_phi_h`), as `from_merl` gives it.
+            let (wi, wo) = crate::rusinkiewicz::dirs_from_half_diff(cell_angles(ih, id, ip, pos));
+            let v = f(wi, wo);
+            if let Some(&value) = v.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+                return Err(MerlError::BadValue { ih, id, ip, value });
+            }
+            s.rgb = v;
+            Ok(())
+        };
+        set.samples.par_iter_mut().try_for_each(fill)?;
+        set.held_out.par_iter_mut().try_for_each(fill)?;
+        Ok((set, stats))
+    }
+
     /// CSV samples, each with weight 1 (the file says nothing about its sampling density).
     #[must_use]
     pub fn from_csv(samples: &[CsvSample]) -> SampleSet {

@@ -58,3 +58,46 @@ fn anisotropic_materials_are_averaged_over_azimuth() {
         e0.roughness
     );
 }
+
+/// The engine fit samples only the cells it uses (`SampleSet::from_merl_fn`): the same samples,
+/// weights and values as tabulating the whole MERL table first and sampling it, bit for bit,
+/// for an anisotropic function (so the turned copies of `spread_phi_h` would show a mix-up);
+/// and a bad value at a kept cell is the table's error.
+#[test]
+fn sampling_a_function_equals_sampling_its_full_table() {
+    use meso_measured::merl::{CellPosition, MerlTable};
+    use meso_measured::samples::{MerlSampling, SampleSet};
+    let f = |wi: DVec3, wo: DVec3| {
+        let h = (wi + wo).normalize();
+        [
+            0.1 + wi.x * wi.x,
+            0.2 + 3.0 * wo.y * wo.y * wo.x.abs(),
+            (h.x + 2.0 * h.y).abs(),
+        ]
+    };
+    let opts = MerlSampling {
+        held_out: 20_000,
+        ..MerlSampling::default()
+    };
+    let table = MerlTable::from_fn(CellPosition::Edge, f).unwrap();
+    let (full, full_stats) = SampleSet::from_merl(&table, &opts);
+    let (lazy, lazy_stats) = SampleSet::from_merl_fn(CellPosition::Edge, &opts, f).unwrap();
+    assert_eq!(full.samples.len(), 30_000);
+    assert_eq!(full.held_out.len(), 20_000);
+    assert_eq!(
+        (full_stats.valid, full_stats.kept),
+        (lazy_stats.valid, lazy_stats.kept)
+    );
+    for (a, b) in [
+        (&full.samples, &lazy.samples),
+        (&full.held_out, &lazy.held_out),
+    ] {
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(b.iter()) {
+            assert_eq!((x.wi, x.wo, x.rgb, x.weight), (y.wi, y.wo, y.rgb, y.weight));
+        }
+    }
+    assert_eq!(full.cell_size, lazy.cell_size);
+    let bad = SampleSet::from_merl_fn(CellPosition::Edge, &opts, |_, _| [0.1, f64::NAN, 0.1]);
+    assert!(bad.unwrap_err().to_string().contains("NaN"));
+}
