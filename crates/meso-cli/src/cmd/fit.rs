@@ -40,7 +40,9 @@ pub enum TransferArg {
     /// Mirror facets with Schlick Fresnel and Smith masking–shadowing, microfacet form.
     Microfacet,
     /// Mirror facets as `microfacet`, under a mixture of GGX lobes on the normal (long tails)
-    /// instead of Phong peaks: `[ndf] kind = "mixture"`; K = 1 is GGX + Lambert.
+    /// instead of Phong peaks: `[ndf] kind = "mixture"`, each lobe GGX or Beckmann, whichever
+    /// fits the data better (K = 1: one such lobe + Lambert; on sparse data the two can be
+    /// close and either may be chosen).
     GgxLobes,
     /// As `ggx-lobes`, each lobe GGX, Beckmann or Student-t with its tail exponent γ fitted
     /// (tails heavier than GGX's to Beckmann's); several times the cost of `ggx-lobes`, not
