@@ -7,7 +7,6 @@ use crate::export::{self, Inputs};
 use crate::mips;
 use crate::ExportError;
 use meso_maps::{NormalConvention, NormalMap};
-use std::io::Read;
 use std::path::Path;
 
 /// Files of an export in memory: `(file name, bytes)`, as [`export::Export::files`].
@@ -88,39 +87,27 @@ pub fn load_normal_map(
     })
 }
 
-/// The grid of a lobe pyramid's map file, from its first 28 bytes (magic, version, then the
-/// source's `width`, `height` in samples and level 0's `cols`, `rows` in cells, little-endian
-/// `u32`, docs/map-format.md): `(width, height, cols, rows)`. The rest of the file is
-/// validated when it is read ([`meso_maps::Pyramid::read`]).
+/// The grid of a lobe pyramid's map file, from its header alone
+/// ([`meso_maps::format::peek_sizes`]: magic, version, then the source's `width`, `height` in
+/// samples and level 0's `cols`, `rows` in cells): `(width, height, cols, rows)`. The rest of
+/// the file is validated when it is read ([`meso_maps::Pyramid::read`]).
 ///
 /// # Errors
-/// [`ExportError::Invalid`] for a file too short or without the map magic; [`ExportError::Io`]
-/// when it cannot be read.
+/// [`ExportError::Invalid`] for a file that is not a map file or whose header is bad (too
+/// short, an unknown version, sizes out of range); [`ExportError::Io`] when it cannot be read.
 pub fn lobe_grid(path: &Path) -> Result<(usize, usize, usize, usize), ExportError> {
-    let mut b = [0u8; 28];
-    let io = |e: std::io::Error| ExportError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    meso_core::io::note_input(path);
-    let mut f = std::fs::File::open(path).map_err(io)?;
-    let n = f.read(&mut b).map_err(io)?;
-    let mut rest = &mut b[n..];
-    while !rest.is_empty() {
-        let k = f.read(rest).map_err(io)?;
-        if k == 0 {
-            break;
-        }
-        rest = &mut rest[k..];
-    }
-    if !rest.is_empty() || b[..8] != meso_maps::format::MAGIC {
+    if path.is_file() && !meso_maps::format::is_map_file(path) {
         return Err(ExportError::Invalid(format!(
             "{}: not a meso map file (--lobes takes the map file `meso extract` wrote)",
             path.display()
         )));
     }
-    let u = |k: usize| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]) as usize;
-    Ok((u(12), u(16), u(20), u(24)))
+    meso_maps::format::peek_sizes(path).map_err(|e| match e {
+        meso_maps::MapError::Io { path, source } => ExportError::Io { path, source },
+        e => ExportError::Invalid(format!(
+            "{e} (--lobes takes the map file `meso extract` wrote)"
+        )),
+    })
 }
 
 /// Sizes `(cols, rows)` of a lobe pyramid's levels from level 0's `cols × rows`: halved rounding

@@ -303,7 +303,32 @@ impl Header {
 }
 
 /// Read and check the common header (magic, version, sizes, flags, `max_lobes`, level count).
-fn read_header(r: &mut Reader<'_>) -> Result<Header> {
+/// The sizes `(width, height, cols, rows)` that a map file's header declares: samples of the
+/// height map and level-0 cells, read from the file's first 28 bytes and checked as when the
+/// file is read (magic, version, limits), without reading its levels. A map given where only
+/// its grid matters (`meso export --lobes`) is checked by it before any work.
+///
+/// # Errors
+/// [`MapError::Io`] when the file cannot be read; [`MapError::MapFormat`] /
+/// [`MapError::MapVersion`] as [`Pyramid::read`] gives them for its header.
+pub fn peek_sizes(path: &Path) -> Result<(usize, usize, usize, usize)> {
+    use std::io::Read;
+    meso_core::io::note_input(path);
+    let mut bytes = Vec::with_capacity(28);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(28).read_to_end(&mut bytes))
+        .map_err(|e| MapError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+    let mut r = Reader::new(&bytes, path);
+    let (_, width, height, cols, rows) = read_sizes(&mut r)?;
+    Ok((width, height, cols, rows))
+}
+
+/// The header's first fields, checked: magic, version, then samples `width × height` and
+/// level-0 cells `cols × rows`.
+fn read_sizes(r: &mut Reader<'_>) -> Result<(u32, usize, usize, usize, usize)> {
     let magic = r.take(8, "magic")?;
     if magic != MAGIC {
         return Err(r.err("not a meso map file (bad magic bytes)".into()));
@@ -335,6 +360,11 @@ fn read_header(r: &mut Reader<'_>) -> Result<Header> {
             "sizes {width}x{height} samples / {cols}x{rows} cells exceed the limits"
         )));
     }
+    Ok((version, width, height, cols, rows))
+}
+
+fn read_header(r: &mut Reader<'_>) -> Result<Header> {
+    let (version, width, height, cols, rows) = read_sizes(r)?;
     let texel_size = r.f64("texel_size")?;
     if !(texel_size.is_finite() && texel_size > 0.0) {
         return Err(r.err(format!("texel_size {texel_size} is not > 0")));
