@@ -20,6 +20,7 @@
 //!   projected onto the plane perpendicular to `n`, and `B = n × T`. `α_t` is the width along
 //!   `T`, `α_b` along `B` (glTF: `T` is the "direction of increased anisotropy roughness").
 
+use crate::batch::{LobeGeometry, PairArrays};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -51,17 +52,38 @@ fn d_ggx_cos(c: f64, alpha: f64) -> f64 {
     if c <= 0.0 {
         return 0.0;
     }
-    let a2 = alpha * alpha;
-    let t = c * c * (a2 - 1.0) + 1.0;
+    d_ggx_cc(c * c, alpha * alpha)
+}
+
+/// [`d_ggx`] of the squared cosine `cc = (n·h)²` (for `n·h > 0`) and `a2 = α²`.
+#[inline(always)]
+fn d_ggx_cc(cc: f64, a2: f64) -> f64 {
+    let t = cc * (a2 - 1.0) + 1.0;
     a2 / (PI * t * t)
 }
 
-/// Smith's Λ for GGX at cosine `c = n·w` (> 0) and width `alpha`.
-#[inline]
-fn lambda(c: f64, alpha: f64) -> f64 {
+/// The squared tangent `(1 − c²)/c²` of the angle whose cosine is `c` (> 0).
+#[inline(always)]
+pub(crate) fn tan2(c: f64) -> f64 {
     let c2 = c * c;
-    let tan2 = (1.0 - c2).max(0.0) / c2;
-    0.5 * ((1.0 + alpha * alpha * tan2).sqrt() - 1.0)
+    (1.0 - c2).max(0.0) / c2
+}
+
+/// Smith's Λ for GGX from the squared tangent `tan2` of the direction about the normal and
+/// `a2 = α²`.
+#[inline(always)]
+fn lambda_tan2(tan2: f64, a2: f64) -> f64 {
+    0.5 * ((1.0 + a2 * tan2).sqrt() - 1.0)
+}
+
+/// The shaded lobe ([`shaded`]) from what it reads of the geometry, for `n·l`, `n·v`, `n·h`
+/// all > 0: the squared tangents `tan2_l`, `tan2_v` of `l` and `v` about `n` ([`tan2`]),
+/// `cc = (n·h)²`, `four_nv = 4 n·v`, and `a2 = α²`. One formula for [`shaded`] and the batched
+/// loops of `crate::batch`.
+#[inline(always)]
+pub(crate) fn shaded_parts(tan2_l: f64, tan2_v: f64, cc: f64, four_nv: f64, a2: f64) -> f64 {
+    let g2 = 1.0 / (1.0 + lambda_tan2(tan2_l, a2) + lambda_tan2(tan2_v, a2));
+    d_ggx_cc(cc, a2) * g2 / four_nv
 }
 
 /// The shaded GGX lobe `s(n, α; l, v) = f(l, v)·(n·l)` (1/sr): the microfacet BRDF without
@@ -89,8 +111,11 @@ fn cosines(n: DVec3, l: DVec3, v: DVec3, h: DVec3) -> Option<[f64; 3]> {
 /// [`shaded`] from its [`cosines`] (the same operations in the same order, so the same bits).
 #[inline]
 fn shaded_cos([nl, nv, c]: [f64; 3], alpha: f64) -> f64 {
-    let g2 = 1.0 / (1.0 + lambda(nl, alpha) + lambda(nv, alpha));
-    d_ggx_cos(c, alpha) * g2 / (4.0 * nv)
+    // `n·h ≤ 0`: D = 0, so the lobe is +0 whatever G₂ is.
+    if c <= 0.0 {
+        return 0.0;
+    }
+    shaded_parts(tan2(nl), tan2(nv), c * c, 4.0 * nv, alpha * alpha)
 }
 
 /// An anisotropic GGX lobe with its frame resolved (see the module's conventions).
@@ -279,18 +304,15 @@ pub fn direction_pairs_with(nbar: DVec3, width: f64, half_phis_deg: &[f64]) -> V
 }
 
 /// The supersampled target: the average over `fine` of each texel's shaded lobe at every pair.
+/// Each pair's sum is added up in the order of `fine`.
 #[must_use]
 pub fn average_shaded(fine: &[FineTexel], pairs: &[(DVec3, DVec3)]) -> Vec<f64> {
     let mut acc = vec![0.0; pairs.len()];
-    // The half vectors once per pair, not once per pair and fine texel.
-    let halves: Vec<DVec3> = pairs
-        .iter()
-        .map(|&(l, v)| (l + v).normalize_or_zero())
-        .collect();
+    // The pairs as flat arrays (half vectors once per pair), then all pairs of one fine texel
+    // at once (SIMD lanes, the scalar operations: `crate::batch`).
+    let arrays = PairArrays::new(pairs);
     for t in fine {
-        for ((a, &(l, v)), &h) in acc.iter_mut().zip(pairs).zip(&halves) {
-            *a += cosines(t.normal, l, v, h).map_or(0.0, |c| shaded_cos(c, t.alpha));
-        }
+        arrays.accumulate_shaded(t.normal, t.alpha, &mut acc);
     }
     let n = fine.len().max(1) as f64;
     acc.iter_mut().for_each(|a| *a /= n);
@@ -350,7 +372,7 @@ pub const GOLDEN_ITERATIONS: usize = 30;
 
 /// Minimise `err(α)` over `α ∈ [lo, hi]`: a log-spaced scan of [`SCAN_POINTS`] points, then a
 /// golden-section search on `ln α` inside the bracket around the best scan point.
-pub fn minimise_alpha(lo: f64, hi: f64, err: impl Fn(f64) -> f64) -> (f64, f64) {
+pub fn minimise_alpha(lo: f64, hi: f64, mut err: impl FnMut(f64) -> f64) -> (f64, f64) {
     let (a, b) = (lo.ln(), hi.ln());
     let xs: Vec<f64> = (0..SCAN_POINTS)
         .map(|k| a + (b - a) * k as f64 / (SCAN_POINTS - 1) as f64)
@@ -415,24 +437,46 @@ pub fn fit_alpha_on_range(
     pairs: &[(DVec3, DVec3)],
     lo: f64,
 ) -> AlphaFit {
-    let lo = lo.clamp(MIN_ALPHA, 1.0);
-    let peak = target.iter().copied().fold(0.0, f64::max);
-    // The lobe's geometry once per pair; each of the search's ≈ 54 widths then costs two square
-    // roots and a few products per pair. The same numbers as `rms_error` (its operations, in
-    // its order).
-    let cos: Vec<Option<[f64; 3]>> = pairs
-        .iter()
-        .map(|&(l, v)| cosines(nbar, l, v, (l + v).normalize_or_zero()))
-        .collect();
-    let err = |a: f64| {
-        rms_of(
+    IsoSearch::new(target, nbar, pairs).fit(lo)
+}
+
+/// The isotropic fit of one coarse texel, prepared: the lobe's geometry about `nbar` at every
+/// pair once ([`LobeGeometry`]); each width then costs two square roots and three divisions
+/// per pair, all pairs at once. The same numbers as [`rms_error`] (its operations, in its
+/// order).
+pub(crate) struct IsoSearch<'a> {
+    target: &'a [f64],
+    geometry: LobeGeometry,
+    scratch: Vec<f64>,
+    peak: f64,
+}
+
+impl<'a> IsoSearch<'a> {
+    /// The search for the supersampled `target` on `pairs` about the unit normal `nbar`.
+    pub(crate) fn new(target: &'a [f64], nbar: DVec3, pairs: &[(DVec3, DVec3)]) -> Self {
+        IsoSearch {
             target,
-            cos.iter().map(|c| c.map_or(0.0, |c| shaded_cos(c, a))),
-            cos.len(),
-        )
-    };
-    let (alpha, rms) = minimise_alpha(lo, 1.0, err);
-    AlphaFit { alpha, rms, peak }
+            geometry: LobeGeometry::new(nbar, pairs),
+            scratch: Vec::with_capacity(pairs.len()),
+            peak: target.iter().copied().fold(0.0, f64::max),
+        }
+    }
+
+    /// RMS difference (1/sr) between the target and the lobe of width `alpha`: [`rms_error`].
+    pub(crate) fn rms(&mut self, alpha: f64) -> f64 {
+        self.geometry.rms(self.target, alpha, &mut self.scratch)
+    }
+
+    /// The best α in `[lo, 1]` (`lo` clamped to `[MIN_ALPHA, 1]`) by [`minimise_alpha`].
+    pub(crate) fn fit(&mut self, lo: f64) -> AlphaFit {
+        let lo = lo.clamp(MIN_ALPHA, 1.0);
+        let (alpha, rms) = minimise_alpha(lo, 1.0, |a| self.rms(a));
+        AlphaFit {
+            alpha,
+            rms,
+            peak: self.peak,
+        }
+    }
 }
 
 /// The outcome of fitting one coarse texel with an anisotropic GGX lobe ([`fit_aniso`]).
@@ -589,12 +633,31 @@ pub fn fit_aniso_on(
     nbar: DVec3,
     pairs: &[(DVec3, DVec3)],
 ) -> AnisoFit {
+    fit_aniso_with(
+        fine,
+        &mut IsoSearch::new(target, nbar, pairs),
+        target,
+        nbar,
+        pairs,
+    )
+}
+
+/// [`fit_aniso_on`] with its isotropic search prepared (`iso` was made from `target`, `nbar`
+/// and `pairs`).
+pub(crate) fn fit_aniso_with(
+    fine: &[FineTexel],
+    iso: &mut IsoSearch<'_>,
+    target: &[f64],
+    nbar: DVec3,
+    pairs: &[(DVec3, DVec3)],
+) -> AnisoFit {
     // A filtered lobe (the base lobes spread by the footprint's normals) is nowhere narrower
     // than the narrowest base lobe it averages: both widths are kept at or above it.
     let floor = base_alpha_floor(fine);
-    let mut iso = fit_alpha_on(target, nbar, pairs);
+    let search = iso;
+    let mut iso = search.fit(MIN_ALPHA);
     if iso.alpha < floor {
-        iso = fit_alpha_on_range(target, nbar, pairs, floor);
+        iso = search.fit(floor);
     }
     let mut best = AnisoFit {
         alpha_t: iso.alpha,

@@ -298,9 +298,12 @@ fn fit_texel(fine: &[FineTexel], anisotropic: bool) -> TexelFit {
     };
     let target = target_of(fine, &pairs);
     let mean_alpha = fine.iter().map(|t| t.alpha).sum::<f64>() / fine.len() as f64;
-    let plain = ggx::rms_error(&target, nbar, mean_alpha, &pairs);
+    // One prepared search for the standard mip's error and the fit (`ggx::rms_error`'s
+    // numbers).
+    let mut search = ggx::IsoSearch::new(&target, nbar, &pairs);
+    let plain = search.rms(mean_alpha);
     if anisotropic {
-        let fit = ggx::fit_aniso_on(fine, &target, nbar, &pairs);
+        let fit = ggx::fit_aniso_with(fine, &mut search, &target, nbar, &pairs);
         let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
         TexelFit {
             normal: nbar,
@@ -310,7 +313,7 @@ fn fit_texel(fine: &[FineTexel], anisotropic: bool) -> TexelFit {
             aniso: Some((fit.alpha_t, fit.angle, rel(fit.iso_rms))),
         }
     } else {
-        let fit = ggx::fit_alpha_on(&target, nbar, &pairs);
+        let fit = search.fit(ggx::MIN_ALPHA);
         let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
         TexelFit {
             normal: nbar,
