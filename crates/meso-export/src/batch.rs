@@ -28,27 +28,31 @@ pub(crate) struct LobeGeometry {
 }
 
 impl LobeGeometry {
-    /// The geometry of the lobe about the unit normal `n` at every pair of `pairs`.
-    pub(crate) fn new(n: DVec3, pairs: &[(DVec3, DVec3)]) -> LobeGeometry {
+    /// The geometry of the lobe about the unit normal `n` at every pair of `pairs` (as
+    /// [`PairArrays`]).
+    pub(crate) fn new(n: DVec3, pairs: &PairArrays) -> LobeGeometry {
         let m = pairs.len();
         let mut g = LobeGeometry {
-            tan2_l: Vec::with_capacity(m),
-            tan2_v: Vec::with_capacity(m),
-            cc: Vec::with_capacity(m),
-            four_nv: Vec::with_capacity(m),
-            live: Vec::with_capacity(m),
+            tan2_l: vec![0.0; m],
+            tan2_v: vec![0.0; m],
+            cc: vec![0.0; m],
+            four_nv: vec![0.0; m],
+            live: vec![0.0; m],
         };
-        for &(l, v) in pairs {
-            let h = (l + v).normalize_or_zero();
-            let (nl, nv, c) = (n.dot(l), n.dot(v), n.dot(h));
-            // A zero half vector gives c = 0: dead like a half vector below the horizon.
-            let live = nl > 0.0 && nv > 0.0 && c > 0.0;
-            g.tan2_l.push(if live { tan2(nl) } else { 0.0 });
-            g.tan2_v.push(if live { tan2(nv) } else { 0.0 });
-            g.cc.push(c * c);
-            g.four_nv.push(if live { 4.0 * nv } else { 1.0 });
-            g.live.push(if live { 1.0 } else { 0.0 });
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F (checked just above).
+                unsafe { geometry_avx512(&mut g, n, pairs) };
+                return g;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                unsafe { geometry_avx2(&mut g, n, pairs) };
+                return g;
+            }
         }
+        geometry_lanes(&mut g, n, pairs);
         g
     }
 
@@ -89,6 +93,126 @@ impl LobeGeometry {
         let s: f64 = scratch.iter().sum();
         (s / m as f64).sqrt()
     }
+}
+
+/// The loop of [`LobeGeometry::new`], compiled for each instruction set.
+#[inline(always)]
+fn geometry_lanes(g: &mut LobeGeometry, n: DVec3, p: &PairArrays) {
+    let m = g.live.len();
+    let (lx, ly, lz) = (&p.l[0][..m], &p.l[1][..m], &p.l[2][..m]);
+    let (vx, vy, vz) = (&p.v[0][..m], &p.v[1][..m], &p.v[2][..m]);
+    let (hx, hy, hz) = (&p.h[0][..m], &p.h[1][..m], &p.h[2][..m]);
+    let (tl, tv, cc) = (&mut g.tan2_l[..m], &mut g.tan2_v[..m], &mut g.cc[..m]);
+    let (fv, live) = (&mut g.four_nv[..m], &mut g.live[..m]);
+    for i in 0..m {
+        // glam's `dot`: (n.x·w.x + n.y·w.y) + n.z·w.z.
+        let nl = n.x * lx[i] + n.y * ly[i] + n.z * lz[i];
+        let nv = n.x * vx[i] + n.y * vy[i] + n.z * vz[i];
+        let c = n.x * hx[i] + n.y * hy[i] + n.z * hz[i];
+        // A zero half vector gives c = 0: dead like a half vector below the horizon.
+        let ok = nl > 0.0 && nv > 0.0 && c > 0.0;
+        tl[i] = if ok { tan2(nl) } else { 0.0 };
+        tv[i] = if ok { tan2(nv) } else { 0.0 };
+        cc[i] = c * c;
+        fv[i] = if ok { 4.0 * nv } else { 1.0 };
+        live[i] = if ok { 1.0 } else { 0.0 };
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn geometry_avx512(g: &mut LobeGeometry, n: DVec3, p: &PairArrays) {
+    geometry_lanes(g, n, p);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn geometry_avx2(g: &mut LobeGeometry, n: DVec3, p: &PairArrays) {
+    geometry_lanes(g, n, p);
+}
+
+/// Number of widths [`LobeGeometry::rms_of_widths`] evaluates at once.
+pub(crate) const WIDTH_LANES: usize = 8;
+
+impl LobeGeometry {
+    /// [`LobeGeometry::rms`] at [`WIDTH_LANES`] widths at once (one width per lane; each
+    /// width's sum over the pairs in pair order, as `rms` adds them).
+    pub(crate) fn rms_of_widths(
+        &self,
+        target: &[f64],
+        alphas: &[f64; WIDTH_LANES],
+    ) -> [f64; WIDTH_LANES] {
+        let m = self.len();
+        if m == 0 {
+            return [0.0; WIDTH_LANES];
+        }
+        let mut sums = [-0.0; WIDTH_LANES];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F (checked just above).
+                unsafe { widths_avx512(self, target, alphas, &mut sums) };
+            } else if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                unsafe { widths_avx2(self, target, alphas, &mut sums) };
+            } else {
+                widths_lanes(self, target, alphas, &mut sums);
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        widths_lanes(self, target, alphas, &mut sums);
+        sums.map(|s| (s / m as f64).sqrt())
+    }
+}
+
+/// The loop of [`LobeGeometry::rms_of_widths`]: `sums[j] += (target − s(α_j))²` pair by pair.
+#[inline(always)]
+fn widths_lanes(
+    g: &LobeGeometry,
+    target: &[f64],
+    alphas: &[f64; WIDTH_LANES],
+    sums: &mut [f64; WIDTH_LANES],
+) {
+    let m = g.len().min(target.len());
+    let a2: [f64; WIDTH_LANES] = alphas.map(|a| a * a);
+    for i in 0..m {
+        let (tl, tv, cc, fv, live, t) = (
+            g.tan2_l[i],
+            g.tan2_v[i],
+            g.cc[i],
+            g.four_nv[i],
+            g.live[i],
+            target[i],
+        );
+        for j in 0..WIDTH_LANES {
+            let s = shaded_parts(tl, tv, cc, fv, a2[j]);
+            let s = if live != 0.0 { s } else { 0.0 };
+            let d = t - s;
+            sums[j] += d * d;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn widths_avx512(
+    g: &LobeGeometry,
+    target: &[f64],
+    alphas: &[f64; WIDTH_LANES],
+    sums: &mut [f64; WIDTH_LANES],
+) {
+    widths_lanes(g, target, alphas, sums);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn widths_avx2(
+    g: &LobeGeometry,
+    target: &[f64],
+    alphas: &[f64; WIDTH_LANES],
+    sums: &mut [f64; WIDTH_LANES],
+) {
+    widths_lanes(g, target, alphas, sums);
 }
 
 /// The loop of [`LobeGeometry::squared_differences`], compiled for each instruction set.
@@ -136,7 +260,12 @@ pub(crate) struct PairArrays {
 impl PairArrays {
     /// The arrays of `pairs`.
     pub(crate) fn new(pairs: &[(DVec3, DVec3)]) -> PairArrays {
-        let mut a = PairArrays::default();
+        let m = pairs.len();
+        let mut a = PairArrays {
+            l: std::array::from_fn(|_| Vec::with_capacity(m)),
+            v: std::array::from_fn(|_| Vec::with_capacity(m)),
+            h: std::array::from_fn(|_| Vec::with_capacity(m)),
+        };
         for &(l, v) in pairs {
             let h = (l + v).normalize_or_zero();
             for (dst, w) in [(&mut a.l, l), (&mut a.v, v), (&mut a.h, h)] {
@@ -149,8 +278,7 @@ impl PairArrays {
     }
 
     /// Number of pairs.
-    #[cfg(test)]
-    fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.l[0].len()
     }
 
@@ -245,7 +373,7 @@ mod tests {
     #[test]
     fn lobe_geometry_matches_the_scalar_lobe_bit_for_bit() {
         for (n, alpha, pairs) in cases() {
-            let g = LobeGeometry::new(n, &pairs);
+            let g = LobeGeometry::new(n, &PairArrays::new(&pairs));
             let target: Vec<f64> = pairs
                 .iter()
                 .enumerate()
@@ -266,6 +394,18 @@ mod tests {
                 g.rms(&target, alpha, &mut scratch).to_bits(),
                 want.to_bits()
             );
+            // Eight widths at once: each the one-width RMS.
+            let alphas: [f64; WIDTH_LANES] =
+                std::array::from_fn(|j| alpha * (0.5 + 0.25 * j as f64));
+            let many = g.rms_of_widths(&target, &alphas);
+            let mut plain = [-0.0; WIDTH_LANES];
+            widths_lanes(&g, &target, &alphas, &mut plain);
+            for j in 0..WIDTH_LANES {
+                let one = g.rms(&target, alphas[j], &mut scratch);
+                assert_eq!(many[j].to_bits(), one.to_bits(), "width {}", alphas[j]);
+                let sse2 = (plain[j] / pairs.len() as f64).sqrt();
+                assert_eq!(sse2.to_bits(), one.to_bits(), "width {}", alphas[j]);
+            }
         }
     }
 

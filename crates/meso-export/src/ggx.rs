@@ -20,7 +20,7 @@
 //!   projected onto the plane perpendicular to `n`, and `B = n × T`. `α_t` is the width along
 //!   `T`, `α_b` along `B` (glTF: `T` is the "direction of increased anisotropy roughness").
 
-use crate::batch::{LobeGeometry, PairArrays};
+use crate::batch::{LobeGeometry, PairArrays, WIDTH_LANES};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -267,27 +267,33 @@ pub fn direction_pairs(nbar: DVec3, width: f64) -> Vec<(DVec3, DVec3)> {
 #[must_use]
 pub fn direction_pairs_with(nbar: DVec3, width: f64, half_phis_deg: &[f64]) -> Vec<(DVec3, DVec3)> {
     let (t, b) = frame(nbar);
-    let dir = |theta: f64, phi: f64| {
-        (t * (theta.sin() * phi.cos()) + b * (theta.sin() * phi.sin()) + nbar * theta.cos())
-            .normalize()
+    // Each angle's sine and cosine once (the same calls on the same angles as one `dir(θ, φ)`
+    // per direction would make).
+    let sc = |angle: f64| (angle.sin(), angle.cos());
+    let dir = |(sin_t, cos_t): (f64, f64), (sin_p, cos_p): (f64, f64)| {
+        (t * (sin_t * cos_p) + b * (sin_t * sin_p) + nbar * cos_t).normalize()
     };
-    let mut views = Vec::new();
+    let view_phis = VIEW_PHIS_DEG.map(|ph| sc(ph.to_radians()));
+    let mut views = Vec::with_capacity(VIEW_THETAS_DEG.len() * VIEW_PHIS_DEG.len());
     for &th in &VIEW_THETAS_DEG {
         if th == 0.0 {
             views.push(nbar);
         } else {
-            for &ph in &VIEW_PHIS_DEG {
-                views.push(dir(th.to_radians(), ph.to_radians()));
+            let theta = sc(th.to_radians());
+            for &phi in &view_phis {
+                views.push(dir(theta, phi));
             }
         }
     }
-    let mut halves = Vec::new();
+    let half_phis: Vec<(f64, f64)> = half_phis_deg.iter().map(|ph| sc(ph.to_radians())).collect();
+    let mut halves = Vec::with_capacity(HALF_TILTS.len() * half_phis.len());
     for &c in &HALF_TILTS {
         if c == 0.0 {
             halves.push(nbar);
         } else {
-            for &ph in half_phis_deg {
-                halves.push(dir((c * width).atan(), ph.to_radians()));
+            let theta = sc((c * width).atan());
+            for &phi in &half_phis {
+                halves.push(dir(theta, phi));
             }
         }
     }
@@ -307,10 +313,13 @@ pub fn direction_pairs_with(nbar: DVec3, width: f64, half_phis_deg: &[f64]) -> V
 /// Each pair's sum is added up in the order of `fine`.
 #[must_use]
 pub fn average_shaded(fine: &[FineTexel], pairs: &[(DVec3, DVec3)]) -> Vec<f64> {
-    let mut acc = vec![0.0; pairs.len()];
-    // The pairs as flat arrays (half vectors once per pair), then all pairs of one fine texel
-    // at once (SIMD lanes, the scalar operations: `crate::batch`).
-    let arrays = PairArrays::new(pairs);
+    average_shaded_on(fine, &PairArrays::new(pairs))
+}
+
+/// [`average_shaded`] on the pairs as flat arrays (half vectors once per pair): all pairs of
+/// one fine texel at once (SIMD lanes doing the scalar operations: `crate::batch`).
+pub(crate) fn average_shaded_on(fine: &[FineTexel], arrays: &PairArrays) -> Vec<f64> {
+    let mut acc = vec![0.0; arrays.len()];
     for t in fine {
         arrays.accumulate_shaded(t.normal, t.alpha, &mut acc);
     }
@@ -373,11 +382,25 @@ pub const GOLDEN_ITERATIONS: usize = 30;
 /// Minimise `err(α)` over `α ∈ [lo, hi]`: a log-spaced scan of [`SCAN_POINTS`] points, then a
 /// golden-section search on `ln α` inside the bracket around the best scan point.
 pub fn minimise_alpha(lo: f64, hi: f64, mut err: impl FnMut(f64) -> f64) -> (f64, f64) {
+    let xs = scan_points(lo, hi);
+    let es = xs.map(|x| err(x.exp()));
+    refine_scan(&xs, &es, err)
+}
+
+/// The scan of [`minimise_alpha`]: [`SCAN_POINTS`] values of `ln α`, evenly spaced from
+/// `ln lo` to `ln hi`.
+fn scan_points(lo: f64, hi: f64) -> [f64; SCAN_POINTS] {
     let (a, b) = (lo.ln(), hi.ln());
-    let xs: Vec<f64> = (0..SCAN_POINTS)
-        .map(|k| a + (b - a) * k as f64 / (SCAN_POINTS - 1) as f64)
-        .collect();
-    let es: Vec<f64> = xs.iter().map(|&x| err(x.exp())).collect();
+    std::array::from_fn(|k| a + (b - a) * k as f64 / (SCAN_POINTS - 1) as f64)
+}
+
+/// The rest of [`minimise_alpha`] once the errors `es` at the scan points `xs` (`ln α`) are
+/// known: the golden-section search around the best of them.
+fn refine_scan(
+    xs: &[f64; SCAN_POINTS],
+    es: &[f64; SCAN_POINTS],
+    mut err: impl FnMut(f64) -> f64,
+) -> (f64, f64) {
     let best = (0..SCAN_POINTS)
         .min_by(|&i, &j| es[i].total_cmp(&es[j]))
         .unwrap_or(0);
@@ -454,10 +477,15 @@ pub(crate) struct IsoSearch<'a> {
 impl<'a> IsoSearch<'a> {
     /// The search for the supersampled `target` on `pairs` about the unit normal `nbar`.
     pub(crate) fn new(target: &'a [f64], nbar: DVec3, pairs: &[(DVec3, DVec3)]) -> Self {
+        Self::on(target, nbar, &PairArrays::new(pairs))
+    }
+
+    /// [`IsoSearch::new`] on the pairs as flat arrays.
+    pub(crate) fn on(target: &'a [f64], nbar: DVec3, arrays: &PairArrays) -> Self {
         IsoSearch {
             target,
-            geometry: LobeGeometry::new(nbar, pairs),
-            scratch: Vec::with_capacity(pairs.len()),
+            geometry: LobeGeometry::new(nbar, arrays),
+            scratch: Vec::with_capacity(arrays.len()),
             peak: target.iter().copied().fold(0.0, f64::max),
         }
     }
@@ -467,10 +495,19 @@ impl<'a> IsoSearch<'a> {
         self.geometry.rms(self.target, alpha, &mut self.scratch)
     }
 
-    /// The best α in `[lo, 1]` (`lo` clamped to `[MIN_ALPHA, 1]`) by [`minimise_alpha`].
+    /// The best α in `[lo, 1]` (`lo` clamped to `[MIN_ALPHA, 1]`) by [`minimise_alpha`], its
+    /// scan [`WIDTH_LANES`] widths at a time.
     pub(crate) fn fit(&mut self, lo: f64) -> AlphaFit {
         let lo = lo.clamp(MIN_ALPHA, 1.0);
-        let (alpha, rms) = minimise_alpha(lo, 1.0, |a| self.rms(a));
+        let xs = scan_points(lo, 1.0);
+        let mut es = [0.0; SCAN_POINTS];
+        for (x, e) in xs.chunks(WIDTH_LANES).zip(es.chunks_mut(WIDTH_LANES)) {
+            // A short last chunk is padded with its last width.
+            let alphas = std::array::from_fn(|j| x[j.min(x.len() - 1)].exp());
+            let rms = self.geometry.rms_of_widths(self.target, &alphas);
+            e.copy_from_slice(&rms[..e.len()]);
+        }
+        let (alpha, rms) = refine_scan(&xs, &es, |a| self.rms(a));
         AlphaFit {
             alpha,
             rms,
