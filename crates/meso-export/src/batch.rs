@@ -3,7 +3,7 @@
 //! The pairs' geometry is kept as flat arrays (one per quantity), and the loops over the pairs
 //! have no branches, so the compiler turns them into SIMD: 8 pairs per instruction with
 //! AVX-512, 4 with AVX2, 2 with SSE2 (chosen at run time). Every lane does exactly the scalar
-//! operations of the shaded lobe (`ggx::shaded_cos`, the same functions in the same order; Rust
+//! operations of the shaded lobe (`ggx::shaded_parts`, the same functions in the same order; Rust
 //! never fuses a multiply and an add), and every sum over pairs or over fine texels is added in
 //! the scalar code's order, so the results are the scalar code's bit for bit (unit tests below
 //! compare them).
@@ -11,19 +11,22 @@
 //! Conventions are [`crate::ggx`]'s: unit directions in the tangent frame, α the GGX width, the
 //! shaded lobe `s = f(l, v)·(n·l)` in 1/sr.
 
-use crate::ggx::{shaded_parts, tan2};
+use crate::ggx::{cos_sin2, shaded_parts};
 use glam::DVec3;
 
 /// What the shaded lobe about one normal `n` reads of each pair `(l, v)`, which does not depend
-/// on the width: the squared tangents of `l` and `v` about `n`, `(n·h)²`, `4 n·v`, and whether
-/// the lobe can be non-zero there (1.0) or is 0 at every width (0.0: `l` or `v` below the
-/// horizon of `n`, `n·h ≤ 0`, or no half vector).
+/// on the width: `n·l`, `n·v`, their squares and squared sines ([`cos_sin2`]), `(n·h)²`, and
+/// whether the lobe can be non-zero there (1.0) or is 0 at every width (0.0: `l` or `v` below
+/// the horizon of `n`, `n·h ≤ 0`, or no half vector).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LobeGeometry {
-    tan2_l: Vec<f64>,
-    tan2_v: Vec<f64>,
+    nl: Vec<f64>,
+    nv: Vec<f64>,
+    nl2: Vec<f64>,
+    sl2: Vec<f64>,
+    nv2: Vec<f64>,
+    sv2: Vec<f64>,
     cc: Vec<f64>,
-    four_nv: Vec<f64>,
     live: Vec<f64>,
 }
 
@@ -33,10 +36,13 @@ impl LobeGeometry {
     pub(crate) fn new(n: DVec3, pairs: &PairArrays) -> LobeGeometry {
         let m = pairs.len();
         let mut g = LobeGeometry {
-            tan2_l: vec![0.0; m],
-            tan2_v: vec![0.0; m],
+            nl: vec![0.0; m],
+            nv: vec![0.0; m],
+            nl2: vec![0.0; m],
+            sl2: vec![0.0; m],
+            nv2: vec![0.0; m],
+            sv2: vec![0.0; m],
             cc: vec![0.0; m],
-            four_nv: vec![0.0; m],
             live: vec![0.0; m],
         };
         #[cfg(target_arch = "x86_64")]
@@ -102,8 +108,10 @@ fn geometry_lanes(g: &mut LobeGeometry, n: DVec3, p: &PairArrays) {
     let (lx, ly, lz) = (&p.l[0][..m], &p.l[1][..m], &p.l[2][..m]);
     let (vx, vy, vz) = (&p.v[0][..m], &p.v[1][..m], &p.v[2][..m]);
     let (hx, hy, hz) = (&p.h[0][..m], &p.h[1][..m], &p.h[2][..m]);
-    let (tl, tv, cc) = (&mut g.tan2_l[..m], &mut g.tan2_v[..m], &mut g.cc[..m]);
-    let (fv, live) = (&mut g.four_nv[..m], &mut g.live[..m]);
+    let (gnl, gnv, cc) = (&mut g.nl[..m], &mut g.nv[..m], &mut g.cc[..m]);
+    let (nl2, sl2) = (&mut g.nl2[..m], &mut g.sl2[..m]);
+    let (nv2, sv2) = (&mut g.nv2[..m], &mut g.sv2[..m]);
+    let live = &mut g.live[..m];
     for i in 0..m {
         // glam's `dot`: (n.x·w.x + n.y·w.y) + n.z·w.z.
         let nl = n.x * lx[i] + n.y * ly[i] + n.z * lz[i];
@@ -111,10 +119,11 @@ fn geometry_lanes(g: &mut LobeGeometry, n: DVec3, p: &PairArrays) {
         let c = n.x * hx[i] + n.y * hy[i] + n.z * hz[i];
         // A zero half vector gives c = 0: dead like a half vector below the horizon.
         let ok = nl > 0.0 && nv > 0.0 && c > 0.0;
-        tl[i] = if ok { tan2(nl) } else { 0.0 };
-        tv[i] = if ok { tan2(nv) } else { 0.0 };
+        gnl[i] = nl;
+        gnv[i] = nv;
+        (nl2[i], sl2[i]) = cos_sin2(nl);
+        (nv2[i], sv2[i]) = cos_sin2(nv);
         cc[i] = c * c;
-        fv[i] = if ok { 4.0 * nv } else { 1.0 };
         live[i] = if ok { 1.0 } else { 0.0 };
     }
 }
@@ -176,16 +185,17 @@ fn widths_lanes(
     let m = g.len().min(target.len());
     let a2: [f64; WIDTH_LANES] = alphas.map(|a| a * a);
     for i in 0..m {
-        let (tl, tv, cc, fv, live, t) = (
-            g.tan2_l[i],
-            g.tan2_v[i],
+        let (nl, nv, l2, v2, cc, live, t) = (
+            g.nl[i],
+            g.nv[i],
+            (g.nl2[i], g.sl2[i]),
+            (g.nv2[i], g.sv2[i]),
             g.cc[i],
-            g.four_nv[i],
             g.live[i],
             target[i],
         );
         for j in 0..WIDTH_LANES {
-            let s = shaded_parts(tl, tv, cc, fv, a2[j]);
+            let s = shaded_parts(nl, nv, l2, v2, cc, a2[j]);
             let s = if live != 0.0 { s } else { 0.0 };
             let d = t - s;
             sums[j] += d * d;
@@ -219,17 +229,17 @@ fn widths_avx2(
 #[inline(always)]
 fn sq_diff_lanes(g: &LobeGeometry, target: &[f64], alpha: f64, out: &mut [f64]) {
     let m = out.len();
-    let (tl, tv, cc, fv, live, t) = (
-        &g.tan2_l[..m],
-        &g.tan2_v[..m],
+    let (nl, nv, cc, live, t) = (
+        &g.nl[..m],
+        &g.nv[..m],
         &g.cc[..m],
-        &g.four_nv[..m],
         &g.live[..m],
         &target[..m],
     );
+    let (nl2, sl2, nv2, sv2) = (&g.nl2[..m], &g.sl2[..m], &g.nv2[..m], &g.sv2[..m]);
     let a2 = alpha * alpha;
     for i in 0..m {
-        let s = shaded_parts(tl[i], tv[i], cc[i], fv[i], a2);
+        let s = shaded_parts(nl[i], nv[i], (nl2[i], sl2[i]), (nv2[i], sv2[i]), cc[i], a2);
         let s = if live[i] != 0.0 { s } else { 0.0 };
         let d = t[i] - s;
         out[i] = d * d;
@@ -315,7 +325,7 @@ fn acc_lanes(p: &PairArrays, n: DVec3, alpha: f64, acc: &mut [f64]) {
         let nl = n.x * lx[i] + n.y * ly[i] + n.z * lz[i];
         let nv = n.x * vx[i] + n.y * vy[i] + n.z * vz[i];
         let c = n.x * hx[i] + n.y * hy[i] + n.z * hz[i];
-        let s = shaded_parts(tan2(nl), tan2(nv), c * c, 4.0 * nv, a2);
+        let s = shaded_parts(nl, nv, cos_sin2(nl), cos_sin2(nv), c * c, a2);
         acc[i] += if nl > 0.0 && nv > 0.0 && c > 0.0 {
             s
         } else {
