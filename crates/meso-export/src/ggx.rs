@@ -20,7 +20,7 @@
 //!   projected onto the plane perpendicular to `n`, and `B = n × T`. `α_t` is the width along
 //!   `T`, `α_b` along `B` (glTF: `T` is the "direction of increased anisotropy roughness").
 
-use crate::batch::{LobeGeometry, PairArrays, WIDTH_LANES};
+use crate::batch::{AnisoPairs, LobeGeometry, PairArrays, WIDTH_LANES};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -635,9 +635,11 @@ pub const ANISO_LM_ITERATIONS: usize = 40;
 /// `(ln α_x, ln α_y, ψ)` with `α_x` along the direction at angle `ψ`; residuals the lobe's
 /// shaded values minus the target on the direction set (so the cost is a multiple of
 /// [`rms_error_of`]'s square); Jacobian by forward differences.
+/// The pairs' width-independent geometry is computed once ([`AnisoPairs`]) and every
+/// evaluation does all pairs at once (SIMD lanes, [`AnisoGgx::shaded`]'s operations).
 struct AnisoProblem<'a> {
     target: &'a [f64],
-    pairs: &'a [(DVec3, DVec3)],
+    pairs: AnisoPairs,
     nbar: DVec3,
 }
 
@@ -646,10 +648,12 @@ impl AnisoProblem<'_> {
         AnisoGgx::new(self.nbar, p[2], p[0].exp(), p[1].exp())
     }
     fn residuals(&self, p: &[f64], out: &mut [f64]) -> f64 {
-        let lobe = self.lobe(p);
+        let m = out.len().min(self.target.len());
+        let out = &mut out[..m];
+        self.pairs.residuals(&self.lobe(p), self.target, out);
+        // The cost added up in pair order.
         let mut c = 0.0;
-        for ((o, t), &(l, v)) in out.iter_mut().zip(self.target).zip(self.pairs) {
-            *o = lobe.shaded(l, v) - t;
+        for o in out.iter() {
             c += *o * *o;
         }
         0.5 * c
@@ -798,7 +802,7 @@ pub(crate) fn fit_aniso_with(
     }
     let problem = AnisoProblem {
         target,
-        pairs,
+        pairs: AnisoPairs::new(nbar, pairs),
         nbar,
     };
     let (ax, ay, psi) = moment_start(fine, nbar, iso.alpha);
