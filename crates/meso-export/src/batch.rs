@@ -19,16 +19,12 @@ use std::f64::consts::PI;
 /// on the width: `n·l`, `n·v`, their squares and squared sines ([`cos_sin2`]), `(n·h)²`, and
 /// whether the lobe can be non-zero there (1.0) or is 0 at every width (0.0: `l` or `v` below
 /// the horizon of `n`, `n·h ≤ 0`, or no half vector).
+///
+/// Eight arrays of the pairs in one allocation: `nl, nv, nl2, sl2, nv2, sv2, cc, live`.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct LobeGeometry {
-    nl: Vec<f64>,
-    nv: Vec<f64>,
-    nl2: Vec<f64>,
-    sl2: Vec<f64>,
-    nv2: Vec<f64>,
-    sv2: Vec<f64>,
-    cc: Vec<f64>,
-    live: Vec<f64>,
+    data: Vec<f64>,
+    m: usize,
 }
 
 impl LobeGeometry {
@@ -37,14 +33,8 @@ impl LobeGeometry {
     pub(crate) fn new(n: DVec3, pairs: &PairArrays) -> LobeGeometry {
         let m = pairs.len();
         let mut g = LobeGeometry {
-            nl: vec![0.0; m],
-            nv: vec![0.0; m],
-            nl2: vec![0.0; m],
-            sl2: vec![0.0; m],
-            nv2: vec![0.0; m],
-            sv2: vec![0.0; m],
-            cc: vec![0.0; m],
-            live: vec![0.0; m],
+            data: vec![0.0; 8 * m],
+            m,
         };
         #[cfg(target_arch = "x86_64")]
         {
@@ -65,7 +55,13 @@ impl LobeGeometry {
 
     /// Number of pairs.
     pub(crate) fn len(&self) -> usize {
-        self.live.len()
+        self.m
+    }
+
+    /// The eight arrays `nl, nv, nl2, sl2, nv2, sv2, cc, live`, each cut to its first `m`
+    /// pairs (`m ≤ len`).
+    fn arrays(&self, m: usize) -> [&[f64]; 8] {
+        split::<8>(&self.data, self.m).map(|a| &a[..m])
     }
 
     /// `out[i] = (target[i] − s_i(α))²` with `s_i(α)` the shaded lobe of width `alpha` at pair
@@ -105,14 +101,9 @@ impl LobeGeometry {
 /// The loop of [`LobeGeometry::new`], compiled for each instruction set.
 #[inline(always)]
 fn geometry_lanes(g: &mut LobeGeometry, n: DVec3, p: &PairArrays) {
-    let m = g.live.len();
-    let (lx, ly, lz) = (&p.l[0][..m], &p.l[1][..m], &p.l[2][..m]);
-    let (vx, vy, vz) = (&p.v[0][..m], &p.v[1][..m], &p.v[2][..m]);
-    let (hx, hy, hz) = (&p.h[0][..m], &p.h[1][..m], &p.h[2][..m]);
-    let (gnl, gnv, cc) = (&mut g.nl[..m], &mut g.nv[..m], &mut g.cc[..m]);
-    let (nl2, sl2) = (&mut g.nl2[..m], &mut g.sl2[..m]);
-    let (nv2, sv2) = (&mut g.nv2[..m], &mut g.sv2[..m]);
-    let live = &mut g.live[..m];
+    let m = g.m;
+    let [lx, ly, lz, vx, vy, vz, hx, hy, hz] = p.components(m);
+    let [gnl, gnv, nl2, sl2, nv2, sv2, cc, live] = split_mut::<8>(&mut g.data, m);
     for i in 0..m {
         // glam's `dot`: (n.x·w.x + n.y·w.y) + n.z·w.z.
         let nl = n.x * lx[i] + n.y * ly[i] + n.z * lz[i];
@@ -184,15 +175,17 @@ fn widths_lanes(
     sums: &mut [f64; WIDTH_LANES],
 ) {
     let m = g.len().min(target.len());
+    let [nl, nv, nl2, sl2, nv2, sv2, cc, live] = g.arrays(m);
+    let target = &target[..m];
     let a2: [f64; WIDTH_LANES] = alphas.map(|a| a * a);
     for i in 0..m {
         let (nl, nv, l2, v2, cc, live, t) = (
-            g.nl[i],
-            g.nv[i],
-            (g.nl2[i], g.sl2[i]),
-            (g.nv2[i], g.sv2[i]),
-            g.cc[i],
-            g.live[i],
+            nl[i],
+            nv[i],
+            (nl2[i], sl2[i]),
+            (nv2[i], sv2[i]),
+            cc[i],
+            live[i],
             target[i],
         );
         for j in 0..WIDTH_LANES {
@@ -230,14 +223,8 @@ fn widths_avx2(
 #[inline(always)]
 fn sq_diff_lanes(g: &LobeGeometry, target: &[f64], alpha: f64, out: &mut [f64]) {
     let m = out.len();
-    let (nl, nv, cc, live, t) = (
-        &g.nl[..m],
-        &g.nv[..m],
-        &g.cc[..m],
-        &g.live[..m],
-        &target[..m],
-    );
-    let (nl2, sl2, nv2, sv2) = (&g.nl2[..m], &g.sl2[..m], &g.nv2[..m], &g.sv2[..m]);
+    let [nl, nv, nl2, sl2, nv2, sv2, cc, live] = g.arrays(m);
+    let t = &target[..m];
     let a2 = alpha * alpha;
     for i in 0..m {
         let s = shaded_parts(nl[i], nv[i], (nl2[i], sl2[i]), (nv2[i], sv2[i]), cc[i], a2);
@@ -260,37 +247,65 @@ fn sq_diff_avx2(g: &LobeGeometry, target: &[f64], alpha: f64, out: &mut [f64]) {
 }
 
 /// Direction pairs as flat arrays: the components of `l`, `v` and the half vector
-/// `h = normalize(l + v)` (zero when `l = −v`).
+/// `h = normalize(l + v)` (zero when `l = −v`), one array of the pairs per component, all in
+/// one allocation (`lx, ly, lz, vx, vy, vz, hx, hy, hz`).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct PairArrays {
-    l: [Vec<f64>; 3],
-    v: [Vec<f64>; 3],
-    h: [Vec<f64>; 3],
+    data: Vec<f64>,
+    m: usize,
+}
+
+/// `K` consecutive arrays of `m` values at the start of `data`.
+fn split<const K: usize>(data: &[f64], m: usize) -> [&[f64]; K] {
+    std::array::from_fn(|k| &data[k * m..(k + 1) * m])
+}
+
+/// [`split`], mutable.
+fn split_mut<const K: usize>(data: &mut [f64], m: usize) -> [&mut [f64]; K] {
+    let mut rest = data;
+    std::array::from_fn(|_| {
+        let (a, b) = std::mem::take(&mut rest).split_at_mut(m);
+        rest = b;
+        a
+    })
 }
 
 impl PairArrays {
     /// The arrays of `pairs`.
     pub(crate) fn new(pairs: &[(DVec3, DVec3)]) -> PairArrays {
         let m = pairs.len();
-        let mut a = PairArrays {
-            l: std::array::from_fn(|_| Vec::with_capacity(m)),
-            v: std::array::from_fn(|_| Vec::with_capacity(m)),
-            h: std::array::from_fn(|_| Vec::with_capacity(m)),
-        };
-        for &(l, v) in pairs {
-            let h = (l + v).normalize_or_zero();
-            for (dst, w) in [(&mut a.l, l), (&mut a.v, v), (&mut a.h, h)] {
-                dst[0].push(w.x);
-                dst[1].push(w.y);
-                dst[2].push(w.z);
+        let mut data = vec![0.0; 9 * m];
+        for (i, &(l, v)) in pairs.iter().enumerate() {
+            for (k, x) in [l.x, l.y, l.z, v.x, v.y, v.z].into_iter().enumerate() {
+                data[k * m + i] = x;
             }
         }
-        a
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F (checked just above).
+                unsafe { halves_avx512(&mut data, m) };
+                return PairArrays { data, m };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                unsafe { halves_avx2(&mut data, m) };
+                return PairArrays { data, m };
+            }
+        }
+        halves_lanes(&mut data, m);
+        PairArrays { data, m }
     }
 
     /// Number of pairs.
     pub(crate) fn len(&self) -> usize {
-        self.l[0].len()
+        self.m
+    }
+
+    /// The nine arrays `lx, ly, lz, vx, vy, vz, hx, hy, hz`, each cut to its first `m`
+    /// pairs (`m ≤ len`).
+    fn components(&self, m: usize) -> [&[f64]; 9] {
+        split::<9>(&self.data, self.m).map(|a| &a[..m])
     }
 
     /// `acc[i] += s(n, α; l_i, v_i)`, the shaded lobe about the unit normal `n` of width
@@ -313,13 +328,41 @@ impl PairArrays {
     }
 }
 
+/// The half vectors of [`PairArrays::new`] from its `l` and `v` arrays: glam's
+/// `(l + v).normalize_or_zero()` (`s · (1/√(s·s))`, zero where that factor is not finite and
+/// positive), pair by pair in lanes.
+#[inline(always)]
+fn halves_lanes(data: &mut [f64], m: usize) {
+    let (lv, h) = data.split_at_mut(6 * m);
+    let [lx, ly, lz, vx, vy, vz] = split::<6>(lv, m);
+    let [hx, hy, hz] = split_mut::<3>(h, m);
+    for i in 0..m {
+        let (x, y, z) = (lx[i] + vx[i], ly[i] + vy[i], lz[i] + vz[i]);
+        let rcp = 1.0 / (x * x + y * y + z * z).sqrt();
+        let ok = rcp.is_finite() && rcp > 0.0;
+        hx[i] = if ok { x * rcp } else { 0.0 };
+        hy[i] = if ok { y * rcp } else { 0.0 };
+        hz[i] = if ok { z * rcp } else { 0.0 };
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn halves_avx512(data: &mut [f64], m: usize) {
+    halves_lanes(data, m);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn halves_avx2(data: &mut [f64], m: usize) {
+    halves_lanes(data, m);
+}
+
 /// The loop of [`PairArrays::accumulate_shaded`], compiled for each instruction set.
 #[inline(always)]
 fn acc_lanes(p: &PairArrays, n: DVec3, alpha: f64, acc: &mut [f64]) {
     let m = acc.len();
-    let (lx, ly, lz) = (&p.l[0][..m], &p.l[1][..m], &p.l[2][..m]);
-    let (vx, vy, vz) = (&p.v[0][..m], &p.v[1][..m], &p.v[2][..m]);
-    let (hx, hy, hz) = (&p.h[0][..m], &p.h[1][..m], &p.h[2][..m]);
+    let [lx, ly, lz, vx, vy, vz, hx, hy, hz] = p.components(m);
     let a2 = alpha * alpha;
     for i in 0..m {
         // glam's `dot`: (n.x·w.x + n.y·w.y) + n.z·w.z.
@@ -374,13 +417,10 @@ impl AnisoPairs {
             live: Vec::with_capacity(m),
             arrays,
         };
+        let c = a.arrays.components(m);
         for i in 0..m {
-            let at = |w: &[Vec<f64>; 3]| DVec3::new(w[0][i], w[1][i], w[2][i]);
-            let (nl, nv, nh) = (
-                n.dot(at(&a.arrays.l)),
-                n.dot(at(&a.arrays.v)),
-                n.dot(at(&a.arrays.h)),
-            );
+            let at = |k: usize| DVec3::new(c[k][i], c[k + 1][i], c[k + 2][i]);
+            let (nl, nv, nh) = (n.dot(at(0)), n.dot(at(3)), n.dot(at(6)));
             // A zero half vector gives n·h = 0: dead like one below the horizon.
             let ok = nl > 0.0 && nv > 0.0 && nh > 0.0;
             a.nl2.push(nl * nl);
@@ -423,9 +463,7 @@ impl AnisoPairs {
 fn aniso_lanes(p: &AnisoPairs, lobe: &AnisoGgx, target: &[f64], out: &mut [f64]) {
     let m = out.len();
     let a = &p.arrays;
-    let (lx, ly, lz) = (&a.l[0][..m], &a.l[1][..m], &a.l[2][..m]);
-    let (vx, vy, vz) = (&a.v[0][..m], &a.v[1][..m], &a.v[2][..m]);
-    let (hx, hy, hz) = (&a.h[0][..m], &a.h[1][..m], &a.h[2][..m]);
+    let [lx, ly, lz, vx, vy, vz, hx, hy, hz] = a.components(m);
     let (nl2, nv2, nh2) = (&p.nl2[..m], &p.nv2[..m], &p.nh2[..m]);
     let (fv, live, target) = (&p.four_nv[..m], &p.live[..m], &target[..m]);
     let (t, b) = (lobe.tangent, lobe.bitangent);
