@@ -678,20 +678,33 @@ impl meso_core::lm::VectorProblem for AnisoProblem<'_> {
             let step = 1e-6;
             q[j] = p[j] + step;
             let col = &mut cols[j * m..(j + 1) * m];
-            self.residuals(&q, col);
+            // The residuals only: their cost is not needed here.
+            self.pairs.residuals(&self.lobe(&q), self.target, col);
             for (c, r0) in col.iter_mut().zip(&r) {
                 *c = (*c - r0) / step;
             }
             q[j] = p[j];
         }
-        for a in 0..3 {
-            let ca = &cols[a * m..(a + 1) * m];
-            jtr[a] = ca.iter().zip(&r).map(|(x, y)| x * y).sum();
-            for b in 0..3 {
-                let cb = &cols[b * m..(b + 1) * m];
-                jtj[a * 3 + b] = ca.iter().zip(cb).map(|(x, y)| x * y).sum();
-            }
+        // Jᵀr and the six distinct entries of the symmetric JᵀJ in one pass over the pairs:
+        // nine independent sums, each added in pair order from `Sum`'s starting value, as nine
+        // separate `.sum()`s would (and `x·y = y·x` exactly, so the mirrored entries agree).
+        let (c0, c1, c2) = (&cols[..m], &cols[m..2 * m], &cols[2 * m..]);
+        let start: f64 = std::iter::empty::<f64>().sum();
+        let mut s = [start; 9];
+        for i in 0..m {
+            let (x0, x1, x2, ri) = (c0[i], c1[i], c2[i], r[i]);
+            s[0] += x0 * ri;
+            s[1] += x1 * ri;
+            s[2] += x2 * ri;
+            s[3] += x0 * x0;
+            s[4] += x0 * x1;
+            s[5] += x0 * x2;
+            s[6] += x1 * x1;
+            s[7] += x1 * x2;
+            s[8] += x2 * x2;
         }
+        jtr[..3].copy_from_slice(&s[..3]);
+        jtj[..9].copy_from_slice(&[s[3], s[4], s[5], s[4], s[6], s[7], s[5], s[7], s[8]]);
         cost
     }
 }
