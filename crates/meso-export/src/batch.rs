@@ -417,10 +417,10 @@ impl AnisoPairs {
             live: Vec::with_capacity(m),
             arrays,
         };
-        let c = a.arrays.components(m);
-        for i in 0..m {
-            let at = |k: usize| DVec3::new(c[k][i], c[k + 1][i], c[k + 2][i]);
-            let (nl, nv, nh) = (n.dot(at(0)), n.dot(at(3)), n.dot(at(6)));
+        for &(l, v) in pairs {
+            // The half vector as the arrays hold it (the same bits).
+            let h = (l + v).normalize_or_zero();
+            let (nl, nv, nh) = (n.dot(l), n.dot(v), n.dot(h));
             // A zero half vector gives n·h = 0: dead like one below the horizon.
             let ok = nl > 0.0 && nv > 0.0 && nh > 0.0;
             a.nl2.push(nl * nl);
@@ -511,8 +511,11 @@ mod tests {
     use super::*;
     use crate::ggx::{direction_pairs, shaded};
 
+    /// A normal, a width and a direction set.
+    type Case = (DVec3, f64, Vec<(DVec3, DVec3)>);
+
     /// Random unit vectors, some below the horizon, and direction sets of several widths.
-    fn cases() -> Vec<(DVec3, f64, Vec<(DVec3, DVec3)>)> {
+    fn cases() -> Vec<Case> {
         let mut seed = 987_654_321u64;
         let mut rnd = move || {
             seed = seed
