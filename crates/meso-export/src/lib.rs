@@ -13,6 +13,7 @@
 //! The pipeline: [`export::Inputs`] → [`export::build`] (all files in memory) →
 //! [`export::write`] (atomic, all or nothing).
 
+mod batch;
 pub mod export;
 pub mod ggx;
 pub mod gltf;

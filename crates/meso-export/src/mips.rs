@@ -18,6 +18,7 @@
 //!   fitted by one anisotropic GGX lobe ([`crate::ggx::fit_aniso`]): `alphas` then hold `α_b`
 //!   (the smaller width) and [`MipLevel::aniso`] the larger width `α_t` and its direction.
 
+use crate::batch::PairArrays;
 use crate::ggx::{self, FineTexel};
 use crate::ExportError;
 use glam::DVec3;
@@ -263,17 +264,18 @@ struct TexelFit {
     aniso: Option<(f64, f64, f64)>,
 }
 
-/// The supersampled average of `fine`'s lobes on `pairs`, in parallel over large footprints.
-fn target_of(fine: &[FineTexel], pairs: &[(DVec3, DVec3)]) -> Vec<f64> {
+/// The supersampled average of `fine`'s lobes on the pairs `arrays`, in parallel over large
+/// footprints.
+fn target_of(fine: &[FineTexel], arrays: &PairArrays) -> Vec<f64> {
     if fine.len() > 4096 {
         fine.par_chunks(1024)
             .map(|c| {
-                let mut v = ggx::average_shaded(c, pairs);
+                let mut v = ggx::average_shaded_on(c, arrays);
                 v.iter_mut().for_each(|x| *x *= c.len() as f64);
                 v
             })
             .reduce(
-                || vec![0.0; pairs.len()],
+                || vec![0.0; arrays.len()],
                 |mut a, b| {
                     a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
                     a
@@ -283,7 +285,7 @@ fn target_of(fine: &[FineTexel], pairs: &[(DVec3, DVec3)]) -> Vec<f64> {
             .map(|x| x / fine.len() as f64)
             .collect()
     } else {
-        ggx::average_shaded(fine, pairs)
+        ggx::average_shaded_on(fine, arrays)
     }
 }
 
@@ -296,11 +298,16 @@ fn fit_texel(fine: &[FineTexel], anisotropic: bool) -> TexelFit {
     } else {
         ggx::direction_pairs(nbar, width)
     };
-    let target = target_of(fine, &pairs);
+    // The pairs as flat arrays once, for the target, the standard mip's error and the fit.
+    let arrays = PairArrays::new(&pairs);
+    let target = target_of(fine, &arrays);
     let mean_alpha = fine.iter().map(|t| t.alpha).sum::<f64>() / fine.len() as f64;
-    let plain = ggx::rms_error(&target, nbar, mean_alpha, &pairs);
+    // One prepared search for the standard mip's error and the fit (`ggx::rms_error`'s
+    // numbers).
+    let mut search = ggx::IsoSearch::on(&target, nbar, &arrays);
+    let plain = search.rms(mean_alpha);
     if anisotropic {
-        let fit = ggx::fit_aniso_on(fine, &target, nbar, &pairs);
+        let fit = ggx::fit_aniso_with(fine, &mut search, &target, nbar, &pairs);
         let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
         TexelFit {
             normal: nbar,
@@ -310,7 +317,7 @@ fn fit_texel(fine: &[FineTexel], anisotropic: bool) -> TexelFit {
             aniso: Some((fit.alpha_t, fit.angle, rel(fit.iso_rms))),
         }
     } else {
-        let fit = ggx::fit_alpha_on(&target, nbar, &pairs);
+        let fit = search.fit(ggx::MIN_ALPHA);
         let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
         TexelFit {
             normal: nbar,
