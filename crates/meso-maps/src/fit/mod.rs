@@ -886,11 +886,16 @@ impl<'a> Single<'a> {
         let ll1 = ch.ll;
         let mut trial = kmeans_from(
             self.pts,
-            self.seeds
-                .get_or_insert_with(|| KmeansSeeds::new(self.pts)),
+            self.seeds.get_or_insert_with(|| KmeansSeeds::new(self.pts)),
             k,
         );
-        let l = em(self.pts, &self.lanes, &mut trial, self.ptotal, self.sel_iters);
+        let l = em(
+            self.pts,
+            &self.lanes,
+            &mut trial,
+            self.ptotal,
+            self.sel_iters,
+        );
         if trial.len() == k && l - ll1 > (k - 1) as f64 * self.min_gain {
             return self.finish(trial, k, false, k);
         }
