@@ -14,9 +14,10 @@
 //!   the axis satisfies `a ∝ Σ r_n m_n / (1 + a·m_n)`, iterated once per EM step.
 //!   K grows from 1; each K starts from a spherical k-means (greedy weighted k-means++ seeds);
 //!   K lobes are kept only if they raise the mean log-likelihood (per unit weight) over K − 1
-//!   lobes by more than `min_gain` nats. On the cheap path (levels of more than
-//!   `thorough_texels` texels, EM footprints of more than 4 points per lobe, `max_lobes` ≥ 3)
-//!   K = `max_lobes` is tried first: its k-means start's EM fit is kept when it gains more than
+//!   lobes by more than `min_gain` nats. On the cheap path without the smoothed refinement
+//!   (levels of more than `smooth_texels` texels, or every level with `smooth_exponent` 0; EM
+//!   footprints of more than 4 points per lobe; `max_lobes` ≥ 3) K = `max_lobes` is tried
+//!   first: its k-means start's EM fit is kept when it gains more than
 //!   `(max_lobes − 1)·min_gain` over one lobe (what growing K one step at a time needs to get
 //!   there); only otherwise does K grow from 1.
 //!   Footprints with more than `max_em_points` entries are fitted on a strided subset; footprints
@@ -864,18 +865,20 @@ impl<'a> Single<'a> {
         self.finish(lobes, last, small, k)
     }
 
-    /// [`Self::fit`] at `k`, K chosen top-down on the cheap path (not `full`, EM footprints of
-    /// more than `4k` points, `k ≥ 3`): the k-means start at K = `k` is fitted first (what the
-    /// chain's last step fits there: one start, k-means, independent of the chain's fits at
-    /// smaller K) and kept when it has `k` lobes and raises the mean log-likelihood over the one
-    /// lobe by more than `(k − 1)·min_gain` nats, which the chain needs to get there (more than
-    /// `min_gain` at each of its `k − 1` steps); otherwise the chain runs as in `fit`. The same
-    /// lobes as `fit(k)` wherever the chain ends at K = `k`, without its fits at 2 ≤ K < `k`;
-    /// where the chain would stop earlier although the fit at `k` gains that much, the `k`
-    /// lobes (on a 1024² Gaussian map's levels 2–4, 1–2 % more lobes; docs/benchmarks.md,
-    /// "Extraction speed, 2026-12-05").
+    /// [`Self::fit`] at `k`, K chosen top-down on the cheap path (not `full`, no smoothed
+    /// refinement, EM footprints of more than `4k` points, `k ≥ 3`): the k-means start at
+    /// K = `k` is fitted first (what the chain's last step fits there: one start, k-means,
+    /// independent of the chain's fits at smaller K) and kept when it has `k` lobes and raises
+    /// the mean log-likelihood over the one lobe by more than `(k − 1)·min_gain` nats, which the
+    /// chain needs to get there (more than `min_gain` at each of its `k − 1` steps); otherwise
+    /// the chain runs as in `fit`. The same lobes as `fit(k)` wherever the chain ends at
+    /// K = `k`, without its fits at 2 ≤ K < `k`; where the chain would stop earlier although
+    /// the fit at `k` gains that much, the `k` lobes (1–2 % more lobes on levels 2–4 of a 1024²
+    /// Gaussian map, 1–5 % on levels 3–4 of the facade texture; docs/benchmarks.md, "Extraction
+    /// speed, 2026-12-05"). Not where the smoothed refinement runs: there the EM fit is the
+    /// refinement's start, and the top-down one raised the facade's level-5 shading error by 8 %.
     fn fit_top_down(&mut self, k: usize) -> Vec<PhongLobe> {
-        if self.delta || self.full || k < 3 {
+        if self.delta || self.full || k < 3 || self.refiner.is_some() {
             return self.fit(k);
         }
         let small = self.pts.len() <= 4 * k;
