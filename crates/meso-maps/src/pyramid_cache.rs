@@ -36,8 +36,10 @@ use std::path::Path;
 /// an entry of format 3 in the last bits (a format-3 entry is then rebuilt, not read). 5 since
 /// 2026-12-04 (evening): the entry keeps the source's load warnings before the map file's bytes
 /// ([`crate::disk_cache::put_warnings`]), and the horizon angles are held in 16 bits
-/// ([`crate::horizon::ANGLE_STEP`]), which moves the last bits of the horizon statistics.
-pub const FORMAT: u32 = 5;
+/// ([`crate::horizon::ANGLE_STEP`]), which moves the last bits of the horizon statistics. 6
+/// since 2026-12-05: the cheap path of the fit tries K = `max_lobes` first (`fit` module
+/// docs), which gives a few texels more lobes than a format-5 entry holds.
+pub const FORMAT: u32 = 6;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// The map format version hashed into every key: 3, the version the cache wrote until

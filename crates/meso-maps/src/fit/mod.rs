@@ -14,7 +14,12 @@
 //!   the axis satisfies `a ∝ Σ r_n m_n / (1 + a·m_n)`, iterated once per EM step.
 //!   K grows from 1; each K starts from a spherical k-means (greedy weighted k-means++ seeds);
 //!   K lobes are kept only if they raise the mean log-likelihood (per unit weight) over K − 1
-//!   lobes by more than `min_gain` nats.
+//!   lobes by more than `min_gain` nats. On the cheap path without the smoothed refinement
+//!   (levels of more than `smooth_texels` texels, or every level with `smooth_exponent` 0; EM
+//!   footprints of more than 4 points per lobe; `max_lobes` ≥ 3) K = `max_lobes` is tried
+//!   first: its k-means start's EM fit is kept when it gains more than
+//!   `(max_lobes − 1)·min_gain` over one lobe (what growing K one step at a time needs to get
+//!   there); only otherwise does K grow from 1.
 //!   Footprints with more than `max_em_points` entries are fitted on a strided subset; footprints
 //!   with at most 4 entries per lobe use the k-means clusters directly (no EM).
 //! * **Smoothed refinement** (levels of at most `smooth_texels` texels, when
@@ -484,7 +489,7 @@ pub fn fit_lobes_seeded(
     }
     let mut single = Single::new(pts, params, thorough, sdata.as_deref());
     if !chain {
-        out.extend(single.fit(kmax));
+        out.extend(single.fit_top_down(kmax));
         return;
     }
     // The chain: the fit at K is the best (lowest objective) of the fit at K − 1, the single
@@ -857,6 +862,53 @@ impl<'a> Single<'a> {
         let small = self.pts.len() <= 4 * k;
         self.extend(small, k);
         let (lobes, last) = self.chains[usize::from(small)].states[k - 1].clone();
+        self.finish(lobes, last, small, k)
+    }
+
+    /// [`Self::fit`] at `k`, K chosen top-down on the cheap path (not `full`, no smoothed
+    /// refinement, EM footprints of more than `4k` points, `k ≥ 3`): the k-means start at
+    /// K = `k` is fitted first (what the chain's last step fits there: one start, k-means,
+    /// independent of the chain's fits at smaller K) and kept when it has `k` lobes and raises
+    /// the mean log-likelihood over the one lobe by more than `(k − 1)·min_gain` nats, which the
+    /// chain needs to get there (more than `min_gain` at each of its `k − 1` steps); otherwise
+    /// the chain runs as in `fit`. The same lobes as `fit(k)` wherever the chain ends at
+    /// K = `k`, without its fits at 2 ≤ K < `k`; where the chain would stop earlier although
+    /// the fit at `k` gains that much, the `k` lobes (1–2 % more lobes on levels 2–4 of a 1024²
+    /// Gaussian map, 1–5 % on levels 3–4 of the facade texture; docs/benchmarks.md, "Extraction
+    /// speed, 2026-12-05"). Not where the smoothed refinement runs: there the EM fit is the
+    /// refinement's start, and the top-down one raised the facade's level-5 shading error by 8 %.
+    fn fit_top_down(&mut self, k: usize) -> Vec<PhongLobe> {
+        if self.delta || self.full || k < 3 || self.refiner.is_some() {
+            return self.fit(k);
+        }
+        let small = self.pts.len() <= 4 * k;
+        let ch = &self.chains[usize::from(small)];
+        if small || ch.states.len() != 1 {
+            return self.fit(k);
+        }
+        let ll1 = ch.ll;
+        let mut trial = kmeans_from(
+            self.pts,
+            self.seeds.get_or_insert_with(|| KmeansSeeds::new(self.pts)),
+            k,
+        );
+        let l = em(
+            self.pts,
+            &self.lanes,
+            &mut trial,
+            self.ptotal,
+            self.sel_iters,
+        );
+        if trial.len() == k && l - ll1 > (k - 1) as f64 * self.min_gain {
+            return self.finish(trial, k, false, k);
+        }
+        self.fit(k)
+    }
+
+    /// The final lobes of the chain state `lobes` last changed at K = `last` (chain of flag
+    /// `small`) for `max_lobes = k`: EM-polished on the cheap path, then refined on the smoothed
+    /// objective where that runs.
+    fn finish(&mut self, lobes: Vec<L>, last: usize, small: bool, k: usize) -> Vec<PhongLobe> {
         let id = usize::from(small) * (MAX_LOBES + 1) + last;
         let improved = last > 1;
         let lobes = if improved && !small && self.iters > self.sel_iters {
