@@ -290,6 +290,18 @@ pub fn refuse_material_options(path: &Path, given: &[&str]) -> Result<(), Export
 /// [`ExportError::Invalid`] naming the file: unreadable or invalid material files, an NDF from
 /// a map file or image, a material without engine parameters.
 pub fn material_inputs(path: &Path) -> Result<(Inputs, String), ExportError> {
+    material_inputs_with(path, &|_, _| {})
+}
+
+/// [`material_inputs`] reporting the progress of the engine fit's BRDF evaluations,
+/// `progress(done, total)` (`meso_measured::engine::of_material_with`).
+///
+/// # Errors
+/// As [`material_inputs`].
+pub fn material_inputs_with(
+    path: &Path,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Inputs, String), ExportError> {
     use meso_core::material::{read_limited, MaterialSpec, NdfSpec, NoExternalNdfs};
     let p = path.display();
     let bad = |e: &dyn std::fmt::Display| ExportError::Invalid(format!("{p}: {e}"));
@@ -304,7 +316,7 @@ pub fn material_inputs(path: &Path) -> Result<(Inputs, String), ExportError> {
         )));
     }
     let m = spec.build(&NoExternalNdfs).map_err(|e| bad(&e))?;
-    let e = meso_measured::engine::of_material(&m)
+    let e = meso_measured::engine::of_material_with(&m, progress)
         .map_err(|e| ExportError::Invalid(format!("{p}: engine parameters: {e}")))?;
     Ok((
         Inputs::uniform(e.alpha.clamp(1e-3, 1.0), e.metallic, e.base_color),

@@ -97,6 +97,16 @@ pub fn fit_engine(data: &SampleSet, opts: &FitOptions) -> Result<EngineParams, F
 /// azimuth, as before, the same lobe gave α 0.115 turned 0° and 0.409 with F0 2.9 turned 90°.
 pub const ENGINE_AZIMUTHS: usize = 64;
 
+/// MERL cells [`of_material`] fits the engine parameters to (the default of `meso fit`'s
+/// sampling, [`MerlSampling`](crate::samples::MerlSampling)).
+pub const ENGINE_FITTED: u64 = 30_000;
+
+/// MERL cells [`of_material`] holds out to score the fit.
+pub const ENGINE_HELD_OUT: u64 = 20_000;
+
+/// MERL cells whose BRDF [`of_material`] evaluates: fitted and held out.
+pub const ENGINE_CELLS: u64 = ENGINE_FITTED + ENGINE_HELD_OUT;
+
 /// The turns of [`of_material`] are `2π (k + AZIMUTH_OFFSET) / ENGINE_AZIMUTHS`: a MERL table's
 /// half vectors lie at azimuth 0, which is a sector edge of a tabulated NDF's grid (and turned by
 /// `2π k / 16`, again an edge), where rounding picks the cell on either side; the offset keeps
@@ -116,6 +126,20 @@ const AZIMUTH_OFFSET: f64 = 0.381_966;
 /// The fit's, or [`FitError::BadModel`] when the material's BRDF cannot be tabulated (not
 /// finite).
 pub fn of_material(material: &meso_core::material::Material) -> Result<EngineParams, FitError> {
+    of_material_with(material, &|_, _| {})
+}
+
+/// [`of_material`] reporting its progress: `progress(done, total)` after each MERL cell whose
+/// BRDF is evaluated (`total` = [`ENGINE_CELLS`]; from the worker threads). Most of the time of
+/// a material without a closed form goes there (a quadrature per evaluation, and
+/// [`ENGINE_AZIMUTHS`] of them per cell when the NDF is not isotropic).
+///
+/// # Errors
+/// As [`of_material`].
+pub fn of_material_with(
+    material: &meso_core::material::Material,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<EngineParams, FitError> {
     use crate::merl::CellPosition;
     use crate::samples::MerlSampling;
     use meso_core::shading::{FastBrdf, Policy};
@@ -142,15 +166,19 @@ pub fn of_material(material: &meso_core::material::Material) -> Result<EnginePar
         }
         sum.map(|s| s / turns.len() as f64)
     };
+    use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+    let counter = AtomicU64::new(0);
     // Only the cells the fit samples are evaluated (50 000 of the table's 1.46 M): the same
     // samples as tabulating the whole table first, bit for bit.
     let (samples, _) = SampleSet::from_merl_fn(
         CellPosition::Edge,
         &MerlSampling {
-            held_out: 20_000,
+            target: ENGINE_FITTED as usize,
+            held_out: ENGINE_HELD_OUT as usize,
             ..MerlSampling::default()
         },
         eval,
+        &|| progress(counter.fetch_add(1, Relaxed) + 1, ENGINE_CELLS),
     )
     .map_err(|e| FitError::BadModel {
         model: "engine parameters".into(),

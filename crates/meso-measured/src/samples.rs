@@ -208,12 +208,16 @@ impl SampleSet {
     /// 1.46 M cells), in parallel. What a material's engine parameters are fitted to
     /// ([`crate::engine::of_material`]).
     ///
+    /// `done` is called once per cell evaluated (from the worker threads), for a progress bar:
+    /// there are `samples.len() + held_out.len()` of them.
+    ///
     /// # Errors
     /// [`MerlError::BadValue`] when `f` is negative, NaN or infinite at a kept cell.
     pub fn from_merl_fn<F>(
         pos: CellPosition,
         opts: &MerlSampling,
         f: F,
+        done: &(dyn Fn() + Sync),
     ) -> Result<(SampleSet, MerlSamplingStats), crate::merl::MerlError>
     where
         F: Fn(DVec3, DVec3) -> [f64; 3] + Sync,
@@ -245,6 +249,7 @@ impl SampleSet {
                 return Err(MerlError::BadValue { ih, id, ip, value });
             }
             s.rgb = v;
+            done();
             Ok(())
         };
         set.samples.par_iter_mut().try_for_each(fill)?;

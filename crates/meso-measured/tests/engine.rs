@@ -81,7 +81,7 @@ fn sampling_a_function_equals_sampling_its_full_table() {
     };
     let table = MerlTable::from_fn(CellPosition::Edge, f).unwrap();
     let (full, full_stats) = SampleSet::from_merl(&table, &opts);
-    let (lazy, lazy_stats) = SampleSet::from_merl_fn(CellPosition::Edge, &opts, f).unwrap();
+    let (lazy, lazy_stats) = SampleSet::from_merl_fn(CellPosition::Edge, &opts, f, &|| {}).unwrap();
     assert_eq!(full.samples.len(), 30_000);
     assert_eq!(full.held_out.len(), 20_000);
     assert_eq!(
@@ -98,6 +98,11 @@ fn sampling_a_function_equals_sampling_its_full_table() {
         }
     }
     assert_eq!(full.cell_size, lazy.cell_size);
-    let bad = SampleSet::from_merl_fn(CellPosition::Edge, &opts, |_, _| [0.1, f64::NAN, 0.1]);
+    let bad = SampleSet::from_merl_fn(
+        CellPosition::Edge,
+        &opts,
+        |_, _| [0.1, f64::NAN, 0.1],
+        &|| {},
+    );
     assert!(bad.unwrap_err().to_string().contains("NaN"));
 }
