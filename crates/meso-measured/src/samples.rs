@@ -212,7 +212,7 @@ impl SampleSet {
     /// there are `samples.len() + held_out.len()` of them.
     ///
     /// # Errors
-    /// [`MerlError::BadValue`] when `f` is negative, NaN or infinite at a kept cell.
+    /// [`MerlError::BadValue`](crate::merl::MerlError::BadValue) when `f` is negative, NaN or infinite at a kept cell.
     pub fn from_merl_fn<F>(
         pos: CellPosition,
         opts: &MerlSampling,
