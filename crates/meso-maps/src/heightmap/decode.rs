@@ -203,31 +203,35 @@ pub(super) fn oom(path: &Path, e: meso_core::budget::AllocError) -> MapError {
     }
 }
 
-/// Read the header, check the size limits, then decode (with decoder limits set as well).
-fn open_image(path: &Path) -> Result<image::DynamicImage> {
-    let io = |e: std::io::Error| MapError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    let bytes = std::fs::read(path).map_err(io)?;
-    decode_bytes(path, &bytes)
-}
-
-/// [`open_image`] after checking the memory of loading it (`estimate` from its header) against
-/// the budget (`meso_core::budget`).
+/// [`decode_bytes`] after checking the memory of loading the image (`estimate` from its header)
+/// against the budget (`meso_core::budget`). A regular file is probed (its header read) before
+/// it is read whole; a device or FIFO, whose bytes can be read only once, is read once into
+/// memory with a limit from the budget ([`crate::read::read_whole`]), then probed and decoded
+/// from those bytes.
 pub(super) fn open_image_budgeted(
     path: &Path,
     task: &str,
     estimate: impl Fn(&ImageHeader) -> u64,
 ) -> Result<image::DynamicImage> {
-    // Regular files only (a FIFO cannot be read twice); a header the probe cannot read is left
-    // to the decoder, whose errors say more.
-    if std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+    // A header the probe cannot read is left to the decoder, whose errors say more.
+    if crate::read::is_regular_file(path) {
         if let Ok(header) = probe(path) {
             meso_core::budget::check(path, task, estimate(&header))?;
         }
+        let bytes = crate::read::read_whole(path, 1)?;
+        return decode_bytes(path, &bytes);
     }
-    open_image(path)
+    let bytes = crate::read::read_whole(path, 1)?;
+    if crate::format::has_map_magic(&bytes) {
+        return Err(MapError::MapFormat {
+            path: path.to_path_buf(),
+            message: "this is a meso map file (written by `meso extract`), not an image".into(),
+        });
+    }
+    if let Ok(header) = probe_bytes(path, &bytes) {
+        meso_core::budget::check(path, task, estimate(&header))?;
+    }
+    decode_bytes(path, &bytes)
 }
 
 /// True when the JPEG `bytes` hold an end-of-image marker (`FF D9`) after the start of their
