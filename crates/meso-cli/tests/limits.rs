@@ -119,3 +119,64 @@ fn a_png_through_a_fifo_is_extracted() {
     let o = run(&["map", "info", s(&out)]);
     ok(&o);
 }
+
+const MATERIAL: &str = "[ndf]\nkind = \"phong-peaks\"\nlobes = [{ axis = [0.0, 0.0], weight = 1.0, exponent = 40.0 }]\n\
+[transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n";
+
+/// A scene of one plane under `light` (a `[[light]]` table's body).
+fn scene(d: &Path, light: &str) -> PathBuf {
+    std::fs::write(d.join("m.toml"), MATERIAL).unwrap();
+    let p = d.join("s.toml");
+    std::fs::write(
+        &p,
+        format!(
+            "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+             up = [0.0, 1.0, 0.0]\nwidth = 2.0\n[image]\nwidth = 8\nheight = 8\nspp = 1\n\
+             [[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
+             material = \"m.toml\"\n[[light]]\n{light}\n"
+        ),
+    )
+    .unwrap();
+    p
+}
+
+/// A light of 1e300 rendered infinite pixels with exit 0: lights are bounded, and the message
+/// writes the vector as numbers (not Rust's `DVec3(…)`).
+#[test]
+fn absurd_light_values_are_refused() {
+    let d = tmpdir("light");
+    let out = d.join("r.png");
+    let p = scene(
+        &d,
+        "kind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\nirradiance = [1.0, 1.0, 1.0]",
+    );
+    ok(&run(&["render", s(&p), "--out", s(&out)]));
+    std::fs::remove_file(&out).unwrap();
+    for light in [
+        "kind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\nirradiance = [1e300, 1e300, 1e300]",
+        "kind = \"point\"\nposition = [0.0, 0.0, 1.0]\nintensity = [1.0, 2e12, 1.0]",
+    ] {
+        let p = scene(&d, light);
+        let o = run(&["render", s(&p), "--out", s(&out)]);
+        fails_with(&o, &["s.toml", "at most 1e12 in every channel"]);
+        assert!(!stderr(&o).contains("DVec3"), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
+
+/// BRDF values near `f64`'s range made `meso fit` write a material with infinite errors:
+/// refused, naming the file and the value.
+#[test]
+fn fit_refuses_brdf_values_beyond_representation() {
+    let d = tmpdir("fit");
+    let csv = d.join("huge.csv");
+    std::fs::write(
+        &csv,
+        "theta_i,phi_i,theta_o,phi_o,r,g,b\n30,0,30,180,1e300,0.1,0.1\n10,0,20,180,0.5,0.5,0.5\n",
+    )
+    .unwrap();
+    let out = d.join("f.toml");
+    let o = run(&["fit", s(&csv), "--out", s(&out), "--lobes", "1"]);
+    fails_with(&o, &["huge.csv", "BRDF value 1e300 is above 1e12"]);
+    assert!(!out.exists());
+}

@@ -92,13 +92,20 @@ pub enum SceneError {
 }
 
 /// `Ok` if every coordinate of the vector `field` is finite, else [`SceneError::Invalid`].
+/// A vector for messages: `[x, y, z]`, each number as [`meso_core::display::Num`] writes it
+/// (exponent notation for very large and very small magnitudes).
+pub(crate) fn vec3_text(v: glam::DVec3) -> String {
+    use meso_core::display::Num;
+    format!("[{}, {}, {}]", Num(v.x), Num(v.y), Num(v.z))
+}
+
 pub(crate) fn finite(field: &str, v: glam::DVec3) -> Result<(), SceneError> {
     if v.is_finite() {
         Ok(())
     } else {
         Err(SceneError::invalid(
             field,
-            format!("must be finite, got {v:?}"),
+            format!("must be finite, got {}", vec3_text(v)),
         ))
     }
 }

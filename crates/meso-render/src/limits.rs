@@ -13,3 +13,7 @@ pub const MAX_ENVIRONMENT_BYTES: u64 = 256 << 20;
 /// coordinate's cell position outgrows what `f64` resolves to a cell (and what a cell index
 /// holds), and the filter's footprints span astronomically many cells.
 pub const MAX_TEXELS_PER_UV: f64 = 1e12;
+/// Largest channel of a light's intensity, irradiance or radiance and of the background
+/// (`[[light]]`, `[image] background`): 10¹². Far larger values overflow the image's `f32`
+/// pixels to infinity once multiplied by a peaked BRDF.
+pub const MAX_LIGHT_VALUE: f64 = 1e12;
