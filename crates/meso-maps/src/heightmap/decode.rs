@@ -156,8 +156,97 @@ pub fn probe(path: &Path) -> Result<ImageHeader> {
     if r.format().is_none() {
         return Err(decode_err(path, "unknown image format"));
     }
+    if r.format() == Some(image::ImageFormat::OpenExr) {
+        let file = std::fs::File::open(path).map_err(io)?;
+        if let Some(h) = exr_grey_header(path, std::io::BufReader::new(file), file_bytes)? {
+            return Ok(h);
+        }
+    }
     let d = r.into_decoder().map_err(|e| decode_err(path, e))?;
     header_of(path, &d, file_bytes)
+}
+
+/// The header of an EXR whose first layer has no R, G or B channel (one grey channel: `Y`,
+/// `H`, `Z`, …), which the `image` crate does not read: its first channel is decoded as a
+/// grey `Rgb32F` image ([`decode_exr_grey`]; 12 bytes a pixel, and 4 for each channel the
+/// decoder reads). `None` for an EXR with colour
+/// channels (the `image` crate reads those), the sizes checked.
+fn exr_grey_header(
+    path: &Path,
+    reader: impl std::io::Read,
+    file_bytes: u64,
+) -> Result<Option<ImageHeader>> {
+    let meta =
+        exr::meta::MetaData::read_from_buffered(reader, false).map_err(|e| decode_err(path, e))?;
+    let Some(layer) = meta.headers.first() else {
+        return Err(decode_err(path, "no layer in the EXR file"));
+    };
+    let names: Vec<String> = layer
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    if layer.deep || names.is_empty() || names.iter().any(|n| ["R", "G", "B"].contains(&n.as_str()))
+    {
+        return Ok(None);
+    }
+    let (w, h) = (layer.layer_size.0 as u64, layer.layer_size.1 as u64);
+    check_dims(path, w, h)?;
+    Ok(Some(ImageHeader {
+        width: w,
+        height: h,
+        // The grey RGB image and every channel decoded (4 bytes a sample).
+        bytes_per_pixel: 12 + 4 * names.len() as u64,
+        color: false,
+        eight_bit: false,
+        file_bytes,
+    }))
+}
+
+/// Decode the first channel of an EXR without R, G or B channels ([`exr_grey_header`]) as a
+/// grey `Rgb32F` image (the channel's value in all three), its size checked before the pixels
+/// are decoded. `None` for an EXR with colour channels.
+fn decode_exr_grey(path: &Path, bytes: &[u8]) -> Result<Option<image::DynamicImage>> {
+    let Some(header) = exr_grey_header(path, bytes, bytes.len() as u64)? else {
+        return Ok(None);
+    };
+    use exr::prelude::ReadChannels as _;
+    use exr::prelude::ReadLayers as _;
+    let read = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| decode_err(path, e))?;
+    let layer = &read.layer_data;
+    let (w, h) = (layer.size.0 as u32, layer.size.1 as u32);
+    if (w as u64, h as u64) != (header.width, header.height) {
+        return Err(decode_err(
+            path,
+            "the EXR's layer size changed while reading",
+        ));
+    }
+    let Some(channel) = layer.channel_data.list.first() else {
+        return Err(decode_err(path, "no channel in the EXR file"));
+    };
+    let n = (w as usize) * (h as usize);
+    let mut rgb = meso_core::budget::try_with_capacity::<f32>(3 * n).map_err(|e| oom(path, e))?;
+    for v in channel.sample_data.values_as_f32().take(n) {
+        rgb.extend([v, v, v]);
+    }
+    if rgb.len() != 3 * n {
+        return Err(decode_err(
+            path,
+            "the EXR channel holds fewer samples than its size",
+        ));
+    }
+    let img = image::Rgb32FImage::from_raw(w, h, rgb)
+        .ok_or_else(|| decode_err(path, "the EXR channel does not match its size"))?;
+    Ok(Some(image::DynamicImage::ImageRgb32F(img)))
 }
 
 /// The [`ImageHeader`] of an opened decoder (the size limits checked), for [`probe`] and
@@ -191,6 +280,11 @@ pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
     let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
     r.set_format(image::ImageFormat::from_path(name).unwrap_or(image::ImageFormat::Png));
     let r = r.with_guessed_format().map_err(|e| decode_err(name, e))?;
+    if r.format() == Some(image::ImageFormat::OpenExr) {
+        if let Some(h) = exr_grey_header(name, bytes, bytes.len() as u64)? {
+            return Ok(h);
+        }
+    }
     let d = r.into_decoder().map_err(|e| decode_err(name, e))?;
     header_of(name, &d, bytes.len() as u64)
 }
@@ -284,6 +378,11 @@ pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicIm
         }
         Ok(r)
     };
+    if reader()?.format() == Some(image::ImageFormat::OpenExr) {
+        if let Some(img) = decode_exr_grey(path, bytes)? {
+            return Ok(img);
+        }
+    }
     let (w, h) = reader()?
         .into_dimensions()
         .map_err(|e| decode_err(path, e))?;
