@@ -180,3 +180,64 @@ fn fit_refuses_brdf_values_beyond_representation() {
     fails_with(&o, &["huge.csv", "BRDF value 1e300 is above 1e12"]);
     assert!(!out.exists());
 }
+
+/// `meso ndf plot --size 4096` took 1.3 GB whatever the budget, and `meso figures` ran under a
+/// 1 KiB budget: both are checked against the budget first.
+#[test]
+fn plots_and_figures_are_budgeted() {
+    let d = tmpdir("plotbudget");
+    let m = d.join("gx.toml");
+    std::fs::write(&m, MATERIAL).unwrap();
+    let out = d.join("big.png");
+    let o = run(&[
+        "--memory-budget",
+        "1M",
+        "ndf",
+        "plot",
+        s(&m),
+        "--out",
+        s(&out),
+        "--size",
+        "4096",
+    ]);
+    fails_with(
+        &o,
+        &[
+            "gx.toml",
+            "plotting the NDF at --size 4096",
+            "memory budget",
+        ],
+    );
+    assert!(!out.exists());
+    let figs = d.join("figs");
+    let o = run(&["--memory-budget", "1K", "figures", "--out", s(&figs)]);
+    fails_with(&o, &["meso figures", "memory budget"]);
+    assert!(!figs.exists());
+}
+
+/// `--size 64` passed the parser and failed drawing ("area 85×64 too small for a polar plot",
+/// no file named): the accepted range is what draws.
+#[test]
+fn ndf_plot_sizes_accepted_are_sizes_that_draw() {
+    let d = tmpdir("plotsize");
+    let m = d.join("m.toml");
+    std::fs::write(&m, MATERIAL).unwrap();
+    let out = d.join("p.png");
+    for size in ["64", "127"] {
+        let o = run(&["ndf", "plot", s(&m), "--out", s(&out), "--size", size]);
+        let e = stderr(&o);
+        assert!(!o.status.success() && !e.contains("panicked"), "{e}");
+        assert!(e.contains("--size") && e.contains("128..=4096"), "{e}");
+        assert!(!out.exists());
+    }
+    ok(&run(&[
+        "ndf",
+        "plot",
+        s(&m),
+        "--out",
+        s(&out),
+        "--size",
+        "128",
+    ]));
+    assert!(out.exists());
+}
