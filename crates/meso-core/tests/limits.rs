@@ -79,3 +79,68 @@ fn conductor_eta_and_k_are_bounded() {
         );
     }
 }
+
+/// Weights whose sum overflows (1e308 + 1e308) were refused as "the weights sum to zero": they
+/// are read as the equal weights they are.
+#[test]
+fn weights_whose_sum_overflows_are_normalised() {
+    let m = Material::from_toml_str(&format!(
+        "[ndf]\nkind = \"phong-peaks\"\nlobes = [{{ axis = [0.0, 0.0], weight = 1e308, exponent = 10.0 }}, \
+         {{ axis = [30.0, 0.0], weight = 1.5e308, exponent = 20.0 }}]\n{PHONG}"
+    ))
+    .unwrap();
+    let Ndf::PhongPeaks(p) = &m.ndf else {
+        panic!("kind")
+    };
+    let w: Vec<f64> = p.lobes().iter().map(|l| l.weight).collect();
+    assert!(
+        (w[0] - 0.4).abs() < 1e-12 && (w[1] - 0.6).abs() < 1e-12,
+        "{w:?}"
+    );
+    let m = Material::from_toml_str(&format!(
+        "[ndf]\nkind = \"mixture\"\nlobes = [{{ kind = \"ggx\", alpha = 0.2, weight = 1.7e308 }}, \
+         {{ kind = \"beckmann\", alpha = 0.4, weight = 1.7e308 }}]\n{PHONG}"
+    ))
+    .unwrap();
+    let Ndf::Mixture(x) = &m.ndf else {
+        panic!("kind")
+    };
+    assert!(x.lobes().iter().all(|l| (l.weight - 0.5).abs() < 1e-12));
+}
+
+/// A radial NDF's angles are in degrees in the file, and so are its errors (they were in
+/// radians: "the last angle 1.745329 rad is past the horizon").
+#[test]
+fn radial_angle_errors_are_in_degrees() {
+    let radial = |theta: &str| {
+        Material::from_toml_str(&format!(
+            "[ndf]\nkind = \"radial\"\ntheta = {theta}\ndensity = [1.0, 0.5, 0.0]\n{PHONG}"
+        ))
+        .map_err(|e| e.to_string())
+    };
+    radial("[0.0, 45.0, 90.0]").unwrap();
+    for (theta, want) in [
+        (
+            "[0.0, 45.0, 100.0]",
+            "the last angle 100° is past the horizon (90°)",
+        ),
+        ("[5.0, 45.0, 90.0]", "the first angle must be 0, got 5°"),
+        ("[0.0, 45.0, 30.0]", "node 2 is 30° after 45°"),
+    ] {
+        let e = radial(theta).unwrap_err();
+        assert!(e.contains(want) && !e.contains(" rad "), "{e}");
+    }
+}
+
+/// An absurd polar angle in a pairs file is written in exponent notation (it was 300 digits).
+#[test]
+fn pairs_errors_write_absurd_angles_short() {
+    let e = meso_core::pairs::parse_pairs("theta_i,phi_i,theta_o,phi_o\n10,0,1e300,0\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("theta_o = 1e300 is outside [0, 90] degrees"),
+        "{e}"
+    );
+    assert!(e.len() < 200, "{e}");
+}

@@ -441,6 +441,28 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
             let density = f
                 .array("density", 0)?
                 .ok_or_else(|| MaterialError(format!("{name}: missing `density` (1/sr)")))?;
+            // The angle checks in the file's unit (degrees); `Radial::new` repeats them in
+            // radians.
+            let bad = |m: String| err(format!("{name}: radial NDF: {m}"));
+            if theta.first().is_some_and(|t| *t != 0.0) {
+                return bad(format!("the first angle must be 0, got {}°", Num(theta[0])));
+            }
+            for (k, w) in theta.windows(2).enumerate() {
+                if w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) {
+                    return bad(format!(
+                        "angles must increase strictly: node {} is {}° after {}°",
+                        k + 1,
+                        Num(w[1]),
+                        Num(w[0])
+                    ));
+                }
+            }
+            if let Some(last) = theta.last().filter(|t| **t > 90.0) {
+                return bad(format!(
+                    "the last angle {}° is past the horizon (90°)",
+                    Num(*last)
+                ));
+            }
             let theta = theta.into_iter().map(f64::to_radians).collect();
             Ndf::Radial(Radial::new(theta, density).map_err(ndf_err)?)
         }
