@@ -328,6 +328,17 @@ pub(super) fn open_image_budgeted(
     decode_bytes(path, &bytes)
 }
 
+/// A decoder's error for messages: a read past the end of the bytes (a TGA or TIFF cut off in
+/// its pixel data: the reader's "failed to fill whole buffer") says that the file is truncated.
+fn decode_message(e: image::ImageError) -> String {
+    match &e {
+        image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "truncated: the file ends before its pixel data does".into()
+        }
+        _ => e.to_string(),
+    }
+}
+
 /// True when the JPEG `bytes` hold an end-of-image marker (`FF D9`) after the start of their
 /// last scan (`FF DA`): a file cut off inside its entropy-coded data has none there (within a
 /// scan a data byte `FF` is always followed by `00` or a restart marker, so `FF D9` is the end).
@@ -400,7 +411,9 @@ pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicIm
             "truncated JPEG: no end-of-image marker after its last scan (the file is cut off)",
         ));
     }
-    let img = r.decode().map_err(|e| decode_err(path, e))?;
+    let img = r
+        .decode()
+        .map_err(|e| decode_err(path, decode_message(e)))?;
     check_dims(path, img.width() as u64, img.height() as u64)?;
     Ok(img)
 }
