@@ -241,3 +241,30 @@ fn ndf_plot_sizes_accepted_are_sizes_that_draw() {
     ]));
     assert!(out.exists());
 }
+
+/// `--texel-size -1` was clap's "unexpected argument '-1'" (only `--texel-size=-1` reached the
+/// range check): negative numbers are option values.
+#[test]
+fn negative_option_values_reach_the_range_checks() {
+    let d = tmpdir("negative");
+    let png = d.join("h.png");
+    slope_png(&png);
+    let out = d.join("o.map");
+    let o = run(&[
+        "extract",
+        s(&png),
+        "--out",
+        s(&out),
+        "--texel-size",
+        "-1",
+        "--height-scale",
+        "1",
+    ]);
+    fails_with(&o, &["texel_size"]);
+    assert!(
+        !stderr(&o).contains("unexpected argument"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+}
