@@ -268,3 +268,72 @@ fn negative_option_values_reach_the_range_checks() {
     );
     assert!(!out.exists());
 }
+
+/// `meso export` of a material whose NDF comes from a map or a height map says what to run
+/// instead, and what it says runs.
+#[test]
+fn export_of_a_mapped_material_gives_advice_that_works() {
+    let d = tmpdir("exportadvice");
+    let png = d.join("h.png");
+    slope_png(&png);
+    let map = d.join("h.map");
+    ok(&run(&[
+        "extract",
+        s(&png),
+        "--out",
+        s(&map),
+        "--texel-size",
+        "1",
+        "--height-scale",
+        "0.5",
+    ]));
+    let transfer = "[transfer]\nkind = \"phong\"\nexponent = 10.0\n";
+    let mapm = d.join("mapm.toml");
+    std::fs::write(
+        &mapm,
+        format!("[ndf]\nkind = \"map\"\nfile = \"h.map\"\n{transfer}"),
+    )
+    .unwrap();
+    let o = run(&["export", s(&mapm), "--out", s(&d.join("e1"))]);
+    let want = format!(
+        "meso export IMAGE --texel-size S --height-scale H --lobes {} --out DIR",
+        map.display()
+    );
+    fails_with(&o, &["mapm.toml", &want]);
+    ok(&run(&[
+        "export",
+        s(&png),
+        "--texel-size",
+        "1",
+        "--height-scale",
+        "0.5",
+        "--lobes",
+        s(&map),
+        "--out",
+        s(&d.join("e2")),
+    ]));
+    let hm = d.join("hm.toml");
+    std::fs::write(
+        &hm,
+        format!(
+            "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 1.0\nheight_scale = 0.5\n{transfer}"
+        ),
+    )
+    .unwrap();
+    let o = run(&["export", s(&hm), "--out", s(&d.join("e3"))]);
+    let want = format!(
+        "meso export {} --texel-size 1 --height-scale 0.5 --out DIR",
+        png.display()
+    );
+    fails_with(&o, &["hm.toml", &want]);
+    ok(&run(&[
+        "export",
+        s(&png),
+        "--texel-size",
+        "1",
+        "--height-scale",
+        "0.5",
+        "--out",
+        s(&d.join("e4")),
+    ]));
+}
