@@ -337,3 +337,25 @@ fn export_of_a_mapped_material_gives_advice_that_works() {
         s(&d.join("e4")),
     ]));
 }
+
+/// An environment map or OBJ mesh that is a directory was "file not found": it says what it is.
+#[test]
+fn a_directory_given_as_an_environment_map_or_mesh_is_named_so() {
+    let d = tmpdir("envdir");
+    std::fs::create_dir(d.join("sky.exr")).unwrap();
+    std::fs::create_dir(d.join("mesh.obj")).unwrap();
+    let out = d.join("r.png");
+    let light = "kind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\nirradiance = [1.0, 1.0, 1.0]";
+    let p = scene(&d, &format!("{light}\n[environment]\nfile = \"sky.exr\""));
+    let o = run(&["render", s(&p), "--out", s(&out)]);
+    fails_with(&o, &["sky.exr", "is a directory, not a file"]);
+    let p = scene(
+        &d,
+        &format!(
+            "{light}\n[[object]]\nkind = \"mesh\"\nfile = \"mesh.obj\"\nmaterial = \"m.toml\""
+        ),
+    );
+    let o = run(&["render", s(&p), "--out", s(&out)]);
+    fails_with(&o, &["mesh.obj", "is a directory, not a file"]);
+    assert!(!out.exists());
+}
