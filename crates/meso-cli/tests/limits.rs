@@ -359,3 +359,32 @@ fn a_directory_given_as_an_environment_map_or_mesh_is_named_so() {
     fails_with(&o, &["mesh.obj", "is a directory, not a file"]);
     assert!(!out.exists());
 }
+
+/// `meso brdf` echoes the pairs' angles; an absurd `phi` was echoed with 300 digits: exponent
+/// notation, the same value.
+#[test]
+fn brdf_echoes_absurd_angles_in_exponent_notation() {
+    let d = tmpdir("phiecho");
+    let m = d.join("m.toml");
+    std::fs::write(&m, MATERIAL).unwrap();
+    let pairs = d.join("pairs.csv");
+    std::fs::write(
+        &pairs,
+        "theta_i,phi_i,theta_o,phi_o\n30,0,30,1e300\n30,0,30,180\n",
+    )
+    .unwrap();
+    let out = d.join("b.csv");
+    ok(&run(&[
+        "brdf",
+        s(&m),
+        "--pairs",
+        s(&pairs),
+        "--out",
+        s(&out),
+    ]));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[1].starts_with("30,0,30,1e300,"), "{text}");
+    assert!(lines[2].starts_with("30,0,30,180,"), "{text}");
+    assert!(text.len() < 300, "{text}");
+}
