@@ -1,5 +1,6 @@
-//! One-channel float EXR height maps (docs: "32-bit float EXR (first channel)"), which the
-//! `image` crate's decoder refuses ("image does not contain non-deep rgb channels").
+//! Float EXR height maps without all of R, G and B (one `Y`, `H`, `Z` or `R` channel; `R` and `G`)
+//! (docs: "32-bit float EXR (first channel)"), which the `image` crate's decoder refuses ("image
+//! does not contain non-deep rgb channels").
 
 use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image, LayerAttributes, SmallVec, WritableImage,
@@ -28,7 +29,7 @@ fn one_channel_float_exr_height_maps_are_read() {
     let values: Vec<f32> = (0..w * h)
         .map(|k| ((k % w) as f32 + 10.0 * (k / w) as f32) / 100.0)
         .collect();
-    for name in ["Y", "H", "Z"] {
+    for name in ["Y", "H", "Z", "R"] {
         let p = d.join(format!("h{name}.exr"));
         grey_exr(&p, name, w, h, values.clone());
         let header = meso_maps::probe(&p).unwrap();
@@ -50,5 +51,19 @@ fn one_channel_float_exr_height_maps_are_read() {
         let b = HeightMap::from_bytes(&p, &bytes, 1.0, 2.0, Border::Wrap).unwrap();
         assert_eq!(b.heights(), m.heights());
     }
+    // Two channels without B: red is the height (not `G`, first by name).
+    let p = d.join("hRG.exr");
+    let mut list = SmallVec::new();
+    list.push(AnyChannel::new("R", FlatSamples::F32(values.clone())));
+    list.push(AnyChannel::new("G", FlatSamples::F32(vec![5.0; w * h])));
+    let layer = exr::prelude::Layer::new(
+        (w, h),
+        LayerAttributes::named("heights"),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    Image::from_layer(layer).write().to_file(&p).unwrap();
+    let m = HeightMap::load(&p, 1.0, 2.0, Border::Wrap).unwrap();
+    assert!((m.heights()[0] - 2.0 * values[(h - 1) * w] as f64).abs() < 1e-6);
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -166,11 +166,11 @@ pub fn probe(path: &Path) -> Result<ImageHeader> {
     header_of(path, &d, file_bytes)
 }
 
-/// The header of an EXR whose first layer has no R, G or B channel (one grey channel: `Y`,
-/// `H`, `Z`, …), which the `image` crate does not read: its first channel is decoded as a
-/// grey `Rgb32F` image ([`decode_exr_grey`]; 12 bytes a pixel, and 4 for each channel the
-/// decoder reads). `None` for an EXR with colour
-/// channels (the `image` crate reads those), the sizes checked.
+/// The header of an EXR whose first layer lacks one of R, G and B (one grey channel: `Y`, `H`,
+/// `Z`, …, or `R` alone), which the `image` crate does not read: one channel (`R`, else `Y`,
+/// else the first by name) is decoded as a grey `Rgb32F` image ([`decode_exr_grey`]; 12 bytes
+/// a pixel, and 4 for each channel the decoder reads). `None` for an EXR with all of R, G and B (the `image` crate reads those),
+/// the sizes checked.
 fn exr_grey_header(
     path: &Path,
     reader: impl std::io::Read,
@@ -187,8 +187,8 @@ fn exr_grey_header(
         .iter()
         .map(|c| c.name.to_string())
         .collect();
-    if layer.deep || names.is_empty() || names.iter().any(|n| ["R", "G", "B"].contains(&n.as_str()))
-    {
+    let rgb = ["R", "G", "B"].iter().all(|c| names.iter().any(|n| n == c));
+    if layer.deep || names.is_empty() || rgb {
         return Ok(None);
     }
     let (w, h) = (layer.layer_size.0 as u64, layer.layer_size.1 as u64);
@@ -204,9 +204,9 @@ fn exr_grey_header(
     }))
 }
 
-/// Decode the first channel of an EXR without R, G or B channels ([`exr_grey_header`]) as a
-/// grey `Rgb32F` image (the channel's value in all three), its size checked before the pixels
-/// are decoded. `None` for an EXR with colour channels.
+/// Decode one channel of an EXR that lacks one of R, G and B ([`exr_grey_header`] says which)
+/// as a grey `Rgb32F` image (the channel's value in all three), its size checked before the
+/// pixels are decoded. `None` for an EXR with R, G and B.
 fn decode_exr_grey(path: &Path, bytes: &[u8]) -> Result<Option<image::DynamicImage>> {
     let Some(header) = exr_grey_header(path, bytes, bytes.len() as u64)? else {
         return Ok(None);
@@ -230,7 +230,10 @@ fn decode_exr_grey(path: &Path, bytes: &[u8]) -> Result<Option<image::DynamicIma
             "the EXR's layer size changed while reading",
         ));
     }
-    let Some(channel) = layer.channel_data.list.first() else {
+    // Red where there is one (an `R`-only file), else luminance, else the first by name.
+    let list = &layer.channel_data.list;
+    let named = |c: &str| list.iter().find(|ch| ch.name.to_string() == c);
+    let Some(channel) = named("R").or_else(|| named("Y")).or_else(|| list.first()) else {
         return Err(decode_err(path, "no channel in the EXR file"));
     };
     let n = (w as usize) * (h as usize);
