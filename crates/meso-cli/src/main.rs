@@ -1,7 +1,7 @@
 //! `meso` — the command line over the meso libraries. Each subcommand lives in `cmd/<name>.rs`
 //! with a clap `Args` struct and a `run` function; this file only dispatches.
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 /// `eprintln!` that cannot panic: a diagnostic line on standard error ([`util::note`]).
@@ -88,8 +88,23 @@ enum Command {
     Figures(cmd::figures::Args),
 }
 
+/// `cmd` and its subcommands with every option that takes a value accepting a negative number
+/// (`--texel-size -1`, `--phi -30`), so that the option's own range check answers instead of
+/// clap's "unexpected argument '-1'".
+fn allow_negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(allow_negative_numbers)
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = allow_negative_numbers(Cli::command()).get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     // No output of a command may replace a file it read (a scene's material, a material's
     // height map, …): meso_core::io's input log. (The editor's server writes no files and runs
     // for long: it keeps no log.)

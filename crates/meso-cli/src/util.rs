@@ -144,12 +144,14 @@ impl BrdfTable {
 }
 
 /// Write BRDF values as the CSV of `meso brdf` and `meso gonio`: the pair's four angles as read
-/// (degrees) and `r,g,b` in 1/sr. To `out` atomically, or to standard output.
+/// (degrees; very large or small ones in exponent notation, `meso_core::display::Num`, the same
+/// value) and `r,g,b` in 1/sr. To `out` atomically, or to standard output.
 fn write_brdf_table(
     out: Option<&Path>,
     pairs: &[meso_core::pairs::DirectionPair],
     values: &[[f64; 3]],
 ) -> Result<()> {
+    use meso_core::display::Num;
     use std::io::Write;
     let write = |w: &mut dyn Write| -> std::io::Result<()> {
         writeln!(w, "theta_i,phi_i,theta_o,phi_o,r,g,b")?;
@@ -158,7 +160,13 @@ fn write_brdf_table(
             writeln!(
                 w,
                 "{},{},{},{},{:.9e},{:.9e},{:.9e}",
-                d[0], d[1], d[2], d[3], v[0], v[1], v[2]
+                Num(d[0]),
+                Num(d[1]),
+                Num(d[2]),
+                Num(d[3]),
+                v[0],
+                v[1],
+                v[2]
             )?;
         }
         Ok(())

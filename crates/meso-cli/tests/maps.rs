@@ -486,7 +486,9 @@ fn a_material_file_exports_its_engine_parameters() {
     fails(&o, &refused, "heightmap material");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        err.contains("bumps.toml") && err.contains("bumps.png") && err.contains("export that map"),
+        err.contains("bumps.toml")
+            && err.contains("bumps.png")
+            && err.contains("export that height map"),
         "{err}"
     );
 }

@@ -94,7 +94,7 @@ pub fn parse_pairs(text: &str) -> Result<Vec<DirectionPair>, PairsError> {
                     "line {}: {} = {} is outside [0, 90] degrees (both directions must be above the surface)",
                     ln + 1,
                     PAIRS_HEADER[k],
-                    d[k]
+                    crate::display::Num(d[k])
                 )));
             }
         }

@@ -308,11 +308,32 @@ pub fn material_inputs_with(
     let dir = path.parent().unwrap_or(Path::new("."));
     let text = read_limited(path).map_err(|e| bad(&e))?;
     let spec = MaterialSpec::parse(&text, dir).map_err(|e| bad(&e))?;
-    if let NdfSpec::External { kind, file, .. } = &spec.ndf {
+    if let NdfSpec::External { kind, file, table } = &spec.ndf {
+        let f = file.display();
+        let advice = if kind == "map" {
+            // `meso export` takes images; a map file goes with one as `--lobes`.
+            format!(
+                "{f} is a map file, which `meso export` does not take alone: export the height \
+                 or normal map image it was extracted from, with the map's lobes \
+                 (meso export IMAGE --texel-size S --height-scale H --lobes {f} --out DIR)"
+            )
+        } else {
+            // The material's scales where it gives them, else placeholders.
+            let num = |key: &str, placeholder: &str| {
+                table
+                    .get(key)
+                    .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                    .map_or_else(|| placeholder.to_owned(), |x| x.to_string())
+            };
+            format!(
+                "export that height map instead (meso export {f} --texel-size {} --height-scale \
+                 {} --out DIR)",
+                num("texel_size", "S"),
+                num("height_scale", "H")
+            )
+        };
         return Err(ExportError::Invalid(format!(
-            "{p}: its NDF comes from {} ([ndf] kind = \"{kind}\"); export that map instead \
-             (meso export MAP --out DIR)",
-            file.display()
+            "{p}: its NDF comes from {f} ([ndf] kind = \"{kind}\"); {advice}"
         )));
     }
     let m = spec.build(&NoExternalNdfs).map_err(|e| bad(&e))?;

@@ -18,14 +18,24 @@ pub const MAGIC: [u8; 8] = *b"MESOMAP\0";
 
 /// Whether the file at `path` opens with [`MAGIC`]: a map file written by `meso extract`, given
 /// where an image or a material is expected (the callers' messages say what to do instead).
-/// Unreadable or shorter files are not map files.
+/// Unreadable or shorter files are not map files, nor are non-regular files (a FIFO's bytes can
+/// be read only once: whoever reads it whole checks them with [`has_map_magic`]).
 #[must_use]
 pub fn is_map_file(path: &std::path::Path) -> bool {
     use std::io::Read;
+    if !crate::read::is_regular_file(path) {
+        return false;
+    }
     let mut magic = [0u8; 8];
     std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut magic))
         .is_ok_and(|()| magic == MAGIC)
+}
+
+/// Whether `bytes` open with [`MAGIC`] ([`is_map_file`] for bytes already read).
+#[must_use]
+pub fn has_map_magic(bytes: &[u8]) -> bool {
+    bytes.starts_with(&MAGIC)
 }
 mod v3;
 mod v4;
@@ -144,6 +154,12 @@ impl Pyramid {
     }
 
     /// Read a map file, validating magic, version, sizes (before allocating) and every value.
+    /// A regular file's memory ([`read_bytes`] of its size) is checked against the budget before
+    /// it is read; a device or FIFO is read once with a limit from the budget
+    /// ([`crate::read::read_whole`]).
+    ///
+    /// # Errors
+    /// [`MapError`] naming `path`: unreadable, over the memory budget, or not a valid map file.
     pub fn read(path: &Path) -> Result<Pyramid> {
         meso_core::io::note_input(path);
         if let Ok(m) = std::fs::metadata(path) {
@@ -151,10 +167,7 @@ impl Pyramid {
                 meso_core::budget::check(path, "reading the map file", read_bytes(m.len()))?;
             }
         }
-        let bytes = std::fs::read(path).map_err(|e| MapError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        })?;
+        let bytes = crate::read::read_whole(path, read_bytes(1))?;
         Pyramid::from_bytes(path, &bytes)
     }
 
@@ -177,8 +190,10 @@ impl Pyramid {
             source: e,
         };
         let file = std::fs::File::open(path).map_err(io)?;
-        if file.metadata().map_err(io)?.len() == 0 {
-            return Pyramid::read(path); // its error for an empty file
+        let meta = file.metadata().map_err(io)?;
+        if !meta.is_file() || meta.len() == 0 {
+            // Its error for an empty file; a device or FIFO read once, with a limit.
+            return Pyramid::read(path);
         }
         // SAFETY: a read-only mapping of the file. A file truncated by another process while
         // mapped would fault; map files are replaced by renaming (`meso_core::io::write_atomic`),

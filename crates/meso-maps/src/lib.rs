@@ -41,6 +41,7 @@ pub mod limits;
 pub mod pyramid;
 pub mod pyramid_cache;
 pub mod radiosity;
+pub mod read;
 pub mod resolver;
 pub mod sphgrid;
 pub mod visibility;

@@ -10,11 +10,35 @@ use crate::model::{self, LobeGgxParams, LobeMicrofacetParams, LobeParams, Transf
 use crate::samples::{MerlSampling, SampleSet};
 use glam::DVec3;
 use meso_core::budget::BudgetError;
+use meso_core::display::Num;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Largest sample CSV read (bytes actually read).
 pub const MAX_CSV_BYTES: u64 = 1 << 30;
+
+/// Largest BRDF value (1/sr, any channel) of data to fit: 10¹². Measured BRDFs stay far
+/// below (a MERL table's sharpest specular peaks are near 10⁴); values near `f64`'s range make
+/// the fit's squared errors and fitted albedos infinite.
+pub const MAX_BRDF_VALUE: f64 = 1e12;
+
+/// Refuse samples (fitted or held out) with a BRDF value above [`MAX_BRDF_VALUE`]; `what`
+/// names the data in the error.
+fn check_values(samples: &SampleSet, what: &str) -> Result<(), LoadError> {
+    let too_large = samples
+        .samples
+        .iter()
+        .chain(&samples.held_out)
+        .flat_map(|s| s.rgb)
+        .find(|v| *v > MAX_BRDF_VALUE);
+    match too_large {
+        Some(value) => Err(LoadError::TooLarge {
+            what: what.to_owned(),
+            value,
+        }),
+        None => Ok(()),
+    }
+}
 
 /// Scattered data (CSV) with at least this many samples above the horizon keep every
 /// [`HOLD_OUT_EVERY`]-th sample out of the fit, to report the held-out residual.
@@ -78,6 +102,19 @@ pub enum LoadError {
         path: PathBuf,
         /// The cause (line and column).
         source: CsvError,
+    },
+    /// A BRDF value is above [`MAX_BRDF_VALUE`]: not data the fit can represent.
+    #[error(
+        "{what}: BRDF value {} is above {} 1/sr, more than the fit can represent (its error \
+         sums would overflow to infinity); check the data's units",
+        Num(*value),
+        Num(MAX_BRDF_VALUE)
+    )]
+    TooLarge {
+        /// The data (a file path as displayed, or a description).
+        what: String,
+        /// The first value above the limit.
+        value: f64,
     },
     /// No sample has both directions above the horizon.
     #[error("{what}: no sample has both directions above the horizon")]
@@ -160,6 +197,7 @@ pub fn load(path: &Path, target: usize) -> Result<Data, LoadError> {
                 missing: stats.missing,
             });
         }
+        check_values(&samples, &path.display().to_string())?;
         let zero = |v: &[crate::samples::Sample]| v.iter().all(|s| s.rgb == [0.0; 3]);
         if zero(&samples.samples) && zero(&samples.held_out) {
             return Err(LoadError::AllZero {
@@ -204,8 +242,10 @@ pub fn load(path: &Path, target: usize) -> Result<Data, LoadError> {
 /// the error.
 ///
 /// # Errors
+/// [`LoadError::TooLarge`] for a BRDF value above [`MAX_BRDF_VALUE`];
 /// [`LoadError::NoneAboveHorizon`] when no sample is usable.
 pub fn scattered(samples: SampleSet, kind: &str, what: &str) -> Result<Data, LoadError> {
+    check_values(&samples, what)?;
     let above = |s: &crate::samples::Sample| s.wi.z > 1e-9 && s.wo.z > 1e-9;
     if !samples.samples.iter().any(above) {
         return Err(LoadError::NoneAboveHorizon {

@@ -51,15 +51,29 @@ pub fn require_input_not_output(data: &Path, out: Option<&Path>) -> PyResult<()>
 /// Set the memory budget of this process (bytes, or a size with a K, M, G or T suffix: `"8G"`),
 /// as the CLI's `--memory-budget`: work whose estimated peak memory is larger is refused with a
 /// `MesoError` before it starts. The default is the CLI's (4G, or less on small machines, or the
-/// `MESO_MEMORY_BUDGET` environment variable).
+/// `MESO_MEMORY_BUDGET` environment variable). Raises `ValueError` with the CLI's message for
+/// a size that is not one (0, negative, an unknown suffix), `TypeError` for another type.
 #[pyfunction]
 pub fn set_memory_budget(size: &Bound<'_, PyAny>) -> PyResult<()> {
-    let bytes = if let Ok(n) = size.extract::<u64>() {
-        n
+    // Every number goes through the CLI's parser, so 0, -1 and 0.5 get its message (a
+    // ValueError), not a silent default or a TypeError.
+    let text = if size.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(value_err(format!(
+            "not a size (a number of bytes, or a string such as \"8G\"): {size}"
+        )));
+    } else if size.is_instance_of::<pyo3::types::PyInt>()
+        || size.is_instance_of::<pyo3::types::PyFloat>()
+    {
+        size.str()?.to_string()
+    } else if let Ok(s) = size.extract::<String>() {
+        s
     } else {
-        let s: String = size.extract()?;
-        meso_core::budget::parse_size(&s).map_err(value_err)?
+        return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "a memory budget is a number of bytes or a string such as \"8G\", got {}",
+            size.repr()?
+        )));
     };
+    let bytes = meso_core::budget::parse_size(&text).map_err(value_err)?;
     meso_core::budget::set_budget(bytes);
     Ok(())
 }

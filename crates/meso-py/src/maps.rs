@@ -90,6 +90,10 @@ pub fn extract(
             "height_scale = {height_scale}: must be a positive number"
         )));
     }
+    // `meso extract`'s range checks (1e-12 to 1e12, slope ratio at most 1e6): beyond them the
+    // normals overflow to NaN.
+    meso_maps::heightmap::check_scales(std::path::Path::new("heights"), texel_size, height_scale)
+        .map_err(|e| value_err(e.to_string()))?;
     let a = heights.as_array();
     let (rows, cols) = (a.shape()[0], a.shape()[1]);
     if let Some(k) = a.iter().position(|v| !v.is_finite()) {

@@ -92,13 +92,32 @@ pub enum SceneError {
 }
 
 /// `Ok` if every coordinate of the vector `field` is finite, else [`SceneError::Invalid`].
+/// What is wrong with an input file's path before it is read, for a message after the file's
+/// name: `file not found`, `is a directory, not a file`, or why it cannot be examined. `None`
+/// for a path that can be read (a regular file, or a device or FIFO, read with a limit).
+pub(crate) fn input_path_problem(path: &std::path::Path) -> Option<String> {
+    match std::fs::metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Some("file not found".into()),
+        Err(e) => Some(format!("cannot read: {e}")),
+        Ok(m) if m.is_dir() => Some("is a directory, not a file".into()),
+        Ok(_) => None,
+    }
+}
+
+/// A vector for messages: `[x, y, z]`, each number as [`meso_core::display::Num`] writes it
+/// (exponent notation for very large and very small magnitudes).
+pub(crate) fn vec3_text(v: glam::DVec3) -> String {
+    use meso_core::display::Num;
+    format!("[{}, {}, {}]", Num(v.x), Num(v.y), Num(v.z))
+}
+
 pub(crate) fn finite(field: &str, v: glam::DVec3) -> Result<(), SceneError> {
     if v.is_finite() {
         Ok(())
     } else {
         Err(SceneError::invalid(
             field,
-            format!("must be finite, got {v:?}"),
+            format!("must be finite, got {}", vec3_text(v)),
         ))
     }
 }

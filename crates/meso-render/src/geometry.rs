@@ -317,8 +317,8 @@ impl Mesh {
             file: path.to_path_buf(),
             message,
         };
-        if !path.is_file() {
-            return Err(err("file not found".into()));
+        if let Some(problem) = crate::error::input_path_problem(path) {
+            return Err(err(problem));
         }
         // (A file over the size limit gets that error from the reader below.)
         if let Some(len) = std::fs::metadata(path)

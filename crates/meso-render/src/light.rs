@@ -292,8 +292,8 @@ impl EnvironmentMap {
             file: path.to_path_buf(),
             message,
         };
-        if !path.is_file() {
-            return Err(err("file not found".into()));
+        if let Some(problem) = crate::error::input_path_problem(path) {
+            return Err(err(problem));
         }
         let bytes = meso_core::io::read_limited(path, crate::limits::MAX_ENVIRONMENT_BYTES)
             .map_err(|e| err(format!("cannot read: {e}")))?;

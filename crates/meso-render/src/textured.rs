@@ -414,13 +414,8 @@ fn texels_per_uv(tex: &toml::Table, width: usize) -> Result<f64, String> {
                 .as_float()
                 .or_else(|| v.as_integer().map(|i| i as f64))
                 .ok_or_else(|| "[texture] texels_per_uv: expected a number".to_string())?;
-            if t.is_finite() && t > 0.0 {
-                Ok(t)
-            } else {
-                Err(format!(
-                    "[texture] texels_per_uv: must be a finite number > 0, got {t}"
-                ))
-            }
+            crate::mapped::check_scale(t).map_err(|e| format!("[texture] {e}"))?;
+            Ok(t)
         }
     }
 }

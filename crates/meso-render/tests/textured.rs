@@ -159,6 +159,15 @@ fn bad_texture_tables_are_errors_naming_the_problem() {
             format!("[texture]\nkind = \"ndf-mapped\"\n{base}texels_per_uv = 0\n{transfer}"),
             "texels_per_uv",
         ),
+        // Audit item 3: 1e20 made the render hang; bounded by MAX_TEXELS_PER_UV.
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\n{base}texels_per_uv = 1e20\n{transfer}"),
+            "texels_per_uv must be a number > 0 and at most 1e12, got 1e20",
+        ),
+        (
+            format!("[texture]\nkind = \"bump-mapped\"\n{base}texels_per_uv = 1e13\n{transfer}"),
+            "at most 1e12, got 1e13",
+        ),
         (format!("[texture]\nkind = \"ndf-mapped\"\n{base}"), "[transfer]"),
         (
             format!("[texture]\nkind = \"ndf-mapped\"\nfilter = \"gauss\"\n{base}{transfer}"),

@@ -22,9 +22,24 @@ pub struct PlotArgs {
     /// Colour scale of the maps.
     #[arg(long, value_enum, default_value_t = Scale::Log)]
     pub scale: Scale,
-    /// Size of each hemisphere map in pixels.
-    #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(64..=4096))]
+    /// Size of each hemisphere map in pixels (128–4096: below 115 the polar plot beside the
+    /// maps has no room to draw).
+    #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(MIN_SIZE..=4096))]
     pub size: u32,
+}
+
+/// Smallest `--size` of `meso ndf plot`: the polar plot beside the maps needs at least 115
+/// pixels (its labels and a radius of 20 pixels), with a margin.
+pub const MIN_SIZE: i64 = 128;
+
+/// Estimated peak memory (bytes) of drawing the picture at `size` ([`ndf_sheet`]): its three
+/// panels of `4/3·size × size` pixels, each held as values, colours and the sheet (26 bytes a
+/// pixel), and 16 MiB for the rest. Measured: 35 MB at 512, 112 MB at 1024, 408 MB at 2048
+/// (peak RSS; estimated 44, 126 and 453 MB).
+#[must_use]
+pub fn sheet_bytes(size: u32) -> u64 {
+    let size = u64::from(size);
+    4 * size * size * 26 + (16 << 20)
 }
 
 /// Value scale of the NDF maps.
@@ -39,6 +54,11 @@ pub enum Scale {
 /// Render the NDF of a material to a PNG.
 pub fn plot(a: &PlotArgs) -> Result<()> {
     crate::util::check_outputs(&[&a.out], &[&a.material])?;
+    meso_core::budget::check(
+        &a.material,
+        &format!("plotting the NDF at --size {}", a.size),
+        sheet_bytes(a.size),
+    )?;
     let m = crate::load_material(&a.material)?;
     // Again, now that the files the material names (a height map, a map file) are read.
     crate::util::check_outputs(&[&a.out], &[])?;

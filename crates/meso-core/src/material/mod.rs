@@ -280,6 +280,11 @@ pub fn read_limited(path: &Path) -> Result<String, MaterialError> {
         .map_err(|_| MaterialError(format!("{}: not UTF-8 text", path.display())))
 }
 
+/// Largest conductor `eta` and `k` component accepted (the dielectric `eta`'s bound, 100):
+/// real metals have `eta` below 10 and `k` below 20, and far larger values overflow Fresnel's
+/// terms to NaN.
+pub const MAX_CONDUCTOR: f64 = 100.0;
+
 /// Largest exponent accepted anywhere (beyond it a lobe is a delta; use `kind = "deltas"`).
 pub const MAX_EXPONENT: f64 = 1e7;
 

@@ -1,8 +1,8 @@
 //! Reading the material format: [`MaterialSpec::parse`] and the per-table parsers.
 
 use super::{
-    err, MaterialError, MaterialSpec, NdfSpec, ShadowingKind, MAX_DELTAS, MAX_EXPONENT,
-    MAX_PHONG_LOBES, MAX_TABLE_CELLS,
+    err, MaterialError, MaterialSpec, NdfSpec, ShadowingKind, MAX_CONDUCTOR, MAX_DELTAS,
+    MAX_EXPONENT, MAX_PHONG_LOBES, MAX_TABLE_CELLS,
 };
 use crate::convolution::{Accuracy, Form};
 use crate::display::Num;
@@ -191,16 +191,29 @@ pub(super) fn axis_value(a: &[f64]) -> Result<DVec3, String> {
     match a.len() {
         2 => {
             if !(0.0..=180.0).contains(&a[0]) {
-                return Err(format!("theta must be in [0, 180] degrees, got {}", a[0]));
+                return Err(format!(
+                    "theta must be in [0, 180] degrees, got {}",
+                    Num(a[0])
+                ));
             }
             Ok(spherical_direction_deg(a[0], a[1]))
         }
         3 => {
             let v = DVec3::new(a[0], a[1], a[2]);
+            // A vector whose length overflows (components near 1e300) is scaled down by its
+            // largest component first; others are normalised as they are.
+            let m = v.abs().max_element();
+            let v = if v.is_finite() && !v.length().is_finite() {
+                v / m
+            } else {
+                v
+            };
             if !(v.is_finite() && v.length() > 1e-12) {
                 return Err(format!(
                     "[{}, {}, {}] is not a direction (zero length)",
-                    a[0], a[1], a[2]
+                    Num(a[0]),
+                    Num(a[1]),
+                    Num(a[2])
                 ));
             }
             Ok(v.normalize())
@@ -428,6 +441,28 @@ fn parse_ndf(name: &str, t: &toml::Table, depth: usize) -> Result<Ndf, MaterialE
             let density = f
                 .array("density", 0)?
                 .ok_or_else(|| MaterialError(format!("{name}: missing `density` (1/sr)")))?;
+            // The angle checks in the file's unit (degrees); `Radial::new` repeats them in
+            // radians.
+            let bad = |m: String| err(format!("{name}: radial NDF: {m}"));
+            if theta.first().is_some_and(|t| *t != 0.0) {
+                return bad(format!("the first angle must be 0, got {}°", Num(theta[0])));
+            }
+            for (k, w) in theta.windows(2).enumerate() {
+                if w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater) {
+                    return bad(format!(
+                        "angles must increase strictly: node {} is {}° after {}°",
+                        k + 1,
+                        Num(w[1]),
+                        Num(w[0])
+                    ));
+                }
+            }
+            if let Some(last) = theta.last().filter(|t| **t > 90.0) {
+                return bad(format!(
+                    "the last angle {}° is past the horizon (90°)",
+                    Num(*last)
+                ));
+            }
             let theta = theta.into_iter().map(f64::to_radians).collect();
             Ndf::Radial(Radial::new(theta, density).map_err(ndf_err)?)
         }
@@ -547,8 +582,22 @@ fn parse_fresnel(f: &mut Fields<'_>) -> Result<Fresnel, MaterialError> {
             let k = f.array("k", 3)?;
             match (eta, k) {
                 (Some(e), Some(k)) => {
-                    if e.iter().chain(&k).any(|x| *x < 0.0) {
-                        return err(format!("{}: conductor eta and k must be >= 0", f.name));
+                    if e.iter()
+                        .chain(&k)
+                        .any(|x| !(0.0..=MAX_CONDUCTOR).contains(x))
+                    {
+                        return err(format!(
+                            "{}: conductor eta and k must be >= 0 and at most {}, got eta = \
+                             [{}, {}, {}], k = [{}, {}, {}]",
+                            f.name,
+                            Num(MAX_CONDUCTOR),
+                            Num(e[0]),
+                            Num(e[1]),
+                            Num(e[2]),
+                            Num(k[0]),
+                            Num(k[1]),
+                            Num(k[2])
+                        ));
                     }
                     Fresnel::Conductor {
                         eta: [e[0], e[1], e[2]],

@@ -172,7 +172,8 @@ pub struct NdfStats {
     pub covariance: DMat3,
 }
 
-/// Check weights (finite, ≥ 0, positive sum) and rescale them to sum to 1.
+/// Check weights (finite, ≥ 0, positive sum) and rescale them to sum to 1 (weights whose sum
+/// overflows `f64` are divided by the largest first).
 pub(crate) fn normalize_weights<T>(
     mut items: Vec<T>,
     get: impl Fn(&T) -> f64,
@@ -185,19 +186,28 @@ pub(crate) fn normalize_weights<T>(
         let w = get(it);
         if !(w.is_finite() && w >= 0.0) {
             return Err(NdfError::Invalid(format!(
-                "lobe {}: weight must be a finite number >= 0, got {w}",
-                k + 1
+                "lobe {}: weight must be a finite number >= 0, got {}",
+                k + 1,
+                crate::display::Num(w)
             )));
         }
     }
     let total: f64 = items.iter().map(&get).sum();
-    if total <= 0.0 || !total.is_finite() {
+    // Weights whose sum overflows (1e308 + 1e308) are scaled by the largest first; others are
+    // divided by their sum as they are.
+    let (scale, total) = if total.is_finite() {
+        (1.0, total)
+    } else {
+        let max = items.iter().map(&get).fold(0.0, f64::max);
+        (max, items.iter().map(|it| get(it) / max).sum())
+    };
+    if total <= 0.0 {
         return Err(NdfError::Invalid(
             "the lobe weights sum to zero (an NDF needs positive total weight)".into(),
         ));
     }
     for it in &mut items {
-        let w = get(it) / total;
+        let w = get(it) / scale / total;
         set(it, w);
     }
     Ok(items)

@@ -157,8 +157,100 @@ pub fn probe(path: &Path) -> Result<ImageHeader> {
     if r.format().is_none() {
         return Err(decode_err(path, "unknown image format"));
     }
+    if r.format() == Some(image::ImageFormat::OpenExr) {
+        let file = std::fs::File::open(path).map_err(io)?;
+        if let Some(h) = exr_grey_header(path, std::io::BufReader::new(file), file_bytes)? {
+            return Ok(h);
+        }
+    }
     let d = r.into_decoder().map_err(|e| decode_err(path, e))?;
     header_of(path, &d, file_bytes)
+}
+
+/// The header of an EXR whose first layer lacks one of R, G and B (one grey channel: `Y`, `H`,
+/// `Z`, …, or `R` alone), which the `image` crate does not read: one channel (`R`, else `Y`,
+/// else the first by name) is decoded as a grey `Rgb32F` image ([`decode_exr_grey`]; 12 bytes
+/// a pixel, and 4 for each channel the decoder reads). `None` for an EXR with all of R, G and B (the `image` crate reads those),
+/// the sizes checked.
+fn exr_grey_header(
+    path: &Path,
+    reader: impl std::io::Read,
+    file_bytes: u64,
+) -> Result<Option<ImageHeader>> {
+    let meta =
+        exr::meta::MetaData::read_from_buffered(reader, false).map_err(|e| decode_err(path, e))?;
+    let Some(layer) = meta.headers.first() else {
+        return Err(decode_err(path, "no layer in the EXR file"));
+    };
+    let names: Vec<String> = layer
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    let rgb = ["R", "G", "B"].iter().all(|c| names.iter().any(|n| n == c));
+    if layer.deep || names.is_empty() || rgb {
+        return Ok(None);
+    }
+    let (w, h) = (layer.layer_size.0 as u64, layer.layer_size.1 as u64);
+    check_dims(path, w, h)?;
+    Ok(Some(ImageHeader {
+        width: w,
+        height: h,
+        // The grey RGB image and every channel decoded (4 bytes a sample).
+        bytes_per_pixel: 12 + 4 * names.len() as u64,
+        color: false,
+        eight_bit: false,
+        file_bytes,
+    }))
+}
+
+/// Decode one channel of an EXR that lacks one of R, G and B ([`exr_grey_header`] says which)
+/// as a grey `Rgb32F` image (the channel's value in all three), its size checked before the
+/// pixels are decoded. `None` for an EXR with R, G and B.
+fn decode_exr_grey(path: &Path, bytes: &[u8]) -> Result<Option<image::DynamicImage>> {
+    let Some(header) = exr_grey_header(path, bytes, bytes.len() as u64)? else {
+        return Ok(None);
+    };
+    use exr::prelude::ReadChannels as _;
+    use exr::prelude::ReadLayers as _;
+    let read = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| decode_err(path, e))?;
+    let layer = &read.layer_data;
+    let (w, h) = (layer.size.0 as u32, layer.size.1 as u32);
+    if (w as u64, h as u64) != (header.width, header.height) {
+        return Err(decode_err(
+            path,
+            "the EXR's layer size changed while reading",
+        ));
+    }
+    // Red where there is one (an `R`-only file), else luminance, else the first by name.
+    let list = &layer.channel_data.list;
+    let named = |c: &str| list.iter().find(|ch| ch.name.to_string() == c);
+    let Some(channel) = named("R").or_else(|| named("Y")).or_else(|| list.first()) else {
+        return Err(decode_err(path, "no channel in the EXR file"));
+    };
+    let n = (w as usize) * (h as usize);
+    let mut rgb = meso_core::budget::try_with_capacity::<f32>(3 * n).map_err(|e| oom(path, e))?;
+    for v in channel.sample_data.values_as_f32().take(n) {
+        rgb.extend([v, v, v]);
+    }
+    if rgb.len() != 3 * n {
+        return Err(decode_err(
+            path,
+            "the EXR channel holds fewer samples than its size",
+        ));
+    }
+    let img = image::Rgb32FImage::from_raw(w, h, rgb)
+        .ok_or_else(|| decode_err(path, "the EXR channel does not match its size"))?;
+    Ok(Some(image::DynamicImage::ImageRgb32F(img)))
 }
 
 /// The [`ImageHeader`] of an opened decoder (the size limits checked), for [`probe`] and
@@ -192,6 +284,11 @@ pub fn probe_bytes(name: &Path, bytes: &[u8]) -> Result<ImageHeader> {
     let mut r = image::ImageReader::new(std::io::Cursor::new(bytes));
     r.set_format(image::ImageFormat::from_path(name).unwrap_or(image::ImageFormat::Png));
     let r = r.with_guessed_format().map_err(|e| decode_err(name, e))?;
+    if r.format() == Some(image::ImageFormat::OpenExr) {
+        if let Some(h) = exr_grey_header(name, bytes, bytes.len() as u64)? {
+            return Ok(h);
+        }
+    }
     let d = r.into_decoder().map_err(|e| decode_err(name, e))?;
     header_of(name, &d, bytes.len() as u64)
 }
@@ -204,32 +301,46 @@ pub(super) fn oom(path: &Path, e: meso_core::budget::AllocError) -> MapError {
     }
 }
 
-/// Read the header, check the size limits, then decode (with decoder limits set as well).
-fn open_image(path: &Path) -> Result<image::DynamicImage> {
-    meso_core::io::note_input(path);
-    let io = |e: std::io::Error| MapError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    };
-    let bytes = std::fs::read(path).map_err(io)?;
-    decode_bytes(path, &bytes)
-}
-
-/// [`open_image`] after checking the memory of loading it (`estimate` from its header) against
-/// the budget (`meso_core::budget`).
+/// [`decode_bytes`] after checking the memory of loading the image (`estimate` from its header)
+/// against the budget (`meso_core::budget`). A regular file is probed (its header read) before
+/// it is read whole; a device or FIFO, whose bytes can be read only once, is read once into
+/// memory with a limit from the budget ([`crate::read::read_whole`]), then probed and decoded
+/// from those bytes.
 pub(super) fn open_image_budgeted(
     path: &Path,
     task: &str,
     estimate: impl Fn(&ImageHeader) -> u64,
 ) -> Result<image::DynamicImage> {
-    // Regular files only (a FIFO cannot be read twice); a header the probe cannot read is left
-    // to the decoder, whose errors say more.
-    if std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+    // A header the probe cannot read is left to the decoder, whose errors say more.
+    if crate::read::is_regular_file(path) {
         if let Ok(header) = probe(path) {
             meso_core::budget::check(path, task, estimate(&header))?;
         }
+        let bytes = crate::read::read_whole(path, 1)?;
+        return decode_bytes(path, &bytes);
     }
-    open_image(path)
+    let bytes = crate::read::read_whole(path, 1)?;
+    if crate::format::has_map_magic(&bytes) {
+        return Err(MapError::MapFormat {
+            path: path.to_path_buf(),
+            message: "this is a meso map file (written by `meso extract`), not an image".into(),
+        });
+    }
+    if let Ok(header) = probe_bytes(path, &bytes) {
+        meso_core::budget::check(path, task, estimate(&header))?;
+    }
+    decode_bytes(path, &bytes)
+}
+
+/// A decoder's error for messages: a read past the end of the bytes (a TGA or TIFF cut off in
+/// its pixel data: the reader's "failed to fill whole buffer") says that the file is truncated.
+fn decode_message(e: image::ImageError) -> String {
+    match &e {
+        image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "truncated: the file ends before its pixel data does".into()
+        }
+        _ => e.to_string(),
+    }
 }
 
 /// True when the JPEG `bytes` hold an end-of-image marker (`FF D9`) after the start of their
@@ -282,6 +393,11 @@ pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicIm
         }
         Ok(r)
     };
+    if reader()?.format() == Some(image::ImageFormat::OpenExr) {
+        if let Some(img) = decode_exr_grey(path, bytes)? {
+            return Ok(img);
+        }
+    }
     let (w, h) = reader()?
         .into_dimensions()
         .map_err(|e| decode_err(path, e))?;
@@ -299,7 +415,9 @@ pub(super) fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<image::DynamicIm
             "truncated JPEG: no end-of-image marker after its last scan (the file is cut off)",
         ));
     }
-    let img = r.decode().map_err(|e| decode_err(path, e))?;
+    let img = r
+        .decode()
+        .map_err(|e| decode_err(path, decode_message(e)))?;
     check_dims(path, img.width() as u64, img.height() as u64)?;
     Ok(img)
 }

@@ -225,8 +225,12 @@ pub const SCALE_RANGE: (f64, f64) = (1e-12, 1e12);
 pub const MAX_SLOPE_SCALE: f64 = 1e6;
 
 /// Check the scales of the height map `path` (named in the error): each finite and positive,
-/// within [`SCALE_RANGE`], and their ratio at most [`MAX_SLOPE_SCALE`].
-fn check_scales(path: &Path, texel_size: f64, height_scale: f64) -> Result<()> {
+/// within [`SCALE_RANGE`], and their ratio at most [`MAX_SLOPE_SCALE`]. The check of
+/// `meso extract` and every loader, shared by the Python package's `extract` of an array.
+///
+/// # Errors
+/// [`MapError::InvalidParameter`] or [`MapError::Scale`] naming `path` and the scale.
+pub fn check_scales(path: &Path, texel_size: f64, height_scale: f64) -> Result<()> {
     positive("texel_size", texel_size)?;
     positive("height_scale", height_scale)?;
     let within = |v: f64| (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&v);

@@ -132,7 +132,8 @@ def extract(
     method: str = "lobes",
 ) -> Pyramid:
     """The NDF pyramid of a (rows, cols) height array (heights × height_scale, length units;
-    row 0 at the top of the image)."""
+    row 0 at the top of the image). texel_size and height_scale must lie in [1e-12, 1e12] and
+    height_scale / texel_size be at most 1e6, as for `meso extract` (else ValueError)."""
 
 def extract_file(
     path: _Path,
@@ -177,8 +178,9 @@ def export(
     ``anisotropic``: KHR_materials_anisotropy lobes (``--anisotropic``); ``lobes``: a lobe
     pyramid's map file (``--lobes``)."""
 
-def set_memory_budget(size: Union[int, str]) -> None:
-    """The memory budget (bytes or "8G"); larger work raises MesoError before it starts."""
+def set_memory_budget(size: Union[int, float, str]) -> None:
+    """The memory budget (bytes or "8G"); larger work raises MesoError before it starts. A size
+    that is not one (0, negative, an unknown suffix) raises ValueError with the CLI's message."""
 
 def fit(
     data: _Path,

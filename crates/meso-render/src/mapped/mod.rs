@@ -208,12 +208,14 @@ pub(crate) fn map_xy(u: f64, v: f64, texels_per_uv: f64, rows: usize) -> (f64, f
     (u * texels_per_uv, rows as f64 - v * texels_per_uv)
 }
 
-fn check_scale(texels_per_uv: f64) -> Result<(), String> {
-    if texels_per_uv.is_finite() && texels_per_uv > 0.0 {
+/// Refuse a `texels_per_uv` that is not a number in (0, [`crate::limits::MAX_TEXELS_PER_UV`]].
+pub(crate) fn check_scale(texels_per_uv: f64) -> Result<(), String> {
+    let max = crate::limits::MAX_TEXELS_PER_UV;
+    if texels_per_uv.is_finite() && texels_per_uv > 0.0 && texels_per_uv <= max {
         Ok(())
     } else {
         Err(format!(
-            "texels_per_uv must be a finite number > 0, got {texels_per_uv}"
+            "texels_per_uv must be a number > 0 and at most {max:e}, got {texels_per_uv:e}"
         ))
     }
 }

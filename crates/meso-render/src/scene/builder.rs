@@ -7,6 +7,7 @@ use crate::camera::Camera;
 use crate::error::SceneError;
 use crate::geometry::{MaterialId, Mesh, Plane, Quad, Sphere};
 use crate::light::{EnvironmentMap, Light};
+use crate::limits::MAX_LIGHT_VALUE;
 use crate::sampling::MAX_SAMPLES_PER_PIXEL;
 use crate::shader::Shader;
 use glam::DVec3;
@@ -41,13 +42,18 @@ pub(super) fn positive(field: &str, x: f64) -> Result<(), SceneError> {
     }
 }
 
+/// A light's colour (or the background's): every channel in [0, [`MAX_LIGHT_VALUE`]].
 fn nonneg_rgb(field: &str, v: DVec3) -> Result<(), SceneError> {
-    if v.is_finite() && v.min_element() >= 0.0 {
+    if v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= MAX_LIGHT_VALUE {
         Ok(())
     } else {
         Err(SceneError::invalid(
             field,
-            format!("must be finite and non-negative in every channel, got {v:?}"),
+            format!(
+                "must be finite, non-negative and at most {} in every channel, got {}",
+                Num(MAX_LIGHT_VALUE),
+                crate::error::vec3_text(v)
+            ),
         ))
     }
 }
