@@ -362,3 +362,62 @@ fn brdf_echoes_absurd_angles_in_exponent_notation() {
     assert!(lines[2].starts_with("30,0,30,180,"), "{text}");
     assert!(text.len() < 300, "{text}");
 }
+
+/// A material whose height map is a FIFO written once: the cache must not hash it (that read
+/// would consume the stream and leave the load waiting for a writer that is gone); the BRDF is
+/// computed from the one read. Fails by timing out (60 s) if the stream is read twice.
+#[cfg(unix)]
+#[test]
+fn a_material_height_map_through_a_fifo_is_read_once() {
+    let d = tmpdir("limits", "fifo-material");
+    let png = d.join("h.png");
+    slope_png(&png);
+    let bytes = std::fs::read(&png).unwrap();
+    let fifo = d.join("ff.png");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    std::fs::write(
+        d.join("m.toml"),
+        "[ndf]\nkind = \"heightmap\"\nfile = \"ff.png\"\ntexel_size = 1.0\nheight_scale = 1.0\n\
+         [transfer]\nkind = \"microfacet\"\nalpha = 0.2\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("p.csv"),
+        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
+    )
+    .unwrap();
+    let f2 = fifo.clone();
+    let writer = std::thread::spawn(move || std::fs::write(&f2, bytes));
+    let mut child = common::cmd()
+        .args(["brdf", s(&d.join("m.toml")), "--pairs", s(&d.join("p.csv"))])
+        .env("MESO_CACHE_DIR", d.join("cache"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > std::time::Duration::from_secs(60) {
+            child.kill().unwrap();
+            // Unblock the writer, if it still waits for a reader (a non-blocking open for
+            // reading never waits for a writer itself).
+            use std::os::unix::fs::OpenOptionsExt;
+            drop(
+                std::fs::OpenOptions::new()
+                    .read(true)
+                    .custom_flags(libc::O_NONBLOCK)
+                    .open(&fifo),
+            );
+            panic!("meso brdf still waits on the FIFO after 60 s: it was read twice");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().unwrap();
+    ok(&o);
+    assert!(String::from_utf8_lossy(&o.stdout).lines().count() == 2);
+    writer.join().unwrap().unwrap();
+}

@@ -57,10 +57,14 @@ pub fn cache_dir() -> Option<PathBuf> {
     }
 }
 
-/// The bytes of the source file `file` to hash into a key, or `None` when it cannot be read
-/// or is larger than [`MAX_HASHED_BYTES`] (then nothing is cached).
+/// The bytes of the source file `file` to hash into a key, or `None` when it cannot be read,
+/// is larger than [`MAX_HASHED_BYTES`], or is not a regular file (then nothing is cached): a
+/// device or FIFO can be read only once, and that read is the load's.
 #[must_use]
 pub fn source_bytes(file: &Path) -> Option<Vec<u8>> {
+    if !crate::read::is_regular_file(file) {
+        return None;
+    }
     meso_core::io::read_limited(file, MAX_HASHED_BYTES).ok()
 }
 
