@@ -421,3 +421,42 @@ fn a_material_height_map_through_a_fifo_is_read_once() {
     assert!(String::from_utf8_lossy(&o.stdout).lines().count() == 2);
     writer.join().unwrap().unwrap();
 }
+
+/// `interreflection = true` on a map whose light between facets cannot be traced (a clamped
+/// map) says that the coarser sky-view estimate is used, naming the material; on a wrapped map
+/// it is traced and nothing is said.
+#[test]
+fn estimated_interreflection_is_reported() {
+    let d = tmpdir("limits", "interreflection");
+    slope_png(&d.join("h.png"));
+    std::fs::write(
+        d.join("p.csv"),
+        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
+    )
+    .unwrap();
+    for border in ["clamp", "wrap"] {
+        let m = d.join(format!("{border}.toml"));
+        std::fs::write(
+            &m,
+            format!(
+                "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 1.0\n\
+                 height_scale = 1.0\nrepresent = \"facets\"\nborder = \"{border}\"\n\
+                 [transfer]\nkind = \"lambert\"\n[shadowing]\nkind = \"visibility\"\n\
+                 interreflection = true\n"
+            ),
+        )
+        .unwrap();
+        let o = common::cmd()
+            .args(["brdf", s(&m), "--pairs", s(&d.join("p.csv"))])
+            .env("MESO_CACHE_DIR", d.join("cache"))
+            .output()
+            .unwrap();
+        ok(&o);
+        let e = stderr(&o);
+        let said = e.contains("interreflection = true") && e.contains("sky views");
+        assert_eq!(said, border == "clamp", "{border}: {e}");
+        if said {
+            assert!(e.contains(&format!("{border}.toml: warning")), "{e}");
+        }
+    }
+}

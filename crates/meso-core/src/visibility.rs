@@ -68,6 +68,19 @@ pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
         None
     }
 
+    /// Whether [`VisibilityModel::interreflected`] solves the light between facets from the
+    /// geometry (`Ok`), or why not (`Err`, a sentence): then the inter-reflection of
+    /// `interreflection = true` is the sky-view estimate
+    /// ([`crate::convolution::deltas_interreflection`]), which a command reports to its user.
+    /// May build what `interreflected` needs (it would be built at the first evaluation anyway).
+    ///
+    /// # Errors
+    /// The reason the geometry's own solution is not available (the default: this model has
+    /// none).
+    fn interreflection_solved(&self) -> Result<(), String> {
+        Err("this visibility model cannot trace the light between facets".into())
+    }
+
     /// Whether [`VisibilityModel::g_given_normal`] depends on the normal (then
     /// [`crate::material::ShadowingKind::Visibility`] is available and the default).
     fn conditions_on_normal(&self) -> bool {

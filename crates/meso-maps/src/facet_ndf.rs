@@ -59,6 +59,13 @@ impl VisibilityModel for FacetVisibility {
         let r = self.radiosity.as_ref()?.get().ok()?;
         Some(r.multi_bounce(albedo, i, o, None))
     }
+    fn interreflection_solved(&self) -> Result<(), String> {
+        match &self.radiosity {
+            Some(r) => r.get().map(|_| ()).map_err(str::to_owned),
+            None => Err("light between facets is traced only on a wrapped height map with `normals = \"triangles\"`"
+                .into()),
+        }
+    }
     fn conditions_on_normal(&self) -> bool {
         true
     }
