@@ -26,31 +26,10 @@ pub(crate) use util::{par_map_progress, progress, read_text};
 pub(crate) fn load_material(
     path: &std::path::Path,
 ) -> anyhow::Result<meso_core::material::Material> {
-    let m = meso_core::material::Material::from_file(
-        path,
-        &meso_maps::MapsResolver::new().with_warnings(print_warning()),
-    )?;
-    warn_estimated_interreflection(path, &m);
+    let maps = meso_maps::MapsResolver::new().with_warnings(print_warning());
+    let m = meso_core::material::Material::from_file(path, &maps)?;
+    maps.warn_estimated_interreflection(path, &m);
     Ok(m)
-}
-
-/// Say so when a material asks for the light between facets (`interreflection = true`) and its
-/// visibility model cannot trace it from the geometry (a clamped map, central normals, a map
-/// over the radiosity's size): the sky-view estimate is used instead, which is coarser
-/// (docs/heightmaps.md).
-fn warn_estimated_interreflection(path: &std::path::Path, m: &meso_core::material::Material) {
-    use meso_core::material::ShadowingKind;
-    if m.shadowing != ShadowingKind::VisibilityInterreflected {
-        return;
-    }
-    if let Some(Err(why)) = m.horizon.as_ref().map(|h| h.interreflection_solved()) {
-        print_warning()(
-            path,
-            &format!(
-                "interreflection = true: {why}; it is estimated from the facets' sky views instead (coarser: docs/heightmaps.md)"
-            ),
-        );
-    }
 }
 
 /// What loading an input found and corrected, printed on standard error as

@@ -458,5 +458,36 @@ fn estimated_interreflection_is_reported() {
         if said {
             assert!(e.contains(&format!("{border}.toml: warning")), "{e}");
         }
+        // meso render says it once for the scene's material.
+        let sc = d.join(format!("{border}.scene.toml"));
+        std::fs::write(
+            &sc,
+            format!(
+                "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\n\
+                 look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 2.0\n\
+                 [image]\nwidth = 4\nheight = 4\nspp = 1\n[[object]]\nkind = \"plane\"\n\
+                 point = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"{border}.toml\"\n\
+                 [[light]]\nkind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\n\
+                 irradiance = [1.0, 1.0, 1.0]\n"
+            ),
+        )
+        .unwrap();
+        let o = common::cmd()
+            .args([
+                "render",
+                s(&sc),
+                "--out",
+                s(&d.join(format!("{border}.png"))),
+            ])
+            .env("MESO_CACHE_DIR", d.join("cache"))
+            .output()
+            .unwrap();
+        ok(&o);
+        let e = stderr(&o);
+        assert_eq!(
+            e.matches("sky views").count(),
+            usize::from(border == "clamp"),
+            "render, {border}: {e}"
+        );
     }
 }

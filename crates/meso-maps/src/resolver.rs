@@ -249,6 +249,35 @@ impl MapsResolver {
         self
     }
 
+    /// Report ([`MapsResolver::warn`]) when `material`, loaded from `file` through this
+    /// resolver, asks for the light between facets (`interreflection = true`) and its
+    /// visibility model cannot trace it from the geometry (a clamped map, central normals, a map
+    /// over the radiosity's size: `VisibilityModel::interreflection_solved`): the coarser
+    /// sky-view estimate is used instead (docs/heightmaps.md).
+    pub fn warn_estimated_interreflection(
+        &self,
+        file: &Path,
+        material: &meso_core::material::Material,
+    ) {
+        use meso_core::material::ShadowingKind;
+        if material.shadowing != ShadowingKind::VisibilityInterreflected {
+            return;
+        }
+        if let Some(Err(why)) = material
+            .horizon
+            .as_ref()
+            .map(|h| h.interreflection_solved())
+        {
+            self.warn(
+                file,
+                &format!(
+                    "interreflection = true: {why}; it is estimated from the facets' sky views \
+                     instead (coarser: docs/heightmaps.md)"
+                ),
+            );
+        }
+    }
+
     /// Report `warning` about the input `file` to the hook of [`MapsResolver::with_warnings`],
     /// unless this resolver reported it before.
     pub fn warn(&self, file: &Path, warning: &str) {

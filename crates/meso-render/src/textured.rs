@@ -491,7 +491,10 @@ pub fn resolve_material_file(
         Err(e) => Err(e.into()),
         Ok(Some(s)) => Ok(s),
         Ok(None) => meso_core::material::Material::from_file(path, maps)
-            .map(|m| Arc::new(crate::MaterialShader::new(&m)) as Arc<dyn Shader>)
+            .map(|m| {
+                maps.warn_estimated_interreflection(path, &m);
+                Arc::new(crate::MaterialShader::new(&m)) as Arc<dyn Shader>
+            })
             .map_err(|e| -> crate::ResolveError { format!("{e:#}").into() }),
     }
 }
