@@ -28,7 +28,7 @@ pub(crate) fn load_material(
 ) -> anyhow::Result<meso_core::material::Material> {
     let maps = meso_maps::MapsResolver::new().with_warnings(print_warning());
     let m = meso_core::material::Material::from_file(path, &maps)?;
-    maps.warn_estimated_interreflection(path, &m);
+    maps.warn_estimated_interreflection(path, &m, false);
     Ok(m)
 }
 

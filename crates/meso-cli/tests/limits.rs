@@ -491,3 +491,71 @@ fn estimated_interreflection_is_reported() {
         );
     }
 }
+
+/// `interreflection = true` with glossy facets: `meso brdf` traces the light between them on a
+/// wrapped map and says nothing; on a clamped map it says the light is left out; `meso render`
+/// (whose interactive evaluation leaves it out) says so once.
+#[test]
+fn glossy_interreflection_is_traced_or_reported() {
+    let d = tmpdir("limits", "glossy-interreflection");
+    slope_png(&d.join("h.png"));
+    std::fs::write(
+        d.join("p.csv"),
+        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
+    )
+    .unwrap();
+    for border in ["clamp", "wrap"] {
+        let m = d.join(format!("{border}.toml"));
+        std::fs::write(
+            &m,
+            format!(
+                "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 1.0\n\
+                 height_scale = 1.0\nrepresent = \"facets\"\nborder = \"{border}\"\n\
+                 [transfer]\nkind = \"microfacet\"\nalpha = 0.1\nfresnel = \"none\"\n\
+                 [shadowing]\nkind = \"visibility\"\ninterreflection = true\n"
+            ),
+        )
+        .unwrap();
+        let o = common::cmd()
+            .args(["brdf", s(&m), "--pairs", s(&d.join("p.csv"))])
+            .env("MESO_CACHE_DIR", d.join("cache"))
+            .output()
+            .unwrap();
+        ok(&o);
+        let e = stderr(&o);
+        let said = e.contains("interreflection = true") && e.contains("only the single bounce");
+        assert_eq!(said, border == "clamp", "{border}: {e}");
+        assert!(!e.contains("sky views"), "{border}: {e}");
+        let sc = d.join(format!("{border}.scene.toml"));
+        std::fs::write(
+            &sc,
+            format!(
+                "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\n\
+                 look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 2.0\n\
+                 [image]\nwidth = 4\nheight = 4\nspp = 1\n[[object]]\nkind = \"plane\"\n\
+                 point = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"{border}.toml\"\n\
+                 [[light]]\nkind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\n\
+                 irradiance = [1.0, 1.0, 1.0]\n"
+            ),
+        )
+        .unwrap();
+        let o = common::cmd()
+            .args([
+                "render",
+                s(&sc),
+                "--out",
+                s(&d.join(format!("{border}.png"))),
+            ])
+            .env("MESO_CACHE_DIR", d.join("cache"))
+            .output()
+            .unwrap();
+        ok(&o);
+        let e = stderr(&o);
+        let wanted = if border == "clamp" {
+            "only the single bounce"
+        } else {
+            "renderer leaves out the light between glossy facets"
+        };
+        assert_eq!(e.matches(wanted).count(), 1, "render, {border}: {e}");
+    }
+}

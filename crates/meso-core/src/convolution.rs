@@ -354,12 +354,13 @@ fn tail_cut(contrib: &[(u32, [f64; 3])], peak: f64) -> f64 {
     }
 }
 
-/// The light a delta sum of **Lambert** facets reflects after more than one bounce inside the
-/// microgeometry, as a BRDF (RGB, 1/sr) to add to the single-bounce microfacet form. With
-/// `solve`, a model that solves it from the geometry ([`VisibilityModel::interreflected`]: a
-/// height map's facets, by radiosity) answers; otherwise (or without `solve`, the interactive
-/// plans) it is estimated from a normal-conditioned visibility that knows each delta's sky view
-/// `s_k` ([`VisibilityModel::sky_views`]), below. Zero for other transfers or models.
+/// The light a delta sum of facets of BRDF `transfer` reflects after more than one bounce
+/// inside the microgeometry, as a BRDF (RGB, 1/sr) to add to the single-bounce microfacet form.
+/// With `solve`, a model that solves it from the geometry ([`VisibilityModel::interreflected`]:
+/// a height map's facets, by radiosity for Lambert facets and path tracing for glossy ones)
+/// answers; otherwise (or without `solve`, the interactive plans) Lambert facets' share is
+/// estimated from a normal-conditioned visibility that knows each delta's sky view `s_k`
+/// ([`VisibilityModel::sky_views`]), below. Zero for other facets or models that cannot say.
 ///
 /// # Estimate from the sky views
 /// The radiance the surface sends into its own concavities is taken as uniform: the mean
@@ -382,15 +383,16 @@ pub fn deltas_interreflection(
     o: DVec3,
     solve: bool,
 ) -> [f64; 3] {
-    let Transfer::Lambert { albedo } = *transfer else {
-        return [0.0; 3];
-    };
     if i.z <= 0.0 || o.z <= 0.0 {
         return [0.0; 3];
     }
-    if let Some(f) = solve.then(|| g.interreflected(albedo, i, o)).flatten() {
+    if let Some(f) = solve.then(|| g.interreflected(transfer, i, o)).flatten() {
         return f;
     }
+    // The sky-view estimate assumes facets that scatter diffusely.
+    let Transfer::Lambert { albedo } = *transfer else {
+        return [0.0; 3];
+    };
     let normals = d.normals();
     let Some(sky) = g.sky_views(normals) else {
         return [0.0; 3];

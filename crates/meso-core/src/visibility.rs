@@ -18,6 +18,7 @@
 //!   azimuth and elevation) once, not once per delta.
 
 use crate::ndf::WeightedNormal;
+use crate::transfer::Transfer;
 use glam::DVec3;
 
 /// A masking–shadowing model supplied by a resolver (e.g. from a height map): probabilities in
@@ -57,27 +58,30 @@ pub trait VisibilityModel: Send + Sync + std::fmt::Debug {
         None
     }
 
-    /// The BRDF (1/sr, RGB) of the light that scatters more than once between **Lambert**
-    /// facets of albedo `albedo` inside the microgeometry, for light `i` and view `o`, when the
-    /// model can solve it from the geometry itself (e.g. a height map's facets,
-    /// `meso_maps::FacetRadiosity`); what [`crate::convolution::deltas_interreflection`] adds
-    /// to the single bounce. `None` (the default) for models that cannot: the convolution then
-    /// estimates it from the deltas' sky views.
-    fn interreflected(&self, albedo: [f64; 3], i: DVec3, o: DVec3) -> Option<[f64; 3]> {
-        let _ = (albedo, i, o);
+    /// The BRDF (1/sr, RGB) of the light that scatters more than once between facets of BRDF
+    /// `transfer` inside the microgeometry, for light `i` and view `o`, when the model can solve
+    /// it from the geometry itself (e.g. a height map's facets: `meso_maps::FacetRadiosity` for
+    /// Lambert facets, path tracing on the map's triangles for glossy ones); what
+    /// [`crate::convolution::deltas_interreflection`] adds to the single bounce. `None` (the
+    /// default) for models that cannot: the convolution then estimates it from the deltas' sky
+    /// views (Lambert facets) or leaves it out (other facets).
+    fn interreflected(&self, transfer: &Transfer, i: DVec3, o: DVec3) -> Option<[f64; 3]> {
+        let _ = (transfer, i, o);
         None
     }
 
-    /// Whether [`VisibilityModel::interreflected`] solves the light between facets from the
-    /// geometry (`Ok`), or why not (`Err`, a sentence): then the inter-reflection of
-    /// `interreflection = true` is the sky-view estimate
-    /// ([`crate::convolution::deltas_interreflection`]), which a command reports to its user.
-    /// May build what `interreflected` needs (it would be built at the first evaluation anyway).
+    /// Whether [`VisibilityModel::interreflected`] solves the light between facets of BRDF
+    /// `transfer` from the geometry (`Ok`), or why not (`Err`, a sentence): then the
+    /// inter-reflection of `interreflection = true` is the sky-view estimate for Lambert facets
+    /// ([`crate::convolution::deltas_interreflection`]) and left out for others, which a
+    /// command reports to its user. May build what `interreflected` needs (it would be built at
+    /// the first evaluation anyway).
     ///
     /// # Errors
     /// The reason the geometry's own solution is not available (the default: this model has
     /// none).
-    fn interreflection_solved(&self) -> Result<(), String> {
+    fn interreflection_solved(&self, transfer: &Transfer) -> Result<(), String> {
+        let _ = transfer;
         Err("this visibility model cannot trace the light between facets".into())
     }
 

@@ -105,12 +105,21 @@ fn bad_materials_are_refused_with_a_message_naming_the_problem() {
         .unwrap_err()
         .0
         .contains("exponent"));
+    // Glossy facets may ask for the light between them (it needs a height map's facets) …
     let glossy_interreflected = "[transfer]\nkind = \"phong\"\nexponent = 20\n\
         [shadowing]\nkind = \"visibility\"\ninterreflection = true\n";
     assert!(Material::from_toml_str(glossy_interreflected)
         .unwrap_err()
         .0
-        .contains("Lambert facets"));
+        .contains("height-map"));
+    // … perfect mirrors may not: the light between them cannot be traced.
+    let mirror_interreflected = "form = \"microfacet\"\n[ndf]\nkind = \"beckmann\"\nalpha = 0.1\n\
+        [transfer]\nkind = \"mirror\"\n\
+        [shadowing]\nkind = \"visibility\"\ninterreflection = true\n";
+    assert!(Material::from_toml_str(mirror_interreflected)
+        .unwrap_err()
+        .0
+        .contains("perfect mirror facets"));
     let mirror_on_deltas = "[transfer]\nkind = \"mirror\"\n";
     assert!(Material::from_toml_str(mirror_on_deltas)
         .unwrap_err()

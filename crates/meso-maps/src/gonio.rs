@@ -7,8 +7,14 @@
 //! area). The first facet hit, with normal `m`, contributes `f_μ(i, o; m)·max(0, i·m)·V` where
 //! `V` is 1 unless a shadow ray towards `i` (also tiled) hits the surface; the BRDF is the
 //! mean contribution divided by `cos θ_i` (radiance / (E cos θ_i)). Single bounce by default;
-//! [`GonioParams::bounces`] > 1 adds light inter-reflected between facets (path tracing with
-//! cosine-weighted continuation and a shadow ray at every hit).
+//! [`GonioParams::bounces`] > 1 adds light inter-reflected between facets (path tracing with a
+//! shadow ray at every hit). The path continues in a cosine-weighted direction about the facet
+//! normal; for rough microfacet facets (`Transfer::Microfacet`) nine draws in ten instead take
+//! the facet lobe's own direction (a normal from its `D(m)(m·z)`, mirrored), weighted by the
+//! mixture's density, so that glossy facets (α ≈ 0.05) converge; the estimate is unbiased
+//! either way (test `lobe_continuation_agrees_with_cosine_continuation`).
+//! [`GonioParams::first_bounce`] = 2 keeps only the light that has scattered before: what the
+//! effective BRDF's inter-reflection adds to its single bounce (`crate::facet_ndf`).
 //!
 //! `f_μ` is a `meso_core::transfer::Transfer`, the very facet BRDF that
 //! `meso_core::convolution::effective_brdf_with` (and so `meso brdf` and the renderer)
@@ -41,6 +47,10 @@ pub struct GonioParams {
     /// the facet normal continues the path (throughput `f_μ·π`), and every hit is lit directly
     /// (shadow ray towards `i`); paths that leave the surface end (the light is directional).
     pub bounces: usize,
+    /// The first scattering event whose light (lit directly at that hit) is counted, from 1
+    /// (default: all). 2 keeps only the light that scattered at least once before: the part of
+    /// the BRDF beyond the single bounce.
+    pub first_bounce: usize,
 }
 
 impl Default for GonioParams {
@@ -50,6 +60,7 @@ impl Default for GonioParams {
             shadowing: true,
             seed: 1,
             bounces: 1,
+            first_bounce: 1,
         }
     }
 }
@@ -261,6 +272,22 @@ impl Gonio {
         if i.z <= 0.0 || o.z <= 0.0 {
             return [0.0; 3];
         }
+        self.measure_with(facet, i, o, params, LOBE_SHARE)
+    }
+
+    /// [`Gonio::measure`] with the facet-lobe share `lobe_share` of the continuation's draws
+    /// for microfacet facets (0: cosine-weighted only).
+    fn measure_with(
+        &self,
+        facet: &Transfer,
+        i: DVec3,
+        o: DVec3,
+        params: &GonioParams,
+        lobe_share: f64,
+    ) -> [f64; 3] {
+        if i.z <= 0.0 || o.z <= 0.0 {
+            return [0.0; 3];
+        }
         let n = params.rays_per_side.max(1);
         let (w, h) = (self.w as f64, self.h as f64);
         let start_z = self.zmax + 1.0;
@@ -291,7 +318,8 @@ impl Gonio {
                         let p = ray_o + ray_d * hit.t;
                         let fr = Frame::from_normal_tangent(m, DVec3::X);
                         let im = i.dot(m);
-                        if im > 0.0
+                        if bounce + 1 >= params.first_bounce
+                            && im > 0.0
                             && !(params.shadowing
                                 && self.intersect(p + m * 1e-7, i, 1e-9).is_some())
                         {
@@ -303,15 +331,20 @@ impl Gonio {
                         if bounce + 1 >= params.bounces {
                             break;
                         }
-                        // Cosine-weighted continuation about m: weight f·cos/pdf = f·π.
-                        let (u1, u2): (f64, f64) = (rng.random(), rng.random());
-                        let r = u1.sqrt();
-                        let ph = 2.0 * std::f64::consts::PI * u2;
-                        let local = DVec3::new(r * ph.cos(), r * ph.sin(), (1.0 - u1).sqrt());
+                        // Two numbers for a cosine-weighted draw, a third (the strategy) for
+                        // microfacet facets.
+                        let mut u = [rng.random(), rng.random(), 0.0];
+                        if matches!(facet, Transfer::Microfacet { .. }) {
+                            u[2] = rng.random();
+                        }
+                        let Some((local, weight)) =
+                            continuation(facet, fr.to_local(wo), u, lobe_share)
+                        else {
+                            break;
+                        };
                         let wi = fr.to_world(local);
-                        let f = facet.eval(local, fr.to_local(wo));
                         for c in 0..3 {
-                            through[c] *= f[c] * std::f64::consts::PI;
+                            through[c] *= weight[c];
                         }
                         if through.iter().all(|t| *t <= 0.0) {
                             break;
@@ -333,6 +366,59 @@ impl Gonio {
         let k = 1.0 / ((n * n) as f64 * i.z);
         tot.map(|v| v * k)
     }
+}
+
+/// Share of a microfacet facet's continuation draws taken from its lobe (the rest are
+/// cosine-weighted, which bounds the weight of a draw seen from a grazing direction). The
+/// relative noise (RMSE between seeds) of the light beyond the single bounce, 256² paths, on
+/// half-cylinders with Beckmann α = 0.1 facets / a plain weave with α = 0.05: share 0.25:
+/// 40 % / 17 %; 0.5: 3.1 % / 11.6 %; 0.75: 2.8 % / 7.8 %; 0.9: 1.8 % / 6.2 %; 1: 1.7 % / 9.1 %.
+const LOBE_SHARE: f64 = 0.9;
+
+/// The direction a path continues in after scattering at a facet (its local frame, normal +z)
+/// seen from `wo` (local), and the path's throughput factor `f·cos θ / pdf` (RGB); `None` when
+/// the path ends (a draw below the facet, or nothing reflected). Lambert and Phong facets:
+/// cosine-weighted, factor `f·π`. Microfacet facets: with probability `lobe_share` the mirror
+/// of `wo` about a normal drawn from the facet's `D(m)(m·z)` (density `D(h) h·z / (4 |wo·h|)`),
+/// otherwise cosine-weighted, weighted by the mixture's density. `u ∈ [0, 1)³`, the first
+/// number picking the strategy.
+fn continuation(
+    facet: &Transfer,
+    wo: DVec3,
+    u: [f64; 3],
+    lobe_share: f64,
+) -> Option<(DVec3, [f64; 3])> {
+    use std::f64::consts::PI;
+    let cosine = |u1: f64, u2: f64| {
+        let r = u1.sqrt();
+        let ph = 2.0 * PI * u2;
+        DVec3::new(r * ph.cos(), r * ph.sin(), (1.0 - u1).sqrt())
+    };
+    let Transfer::Microfacet { distribution, .. } = facet else {
+        let local = cosine(u[0], u[1]);
+        let f = facet.eval(local, wo);
+        return Some((local, f.map(|v| v * PI)));
+    };
+    if wo.z <= 0.0 {
+        return None;
+    }
+    let wi = if u[0] < lobe_share {
+        let m = distribution.sample([u[1], u[2]]);
+        meso_core::frame::reflect(wo, m)
+    } else {
+        cosine(u[1], u[2])
+    };
+    if wi.z <= 0.0 {
+        return None;
+    }
+    let h = (wi + wo).normalize();
+    let lobe = distribution.pdf(h) / (4.0 * wo.dot(h).abs().max(1e-300));
+    let pdf = lobe_share * lobe + (1.0 - lobe_share) * wi.z / PI;
+    if pdf <= 0.0 || !pdf.is_finite() {
+        return None;
+    }
+    let f = facet.eval(wi, wo);
+    Some((wi, f.map(|v| v * wi.z / pdf)))
 }
 
 #[cfg(test)]
@@ -390,5 +476,47 @@ mod tests {
             seen[usize::from(hit.triangle)] += 1;
         }
         assert!(seen[0] > 500 && seen[1] > 500, "{seen:?}");
+    }
+
+    /// The facet-lobe continuation changes the noise, not the answer: on V-grooves with rough
+    /// conductor facets (GGX α = 0.3, where cosine-weighted draws converge too), four bounces
+    /// measured with the mixture and with cosine-weighted draws alone agree within 3 % per
+    /// direction pair (each about 0.5 % noisy at 384² paths), and the part beyond the single
+    /// bounce (`first_bounce = 2`) is most of the total here (all of it where no wall is both
+    /// lit and seen).
+    #[test]
+    fn lobe_continuation_agrees_with_cosine_continuation() {
+        use meso_core::ndf::{Distribution, Microfacet};
+        use meso_core::transfer::Fresnel;
+        let map = crate::fixtures::v_grooves(32, 8, 0.25, 1.0 / 32.0).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let facet = Transfer::Microfacet {
+            distribution: Microfacet::new(Distribution::Ggx, 0.3, 0.3).unwrap(),
+            fresnel: Fresnel::None,
+        };
+        let params = GonioParams {
+            rays_per_side: 384,
+            bounces: 4,
+            ..GonioParams::default()
+        };
+        let beyond = GonioParams {
+            first_bounce: 2,
+            ..params
+        };
+        let d = meso_core::frame::spherical_direction_deg;
+        for (i, o) in [
+            (d(0.0, 0.0), d(30.0, 180.0)),
+            (d(40.0, 0.0), d(40.0, 180.0)),
+            (d(50.0, 90.0), d(20.0, 0.0)),
+        ] {
+            let mixed = g.measure_with(&facet, i, o, &params, LOBE_SHARE)[0];
+            let cosine = g.measure_with(&facet, i, o, &params, 0.0)[0];
+            assert!(
+                (mixed / cosine - 1.0).abs() < 0.03,
+                "{i:?} {o:?}: lobe mixture {mixed}, cosine {cosine}"
+            );
+            let part = g.measure_with(&facet, i, o, &beyond, LOBE_SHARE)[0];
+            assert!(part > 0.2 * mixed && part <= mixed, "{part} of {mixed}");
+        }
     }
 }

@@ -352,6 +352,7 @@ impl FacetRadiosity {
 pub struct LazyRadiosity {
     load: Box<dyn Fn() -> Result<HeightMap, String> + Send + Sync>,
     built: std::sync::OnceLock<Result<FacetRadiosity, String>>,
+    traced: std::sync::OnceLock<Result<Gonio, String>>,
 }
 
 impl LazyRadiosity {
@@ -360,7 +361,24 @@ impl LazyRadiosity {
         LazyRadiosity {
             load: Box::new(load),
             built: std::sync::OnceLock::new(),
+            traced: std::sync::OnceLock::new(),
         }
+    }
+
+    /// The ray tracer of the same map (what the light between glossy facets is path traced
+    /// on, `crate::facet_ndf`), built on the first call; the radiosity's own when that is
+    /// built already.
+    ///
+    /// # Errors
+    /// Why it cannot be built (the map does not load, or is clamped: [`Gonio::new`]).
+    pub fn tracer(&self) -> Result<&Gonio, &str> {
+        if let Some(Ok(r)) = self.built.get() {
+            return Ok(&r.gonio);
+        }
+        self.traced
+            .get_or_init(|| Gonio::new(&(self.load)()?).map_err(|e| e.to_string()))
+            .as_ref()
+            .map_err(String::as_str)
     }
 
     /// The model, built on the first call.
@@ -379,6 +397,7 @@ impl std::fmt::Debug for LazyRadiosity {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("LazyRadiosity")
             .field("built", &self.built.get().map(Result::is_ok))
+            .field("traced", &self.traced.get().map(Result::is_ok))
             .finish_non_exhaustive()
     }
 }

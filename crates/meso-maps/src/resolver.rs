@@ -36,6 +36,7 @@ use crate::pyramid::{extract, ExtractParams, Pyramid, Source};
 use meso_core::convolution::Form;
 use meso_core::material::{MaterialError, NdfResolver, ResolvedNdf, VisibilityModel};
 use meso_core::ndf::{Ndf, PhongPeaks};
+use meso_core::transfer::Transfer;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -250,30 +251,42 @@ impl MapsResolver {
     }
 
     /// Report ([`MapsResolver::warn`]) when `material`, loaded from `file` through this
-    /// resolver, asks for the light between facets (`interreflection = true`) and its
-    /// visibility model cannot trace it from the geometry (a clamped map, central normals, a map
-    /// over the radiosity's size: `VisibilityModel::interreflection_solved`): the coarser
-    /// sky-view estimate is used instead (docs/heightmaps.md).
+    /// resolver, asks for the light between facets (`interreflection = true`) and will not get
+    /// it traced from the geometry: its visibility model cannot (a clamped map, central
+    /// normals, a map over the radiosity's size, mirror facets:
+    /// `VisibilityModel::interreflection_solved`), and then Lambert facets get the coarser
+    /// sky-view estimate and others the single bounce only; or the caller evaluates
+    /// `interactive`ly (the renderer: `meso_core::shading::Policy::Interactive`), which keeps
+    /// the sky-view estimate for Lambert facets (said in docs/heightmaps.md) and leaves the
+    /// light between glossy facets out (said here, since the picture would lack it silently).
     pub fn warn_estimated_interreflection(
         &self,
         file: &Path,
         material: &meso_core::material::Material,
+        interactive: bool,
     ) {
         use meso_core::material::ShadowingKind;
         if material.shadowing != ShadowingKind::VisibilityInterreflected {
             return;
         }
+        let lambert = matches!(material.transfer, Transfer::Lambert { .. });
         if let Some(Err(why)) = material
             .horizon
             .as_ref()
-            .map(|h| h.interreflection_solved())
+            .map(|h| h.interreflection_solved(&material.transfer))
         {
+            let instead = if lambert {
+                "it is estimated from the facets' sky views instead (coarser: docs/heightmaps.md)"
+            } else {
+                "it is left out: only the single bounce is computed (docs/heightmaps.md)"
+            };
+            self.warn(file, &format!("interreflection = true: {why}; {instead}"));
+        } else if interactive && !lambert {
             self.warn(
                 file,
-                &format!(
-                    "interreflection = true: {why}; it is estimated from the facets' sky views \
-                     instead (coarser: docs/heightmaps.md)"
-                ),
+                "interreflection = true: the renderer leaves out the light between glossy \
+                 facets (it is path traced per direction pair, too slow per pixel); \
+                 `meso brdf` includes it",
             );
         }
     }

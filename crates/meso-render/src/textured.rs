@@ -492,7 +492,7 @@ pub fn resolve_material_file(
         Ok(Some(s)) => Ok(s),
         Ok(None) => meso_core::material::Material::from_file(path, maps)
             .map(|m| {
-                maps.warn_estimated_interreflection(path, &m);
+                maps.warn_estimated_interreflection(path, &m, true);
                 Arc::new(crate::MaterialShader::new(&m)) as Arc<dyn Shader>
             })
             .map_err(|e| -> crate::ResolveError { format!("{e:#}").into() }),

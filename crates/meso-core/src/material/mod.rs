@@ -55,8 +55,8 @@ pub enum ShadowingKind {
     /// normal, e.g. `represent = "facets"`). The default wherever one is available.
     Visibility,
     /// [`ShadowingKind::Visibility`] plus the light reflected more than once inside the
-    /// microgeometry (`[shadowing] kind = "visibility"`, `interreflection = true`; Lambert
-    /// facets; `meso_core::convolution::deltas_interreflection`).
+    /// microgeometry (`[shadowing] kind = "visibility"`, `interreflection = true`; Lambert,
+    /// Phong or microfacet facets; `meso_core::convolution::deltas_interreflection`).
     VisibilityInterreflected,
 }
 
@@ -324,12 +324,12 @@ impl MaterialSpec {
             );
         }
         if shadowing == ShadowingKind::VisibilityInterreflected
-            && !matches!(self.transfer, Transfer::Lambert { .. })
+            && matches!(self.transfer, Transfer::Mirror { .. })
         {
             return err(
-                "[shadowing] interreflection = true needs Lambert facets ([transfer] kind = \
-                 \"lambert\"): the estimate of the light between facets assumes they scatter \
-                 diffusely",
+                "[shadowing] interreflection = true needs facets with a BRDF (lambert, phong or \
+                 microfacet): the light between perfect mirror facets cannot be traced; use \
+                 [transfer] kind = \"microfacet\" with a small alpha",
             );
         }
         if matches!(
