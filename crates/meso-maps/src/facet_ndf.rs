@@ -25,8 +25,9 @@ pub struct FacetVisibility {
     pub bins: Arc<BinnedVisibility>,
     /// The whole map's horizon statistics.
     pub horizon: HorizonStats,
-    /// The light between the map's facets (Lambert facets by radiosity, glossy ones by path
-    /// tracing: [`glossy_interreflection`]), built on first use; `None` where the map cannot be
+    /// The light between the map's facets (Lambert facets by radiosity, glossy ones, and
+    /// Lambert ones on maps over the radiosity's size, by path tracing:
+    /// [`traced_interreflection`]), built on first use; `None` where the map cannot be
     /// traced again (then Lambert facets get the sky-view estimate of
     /// `meso_core::convolution::deltas_interreflection`, glossy ones the single bounce).
     pub radiosity: Option<Arc<LazyRadiosity>>,
@@ -61,14 +62,15 @@ impl VisibilityModel for FacetVisibility {
     fn interreflected(&self, transfer: &Transfer, i: DVec3, o: DVec3) -> Option<[f64; 3]> {
         let lazy = self.radiosity.as_ref()?;
         match transfer {
-            Transfer::Lambert { albedo } => {
+            Transfer::Mirror { .. } => None,
+            Transfer::Lambert { albedo } if lazy.get().is_ok() => {
                 Some(lazy.get().ok()?.multi_bounce(*albedo, i, o, None))
             }
-            Transfer::Mirror { .. } => None,
+            // Glossy facets, and Lambert facets on a map over the radiosity's size.
             _ => Some(
                 lazy.tracer()
                     .ok()?
-                    .measure(transfer, i, o, &glossy_interreflection()),
+                    .measure(transfer, i, o, &traced_interreflection()),
             ),
         }
     }
@@ -77,7 +79,7 @@ impl VisibilityModel for FacetVisibility {
             (_, Transfer::Mirror { .. }) => {
                 Err("the light between perfect mirror facets cannot be traced".into())
             }
-            (Some(r), Transfer::Lambert { .. }) => r.get().map(|_| ()).map_err(str::to_owned),
+            (Some(r), Transfer::Lambert { .. }) if r.get().is_ok() => Ok(()),
             (Some(r), _) => r.tracer().map(|_| ()).map_err(str::to_owned),
             (None, _) => Err("light between facets is traced only on a wrapped height map with `normals = \"triangles\"`"
                 .into()),
@@ -88,30 +90,33 @@ impl VisibilityModel for FacetVisibility {
     }
 }
 
-/// Rays per side of the path tracing that gives the light between glossy (Phong, microfacet)
-/// facets: `256²` paths per direction pair. Measured on half-cylinders and their grooves with
-/// Beckmann α = 0.1 and 0.05 facets: the relative RMSE between seeds of the part beyond the
-/// single bounce is 7–16 % with 128², ≈ 3 % with 256² (≈ 35 ms a pair) and 1–3 % with 512²
-/// (≈ 140 ms a pair; docs/heightmaps.md, "Light between glossy facets").
-pub const GLOSSY_RAYS_PER_SIDE: usize = 256;
-/// Scattering events followed per path for the light between glossy facets (paths rarely
-/// survive this many; the gonioreflectometer's check follows 8).
-pub const GLOSSY_BOUNCES: usize = 32;
+/// Rays per side of the path tracing that gives the light between facets where no radiosity
+/// holds it (glossy facets; Lambert facets on maps over [`crate::radiosity::MAX_PATCHES`]):
+/// `256²` paths per direction pair. Measured on half-cylinders and their grooves with Beckmann
+/// α = 0.1 and 0.05 facets: the relative RMSE between seeds of the part beyond the single bounce
+/// is 4–16 % with 128², 2–6 % with 256² (≈ 17 ms a pair) and 2–3 % with 512² (≈ 68 ms a pair;
+/// docs/heightmaps.md, "Light between glossy facets").
+pub const TRACED_RAYS_PER_SIDE: usize = 256;
+/// Scattering events followed per traced path (`0.8³² ≈ 0.08 %` of the light of Lambert facets
+/// of albedo 0.8 is left after as many; glossy paths rarely survive them; the
+/// gonioreflectometer's check follows 8).
+pub const TRACED_BOUNCES: usize = 32;
 
-/// How the light between glossy facets is traced (`interreflection = true` with Phong or
-/// microfacet facets): the gonioreflectometer's paths on the map's own triangles
-/// ([`crate::Gonio::measure`]), counting only the light that has scattered at least once before
-/// ([`GonioParams::first_bounce`] = 2), since the facets' own single bounce comes from the NDF
-/// and its visibility; [`GLOSSY_RAYS_PER_SIDE`]² paths of at most [`GLOSSY_BOUNCES`] events, a
-/// fixed seed (the same paths for every direction pair, so the result is smooth in the
-/// directions and repeatable).
+/// How the light between facets is path traced where no radiosity holds it
+/// (`interreflection = true` with Phong or microfacet facets, or Lambert facets on a map of
+/// more than [`crate::radiosity::MAX_PATCHES`] patches): the gonioreflectometer's paths on the
+/// map's own triangles ([`crate::Gonio::measure`]), counting only the light that has scattered
+/// at least once before ([`GonioParams::first_bounce`] = 2), since the facets' own single
+/// bounce comes from the NDF and its visibility; [`TRACED_RAYS_PER_SIDE`]² paths of at most
+/// [`TRACED_BOUNCES`] events, a fixed seed (the same paths for every direction pair, so the
+/// result is smooth in the directions and repeatable).
 #[must_use]
-pub fn glossy_interreflection() -> GonioParams {
+pub fn traced_interreflection() -> GonioParams {
     GonioParams {
-        rays_per_side: GLOSSY_RAYS_PER_SIDE,
+        rays_per_side: TRACED_RAYS_PER_SIDE,
         shadowing: true,
         seed: 0x6c6f_7373_7921,
-        bounces: GLOSSY_BOUNCES,
+        bounces: TRACED_BOUNCES,
         first_bounce: 2,
     }
 }

@@ -63,8 +63,9 @@ const MAX_ITERATIONS: usize = 1000;
 const OFFSET: f64 = 1e-7;
 /// Patches per triangle: its midpoint subdivision.
 const PATCHES: usize = 4;
-/// The most patches solved (a 256² map: ≈ 60 MB of points, rays and radiances); larger maps
-/// keep the sky-view estimate.
+/// The most patches solved (a 256² map: ≈ 60 MB of points, rays and radiances); the light
+/// between the facets of larger maps is path traced instead
+/// (`crate::facet_ndf::traced_interreflection`).
 pub const MAX_PATCHES: usize = 1 << 19;
 
 /// The centres of the midpoint subdivision of triangle `v`: the corner triangles at `v[0]`,

@@ -253,7 +253,7 @@ impl MapsResolver {
     /// Report ([`MapsResolver::warn`]) when `material`, loaded from `file` through this
     /// resolver, asks for the light between facets (`interreflection = true`) and will not get
     /// it traced from the geometry: its visibility model cannot (a clamped map, central
-    /// normals, a map over the radiosity's size, mirror facets:
+    /// normals, mirror facets:
     /// `VisibilityModel::interreflection_solved`), and then Lambert facets get the coarser
     /// sky-view estimate and others the single bounce only; or the caller evaluates
     /// `interactive`ly (the renderer: `meso_core::shading::Policy::Interactive`), which keeps

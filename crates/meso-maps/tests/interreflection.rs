@@ -2,7 +2,7 @@
 //! `interreflection = true` against the gonioreflectometer following 8 bounces, on creased
 //! surfaces where the second and later bounces add a large share: Lambert facets
 //! (`meso_maps::FacetRadiosity`) and glossy rough-conductor facets (Beckmann α = 0.1 and 0.05,
-//! path traced on the map: `meso_maps::facet_ndf::glossy_interreflection`). Relative RMSE over
+//! path traced on the map: `meso_maps::facet_ndf::traced_interreflection`). Relative RMSE over
 //! the far-field pairs (θ ≤ 60°), as in `tests/visibility.rs`. `IR_DEBUG=1` prints the table.
 
 use meso_core::material::Material;
@@ -78,9 +78,10 @@ fn errors(name: &str, map: &HeightMap, transfer: &str) -> Errors {
     let f8: Vec<f64> = pairs.iter().map(|&(i, o)| multi.brdf(i, o)[0]).collect();
     let t0 = std::time::Instant::now();
     let lambert = transfer == LAMBERT;
-    let radiosity = lambert.then(|| FacetRadiosity::new(&loaded).unwrap());
+    // Maps over the radiosity's size are path traced, like glossy facets.
+    let radiosity = lambert.then(|| FacetRadiosity::new(&loaded).ok()).flatten();
     let built = t0.elapsed().as_secs_f64();
-    let mut glossy8 = meso_maps::facet_ndf::glossy_interreflection();
+    let mut glossy8 = meso_maps::facet_ndf::traced_interreflection();
     glossy8.bounces = 8;
     let b8: Vec<f64> = pairs
         .iter()
@@ -160,7 +161,7 @@ fn interreflection_against_eight_bounces_on_creased_surfaces() {
 }
 
 /// Glossy facets (rough conductors, Fresnel 1, Beckmann α = 0.1 and 0.05): the light between
-/// them is path traced on the map's triangles (`glossy_interreflection`: 256² paths a pair, a
+/// them is path traced on the map's triangles (`traced_interreflection`: 256² paths a pair, a
 /// seed of its own) and added to the NDF's single bounce with its normal-conditioned
 /// visibility; against the ray tracer's 8 bounces (384² paths, another seed).
 #[test]
@@ -189,4 +190,23 @@ fn glossy_interreflection_against_eight_bounces_on_creased_surfaces() {
             );
         }
     }
+}
+
+/// Lambert facets on a map over the radiosity's size (`MAX_PATCHES`: 264² cells here) no
+/// longer fall back to the sky-view estimate: the light between them is path traced like
+/// glossy facets' (`traced_interreflection`), and `interreflection_solved` says so.
+#[test]
+fn lambert_interreflection_on_a_map_over_the_radiositys_size_is_traced() {
+    let map = fixtures::half_cylinders(264, 24, 1.0 / 264.0, -1.0).unwrap();
+    assert!(FacetRadiosity::new(&map).is_err());
+    let e = errors("big-grooves", &map, LAMBERT);
+    assert!(
+        e.multi < 0.05 && e.multi8 < 0.03,
+        "single {:.3}, interreflected {:.3}, to 8 bounces {:.3} (8 bounces add {:.3})",
+        e.single,
+        e.multi,
+        e.multi8,
+        e.gain
+    );
+    assert!(e.single > 0.2, "single bounce {:.3}", e.single);
 }
