@@ -94,6 +94,13 @@ pub struct Hit {
 }
 
 impl Gonio {
+    /// The memory (bytes) a tracer of a wrapped map of `width × height` samples holds: its
+    /// heights and each cell's highest corner, 8 bytes each.
+    #[must_use]
+    pub fn bytes(width: usize, height: usize) -> u64 {
+        (width as u64).saturating_mul(height as u64).saturating_mul(16)
+    }
+
     /// Prepare a wrapped height map for tracing. Clamped maps are refused (the tile would not
     /// continue, so rays near the border would see a cliff).
     pub fn new(map: &HeightMap) -> Result<Gonio> {

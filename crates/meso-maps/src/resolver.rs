@@ -549,8 +549,17 @@ impl MapsResolver {
             // when a material first asks for it.
             let file = file.to_path_buf();
             vis.radiosity = Some(Arc::new(crate::radiosity::LazyRadiosity::new(move || {
-                HeightMap::load(&file, p.texel_size, p.height_scale, p.border)
-                    .map_err(|e| e.to_string())
+                let map = HeightMap::load(&file, p.texel_size, p.height_scale, p.border)
+                    .map_err(|e| e.to_string())?;
+                // The ray tracer's own copy of the heights, budgeted before it is made (the
+                // radiosity's patches are bounded by `MAX_PATCHES` on their own).
+                meso_core::budget::check(
+                    &file,
+                    "tracing the light between the map's facets",
+                    crate::gonio::Gonio::bytes(map.width(), map.height()),
+                )
+                .map_err(|e| e.to_string())?;
+                Ok(map)
             })));
         }
         Ok(ResolvedNdf {
