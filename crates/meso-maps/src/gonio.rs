@@ -98,7 +98,9 @@ impl Gonio {
     /// heights and each cell's highest corner, 8 bytes each.
     #[must_use]
     pub fn bytes(width: usize, height: usize) -> u64 {
-        (width as u64).saturating_mul(height as u64).saturating_mul(16)
+        (width as u64)
+            .saturating_mul(height as u64)
+            .saturating_mul(16)
     }
 
     /// Prepare a wrapped height map for tracing. Clamped maps are refused (the tile would not

@@ -131,22 +131,24 @@ fn errors(name: &str, map: &HeightMap, transfer: &str) -> Errors {
     out
 }
 
+/// The creased surfaces of these tests, 64² tiles, named with `prefix`: 63° V-grooves,
+/// touching half-cylinders, their negative (grooves) and a plain weave.
+fn creased_maps(prefix: &str) -> Vec<(String, HeightMap)> {
+    let s = 1.0 / 64.0;
+    [
+        ("vgrooves", fixtures::v_grooves(64, 16, 0.25, s)),
+        ("cylinders", fixtures::half_cylinders(64, 16, s, 1.0)),
+        ("grooves", fixtures::half_cylinders(64, 16, s, -1.0)),
+        ("weave", fixtures::woven(64, 16, 0.06, s)),
+    ]
+    .into_iter()
+    .map(|(name, map)| (format!("{prefix}{name}"), map.unwrap()))
+    .collect()
+}
+
 #[test]
 fn interreflection_against_eight_bounces_on_creased_surfaces() {
-    let s = 1.0 / 64.0;
-    let maps = [
-        ("vgrooves", fixtures::v_grooves(64, 16, 0.25, s).unwrap()),
-        (
-            "cylinders",
-            fixtures::half_cylinders(64, 16, s, 1.0).unwrap(),
-        ),
-        (
-            "grooves",
-            fixtures::half_cylinders(64, 16, s, -1.0).unwrap(),
-        ),
-        ("weave", fixtures::woven(64, 16, 0.06, s).unwrap()),
-    ];
-    for (name, map) in &maps {
+    for (name, map) in &creased_maps("") {
         let e = errors(name, map, LAMBERT);
         let (single, multi, multi8, gain) = (e.single, e.multi, e.multi8, e.gain);
         // The radiosity of the facets follows the ray tracer: within 5 % to convergence and
@@ -166,20 +168,7 @@ fn interreflection_against_eight_bounces_on_creased_surfaces() {
 /// visibility; against the ray tracer's 8 bounces (384² paths, another seed).
 #[test]
 fn glossy_interreflection_against_eight_bounces_on_creased_surfaces() {
-    let s = 1.0 / 64.0;
-    let maps = [
-        ("g-vgrooves", fixtures::v_grooves(64, 16, 0.25, s).unwrap()),
-        (
-            "g-cylinders",
-            fixtures::half_cylinders(64, 16, s, 1.0).unwrap(),
-        ),
-        (
-            "g-grooves",
-            fixtures::half_cylinders(64, 16, s, -1.0).unwrap(),
-        ),
-        ("g-weave", fixtures::woven(64, 16, 0.06, s).unwrap()),
-    ];
-    for (name, map) in &maps {
+    for (name, map) in &creased_maps("g-") {
         for (alpha, transfer) in [(0.1, GLOSSY), (0.05, GLOSSIER)] {
             let e = errors(&format!("{name}-{alpha}"), map, transfer);
             let (single, multi, multi8, gain) = (e.single, e.multi, e.multi8, e.gain);
