@@ -3,7 +3,7 @@
 //! streams (item 8), messages (item 12).
 
 mod common;
-use common::{cmd, ok, run, s, stderr, tmpdir};
+use common::{cmd, heightmap_material, ok, one_pair_csv, run, s, stderr, tmpdir};
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -1010,8 +1010,13 @@ fn item13_extract_and_render_report_each_phase_time() {
     // A render of a height-map material: the extraction is its own phase, not hidden.
     std::fs::write(
         d.join("m.toml"),
-        "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 0.01\nheight_scale = 0.05\n\
-         represent = \"lobes\"\n[transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n",
+        heightmap_material(
+            "h.png",
+            0.01,
+            0.05,
+            "represent = \"lobes\"\n[transfer]\nkind = \"phong\"\nexponent = 50.0\n\
+             specular = [1.0, 1.0, 1.0]\n",
+        ),
     )
     .unwrap();
     std::fs::write(d.join("scene.toml"), scene("m.toml")).unwrap();
@@ -1067,8 +1072,12 @@ fn outputs_never_replace_files_the_inputs_name() {
     };
     std::fs::write(
         d.join("hm.toml"),
-        "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 0.01\nheight_scale = 0.002\n\
-         [transfer]\nkind = \"microfacet\"\nalpha = 0.2\n",
+        heightmap_material(
+            "h.png",
+            0.01,
+            0.002,
+            "[transfer]\nkind = \"microfacet\"\nalpha = 0.2\n",
+        ),
     )
     .unwrap();
     std::fs::write(
@@ -1077,11 +1086,7 @@ fn outputs_never_replace_files_the_inputs_name() {
          height_scale = 0.01\n[transfer]\nkind = \"phong\"\nexponent = 20.0\n",
     )
     .unwrap();
-    std::fs::write(
-        d.join("pairs.csv"),
-        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
-    )
-    .unwrap();
+    one_pair_csv(d.join("pairs.csv"));
     let head = "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\n\
                 look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 2.0\n\
                 [image]\nwidth = 8\nheight = 8\nspp = 1\n";

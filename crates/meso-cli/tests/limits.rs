@@ -2,7 +2,7 @@
 //! absurd but finite values, sizes and budgets (the CLI audit's findings).
 
 mod common;
-use common::{ok, run, s, stderr, tmpdir};
+use common::{heightmap_material, ok, one_pair_csv, run, s, stderr, tmpdir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -33,8 +33,12 @@ fn endless_device_inputs_are_refused_within_the_budget() {
     let m = d.join("z.toml");
     std::fs::write(
         &m,
-        "[ndf]\nkind = \"heightmap\"\nfile = \"/dev/zero\"\ntexel_size = 1.0\nheight_scale = 1.0\n\
-         [transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n",
+        heightmap_material(
+            "/dev/zero",
+            1.0,
+            1.0,
+            "[transfer]\nkind = \"phong\"\nexponent = 50.0\nspecular = [1.0, 1.0, 1.0]\n",
+        ),
     )
     .unwrap();
     let out = d.join("o.map");
@@ -287,13 +291,7 @@ fn export_of_a_mapped_material_gives_advice_that_works() {
         s(&d.join("e2")),
     ]));
     let hm = d.join("hm.toml");
-    std::fs::write(
-        &hm,
-        format!(
-            "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 1.0\nheight_scale = 0.5\n{transfer}"
-        ),
-    )
-    .unwrap();
+    std::fs::write(&hm, heightmap_material("h.png", 1.0, 0.5, transfer)).unwrap();
     let o = run(&["export", s(&hm), "--out", s(&d.join("e3"))]);
     let want = format!(
         "meso export {} --texel-size 1 --height-scale 0.5 --out DIR",
@@ -381,19 +379,19 @@ fn a_material_height_map_through_a_fifo_is_read_once() {
         .success());
     std::fs::write(
         d.join("m.toml"),
-        "[ndf]\nkind = \"heightmap\"\nfile = \"ff.png\"\ntexel_size = 1.0\nheight_scale = 1.0\n\
-         [transfer]\nkind = \"microfacet\"\nalpha = 0.2\n",
+        heightmap_material(
+            "ff.png",
+            1.0,
+            1.0,
+            "[transfer]\nkind = \"microfacet\"\nalpha = 0.2\n",
+        ),
     )
     .unwrap();
-    std::fs::write(
-        d.join("p.csv"),
-        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
-    )
-    .unwrap();
+    let pairs = one_pair_csv(d.join("p.csv"));
     let f2 = fifo.clone();
     let writer = std::thread::spawn(move || std::fs::write(&f2, bytes));
     let mut child = common::cmd()
-        .args(["brdf", s(&d.join("m.toml")), "--pairs", s(&d.join("p.csv"))])
+        .args(["brdf", s(&d.join("m.toml")), "--pairs", s(&pairs)])
         .env("MESO_CACHE_DIR", d.join("cache"))
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
@@ -429,25 +427,25 @@ fn a_material_height_map_through_a_fifo_is_read_once() {
 fn estimated_interreflection_is_reported() {
     let d = tmpdir("limits", "interreflection");
     slope_png(&d.join("h.png"));
-    std::fs::write(
-        d.join("p.csv"),
-        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
-    )
-    .unwrap();
+    let pairs = one_pair_csv(d.join("p.csv"));
     for border in ["clamp", "wrap"] {
         let m = d.join(format!("{border}.toml"));
         std::fs::write(
             &m,
-            format!(
-                "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 1.0\n\
-                 height_scale = 1.0\nrepresent = \"facets\"\nborder = \"{border}\"\n\
-                 [transfer]\nkind = \"lambert\"\n[shadowing]\nkind = \"visibility\"\n\
-                 interreflection = true\n"
+            heightmap_material(
+                "h.png",
+                1.0,
+                1.0,
+                &format!(
+                    "represent = \"facets\"\nborder = \"{border}\"\n\
+                     [transfer]\nkind = \"lambert\"\n[shadowing]\nkind = \"visibility\"\n\
+                     interreflection = true\n"
+                ),
             ),
         )
         .unwrap();
         let o = common::cmd()
-            .args(["brdf", s(&m), "--pairs", s(&d.join("p.csv"))])
+            .args(["brdf", s(&m), "--pairs", s(&pairs)])
             .env("MESO_CACHE_DIR", d.join("cache"))
             .output()
             .unwrap();
@@ -499,25 +497,25 @@ fn estimated_interreflection_is_reported() {
 fn glossy_interreflection_is_traced_or_reported() {
     let d = tmpdir("limits", "glossy-interreflection");
     slope_png(&d.join("h.png"));
-    std::fs::write(
-        d.join("p.csv"),
-        "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n",
-    )
-    .unwrap();
+    let pairs = one_pair_csv(d.join("p.csv"));
     for border in ["clamp", "wrap"] {
         let m = d.join(format!("{border}.toml"));
         std::fs::write(
             &m,
-            format!(
-                "[ndf]\nkind = \"heightmap\"\nfile = \"h.png\"\ntexel_size = 1.0\n\
-                 height_scale = 1.0\nrepresent = \"facets\"\nborder = \"{border}\"\n\
-                 [transfer]\nkind = \"microfacet\"\nalpha = 0.1\nfresnel = \"none\"\n\
-                 [shadowing]\nkind = \"visibility\"\ninterreflection = true\n"
+            heightmap_material(
+                "h.png",
+                1.0,
+                1.0,
+                &format!(
+                    "represent = \"facets\"\nborder = \"{border}\"\n\
+                     [transfer]\nkind = \"microfacet\"\nalpha = 0.1\nfresnel = \"none\"\n\
+                     [shadowing]\nkind = \"visibility\"\ninterreflection = true\n"
+                ),
             ),
         )
         .unwrap();
         let o = common::cmd()
-            .args(["brdf", s(&m), "--pairs", s(&d.join("p.csv"))])
+            .args(["brdf", s(&m), "--pairs", s(&pairs)])
             .env("MESO_CACHE_DIR", d.join("cache"))
             .output()
             .unwrap();

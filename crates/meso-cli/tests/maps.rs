@@ -2,7 +2,9 @@
 //! height-map and map-file materials, `meso gonio`, and bad inputs.
 
 mod common;
-use common::{ok, run, s, tmpdir};
+use common::{ok, one_pair_csv, run, s, tmpdir};
+
+use rand::RngExt;
 
 use std::path::Path;
 use std::process::Output;
@@ -10,15 +12,7 @@ use std::process::Output;
 /// A periodic Gaussian-like random surface (a sum of random waves with a Gaussian spectrum) as a
 /// 16-bit grey PNG, codes within the middle of the range ("gravel").
 fn gravel_png(path: &Path, n: u32, seed: u64) {
-    let mut state = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut rnd = move || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64) / ((1u64 << 53) as f64)
-    };
+    let mut rng = meso_testkit::rng(seed);
     let mut waves = Vec::new();
     for kx in -8i32..=8 {
         for ky in -8i32..=8 {
@@ -27,7 +21,12 @@ fn gravel_png(path: &Path, n: u32, seed: u64) {
                 continue;
             }
             let amp = (-k2 / 18.0).exp();
-            waves.push((kx as f64, ky as f64, amp, rnd() * std::f64::consts::TAU));
+            waves.push((
+                kx as f64,
+                ky as f64,
+                amp,
+                rng.random::<f64>() * std::f64::consts::TAU,
+            ));
         }
     }
     let mut h = vec![0.0; (n * n) as usize];
@@ -594,8 +593,7 @@ fn material_paths_say_what_loading_the_height_map_found() {
         image::Rgb([(c * 15) as u8, (r * 15) as u8, 40])
     });
     img.save(d.join("colour.png")).unwrap();
-    let pairs = d.join("pairs.csv");
-    std::fs::write(&pairs, "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n").unwrap();
+    let pairs = one_pair_csv(d.join("pairs.csv"));
     for represent in ["facets", "lobes"] {
         let m = d.join(format!("{represent}.toml"));
         std::fs::write(

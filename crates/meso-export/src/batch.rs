@@ -510,19 +510,15 @@ fn aniso_avx2(p: &AnisoPairs, lobe: &AnisoGgx, target: &[f64], out: &mut [f64]) 
 mod tests {
     use super::*;
     use crate::ggx::{direction_pairs, shaded};
+    use rand::RngExt;
 
     /// A normal, a width and a direction set.
     type Case = (DVec3, f64, Vec<(DVec3, DVec3)>);
 
     /// Random unit vectors, some below the horizon, and direction sets of several widths.
     fn cases() -> Vec<Case> {
-        let mut seed = 987_654_321u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = meso_testkit::rng(987_654_321);
+        let mut rnd = move || rng.random::<f64>();
         let mut out = Vec::new();
         for k in 0..300 {
             let n = DVec3::new(rnd() - 0.5, rnd() - 0.5, 0.2 + rnd()).normalize();

@@ -850,6 +850,7 @@ pub(crate) fn fit_aniso_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::RngExt;
 
     /// The refinement [`minimise_alpha`] had before Brent's method (until 2026-12-05): 30
     /// golden-section steps in the bracket around the best scan point; the reference of
@@ -953,13 +954,8 @@ mod tests {
     /// the glTF one for n = +z.
     #[test]
     fn aniso_ggx_with_equal_widths_is_the_isotropic_one() {
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = meso_testkit::rng(12345);
+        let mut rnd = || rng.random::<f64>();
         let unit = |rnd: &mut dyn FnMut() -> f64| {
             let z = rnd();
             let ph = 2.0 * PI * rnd();
@@ -1051,13 +1047,8 @@ mod tests {
     /// 0.001–1.
     #[test]
     fn one_division_form_is_the_textbook_lobe() {
-        let mut seed = 77u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = meso_testkit::rng(77);
+        let mut rnd = move || rng.random::<f64>();
         let mut worst = 0.0_f64;
         for k in 0..20000 {
             let n = DVec3::new(rnd() - 0.5, rnd() - 0.5, 1.0).normalize();
@@ -1135,13 +1126,8 @@ mod tests {
     /// α moved by twice [`LN_ALPHA_TOLERANCE`]), in fewer than half the evaluations.
     #[test]
     fn brent_refinement_finds_the_golden_section_minimum() {
-        let mut seed = 2024u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = meso_testkit::rng(2024);
+        let mut rnd = move || rng.random::<f64>();
         let (mut brent_evals, mut golden_evals, mut worst) = (0usize, 0usize, 0.0_f64);
         for case in 0..400 {
             let k = 2 + (rnd() * 63.0) as usize;

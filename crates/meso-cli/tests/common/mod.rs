@@ -43,3 +43,21 @@ pub fn ok(o: &Output) {
         stderr(o)
     );
 }
+
+/// Write the one-pair measurement CSV most BRDF tests query (θ_i = 30°, φ_i = 0, mirror
+/// direction θ_o = 30°, φ_o = 180°) to `path`, and return `path`.
+pub fn one_pair_csv(path: PathBuf) -> PathBuf {
+    std::fs::write(&path, "theta_i,phi_i,theta_o,phi_o\n30,0,30,180\n").unwrap();
+    path
+}
+
+/// A material whose NDF is `[ndf] kind = "heightmap"` over the image `file` (relative to the
+/// material, or absolute) with the given texel size and height scale, followed by `rest`: more
+/// `[ndf]` keys and the other tables, each line ending in `\n`. The numbers are written as
+/// TOML floats (`1.0`, `0.01`).
+pub fn heightmap_material(file: &str, texel_size: f64, height_scale: f64, rest: &str) -> String {
+    format!(
+        "[ndf]\nkind = \"heightmap\"\nfile = \"{file}\"\ntexel_size = {texel_size:?}\n\
+         height_scale = {height_scale:?}\n{rest}"
+    )
+}
