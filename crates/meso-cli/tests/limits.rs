@@ -105,17 +105,24 @@ const MATERIAL: &str = "[ndf]\nkind = \"phong-peaks\"\nlobes = [{ axis = [0.0, 0
 fn scene(d: &Path, light: &str) -> PathBuf {
     std::fs::write(d.join("m.toml"), MATERIAL).unwrap();
     let p = d.join("s.toml");
+    plane_scene(&p, "m.toml", light, 8);
+    p
+}
+
+/// Write at `path` a scene of one plane of `material` (a file name beside it), seen from above by
+/// an orthographic camera in `pixels × pixels` at 1 spp, under `light` (a `[[light]]` table's
+/// body).
+fn plane_scene(path: &Path, material: &str, light: &str, pixels: u32) {
     std::fs::write(
-        &p,
+        path,
         format!(
             "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\n\
-             up = [0.0, 1.0, 0.0]\nwidth = 2.0\n[image]\nwidth = 8\nheight = 8\nspp = 1\n\
+             up = [0.0, 1.0, 0.0]\nwidth = 2.0\n[image]\nwidth = {pixels}\nheight = {pixels}\nspp = 1\n\
              [[object]]\nkind = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\n\
-             material = \"m.toml\"\n[[light]]\n{light}\n"
+             material = \"{material}\"\n[[light]]\n{light}\n"
         ),
     )
     .unwrap();
-    p
 }
 
 /// A light of 1e300 rendered infinite pixels with exit 0: lights are bounded, and the message
@@ -420,6 +427,58 @@ fn a_material_height_map_through_a_fifo_is_read_once() {
     writer.join().unwrap().unwrap();
 }
 
+/// Write a `represent = "facets"` material over `h.png` with `border` and the facets `transfer`
+/// (TOML of a `[transfer]` table) asking for `interreflection = true`, and a one-plane scene
+/// that uses it; run `meso brdf` on it and `meso render` on the scene; return their standard
+/// errors.
+fn interreflection_warnings(
+    d: &Path,
+    pairs: &Path,
+    border: &str,
+    transfer: &str,
+) -> (String, String) {
+    let m = d.join(format!("{border}.toml"));
+    std::fs::write(
+        &m,
+        heightmap_material(
+            "h.png",
+            1.0,
+            1.0,
+            &format!(
+                "represent = \"facets\"\nborder = \"{border}\"\n{transfer}\
+                 [shadowing]\nkind = \"visibility\"\ninterreflection = true\n"
+            ),
+        ),
+    )
+    .unwrap();
+    let o = common::cmd()
+        .args(["brdf", s(&m), "--pairs", s(pairs)])
+        .env("MESO_CACHE_DIR", d.join("cache"))
+        .output()
+        .unwrap();
+    ok(&o);
+    let brdf = stderr(&o);
+    let sc = d.join(format!("{border}.scene.toml"));
+    plane_scene(
+        &sc,
+        &format!("{border}.toml"),
+        "kind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\nirradiance = [1.0, 1.0, 1.0]",
+        4,
+    );
+    let o = common::cmd()
+        .args([
+            "render",
+            s(&sc),
+            "--out",
+            s(&d.join(format!("{border}.png"))),
+        ])
+        .env("MESO_CACHE_DIR", d.join("cache"))
+        .output()
+        .unwrap();
+    ok(&o);
+    (brdf, stderr(&o))
+}
+
 /// `interreflection = true` on a map whose light between facets cannot be traced (a clamped
 /// map) says that the coarser sky-view estimate is used, naming the material; on a wrapped map
 /// it is traced and nothing is said.
@@ -429,63 +488,18 @@ fn estimated_interreflection_is_reported() {
     slope_png(&d.join("h.png"));
     let pairs = one_pair_csv(d.join("p.csv"));
     for border in ["clamp", "wrap"] {
-        let m = d.join(format!("{border}.toml"));
-        std::fs::write(
-            &m,
-            heightmap_material(
-                "h.png",
-                1.0,
-                1.0,
-                &format!(
-                    "represent = \"facets\"\nborder = \"{border}\"\n\
-                     [transfer]\nkind = \"lambert\"\n[shadowing]\nkind = \"visibility\"\n\
-                     interreflection = true\n"
-                ),
-            ),
-        )
-        .unwrap();
-        let o = common::cmd()
-            .args(["brdf", s(&m), "--pairs", s(&pairs)])
-            .env("MESO_CACHE_DIR", d.join("cache"))
-            .output()
-            .unwrap();
-        ok(&o);
-        let e = stderr(&o);
+        let (e, r) =
+            interreflection_warnings(&d, &pairs, border, "[transfer]\nkind = \"lambert\"\n");
         let said = e.contains("interreflection = true") && e.contains("sky views");
         assert_eq!(said, border == "clamp", "{border}: {e}");
         if said {
             assert!(e.contains(&format!("{border}.toml: warning")), "{e}");
         }
         // meso render says it once for the scene's material.
-        let sc = d.join(format!("{border}.scene.toml"));
-        std::fs::write(
-            &sc,
-            format!(
-                "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\n\
-                 look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 2.0\n\
-                 [image]\nwidth = 4\nheight = 4\nspp = 1\n[[object]]\nkind = \"plane\"\n\
-                 point = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"{border}.toml\"\n\
-                 [[light]]\nkind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\n\
-                 irradiance = [1.0, 1.0, 1.0]\n"
-            ),
-        )
-        .unwrap();
-        let o = common::cmd()
-            .args([
-                "render",
-                s(&sc),
-                "--out",
-                s(&d.join(format!("{border}.png"))),
-            ])
-            .env("MESO_CACHE_DIR", d.join("cache"))
-            .output()
-            .unwrap();
-        ok(&o);
-        let e = stderr(&o);
         assert_eq!(
-            e.matches("sky views").count(),
+            r.matches("sky views").count(),
             usize::from(border == "clamp"),
-            "render, {border}: {e}"
+            "render, {border}: {r}"
         );
     }
 }
@@ -499,61 +513,20 @@ fn glossy_interreflection_is_traced_or_reported() {
     slope_png(&d.join("h.png"));
     let pairs = one_pair_csv(d.join("p.csv"));
     for border in ["clamp", "wrap"] {
-        let m = d.join(format!("{border}.toml"));
-        std::fs::write(
-            &m,
-            heightmap_material(
-                "h.png",
-                1.0,
-                1.0,
-                &format!(
-                    "represent = \"facets\"\nborder = \"{border}\"\n\
-                     [transfer]\nkind = \"microfacet\"\nalpha = 0.1\nfresnel = \"none\"\n\
-                     [shadowing]\nkind = \"visibility\"\ninterreflection = true\n"
-                ),
-            ),
-        )
-        .unwrap();
-        let o = common::cmd()
-            .args(["brdf", s(&m), "--pairs", s(&pairs)])
-            .env("MESO_CACHE_DIR", d.join("cache"))
-            .output()
-            .unwrap();
-        ok(&o);
-        let e = stderr(&o);
+        let (e, r) = interreflection_warnings(
+            &d,
+            &pairs,
+            border,
+            "[transfer]\nkind = \"microfacet\"\nalpha = 0.1\nfresnel = \"none\"\n",
+        );
         let said = e.contains("interreflection = true") && e.contains("only the single bounce");
         assert_eq!(said, border == "clamp", "{border}: {e}");
         assert!(!e.contains("sky views"), "{border}: {e}");
-        let sc = d.join(format!("{border}.scene.toml"));
-        std::fs::write(
-            &sc,
-            format!(
-                "[camera]\nkind = \"orthographic\"\nposition = [0.0, 0.0, 5.0]\n\
-                 look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = 2.0\n\
-                 [image]\nwidth = 4\nheight = 4\nspp = 1\n[[object]]\nkind = \"plane\"\n\
-                 point = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"{border}.toml\"\n\
-                 [[light]]\nkind = \"directional\"\ndirection = [0.0, 0.0, 1.0]\n\
-                 irradiance = [1.0, 1.0, 1.0]\n"
-            ),
-        )
-        .unwrap();
-        let o = common::cmd()
-            .args([
-                "render",
-                s(&sc),
-                "--out",
-                s(&d.join(format!("{border}.png"))),
-            ])
-            .env("MESO_CACHE_DIR", d.join("cache"))
-            .output()
-            .unwrap();
-        ok(&o);
-        let e = stderr(&o);
         let wanted = if border == "clamp" {
             "only the single bounce"
         } else {
             "renderer leaves out the light between glossy facets"
         };
-        assert_eq!(e.matches(wanted).count(), 1, "render, {border}: {e}");
+        assert_eq!(r.matches(wanted).count(), 1, "render, {border}: {r}");
     }
 }

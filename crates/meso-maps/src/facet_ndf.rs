@@ -62,17 +62,21 @@ impl VisibilityModel for FacetVisibility {
     fn interreflected(&self, transfer: &Transfer, i: DVec3, o: DVec3) -> Option<[f64; 3]> {
         let lazy = self.radiosity.as_ref()?;
         match transfer {
-            Transfer::Mirror { .. } => None,
-            Transfer::Lambert { albedo } if lazy.get().is_ok() => {
-                Some(lazy.get().ok()?.multi_bounce(*albedo, i, o, None))
+            Transfer::Mirror { .. } => return None,
+            // The radiosity is built (or tried) for Lambert facets only.
+            Transfer::Lambert { albedo } => {
+                if let Ok(r) = lazy.get() {
+                    return Some(r.multi_bounce(*albedo, i, o, None));
+                }
             }
-            // Glossy facets, and Lambert facets on a map over the radiosity's size.
-            _ => Some(
-                lazy.tracer()
-                    .ok()?
-                    .measure(transfer, i, o, &traced_interreflection()),
-            ),
+            _ => {}
         }
+        // Glossy facets, and Lambert facets on a map over the radiosity's size.
+        Some(
+            lazy.tracer()
+                .ok()?
+                .measure(transfer, i, o, &traced_interreflection()),
+        )
     }
     fn interreflection_solved(&self, transfer: &Transfer) -> Result<(), String> {
         match (&self.radiosity, transfer) {

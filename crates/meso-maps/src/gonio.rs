@@ -278,9 +278,6 @@ impl Gonio {
     /// `meso_core::convolution` evaluates it.
     #[must_use]
     pub fn measure(&self, facet: &Transfer, i: DVec3, o: DVec3, params: &GonioParams) -> [f64; 3] {
-        if i.z <= 0.0 || o.z <= 0.0 {
-            return [0.0; 3];
-        }
         self.measure_with(facet, i, o, params, LOBE_SHARE)
     }
 
