@@ -166,18 +166,6 @@ impl Facet {
         }
     }
 
-    /// The roughness of the facet's highlight when it is a microfacet facet (the geometric
-    /// mean of its two roughnesses): what [`ndf`]'s wide lobes place their nodes by; `None`
-    /// for other facets.
-    fn highlight_alpha(&self) -> Option<f64> {
-        match self {
-            Facet::General(Transfer::Microfacet { distribution, .. }) => {
-                Some((distribution.alpha_x * distribution.alpha_y).sqrt())
-            }
-            _ => None,
-        }
-    }
-
     /// `f_μ(i, o; m) · max(0, m·i)` for the unit facet normal `m`; `h` is the unit half vector.
     #[inline]
     fn lit(&self, m: DVec3, i: DVec3, o: DVec3, h: DVec3) -> [f32; 3] {

@@ -10,7 +10,7 @@
 //!   `meso_maps::limits::ETA_MAX` on the normal; one node on the normal).
 //! * Each texel's node weights sum to 1.
 
-use super::lobes::{is_wide, lobe_nodes, Node, SgLobe, Shapes, WideLobe, NO_LOBE};
+use super::lobes::{lobe_nodes, Node, SgLobe, Shapes, NO_LOBE};
 use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
@@ -151,17 +151,17 @@ impl NdfMapped {
     /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
     /// tile of `pyramid` is built (a view reading all of every level), with the facet
     /// transfer of `surface` and `shadowing`: per lobe its `SgLobe` (40 bytes; with
-    /// Lambert or general facets also its nodes, at most 7 of 40 bytes; with microfacet facets
-    /// also its record as a wide lobe, 64 bytes), per texel its lobe
+    /// Lambert or general facets also its nodes, at most 7 of 40 bytes), per texel its lobe
     /// start (4, and 4 more for the node start) and with shadowing its horizon statistics
     /// (36 bytes in `f32`, 72 in `f64`, twice: the texel's and, on level 0, its cell's), per
     /// coarser lobe its horizon statistics (36 or 72). What `meso render` checks against the
     /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
     #[must_use]
     pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
-        let facet = Facet::new(&surface.transfer);
-        let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
-        let wide = facet.highlight_alpha().is_some();
+        let general = matches!(
+            Facet::new(&surface.transfer),
+            Facet::General(_) | Facet::Lambert { .. }
+        );
         let mut total = 0u64;
         for (k, l) in pyramid.levels.iter().enumerate() {
             let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
@@ -169,10 +169,6 @@ impl NdfMapped {
             total += lobes * 40 + texels * 4;
             if general {
                 total += lobes * 7 * 40 + texels * 4;
-            }
-            if wide {
-                // A wide lobe's record (its nodes are counted above) and the texel's start.
-                total += lobes * std::mem::size_of::<WideLobe>() as u64 + texels * 4;
             }
             if shadowing {
                 total += texels * hz + if k == 0 { texels * hz } else { lobes * hz };
@@ -300,17 +296,9 @@ fn node_level(
     let mut node_start = Vec::new();
     let mut nodes = Vec::new();
     let mut tmp = Vec::new();
-    // Microfacet facets: the lobes broader than their highlight (`WideLobe`), with their nodes.
-    let highlight = facet.highlight_alpha();
-    let mut wide_start = Vec::new();
-    let mut wide = Vec::new();
-    let mut wide_nodes = Vec::new();
     lobe_start.push(0u32);
     if general {
         node_start.push(0u32);
-    }
-    if highlight.is_some() {
-        wide_start.push(0u32);
     }
     let mut src = Vec::new();
     // The tile's lobes seen so far: the first lobe of the texel among them.
@@ -350,8 +338,7 @@ fn node_level(
         if general {
             // Each lobe's nodes weighted by their projected area, scaled to the lobe's
             // share.
-            let (before, wide_before, wide_nodes_before) =
-                (nodes.len(), wide.len(), wide_nodes.len());
+            let before = nodes.len();
             for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
                 tmp.clear();
                 lobe_nodes(p.axis, 1.0, p.exponent, first + j as u32, &mut tmp);
@@ -360,48 +347,19 @@ fn node_level(
                 }
                 let total: f64 = tmp.iter().map(|n| n.w).sum();
                 if sh > 0.0 && total > 0.0 {
-                    let scaled = tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
+                    nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
                         w: n.w / total * sh,
                         ..*n
-                    });
-                    match highlight {
-                        Some(alpha) if is_wide(p.exponent, alpha) => {
-                            let start = wide_nodes.len() as u32;
-                            wide_nodes.extend(scaled);
-                            let count = wide_nodes.len() as u32 - start;
-                            let area = peak_projected_area(p.axis.z, p.exponent);
-                            wide.push(WideLobe::new(
-                                p.axis,
-                                p.exponent,
-                                sh,
-                                area.max(1e-12),
-                                first + j as u32,
-                                (start, count),
-                            ));
-                        }
-                        _ => nodes.extend(scaled),
-                    }
+                    }));
                 }
             }
-            let total: f64 = nodes[before..].iter().map(|n| n.w).sum::<f64>()
-                + wide_nodes[wide_nodes_before..]
-                    .iter()
-                    .map(|n| n.w)
-                    .sum::<f64>();
+            let total: f64 = nodes[before..].iter().map(|n| n.w).sum();
             if total > 0.0 {
-                for n in nodes[before..]
-                    .iter_mut()
-                    .chain(&mut wide_nodes[wide_nodes_before..])
-                {
+                for n in &mut nodes[before..] {
                     n.w /= total;
-                }
-                for l in &mut wide[wide_before..] {
-                    l.rescale(1.0 / total);
                 }
             } else {
                 nodes.truncate(before);
-                wide.truncate(wide_before);
-                wide_nodes.truncate(wide_nodes_before);
                 nodes.push(Node {
                     n: DVec3::Z,
                     w: 1.0,
@@ -409,9 +367,6 @@ fn node_level(
                 });
             }
             node_start.push(nodes.len() as u32);
-            if highlight.is_some() {
-                wide_start.push(wide.len() as u32);
-            }
         }
         first += src.len() as u32;
     }
@@ -424,9 +379,6 @@ fn node_level(
         shapes: shapes.list,
         node_start,
         nodes,
-        wide_start,
-        wide,
-        wide_nodes,
         horizon,
         // `lobe_stats_by_cell`: level 0's lobe horizons are per texel (its cell's).
         lobe_horizon_by_texel: l.span == 1,

@@ -34,7 +34,7 @@ mod peak_quadrature;
 
 use build::Source;
 use filter::MAX_TAPS;
-use lobes::{phong_texel, FacetNodes, Node, SgLobe, Shape, WideLobe, NO_LOBE};
+use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -58,12 +58,6 @@ struct NodeLevel {
     /// Nodes for a general facet transfer (empty otherwise).
     node_start: Vec<u32>,
     nodes: Vec<Node>,
-    /// Microfacet facets: per texel, its lobes broader than the facets' highlight
-    /// `wide[wide_start[t]..wide_start[t + 1]]` (not among its `nodes`), and their nodes
-    /// (empty otherwise).
-    wide_start: Vec<u32>,
-    wide: Vec<WideLobe>,
-    wide_nodes: Vec<Node>,
     /// Per texel, its horizon statistics (with shadowing), in the pyramid level's precision
     /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
     horizon: Option<Horizons>,
@@ -165,9 +159,6 @@ impl NodeLevel {
             + self.shapes.len() * size_of::<Shape>()
             + self.node_start.len() * 4
             + self.nodes.len() * size_of::<Node>()
-            + self.wide_start.len() * 4
-            + self.wide.len() * size_of::<WideLobe>()
-            + self.wide_nodes.len() * size_of::<Node>()
             + self.horizon.as_ref().map_or(0, Horizons::bytes)
             + self.lobe_horizon.as_ref().map_or(0, Horizons::bytes)
             + size_of::<NodeLevel>()
@@ -413,7 +404,6 @@ impl NdfMapped {
         wo: DVec3,
         h: DVec3,
         dir: Option<&HorizonDirection>,
-        highlight: Option<&FacetNodes>,
     ) -> [f64; 3] {
         let vis = |src: u32| -> f64 {
             match dir {
@@ -463,18 +453,6 @@ impl NdfMapped {
                     let w = nd.w * vis(nd.src);
                     for c in 0..3 {
                         a[c] += w * f64::from(v[c]);
-                    }
-                }
-                if let Some(fnodes) = highlight {
-                    let wide = &l.wide[l.wide_start[t] as usize..l.wide_start[t + 1] as usize];
-                    for wl in wide {
-                        let nodes =
-                            &l.wide_nodes[wl.start as usize..(wl.start + wl.count) as usize];
-                        let v = fnodes.lobe(wl, nodes, |m| self.facet.lit(m, wi, wo, h));
-                        let w = vis(wl.src);
-                        for c in 0..3 {
-                            a[c] += w * v[c];
-                        }
                     }
                 }
                 a
@@ -548,24 +526,13 @@ impl Shader for NdfMapped {
                 HorizonDirection::new(DVec3::Z)
             };
             let per_lobe = self.shadowing && !self.texel_visibility;
-            // The facet's nodes about h, when a tile read has wide lobes.
-            let highlight = self
-                .facet
-                .highlight_alpha()
-                .filter(|_| {
-                    held[..nheld.min(8)]
-                        .iter()
-                        .chain(&more)
-                        .any(|(_, _, l)| l.as_ref().is_some_and(|l| !l.wide.is_empty()))
-                })
-                .map(|alpha| FacetNodes::new(alpha, h, |m| self.facet.lit(m, i, wo, h)));
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for (k, &(_, _, w)) in taps[..ntaps].iter().enumerate() {
                 let (hi, t) = at[k];
                 let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
                 let l = l.as_deref().expect("fetched above");
-                let v = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir), highlight.as_ref());
+                let v = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir));
                 if scalar {
                     acc[0] += w * v[0];
                 } else {
