@@ -38,8 +38,10 @@ use std::path::Path;
 /// ([`crate::disk_cache::put_warnings`]), and the horizon angles are held in 16 bits
 /// ([`crate::horizon::ANGLE_STEP`]), which moves the last bits of the horizon statistics. 6
 /// since 2026-12-05: the cheap path of the fit tries K = `max_lobes` first (`fit` module
-/// docs), which gives a few texels more lobes than a format-5 entry holds.
-pub const FORMAT: u32 = 6;
+/// docs), which gives a few texels more lobes than a format-5 entry holds. 7 since 2026-12-05
+/// (afternoon): on small footprints (≤ 4 entries per lobe) the K chain goes on past a K whose
+/// k-means clusters lose to K − 1, so such texels can get more lobes than a format-6 entry holds.
+pub const FORMAT: u32 = 7;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// The map format version hashed into every key: 3, the version the cache wrote until

@@ -275,3 +275,68 @@ fn facet_kernel_exponent_is_the_curvature_of_the_facet_brdf() {
         None
     );
 }
+
+/// A small footprint of five groups of identical normals (a 4 × 4 block of the shipped
+/// facade normal map with its slopes × 4: a flat face, its left edge and the mortar above and
+/// below): on the cheap path (big levels: no EM on footprints of at most 4 entries per lobe)
+/// the two k-means clusters of K = 2 lose to the one EM lobe, and the fit used to stop there,
+/// one broad lobe (η ≈ 56) for five sharp groups; a GGX α = 0.05 facet then shaded that
+/// pyramid level 3.05× too bright. K now goes on: four lobes (the flat face's ±0.9° pair one
+/// lobe, the left edge another) and a higher likelihood than the one lobe.
+#[test]
+fn small_footprints_of_separate_groups_get_their_lobes() {
+    let groups = [
+        ([0.651, -0.014, 0.759], 1),
+        ([0.016, -0.016, 1.000], 3),
+        ([0.651, 0.042, 0.758], 1),
+        ([0.016, 0.016, 1.000], 3),
+        ([0.512, -0.264, 0.818], 1),
+        ([0.017, -0.347, 0.938], 3),
+        ([0.634, 0.211, 0.744], 1),
+        ([0.016, 0.298, 0.954], 3),
+    ];
+    let mut singles = Vec::new();
+    for (n, count) in groups {
+        let n = DVec3::from(n).normalize();
+        for _ in 0..count {
+            singles.push(Entry::new(n, 1.0 / n.z));
+        }
+    }
+    singles.sort_by_key(|e| e.bin);
+    let mut entries = Vec::new();
+    merge_entries(&[&singles], &mut entries);
+    assert_eq!(entries.len(), 8);
+    let params = FitParams::default();
+    let (mut pts, mut lobes) = (Vec::new(), Vec::new());
+    fit_lobes_with(&entries, &params, 256, false, false, &mut pts, &mut lobes);
+    assert_eq!(lobes.len(), 4, "{lobes:?}");
+    // The flat face and the mortar above and below each within 1° of a lobe of their own; the
+    // four left-edge normals (spanning 27°) within 20° of one (measured: one lobe of η ≈ 241
+    // for them, the farthest 16.6° off its axis).
+    for (n, count) in groups {
+        let n = DVec3::from(n).normalize();
+        let near = lobes
+            .iter()
+            .map(|l| l.axis.dot(n).clamp(-1.0, 1.0).acos().to_degrees())
+            .fold(f64::MAX, f64::min);
+        let bound = if count == 3 { 1.0 } else { 20.0 };
+        assert!(near < bound, "group {n:.3}: nearest lobe {near:.2}° away, {lobes:?}");
+    }
+    // A higher likelihood than the one lobe the fit stopped at.
+    let mut one = Vec::new();
+    fit_lobes_with(
+        &entries,
+        &FitParams {
+            max_lobes: 1,
+            ..params.clone()
+        },
+        256,
+        false,
+        false,
+        &mut pts,
+        &mut one,
+    );
+    assert_eq!(one.len(), 1);
+    let ll = |l: &[meso_core::ndf::PhongLobe]| fit_objective(&entries, &params, 256, false, l);
+    assert!(ll(&lobes) < ll(&one), "{} vs {}", ll(&lobes), ll(&one));
+}
