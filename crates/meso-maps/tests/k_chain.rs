@@ -320,7 +320,10 @@ fn small_footprints_of_separate_groups_get_their_lobes() {
             .map(|l| l.axis.dot(n).clamp(-1.0, 1.0).acos().to_degrees())
             .fold(f64::MAX, f64::min);
         let bound = if count == 3 { 1.0 } else { 20.0 };
-        assert!(near < bound, "group {n:.3}: nearest lobe {near:.2}° away, {lobes:?}");
+        assert!(
+            near < bound,
+            "group {n:.3}: nearest lobe {near:.2}° away, {lobes:?}"
+        );
     }
     // A higher likelihood than the one lobe the fit stopped at.
     let mut one = Vec::new();
