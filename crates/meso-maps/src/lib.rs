@@ -52,6 +52,7 @@ pub use compact::{
     COMPACT_TEXELS,
 };
 pub use error::{MapError, Result};
+pub use format::LazyLevel;
 pub use facet_ndf::{
     facets_bytes, facets_with_visibility, facets_with_visibility_progress, FacetVisibility,
 };
