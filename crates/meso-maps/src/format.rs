@@ -41,12 +41,12 @@ mod lazy;
 mod v3;
 mod v4;
 
+pub use lazy::LazyLevel;
 pub(crate) use v3::{
     angle_decode, angle_encode, eta_decode, eta_encode, oct_decode, oct_encode, MEAN_SPAN, SD_SPAN,
 };
 pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 pub(crate) use v4::{check_band, write_band, write_level_end};
-pub use lazy::LazyLevel;
 pub use v4::{BAND_ROWS, VERSION_4};
 
 /// The format version written by this build: 4 ([`VERSION_4`], `docs/map-format.md`): version

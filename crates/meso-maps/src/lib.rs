@@ -52,12 +52,12 @@ pub use compact::{
     COMPACT_TEXELS,
 };
 pub use error::{MapError, Result};
-pub use format::LazyLevel;
 pub use facet_ndf::{
     facets_bytes, facets_with_visibility, facets_with_visibility_progress, FacetVisibility,
 };
 pub use facets::{FacetNormals, NormalMode};
 pub use fit::FitParams;
+pub use format::LazyLevel;
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;

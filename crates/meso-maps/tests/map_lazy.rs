@@ -55,7 +55,10 @@ fn a_level_held_by_band_reads_as_the_file() {
         let (s, e) = (a.lobe_start[t] as usize, a.lobe_start[t + 1] as usize);
         for (x, y) in a.lobes.range(s, e).zip(b.lobes.range(s, e)) {
             assert_eq!(x, y, "texel {t}");
-            assert_eq!(x.axis.to_array().map(f64::to_bits), y.axis.to_array().map(f64::to_bits));
+            assert_eq!(
+                x.axis.to_array().map(f64::to_bits),
+                y.axis.to_array().map(f64::to_bits)
+            );
             assert_eq!(
                 (x.weight.to_bits(), x.exponent.to_bits()),
                 (y.weight.to_bits(), y.exponent.to_bits())

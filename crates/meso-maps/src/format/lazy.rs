@@ -327,19 +327,16 @@ impl LazyLevel {
         if let Some(b) = cached(&mut self.cache.lock().unwrap_or_else(PoisonError::into_inner)) {
             return b;
         }
-        let _one = self
-            .decoding
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
+        let _one = self.decoding.lock().unwrap_or_else(PoisonError::into_inner);
         // Another thread may have decoded it meanwhile.
         if let Some(b) = cached(&mut self.cache.lock().unwrap_or_else(PoisonError::into_inner)) {
             return b;
         }
         let band = match self.decode(idx) {
             Ok(b) => Arc::new(b),
-            Err(e) => panic!(
-                "{e} (the band was valid when the file was read: it changed while mapped)"
-            ),
+            Err(e) => {
+                panic!("{e} (the band was valid when the file was read: it changed while mapped)")
+            }
         };
         self.decoded.fetch_add(1, Ordering::Relaxed);
         let mut c = self.cache.lock().unwrap_or_else(PoisonError::into_inner);

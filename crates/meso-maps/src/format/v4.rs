@@ -380,7 +380,8 @@ pub(in crate::format) fn read_levels(
     let end = r.pos;
     let build = mode != Mode::Check;
     let coded = matches!(mode, Mode::Coded | Mode::Lazy);
-    let lazy0 = mode == Mode::Lazy && map.is_some() && table.first().is_some_and(|e| compact(e.texels()));
+    let lazy0 =
+        mode == Mode::Lazy && map.is_some() && table.first().is_some_and(|e| compact(e.texels()));
     let need = if lazy0 {
         // Level 0's lobe starts and decoded bands, the other levels coded.
         let file = if r.releases() { 0 } else { r.b.len() as u64 };
