@@ -71,9 +71,12 @@ fn cache_bands() -> usize {
 
 static NEXT_ID: AtomicU64 = AtomicU64::new(1);
 
+/// A thread's last bands read, with their level's id, most recent first.
+type Recent = [Option<(u64, Arc<Band>)>; THREAD_BANDS];
+
 thread_local! {
-    /// The bands this thread read last, with their level's id, most recent first.
-    static RECENT: RefCell<[Option<(u64, Arc<Band>)>; THREAD_BANDS]> =
+    /// The bands this thread read last ([`Recent`]).
+    static RECENT: RefCell<Recent> =
         const { RefCell::new([None, None]) };
 }
 
