@@ -192,10 +192,7 @@ impl Lobes {
             Lobes::F64(v) => LobeIter::F64(v[a..b].iter()),
             Lobes::F32(v) => LobeIter::F32(v[a..b].iter()),
             Lobes::Coded(v) => LobeIter::Coded(v[a..b].iter()),
-            Lobes::Lazy(l) => {
-                assert!(a <= b && b <= l.lobes(), "lobes {a}..{b} of {}", l.lobes());
-                LobeIter::Lazy(l, a..b)
-            }
+            Lobes::Lazy(l) => LobeIter::Lazy(l.range(a, b)),
         }
     }
     /// All lobes.
@@ -273,8 +270,8 @@ pub enum LobeIter<'a> {
     F32(std::slice::Iter<'a, Lobe32>),
     /// Over coded lobes.
     Coded(std::slice::Iter<'a, LobeCode>),
-    /// Over lobes held by band: the level and the lobes left.
-    Lazy(&'a LazyLevel, std::ops::Range<usize>),
+    /// Over lobes held by band.
+    Lazy(crate::format::LazyLobes<'a>),
 }
 
 impl Iterator for LobeIter<'_> {
@@ -285,7 +282,7 @@ impl Iterator for LobeIter<'_> {
             LobeIter::F64(i) => i.next().copied(),
             LobeIter::F32(i) => i.next().map(Lobe32::to_phong),
             LobeIter::Coded(i) => i.next().map(LobeCode::to_phong),
-            LobeIter::Lazy(l, r) => r.next().map(|i| l.lobe(i)),
+            LobeIter::Lazy(i) => i.next(),
         }
     }
     fn size_hint(&self) -> (usize, Option<usize>) {
@@ -293,7 +290,7 @@ impl Iterator for LobeIter<'_> {
             LobeIter::F64(i) => i.size_hint(),
             LobeIter::F32(i) => i.size_hint(),
             LobeIter::Coded(i) => i.size_hint(),
-            LobeIter::Lazy(_, r) => r.size_hint(),
+            LobeIter::Lazy(i) => i.size_hint(),
         }
     }
 }

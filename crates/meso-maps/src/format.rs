@@ -41,7 +41,7 @@ mod lazy;
 mod v3;
 mod v4;
 
-pub use lazy::LazyLevel;
+pub use lazy::{LazyLevel, LazyLobes};
 pub(crate) use v3::{
     angle_decode, angle_encode, eta_decode, eta_encode, oct_decode, oct_encode, MEAN_SPAN, SD_SPAN,
 };

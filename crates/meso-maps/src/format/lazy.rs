@@ -245,6 +245,43 @@ impl LazyLevel {
         )
     }
 
+    /// Lobes `a..b` (as [`Lobes::Coded`] reads them): a texel's lobes (at most
+    /// [`crate::limits::MAX_LOBES`], in one band) copied from their band at once, longer
+    /// ranges read one by one.
+    ///
+    /// # Panics
+    /// `a > b` or `b > lobes()`.
+    #[must_use]
+    pub fn range(&self, a: usize, b: usize) -> LazyLobes<'_> {
+        assert!(
+            a <= b && b <= self.lobes,
+            "lobes {a}..{b} of {}",
+            self.lobes
+        );
+        let mut it = LazyLobes {
+            level: self,
+            buf: [LobeCode::default(); INLINE],
+            start: a,
+            next: a,
+            end: b,
+            inline: false,
+        };
+        if a < b && b - a <= INLINE {
+            it.inline = self.with_band(
+                |x| (x.l0..x.l1).contains(&a),
+                || self.bands.partition_point(|x| x.lobe0 + x.lobes <= a),
+                |x| {
+                    if b > x.l1 {
+                        return false;
+                    }
+                    it.buf[..b - a].copy_from_slice(&x.lobes[a - x.l0..b - x.l0]);
+                    true
+                },
+            );
+        }
+        it
+    }
+
     /// The codes of lobes `a..b` (a copy).
     pub(crate) fn lobe_codes(&self, a: usize, b: usize) -> Vec<LobeCode> {
         let mut out = Vec::with_capacity(b.saturating_sub(a));
@@ -407,4 +444,40 @@ pub(crate) fn release(map: &memmap2::Mmap, a: usize, b: usize) {
     }
     #[cfg(not(unix))]
     let _ = (map, a, b);
+}
+
+/// Lobes a range copies from its band at once ([`LazyLevel::range`]): a texel's most.
+const INLINE: usize = crate::limits::MAX_LOBES;
+
+/// The lobes of [`LazyLevel::range`] as [`PhongLobe`]s.
+#[derive(Clone, Debug)]
+pub struct LazyLobes<'a> {
+    level: &'a LazyLevel,
+    /// Lobes `start..end` copied (`buf[i - start]`) when `inline`.
+    buf: [LobeCode; INLINE],
+    start: usize,
+    next: usize,
+    end: usize,
+    inline: bool,
+}
+
+impl Iterator for LazyLobes<'_> {
+    type Item = PhongLobe;
+    #[inline]
+    fn next(&mut self) -> Option<PhongLobe> {
+        if self.next >= self.end {
+            return None;
+        }
+        let i = self.next;
+        self.next += 1;
+        Some(if self.inline {
+            self.buf[i - self.start].to_phong()
+        } else {
+            self.level.lobe(i)
+        })
+    }
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        let n = self.end - self.next;
+        (n, Some(n))
+    }
 }
