@@ -12,9 +12,11 @@
 //! (docs/map-format.md), so a compact level written to a file gives the codes of the `f64` one
 //! except for values within that distance of a rounding boundary (one code step then).
 
+use crate::format::LazyLevel;
 use crate::horizon::HorizonStats;
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
+use std::sync::Arc;
 
 /// Levels with at least this many texels are stored in `f32` by default (`ExtractParams`'s
 /// `compact_texels`, and [`crate::Pyramid::read`]): 256² texels, so that a 1024² map's
@@ -114,8 +116,8 @@ impl LobeCode {
     }
 }
 
-/// The lobes of a level, in `f64`, in `f32`, or as a map file's codes (module docs). Read them
-/// as [`PhongLobe`]s.
+/// The lobes of a level, in `f64`, in `f32`, or as a map file's codes, held or read from the
+/// mapped file by band (module docs). Read them as [`PhongLobe`]s.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Lobes {
     /// Full precision.
@@ -124,6 +126,10 @@ pub enum Lobes {
     F32(Vec<Lobe32>),
     /// A map file's codes (reading back as `F32` would: [`LobeCode`]).
     Coded(Vec<LobeCode>),
+    /// A map file's codes decoded band by band from the mapped file when read (the very
+    /// values of `Coded`, [`LazyLevel`]); read-only: writing to one first copies the codes
+    /// into `Coded`.
+    Lazy(Arc<LazyLevel>),
 }
 
 impl Default for Lobes {
@@ -149,6 +155,7 @@ impl Lobes {
             Lobes::F64(v) => v.len(),
             Lobes::F32(v) => v.len(),
             Lobes::Coded(v) => v.len(),
+            Lobes::Lazy(l) => l.lobes(),
         }
     }
     /// Whether there are none.
@@ -159,7 +166,7 @@ impl Lobes {
     /// Whether the lobes are stored in `f32` (or coded, which reads back as `f32`).
     #[must_use]
     pub fn is_compact(&self) -> bool {
-        matches!(self, Lobes::F32(_) | Lobes::Coded(_))
+        matches!(self, Lobes::F32(_) | Lobes::Coded(_) | Lobes::Lazy(_))
     }
     /// Lobe `i`.
     ///
@@ -172,6 +179,7 @@ impl Lobes {
             Lobes::F64(v) => v[i],
             Lobes::F32(v) => v[i].to_phong(),
             Lobes::Coded(v) => v[i].to_phong(),
+            Lobes::Lazy(l) => l.lobe(i),
         }
     }
     /// Lobes `a..b`.
@@ -184,6 +192,7 @@ impl Lobes {
             Lobes::F64(v) => LobeIter::F64(v[a..b].iter()),
             Lobes::F32(v) => LobeIter::F32(v[a..b].iter()),
             Lobes::Coded(v) => LobeIter::Coded(v[a..b].iter()),
+            Lobes::Lazy(l) => LobeIter::Lazy(l.range(a, b)),
         }
     }
     /// All lobes.
@@ -191,13 +200,21 @@ impl Lobes {
     pub fn iter(&self) -> LobeIter<'_> {
         self.range(0, self.len())
     }
-    /// Bytes the lobes occupy (their number × 40, 20 or 11).
+    /// Bytes the lobes occupy (their number × 40, 20 or 11; held by band, the most the
+    /// level's decoded bands take, lobes and horizon statistics: [`LazyLevel::held_bytes_bound`]).
     #[must_use]
     pub fn bytes(&self) -> usize {
         match self {
             Lobes::F64(v) => v.len() * std::mem::size_of::<PhongLobe>(),
             Lobes::F32(v) => v.len() * std::mem::size_of::<Lobe32>(),
             Lobes::Coded(v) => v.len() * std::mem::size_of::<LobeCode>(),
+            Lobes::Lazy(l) => usize::try_from(l.held_bytes_bound()).unwrap_or(usize::MAX),
+        }
+    }
+    /// Copy lobes held by band into `Coded` (before writing to them).
+    fn own(&mut self) {
+        if let Lobes::Lazy(l) = self {
+            *self = Lobes::Coded(l.lobe_codes(0, l.lobes()));
         }
     }
     /// Replace lobe `i` (rounded when compact, coded when coded).
@@ -205,26 +222,32 @@ impl Lobes {
     /// # Panics
     /// `i ≥ len()`.
     pub fn set(&mut self, i: usize, l: PhongLobe) {
+        self.own();
         match self {
             Lobes::F64(v) => v[i] = l,
             Lobes::F32(v) => v[i] = Lobe32::from_phong(&l),
             Lobes::Coded(v) => v[i] = LobeCode::from_phong(&l),
+            Lobes::Lazy(_) => unreachable!("owned above"),
         }
     }
     /// Append one lobe (rounded when compact).
     pub fn push(&mut self, l: PhongLobe) {
+        self.own();
         match self {
             Lobes::F64(v) => v.push(l),
             Lobes::F32(v) => v.push(Lobe32::from_phong(&l)),
             Lobes::Coded(v) => v.push(LobeCode::from_phong(&l)),
+            Lobes::Lazy(_) => unreachable!("owned above"),
         }
     }
     /// Append lobes (rounded when compact).
     pub fn extend_from_slice(&mut self, ls: &[PhongLobe]) {
+        self.own();
         match self {
             Lobes::F64(v) => v.extend_from_slice(ls),
             Lobes::F32(v) => v.extend(ls.iter().map(Lobe32::from_phong)),
             Lobes::Coded(v) => v.extend(ls.iter().map(LobeCode::from_phong)),
+            Lobes::Lazy(_) => unreachable!("owned above"),
         }
     }
     /// Release unused capacity.
@@ -233,6 +256,7 @@ impl Lobes {
             Lobes::F64(v) => v.shrink_to_fit(),
             Lobes::F32(v) => v.shrink_to_fit(),
             Lobes::Coded(v) => v.shrink_to_fit(),
+            Lobes::Lazy(_) => {}
         }
     }
 }
@@ -246,6 +270,8 @@ pub enum LobeIter<'a> {
     F32(std::slice::Iter<'a, Lobe32>),
     /// Over coded lobes.
     Coded(std::slice::Iter<'a, LobeCode>),
+    /// Over lobes held by band.
+    Lazy(crate::format::LazyLobes<'a>),
 }
 
 impl Iterator for LobeIter<'_> {
@@ -256,6 +282,7 @@ impl Iterator for LobeIter<'_> {
             LobeIter::F64(i) => i.next().copied(),
             LobeIter::F32(i) => i.next().map(Lobe32::to_phong),
             LobeIter::Coded(i) => i.next().map(LobeCode::to_phong),
+            LobeIter::Lazy(i) => i.next(),
         }
     }
     fn size_hint(&self) -> (usize, Option<usize>) {
@@ -263,6 +290,7 @@ impl Iterator for LobeIter<'_> {
             LobeIter::F64(i) => i.size_hint(),
             LobeIter::F32(i) => i.size_hint(),
             LobeIter::Coded(i) => i.size_hint(),
+            LobeIter::Lazy(i) => i.size_hint(),
         }
     }
 }
@@ -365,8 +393,8 @@ impl HorizonCode {
     }
 }
 
-/// The horizon statistics of a level's texels, in `f64`, in `f32`, or as a map file's codes
-/// (module docs).
+/// The horizon statistics of a level's texels, in `f64`, in `f32`, or as a map file's codes,
+/// held or read from the mapped file by band (module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Horizons {
     /// Full precision.
@@ -375,6 +403,10 @@ pub enum Horizons {
     F32(Vec<Horizon32>),
     /// A map file's codes (reading back as `F32` would: [`HorizonCode`]).
     Coded(Vec<HorizonCode>),
+    /// A map file's codes decoded band by band from the mapped file when read (the very
+    /// values of `Coded`, [`LazyLevel`]); read-only: writing to one first copies the codes
+    /// into `Coded`.
+    Lazy(Arc<LazyLevel>),
 }
 
 impl Horizons {
@@ -394,6 +426,7 @@ impl Horizons {
             Horizons::F64(v) => v.len(),
             Horizons::F32(v) => v.len(),
             Horizons::Coded(v) => v.len(),
+            Horizons::Lazy(l) => l.texels(),
         }
     }
     /// Whether there are none.
@@ -404,7 +437,10 @@ impl Horizons {
     /// Whether the statistics are stored in `f32` (or coded, which reads back as `f32`).
     #[must_use]
     pub fn is_compact(&self) -> bool {
-        matches!(self, Horizons::F32(_) | Horizons::Coded(_))
+        matches!(
+            self,
+            Horizons::F32(_) | Horizons::Coded(_) | Horizons::Lazy(_)
+        )
     }
     /// The statistics of texel `t`.
     ///
@@ -417,6 +453,7 @@ impl Horizons {
             Horizons::F64(v) => v[t],
             Horizons::F32(v) => v[t].to_stats(),
             Horizons::Coded(v) => v[t].to_stats(),
+            Horizons::Lazy(l) => l.horizon(t),
         }
     }
     /// All of them, in `f64`.
@@ -433,21 +470,28 @@ impl Horizons {
     pub fn to_vec(&self) -> Vec<HorizonStats> {
         self.iter().collect()
     }
-    /// Bytes they occupy (texels × 72, 36 or 16).
+    /// Bytes they occupy (texels × 72, 36 or 16; held by band, 0: counted by the level's
+    /// [`Lobes::bytes`]).
     #[must_use]
     pub fn bytes(&self) -> usize {
         match self {
             Horizons::F64(v) => v.len() * std::mem::size_of::<HorizonStats>(),
             Horizons::F32(v) => v.len() * std::mem::size_of::<Horizon32>(),
             Horizons::Coded(v) => v.len() * std::mem::size_of::<HorizonCode>(),
+            Horizons::Lazy(_) => 0,
         }
     }
-    /// Append statistics (rounded when compact, coded when coded).
+    /// Append statistics (rounded when compact, coded when coded; held by band, the codes
+    /// copied into `Coded` first).
     pub fn extend_from_slice(&mut self, hs: &[HorizonStats]) {
+        if let Horizons::Lazy(l) = self {
+            *self = Horizons::Coded(l.horizon_codes(0, l.texels()));
+        }
         match self {
             Horizons::F64(v) => v.extend_from_slice(hs),
             Horizons::F32(v) => v.extend(hs.iter().map(Horizon32::from_stats)),
             Horizons::Coded(v) => v.extend(hs.iter().map(HorizonCode::from_stats)),
+            Horizons::Lazy(_) => unreachable!("owned above"),
         }
     }
 }

@@ -37,9 +37,11 @@ pub fn is_map_file(path: &std::path::Path) -> bool {
 pub fn has_map_magic(bytes: &[u8]) -> bool {
     bytes.starts_with(&MAGIC)
 }
+mod lazy;
 mod v3;
 mod v4;
 
+pub use lazy::{LazyLevel, LazyLobes};
 pub(crate) use v3::{
     angle_decode, angle_encode, eta_decode, eta_encode, oct_decode, oct_encode, MEAN_SPAN, SD_SPAN,
 };
@@ -184,6 +186,31 @@ impl Pyramid {
     /// # Errors
     /// As [`Pyramid::read`].
     pub fn read_coded(path: &Path) -> Result<Pyramid> {
+        Pyramid::read_mapped(path, v4::Mode::Coded)
+    }
+
+    /// [`Pyramid::read_coded`] with level 0, when compact (at least
+    /// [`crate::COMPACT_TEXELS`] texels), held by band in the mapped file
+    /// ([`crate::Lobes::Lazy`], [`crate::Horizons::Lazy`], [`LazyLevel`]): every band is
+    /// inflated, decoded and checked when the file is read, as [`Pyramid::read_coded`] does,
+    /// then dropped, its place kept; a band is decoded again when something first reads one of
+    /// its lobes or texels, under a small cache of decoded bands (8, at least the threads + 2,
+    /// and each thread's last two). The values read are [`Pyramid::read_coded`]'s, bit for bit.
+    /// The memory is level 0's lobe starts (4 bytes a texel), the cached bands and the other
+    /// levels coded (an 8192² height map: ≈ 1.6 GB, where [`Pyramid::read_coded`] holds
+    /// ≈ 4.2 GB); checked against the budget before anything is inflated. What `meso render`
+    /// holds a map file's pyramid as. Other versions are read as [`Pyramid::read`] does.
+    ///
+    /// # Errors
+    /// As [`Pyramid::read`]; a corrupt band is found when the file is read, not when the band
+    /// is first read again.
+    pub fn read_lazy(path: &Path) -> Result<Pyramid> {
+        Pyramid::read_mapped(path, v4::Mode::Lazy)
+    }
+
+    /// [`Pyramid::read_coded`] (`mode` [`v4::Mode::Coded`]) or [`Pyramid::read_lazy`]
+    /// ([`v4::Mode::Lazy`]).
+    fn read_mapped(path: &Path, mode: v4::Mode) -> Result<Pyramid> {
         meso_core::io::note_input(path);
         let io = |e| MapError::Io {
             path: path.to_path_buf(),
@@ -198,14 +225,14 @@ impl Pyramid {
         // SAFETY: a read-only mapping of the file. A file truncated by another process while
         // mapped would fault; map files are replaced by renaming (`meso_core::io::write_atomic`),
         // which leaves a mapped file whole.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
+        let map = std::sync::Arc::new(unsafe { memmap2::Mmap::map(&file) }.map_err(io)?);
         let mut r = Reader::new(&map, path);
-        r.mapped = Some(&map);
+        r.mapped = Some(&*map);
         let h = read_header(&mut r)?;
         if h.version != VERSION_4 {
             return Pyramid::read(path);
         }
-        let levels = v4::read_levels(&mut r, &h, true, true)?;
+        let levels = v4::read_levels(&mut r, &h, mode, Some(&map))?;
         if r.pos != r.b.len() {
             return Err(r.err(format!("{} unexpected trailing bytes", r.b.len() - r.pos)));
         }
@@ -217,7 +244,7 @@ impl Pyramid {
         let mut r = Reader::new(bytes, path);
         let h = read_header(&mut r)?;
         let levels = if h.version == VERSION_4 {
-            v4::read_levels(&mut r, &h, true, false)?
+            v4::read_levels(&mut r, &h, v4::Mode::Full, None)?
         } else if h.version == VERSION_3 {
             let mut levels = v3::read_levels(&mut r, &h)?;
             if let Some(sh) = v3::read_shading(&mut r, h.nlev)? {
@@ -248,7 +275,7 @@ impl Pyramid {
         let mut r = Reader::new(bytes, path);
         let h = read_header(&mut r)?;
         if h.version == VERSION_4 {
-            v4::read_levels(&mut r, &h, false, false)?;
+            v4::read_levels(&mut r, &h, v4::Mode::Check, None)?;
         } else if h.version == VERSION_3 {
             v3::check_levels(&mut r, &h)?;
             v3::read_shading(&mut r, h.nlev)?;
@@ -263,6 +290,7 @@ impl Pyramid {
 }
 
 /// The common header of every version, checked when read.
+#[derive(Clone, Debug)]
 pub(crate) struct Header {
     pub(crate) version: u32,
     pub(crate) width: usize,

@@ -57,6 +57,7 @@ pub use facet_ndf::{
 };
 pub use facets::{FacetNormals, NormalMode};
 pub use fit::FitParams;
+pub use format::{LazyLevel, LazyLobes};
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;

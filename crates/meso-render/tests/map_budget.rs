@@ -29,7 +29,7 @@ fn the_material_of_a_map_file_is_budgeted() {
         format!("[texture]\nkind = \"ndf-mapped\"\nmap = \"g64.map\"\n{transfer}"),
     )
     .unwrap();
-    let read = Pyramid::read_coded(&path).unwrap();
+    let read = Pyramid::read_lazy(&path).unwrap();
     let surface = Material::from_toml_str(transfer).unwrap();
     let bound = NdfMapped::tables_bytes_bound(&read, &surface, true);
     let need = NdfMapped::pyramid_bytes(&read) + bound.min(MIN_TABLE_CACHE);

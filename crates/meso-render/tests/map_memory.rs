@@ -10,7 +10,9 @@
 //!   4 + 72 B a texel on the others) and one band being decoded;
 //! * building and shading: the pyramid, the tables of the tiles held (the cache's own count)
 //!   and one tile being built (its lobe statistics), whatever the view; under a cap, at most
-//!   the cap, the tile being built and the tiles a shading call holds.
+//!   the cap, the tile being built and the tiles a shading call holds;
+//! * level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads): reading holds the
+//!   coded pyramid less level 0's codes, and one band; it shades bit for bit as the coded one.
 //!
 //! One test per binary: the counter sees only this test's allocations.
 
@@ -101,11 +103,13 @@ fn rendering_a_map_file_peaks_at_its_model() {
     let tile = 64 * 64 * (4 * (8 + 72 + 40) * 2 + 76);
     // A far view (8 cells a point: levels 2 and 3), a zoomed one (half a cell: level 0, over
     // 128² cells, 4 to 9 tiles), and the zoomed one under a cap of about two tiles.
-    for (view, n, span, fp, cap) in [
+    let views = [
         ("far", 64, 1.0, 8.0 / 256.0, usize::MAX),
         ("zoom", 128, 0.5, 0.5 / 256.0, usize::MAX),
         ("zoom", 128, 0.5, 0.5 / 256.0, 3 << 19),
-    ] {
+    ];
+    let mut sums = Vec::new();
+    for (view, n, span, fp, cap) in views {
         {
             peak_since(&mut reset);
             let m = NdfMapped::from_pyramid(read.clone(), &surface, 256.0, true)
@@ -137,7 +141,32 @@ fn rendering_a_map_file_peaks_at_its_model() {
                 // The cap, passed by at most the tile just built before others are dropped.
                 assert!(cache_peak <= cap + tile, "{cache_peak} over the cap {cap}");
             }
+            sums.push(sum);
         }
+    }
+
+    // Level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads): reading holds the
+    // other levels coded, level 0's lobe starts and one band being decoded; the same shading,
+    // bit for bit, every view.
+    peak_since(&mut reset);
+    let lazy = Pyramid::read_lazy(&path).unwrap();
+    let lazy_peak = peak_since(&mut reset);
+    let l0 = &read.levels[0];
+    let lazy_model = p_bytes - 11 * l0.lobes.len() - 16 * l0.texels();
+    eprintln!(
+        "level 0 by band: reading peak {:.2} MB (model {:.2} MB + one band)",
+        lazy_peak as f64 / 1e6,
+        lazy_model as f64 / 1e6
+    );
+    assert!(
+        lazy_peak >= lazy_model && lazy_peak <= lazy_model + band,
+        "{lazy_peak}"
+    );
+    for ((_, n, span, fp, cap), want) in views.into_iter().zip(sums) {
+        let m = NdfMapped::from_pyramid(lazy.clone(), &surface, 256.0, true)
+            .unwrap()
+            .with_table_cap(cap);
+        assert_eq!(shade(&m, n, span, fp).to_bits(), want.to_bits());
     }
     std::fs::remove_dir_all(&dir).ok();
 }

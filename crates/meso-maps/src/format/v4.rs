@@ -95,11 +95,13 @@ pub(crate) fn band_of(l: &Level, r0: usize, r1: usize) -> Level {
         Lobes::F64(v) => Lobes::F64(v[a..b].to_vec()),
         Lobes::F32(v) => Lobes::F32(v[a..b].to_vec()),
         Lobes::Coded(v) => Lobes::Coded(v[a..b].to_vec()),
+        Lobes::Lazy(v) => Lobes::Coded(v.lobe_codes(a, b)),
     };
     let horizon = l.horizon.as_ref().map(|h| match h {
         Horizons::F64(v) => Horizons::F64(v[t0..t1].to_vec()),
         Horizons::F32(v) => Horizons::F32(v[t0..t1].to_vec()),
         Horizons::Coded(v) => Horizons::Coded(v[t0..t1].to_vec()),
+        Horizons::Lazy(v) => Horizons::Coded(v.horizon_codes(t0, t1)),
     });
     Level {
         cols: l.cols,
@@ -218,11 +220,13 @@ fn level_end(r: &mut Reader<'_>, k: usize, lobes: usize) -> Result<Residual> {
 
 /// Walk the chunks of a format-4 file after the common header without inflating anything:
 /// their order, every band's and stream's header against its level and the file's length.
-/// Returns the level table and the largest memory of reading one band.
-fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64)> {
+/// Returns the level table, the largest memory of reading one band, and the largest codes of
+/// a band of level 0 (bytes: 11 a lobe, 16 a texel with horizon statistics).
+fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64, u64)> {
     let n_streams = if h.has_h { STREAMS.len() } else { 4 };
     let mut table = Vec::with_capacity(h.nlev);
     let (mut cols, mut rows, mut t0, mut band_max) = (h.cols, h.rows, 0usize, 0u64);
+    let mut codes0 = 0u64;
     for k in 0..h.nlev {
         let (mut next, mut lobes) = (0usize, 0usize);
         while let Some(b) = band_head(r, h, k, (cols, rows), next)? {
@@ -236,6 +240,10 @@ fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64)> {
                 need += e + 4 * cols_of as u64 * if per_lobe { b.lobes as u64 } else { texels };
             }
             band_max = band_max.max(need + 9 * texels + b.lobes as u64 * 40 + texels * 76);
+            if k == 0 {
+                let hz = if h.has_h { 16 } else { 0 };
+                codes0 = codes0.max(b.lobes as u64 * 11 + texels * hz);
+            }
             lobes += b.lobes;
             next = b.row0 + b.rows;
         }
@@ -255,13 +263,13 @@ fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64)> {
         cols = cols.div_ceil(2);
         rows = rows.div_ceil(2);
     }
-    Ok((table, band_max))
+    Ok((table, band_max, codes0))
 }
 
 /// Read the band at the reader (of level `k`, described by `e`, its header already checked by
 /// [`scan`]): its streams inflated and decoded, its lobe counts and values checked, built in
 /// the level's precision.
-fn read_band(
+pub(super) fn read_band(
     r: &mut Reader<'_>,
     h: &Header,
     k: usize,
@@ -338,23 +346,50 @@ fn append(l: &mut Level, b: Level) {
     }
 }
 
-/// Read (`build`) or only check the levels of a format-4 file after the common header: the
+/// How [`read_levels`] reads a format-4 file's levels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(in crate::format) enum Mode {
+    /// Check every band, build nothing.
+    Check,
+    /// Build every level, the compact ones in `f32`.
+    Full,
+    /// Build every level, the compact ones as the file's codes.
+    Coded,
+    /// As `Coded`, but level 0 (when compact) held by band in the mapped file
+    /// ([`super::lazy::LazyLevel`]): every band checked, then dropped.
+    Lazy,
+}
+
+/// Read (`mode`) or only check the levels of a format-4 file after the common header: the
 /// chunks scanned ([`scan`]) and the memory checked against the budget before anything is
 /// inflated, then band by band inflated, decoded, checked and appended to its level (or
-/// dropped). Returns the levels (empty when not `build`). With `coded`, the compact levels
-/// keep the file's codes ([`Lobes::Coded`], [`Horizons::Coded`]); the reader's bytes are
-/// released as they are read when it holds a mapped file (`Reader::release`), so that the
-/// memory is the coded pyramid and one band, not the file besides.
+/// dropped). Returns the levels (empty for [`Mode::Check`]). With [`Mode::Coded`] and
+/// [`Mode::Lazy`], the compact levels keep the file's codes ([`Lobes::Coded`],
+/// [`Horizons::Coded`]); with [`Mode::Lazy`] level 0, when compact, is held by band
+/// ([`Lobes::Lazy`], [`Horizons::Lazy`]: `map` must be the reader's bytes). The reader's bytes
+/// are released as they are read when it holds a mapped file (`Reader::release`), so that the
+/// memory is the (coded) pyramid and one band, not the file besides.
 pub(in crate::format) fn read_levels(
     r: &mut Reader<'_>,
     h: &Header,
-    build: bool,
-    coded: bool,
+    mode: Mode,
+    map: Option<&std::sync::Arc<memmap2::Mmap>>,
 ) -> Result<Vec<Level>> {
     let start = r.pos;
-    let (table, band_max) = scan(r, h)?;
+    let (table, band_max, codes0) = scan(r, h)?;
     let end = r.pos;
-    let need = if build && coded {
+    let build = mode != Mode::Check;
+    let coded = matches!(mode, Mode::Coded | Mode::Lazy);
+    let lazy0 =
+        mode == Mode::Lazy && map.is_some() && table.first().is_some_and(|e| compact(e.texels()));
+    let need = if lazy0 {
+        // Level 0's lobe starts and decoded bands, the other levels coded.
+        let file = if r.releases() { 0 } else { r.b.len() as u64 };
+        let t0 = table[0].texels() as u64;
+        file + coded_pyramid_bytes(&table[1..], h.has_h)
+            + 4 * (t0 + 1)
+            + super::lazy::held_bytes_bound(codes0, band_max)
+    } else if build && coded {
         let file = if r.releases() { 0 } else { r.b.len() as u64 };
         file + coded_pyramid_bytes(&table, h.has_h) + band_max
     } else if build {
@@ -377,7 +412,8 @@ pub(in crate::format) fn read_levels(
             residual: e.residual,
         };
         level.lobe_start.push(0);
-        if build {
+        let lazy = lazy0 && k == 0;
+        if build && !lazy {
             if c && coded {
                 level.lobes = Lobes::Coded(Vec::with_capacity(e.lobes));
                 if h.has_h {
@@ -388,24 +424,54 @@ pub(in crate::format) fn read_levels(
                 Lobes::F64(v) => v.reserve_exact(e.lobes),
                 Lobes::F32(v) => v.reserve_exact(e.lobes),
                 Lobes::Coded(v) => v.reserve_exact(e.lobes),
+                Lobes::Lazy(_) => {}
             }
             match &mut level.horizon {
                 Some(Horizons::F64(v)) => v.reserve_exact(e.texels()),
                 Some(Horizons::F32(v)) => v.reserve_exact(e.texels()),
                 Some(Horizons::Coded(v)) => v.reserve_exact(e.texels()),
-                None => {}
+                Some(Horizons::Lazy(_)) | None => {}
             }
         }
+        let mut bands = Vec::new();
         let mut next = 0;
         while next < e.rows {
+            let at = r.pos;
             let band = read_band(r, h, k, e, next, coded)?;
+            if lazy {
+                let lobe0 = *level.lobe_start.last().unwrap_or(&0);
+                level
+                    .lobe_start
+                    .extend(band.lobe_start[1..].iter().map(|s| s + lobe0));
+                bands.push(super::lazy::BandEntry {
+                    at,
+                    row0: next,
+                    rows: band.rows,
+                    lobe0: lobe0 as usize,
+                    lobes: band.lobes.len(),
+                });
+            }
             next += band.rows;
-            if build {
+            if build && !lazy {
                 append(&mut level, band);
             }
             r.release();
         }
         level_end(r, k, e.lobes)?;
+        if let (true, Some(map)) = (lazy, map) {
+            let l = std::sync::Arc::new(super::lazy::LazyLevel::new(
+                std::sync::Arc::clone(map),
+                &r.path,
+                h,
+                k,
+                (e.cols, e.rows),
+                bands,
+                codes0,
+                band_max,
+            ));
+            level.lobes = Lobes::Lazy(std::sync::Arc::clone(&l));
+            level.horizon = h.has_h.then(|| Horizons::Lazy(l));
+        }
         if build {
             levels.push(level);
         }

@@ -161,7 +161,10 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
 /// rectangle (its cell's, as [`lobe_stats_by_cell`]), on coarser levels one per lobe, in the
 /// level's precision. The very values (same bits) of [`lobe_stats_by_cell`]'s entries for
 /// those texels: a coarse texel's cells are visited in the same order (row by row of its
-/// footprint) and their shares and horizons computed alike. Cost: the level-0 cells under the
+/// footprint) and their shares and horizons computed alike; level 0's rows are visited in
+/// order, a coarse row of the rectangle at a time, so that a level 0 held by band
+/// ([`crate::Pyramid::read_lazy`]) decodes each band once a rectangle (with a cache of two
+/// bands). Cost: the level-0 cells under the
 /// rectangle (a whole coarse level's rectangle visits all of level 0, as [`lobe_stats`] does
 /// per level); what a renderer building its tables on demand calls per tile.
 ///
@@ -186,22 +189,39 @@ pub fn rect_lobe_stats_by_cell(
     let mut shares = Vec::new();
     let mut hz: Option<Vec<HorizonStats>> = h0.map(|_| Vec::new());
     let (mut cell, mut logr, mut mass, mut acc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // A coarse row's texels: their lobes and, at `off[i]`, their accumulators.
+    let (mut lobes, mut off) = (Vec::new(), Vec::new());
     for row in rows {
-        for col in cols.clone() {
-            let t = row * l.cols + col;
-            if level == 0 {
+        if level == 0 {
+            for col in cols.clone() {
+                let t = row * l.cols + col;
                 cell_shares(l0, t, &mut shares);
                 if let (Some(v), Some(h)) = (&mut hz, h0) {
                     v.push(cell_horizon(pyramid, h, t));
                 }
-                continue;
             }
+            continue;
+        }
+        lobes.clear();
+        off.clear();
+        off.push(0);
+        for col in cols.clone() {
+            let t = row * l.cols + col;
             let (pa, pb) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
-            mass.clear();
-            mass.resize(pb - pa, 0.0f64);
-            acc.clear();
-            acc.resize(pb - pa, HorizonStats::default());
-            for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
+            lobes.push((pa, pb));
+            off.push(off[off.len() - 1] + pb - pa);
+        }
+        let n = off[off.len() - 1];
+        mass.clear();
+        mass.resize(n, 0.0f64);
+        acc.clear();
+        acc.resize(n, HorizonStats::default());
+        // Level 0's rows in order (a level held by band decodes each band once), each texel's
+        // cells row by row of its footprint as before: the same sums in the same order.
+        for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
+            for (i, col) in cols.clone().enumerate() {
+                let (pa, pb) = lobes[i];
+                let (mass, acc) = (&mut mass[off[i]..off[i + 1]], &mut acc[off[i]..off[i + 1]]);
                 for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
                     let ct = r * l0.cols + c;
                     cell.clear();
@@ -216,13 +236,16 @@ pub fn rect_lobe_stats_by_cell(
                     });
                 }
             }
+        }
+        for i in 0..lobes.len() {
+            let mass = &mass[off[i]..off[i + 1]];
             let total: f64 = mass.iter().sum();
             shares.extend(
                 mass.iter()
                     .map(|&m| if total > 0.0 { m / total } else { 0.0 }),
             );
             if let Some(v) = &mut hz {
-                v.extend_from_slice(&acc);
+                v.extend_from_slice(&acc[off[i]..off[i + 1]]);
             }
         }
     }

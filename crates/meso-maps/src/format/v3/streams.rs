@@ -130,21 +130,30 @@ fn unplanes(
     let out = (0..cols)
         .map(|c| {
             let base = c * n * bytes;
+            // The stored values, plane by plane (the layout visits every value once, in
+            // order: the first too wide is the first in the column).
             let mut col = vec![0u32; n];
-            layout.for_each_pred(per_lobe, |i, pred| {
-                let mut v = 0u32;
-                for b in 0..bytes {
-                    v |= u32::from(raw[base + b * n + i]) << (8 * b);
+            for b in 0..bytes {
+                let plane = &raw[base + b * n..base + (b + 1) * n];
+                for (v, &x) in col.iter_mut().zip(plane) {
+                    *v |= u32::from(x) << (8 * b);
                 }
-                if v & !mask != 0 {
-                    bad.get_or_insert(v);
-                }
-                let p = match (delta, pred) {
-                    (true, Some(p)) => col[p],
-                    _ => 0,
-                };
-                col[i] = v.wrapping_add(p) & mask;
-            });
+            }
+            if let Some(&v) = col.iter().find(|&&v| v & !mask != 0) {
+                bad.get_or_insert(v);
+            }
+            for v in &mut col {
+                *v &= mask;
+            }
+            // Then each value plus its predictor's, already final (mod 2^bits: the sum's low
+            // bits depend on the addends' low bits only).
+            if delta {
+                layout.for_each_pred(per_lobe, |i, pred| {
+                    if let Some(p) = pred {
+                        col[i] = col[i].wrapping_add(col[p]) & mask;
+                    }
+                });
+            }
             col
         })
         .collect();

@@ -1,0 +1,172 @@
+//! A map file's level 0 held by band (`Pyramid::read_lazy`, `meso_maps::LazyLevel`,
+//! docs/map-format.md "Rendering a map file"): every lobe and texel reads as `Pyramid::read`
+//! gives it, bit for bit, whatever the order of the reads; the lobe statistics of a rectangle
+//! are those of the pyramid in memory and decode each band once; a corrupt band is refused
+//! when the file is read, with an error naming the file.
+
+use meso_maps::{
+    extract, fixtures, rect_lobe_stats_by_cell, ExtractParams, Horizons, Lobes, Pyramid, Source,
+};
+use std::path::{Path, PathBuf};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("map_lazy");
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// A Gaussian surface of `n`² samples extracted and written to `name`.
+fn written(n: usize, name: &str) -> PathBuf {
+    let map = fixtures::gaussian(n, 4.0, 0.1, 3, 0.01).unwrap();
+    let p = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let path = tmp(name);
+    p.write(&path).unwrap();
+    path
+}
+
+fn lazy_level(p: &Pyramid) -> &meso_maps::LazyLevel {
+    match &p.levels[0].lobes {
+        Lobes::Lazy(l) => l,
+        other => panic!("level 0 is not held by band: {}", other.len()),
+    }
+}
+
+#[test]
+fn a_level_held_by_band_reads_as_the_file() {
+    let path = written(256, "g256.map");
+    let full = Pyramid::read(&path).unwrap();
+    let lazy = Pyramid::read_lazy(&path).unwrap();
+    assert_eq!(full.levels.len(), lazy.levels.len());
+    let (a, b) = (&full.levels[0], &lazy.levels[0]);
+    let l = lazy_level(&lazy);
+    assert!(matches!(b.horizon, Some(Horizons::Lazy(_))));
+    assert_eq!(l.bands(), 4, "256 rows in bands of 64");
+    assert_eq!(l.decoded_bands(), 0, "nothing decoded until read");
+    assert_eq!(a.lobe_start, b.lobe_start);
+    assert_eq!(a.lobes.len(), b.lobes.len());
+    // Texel by texel, as a tile is built: each band decoded once.
+    let (ha, hb) = (a.horizon.as_ref().unwrap(), b.horizon.as_ref().unwrap());
+    for t in 0..a.texels() {
+        let (s, e) = (a.lobe_start[t] as usize, a.lobe_start[t + 1] as usize);
+        for (x, y) in a.lobes.range(s, e).zip(b.lobes.range(s, e)) {
+            assert_eq!(x, y, "texel {t}");
+            assert_eq!(
+                x.axis.to_array().map(f64::to_bits),
+                y.axis.to_array().map(f64::to_bits)
+            );
+            assert_eq!(
+                (x.weight.to_bits(), x.exponent.to_bits()),
+                (y.weight.to_bits(), y.exponent.to_bits())
+            );
+        }
+        assert_eq!(ha.get(t), hb.get(t), "texel {t}");
+    }
+    assert_eq!(l.decoded_bands(), 4, "each band decoded once, in order");
+    // In any order: backwards, every lobe and texel.
+    for i in (0..a.lobes.len()).rev() {
+        assert_eq!(a.lobes.get(i), b.lobes.get(i), "lobe {i}");
+    }
+    for t in (0..a.texels()).rev().step_by(7) {
+        assert_eq!(ha.get(t), hb.get(t), "texel {t}");
+    }
+    // The other levels are read_coded's, which read as read's.
+    for (x, y) in full.levels[1..].iter().zip(&lazy.levels[1..]) {
+        assert_eq!(x.lobe_start, y.lobe_start);
+        assert!(x.lobes.iter().eq(y.lobes.iter()));
+        assert!(x
+            .horizon
+            .as_ref()
+            .unwrap()
+            .iter()
+            .eq(y.horizon.as_ref().unwrap().iter()));
+    }
+    // Written back, the same file.
+    assert!(lazy.to_bytes() == std::fs::read(&path).unwrap());
+    // The lobe statistics of rectangles, level 0 and coarser: the same bits.
+    for (k, rows, cols) in [
+        (0, 60..130, 3..70),
+        (1, 0..128, 0..64),
+        (2, 10..64, 0..64),
+        (6, 0..4, 0..4),
+        (8, 0..1, 0..1),
+    ] {
+        let x = rect_lobe_stats_by_cell(&full, k, rows.clone(), cols.clone(), true);
+        let y = rect_lobe_stats_by_cell(&lazy, k, rows, cols, true);
+        assert_eq!(x, y, "level {k}");
+    }
+}
+
+/// A coarse rectangle's lobe statistics visit level 0's rows in order: each band decoded
+/// once, even with a cache of one band (the footprint of a level-8 texel of a 512² map is 4
+/// bands; visited texel by texel, the second texel of a row would decode them all again).
+#[test]
+fn a_coarse_rectangle_decodes_each_band_once() {
+    let path = written(512, "g512.map");
+    let lazy = Pyramid::read_lazy(&path).unwrap();
+    let l = lazy_level(&lazy);
+    assert_eq!(l.bands(), 8);
+    l.set_cache_bands(1);
+    let before = l.decoded_bands();
+    let y = rect_lobe_stats_by_cell(&lazy, 8, 0..2, 0..2, true);
+    // Each band once, and band 0 again: the cells of the last row read row 0 (the map wraps).
+    // Texel by texel, the second texel of each row would decode its 4 bands again.
+    assert_eq!(l.decoded_bands() - before, 9, "each band once");
+    let full = Pyramid::read(&path).unwrap();
+    assert_eq!(y, rect_lobe_stats_by_cell(&full, 8, 0..2, 0..2, true));
+}
+
+/// Bytes changed inside a band of level 0 (its deflate data made invalid, in its first and its
+/// second stream; its lobe count): refused when the file is read, naming the file, by
+/// `read_lazy` as by `read` (the same message), never a panic. (Bytes flipped in the middle of
+/// a stream may decode to other valid values: the format has no checksum.)
+#[test]
+fn a_corrupt_band_is_an_error_naming_the_file() {
+    let path = written(256, "g256c.map");
+    let bytes = std::fs::read(&path).unwrap();
+    let at: Vec<usize> = bytes
+        .windows(4)
+        .enumerate()
+        .filter(|(_, w)| *w == b"BAND")
+        .map(|(i, _)| i)
+        .take(3)
+        .collect();
+    // Level 0's second band: rows 64..128; its band header (20 bytes), then stream 0's header
+    // (20 bytes: id, filter, 2 reserved, raw and compressed lengths) and data, then stream 1.
+    let a = at[1];
+    let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+    assert_eq!((u32_at(a + 4), u32_at(a + 8)), (0, 64), "level 0, row 64");
+    let comp0 = u64::from_le_bytes(bytes[a + 32..a + 40].try_into().unwrap()) as usize;
+    let s1 = a + 40 + comp0;
+    assert_eq!(bytes[s1], 1, "stream 1's id");
+    let cases: [(usize, u8, &str); 3] = [
+        (a + 40, 0xFF, "corrupt compressed data"),
+        (s1 + 20, 0xFF, "corrupt compressed data"),
+        (a + 16, 0x01, "claims"),
+    ];
+    for (n, (i, x, what)) in cases.into_iter().enumerate() {
+        let mut bad = bytes.clone();
+        bad[i] ^= x;
+        if x == 0xFF {
+            // BFINAL 1, BTYPE 11: a reserved block type.
+            bad[i] = 0xFF;
+        }
+        let p = tmp(&format!("corrupt{n}.map"));
+        std::fs::write(&p, &bad).unwrap();
+        let e = match Pyramid::read_lazy(&p) {
+            Ok(_) => panic!("case {n}: the corrupt band was accepted"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(&p.display().to_string()), "{e}");
+        assert!(e.contains(what), "case {n}: {e}");
+        let full = match Pyramid::read(&p) {
+            Ok(_) => panic!("case {n}: accepted by read"),
+            Err(e) => e.to_string(),
+        };
+        assert_eq!(e, full);
+    }
+}
