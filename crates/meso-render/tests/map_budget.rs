@@ -1,10 +1,12 @@
 //! The memory check of a map file's material (`[texture] map = "…"`, what `meso render`
 //! builds): the pyramid held and the least cache of tables (`MIN_TABLE_CACHE`, or every tile's
 //! tables when fewer) against the budget, refused one byte under it with a message naming the
-//! file, built at it. Its own test binary: it sets the process's budget.
+//! file, built at it; and what `meso render` reads a map file as (`Pyramid::read_for_rendering`):
+//! coded when that takes at most half the budget, level 0 held by band when more. Its own test
+//! binary: it sets the process's budget.
 
 use meso_core::material::Material;
-use meso_maps::{extract, fixtures, ExtractParams, MapsResolver, Pyramid, Source};
+use meso_maps::{extract, fixtures, ExtractParams, Lobes, MapsResolver, Pyramid, Source};
 use meso_render::textured::MIN_TABLE_CACHE;
 use meso_render::{load_textured, NdfMapped};
 use std::path::Path;
@@ -29,7 +31,7 @@ fn the_material_of_a_map_file_is_budgeted() {
         format!("[texture]\nkind = \"ndf-mapped\"\nmap = \"g64.map\"\n{transfer}"),
     )
     .unwrap();
-    let read = Pyramid::read_lazy(&path).unwrap();
+    let read = Pyramid::read_for_rendering(&path).unwrap();
     let surface = Material::from_toml_str(transfer).unwrap();
     let bound = NdfMapped::tables_bytes_bound(&read, &surface, true);
     let need = NdfMapped::pyramid_bytes(&read) + bound.min(MIN_TABLE_CACHE);
@@ -53,5 +55,31 @@ fn the_material_of_a_map_file_is_budgeted() {
         load_textured(&mat, &MapsResolver::new()),
         Ok(Some(_))
     ));
+    meso_core::budget::set_budget(0);
+
+    // A map whose level 0 is compact (256² ≥ COMPACT_TEXELS) is read coded under the default
+    // budget, and still coded under a budget it takes more than half of: level 0 held by
+    // band would need more here (its cache of decoded bands is all of a small level 0 and
+    // more). The choice itself: `lazy_pays` in meso-maps' format/v4.rs; a level held by
+    // band: meso-maps' tests/map_lazy.rs.
+    let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let path = dir.join("g256.map");
+    pyr.write(&path).unwrap();
+    let coded = Pyramid::read_for_rendering(&path).unwrap();
+    assert!(matches!(coded.levels[0].lobes, Lobes::Coded(_)));
+    let held = NdfMapped::pyramid_bytes(&coded);
+    meso_core::budget::set_budget(held * 2);
+    let again = Pyramid::read_for_rendering(&path).unwrap();
+    assert!(matches!(again.levels[0].lobes, Lobes::Coded(_)));
+    assert!(
+        Pyramid::read_lazy(&path).is_err(),
+        "held by band, it needs more"
+    );
     meso_core::budget::set_budget(0);
 }

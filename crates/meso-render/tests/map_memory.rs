@@ -11,8 +11,9 @@
 //! * building and shading: the pyramid, the tables of the tiles held (the cache's own count)
 //!   and one tile being built (its lobe statistics), whatever the view; under a cap, at most
 //!   the cap, the tile being built and the tiles a shading call holds;
-//! * level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads): reading holds the
-//!   coded pyramid less level 0's codes, and one band; it shades bit for bit as the coded one.
+//! * level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads when the coded
+//!   pyramid would take more than half the budget): reading holds the coded pyramid less
+//!   level 0's codes, and one band; it shades bit for bit as the coded one.
 //!
 //! One test per binary: the counter sees only this test's allocations.
 
@@ -145,8 +146,8 @@ fn rendering_a_map_file_peaks_at_its_model() {
         }
     }
 
-    // Level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads): reading holds the
-    // other levels coded, level 0's lobe starts and one band being decoded; the same shading,
+    // Level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads of a large map):
+    // reading holds the other levels coded, level 0's lobe starts and one band being decoded; the same shading,
     // bit for bit, every view.
     peak_since(&mut reset);
     let lazy = Pyramid::read_lazy(&path).unwrap();

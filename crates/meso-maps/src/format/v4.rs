@@ -358,6 +358,19 @@ pub(in crate::format) enum Mode {
     /// As `Coded`, but level 0 (when compact) held by band in the mapped file
     /// ([`super::lazy::LazyLevel`]): every band checked, then dropped.
     Lazy,
+    /// `Coded` when the coded pyramid takes at most half the memory budget (the other half
+    /// left to what is built from it) or `Lazy` would need as much, `Lazy` otherwise
+    /// ([`lazy_pays`]): holding level 0 by band costs CPU
+    /// when a view reads much of it (far view of a 4096² map: +28 % user CPU), so it is taken
+    /// only where the memory asks for it.
+    Auto,
+}
+
+/// [`Mode::Auto`]'s choice: level 0 held by band when the coded pyramid (`coded` bytes, as
+/// read) would take more than half the `budget` and holding level 0 by band needs less
+/// (`lazy` bytes: on a small map the cache of decoded bands can be all of level 0 and more).
+fn lazy_pays(coded: u64, lazy: u64, budget: u64) -> bool {
+    coded > budget / 2 && lazy < coded
 }
 
 /// Read (`mode`) or only check the levels of a format-4 file after the common header: the
@@ -379,19 +392,27 @@ pub(in crate::format) fn read_levels(
     let (table, band_max, codes0) = scan(r, h)?;
     let end = r.pos;
     let build = mode != Mode::Check;
-    let coded = matches!(mode, Mode::Coded | Mode::Lazy);
-    let lazy0 =
-        mode == Mode::Lazy && map.is_some() && table.first().is_some_and(|e| compact(e.texels()));
-    let need = if lazy0 {
-        // Level 0's lobe starts and decoded bands, the other levels coded.
-        let file = if r.releases() { 0 } else { r.b.len() as u64 };
+    let coded = matches!(mode, Mode::Coded | Mode::Lazy | Mode::Auto);
+    let can_lazy = map.is_some() && table.first().is_some_and(|e| compact(e.texels()));
+    let file = if r.releases() { 0 } else { r.b.len() as u64 };
+    let coded_need = file + coded_pyramid_bytes(&table, h.has_h) + band_max;
+    // Level 0's lobe starts and decoded bands, the other levels coded.
+    let lazy_need = || {
         let t0 = table[0].texels() as u64;
         file + coded_pyramid_bytes(&table[1..], h.has_h)
             + 4 * (t0 + 1)
             + super::lazy::held_bytes_bound(codes0, band_max)
+    };
+    let lazy0 = can_lazy
+        && match mode {
+            Mode::Lazy => true,
+            Mode::Auto => lazy_pays(coded_need, lazy_need(), meso_core::budget::budget().bytes),
+            _ => false,
+        };
+    let need = if lazy0 {
+        lazy_need()
     } else if build && coded {
-        let file = if r.releases() { 0 } else { r.b.len() as u64 };
-        file + coded_pyramid_bytes(&table, h.has_h) + band_max
+        coded_need
     } else if build {
         r.b.len() as u64 + pyramid_bytes(&table, h.has_h) + band_max
     } else {
@@ -507,4 +528,21 @@ pub(crate) fn check_band(
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lazy_pays;
+
+    #[test]
+    fn level_0_is_held_by_band_only_where_the_memory_asks_for_it() {
+        const G: u64 = 1 << 30;
+        // The default budget (4 GiB): a 4096² map coded (≈ 1 GB), an 8192² one (≈ 4.2 GB) by band.
+        assert!(!lazy_pays(G, G / 2, 4 * G));
+        assert!(lazy_pays(4 * G + G / 5, 2 * G, 4 * G));
+        // Just over half the budget, and only if it needs less.
+        assert!(!lazy_pays(2 * G, G, 4 * G));
+        assert!(lazy_pays(2 * G + 1, G, 4 * G));
+        assert!(!lazy_pays(3 * G, 3 * G, 4 * G));
+    }
 }
