@@ -147,8 +147,8 @@ fn rendering_a_map_file_peaks_at_its_model() {
     }
 
     // Level 0 held by band (`Pyramid::read_lazy`, what `meso render` reads of a large map):
-    // reading holds the other levels coded, level 0's lobe starts and one band being decoded; the same shading,
-    // bit for bit, every view.
+    // reading holds the other levels coded, level 0's lobe starts and one band being decoded;
+    // the same shading, bit for bit, every view.
     peak_since(&mut reset);
     let lazy = Pyramid::read_lazy(&path).unwrap();
     let lazy_peak = peak_since(&mut reset);
