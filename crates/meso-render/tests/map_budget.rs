@@ -9,21 +9,27 @@ use meso_core::material::Material;
 use meso_maps::{extract, fixtures, ExtractParams, Lobes, MapsResolver, Pyramid, Source};
 use meso_render::textured::MIN_TABLE_CACHE;
 use meso_render::{load_textured, NdfMapped};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-#[test]
-fn the_material_of_a_map_file_is_budgeted() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("map_budget");
-    std::fs::create_dir_all(&dir).unwrap();
-    let map = fixtures::gaussian(64, 4.0, 0.1, 3, 0.01).unwrap();
+/// The map file of an `n`² Gaussian surface, extracted with the defaults, as `dir/gN.map`.
+fn written(dir: &Path, n: usize) -> PathBuf {
+    let map = fixtures::gaussian(n, 4.0, 0.1, 3, 0.01).unwrap();
     let pyr = extract(
         Source::Heights(&map),
         &ExtractParams::default(),
         &mut |_| {},
     )
     .unwrap();
-    let path = dir.join("g64.map");
+    let path = dir.join(format!("g{n}.map"));
     pyr.write(&path).unwrap();
+    path
+}
+
+#[test]
+fn the_material_of_a_map_file_is_budgeted() {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("map_budget");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = written(&dir, 64);
     let transfer = "[transfer]\nkind = \"phong\"\nexponent = 20.0\n";
     let mat = dir.join("mat.toml");
     std::fs::write(
@@ -62,15 +68,7 @@ fn the_material_of_a_map_file_is_budgeted() {
     // band would need more here (its cache of decoded bands is all of a small level 0 and
     // more). The choice itself: `lazy_pays` in meso-maps' format/v4.rs; a level held by
     // band: meso-maps' tests/map_lazy.rs.
-    let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
-    let pyr = extract(
-        Source::Heights(&map),
-        &ExtractParams::default(),
-        &mut |_| {},
-    )
-    .unwrap();
-    let path = dir.join("g256.map");
-    pyr.write(&path).unwrap();
+    let path = written(&dir, 256);
     let coded = Pyramid::read_for_rendering(&path).unwrap();
     assert!(matches!(coded.levels[0].lobes, Lobes::Coded(_)));
     let held = NdfMapped::pyramid_bytes(&coded);
