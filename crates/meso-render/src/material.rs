@@ -32,7 +32,7 @@
 //! ```
 
 use crate::geometry::ShadingPoint;
-use crate::shader::{colour_pairs, fast_pow, lobe_pairs, pairs_one_by_one, LobeSlices, Shader};
+use crate::shader::{colour_pairs, lobe_pairs, pairs_one_by_one, LobeSlices, Shader};
 use glam::DVec3;
 use meso_core::frame::half_vector;
 use meso_core::material::Material;
@@ -42,9 +42,6 @@ use meso_core::transfer::Transfer;
 // `local_point` lives with the shading contract (`crate::shader`); re-exported here, where
 // callers have always found it.
 pub use crate::shader::local_point;
-
-/// Lanes of one chunk of the delta-sum kernel (the plan's padding).
-const LANES: usize = meso_core::shading::LANES;
 
 /// The renderer's kernel for a compiled plan (the plan itself is meso-core's [`FastBrdf`]).
 #[derive(Clone, Debug)]
@@ -332,31 +329,14 @@ impl Shader for MaterialShader {
         match &self.kind {
             Kind::DeltaPhong { diffuse, .. } => {
                 let p = self.phong();
-                let (n, specular) = (p.normals, p.specular);
                 let Some(h) = half_vector(wi, wo) else {
                     return [0.0; 3];
                 };
-                let (hx, hy, hz) = (h.x as f32, h.y as f32, h.z as f32);
-                let (ix, iy, iz) = (wi.x as f32, wi.y as f32, wi.z as f32);
-                let e = p.exponent;
-                let mut acc = 0.0f32;
-                for (((nx, ny), nz), w) in
-                    n.nx.chunks_exact(LANES)
-                        .zip(n.ny.chunks_exact(LANES))
-                        .zip(n.nz.chunks_exact(LANES))
-                        .zip(n.w.chunks_exact(LANES))
-                {
-                    let mut lane = [0.0f32; LANES];
-                    // Indexed over the SoA lanes: vectorised as written.
-                    #[allow(clippy::needless_range_loop)]
-                    for k in 0..LANES {
-                        let nh = (nx[k] * hx + ny[k] * hy + nz[k] * hz).max(0.0);
-                        let ni = (nx[k] * ix + ny[k] * iy + nz[k] * iz).max(0.0);
-                        lane[k] = w[k] * fast_pow(nh, e) * ni;
-                    }
-                    acc += lane.iter().sum::<f32>();
-                }
-                let s = acc / iz;
+                let s = p.lobe_sum(
+                    [h.x as f32, h.y as f32, h.z as f32],
+                    [wi.x as f32, wi.y as f32, wi.z as f32],
+                );
+                let specular = p.specular;
                 [
                     specular[0] * s + diffuse[0],
                     specular[1] * s + diffuse[1],
