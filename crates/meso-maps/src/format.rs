@@ -182,7 +182,7 @@ impl Pyramid {
     /// one band (a 4096² height map: 1.04 GB, where [`Pyramid::read`] holds 1.97 GB and the
     /// 0.5 GB file); checked against the budget before anything is inflated. Other versions
     /// are read as [`Pyramid::read`] does. How `meso render` holds a map file's pyramid when
-    /// it takes at most half the budget ([`Pyramid::read_for_rendering`]).
+    /// it takes at most half the budget ([`Pyramid::read_compact`]).
     ///
     /// # Errors
     /// As [`Pyramid::read`].
@@ -201,7 +201,7 @@ impl Pyramid {
     /// levels coded (an 8192² height map: ≈ 1.6 GB, where [`Pyramid::read_coded`] holds
     /// ≈ 4.2 GB); checked against the budget before anything is inflated. How `meso render`
     /// holds a map file's pyramid when the coded one would take more than half the budget
-    /// ([`Pyramid::read_for_rendering`]). Other versions are read as [`Pyramid::read`] does.
+    /// ([`Pyramid::read_compact`]). Other versions are read as [`Pyramid::read`] does.
     ///
     /// # Errors
     /// As [`Pyramid::read`]; a corrupt band is found when the file is read, not when the band
@@ -210,22 +210,25 @@ impl Pyramid {
         Pyramid::read_mapped(path, v4::Mode::Lazy)
     }
 
-    /// [`Pyramid::read_coded`], or [`Pyramid::read_lazy`] when the coded pyramid would take
-    /// more than half the memory budget ([`meso_core::budget`]; the other half is left to
-    /// what is built from it, e.g. `meso render`'s tables). Level 0 held by band costs CPU
+    /// The pyramid held as compactly as the memory budget asks: [`Pyramid::read_coded`], or
+    /// [`Pyramid::read_lazy`] when the coded pyramid would take more than half the memory
+    /// budget ([`meso_core::budget`]; the other half is left to what is built from it, e.g.
+    /// `meso render`'s tables) and holding level 0 by band needs less (on a small map its cache
+    /// of decoded bands can be all of level 0 and more). Level 0 held by band costs CPU
     /// where a view reads much of it (measured, far view of a 4096² map: 41.6 s user CPU
     /// against 32.4 s coded; docs/benchmarks.md), so it is taken only where the memory asks
     /// for it: under the default budget (4 GiB) a 4096² map is read coded (1.02 GiB peak) and
-    /// an 8192² map lazily (2.05 GiB). What `meso render` reads a map file with.
+    /// an 8192² map lazily (2.05 GiB). What `meso render` and `meso map info` read a map file
+    /// with.
     ///
     /// # Errors
     /// As [`Pyramid::read`].
-    pub fn read_for_rendering(path: &Path) -> Result<Pyramid> {
+    pub fn read_compact(path: &Path) -> Result<Pyramid> {
         Pyramid::read_mapped(path, v4::Mode::Auto)
     }
 
     /// [`Pyramid::read_coded`] (`mode` [`v4::Mode::Coded`]), [`Pyramid::read_lazy`]
-    /// ([`v4::Mode::Lazy`]) or [`Pyramid::read_for_rendering`] ([`v4::Mode::Auto`]).
+    /// ([`v4::Mode::Lazy`]) or [`Pyramid::read_compact`] ([`v4::Mode::Auto`]).
     fn read_mapped(path: &Path, mode: v4::Mode) -> Result<Pyramid> {
         meso_core::io::note_input(path);
         let io = |e| MapError::Io {

@@ -2,7 +2,8 @@
 //! docs/map-format.md "Rendering a map file"): every lobe and texel reads as `Pyramid::read`
 //! gives it, bit for bit, whatever the order of the reads; the lobe statistics of a rectangle
 //! are those of the pyramid in memory and decode each band once; a corrupt band is refused
-//! when the file is read, with an error naming the file.
+//! when the file is read, with an error naming the file; `meso map info`'s summary is the same
+//! however the pyramid is held.
 
 use meso_maps::{
     extract, fixtures, rect_lobe_stats_by_cell, ExtractParams, Horizons, Lobes, Pyramid, Source,
@@ -168,5 +169,22 @@ fn a_corrupt_band_is_an_error_naming_the_file() {
             Err(e) => e.to_string(),
         };
         assert_eq!(e, full);
+    }
+}
+
+/// `meso map info` reads with `Pyramid::read_compact` (coded, or level 0 by band when the
+/// coded pyramid would take more than half the budget): its summary (levels, lobe counts per
+/// texel, residuals) is the same as from `Pyramid::read`, whichever way the pyramid is held.
+#[test]
+fn the_summary_is_the_same_however_the_pyramid_is_held() {
+    let path = written(256, "info256.map");
+    let full = Pyramid::read(&path).unwrap().info().to_string();
+    assert!(full.lines().count() > 8, "{full}");
+    for (how, p) in [
+        ("coded", Pyramid::read_coded(&path).unwrap()),
+        ("by band", Pyramid::read_lazy(&path).unwrap()),
+        ("compact", Pyramid::read_compact(&path).unwrap()),
+    ] {
+        assert_eq!(p.info().to_string(), full, "{how}");
     }
 }

@@ -1,7 +1,7 @@
 //! The memory check of a map file's material (`[texture] map = "…"`, what `meso render`
 //! builds): the pyramid held and the least cache of tables (`MIN_TABLE_CACHE`, or every tile's
 //! tables when fewer) against the budget, refused one byte under it with a message naming the
-//! file, built at it; and what `meso render` reads a map file as (`Pyramid::read_for_rendering`):
+//! file, built at it; and what `meso render` reads a map file as (`Pyramid::read_compact`):
 //! coded when that takes at most half the budget, level 0 held by band when more. Its own test
 //! binary: it sets the process's budget.
 
@@ -37,7 +37,7 @@ fn the_material_of_a_map_file_is_budgeted() {
         format!("[texture]\nkind = \"ndf-mapped\"\nmap = \"g64.map\"\n{transfer}"),
     )
     .unwrap();
-    let read = Pyramid::read_for_rendering(&path).unwrap();
+    let read = Pyramid::read_compact(&path).unwrap();
     let surface = Material::from_toml_str(transfer).unwrap();
     let bound = NdfMapped::tables_bytes_bound(&read, &surface, true);
     let need = NdfMapped::pyramid_bytes(&read) + bound.min(MIN_TABLE_CACHE);
@@ -69,11 +69,11 @@ fn the_material_of_a_map_file_is_budgeted() {
     // more). The choice itself: `lazy_pays` in meso-maps' format/v4.rs; a level held by
     // band: meso-maps' tests/map_lazy.rs.
     let path = written(&dir, 256);
-    let coded = Pyramid::read_for_rendering(&path).unwrap();
+    let coded = Pyramid::read_compact(&path).unwrap();
     assert!(matches!(coded.levels[0].lobes, Lobes::Coded(_)));
     let held = NdfMapped::pyramid_bytes(&coded);
     meso_core::budget::set_budget(held * 2);
-    let again = Pyramid::read_for_rendering(&path).unwrap();
+    let again = Pyramid::read_compact(&path).unwrap();
     assert!(matches!(again.levels[0].lobes, Lobes::Coded(_)));
     assert!(
         Pyramid::read_lazy(&path).is_err(),

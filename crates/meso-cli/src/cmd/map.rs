@@ -22,7 +22,9 @@ pub struct InfoArgs {
 pub fn run(c: MapCommand) -> Result<()> {
     match c {
         MapCommand::Info(a) => {
-            let pyr = Pyramid::read(&a.map)?;
+            // Only the lobe counts and residuals are printed: the pyramid held as compactly as
+            // the budget asks (an 8192² map's level 0 by band), its values never decoded.
+            let pyr = Pyramid::read_compact(&a.map)?;
             crate::util::print_stdout(&pyr.info().to_string())
         }
     }
