@@ -8,13 +8,15 @@
 //! along `edge_u` (`docs/scene-format.md`).
 //!
 //! The shader does not look at the material's kinds: it adapts meso-core's compiled plan. Two
-//! plans get an f32 kernel of the renderer's own:
+//! plans get an f32 kernel:
 //! * weighted normals under Phong (`N·H`) facets in the multiple-surface form (Eq. 4/11) — the
 //!   hot case of the paper, a delta sum of a few dozen normals, and Phong peaks by their node
 //!   quadrature: `f(i, o) = Σ_k w_k · spec · max(0, N_k·H)^η · max(0, N_k·i) / cos θ_i +
-//!   diffuse/π`, on the plan's flat f32 lanes ([`FastBrdf::phong_normals`], not copied) with the
-//!   renderer's branch-free [`fast_pow`] (relative error ≈ `1.5e-7·(1 + |η log2(N·H)|)`), eight
-//!   normals per chunk;
+//!   diffuse/π`, on the plan's flat f32 lanes ([`FastBrdf::phong_normals`], not copied): per
+//!   pair meso-core's own kernel ([`meso_core::shading::PhongNormals::lobe_sum`], the one
+//!   [`FastBrdf::eval`] runs; branch-free [`meso_core::fastmath::fast_pow`], relative error ≈
+//!   `1.5e-7·(1 + |η log2(N·H)|)`, eight normals per chunk), across pairs the renderer's
+//!   stream kernel ([`lobe_pairs`]);
 //! * one Beckmann or GGX lobe under Schlick mirror facets with Smith ([`MicrofacetLobe`], from
 //!   [`FastBrdf::closed_microfacet`]).
 //!
