@@ -125,8 +125,9 @@ pub type Warnings = Arc<dyn Fn(&Path, &str) + Send + Sync>;
 
 /// A progress hook for pyramid extractions: the height map's path and the extraction's
 /// [`crate::pyramid::Progress`] (called from the extracting thread). `represent = "facets"`
-/// materials report their horizon march through it too, with `levels = 0` and `work_done`
-/// counting rows of cells (called from rayon's worker threads).
+/// materials report their horizon march through it too (task `Facets`, `levels = 0`,
+/// `work_done` counting rows of cells; called from rayon's worker threads), and
+/// [`MapsResolver::read_map_file`] its reading of a map file (task `Read`, bytes).
 pub type ExtractProgress = Arc<dyn Fn(&Path, crate::pyramid::Progress) + Send + Sync>;
 
 fn merr<T>(msg: impl Into<String>) -> Result<T, MaterialError> {
@@ -233,12 +234,26 @@ impl MapsResolver {
         MapsResolver::default()
     }
 
-    /// Report the progress of every pyramid extraction (a 1024² height map takes seconds) to
-    /// `progress`.
+    /// Report the progress of every pyramid extraction (a 1024² height map takes seconds), facet
+    /// horizon march and map-file read ([`MapsResolver::read_map_file`]) to `progress`
+    /// ([`crate::Progress::task`] says which).
     #[must_use]
     pub fn with_progress(mut self, progress: ExtractProgress) -> MapsResolver {
         self.progress = Some(progress);
         self
+    }
+
+    /// A map file written by `meso extract`, held as compactly as the memory budget asks
+    /// ([`Pyramid::read_compact`]), its reading reported to this resolver's progress
+    /// ([`crate::ProgressTask::Read`]).
+    ///
+    /// # Errors
+    /// As [`Pyramid::read`].
+    pub fn read_map_file(&self, path: &Path) -> Result<Pyramid, crate::MapError> {
+        match &self.progress {
+            Some(f) => Pyramid::read_compact_reporting(path, &mut |p| f(path, p)),
+            None => Pyramid::read_compact(path),
+        }
     }
 
     /// Report what loading inputs finds and corrects to `warnings` (each warning once per file
@@ -484,8 +499,9 @@ impl MapsResolver {
     }
 
     /// [`MapsResolver::heightmap_facets`], reporting the horizon march to `progress` as a
-    /// [`crate::pyramid::Progress`] with `levels = 0` (no pyramid levels: `work_done` counts
-    /// rows of cells marched, from 0 to `work_total`).
+    /// [`crate::pyramid::Progress`] of task [`crate::pyramid::ProgressTask::Facets`] with
+    /// `levels = 0` (no pyramid levels: `work_done` counts rows of cells marched, from 0 to
+    /// `work_total`).
     fn heightmap_facets_with(
         table: &toml::Table,
         file: &Path,
@@ -510,6 +526,7 @@ impl MapsResolver {
                 f(
                     file,
                     crate::pyramid::Progress {
+                        task: crate::pyramid::ProgressTask::Facets,
                         levels_done: 0,
                         levels: 0,
                         texels_done: 0,

@@ -1,9 +1,10 @@
 //! Issue #12, item 13: the progress of an extraction tells the truth: a total known from the
 //! first call (never a placeholder such as `u64::MAX`), monotone, ending at its total, and
 //! weighted by work, so that the coarse levels (few texels, each fitted on many points) are not
-//! a last few percent that take most of the time.
+//! a last few percent that take most of the time. The same for reading a map file
+//! (`Pyramid::read_compact_reporting`, what `meso render` and `meso map info` read with).
 
-use meso_maps::{extract, fixtures, ExtractParams, Progress, Source};
+use meso_maps::{extract, fixtures, ExtractParams, Progress, ProgressTask, Pyramid, Source};
 
 fn progress_of(n: usize) -> Vec<Progress> {
     let map = fixtures::gaussian(n, 3.0, 0.15, 7, 0.1).unwrap();
@@ -59,5 +60,42 @@ fn item13_extract_progress_is_weighted_by_work_not_texels() {
         work_share < 0.8,
         "two finest levels {:.0}% of the work",
         100.0 * work_share
+    );
+}
+
+/// Reading a map file reports task `Read` from 0 before the first band to its total after the
+/// last level: one total throughout, monotone, every level counted, every texel; the pyramid
+/// read is the same as without reports.
+#[test]
+fn reading_a_map_file_reports_every_band_up_to_its_total() {
+    let map = fixtures::gaussian(256, 3.0, 0.15, 7, 0.1).unwrap();
+    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |p| {
+        assert_eq!(p.task, ProgressTask::Extract)
+    })
+    .unwrap();
+    let path = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("progress_read.map");
+    pyr.write(&path).unwrap();
+    let mut calls = Vec::new();
+    let read = Pyramid::read_compact_reporting(&path, &mut |p| calls.push(p)).unwrap();
+    assert!(read.to_bytes() == Pyramid::read_compact(&path).unwrap().to_bytes());
+    let (first, last) = (calls[0], *calls.last().unwrap());
+    assert_eq!(
+        (first.work_done, first.levels_done, first.texels_done),
+        (0, 0, 0)
+    );
+    assert!(calls.iter().all(|p| p.task == ProgressTask::Read));
+    for w in calls.windows(2) {
+        assert_eq!(w[0].work_total, w[1].work_total, "one total");
+        assert!(w[0].work_done <= w[1].work_done && w[0].texels_done <= w[1].texels_done);
+        assert!(w[0].levels_done <= w[1].levels_done);
+    }
+    assert_eq!(last.work_done, last.work_total);
+    assert_eq!(last.levels_done, pyr.levels.len());
+    let texels: u64 = pyr.levels.iter().map(|l| l.texels() as u64).sum();
+    assert_eq!((last.texels_done, last.texels_total), (texels, texels));
+    // More than one report a level on level 0 (its 256 rows are four bands of 64).
+    assert!(
+        calls.iter().filter(|p| p.levels_done == 0).count() >= 4,
+        "{calls:?}"
     );
 }

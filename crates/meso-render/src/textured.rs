@@ -279,7 +279,10 @@ fn map_mapped(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
     // Kept as the file codes it (half the memory of `f32` levels, the same values read); when
     // that would take more than half the budget, level 0 (¾ of it) by band in the mapped file,
     // decoded where read (slower where a view reads much of it).
-    let pyramid = Pyramid::read_compact(file).map_err(|e| format!("[texture] map: {e}"))?;
+    let pyramid = t
+        .maps
+        .read_map_file(file)
+        .map_err(|e| format!("[texture] map: {e}"))?;
     let conflict = |key: &str, given: &dyn std::fmt::Display, stored: &dyn std::fmt::Display| {
         format!(
             "[texture] {key} = {given} conflicts with the map file {shown}, extracted with \

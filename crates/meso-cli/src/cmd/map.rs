@@ -24,7 +24,16 @@ pub fn run(c: MapCommand) -> Result<()> {
         MapCommand::Info(a) => {
             // Only the lobe counts and residuals are printed: the pyramid held as compactly as
             // the budget asks (an 8192² map's level 0 by band), its values never decoded.
-            let pyr = Pyramid::read_compact(&a.map)?;
+            // Reading checks every band (≈ 20 s for an 8192² map): a bar on a terminal.
+            let bar = std::cell::OnceCell::new();
+            let pyr = Pyramid::read_compact_reporting(&a.map, &mut |p| {
+                let b = bar.get_or_init(|| crate::util::progress_work(p.work_total, "map file"));
+                b.set_position(p.work_done);
+            });
+            if let Some(b) = bar.get() {
+                b.finish_and_clear();
+            }
+            let pyr = pyr?;
             crate::util::print_stdout(&pyr.info().to_string())
         }
     }

@@ -70,9 +70,9 @@ static FACETS_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64
 /// files with a `[texture]` table as bump- or NDF-mapped materials
 /// ([`meso_render::load_textured`]).
 pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, ResolveError> {
-    // NDF-mapped materials extract their height map's pyramid at load: a progress bar on a
-    // terminal, weighted by the work of each level, with its time counted as the `pyramid`
-    // phase.
+    // NDF-mapped materials extract their height map's pyramid (or read a map file) at load: a
+    // progress bar on a terminal, weighted by the work of each level (or bytes read), an
+    // extraction's time counted as the `pyramid` phase.
     // The bar appears with the first extraction's first report (with its total), not for
     // materials that extract nothing.
     let bar = Arc::new(std::sync::OnceLock::<indicatif::ProgressBar>::new());
@@ -81,24 +81,30 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
     let maps = meso_maps::MapsResolver::new()
         .with_warnings(crate::print_warning())
         .with_progress(Arc::new(move |_, p| {
-            // `levels == 0`: the horizon march of a facet NDF, not a pyramid.
-            let facets = p.levels == 0;
-            let b = shown.get_or_init(|| {
-                crate::util::progress_work(p.work_total, if facets { "facets" } else { "pyramid" })
-            });
+            use meso_maps::ProgressTask;
+            let what = match p.task {
+                ProgressTask::Extract => "pyramid",
+                ProgressTask::Facets => "facets",
+                ProgressTask::Read => "map file",
+            };
+            let b = shown.get_or_init(|| crate::util::progress_work(p.work_total, what));
+            if b.prefix() != what {
+                b.set_prefix(what);
+            }
             b.set_length(p.work_total);
             b.set_position(p.work_done);
+            // Reading a map file is part of the load phase, not timed apart.
+            let total = match p.task {
+                ProgressTask::Extract => &PYRAMID_NANOS,
+                ProgressTask::Facets => &FACETS_NANOS,
+                ProgressTask::Read => return,
+            };
             let mut s = st.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
             if p.work_done == 0 && p.levels_done == 0 && s.is_none() {
                 *s = Some(std::time::Instant::now());
             } else if p.work_done >= p.work_total {
                 if let Some(t) = s.take() {
                     let ns = u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX);
-                    let total = if facets {
-                        &FACETS_NANOS
-                    } else {
-                        &PYRAMID_NANOS
-                    };
                     total.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
                 }
             }

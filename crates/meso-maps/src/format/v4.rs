@@ -381,12 +381,15 @@ fn lazy_pays(coded: u64, lazy: u64, budget: u64) -> bool {
 /// [`Horizons::Coded`]); with [`Mode::Lazy`] level 0, when compact, is held by band
 /// ([`Lobes::Lazy`], [`Horizons::Lazy`]: `map` must be the reader's bytes). The reader's bytes
 /// are released as they are read when it holds a mapped file (`Reader::release`), so that the
-/// memory is the (coded) pyramid and one band, not the file besides.
+/// memory is the (coded) pyramid and one band, not the file besides. `report` gets a
+/// [`crate::pyramid::ProgressTask::Read`] progress before the first band, after each band and
+/// after each level (work: bytes of the levels read, ending at the total).
 pub(in crate::format) fn read_levels(
     r: &mut Reader<'_>,
     h: &Header,
     mode: Mode,
     map: Option<&std::sync::Arc<memmap2::Mmap>>,
+    report: &mut dyn FnMut(crate::pyramid::Progress),
 ) -> Result<Vec<Level>> {
     let start = r.pos;
     let (table, band_max, codes0) = scan(r, h)?;
@@ -420,6 +423,20 @@ pub(in crate::format) fn read_levels(
     };
     meso_core::budget::check(&r.path, "reading the map file", need)?;
     r.pos = start;
+    let texels_total = table.iter().map(|e| e.texels() as u64).sum::<u64>();
+    let mut texels_done = 0u64;
+    let mut progress = |levels_done: usize, texels_done: u64, at: usize| {
+        report(crate::pyramid::Progress {
+            task: crate::pyramid::ProgressTask::Read,
+            levels_done,
+            levels: table.len(),
+            texels_done,
+            texels_total,
+            work_done: (at - start) as u64,
+            work_total: ((end - start) as u64).max(1),
+        });
+    };
+    progress(0, 0, start);
     let mut levels = Vec::with_capacity(if build { h.nlev } else { 0 });
     for (k, e) in table.iter().enumerate() {
         let c = compact(e.texels());
@@ -473,12 +490,15 @@ pub(in crate::format) fn read_levels(
                 });
             }
             next += band.rows;
+            texels_done += (band.rows * e.cols) as u64;
             if build && !lazy {
                 append(&mut level, band);
             }
             r.release();
+            progress(k, texels_done, r.pos);
         }
         level_end(r, k, e.lobes)?;
+        progress(k + 1, texels_done, r.pos);
         if let (true, Some(map)) = (lazy, map) {
             let l = std::sync::Arc::new(super::lazy::LazyLevel::new(
                 std::sync::Arc::clone(map),

@@ -153,6 +153,7 @@ fn run(
     let texels_total = pyramid_texels(cells_x, cells_y, level_work.len());
     let mut report = |levels_done: usize, texels_done: u64, work_done: u64| {
         progress(Progress {
+            task: crate::pyramid::ProgressTask::Extract,
             levels_done,
             levels: level_work.len(),
             texels_done,

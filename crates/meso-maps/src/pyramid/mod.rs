@@ -99,6 +99,20 @@ impl Default for ExtractParams {
     }
 }
 
+/// What a [`Progress`] report is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ProgressTask {
+    /// Fitting a pyramid ([`extract`]): work in estimated cost units.
+    #[default]
+    Extract,
+    /// Marching the horizons of a facet NDF (`MapsResolver`'s `represent = "facets"`): work in
+    /// rows of cells, `levels` 0.
+    Facets,
+    /// Reading and checking a map file ([`Pyramid::read_compact_reporting`]): work in bytes of
+    /// its levels, texels in the levels' rows read.
+    Read,
+}
+
 /// Progress of [`extract`]: reported once before any work (everything at 0, the totals set),
 /// once the normals and horizon angles are computed, and after each level.
 ///
@@ -109,6 +123,9 @@ impl Default for ExtractParams {
 /// their handful of texels. `work_done` only grows and ends equal to `work_total`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Progress {
+    /// What is being done: fitting a pyramid, marching a facet NDF's horizons or reading a
+    /// map file.
+    pub task: ProgressTask,
     /// Levels finished so far.
     pub levels_done: usize,
     /// Total number of levels.
