@@ -592,7 +592,11 @@ impl MapsResolver {
 
     fn resolve_map(&self, table: &toml::Table, file: &Path) -> Result<ResolvedNdf, MaterialError> {
         check_keys(table, &["kind", "file", "level", "texel"])?;
-        let pyr = Pyramid::read(file).map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
+        // One texel's lobes are read: the pyramid held as compactly as the budget asks (the
+        // same values as `Pyramid::read`, an 8192² map's level 0 by band).
+        let pyr = self
+            .read_map_file(file)
+            .map_err(|e| MaterialError(format!("[ndf]: {e}")))?;
         let top = pyr.levels.len() - 1;
         let (level, numbered) = match table.get("level") {
             None => (top, false),
