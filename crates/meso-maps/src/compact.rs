@@ -481,12 +481,16 @@ impl Horizons {
             Horizons::Lazy(_) => 0,
         }
     }
-    /// Append statistics (rounded when compact, coded when coded; held by band, the codes
-    /// copied into `Coded` first).
-    pub fn extend_from_slice(&mut self, hs: &[HorizonStats]) {
+    /// Copy statistics held by band into `Coded` (before writing to them).
+    fn own(&mut self) {
         if let Horizons::Lazy(l) = self {
             *self = Horizons::Coded(l.horizon_codes(0, l.texels()));
         }
+    }
+    /// Append statistics (rounded when compact, coded when coded; held by band, the codes
+    /// copied into `Coded` first).
+    pub fn extend_from_slice(&mut self, hs: &[HorizonStats]) {
+        self.own();
         match self {
             Horizons::F64(v) => v.extend_from_slice(hs),
             Horizons::F32(v) => v.extend(hs.iter().map(Horizon32::from_stats)),

@@ -217,11 +217,7 @@ impl LazyLevel {
     #[must_use]
     pub fn lobe(&self, i: usize) -> PhongLobe {
         assert!(i < self.lobes, "lobe {i} of {}", self.lobes);
-        self.with_band(
-            |b| (b.l0..b.l1).contains(&i),
-            || self.bands.partition_point(|b| b.lobe0 + b.lobes <= i),
-            |b| b.lobes[i - b.l0].to_phong(),
-        )
+        self.with_lobe_band(i, |b| b.lobes[i - b.l0].to_phong())
     }
 
     /// The horizon statistics of texel `t` (as [`Horizons::Coded`] reads them).
@@ -237,12 +233,7 @@ impl LazyLevel {
             self.texels(),
             self.header.has_h
         );
-        let row = t / self.cols;
-        self.with_band(
-            |b| (b.t0..b.t1).contains(&t),
-            || self.bands.partition_point(|b| b.row0 + b.rows <= row),
-            |b| b.horizon[t - b.t0].to_stats(),
-        )
+        self.with_texel_band(t, |b| b.horizon[t - b.t0].to_stats())
     }
 
     /// Lobes `a..b` (as [`Lobes::Coded`] reads them): a texel's lobes (at most
@@ -267,17 +258,13 @@ impl LazyLevel {
             inline: false,
         };
         if a < b && b - a <= INLINE {
-            it.inline = self.with_band(
-                |x| (x.l0..x.l1).contains(&a),
-                || self.bands.partition_point(|x| x.lobe0 + x.lobes <= a),
-                |x| {
-                    if b > x.l1 {
-                        return false;
-                    }
-                    it.buf[..b - a].copy_from_slice(&x.lobes[a - x.l0..b - x.l0]);
-                    true
-                },
-            );
+            it.inline = self.with_lobe_band(a, |x| {
+                if b > x.l1 {
+                    return false;
+                }
+                it.buf[..b - a].copy_from_slice(&x.lobes[a - x.l0..b - x.l0]);
+                true
+            });
         }
         it
     }
@@ -287,15 +274,11 @@ impl LazyLevel {
         let mut out = Vec::with_capacity(b.saturating_sub(a));
         let mut i = a;
         while i < b {
-            let n = self.with_band(
-                |x| (x.l0..x.l1).contains(&i),
-                || self.bands.partition_point(|x| x.lobe0 + x.lobes <= i),
-                |x| {
-                    let end = b.min(x.l1);
-                    out.extend_from_slice(&x.lobes[i - x.l0..end - x.l0]);
-                    end - i
-                },
-            );
+            let n = self.with_lobe_band(i, |x| {
+                let end = b.min(x.l1);
+                out.extend_from_slice(&x.lobes[i - x.l0..end - x.l0]);
+                end - i
+            });
             i += n;
         }
         out
@@ -306,19 +289,35 @@ impl LazyLevel {
         let mut out = Vec::with_capacity(b.saturating_sub(a));
         let mut t = a;
         while t < b {
-            let row = t / self.cols;
-            let n = self.with_band(
-                |x| (x.t0..x.t1).contains(&t),
-                || self.bands.partition_point(|x| x.row0 + x.rows <= row),
-                |x| {
-                    let end = b.min(x.t1);
-                    out.extend_from_slice(&x.horizon[t - x.t0..end - x.t0]);
-                    end - t
-                },
-            );
+            let n = self.with_texel_band(t, |x| {
+                let end = b.min(x.t1);
+                out.extend_from_slice(&x.horizon[t - x.t0..end - x.t0]);
+                end - t
+            });
             t += n;
         }
         out
+    }
+
+    /// `f` of the band that holds lobe `i` ([`LazyLevel::with_band`]).
+    #[inline]
+    fn with_lobe_band<R>(&self, i: usize, f: impl FnOnce(&Band) -> R) -> R {
+        self.with_band(
+            |b| (b.l0..b.l1).contains(&i),
+            || self.bands.partition_point(|b| b.lobe0 + b.lobes <= i),
+            f,
+        )
+    }
+
+    /// `f` of the band that holds texel `t` ([`LazyLevel::with_band`]).
+    #[inline]
+    fn with_texel_band<R>(&self, t: usize, f: impl FnOnce(&Band) -> R) -> R {
+        let row = t / self.cols;
+        self.with_band(
+            |b| (b.t0..b.t1).contains(&t),
+            || self.bands.partition_point(|b| b.row0 + b.rows <= row),
+            f,
+        )
     }
 
     /// `f` of the band that `holds` picks: one of this thread's last two if it holds it,

@@ -241,8 +241,7 @@ fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64, u64)> {
             }
             band_max = band_max.max(need + 9 * texels + b.lobes as u64 * 40 + texels * 76);
             if k == 0 {
-                let hz = if h.has_h { 16 } else { 0 };
-                codes0 = codes0.max(b.lobes as u64 * 11 + texels * hz);
+                codes0 = codes0.max(codes_bytes(b.lobes as u64, texels, h.has_h));
             }
             lobes += b.lobes;
             next = b.row0 + b.rows;
@@ -318,12 +317,18 @@ fn coded_pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
         .iter()
         .map(|t| {
             if compact(t.texels()) {
-                t.lobes as u64 * 11 + t.texels() as u64 * (4 + if has_h { 16 } else { 0 })
+                codes_bytes(t.lobes as u64, t.texels() as u64, has_h) + 4 * t.texels() as u64
             } else {
                 pyramid_bytes(std::slice::from_ref(t), has_h)
             }
         })
         .sum()
+}
+
+/// Bytes of the codes of `lobes` lobes and `texels` texels' horizon statistics (11 a lobe, 16
+/// a texel when the file has them): a compact level's values as the file codes them.
+fn codes_bytes(lobes: u64, texels: u64, has_h: bool) -> u64 {
+    lobes * 11 + texels * if has_h { 16 } else { 0 }
 }
 
 /// Append band `b` to level `l` (same precision).
