@@ -15,6 +15,7 @@
 
 use crate::heightmap::{Border, HeightMap};
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Directions of the four horizon angles: +x, +y, −x, −y.
 pub const HORIZON_AZIMUTHS_DEG: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
@@ -66,52 +67,88 @@ fn horizon_line(h: &[f64], s: f64, wrap: bool, out: &mut [f64], stack: &mut Vec<
     }
 }
 
+/// One thread's buffers for [`horizon_line`] along both directions of a line.
+#[derive(Default)]
+struct Lines {
+    line: Vec<f64>,
+    out: Vec<f64>,
+    stack: Vec<(f64, f64)>,
+}
+
+impl Lines {
+    /// The horizon angle codes of the line of heights `heights` towards increasing index
+    /// (`ahead`) and towards decreasing index (`behind`), both in the line's order.
+    fn both_ways(
+        &mut self,
+        heights: impl Iterator<Item = f64>,
+        s: f64,
+        wrap: bool,
+        ahead: &mut [u16],
+        behind: &mut [u16],
+    ) {
+        self.line.clear();
+        self.line.extend(heights);
+        let n = self.line.len();
+        self.out.resize(n, 0.0);
+        horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
+        for (a, &o) in ahead.iter_mut().zip(&self.out) {
+            *a = angle_code(o);
+        }
+        self.line.reverse();
+        horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
+        for (j, a) in behind.iter_mut().enumerate() {
+            *a = angle_code(self.out[n - 1 - j]);
+        }
+    }
+}
+
 impl HorizonMap {
-    /// Horizon angles of every sample of `map` along ±x and ±y.
+    /// Horizon angles of every sample of `map` along ±x and ±y. Lines are independent: rows
+    /// (±x) and columns (±y) are computed in parallel on rayon's pool, each line exactly as one
+    /// after the other would (the same angles, bit for bit, whatever the threads).
     #[must_use]
     pub fn compute(map: &HeightMap) -> HorizonMap {
         let (w, h) = (map.width(), map.height());
         let s = map.texel_size();
         let wrap = map.border() == Border::Wrap;
         let hs = map.heights();
-        let mut angles: [Vec<u16>; 4] = std::array::from_fn(|_| vec![0; w * h]);
-        let mut stack = Vec::new();
-        let mut line = Vec::new();
-        let mut out = Vec::new();
-        for i in 0..h {
-            // +x
-            line.clear();
-            line.extend_from_slice(&hs[i * w..(i + 1) * w]);
-            out.resize(w, 0.0);
-            horizon_line(&line, s, wrap, &mut out, &mut stack);
-            for (a, &o) in angles[0][i * w..(i + 1) * w].iter_mut().zip(&out) {
-                *a = angle_code(o);
-            }
-            // −x
-            line.reverse();
-            horizon_line(&line, s, wrap, &mut out, &mut stack);
-            for j in 0..w {
-                angles[2][i * w + j] = angle_code(out[w - 1 - j]);
-            }
+        let (mut east, mut west) = (vec![0u16; w * h], vec![0u16; w * h]);
+        if w > 0 && h > 0 {
+            // ±x along the rows, row by row in parallel.
+            east.par_chunks_mut(w)
+                .zip(west.par_chunks_mut(w))
+                .zip(hs.par_chunks(w))
+                .for_each_init(Lines::default, |ln, ((e, wst), row)| {
+                    ln.both_ways(row.iter().copied(), s, wrap, e, wst);
+                });
         }
-        for j in 0..w {
-            line.clear();
-            line.extend((0..h).map(|i| hs[i * w + j]));
-            out.resize(h, 0.0);
-            horizon_line(&line, s, wrap, &mut out, &mut stack);
-            for i in 0..h {
-                angles[1][i * w + j] = angle_code(out[i]);
-            }
-            line.reverse();
-            horizon_line(&line, s, wrap, &mut out, &mut stack);
-            for i in 0..h {
-                angles[3][i * w + j] = angle_code(out[h - 1 - i]);
-            }
+        // ±y along the columns, in parallel into column-major buffers, then transposed.
+        let (mut up, mut down) = (vec![0u16; w * h], vec![0u16; w * h]);
+        if w > 0 && h > 0 {
+            up.par_chunks_mut(h)
+                .zip(down.par_chunks_mut(h))
+                .enumerate()
+                .for_each_init(Lines::default, |ln, (j, (u, d))| {
+                    ln.both_ways((0..h).map(|i| hs[i * w + j]), s, wrap, u, d);
+                });
         }
+        let transpose = |col_major: &[u16]| {
+            let mut out = vec![0u16; w * h];
+            if w > 0 {
+                out.par_chunks_mut(w).enumerate().for_each(|(i, row)| {
+                    for (j, a) in row.iter_mut().enumerate() {
+                        *a = col_major[j * h + i];
+                    }
+                });
+            }
+            out
+        };
+        let (north, south) = (transpose(&up), transpose(&down));
+        drop((up, down));
         HorizonMap {
             width: w,
             height: h,
-            angles,
+            angles: [east, north, west, south],
         }
     }
 
@@ -257,5 +294,66 @@ pub struct HorizonVisibility(pub HorizonStats);
 impl meso_core::material::VisibilityModel for HorizonVisibility {
     fn g(&self, i: DVec3, o: DVec3) -> f64 {
         self.0.visibility(i) * self.0.visibility(o)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The horizon angle by brute force: the largest slope from sample `(i, j)` to any sample
+    /// ahead along `(di, dj)` (one period ahead on a wrapped map, to the border on a clamped
+    /// one), as an angle in `[0, π/2)`.
+    fn brute(map: &HeightMap, i: usize, j: usize, di: isize, dj: isize) -> f64 {
+        let (w, h) = (map.width() as isize, map.height() as isize);
+        let n = if di == 0 { w } else { h };
+        let wrap = map.border() == Border::Wrap;
+        let h0 = map.heights()[i * map.width() + j];
+        let mut best = 0.0f64;
+        for k in 1..=n {
+            let (ii, jj) = (i as isize + di * k, j as isize + dj * k);
+            let inside = (0..h).contains(&ii) && (0..w).contains(&jj);
+            if !wrap && !inside {
+                break;
+            }
+            let (ii, jj) = (ii.rem_euclid(h) as usize, jj.rem_euclid(w) as usize);
+            let slope = (map.heights()[ii * map.width() + jj] - h0) / (k as f64 * map.texel_size());
+            best = best.max(slope);
+        }
+        best.atan()
+    }
+
+    #[test]
+    fn every_direction_of_a_non_square_map_matches_brute_force() {
+        // A bumpy 13 × 7 map (rows and columns of different lengths, so that a transposition
+        // or a swapped direction shows), wrapped and clamped.
+        for border in [Border::Wrap, Border::Clamp] {
+            let map = HeightMap::from_fn(13, 7, 0.1, border, |x, y| {
+                0.05 * (7.3 * x).sin() * (3.1 * y + 0.4).cos() + 0.02 * (11.0 * x * y).sin()
+            })
+            .unwrap();
+            let hz = HorizonMap::compute(&map);
+            let half = 0.5 * ANGLE_STEP + 1e-12;
+            let mut rising = 0;
+            for i in 0..7 {
+                for j in 0..13 {
+                    let k = i * 13 + j;
+                    for (d, (di, dj)) in [(0, 1), (1, 0), (0, -1), (-1, 0)].into_iter().enumerate()
+                    {
+                        let want = brute(&map, i, j, di, dj);
+                        let got = hz.angle(d, k);
+                        assert!(
+                            (got - want).abs() < half,
+                            "{border:?} ({i}, {j}) direction {d}: {got} vs {want}"
+                        );
+                        rising += usize::from(want > 0.01);
+                    }
+                }
+            }
+            assert!(
+                rising > 100,
+                "{rising} angles above 0.01 rad: the map is too flat"
+            );
+        }
     }
 }
