@@ -90,7 +90,7 @@ pub fn load_normal_map(
 /// The grid of a lobe pyramid's map file, from its header alone
 /// ([`meso_maps::format::peek_sizes`]: magic, version, then the source's `width`, `height` in
 /// samples and level 0's `cols`, `rows` in cells): `(width, height, cols, rows)`. The rest of
-/// the file is validated when it is read ([`meso_maps::Pyramid::read`]).
+/// the file is validated when it is read ([`meso_maps::Pyramid::read_compact`]).
 ///
 /// # Errors
 /// [`ExportError::Invalid`] for a file that is not a map file or whose header is bad (too
@@ -236,7 +236,8 @@ pub fn lobe_files(
     width: usize,
     height: usize,
 ) -> Result<(Files, String), ExportError> {
-    let pyr = meso_maps::Pyramid::read(path)?;
+    // Held as compactly as the memory budget asks (`meso render`'s read): the same values.
+    let pyr = meso_maps::Pyramid::read_compact(path)?;
     let l0 = &pyr.levels[0];
     check_lobe_grid(
         path,

@@ -188,3 +188,27 @@ fn the_summary_is_the_same_however_the_pyramid_is_held() {
         assert_eq!(p.info().to_string(), full, "{how}");
     }
 }
+
+/// Python's `meso.Pyramid.read` and `meso export --lobes` read with `Pyramid::read_compact`;
+/// Python's `write` of a pyramid read so writes the same file as one read whole, whichever way
+/// it is held (coded, level 0 by band), and that file reads back as the first.
+#[test]
+fn a_pyramid_writes_the_same_file_however_it_is_held() {
+    let path = written(256, "write256.map");
+    let whole = tmp("write256_whole.map");
+    Pyramid::read(&path).unwrap().write(&whole).unwrap();
+    let bytes = std::fs::read(&whole).unwrap();
+    for (how, p) in [
+        ("coded", Pyramid::read_coded(&path).unwrap()),
+        ("by band", Pyramid::read_lazy(&path).unwrap()),
+        ("compact", Pyramid::read_compact(&path).unwrap()),
+    ] {
+        let out = tmp(&format!("write256_{}.map", how.replace(' ', "_")));
+        p.write(&out).unwrap();
+        assert!(std::fs::read(&out).unwrap() == bytes, "{how}: another file");
+    }
+    assert_eq!(
+        Pyramid::read(&whole).unwrap().info().to_string(),
+        Pyramid::read(&path).unwrap().info().to_string()
+    );
+}

@@ -217,12 +217,14 @@ impl Pyramid {
 
 #[pymethods]
 impl Pyramid {
-    /// Read a map file written by `meso extract`.
+    /// Read a map file written by `meso extract`, held as compactly as the memory budget asks
+    /// (as `meso render` reads it: lobes in their stored codes, level 0 of a big map by band
+    /// from the mapped file); every value is the file's.
     #[staticmethod]
     fn read(py: Python<'_>, path: PathBuf) -> PyResult<Pyramid> {
         require_exists(&path)?;
         let p = py
-            .detach(|| meso_maps::Pyramid::read(&path))
+            .detach(|| meso_maps::Pyramid::read_compact(&path))
             .map_err(meso_err)?;
         Ok(Pyramid::new(p))
     }
