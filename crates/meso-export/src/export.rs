@@ -194,12 +194,31 @@ pub fn check_budget_for(
     base_color: Option<&Path>,
     anisotropic: bool,
 ) -> Result<(), ExportError> {
-    check_budget_extra(map, heights, roughness_map, base_color, anisotropic, 0)
+    check_budget_extra(
+        map,
+        heights,
+        roughness_map,
+        base_color,
+        anisotropic,
+        ExtraBytes::default(),
+    )
 }
 
-/// [`check_budget_for`] with `extra_bytes` held during the export besides its own (a lobe
-/// pyramid read while every file is in memory, `crate::prepare::check_export`), added to the
-/// map's estimate (whose task then names the pyramid).
+/// Memory an export holds besides its own work (bytes): a lobe pyramid read and packed
+/// `before` the fit, with the inputs loaded, and its files held `during` the fit and until
+/// written (`crate::prepare::lobe_bytes`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ExtraBytes {
+    /// Held before the fit, beside the loaded inputs (the fit's memory is not yet taken).
+    pub before: u64,
+    /// Held during the fit, beside its memory.
+    pub during: u64,
+}
+
+/// [`check_budget_for`] with `extra` held besides the export's own work (a lobe pyramid read
+/// before the fit and its files held during it, `crate::prepare::check_export`): the map's
+/// estimate is its load plus the larger of `extra.before` and the export's own bytes plus
+/// `extra.during` (its task then names the pyramid).
 ///
 /// # Errors
 /// As [`check_budget`].
@@ -209,7 +228,7 @@ pub fn check_budget_extra(
     roughness_map: Option<&Path>,
     base_color: Option<&Path>,
     anisotropic: bool,
-    extra_bytes: u64,
+    extra: ExtraBytes,
 ) -> Result<(), ExportError> {
     use meso_core::budget::check;
     if let Some(h) = header(map)? {
@@ -218,18 +237,18 @@ pub fn check_budget_extra(
         } else {
             h.normal_map_bytes()
         };
-        let extra = if anisotropic {
+        let aniso = if anisotropic {
             h.width
                 .saturating_mul(h.height)
                 .saturating_mul(ANISO_EXTRA_BYTES_PER_TEXEL)
         } else {
             0
         };
-        let estimate = load
-            .saturating_add(export_bytes(h.width, h.height))
-            .saturating_add(extra)
-            .saturating_add(extra_bytes);
-        let task = if extra_bytes > 0 {
+        let fit = export_bytes(h.width, h.height)
+            .saturating_add(aniso)
+            .saturating_add(extra.during);
+        let estimate = load.saturating_add(fit.max(extra.before));
+        let task = if extra != ExtraBytes::default() {
             format!(
                 "exporting {} × {} texels and reading the lobe pyramid",
                 h.width, h.height

@@ -3,7 +3,7 @@
 //! pyramid (`--lobes`) lines up with the export's mip chain, a normal map is one (not a grey
 //! height map), and a material file's export takes no map option.
 
-use crate::export::{self, Inputs};
+use crate::export::{self, ExtraBytes, Inputs};
 use crate::mips;
 use crate::ExportError;
 use meso_maps::{NormalConvention, NormalMap};
@@ -180,25 +180,37 @@ pub fn check_lobe_grid(
     Ok(())
 }
 
-/// Estimated peak bytes of reading the lobe pyramid at `path` and packing its textures: the
-/// reader's estimate ([`meso_maps::format::read_bytes`]) plus the packed textures, at most
-/// the file's inflated lobes again (counted as the same estimate once more would double-count:
-/// the packed RGBA16 texels are 8 B per lobe against 40 B in the pyramid).
+/// Estimated memory of the lobe textures of the pyramid at `path` for an export of
+/// `width × height` texels ([`lobe_files`]): `before` the fit, reading the pyramid compactly
+/// ([`meso_maps::Pyramid::read_compact_bytes`]: from a format-4 file's chunk headers; 4 × the
+/// file for older versions) with its packed textures and their files alongside; `during` it,
+/// the files alone (held until written). The packed textures are `max_lobes` slots of 8 bytes a
+/// texel over the mip chain; their PNG files are counted as large again (16-bit data deflated).
 ///
 /// # Errors
-/// [`ExportError::Io`] when the file's size cannot be read.
-pub fn lobe_bytes(path: &Path) -> Result<u64, ExportError> {
-    let m = std::fs::metadata(path).map_err(|e| ExportError::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
-    let read = meso_maps::format::read_bytes(m.len());
-    Ok(read.saturating_add(read / 5))
+/// [`ExportError::Io`] when the file cannot be read; the reader's error for a file that is not
+/// a map file.
+pub fn lobe_bytes(path: &Path, width: u64, height: u64) -> Result<ExtraBytes, ExportError> {
+    let need = meso_maps::Pyramid::read_compact_bytes(path)?;
+    let (mut w, mut h, mut texels) = (width.max(1), height.max(1), 0u64);
+    loop {
+        texels = texels.saturating_add(w.saturating_mul(h));
+        if w == 1 && h == 1 {
+            break;
+        }
+        (w, h) = (w.div_ceil(2), h.div_ceil(2));
+    }
+    let packed = texels.saturating_mul(8 * need.max_lobes.max(1) as u64);
+    Ok(ExtraBytes {
+        before: need.bytes.saturating_add(packed.saturating_mul(2)),
+        during: packed,
+    })
 }
 
 /// Everything [`export::check_budget_for`] checks, and a lobe pyramid's (`lobes`): its grid
 /// against the export's mip chain ([`check_lobe_grid`], from the image's header and the map
-/// file's first bytes), and its memory ([`lobe_bytes`]) added to the export's, which holds every
+/// file's first bytes), and its memory ([`lobe_bytes`]: read and packed before the fit, its files
+/// held during it) beside the export's, which holds every
 /// file while the pyramid is read. The one up-front check of `meso export` and `meso.export`,
 /// before anything is decoded or fitted.
 ///
@@ -213,13 +225,13 @@ pub fn check_export(
     lobes: Option<&Path>,
 ) -> Result<(), ExportError> {
     refuse_map_file(map)?;
-    let mut extra = 0;
+    let mut extra = ExtraBytes::default();
     if let Some(l) = lobes {
         let grid = lobe_grid(l)?;
         if let Some(h) = export::header(map)? {
             check_lobe_grid(l, grid, h.width as usize, h.height as usize)?;
+            extra = lobe_bytes(l, h.width, h.height)?;
         }
-        extra = lobe_bytes(l)?;
     }
     export::check_budget_extra(map, heights, roughness_map, base_color, anisotropic, extra)
 }

@@ -130,3 +130,57 @@ fn material_options_are_named() {
         .to_string();
     assert!(e.contains("--alpha, --metallic do not apply"), "{e}");
 }
+
+/// `prepare::lobe_bytes`: before the fit, what reading the map compactly checks
+/// (`Pyramid::read_compact_bytes`) plus room for the packed textures and their files; during
+/// it, room for the files. Both bounds hold the real packing of a 3-lobe pyramid of a 64² and of
+/// a 63 × 40 height map (the mip chain of the export), with the header's lobe count.
+#[test]
+fn lobe_memory_covers_the_packed_textures_and_their_files() {
+    use meso_maps::{extract, fixtures, ExtractParams, Pyramid, Source};
+    let d = scratch("lobe-bytes");
+    for (w, h) in [(64usize, 64usize), (63, 40)] {
+        let map = fixtures::gaussian(w.max(h), 3.0, 0.1, 5, 0.05).unwrap();
+        let map = meso_maps::HeightMap::from_heights(
+            w,
+            h,
+            (0..h)
+                .flat_map(|r| (0..w).map(move |c| (r, c)))
+                .map(|(r, c)| map.heights()[r * w.max(h) + c])
+                .collect(),
+            0.05,
+            meso_maps::Border::Wrap,
+        )
+        .unwrap();
+        let mut params = ExtractParams::default();
+        params.fit.max_lobes = 3;
+        let p = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
+        let path = d.join(format!("m{w}x{h}.map"));
+        p.write(&path).unwrap();
+        let extra = prepare::lobe_bytes(&path, w as u64, h as u64).unwrap();
+        let need = Pyramid::read_compact_bytes(&path).unwrap();
+        let tex = meso_export::lobes::pack(&Pyramid::read_compact(&path).unwrap());
+        let packed: u64 = tex
+            .levels
+            .iter()
+            .flatten()
+            .map(|s| 2 * s.len() as u64)
+            .sum();
+        let files: u64 = meso_export::lobes::files(&tex)
+            .unwrap()
+            .iter()
+            .map(|f| f.1.len() as u64)
+            .sum();
+        assert!(
+            packed <= extra.during && files <= extra.during,
+            "{w}×{h}: packed {packed} B, files {files} B, counted {} B",
+            extra.during
+        );
+        assert!(
+            extra.before >= need.bytes + packed + files,
+            "{w}×{h}: {} B before the fit, reading {} + packed {packed} + files {files}",
+            extra.before,
+            need.bytes
+        );
+    }
+}

@@ -72,6 +72,16 @@ fn put_f64(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
     w.write_all(&v.to_le_bytes())
 }
 
+/// What reading a map file compactly will need ([`Pyramid::read_compact_bytes`]), from its
+/// headers alone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadNeed {
+    /// The memory (bytes) [`Pyramid::read_compact`] checks against the budget.
+    pub bytes: u64,
+    /// The header's largest number of lobes per texel (`max_lobes` of the extraction).
+    pub max_lobes: usize,
+}
+
 /// The estimated peak memory (bytes) of reading a map file of `file_bytes` bytes, before its
 /// header is read: for version 2 the file itself and the pyramid, whose lobes (20 bytes in the
 /// file, 40 in memory) and horizon statistics (36 and 72) take twice their file size: 3× the
@@ -225,6 +235,53 @@ impl Pyramid {
     /// As [`Pyramid::read`].
     pub fn read_compact(path: &Path) -> Result<Pyramid> {
         Pyramid::read_mapped(path, v4::Mode::Auto, &mut |_| {})
+    }
+
+    /// What [`Pyramid::read_compact`] of the file at `path` will need, found without reading
+    /// the levels ([`ReadNeed`]): the memory it checks against the budget before it inflates
+    /// anything (for a format-4 file from its chunks' headers: the pyramid coded, or level 0
+    /// by band where the budget asks for it, and one band being decoded; for an older version,
+    /// an empty file or one that is not a regular file, [`read_bytes`] of its size) and the
+    /// header's largest number of lobes per texel. What a command that reads a map file
+    /// besides its own work (`meso export --lobes`) adds to its estimate before it starts. A
+    /// file whose header or chunks cannot be read gets [`read_bytes`] of its size and
+    /// [`crate::fit::MAX_LOBES`]: reading it reports the problem.
+    ///
+    /// # Errors
+    /// [`MapError::Io`] when the file cannot be opened or mapped.
+    pub fn read_compact_bytes(path: &Path) -> Result<ReadNeed> {
+        let io = |e| MapError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        };
+        let file = std::fs::File::open(path).map_err(io)?;
+        let meta = file.metadata().map_err(io)?;
+        if !meta.is_file() || meta.len() == 0 {
+            return Ok(ReadNeed {
+                bytes: read_bytes(meta.len()),
+                max_lobes: crate::fit::MAX_LOBES,
+            });
+        }
+        // SAFETY: a read-only mapping of the file, as `read_mapped`'s; only the headers are read.
+        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
+        let mut r = Reader::new(&map, path);
+        r.mapped = Some(&map);
+        let fallback = ReadNeed {
+            bytes: read_bytes(meta.len()),
+            max_lobes: crate::fit::MAX_LOBES,
+        };
+        let Ok(h) = read_header(&mut r) else {
+            return Ok(fallback);
+        };
+        let bytes = if h.version == VERSION_4 {
+            v4::auto_need(&mut r, &h).unwrap_or(fallback.bytes)
+        } else {
+            fallback.bytes
+        };
+        Ok(ReadNeed {
+            bytes,
+            max_lobes: h.max_lobes.clamp(1, crate::fit::MAX_LOBES),
+        })
     }
 
     /// [`Pyramid::read_compact`], reporting to `report` as it reads a format-4 file

@@ -378,6 +378,63 @@ fn lazy_pays(coded: u64, lazy: u64, budget: u64) -> bool {
     coded > budget / 2 && lazy < coded
 }
 
+/// The memory (bytes) that reading the levels in `mode` takes, from what [`scan`] found
+/// (`table`, the largest band's decoding memory, level 0's largest band's codes), and whether
+/// level 0 is then held by band (`mapped`: the reader holds a mapped file, which a level held
+/// by band needs). What [`read_levels`] checks against the budget before inflating anything.
+fn need_of(
+    r: &Reader<'_>,
+    h: &Header,
+    mode: Mode,
+    mapped: bool,
+    (table, band_max, codes0): (&[TableEntry], u64, u64),
+) -> (u64, bool) {
+    let build = mode != Mode::Check;
+    let coded = matches!(mode, Mode::Coded | Mode::Lazy | Mode::Auto);
+    let can_lazy = mapped && table.first().is_some_and(|e| compact(e.texels()));
+    let file = if r.releases() { 0 } else { r.b.len() as u64 };
+    let coded_need = file + coded_pyramid_bytes(table, h.has_h) + band_max;
+    // Level 0's lobe starts and decoded bands, the other levels coded.
+    let lazy_need = || {
+        let t0 = table[0].texels() as u64;
+        file + coded_pyramid_bytes(&table[1..], h.has_h)
+            + 4 * (t0 + 1)
+            + super::lazy::held_bytes_bound(codes0, band_max)
+    };
+    let lazy0 = can_lazy
+        && match mode {
+            Mode::Lazy => true,
+            Mode::Auto => lazy_pays(coded_need, lazy_need(), meso_core::budget::budget().bytes),
+            _ => false,
+        };
+    let need = if lazy0 {
+        lazy_need()
+    } else if build && coded {
+        coded_need
+    } else if build {
+        r.b.len() as u64 + pyramid_bytes(table, h.has_h) + band_max
+    } else {
+        band_max
+    };
+    (need, lazy0)
+}
+
+/// The memory (bytes) [`read_levels`] in [`Mode::Auto`] checks against the budget for the
+/// levels after the common header, from the chunks' headers alone (nothing inflated):
+/// `crate::Pyramid::read_compact_bytes`.
+pub(in crate::format) fn auto_need(r: &mut Reader<'_>, h: &Header) -> Result<u64> {
+    let found = scan(r, h)?;
+    let (table, band_max, codes0) = (&found.0[..], found.1, found.2);
+    Ok(need_of(
+        r,
+        h,
+        Mode::Auto,
+        r.mapped.is_some(),
+        (table, band_max, codes0),
+    )
+    .0)
+}
+
 /// Read (`mode`) or only check the levels of a format-4 file after the common header: the
 /// chunks scanned ([`scan`]) and the memory checked against the budget before anything is
 /// inflated, then band by band inflated, decoded, checked and appended to its level (or
@@ -401,31 +458,7 @@ pub(in crate::format) fn read_levels(
     let end = r.pos;
     let build = mode != Mode::Check;
     let coded = matches!(mode, Mode::Coded | Mode::Lazy | Mode::Auto);
-    let can_lazy = map.is_some() && table.first().is_some_and(|e| compact(e.texels()));
-    let file = if r.releases() { 0 } else { r.b.len() as u64 };
-    let coded_need = file + coded_pyramid_bytes(&table, h.has_h) + band_max;
-    // Level 0's lobe starts and decoded bands, the other levels coded.
-    let lazy_need = || {
-        let t0 = table[0].texels() as u64;
-        file + coded_pyramid_bytes(&table[1..], h.has_h)
-            + 4 * (t0 + 1)
-            + super::lazy::held_bytes_bound(codes0, band_max)
-    };
-    let lazy0 = can_lazy
-        && match mode {
-            Mode::Lazy => true,
-            Mode::Auto => lazy_pays(coded_need, lazy_need(), meso_core::budget::budget().bytes),
-            _ => false,
-        };
-    let need = if lazy0 {
-        lazy_need()
-    } else if build && coded {
-        coded_need
-    } else if build {
-        r.b.len() as u64 + pyramid_bytes(&table, h.has_h) + band_max
-    } else {
-        band_max
-    };
+    let (need, lazy0) = need_of(r, h, mode, map.is_some(), (&table, band_max, codes0));
     meso_core::budget::check(&r.path, "reading the map file", need)?;
     r.pos = start;
     let texels_total = table.iter().map(|e| e.texels() as u64).sum::<u64>();
