@@ -215,10 +215,15 @@ pub struct ExtraBytes {
     pub during: u64,
 }
 
+/// Bytes per level-0 texel of the [`Inputs`] held once loaded: the normals (`f64`, 24), a
+/// roughness map's α (8) and a base colour texture (16).
+pub const INPUT_BYTES_PER_TEXEL: u64 = 48;
+
 /// [`check_budget_for`] with `extra` held besides the export's own work (a lobe pyramid read
 /// before the fit and its files held during it, `crate::prepare::check_export`): the map's
-/// estimate is its load plus the larger of `extra.before` and the export's own bytes plus
-/// `extra.during` (its task then names the pyramid).
+/// estimate is its load plus the larger of the inputs ([`INPUT_BYTES_PER_TEXEL`]) with
+/// `extra.before`, and the export's own bytes plus `extra.during` (its task then names the
+/// pyramid).
 ///
 /// # Errors
 /// As [`check_budget`].
@@ -247,7 +252,17 @@ pub fn check_budget_extra(
         let fit = export_bytes(h.width, h.height)
             .saturating_add(aniso)
             .saturating_add(extra.during);
-        let estimate = load.saturating_add(fit.max(extra.before));
+        // Before the fit the inputs are held beside the lobe pyramid.
+        let before = h
+            .width
+            .saturating_mul(h.height)
+            .saturating_mul(INPUT_BYTES_PER_TEXEL)
+            .saturating_add(extra.before);
+        let estimate = load.saturating_add(if extra.before > 0 {
+            fit.max(before)
+        } else {
+            fit
+        });
         let task = if extra != ExtraBytes::default() {
             format!(
                 "exporting {} × {} texels and reading the lobe pyramid",

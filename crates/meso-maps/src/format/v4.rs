@@ -423,16 +423,9 @@ fn need_of(
 /// levels after the common header, from the chunks' headers alone (nothing inflated):
 /// `crate::Pyramid::read_compact_bytes`.
 pub(in crate::format) fn auto_need(r: &mut Reader<'_>, h: &Header) -> Result<u64> {
-    let found = scan(r, h)?;
-    let (table, band_max, codes0) = (&found.0[..], found.1, found.2);
-    Ok(need_of(
-        r,
-        h,
-        Mode::Auto,
-        r.mapped.is_some(),
-        (table, band_max, codes0),
-    )
-    .0)
+    let (table, band_max, codes0) = scan(r, h)?;
+    let mapped = r.mapped.is_some();
+    Ok(need_of(r, h, Mode::Auto, mapped, (&table, band_max, codes0)).0)
 }
 
 /// Read (`mode`) or only check the levels of a format-4 file after the common header: the
