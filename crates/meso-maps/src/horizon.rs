@@ -67,6 +67,10 @@ fn horizon_line(h: &[f64], s: f64, wrap: bool, out: &mut [f64], stack: &mut Vec<
     }
 }
 
+/// Columns whose ±y angles [`HorizonMap::compute`] finds at a time (its buffers: 4 bytes a
+/// sample of the block).
+const COLUMN_BLOCK: usize = 256;
+
 /// One thread's buffers for [`horizon_line`] along both directions of a line.
 #[derive(Default)]
 struct Lines {
@@ -104,8 +108,9 @@ impl Lines {
 
 impl HorizonMap {
     /// Horizon angles of every sample of `map` along ±x and ±y. Lines are independent: rows
-    /// (±x) and columns (±y) are computed in parallel on rayon's pool, each line exactly as one
-    /// after the other would (the same angles, bit for bit, whatever the threads).
+    /// (±x) and columns (±y, [`COLUMN_BLOCK`] at a time) are computed in parallel on rayon's
+    /// pool, each line exactly as one after the other would (the same angles, bit for bit,
+    /// whatever the threads), with no more memory than the four angle arrays and one block.
     #[must_use]
     pub fn compute(map: &HeightMap) -> HorizonMap {
         let (w, h) = (map.width(), map.height());
@@ -122,29 +127,35 @@ impl HorizonMap {
                     ln.both_ways(row.iter().copied(), s, wrap, e, wst);
                 });
         }
-        // ±y along the columns, in parallel into column-major buffers, then transposed.
-        let (mut up, mut down) = (vec![0u16; w * h], vec![0u16; w * h]);
+        // ±y along the columns: a block of columns at a time in parallel into column-major
+        // buffers (a few MB), then copied into the rows in parallel, so that no more than the
+        // four angle arrays and one block are held.
+        let (mut north, mut south) = (vec![0u16; w * h], vec![0u16; w * h]);
         if w > 0 && h > 0 {
-            up.par_chunks_mut(h)
-                .zip(down.par_chunks_mut(h))
-                .enumerate()
-                .for_each_init(Lines::default, |ln, (j, (u, d))| {
-                    ln.both_ways((0..h).map(|i| hs[i * w + j]), s, wrap, u, d);
-                });
-        }
-        let transpose = |col_major: &[u16]| {
-            let mut out = vec![0u16; w * h];
-            if w > 0 {
-                out.par_chunks_mut(w).enumerate().for_each(|(i, row)| {
-                    for (j, a) in row.iter_mut().enumerate() {
-                        *a = col_major[j * h + i];
-                    }
-                });
+            let block = COLUMN_BLOCK.min(w);
+            let (mut up, mut down) = (vec![0u16; block * h], vec![0u16; block * h]);
+            for j0 in (0..w).step_by(block) {
+                let nb = block.min(w - j0);
+                up[..nb * h]
+                    .par_chunks_mut(h)
+                    .zip(down[..nb * h].par_chunks_mut(h))
+                    .enumerate()
+                    .for_each_init(Lines::default, |ln, (jj, (u, d))| {
+                        let j = j0 + jj;
+                        ln.both_ways((0..h).map(|i| hs[i * w + j]), s, wrap, u, d);
+                    });
+                north
+                    .par_chunks_mut(w)
+                    .zip(south.par_chunks_mut(w))
+                    .enumerate()
+                    .for_each(|(i, (n, so))| {
+                        for jj in 0..nb {
+                            n[j0 + jj] = up[jj * h + i];
+                            so[j0 + jj] = down[jj * h + i];
+                        }
+                    });
             }
-            out
-        };
-        let (north, south) = (transpose(&up), transpose(&down));
-        drop((up, down));
+        }
         HorizonMap {
             width: w,
             height: h,
@@ -325,10 +336,16 @@ mod tests {
 
     #[test]
     fn every_direction_of_a_non_square_map_matches_brute_force() {
-        // A bumpy 13 × 7 map (rows and columns of different lengths, so that a transposition
-        // or a swapped direction shows), wrapped and clamped.
-        for border in [Border::Wrap, Border::Clamp] {
-            let map = HeightMap::from_fn(13, 7, 0.1, border, |x, y| {
+        // Bumpy 13 × 7 and 300 × 7 maps (rows and columns of different lengths, so that a
+        // transposition or a swapped direction shows; the second wider than a block of
+        // columns), wrapped and clamped.
+        for (border, w) in [
+            (Border::Wrap, 13),
+            (Border::Clamp, 13),
+            (Border::Wrap, COLUMN_BLOCK + 44),
+            (Border::Clamp, COLUMN_BLOCK + 44),
+        ] {
+            let map = HeightMap::from_fn(w, 7, 0.1, border, |x, y| {
                 0.05 * (7.3 * x).sin() * (3.1 * y + 0.4).cos() + 0.02 * (11.0 * x * y).sin()
             })
             .unwrap();
@@ -336,8 +353,8 @@ mod tests {
             let half = 0.5 * ANGLE_STEP + 1e-12;
             let mut rising = 0;
             for i in 0..7 {
-                for j in 0..13 {
-                    let k = i * 13 + j;
+                for j in 0..w {
+                    let k = i * w + j;
                     for (d, (di, dj)) in [(0, 1), (1, 0), (0, -1), (-1, 0)].into_iter().enumerate()
                     {
                         let want = brute(&map, i, j, di, dj);
