@@ -108,7 +108,7 @@ impl Lines {
 
 impl HorizonMap {
     /// Horizon angles of every sample of `map` along ±x and ±y. Lines are independent: rows
-    /// (±x) and columns (±y, [`COLUMN_BLOCK`] at a time) are computed in parallel on rayon's
+    /// (±x) and columns (±y, 256 at a time) are computed in parallel on rayon's
     /// pool, each line exactly as one after the other would (the same angles, bit for bit,
     /// whatever the threads), with no more memory than the four angle arrays and one block.
     #[must_use]
