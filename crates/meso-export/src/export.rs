@@ -242,27 +242,21 @@ pub fn check_budget_extra(
         } else {
             h.normal_map_bytes()
         };
+        let texels = h.width.saturating_mul(h.height);
         let aniso = if anisotropic {
-            h.width
-                .saturating_mul(h.height)
-                .saturating_mul(ANISO_EXTRA_BYTES_PER_TEXEL)
+            texels.saturating_mul(ANISO_EXTRA_BYTES_PER_TEXEL)
         } else {
             0
         };
         let fit = export_bytes(h.width, h.height)
             .saturating_add(aniso)
             .saturating_add(extra.during);
-        // Before the fit the inputs are held beside the lobe pyramid.
-        let before = h
-            .width
-            .saturating_mul(h.height)
+        // Before the fit the inputs are held beside the lobe pyramid (without one, less than
+        // the fit: INPUT_BYTES_PER_TEXEL < EXPORT_BYTES_PER_TEXEL).
+        let before = texels
             .saturating_mul(INPUT_BYTES_PER_TEXEL)
             .saturating_add(extra.before);
-        let estimate = load.saturating_add(if extra.before > 0 {
-            fit.max(before)
-        } else {
-            fit
-        });
+        let estimate = load.saturating_add(fit.max(before));
         let task = if extra != ExtraBytes::default() {
             format!(
                 "exporting {} × {} texels and reading the lobe pyramid",

@@ -192,14 +192,10 @@ pub fn check_lobe_grid(
 /// a map file.
 pub fn lobe_bytes(path: &Path, width: u64, height: u64) -> Result<ExtraBytes, ExportError> {
     let need = meso_maps::Pyramid::read_compact_bytes(path)?;
-    let (mut w, mut h, mut texels) = (width.max(1), height.max(1), 0u64);
-    loop {
-        texels = texels.saturating_add(w.saturating_mul(h));
-        if w == 1 && h == 1 {
-            break;
-        }
-        (w, h) = (w.div_ceil(2), h.div_ceil(2));
-    }
+    let texels: u64 = lobe_level_sizes(width.max(1) as usize, height.max(1) as usize)
+        .iter()
+        .map(|&(c, r)| (c * r) as u64)
+        .sum();
     let packed = texels.saturating_mul(8 * need.max_lobes.max(1) as u64);
     Ok(ExtraBytes {
         before: need.bytes.saturating_add(packed.saturating_mul(2)),

@@ -72,6 +72,28 @@ fn put_f64(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
     w.write_all(&v.to_le_bytes())
 }
 
+/// The size of the file at `path` and, for a non-empty regular file, the file mapped read-only
+/// (`None` for an empty file, a device or a FIFO, which are read as a stream instead).
+///
+/// # Errors
+/// [`MapError::Io`] naming `path` when it cannot be opened, examined or mapped.
+fn map_regular(path: &Path) -> Result<(u64, Option<memmap2::Mmap>)> {
+    let io = |e| MapError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() || meta.len() == 0 {
+        return Ok((meta.len(), None));
+    }
+    // SAFETY: a read-only mapping of the file. A file truncated by another process while
+    // mapped would fault; map files are replaced by renaming (`meso_core::io::write_atomic`),
+    // which leaves a mapped file whole.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
+    Ok((meta.len(), Some(map)))
+}
+
 /// What reading a map file compactly will need ([`Pyramid::read_compact_bytes`]), from its
 /// headers alone.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -250,26 +272,16 @@ impl Pyramid {
     /// # Errors
     /// [`MapError::Io`] when the file cannot be opened or mapped.
     pub fn read_compact_bytes(path: &Path) -> Result<ReadNeed> {
-        let io = |e| MapError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        };
-        let file = std::fs::File::open(path).map_err(io)?;
-        let meta = file.metadata().map_err(io)?;
-        if !meta.is_file() || meta.len() == 0 {
-            return Ok(ReadNeed {
-                bytes: read_bytes(meta.len()),
-                max_lobes: crate::fit::MAX_LOBES,
-            });
-        }
-        // SAFETY: a read-only mapping of the file, as `read_mapped`'s; only the headers are read.
-        let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
-        let mut r = Reader::new(&map, path);
-        r.mapped = Some(&map);
+        let (size, map) = map_regular(path)?;
         let fallback = ReadNeed {
-            bytes: read_bytes(meta.len()),
+            bytes: read_bytes(size),
             max_lobes: crate::fit::MAX_LOBES,
         };
+        let Some(map) = map else {
+            return Ok(fallback);
+        };
+        let mut r = Reader::new(&map, path);
+        r.mapped = Some(&map);
         let Ok(h) = read_header(&mut r) else {
             return Ok(fallback);
         };
@@ -307,20 +319,11 @@ impl Pyramid {
         report: &mut dyn FnMut(crate::pyramid::Progress),
     ) -> Result<Pyramid> {
         meso_core::io::note_input(path);
-        let io = |e| MapError::Io {
-            path: path.to_path_buf(),
-            source: e,
-        };
-        let file = std::fs::File::open(path).map_err(io)?;
-        let meta = file.metadata().map_err(io)?;
-        if !meta.is_file() || meta.len() == 0 {
+        let Some(map) = map_regular(path)?.1 else {
             // Its error for an empty file; a device or FIFO read once, with a limit.
             return Pyramid::read(path);
-        }
-        // SAFETY: a read-only mapping of the file. A file truncated by another process while
-        // mapped would fault; map files are replaced by renaming (`meso_core::io::write_atomic`),
-        // which leaves a mapped file whole.
-        let map = std::sync::Arc::new(unsafe { memmap2::Mmap::map(&file) }.map_err(io)?);
+        };
+        let map = std::sync::Arc::new(map);
         let mut r = Reader::new(&map, path);
         r.mapped = Some(&*map);
         let h = read_header(&mut r)?;
