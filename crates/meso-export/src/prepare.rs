@@ -254,6 +254,8 @@ pub fn lobe_files(
         height,
     )?;
     let tex = crate::lobes::pack(&pyr);
+    // Level 0 held by band and changed in place while packed: not the file's lobes.
+    pyr.check_mapped()?;
     let files = crate::lobes::files(&tex)?;
     let line = format!(
         "{}: {} lobe slots × {} levels",

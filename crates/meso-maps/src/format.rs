@@ -173,8 +173,11 @@ impl Pyramid {
         };
         // `write_to` checks the pyramid first (`InvalidData` naming the value).
         let mut bytes = Vec::new();
-        self.write_to(&mut bytes)
-            .map_err(|e| invalid(e.to_string()))?;
+        let wrote = self.write_to(&mut bytes);
+        // A level held by band whose file changed in place meanwhile: not its values (said
+        // first: the blank band read instead may also fail the checks below).
+        self.check_mapped()?;
+        wrote.map_err(|e| invalid(e.to_string()))?;
         if let Err(e) = Pyramid::check_bytes(path, &bytes) {
             return Err(invalid(match e {
                 MapError::MapFormat { message, .. } => message,
@@ -240,6 +243,26 @@ impl Pyramid {
     /// is first read again.
     pub fn read_lazy(path: &Path) -> Result<Pyramid> {
         Pyramid::read_mapped(path, v4::Mode::Lazy, &mut |_| {})
+    }
+
+    /// Whether every band of a level held by band ([`Pyramid::read_lazy`]) has decoded again
+    /// when read: `Err` naming the file when one did not (the file changed in place while in
+    /// use, after reading checked it; its lobes read as zero-weight, [`LazyLevel::check`]).
+    /// Always `Ok` for a pyramid held in memory. What a reader of such a pyramid checks
+    /// before it writes anything made from it.
+    ///
+    /// # Errors
+    /// [`MapError::MapFormat`] naming the file, the level and the band.
+    pub fn check_mapped(&self) -> Result<()> {
+        for l in &self.levels {
+            if let crate::Lobes::Lazy(z) = &l.lobes {
+                z.check()?;
+            }
+            if let Some(crate::Horizons::Lazy(z)) = &l.horizon {
+                z.check()?;
+            }
+        }
+        Ok(())
     }
 
     /// The pyramid held as compactly as the memory budget asks: [`Pyramid::read_coded`], or

@@ -172,6 +172,59 @@ fn a_corrupt_band_is_an_error_naming_the_file() {
     }
 }
 
+/// A band of level 0 made invalid *after* the file was read (changed in place while mapped, as
+/// another program writing into the file would): reading its lobes again does not panic; they
+/// read as zero-weight, and `check_mapped` (what `meso render`, `meso export --lobes`, Python
+/// and `Pyramid::write` check before writing) says which file and band, while the other bands
+/// read as before.
+#[test]
+fn a_band_changed_while_mapped_is_reported_not_a_panic() {
+    use std::io::{Seek, SeekFrom, Write};
+    let path = written(256, "g256m.map");
+    let full = Pyramid::read(&path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let a = bytes
+        .windows(4)
+        .enumerate()
+        .filter(|(_, w)| *w == b"BAND")
+        .map(|(i, _)| i)
+        .nth(1)
+        .unwrap();
+    let lazy = Pyramid::read_lazy(&path).unwrap();
+    let l = lazy_level(&lazy);
+    l.set_cache_bands(1);
+    lazy.check_mapped().unwrap();
+    // Level 0's second band (rows 64..128): its first stream's deflate data, a reserved block
+    // type, written into the file in place (not replaced).
+    let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.seek(SeekFrom::Start((a + 40) as u64)).unwrap();
+    f.write_all(&[0xFF]).unwrap();
+    f.sync_all().unwrap();
+    drop(f);
+    let l0 = &lazy.levels[0];
+    let t = 64 * 256 + 7;
+    let (s, e) = (l0.lobe_start[t] as usize, l0.lobe_start[t + 1] as usize);
+    let lobes: Vec<_> = l0.lobes.range(s, e).collect();
+    assert!(lobes.iter().all(|p| p.weight == 0.0), "{lobes:?}");
+    let h = l0.horizon.as_ref().unwrap().get(t);
+    assert_eq!(h.weight, 0.0);
+    let err = lazy.check_mapped().unwrap_err().to_string();
+    assert!(err.contains(&path.display().to_string()), "{err}");
+    assert!(err.contains("band 1") || err.contains("row 64"), "{err}");
+    assert!(err.contains("changed in place"), "{err}");
+    // The first band still reads as the file was.
+    let (s, e) = (l0.lobe_start[3] as usize, l0.lobe_start[4] as usize);
+    for (x, y) in full.levels[0].lobes.range(s, e).zip(l0.lobes.range(s, e)) {
+        assert_eq!(x, y);
+    }
+    // Writing the pyramid refuses, naming the source file, and writes nothing.
+    let out = tmp("from_changed.map");
+    std::fs::remove_file(&out).ok();
+    let err = lazy.write(&out).unwrap_err().to_string();
+    assert!(err.contains(&path.display().to_string()), "{err}");
+    assert!(!out.exists());
+}
+
 /// `meso map info` reads with `Pyramid::read_compact` (coded, or level 0 by band when the
 /// coded pyramid would take more than half the budget): its summary (levels, lobe counts per
 /// texel, residuals) is the same as from `Pyramid::read`, whichever way the pyramid is held.

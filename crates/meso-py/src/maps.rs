@@ -310,12 +310,16 @@ impl Level {
     }
 
     /// The pyramid's lobe statistics (computed once, outside the GIL).
-    fn stats(&self, py: Python<'_>) -> &meso_maps::LobeStats {
+    ///
+    /// # Errors
+    /// A map file's level 0 held by band that changed in place meanwhile.
+    fn stats(&self, py: Python<'_>) -> PyResult<&meso_maps::LobeStats> {
         if let Some(s) = self.stats.get() {
-            return s;
+            return Ok(s);
         }
         let s = py.detach(|| meso_maps::lobe_stats(&self.pyramid, true));
-        self.stats.get_or_init(|| s)
+        self.pyramid.check_mapped().map_err(meso_err)?;
+        Ok(self.stats.get_or_init(|| s))
     }
 
     /// `(rows, cols, K)` array of a per-lobe value `f(index of the lobe in the level)`,
@@ -355,6 +359,8 @@ impl Level {
                 v[at..at + N].copy_from_slice(&f(&lobe));
             }
         }
+        // A map file's level 0 held by band that changed in place meanwhile.
+        self.pyramid.check_mapped().map_err(meso_err)?;
         Ok(PyArray1::from_vec(py, v))
     }
 }
@@ -451,7 +457,7 @@ impl Level {
     /// pyramid on first use (about a second for a 512² map).
     #[getter]
     fn lobe_shares<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
-        let shares = &self.stats(py).shares[self.index];
+        let shares = &self.stats(py)?.shares[self.index];
         self.per_lobe_index(py, |i| shares[i])
     }
 
@@ -471,7 +477,7 @@ impl Level {
                 "direction {direction:?} is not a unit vector"
             )));
         }
-        let Some(h) = self.stats(py).horizon.as_ref() else {
+        let Some(h) = self.stats(py)?.horizon.as_ref() else {
             return Ok(None);
         };
         let h = &h[self.index];

@@ -68,6 +68,19 @@ pub trait Shader: Send + Sync {
         !self.direction_only()
     }
 
+    /// Whether the data this shader read while shading was sound: `Err` (naming the file) when
+    /// a file it reads as it goes (a map file's level 0 held by band,
+    /// [`meso_maps::Pyramid::check_mapped`]) changed in place while in use, so that some
+    /// values it shaded with were not the file's. Checked by the renderer's callers before
+    /// anything is written ([`crate::Scene::check_sources`]). Default: `Ok` (nothing read as it
+    /// goes).
+    ///
+    /// # Errors
+    /// The reader's message, naming the file.
+    fn check_sources(&self) -> Result<(), String> {
+        Ok(())
+    }
+
     /// Whether the BRDF depends on the local directions `wi`, `wo` only (not on the
     /// [`ShadingPoint`]: no position, frame, texture coordinates or footprint). The renderer
     /// then shades whole tiles light by light through [`Shader::eval_pairs`] (its fast path).

@@ -3,7 +3,8 @@
 //! the level-0 rows under them, are built a tile row at a time, so that each full-width band is
 //! decoded once a row rather than once for every tile across it. The shading is the same, bit
 //! for bit, as from the coded pyramid (every tile built on its own), and the bands decoded are
-//! counted.
+//! counted. A band changed in the file while it is mapped is reported by
+//! `Shader::check_sources`, which `meso render` checks before writing, never a panic.
 
 use glam::{DVec2, DVec3};
 use meso_core::material::Material;
@@ -153,4 +154,54 @@ fn shade_from_bits(want: &[u32], n: usize, k: usize) -> Vec<u32> {
             want[i * per_row..(i + 1) * per_row].iter().copied()
         })
         .collect()
+}
+
+/// The map file changed in place while the material reads it by band: shading goes on (the
+/// band reads as zero-weight lobes, flat), no panic, and `check_sources` (what `meso render`
+/// checks before it writes the image) names the file; before the change it is `Ok`.
+#[test]
+fn a_map_file_changed_while_rendering_is_reported() {
+    use meso_render::Shader;
+    use std::io::{Seek, SeekFrom, Write};
+    let map = fixtures::gaussian(256, 4.0, 0.1, 7, 0.01).unwrap();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let dir = std::env::temp_dir().join(format!("meso-tile-rows-changed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("g256.map");
+    pyr.write(&path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    // Level 0's third band (rows 128..192): its first stream's deflate data.
+    let at = bytes
+        .windows(4)
+        .enumerate()
+        .filter(|(_, w)| *w == b"BAND")
+        .map(|(i, _)| i)
+        .nth(2)
+        .unwrap();
+    let lazy = Pyramid::read_lazy(&path).unwrap();
+    let Lobes::Lazy(l0) = &lazy.levels[0].lobes else {
+        panic!("level 0 is held by band");
+    };
+    l0.set_cache_bands(1);
+    let surface =
+        Material::from_toml_str("[transfer]\nkind = \"phong\"\nexponent = 20.0\n").unwrap();
+    let m = NdfMapped::from_pyramid(lazy, &surface, 256.0, true).unwrap();
+    m.check_sources().unwrap();
+    let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.seek(SeekFrom::Start((at + 40) as u64)).unwrap();
+    f.write_all(&[0xFF]).unwrap();
+    f.sync_all().unwrap();
+    drop(f);
+    // Every texel of the map, zoomed in: the changed band is read.
+    let got = shade(&m, 64, 0.5 / 256.0);
+    assert!(got.iter().all(|b| f32::from_bits(*b).is_finite()));
+    let err = m.check_sources().unwrap_err();
+    assert!(err.contains(&path.display().to_string()), "{err}");
+    assert!(err.contains("band 2"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -237,6 +237,9 @@ pub fn run(a: Args) -> Result<()> {
     let tick = |_: usize, _: usize| bar.inc(step);
     let img = phases.time("render", || render(&scene, &opts, Some(&tick)));
     bar.finish_and_clear();
+    // A map file read as the render went (level 0 held by band) that changed meanwhile: the
+    // image is not the file's; write nothing.
+    scene.check_sources().map_err(|e| anyhow::anyhow!("{e}"))?;
     // Every image is encoded and written to its temporary file before any is put in place: a
     // failure leaves none of them.
     let t = std::time::Instant::now();

@@ -22,7 +22,7 @@ use meso_core::ndf::PhongLobe;
 use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 /// Where one band of a lazily held level lies in the mapped file.
 #[derive(Clone, Copy, Debug)]
@@ -103,6 +103,9 @@ pub struct LazyLevel {
     decoding: Mutex<()>,
     cache_bands: AtomicUsize,
     decoded: AtomicUsize,
+    /// The first band that no longer decoded (the file changed in place while mapped): what
+    /// was wrong ([`LazyLevel::check`]).
+    failure: OnceLock<String>,
 }
 
 impl std::fmt::Debug for LazyLevel {
@@ -165,6 +168,7 @@ impl LazyLevel {
             decoding: Mutex::new(()),
             cache_bands: AtomicUsize::new(cache_bands()),
             decoded: AtomicUsize::new(0),
+            failure: OnceLock::new(),
         }
     }
 
@@ -201,6 +205,23 @@ impl LazyLevel {
         c.bands.drain(..over);
     }
 
+    /// Whether every band read so far decoded: `Err` naming the file when one no longer did
+    /// (the file changed in place while mapped, after reading checked it), whose lobes then
+    /// read as zero-weight ([`LazyLevel::lobe`]). What a reader of the level checks before it
+    /// writes anything made from what it read (`meso render`, `meso export --lobes`, Python).
+    ///
+    /// # Errors
+    /// [`crate::MapError::MapFormat`] naming the file, the level and the band.
+    pub fn check(&self) -> crate::error::Result<()> {
+        match self.failure.get() {
+            None => Ok(()),
+            Some(m) => Err(crate::MapError::MapFormat {
+                path: self.path.clone(),
+                message: m.clone(),
+            }),
+        }
+    }
+
     /// Rows of the level that its shared cache holds at once: the bands it keeps
     /// ([`LazyLevel::set_cache_bands`]) × the tallest band's rows. A reader sweeping more
     /// rows than this finds none of the first bands kept when it sweeps them again.
@@ -219,9 +240,12 @@ impl LazyLevel {
 
     /// Lobe `i` (as [`Lobes::Coded`] reads it).
     ///
+    /// A band that no longer decodes though it was checked when the file was read (the file
+    /// changed in place while mapped) reads as zero-weight lobes and zero-weight horizon
+    /// statistics, and [`LazyLevel::check`] says so: check after reading.
+    ///
     /// # Panics
-    /// `i ≥ lobes()`; the file's band unreadable though it was checked when read (changed in
-    /// place while mapped), naming the file.
+    /// `i ≥ lobes()`.
     #[inline]
     #[must_use]
     pub fn lobe(&self, i: usize) -> PhongLobe {
@@ -231,8 +255,10 @@ impl LazyLevel {
 
     /// The horizon statistics of texel `t` (as [`Horizons::Coded`] reads them).
     ///
+    /// A band that no longer decodes reads as [`LazyLevel::lobe`] says.
+    ///
     /// # Panics
-    /// `t ≥ texels()`, or the file has no horizon statistics; as [`LazyLevel::lobe`].
+    /// `t ≥ texels()`, or the file has no horizon statistics.
     #[inline]
     #[must_use]
     pub fn horizon(&self, t: usize) -> HorizonStats {
@@ -383,7 +409,22 @@ impl LazyLevel {
         let band = match self.decode(idx) {
             Ok(b) => Arc::new(b),
             Err(e) => {
-                panic!("{e} (the band was valid when the file was read: it changed while mapped)")
+                let message = match e {
+                    crate::MapError::MapFormat { message, .. } => message,
+                    other => other.to_string(),
+                };
+                let e = self.bands[idx];
+                self.failure.get_or_init(|| {
+                    format!(
+                        "level {}, band {idx} (rows {}..{}): {message} (the band was valid when \
+                         the file was read: the file changed in place while it was in use; read \
+                         it again)",
+                        self.level,
+                        e.row0,
+                        e.row0 + e.rows
+                    )
+                });
+                Arc::new(self.blank(idx))
             }
         };
         self.decoded.fetch_add(1, Ordering::Relaxed);
@@ -395,6 +436,27 @@ impl LazyLevel {
             .saturating_sub(self.cache_bands.load(Ordering::Relaxed));
         c.bands.drain(..over);
         band
+    }
+
+    /// Band `idx` as zero codes (zero-weight lobes and horizon statistics): what a band that
+    /// no longer decodes reads as ([`LazyLevel::check`]).
+    fn blank(&self, idx: usize) -> Band {
+        let e = self.bands[idx];
+        let t0 = e.row0 * self.cols;
+        let texels = e.rows * self.cols;
+        Band {
+            idx,
+            t0,
+            t1: t0 + texels,
+            l0: e.lobe0,
+            l1: e.lobe0 + e.lobes,
+            lobes: vec![LobeCode::default(); e.lobes],
+            horizon: if self.header.has_h {
+                vec![HorizonCode::default(); texels]
+            } else {
+                Vec::new()
+            },
+        }
     }
 
     /// Inflate and decode band `idx` with every check of the reader, then hand its pages of

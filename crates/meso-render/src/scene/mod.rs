@@ -102,6 +102,16 @@ impl Scene {
         &self.materials
     }
 
+    /// Whether every material read sound data while shading ([`Shader::check_sources`]): the
+    /// first material's error, naming its file, when a file it reads as it goes changed in
+    /// place during the render. Check after rendering, before writing the image.
+    ///
+    /// # Errors
+    /// The first failing material's message.
+    pub fn check_sources(&self) -> Result<(), String> {
+        self.materials.iter().try_for_each(|m| m.check_sources())
+    }
+
     /// The shader of a material id (`None` if out of range).
     #[inline]
     #[must_use]

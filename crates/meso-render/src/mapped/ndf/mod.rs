@@ -559,6 +559,15 @@ impl NdfMapped {
 }
 
 impl Shader for NdfMapped {
+    /// The source pyramid's [`meso_maps::Pyramid::check_mapped`] (tables built on demand read
+    /// a map file's level 0 as they go); `Ok` for [`NdfMapped::new`].
+    fn check_sources(&self) -> Result<(), String> {
+        match &self.source {
+            Some(s) => s.pyramid().check_mapped().map_err(|e| e.to_string()),
+            None => Ok(()),
+        }
+    }
+
     fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
         let mut out = [[0.0f32; 3]; 1];
         self.eval_many(sp, wo, &[wi], &mut out);
