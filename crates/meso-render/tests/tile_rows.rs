@@ -15,36 +15,31 @@ use meso_render::{NdfMapped, Shader};
 /// Shade `n × n` points over the whole map (uv `[0, 1)²`, u the outer loop) with a footprint
 /// of `fp` uv units; every result's bits, in order.
 fn shade(m: &NdfMapped, n: usize, fp: f64) -> Vec<u32> {
-    let wi = [DVec3::new(0.3, 0.4, 0.866)];
-    let wo = DVec3::new(0.0, -0.5, 0.866);
-    let mut out = [[0.0f32; 3]];
-    let mut bits = Vec::with_capacity(n * n);
-    for i in 0..n {
-        for j in 0..n {
-            let uv = DVec2::new((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64);
-            m.eval_many(&local_point(uv, fp), wo, &wi, &mut out);
-            bits.extend(out[0].iter().map(|v| v.to_bits()));
-        }
-    }
-    bits
+    shade_from(m, n, fp, 0)
 }
 
-#[test]
-fn coarse_tiles_of_a_map_held_by_band_are_built_a_row_at_a_time() {
-    // 256² texels: level 0 in 4 bands of 64 rows; level 1 (128²) in 2 × 2 tiles of 64²
-    // texels, each over 128 level-0 rows (2 bands) and half the map's width.
-    let map = fixtures::gaussian(256, 4.0, 0.1, 5, 0.01).unwrap();
+/// A Gaussian height map of 256² samples (`seed`) extracted and written to a fresh folder
+/// named after `name`: the folder and the map file.
+fn written(seed: u64, name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let map = fixtures::gaussian(256, 4.0, 0.1, seed, 0.01).unwrap();
     let pyr = extract(
         Source::Heights(&map),
         &ExtractParams::default(),
         &mut |_| {},
     )
     .unwrap();
-    let dir = std::env::temp_dir().join(format!("meso-tile-rows-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("meso-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("g256.map");
     pyr.write(&path).unwrap();
-    drop(pyr);
+    (dir, path)
+}
+
+#[test]
+fn coarse_tiles_of_a_map_held_by_band_are_built_a_row_at_a_time() {
+    // 256² texels: level 0 in 4 bands of 64 rows; level 1 (128²) in 2 × 2 tiles of 64²
+    // texels, each over 128 level-0 rows (2 bands) and half the map's width.
+    let (dir, path) = written(5, "tile-rows");
     let surface =
         Material::from_toml_str("[transfer]\nkind = \"phong\"\nexponent = 20.0\n").unwrap();
     let coded = Pyramid::read_coded(&path).unwrap();
@@ -127,8 +122,9 @@ fn coarse_tiles_of_a_map_held_by_band_are_built_a_row_at_a_time() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// [`shade`] starting from row `(k · n / 4)` of the points and wrapping: another thread's
-/// order.
+/// Shade `n × n` points over the whole map (uv `[0, 1)²`, u the outer loop) with a footprint
+/// of `fp` uv units, starting from row `k · n / 4` of the points and wrapping (another
+/// thread's order); every result's bits, in order.
 fn shade_from(m: &NdfMapped, n: usize, fp: f64, k: usize) -> Vec<u32> {
     let wi = [DVec3::new(0.3, 0.4, 0.866)];
     let wo = DVec3::new(0.0, -0.5, 0.866);
@@ -163,17 +159,7 @@ fn shade_from_bits(want: &[u32], n: usize, k: usize) -> Vec<u32> {
 fn a_map_file_changed_while_rendering_is_reported() {
     use meso_render::Shader;
     use std::io::{Seek, SeekFrom, Write};
-    let map = fixtures::gaussian(256, 4.0, 0.1, 7, 0.01).unwrap();
-    let pyr = extract(
-        Source::Heights(&map),
-        &ExtractParams::default(),
-        &mut |_| {},
-    )
-    .unwrap();
-    let dir = std::env::temp_dir().join(format!("meso-tile-rows-changed-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("g256.map");
-    pyr.write(&path).unwrap();
+    let (dir, path) = written(7, "tile-rows-changed");
     let bytes = std::fs::read(&path).unwrap();
     // Level 0's third band (rows 128..192): its first stream's deflate data.
     let at = bytes
