@@ -222,15 +222,6 @@ impl LazyLevel {
         }
     }
 
-    /// Rows of the level that its shared cache holds at once: the bands it keeps
-    /// ([`LazyLevel::set_cache_bands`]) × the tallest band's rows. A reader sweeping more
-    /// rows than this finds none of the first bands kept when it sweeps them again.
-    #[must_use]
-    pub fn cached_rows(&self) -> usize {
-        self.cache_bands.load(Ordering::Relaxed)
-            * self.bands.iter().map(|b| b.rows).max().unwrap_or(0)
-    }
-
     /// The most memory (bytes) the level's decoded bands take (the cache's, each thread's
     /// last two and one being decoded), with this build's thread count.
     #[must_use]

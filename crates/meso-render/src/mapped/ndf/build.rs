@@ -11,7 +11,7 @@
 //! * Each texel's node weights sum to 1.
 
 use super::lobes::{lobe_nodes, Node, SgLobe, Shapes, NO_LOBE};
-use super::{NdfMapped, NodeLevel, RowLocks, Slot, TexLevel, TileCache};
+use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
@@ -95,7 +95,6 @@ impl NdfMapped {
                     tile: l.cols.max(l.rows),
                     tiles_x: 1,
                     tiles: vec![Slot::built(table)],
-                    row_locks: RowLocks::new(1),
                 }
             })
             .collect();
@@ -140,7 +139,6 @@ impl NdfMapped {
                     tile: TILE_TEXELS,
                     tiles_x,
                     tiles: (0..tiles_x * tiles_y).map(|_| Slot::default()).collect(),
-                    row_locks: RowLocks::new(tiles_y),
                 }
             })
             .collect();
@@ -206,78 +204,14 @@ impl NdfMapped {
     /// # Panics
     /// Without a source (every tile of [`NdfMapped::new`] is built up front).
     pub(super) fn build_tile(&self, lev: usize, i: usize) -> NodeLevel {
-        let p = self.source_pyramid();
+        let src = self
+            .source
+            .as_ref()
+            .expect("a material built by NdfMapped::new has all its tiles");
+        let p = &*src.pyramid;
+        let l = &p.levels[lev];
         let (rows, cols) = self.levels[lev].tile_rect(i);
         let stats = rect_lobe_stats_by_cell(p, lev, rows.clone(), cols.clone(), self.shadowing);
-        self.tile_tables(lev, rows, cols, &stats.shares, stats.horizon)
-    }
-
-    /// Build every tile of tile row `row` of level `lev` (≥ 1) from the source pyramid, in
-    /// order: the very tables [`NdfMapped::build_tile`] builds for each, from one sweep of the
-    /// level-0 rows under them ([`rect_lobe_stats_by_cell`] of the row's whole width, whose
-    /// texels' values do not depend on the rectangle's width). What a level 0 held by band
-    /// asks for: each of its bands, the map's full width, is decoded once for the row instead
-    /// of once for each tile across it.
-    ///
-    /// # Panics
-    /// Without a source, or on level 0 (its lobe horizons are per texel).
-    pub(super) fn build_tile_row(&self, lev: usize, row: usize) -> Vec<NodeLevel> {
-        assert!(lev > 0, "level 0's tiles are built one at a time");
-        let p = self.source_pyramid();
-        let l = &p.levels[lev];
-        let tl = &self.levels[lev];
-        let (rows, _) = tl.tile_rect(row * tl.tiles_x);
-        let stats = rect_lobe_stats_by_cell(p, lev, rows.clone(), 0..l.cols, self.shadowing);
-        // The rectangle's texels are contiguous in the level: a texel's lobes lie at its lobe
-        // start less the rectangle's first.
-        let base = l.lobe_start[rows.start * l.cols] as usize;
-        let mut shares = Vec::new();
-        let mut hz = Vec::new();
-        (0..tl.tiles_x)
-            .map(|tc| {
-                let (_, cols) = tl.tile_rect(row * tl.tiles_x + tc);
-                shares.clear();
-                hz.clear();
-                for r in rows.clone() {
-                    let a = l.lobe_start[r * l.cols + cols.start] as usize - base;
-                    let b = l.lobe_start[r * l.cols + cols.end] as usize - base;
-                    shares.extend_from_slice(&stats.shares[a..b]);
-                    if let Some(h) = &stats.horizon {
-                        hz.extend((a..b).map(|j| h.get(j)));
-                    }
-                }
-                let lobe_horizon = stats
-                    .horizon
-                    .as_ref()
-                    .map(|h| Horizons::new(hz.clone(), h.is_compact()));
-                self.tile_tables(lev, rows.clone(), cols, &shares, lobe_horizon)
-            })
-            .collect()
-    }
-
-    /// The source pyramid.
-    ///
-    /// # Panics
-    /// Without a source (every tile of [`NdfMapped::new`] is built up front).
-    fn source_pyramid(&self) -> &Pyramid {
-        self.source
-            .as_ref()
-            .expect("a material built by NdfMapped::new has all its tiles")
-            .pyramid()
-    }
-
-    /// The tables of texels `rows × cols` of level `lev` given their lobes' shares and lobe
-    /// horizon statistics (in the rectangle's texel order, [`rect_lobe_stats_by_cell`]), with
-    /// the texels' own horizon statistics when shadowing.
-    fn tile_tables(
-        &self,
-        lev: usize,
-        rows: std::ops::Range<usize>,
-        cols: std::ops::Range<usize>,
-        shares: &[f64],
-        lobe_horizon: Option<Horizons>,
-    ) -> NodeLevel {
-        let l = &self.source_pyramid().levels[lev];
         let horizon = if self.shadowing {
             l.horizon.as_ref().map(|h| {
                 let mut v = Vec::with_capacity(rows.len() * cols.len());
@@ -289,7 +223,15 @@ impl NdfMapped {
         } else {
             None
         };
-        node_level(l, rows, cols, shares, &self.facet, horizon, lobe_horizon)
+        node_level(
+            l,
+            rows,
+            cols,
+            &stats.shares,
+            &self.facet,
+            horizon,
+            stats.horizon,
+        )
     }
 
     /// The material of these level tables, with the defaults of the options.

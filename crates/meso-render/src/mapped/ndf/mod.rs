@@ -6,8 +6,7 @@
 //!
 //! * `build` — [`NdfMapped::new`] (every level's table up front, one tile a level) and
 //!   [`NdfMapped::from_pyramid`] (tiles of 64² texels built when first read, under a byte cap,
-//!   [`NdfMapped::with_table_cap`]; over a level 0 held by band, a coarse level's tile row at
-//!   a time, `NdfMapped::builds_by_row`): the tables from a pyramid, with each lobe's share of its
+//!   [`NdfMapped::with_table_cap`]): the tables from a pyramid, with each lobe's share of its
 //!   texel's projected area and its horizon statistics from [`meso_maps::lobe_stats_by_cell`]
 //!   or, per tile, [`meso_maps::rect_lobe_stats_by_cell`] (handed down from the level-0
 //!   normals; level 0's once per texel);
@@ -88,26 +87,6 @@ struct TexLevel {
     tiles_x: usize,
     /// The tiles, row-major.
     tiles: Vec<Slot>,
-    /// One lock per tile row, held while the row is built together
-    /// (`NdfMapped::builds_by_row`).
-    row_locks: RowLocks,
-}
-
-/// One lock per tile row of a level; a clone has its own (unlocked) locks.
-#[derive(Debug, Default)]
-struct RowLocks(Vec<Mutex<()>>);
-
-impl RowLocks {
-    /// `n` unlocked locks.
-    fn new(n: usize) -> RowLocks {
-        RowLocks((0..n).map(|_| Mutex::new(())).collect())
-    }
-}
-
-impl Clone for RowLocks {
-    fn clone(&self) -> RowLocks {
-        RowLocks::new(self.0.len())
-    }
 }
 
 /// One tile of a level: its tables once built (and until the cache drops them, `TileCache`),
@@ -252,13 +231,10 @@ impl NdfMapped {
     }
 
     /// The tables of tile `i` of level `lev`, built now if not held (and others dropped if the
-    /// cache passes its cap); with its whole tile row where [`NdfMapped::builds_by_row`].
+    /// cache passes its cap).
     fn tile(&self, lev: usize, i: usize) -> Arc<NodeLevel> {
         let slot = &self.levels[lev].tiles[i];
         slot.used.store(true, Ordering::Relaxed);
-        if self.builds_by_row(lev) {
-            return self.tile_by_row(lev, i);
-        }
         let built = {
             let mut g = slot.table.lock().unwrap_or_else(|e| e.into_inner());
             if let Some(t) = &*g {
@@ -272,79 +248,6 @@ impl NdfMapped {
         };
         self.account(lev, i, built.bytes());
         built
-    }
-
-    /// Whether tile rows of level `lev` are built together (`NdfMapped::build_tile_row`):
-    /// where level 0 is held by band ([`meso_maps::Pyramid::read_lazy`]) and a tile of `lev`
-    /// sweeps more than half the level-0 rows its band cache keeps
-    /// ([`meso_maps::LazyLevel::cached_rows`]; two threads sweep at once). Then each tile
-    /// across the row would decode the same full-width bands again; together they are
-    /// decoded once a row. Levels whose tiles are narrower build one tile at a time: a near
-    /// view reads a few of their tiles, whose bands the cache keeps between them.
-    fn builds_by_row(&self, lev: usize) -> bool {
-        let Some(src) = &self.source else {
-            return false;
-        };
-        let tl = &self.levels[lev];
-        if lev == 0 || tl.tiles_x < 2 {
-            return false;
-        }
-        match &src.pyramid().levels[0].lobes {
-            meso_maps::Lobes::Lazy(l0) => {
-                2 * tl.tile * src.pyramid().levels[lev].span > l0.cached_rows()
-            }
-            _ => false,
-        }
-    }
-
-    /// [`NdfMapped::tile`] of a level built by tile row: tile `i`'s tables if held, else its
-    /// row's built together under the row's lock (a second reader of the row waits for them;
-    /// no slot's lock is held while building, and no other row's lock is taken), each tile
-    /// not held put in its slot and counted, marked read so the cache keeps it one more pass.
-    fn tile_by_row(&self, lev: usize, i: usize) -> Arc<NodeLevel> {
-        let tl = &self.levels[lev];
-        if let Some(t) = tl.tiles[i].get() {
-            return t;
-        }
-        let row = i / tl.tiles_x;
-        let _row = tl.row_locks.0[row]
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
-        if let Some(t) = tl.tiles[i].get() {
-            return t;
-        }
-        let mut mine = None;
-        for (tc, table) in self.build_tile_row(lev, row).into_iter().enumerate() {
-            let j = row * tl.tiles_x + tc;
-            let slot = &tl.tiles[j];
-            let table = Arc::new(table);
-            let fresh = {
-                let mut g = slot.table.lock().unwrap_or_else(|e| e.into_inner());
-                match &*g {
-                    Some(held) => {
-                        if j == i {
-                            mine = Some(Arc::clone(held));
-                        }
-                        false
-                    }
-                    None => {
-                        *g = Some(Arc::clone(&table));
-                        true
-                    }
-                }
-            };
-            if fresh {
-                slot.used.store(true, Ordering::Relaxed);
-                if j == i {
-                    mine = Some(Arc::clone(&table));
-                }
-                self.account(lev, j, table.bytes());
-            }
-        }
-        match mine {
-            Some(t) => t,
-            None => unreachable!("tile {i} is in row {row}"),
-        }
     }
 
     /// Count a tile just built and drop the oldest tiles (a tile read since the last pass
