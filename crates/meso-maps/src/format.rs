@@ -77,7 +77,7 @@ fn put_f64(w: &mut dyn Write, v: f64) -> std::io::Result<()> {
 ///
 /// # Errors
 /// [`MapError::Io`] naming `path` when it cannot be opened, examined or mapped.
-fn map_regular(path: &Path) -> Result<(u64, Option<memmap2::Mmap>)> {
+fn map_regular(path: &Path) -> Result<(u64, Option<lazy::MappedFile>)> {
     let io = |e| MapError::Io {
         path: path.to_path_buf(),
         source: e,
@@ -88,10 +88,12 @@ fn map_regular(path: &Path) -> Result<(u64, Option<memmap2::Mmap>)> {
         return Ok((meta.len(), None));
     }
     // SAFETY: a read-only mapping of the file. A file truncated by another process while
-    // mapped would fault; map files are replaced by renaming (`meso_core::io::write_atomic`),
-    // which leaves a mapped file whole.
+    // mapped would fault where its cut pages are read; map files are replaced by renaming
+    // (`meso_core::io::write_atomic`), which leaves a mapped file whole, and a level read by
+    // band later checks the file's length before it reads a band again
+    // (`lazy::MappedFile::cut`).
     let map = unsafe { memmap2::Mmap::map(&file) }.map_err(io)?;
-    Ok((meta.len(), Some(map)))
+    Ok((meta.len(), Some(lazy::MappedFile::new(map, file))))
 }
 
 /// What reading a map file compactly will need ([`Pyramid::read_compact_bytes`]), from its
@@ -303,8 +305,8 @@ impl Pyramid {
         let Some(map) = map else {
             return Ok(fallback);
         };
-        let mut r = Reader::new(&map, path);
-        r.mapped = Some(&map);
+        let mut r = Reader::new(&map.map, path);
+        r.mapped = Some(&map.map);
         let Ok(h) = read_header(&mut r) else {
             return Ok(fallback);
         };
@@ -347,8 +349,8 @@ impl Pyramid {
             return Pyramid::read(path);
         };
         let map = std::sync::Arc::new(map);
-        let mut r = Reader::new(&map, path);
-        r.mapped = Some(&*map);
+        let mut r = Reader::new(&map.map, path);
+        r.mapped = Some(&map.map);
         let h = read_header(&mut r)?;
         if h.version != VERSION_4 {
             return Pyramid::read(path);

@@ -225,6 +225,44 @@ fn a_band_changed_while_mapped_is_reported_not_a_panic() {
     assert!(!out.exists());
 }
 
+/// The map file cut short by another program while level 0 is held by band: reading a band
+/// past the cut would fault (SIGBUS) through the mapping; the level sees the file's length first,
+/// reads that band as zero-weight lobes, and `check_mapped` says the file was cut. A band read
+/// before the cut and still cached reads as before.
+#[test]
+fn a_file_cut_while_mapped_is_reported_not_a_fault() {
+    let path = written(256, "g256cut.map");
+    let full = Pyramid::read(&path).unwrap();
+    let size = std::fs::metadata(&path).unwrap().len();
+    let lazy = Pyramid::read_lazy(&path).unwrap();
+    let l = lazy_level(&lazy);
+    l.set_cache_bands(1);
+    let l0 = &lazy.levels[0];
+    let t0 = 5;
+    let (s0, e0) = (l0.lobe_start[t0] as usize, l0.lobe_start[t0 + 1] as usize);
+    let before: Vec<_> = l0.lobes.range(s0, e0).collect();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(size / 4)
+        .unwrap();
+    // The last band lies past the cut.
+    let t = 255 * 256 + 9;
+    let (s, e) = (l0.lobe_start[t] as usize, l0.lobe_start[t + 1] as usize);
+    let lobes: Vec<_> = l0.lobes.range(s, e).collect();
+    assert!(lobes.iter().all(|p| p.weight == 0.0), "{lobes:?}");
+    let err = lazy.check_mapped().unwrap_err().to_string();
+    assert!(err.contains(&path.display().to_string()), "{err}");
+    assert!(err.contains("cut"), "{err}");
+    assert!(err.contains("band 3"), "{err}");
+    let again: Vec<_> = l0.lobes.range(s0, e0).collect();
+    assert_eq!(before, again);
+    for (x, y) in full.levels[0].lobes.range(s0, e0).zip(again) {
+        assert_eq!(x, y);
+    }
+}
+
 /// `meso map info` reads with `Pyramid::read_compact` (coded, or level 0 by band when the
 /// coded pyramid would take more than half the budget): its summary (levels, lobe counts per
 /// texel, residuals) is the same as from `Pyramid::read`, whichever way the pyramid is held.

@@ -24,6 +24,30 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
+/// A map file mapped read-only, with its open handle: the handle tells its length now (the
+/// same file, even if its name has since been given to another by a rename).
+pub(crate) struct MappedFile {
+    /// The mapping.
+    pub(crate) map: memmap2::Mmap,
+    file: std::fs::File,
+}
+
+impl MappedFile {
+    /// The mapping `map` of the open `file`.
+    pub(crate) fn new(map: memmap2::Mmap, file: std::fs::File) -> MappedFile {
+        MappedFile { map, file }
+    }
+
+    /// The file's length now when it is shorter than the mapping (cut by another program since
+    /// it was mapped: reading the cut pages would fault), else `None`. One `fstat`; the file
+    /// could still be cut between this and the read, a far narrower window than the whole
+    /// render.
+    pub(crate) fn cut(&self) -> Option<u64> {
+        let len = self.file.metadata().map_or(0, |m| m.len());
+        (len < self.map.len() as u64).then_some(len)
+    }
+}
+
 /// Where one band of a lazily held level lies in the mapped file.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct BandEntry {
@@ -87,7 +111,7 @@ thread_local! {
 pub struct LazyLevel {
     /// Tells this level's bands apart in the threads' recent bands.
     id: u64,
-    map: Arc<memmap2::Mmap>,
+    map: Arc<MappedFile>,
     path: PathBuf,
     header: Header,
     level: usize,
@@ -142,7 +166,7 @@ impl LazyLevel {
     /// band's codes and `band_work` the largest memory of decoding one (bytes).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
-        map: Arc<memmap2::Mmap>,
+        map: Arc<MappedFile>,
         path: &Path,
         header: &Header,
         level: usize,
@@ -429,10 +453,17 @@ impl LazyLevel {
         band
     }
 
-    /// Band `idx` as zero codes (zero-weight lobes and horizon statistics): what a band that
-    /// no longer decodes reads as ([`LazyLevel::check`]).
+    /// Band `idx` blank: zero-weight lobes on the normal, as sharp as a lobe can be (so that
+    /// what reads them takes its quick paths: a blank level 0 of an 8192² map is read as fast as
+    /// a real one), and zero-weight horizon statistics: what a band that no longer decodes reads
+    /// as ([`LazyLevel::check`]).
     fn blank(&self, idx: usize) -> Band {
         let e = self.bands[idx];
+        let blank = LobeCode::from_phong(&PhongLobe {
+            axis: glam::DVec3::Z,
+            weight: 0.0,
+            exponent: crate::fit::ETA_MAX,
+        });
         let t0 = e.row0 * self.cols;
         let texels = e.rows * self.cols;
         Band {
@@ -441,7 +472,7 @@ impl LazyLevel {
             t1: t0 + texels,
             l0: e.lobe0,
             l1: e.lobe0 + e.lobes,
-            lobes: vec![LobeCode::default(); e.lobes],
+            lobes: vec![blank; e.lobes],
             horizon: if self.header.has_h {
                 vec![HorizonCode::default(); texels]
             } else {
@@ -454,7 +485,16 @@ impl LazyLevel {
     /// the file back (they are read from the file again if it is decoded again).
     fn decode(&self, idx: usize) -> crate::error::Result<Band> {
         let e = self.bands[idx];
-        let mut r = Reader::new(&self.map, &self.path);
+        if let Some(len) = self.map.cut() {
+            return Err(crate::MapError::MapFormat {
+                path: self.path.clone(),
+                message: format!(
+                    "the file is {len} bytes, {} when it was read: cut",
+                    self.map.map.len()
+                ),
+            });
+        }
+        let mut r = Reader::new(&self.map.map, &self.path);
         r.pos = e.at;
         let entry = TableEntry {
             cols: self.cols,
@@ -465,7 +505,7 @@ impl LazyLevel {
             t0: 0,
         };
         let band = read_band(&mut r, &self.header, self.level, &entry, e.row0, true)?;
-        release(&self.map, e.at, r.pos);
+        release(&self.map.map, e.at, r.pos);
         let lobes = match band.lobes {
             Lobes::Coded(v) if v.len() == e.lobes => v,
             _ => return Err(r.err(format!("level {}: band {idx} changed", self.level))),

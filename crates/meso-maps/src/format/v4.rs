@@ -443,7 +443,7 @@ pub(in crate::format) fn read_levels(
     r: &mut Reader<'_>,
     h: &Header,
     mode: Mode,
-    map: Option<&std::sync::Arc<memmap2::Mmap>>,
+    map: Option<&std::sync::Arc<super::lazy::MappedFile>>,
     report: &mut dyn FnMut(crate::pyramid::Progress),
 ) -> Result<Vec<Level>> {
     let start = r.pos;
