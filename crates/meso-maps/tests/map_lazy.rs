@@ -263,6 +263,33 @@ fn a_file_cut_while_mapped_is_reported_not_a_fault() {
     }
 }
 
+/// The map file cut short by another program while it is being read (after the first band,
+/// through the progress report): an error naming the file, not a fault (SIGBUS) on the cut
+/// pages of the mapping.
+#[test]
+fn a_file_cut_while_being_read_is_an_error_not_a_fault() {
+    let path = written(256, "g256cutread.map");
+    let size = std::fs::metadata(&path).unwrap().len();
+    let mut bands = 0;
+    let r = Pyramid::read_compact_reporting(&path, &mut |_| {
+        bands += 1;
+        if bands == 2 {
+            std::fs::OpenOptions::new()
+                .write(true)
+                .open(&path)
+                .unwrap()
+                .set_len(size / 3)
+                .unwrap();
+        }
+    });
+    let err = match r {
+        Ok(_) => panic!("read a cut file"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains(&path.display().to_string()), "{err}");
+    assert!(err.contains("cut while being read"), "{err}");
+}
+
 /// `meso map info` reads with `Pyramid::read_compact` (coded, or level 0 by band when the
 /// coded pyramid would take more than half the budget): its summary (levels, lobe counts per
 /// texel, residuals) is the same as from `Pyramid::read`, whichever way the pyramid is held.

@@ -505,6 +505,14 @@ pub(in crate::format) fn read_levels(
         let mut bands = Vec::new();
         let mut next = 0;
         while next < e.rows {
+            // A mapped file cut short by another program meanwhile would fault where its cut
+            // pages are read: refused first (one `fstat` a band).
+            if let Some(len) = map.and_then(|m| m.cut()) {
+                return Err(r.err(format!(
+                    "the file is {len} bytes, {} when it was opened: cut while being read",
+                    r.b.len()
+                )));
+            }
             let at = r.pos;
             let band = read_band(r, h, k, e, next, coded)?;
             if lazy {
