@@ -30,6 +30,16 @@ fn written(n: usize, name: &str) -> PathBuf {
     path
 }
 
+/// The byte offsets of a map file's `BAND` tags, in order (level 0's bands first).
+fn band_tags(bytes: &[u8]) -> Vec<usize> {
+    bytes
+        .windows(4)
+        .enumerate()
+        .filter(|(_, w)| *w == b"BAND")
+        .map(|(i, _)| i)
+        .collect()
+}
+
 fn lazy_level(p: &Pyramid) -> &meso_maps::LazyLevel {
     match &p.levels[0].lobes {
         Lobes::Lazy(l) => l,
@@ -129,13 +139,7 @@ fn a_coarse_rectangle_decodes_each_band_once() {
 fn a_corrupt_band_is_an_error_naming_the_file() {
     let path = written(256, "g256c.map");
     let bytes = std::fs::read(&path).unwrap();
-    let at: Vec<usize> = bytes
-        .windows(4)
-        .enumerate()
-        .filter(|(_, w)| *w == b"BAND")
-        .map(|(i, _)| i)
-        .take(3)
-        .collect();
+    let at = band_tags(&bytes);
     // Level 0's second band: rows 64..128; its band header (20 bytes), then stream 0's header
     // (20 bytes: id, filter, 2 reserved, raw and compressed lengths) and data, then stream 1.
     let a = at[1];
@@ -182,14 +186,7 @@ fn a_band_changed_while_mapped_is_reported_not_a_panic() {
     use std::io::{Seek, SeekFrom, Write};
     let path = written(256, "g256m.map");
     let full = Pyramid::read(&path).unwrap();
-    let bytes = std::fs::read(&path).unwrap();
-    let a = bytes
-        .windows(4)
-        .enumerate()
-        .filter(|(_, w)| *w == b"BAND")
-        .map(|(i, _)| i)
-        .nth(1)
-        .unwrap();
+    let a = band_tags(&std::fs::read(&path).unwrap())[1];
     let lazy = Pyramid::read_lazy(&path).unwrap();
     let l = lazy_level(&lazy);
     l.set_cache_bands(1);
