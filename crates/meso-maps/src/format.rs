@@ -306,7 +306,7 @@ impl Pyramid {
             return Ok(fallback);
         };
         let mut r = Reader::new(&map.map, path);
-        r.mapped = Some(&map.map);
+        r.mapped = Some(&map);
         let Ok(h) = read_header(&mut r) else {
             return Ok(fallback);
         };
@@ -350,7 +350,7 @@ impl Pyramid {
         };
         let map = std::sync::Arc::new(map);
         let mut r = Reader::new(&map.map, path);
-        r.mapped = Some(&map.map);
+        r.mapped = Some(&map);
         let h = read_header(&mut r)?;
         if h.version != VERSION_4 {
             return Pyramid::read(path);
@@ -676,8 +676,9 @@ struct Reader<'a> {
     b: &'a [u8],
     pos: usize,
     path: PathBuf,
-    /// The mapped file `b` is, whose pages [`Reader::release`] hands back.
-    mapped: Option<&'a memmap2::Mmap>,
+    /// The mapped file `b` is, whose pages [`Reader::release`] hands back and whose length
+    /// [`Reader::check_cut`] checks.
+    mapped: Option<&'a lazy::MappedFile>,
     /// The bytes before this (a page boundary) are released.
     released: usize,
 }
@@ -699,12 +700,24 @@ impl<'a> Reader<'a> {
         self.mapped.is_some()
     }
 
+    /// `Err` naming the file when the mapped file the reader holds has been cut short since it
+    /// was mapped (reading its cut pages would fault): checked before each band (one `fstat`).
+    fn check_cut(&self) -> Result<()> {
+        match self.mapped.and_then(lazy::MappedFile::cut) {
+            Some(len) => Err(self.err(format!(
+                "the file is {len} bytes, {} when it was opened: cut while being read",
+                self.b.len()
+            ))),
+            None => Ok(()),
+        }
+    }
+
     /// Hand the whole pages before the reader's position back to the system when the reader
     /// holds a mapped file (they are read again from the file if read again): the file then
     /// takes no more of the process's memory than the pages between two calls.
     fn release(&mut self) {
         #[cfg(unix)]
-        if let Some(map) = self.mapped {
+        if let Some(map) = self.mapped.map(|m| &m.map) {
             const PAGE: usize = 1 << 16; // a multiple of every page size in use
             let to = self.pos / PAGE * PAGE;
             if to > self.released {

@@ -229,7 +229,10 @@ fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64, u64)> {
     let mut codes0 = 0u64;
     for k in 0..h.nlev {
         let (mut next, mut lobes) = (0usize, 0usize);
-        while let Some(b) = band_head(r, h, k, (cols, rows), next)? {
+        while let Some(b) = {
+            r.check_cut()?;
+            band_head(r, h, k, (cols, rows), next)?
+        } {
             let texels = (b.rows * cols) as u64;
             let mut need = 0;
             for (s, &(_, per_lobe, cols_of, _, _)) in STREAMS.iter().enumerate().take(n_streams) {
@@ -507,12 +510,7 @@ pub(in crate::format) fn read_levels(
         while next < e.rows {
             // A mapped file cut short by another program meanwhile would fault where its cut
             // pages are read: refused first (one `fstat` a band).
-            if let Some(len) = map.and_then(|m| m.cut()) {
-                return Err(r.err(format!(
-                    "the file is {len} bytes, {} when it was opened: cut while being read",
-                    r.b.len()
-                )));
-            }
+            r.check_cut()?;
             let at = r.pos;
             let band = read_band(r, h, k, e, next, coded)?;
             if lazy {
