@@ -56,7 +56,11 @@ pub fn render<'py>(
                 seed,
                 ..RenderOptions::default()
             };
-            Ok(meso_render::render(&sc, &opts, None))
+            let img = meso_render::render(&sc, &opts, None);
+            // A map file read as the render went (level 0 held by band) that changed
+            // meanwhile: the image is not the file's (as `meso render`).
+            sc.check_sources()?;
+            Ok(img)
         })
         .map_err(meso_err)?;
     crate::error::emit_warnings(py, &said)?;
