@@ -67,7 +67,9 @@ pub use error::{ImageError, SceneError};
 pub use geometry::{MaterialId, Mesh, Plane, Quad, ShadingPoint, Sphere};
 pub use image::Image;
 pub use light::{EnvironmentMap, Light, LightSample};
-pub use mapped::{BumpMapped, NdfMapped};
+pub use mapped::{
+    default_box_detail, BumpMapped, NdfMapped, DEFAULT_MAX_BOX_DETAIL, MAX_BOX_DETAIL,
+};
 pub use material::MaterialShader;
 pub use render::{render, render_pixel, shade, shade_with, RenderOptions, ShadeScratch};
 pub use scene::{ImageSettings, MaterialResolver, ResolveError, Scene, SceneBuilder};

@@ -15,12 +15,14 @@
 //! height_scale = 0.02      # height of the full code range (same unit)
 //! texels_per_uv = 64       # height-map cells per unit of u and v (default: the map's width)
 //! filter = "trilinear"     # ndf-mapped: or "box" (NdfMapped::with_box_filter)
+//! box_detail = 1           # ndf-mapped, box filter: levels finer than the footprint, 0–2
+//!                          # (default: from the facet's sharpness, NdfMapped::with_box_detail)
 //! [transfer]
 //! kind = "phong"
 //! exponent = 20
 //! ```
 
-use crate::mapped::{BumpMapped, NdfMapped};
+use crate::mapped::{BumpMapped, NdfMapped, MAX_BOX_DETAIL};
 use crate::shader::Shader;
 use meso_core::material::{read_limited, MaterialSpec};
 use meso_maps::limits::MAX_LOBES;
@@ -55,6 +57,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     check_texture_keys(tex).map_err(named)?;
     let kind = texture_kind(tex).map_err(named)?;
     let box_filter = box_filter(tex, kind).map_err(named)?;
+    let box_detail = box_detail(tex, kind, box_filter).map_err(named)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let t = Texture {
         kind,
@@ -62,6 +65,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         doc: &doc,
         dir,
         box_filter,
+        box_detail,
         maps,
     };
     let string = |key: &str| tex_string(tex, key).map_err(named);
@@ -102,13 +106,14 @@ fn check_texture_keys(tex: &toml::Table) -> Result<(), String> {
                 "map",
                 "convention",
                 "filter",
+                "box_detail",
             ]
             .contains(&k.as_str()))
         {
             return Err(format!(
                 "[texture]: unknown key `{k}` (known: kind, file, normal_map, map, convention, \
-                 texel_size, height_scale, texels_per_uv, shadowing, filter, max_lobes, border, \
-                 normals)"
+                 texel_size, height_scale, texels_per_uv, shadowing, filter, box_detail, \
+                 max_lobes, border, normals)"
             ));
         }
     }
@@ -147,10 +152,21 @@ struct Texture<'a> {
     /// The folder of the material file (relative paths).
     dir: &'a Path,
     box_filter: bool,
+    /// `box_detail`, if given (checked: a number in `[0, MAX_BOX_DETAIL]`).
+    box_detail: Option<f64>,
     maps: &'a MapsResolver,
 }
 
 impl Texture<'_> {
+    /// `m` with the table's filter: `filter` and, if given, `box_detail`.
+    fn filtered(&self, m: NdfMapped) -> NdfMapped {
+        let m = m.with_box_filter(self.box_filter);
+        match self.box_detail {
+            Some(d) => m.with_box_detail(d),
+            None => m,
+        }
+    }
+
     /// The facet material: the file without its `[texture]` table.
     fn surface(&self) -> Result<meso_core::material::Material, String> {
         let rest = toml::to_string(self.doc).map_err(|e| format!("cannot re-read: {e}"))?;
@@ -246,10 +262,12 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
                 .heightmap_pyramid(&map_table, file)
                 .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
-            Arc::new(
-                NdfMapped::new(&pyramid, &surface, texels_per_uv, shadowing)?
-                    .with_box_filter(t.box_filter),
-            )
+            Arc::new(t.filtered(NdfMapped::new(
+                &pyramid,
+                &surface,
+                texels_per_uv,
+                shadowing,
+            )?))
         }
     })
 }
@@ -353,9 +371,13 @@ fn map_mapped(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, String> {
     // from the memory budget (docs/limits.md).
     let cap = table_cap(file, &pyramid, &surface, shadowing)?;
     Ok(Arc::new(
-        NdfMapped::from_pyramid(pyramid, &surface, texels_per_uv, shadowing)?
-            .with_box_filter(t.box_filter)
-            .with_table_cap(cap),
+        t.filtered(NdfMapped::from_pyramid(
+            pyramid,
+            &surface,
+            texels_per_uv,
+            shadowing,
+        )?)
+        .with_table_cap(cap),
     ))
 }
 
@@ -408,6 +430,27 @@ fn box_filter(tex: &toml::Table, kind: &str) -> Result<bool, String> {
             None => Err("[texture] filter: expected a string".to_string()),
         },
     }
+}
+
+/// `box_detail` of a `[texture]` table, if given: a number in `[0, MAX_BOX_DETAIL]`, for the box
+/// filter of an NDF-mapped texture only (`NdfMapped::with_box_detail`).
+fn box_detail(tex: &toml::Table, kind: &str, box_filter: bool) -> Result<Option<f64>, String> {
+    let Some(v) = tex.get("box_detail") else {
+        return Ok(None);
+    };
+    if kind != "ndf-mapped" || !box_filter {
+        return Err(
+            "[texture] box_detail: applies to kind = \"ndf-mapped\" with filter = \"box\""
+                .to_string(),
+        );
+    }
+    v.as_float()
+        .or_else(|| v.as_integer().map(|i| i as f64))
+        .filter(|d| (0.0..=MAX_BOX_DETAIL).contains(d))
+        .map(Some)
+        .ok_or_else(|| {
+            format!("[texture] box_detail: must be a number 0–{MAX_BOX_DETAIL}, got {v}")
+        })
 }
 
 /// `texels_per_uv` of a `[texture]` table (default: the map's width, one copy per unit of uv).
@@ -477,9 +520,12 @@ fn normal_mapped(
     }
     let pyramid = got.value;
     let texels_per_uv = texels_per_uv(t.tex, pyramid.width)?;
-    Ok(Arc::new(
-        NdfMapped::new(&pyramid, &surface, texels_per_uv, false)?.with_box_filter(t.box_filter),
-    ))
+    Ok(Arc::new(t.filtered(NdfMapped::new(
+        &pyramid,
+        &surface,
+        texels_per_uv,
+        false,
+    )?)))
 }
 
 /// The shader of a material file: a `[texture]` material (bump- or NDF-mapped, through

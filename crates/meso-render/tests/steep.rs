@@ -404,11 +404,13 @@ fn real_normal_map_made_steep_renders_without_sparkle() {
 /// a small diffuse term), NDF-mapped at 1 spp with the default box filter against bump-mapped
 /// at 256 spp, as [`steep_normal_map_renders_without_sparkle`] does for Phong 20 and Lambert
 /// facets. Up to 4 texels per pixel: mean pixel error under 5 %, the mean within 1 %, every
-/// class of sub-texel phase within 3 %, no pixel's excess over 1.5 × the mean. Measured
-/// (2026-12-05): errors 0.4–4.0 %, means 0.998–1.004, classes 0.989–1.018, excess ≤ 1.03. At
-/// 8 and 16 texels per pixel (reported only) the coarse levels are darker than the truth
-/// under the grazing light (α = 0.05: mean 0.96 at 8, 0.64 at 16 texels per pixel; the same
-/// view at 16 spp, which reads finer levels, is within 0.1 %): docs/heightmaps.md, "Steep maps".
+/// class of sub-texel phase within 3 %, no pixel's excess over 1.5 × the mean. At 8 texels per
+/// pixel the mean within 2 % and the classes within 5 %; at 16, within 7 % and 0.85–1.10. The
+/// far bounds hold because the box filter's default detail for these facets is 1 (a level
+/// finer than the footprint, `default_box_detail`); at detail 0 the grazing light's mean at 16
+/// texels per pixel was 0.63 (α = 0.05) and 0.80 (α = 0.1), and now is 0.94 and 0.97
+/// (docs/heightmaps.md, "Glossy facets"). The far views' per-pixel error is reported only: the
+/// 256-spp truth's own noise is 6–27 % there.
 #[test]
 fn glossy_facets_on_a_steep_map_render_without_sparkle() {
     let map = NormalMap::from_normals(N, N, stone_wall()).unwrap();
@@ -420,13 +422,22 @@ fn glossy_facets_on_a_steep_map_render_without_sparkle() {
     .into_iter()
     .filter(|m| {
         let (c, (lo, hi)) = (&m.comparison, m.class_range());
+        // Up close, every measure; further out (where the glossy facets' default box detail, 1,
+        // reads a level finer than the footprint) the mean and the phase classes: the 256-spp
+        // truth's own noise is 6–27 % per pixel there (docs/heightmaps.md, "Glossy facets").
+        // At detail 0 the grazing light's 16 texels/px were 0.63 (α = 0.05) and 0.80 (α = 0.1).
         m.box_filter
-            && m.texels_per_pixel <= 4.0
-            && (c.mean_error > 0.05
-                || (c.mean_ratio - 1.0).abs() > 0.01
-                || lo < 0.97
-                || hi > 1.03
-                || c.max_excess > 1.5)
+            && if m.texels_per_pixel <= 4.0 {
+                c.mean_error > 0.05
+                    || (c.mean_ratio - 1.0).abs() > 0.01
+                    || lo < 0.97
+                    || hi > 1.03
+                    || c.max_excess > 1.5
+            } else if m.texels_per_pixel <= 8.0 {
+                (c.mean_ratio - 1.0).abs() > 0.02 || lo < 0.95 || hi > 1.05
+            } else {
+                (c.mean_ratio - 1.0).abs() > 0.07 || lo < 0.85 || hi > 1.10
+            }
     })
     .map(|m| m.line)
     .collect();

@@ -40,6 +40,14 @@ fn write_fixture(dir: &Path) {
         ),
     )
     .unwrap();
+    std::fs::write(
+        dir.join("ndf-detail.toml"),
+        format!(
+            "[texture]\nkind = \"ndf-mapped\"\nbox_detail = 2\nfile = \"bumps.exr\"\n\
+             texel_size = 0.03125\nheight_scale = 0.035\n{surface}"
+        ),
+    )
+    .unwrap();
     std::fs::write(dir.join("plain.toml"), surface).unwrap();
 }
 
@@ -124,6 +132,25 @@ fn box_filtered_file_matches_supersampled_bump_mapped_file() {
     filtered_matches_texel_by_texel(&d, "ndf-box", "bump-mapped");
 }
 
+/// `box_detail = 2` (NdfMapped::with_box_detail) reaches the scene file: the image differs from
+/// the default's (Phong 20 facets: detail 0), reading two levels finer, and still matches.
+#[test]
+fn box_detail_reaches_the_scene_file_and_matches() {
+    let d = dir("textured_detail");
+    filtered_matches_texel_by_texel(&d, "ndf-detail", "bump-mapped");
+    let (a, b) = (
+        render_file(&d, "ndf-detail", 20.0, 1),
+        render_file(&d, "ndf-box", 20.0, 1),
+    );
+    let differ = a
+        .pixels()
+        .iter()
+        .zip(b.pixels())
+        .filter(|(p, q)| (0..3).any(|c| (p[c] - q[c]).abs() > 1e-4 * q[c].abs().max(1e-3)))
+        .count();
+    assert!(differ > a.pixels().len() / 2, "{differ} pixels differ");
+}
+
 #[test]
 fn ordinary_material_files_are_not_textured() {
     let d = dir("textured_plain");
@@ -176,6 +203,25 @@ fn bad_texture_tables_are_errors_naming_the_problem() {
         (
             format!("[texture]\nkind = \"bump-mapped\"\nfilter = \"box\"\n{base}{transfer}"),
             "filter: applies to",
+        ),
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nbox_detail = 3\n{base}{transfer}"),
+            "box_detail: must be a number 0–2, got 3",
+        ),
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nbox_detail = \"fine\"\n{base}{transfer}"),
+            "box_detail: must be a number",
+        ),
+        (
+            format!(
+                "[texture]\nkind = \"ndf-mapped\"\nfilter = \"trilinear\"\nbox_detail = 1\n\
+                 {base}{transfer}"
+            ),
+            "box_detail: applies to kind = \"ndf-mapped\" with filter = \"box\"",
+        ),
+        (
+            format!("[texture]\nkind = \"bump-mapped\"\nbox_detail = 1\n{base}{transfer}"),
+            "box_detail: applies to",
         ),
         ("texture = 3\n".to_string(), "expected a table"),
     ] {

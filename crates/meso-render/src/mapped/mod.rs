@@ -121,7 +121,10 @@
 //!   2 texels per pixel, where levels 0 and 1 are exact. [`NdfMapped::with_box_filter`] takes
 //!   the texels the footprint's box overlaps, weighted by overlap, on the level whose texels
 //!   are an eighth to a quarter of the box, blended with the next level (up to 136 taps
-//!   instead of 8): the default, as the closer of the two on every map measured.
+//!   instead of 8): the default, as the closer of the two on every map measured. For glossy
+//!   facets it reads finer texels still ([`NdfMapped::with_box_detail`], default
+//!   [`default_box_detail`]: a level finer for GGX α ≤ 0.1), whose narrow highlights the coarse
+//!   texels' four lobes cannot follow (docs/heightmaps.md, "Glossy facets").
 //!
 //! Trilinear (the default), at 2 and 4 texels per pixel: mean radiance within 3.3% of the
 //! truth, every class of sub-texel phase within 0.931–1.044, no pixel brighter than its truth
@@ -223,4 +226,4 @@ pub(crate) fn check_scale(texels_per_uv: f64) -> Result<(), String> {
 mod bump;
 mod ndf;
 pub use bump::BumpMapped;
-pub use ndf::NdfMapped;
+pub use ndf::{default_box_detail, NdfMapped, DEFAULT_MAX_BOX_DETAIL, MAX_BOX_DETAIL};

@@ -1,7 +1,7 @@
 //! Which texels a shading call reads, and with what weights: the sample's footprint in level-0
 //! cells, the level of detail ([`NdfMapped::lod`]) and the taps of the trilinear filter, the box
-//! filter ([`NdfMapped::with_box_filter`]) or sharp magnification
-//! ([`NdfMapped::with_sharp_magnification`]).
+//! filter ([`NdfMapped::with_box_filter`], its level set by [`NdfMapped::with_box_detail`]) or
+//! sharp magnification ([`NdfMapped::with_sharp_magnification`]).
 //!
 //! # Conventions
 //! * A tap is `(level, texel, weight)`; the weights of a call sum to 1.
@@ -11,11 +11,17 @@
 use super::NdfMapped;
 use crate::geometry::ShadingPoint;
 
-/// Most taps of one shading call: 8 for the trilinear filter, up to 10 × 10 + 6 × 6 for the
-/// box filter.
-pub(super) const MAX_TAPS: usize = 136;
-/// Up to [`MAX_TAPS`] `(level, texel, weight)` taps of the filter.
-pub(super) type Taps = ([(usize, usize, f64); MAX_TAPS], usize);
+/// One tap of a shading call: `(level, texel, weight)`.
+pub(super) type Tap = (usize, usize, f64);
+
+/// The most detail the box filter takes ([`NdfMapped::with_box_detail`]): texels down to a
+/// thirty-second of the footprint box's longer side.
+pub const MAX_BOX_DETAIL: f64 = 2.0;
+
+/// Most texels along one axis of one level of a box-filter call: a box spans at most
+/// `2^(3 + detail)` texels of its finer level, `+ 1` where it straddles texel edges (and one
+/// spare).
+const BOX_AXIS_TAPS: usize = (1 << (3 + MAX_BOX_DETAIL as usize)) + 2;
 
 impl NdfMapped {
     /// The sample's footprint at `sp` in level-0 cells (the ray differentials, which the
@@ -45,7 +51,7 @@ impl NdfMapped {
     /// overlapping a box of width `c = √(fp² − 1)` around the point (`c = 1` is the bilinear
     /// filter; the cell's own box plus this one have the footprint's variance), down to the
     /// single cell under the point.
-    pub(super) fn taps(&self, sp: &ShadingPoint) -> Taps {
+    pub(super) fn taps(&self, sp: &ShadingPoint, taps: &mut Vec<Tap>) {
         let fp = self.footprint_cells(sp);
         // Centred where the renderer puts the sample's filter (its stratum's centre).
         let (x, y) = crate::mapped::map_xy(
@@ -54,8 +60,7 @@ impl NdfMapped {
             self.texels_per_uv,
             self.levels[0].rows,
         );
-        let mut taps = [(0usize, 0usize, 0.0f64); MAX_TAPS];
-        let mut n = 0;
+        taps.clear();
         if self.sharp_magnification && fp.is_finite() && fp < std::f64::consts::SQRT_2 {
             let c = (fp * fp - 1.0).max(0.0).sqrt();
             let l = &self.levels[0];
@@ -77,14 +82,14 @@ impl NdfMapped {
                     }
                     let col = cc.rem_euclid(l.cols as i64) as usize;
                     let row = r.rem_euclid(l.rows as i64) as usize;
-                    taps[n] = (0, row * l.cols + col, w);
-                    n += 1;
+                    taps.push((0, row * l.cols + col, w));
                 }
             }
-            return (taps, n);
+            return;
         }
         if self.box_filter && fp.is_finite() && fp > 0.0 {
-            return self.box_taps(sp, x, y);
+            self.box_taps(sp, x, y, taps);
+            return;
         }
         let lod = self.lod(sp);
         let l0 = lod.floor() as usize;
@@ -107,43 +112,42 @@ impl NdfMapped {
                     }
                     let c = (fx as i64 + dx).rem_euclid(l.cols as i64) as usize;
                     let r = (fy as i64 + dy).rem_euclid(l.rows as i64) as usize;
-                    taps[n] = (lev, r * l.cols + c, w);
-                    n += 1;
+                    taps.push((lev, r * l.cols + c, w));
                 }
             }
         }
-        (taps, n)
     }
 
     /// The box filter's taps (see [`NdfMapped::with_box_filter`]) around `(x, y)` (in level-0
-    /// cells).
-    fn box_taps(&self, sp: &ShadingPoint, x: f64, y: f64) -> Taps {
+    /// cells), into `taps`: on the level whose texels are `2^−(2 + d)` to `2^−(3 + d)` of the
+    /// box's longer side, `d` the detail ([`NdfMapped::with_box_detail`]), blended with the
+    /// next coarser level.
+    fn box_taps(&self, sp: &ShadingPoint, x: f64, y: f64, taps: &mut Vec<Tap>) {
         let k = self.texels_per_uv * self.footprint_scale;
         // The bounding box of the pixel's parallelogram in cells.
         let wx = ((sp.duvdx.x.abs() + sp.duvdy.x.abs()) * k).max(1e-9);
         let wy = ((sp.duvdx.y.abs() + sp.duvdy.y.abs()) * k).max(1e-9);
         let top = (self.levels.len() - 1) as f64;
-        // Texels of an eighth to a quarter of the box's longer side: at most 10 × 10 (and 6 × 6
-        // on the coarser level blended in).
-        let lod = (wx.max(wy).log2() - 2.0).clamp(0.0, top);
+        // Texels of an eighth to a quarter of the box's longer side at detail 0: at most 10 × 10
+        // (and 6 × 6 on the coarser level blended in); each unit of detail halves them.
+        let lod = (wx.max(wy).log2() - 2.0 - self.box_detail).clamp(0.0, top);
         let l0 = lod.floor() as usize;
         let l1 = (l0 + 1).min(self.levels.len() - 1);
         let t = lod - l0 as f64;
-        let mut taps = [(0usize, 0usize, 0.0f64); MAX_TAPS];
-        let mut n = 0;
         for (lev, lw) in [(l0, 1.0 - t), (l1, t)] {
             if lw <= 0.0 {
                 continue;
             }
             let l = &self.levels[lev];
-            // Overlaps of [p − w/2, p + w/2] with the texels [c·s, (c + 1)·s), at most 10.
-            let axis = |p: f64, w: f64| -> ([(i64, f64); 10], usize) {
-                let mut out = [(0i64, 0.0f64); 10];
+            // Overlaps of [p − w/2, p + w/2] with the texels [c·s, (c + 1)·s), at most
+            // `BOX_AXIS_TAPS`.
+            let axis = |p: f64, w: f64| -> ([(i64, f64); BOX_AXIS_TAPS], usize) {
+                let mut out = [(0i64, 0.0f64); BOX_AXIS_TAPS];
                 let (lo, hi) = ((p - 0.5 * w) / l.span, (p + 0.5 * w) / l.span);
                 let w = hi - lo;
                 let mut m = 0;
                 let mut c = lo.floor();
-                while c < hi && m < 10 {
+                while c < hi && m < BOX_AXIS_TAPS {
                     let o = ((c + 1.0).min(hi) - c.max(lo)) / w;
                     if o > 0.0 {
                         out[m] = (c as i64, o);
@@ -159,17 +163,91 @@ impl NdfMapped {
                 ay[..ny].iter().map(|a| a.1).sum::<f64>(),
             );
             for &(r, wyr) in &ay[..ny] {
+                let row = r.rem_euclid(l.rows as i64) as usize;
                 for &(c, wxc) in &ax[..nx] {
-                    if n == MAX_TAPS {
-                        break;
-                    }
                     let col = c.rem_euclid(l.cols as i64) as usize;
-                    let row = r.rem_euclid(l.rows as i64) as usize;
-                    taps[n] = (lev, row * l.cols + col, lw * wxc / sx * wyr / sy);
-                    n += 1;
+                    taps.push((lev, row * l.cols + col, lw * wxc / sx * wyr / sy));
                 }
             }
         }
-        (taps, n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mapped::default_box_detail;
+    use crate::shader::local_point;
+    use glam::DVec2;
+    use meso_core::material::Material;
+    use meso_maps::{extract, fixtures, ExtractParams, Source};
+
+    /// The box filter's taps at detail 0, 1 and 2 for a footprint of 64 cells: the level each
+    /// reads (one finer a unit of detail; a fractional detail blends the two), the texels per
+    /// axis (8, 16, 32, + 1 where the box straddles texel edges) and weights summing to 1, every
+    /// tap inside the box.
+    #[test]
+    fn box_detail_reads_finer_levels_with_weights_summing_to_one() {
+        let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
+        let pyr = extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap();
+        let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
+        let tpu = 256.0;
+        let m = NdfMapped::new(&pyr, &surface, tpu, false).unwrap();
+        assert_eq!(m.box_detail(), 0.0, "Lambert facets: detail 0");
+        // A 64-cell box at (100.3, 57.8) cells: lod = log2(64) − 2 − detail.
+        let sp = local_point(DVec2::new(100.3, 57.8) / tpu, 64.0 / tpu);
+        for (detail, level, per_axis) in [(0.0, 4usize, 4usize), (1.0, 3, 8), (2.0, 2, 16)] {
+            let m = m.clone().with_box_detail(detail);
+            let mut taps = Vec::new();
+            m.taps(&sp, &mut taps);
+            assert!(
+                taps.iter().all(|t| t.0 == level),
+                "detail {detail}: {taps:?}"
+            );
+            let span = (1usize << level) as f64;
+            // The box [68.3, 132.3) × [25.8, 89.8) in cells, in texels of the level.
+            let cols = ((132.3 / span).ceil() - (68.3 / span).floor()) as usize;
+            let rows = ((89.8 / span).ceil() - (25.8 / span).floor()) as usize;
+            assert_eq!((cols, rows), (per_axis + 1, per_axis + 1));
+            assert_eq!(taps.len(), cols * rows, "detail {detail}");
+            let sum: f64 = taps.iter().map(|t| t.2).sum();
+            assert!((sum - 1.0).abs() < 1e-12, "detail {detail}: {sum}");
+        }
+        // Halfway: the two levels blended half and half.
+        let mut taps = Vec::new();
+        m.clone().with_box_detail(0.5).taps(&sp, &mut taps);
+        let on = |lev: usize| taps.iter().filter(|t| t.0 == lev).map(|t| t.2).sum::<f64>();
+        assert!((on(3) - 0.5).abs() < 1e-12 && (on(4) - 0.5).abs() < 1e-12);
+        // Clamped to [0, MAX_BOX_DETAIL]; a NaN leaves it as it was.
+        assert_eq!(m.clone().with_box_detail(9.0).box_detail(), MAX_BOX_DETAIL);
+        assert_eq!(m.clone().with_box_detail(-1.0).box_detail(), 0.0);
+        assert_eq!(m.clone().with_box_detail(f64::NAN).box_detail(), 0.0);
+        // The default follows the facet: ½·log₂(λ / 40), in [0, 1].
+        let detail = |t: &str| {
+            let s = Material::from_toml_str(&format!("[transfer]\n{t}\n")).unwrap();
+            default_box_detail(&s.transfer)
+        };
+        assert_eq!(detail("kind = \"lambert\""), 0.0);
+        assert_eq!(detail("kind = \"phong\"\nexponent = 20.0"), 0.0);
+        assert!((detail("kind = \"phong\"\nexponent = 80.0") - 0.5).abs() < 1e-12);
+        let ggx = |a: f64| detail(&format!("kind = \"microfacet\"\nalpha = {a}"));
+        assert!((ggx(0.2) - 0.5 * (50.0f64 / 40.0).log2()).abs() < 1e-12);
+        assert_eq!(ggx(0.1), 1.0);
+        assert_eq!(ggx(0.05), 1.0);
+        let mirror = meso_core::transfer::Transfer::Mirror {
+            fresnel: meso_core::transfer::Fresnel::None,
+            specular: [1.0; 3],
+        };
+        assert_eq!(default_box_detail(&mirror), 1.0);
+        // And the material takes it.
+        let glossy =
+            Material::from_toml_str("[transfer]\nkind = \"microfacet\"\nalpha = 0.05\n").unwrap();
+        let g = NdfMapped::new(&pyr, &glossy, tpu, false).unwrap();
+        assert_eq!(g.box_detail(), 1.0);
     }
 }

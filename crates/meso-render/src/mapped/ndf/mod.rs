@@ -33,7 +33,9 @@ mod lobes;
 mod peak_quadrature;
 
 use build::Source;
-use filter::MAX_TAPS;
+pub use build::{default_box_detail, DEFAULT_MAX_BOX_DETAIL};
+use filter::Tap;
+pub use filter::MAX_BOX_DETAIL;
 use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -212,7 +214,19 @@ pub struct NdfMapped {
     footprint_scale: f64,
     sharp_magnification: bool,
     box_filter: bool,
+    /// Levels finer than the footprint the box filter reads ([`NdfMapped::with_box_detail`]).
+    box_detail: f64,
     texel_visibility: bool,
+}
+
+/// A shading call's taps and, per tap, its tile's place among the call's tiles and its texel's
+/// index in it.
+type TapBuffers = (Vec<Tap>, Vec<(usize, usize)>);
+
+std::thread_local! {
+    /// The shading calls' [`TapBuffers`], reused from call to call on each thread.
+    static TAPS: std::cell::RefCell<TapBuffers> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
 impl NdfMapped {
@@ -360,14 +374,37 @@ impl NdfMapped {
 
     /// Filter with a box the size of the sample's footprint (the bounding box of its
     /// ray-differential parallelogram): the texels it overlaps, weighted by overlap, on the
-    /// level whose texels are a quarter to half its longer side (blended with the next coarser
-    /// level, so zooming stays continuous) — the default, closer to the supersampled bump map
-    /// on busy maps (see the module docs, "Steep maps"). `false`: the trilinear filter, 8 taps
-    /// per shading call instead of up to 52.
+    /// level whose texels are an eighth to a quarter of its longer side at detail 0 (finer by
+    /// [`NdfMapped::with_box_detail`]), blended with the next coarser level, so zooming stays
+    /// continuous — the default, closer to the supersampled bump map on busy maps (see the
+    /// module docs, "Steep maps"). `false`: the trilinear filter, 8 taps per shading call
+    /// instead of up to 136 (detail 0) to 1 378 (detail 2).
     #[must_use]
     pub fn with_box_filter(mut self, on: bool) -> NdfMapped {
         self.box_filter = on;
         self
+    }
+
+    /// How many levels finer than the footprint the box filter reads, `detail ∈ [0,`
+    /// [`MAX_BOX_DETAIL`]`]` (clamped; fractional values blend two levels): its texels are
+    /// `2^−(2 + detail)` to `2^−(3 + detail)` of the footprint box's longer side, so each unit
+    /// costs about 4× the taps of a far view and reads texels whose fitted lobes are 2× narrower
+    /// in footprint. The default is [`default_box_detail`] of the facet material: 0 for facets
+    /// as broad as the fit's kernel or broader (Lambert, Phong η ≤ 40), up to 1 for glossy
+    /// facets (GGX or Beckmann α ≲ 0.1, sharp Phong, mirrors), whose narrow highlight the
+    /// coarse texels' four lobes cannot follow (docs/heightmaps.md, "Steep maps").
+    #[must_use]
+    pub fn with_box_detail(mut self, detail: f64) -> NdfMapped {
+        if detail.is_finite() {
+            self.box_detail = detail.clamp(0.0, MAX_BOX_DETAIL);
+        }
+        self
+    }
+
+    /// The box filter's detail in use ([`NdfMapped::with_box_detail`]).
+    #[must_use]
+    pub fn box_detail(&self) -> f64 {
+        self.box_detail
     }
 
     /// With shadowing, multiply each texel's response by one visibility of the light for the
@@ -490,16 +527,17 @@ impl Shader for NdfMapped {
             Facet::General(_) => [1.0; 3],
         };
         let scalar = !matches!(self.facet, Facet::General(_));
-        let (taps, ntaps) = self.taps(sp);
+        let (mut taps, mut at) = TAPS.with(|t| std::mem::take(&mut *t.borrow_mut()));
+        self.taps(sp, &mut taps);
+        at.clear();
         // Each tap's tile (fetched once per call; the taps of a call share a few) and its
         // texel's index in it.
         // A call's taps lie on at most two levels, within 2 × 2 tiles on each (a footprint
-        // spans at most 10 texels of a level, a tile 64): 8 places, more on the heap.
+        // spans at most 34 texels of a level, a tile 64): 8 places, more on the heap.
         let mut held: [(usize, usize, Option<Arc<NodeLevel>>); 8] = Default::default();
         let mut more: Vec<(usize, usize, Option<Arc<NodeLevel>>)> = Vec::new();
         let mut nheld = 0;
-        let mut at = [(0usize, 0usize); MAX_TAPS];
-        for (k, &(lev, t, _)) in taps[..ntaps].iter().enumerate() {
+        for &(lev, t, _) in &taps {
             let (i, local, _) = self.tile_of(lev, t);
             let h = match held[..nheld.min(8)]
                 .iter()
@@ -518,7 +556,7 @@ impl Shader for NdfMapped {
                     nheld - 1
                 }
             };
-            at[k] = (h, local);
+            at.push((h, local));
         }
         for (k, &i) in wi.iter().enumerate() {
             let s = i + wo;
@@ -537,7 +575,7 @@ impl Shader for NdfMapped {
             let per_lobe = self.shadowing && !self.texel_visibility;
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
-            for (k, &(_, _, w)) in taps[..ntaps].iter().enumerate() {
+            for (k, &(_, _, w)) in taps.iter().enumerate() {
                 let (hi, t) = at[k];
                 let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
                 let l = l.as_deref().expect("fetched above");
@@ -566,5 +604,7 @@ impl Shader for NdfMapped {
                 out[k][c] = (a * s) as f32 + self.diffuse[c];
             }
         }
+        // The buffers back for the thread's next call.
+        TAPS.with(|t| *t.borrow_mut() = (taps, at));
     }
 }
