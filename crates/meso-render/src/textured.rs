@@ -15,7 +15,7 @@
 //! height_scale = 0.02      # height of the full code range (same unit)
 //! texels_per_uv = 64       # height-map cells per unit of u and v (default: the map's width)
 //! filter = "trilinear"     # ndf-mapped: or "box" (NdfMapped::with_box_filter)
-//! box_detail = 1           # ndf-mapped, box filter: levels finer than the footprint, 0–2
+//! box_detail = 2           # ndf-mapped, box filter: levels finer than the footprint, 0–3
 //!                          # (default: from the facet's sharpness, NdfMapped::with_box_detail)
 //! [transfer]
 //! kind = "phong"

@@ -405,12 +405,12 @@ fn real_normal_map_made_steep_renders_without_sparkle() {
 /// at 256 spp, as [`steep_normal_map_renders_without_sparkle`] does for Phong 20 and Lambert
 /// facets. Up to 4 texels per pixel: mean pixel error under 5 %, the mean within 1 %, every
 /// class of sub-texel phase within 3 %, no pixel's excess over 1.5 × the mean. At 8 texels per
-/// pixel the mean within 2 % and the classes within 5 %; at 16, within 7 % and 0.85–1.10. The
-/// far bounds hold because the box filter's default detail for these facets is 1 (a level
-/// finer than the footprint, `default_box_detail`); at detail 0 the grazing light's mean at 16
-/// texels per pixel was 0.63 (α = 0.05) and 0.80 (α = 0.1), and now is 0.94 and 0.97
-/// (docs/heightmaps.md, "Glossy facets"). The far views' per-pixel error is reported only: the
-/// 256-spp truth's own noise is 6–27 % there.
+/// pixel the mean within 1 % and the classes within 5 %; at 16, within 3 % and 10 %. The far
+/// bounds hold because the box filter's default detail for these facets is 1.16 (α = 0.1) and
+/// 2 (α = 0.05): finer levels than the footprint (`default_box_detail`). At detail 0 the
+/// grazing light's mean at 16 texels per pixel was 0.63 (α = 0.05) and 0.80 (α = 0.1), now
+/// 0.99 both (docs/heightmaps.md, "Glossy facets"). The far views' per-pixel error is reported
+/// only: the 256-spp truth's own noise is 6–27 % there.
 #[test]
 fn glossy_facets_on_a_steep_map_render_without_sparkle() {
     let map = NormalMap::from_normals(N, N, stone_wall()).unwrap();
@@ -422,10 +422,11 @@ fn glossy_facets_on_a_steep_map_render_without_sparkle() {
     .into_iter()
     .filter(|m| {
         let (c, (lo, hi)) = (&m.comparison, m.class_range());
-        // Up close, every measure; further out (where the glossy facets' default box detail, 1,
-        // reads a level finer than the footprint) the mean and the phase classes: the 256-spp
-        // truth's own noise is 6–27 % per pixel there (docs/heightmaps.md, "Glossy facets").
-        // At detail 0 the grazing light's 16 texels/px were 0.63 (α = 0.05) and 0.80 (α = 0.1).
+        // Up close, every measure; further out (where the glossy facets' default box detail,
+        // 1.16 and 2, reads finer levels than the footprint) the mean and the phase classes: the
+        // 256-spp truth's own noise is 6–27 % per pixel there (docs/heightmaps.md, "Glossy
+        // facets"). At detail 0 the grazing light's 16 texels/px were 0.63 (α = 0.05) and 0.80
+        // (α = 0.1).
         m.box_filter
             && if m.texels_per_pixel <= 4.0 {
                 c.mean_error > 0.05
@@ -434,13 +435,44 @@ fn glossy_facets_on_a_steep_map_render_without_sparkle() {
                     || hi > 1.03
                     || c.max_excess > 1.5
             } else if m.texels_per_pixel <= 8.0 {
-                (c.mean_ratio - 1.0).abs() > 0.02 || lo < 0.95 || hi > 1.05
+                (c.mean_ratio - 1.0).abs() > 0.01 || lo < 0.95 || hi > 1.05
             } else {
-                (c.mean_ratio - 1.0).abs() > 0.07 || lo < 0.85 || hi > 1.10
+                (c.mean_ratio - 1.0).abs() > 0.03 || lo < 0.9 || hi > 1.1
             }
     })
     .map(|m| m.line)
     .collect();
+    assert!(
+        failures.is_empty(),
+        "out of bounds:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// Glossy facets far away on the shipped real normal map as it is (ambientCG Facade005, the
+/// 256² box-filtered copy in `tests/data/`, OpenGL convention): GGX α = 0.1 and 0.05 at 8 and
+/// 16 texels per pixel with the default box filter, against the 256-spp bump map: mean pixel
+/// error under 4 %, the mean within 2 %, phase classes within 5 %. At detail 0 (the box filter
+/// before `default_box_detail`) α = 0.05 at 16 texels per pixel under the high light was 14.4 %
+/// off, its mean 1.144 (docs/heightmaps.md, "Glossy facets").
+#[test]
+fn glossy_facets_far_away_on_a_real_normal_map() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_normal_256.png");
+    let map = NormalMap::load(&path, meso_maps::NormalConvention::Gl).unwrap();
+    let failures: Vec<String> =
+        measure_facets(&map, &[8.0, 16.0], &[("ggx0.1", GGX10), ("ggx0.05", GGX05)])
+            .into_iter()
+            .filter(|m| {
+                let (c, (lo, hi)) = (&m.comparison, m.class_range());
+                m.box_filter
+                    && (c.mean_error > 0.04
+                        || (c.mean_ratio - 1.0).abs() > 0.02
+                        || lo < 0.95
+                        || hi > 1.05)
+            })
+            .map(|m| m.line)
+            .collect();
     assert!(
         failures.is_empty(),
         "out of bounds:\n{}",

@@ -205,8 +205,8 @@ fn bad_texture_tables_are_errors_naming_the_problem() {
             "filter: applies to",
         ),
         (
-            format!("[texture]\nkind = \"ndf-mapped\"\nbox_detail = 3\n{base}{transfer}"),
-            "box_detail: must be a number 0–2, got 3",
+            format!("[texture]\nkind = \"ndf-mapped\"\nbox_detail = 4\n{base}{transfer}"),
+            "box_detail: must be a number 0–3, got 4",
         ),
         (
             format!("[texture]\nkind = \"ndf-mapped\"\nbox_detail = \"fine\"\n{base}{transfer}"),

@@ -123,8 +123,9 @@
 //!   are an eighth to a quarter of the box, blended with the next level (up to 136 taps
 //!   instead of 8): the default, as the closer of the two on every map measured. For glossy
 //!   facets it reads finer texels still ([`NdfMapped::with_box_detail`], default
-//!   [`default_box_detail`]: a level finer for GGX α ≤ 0.1), whose narrow highlights the coarse
-//!   texels' four lobes cannot follow (docs/heightmaps.md, "Glossy facets").
+//!   [`default_box_detail`]: up to two levels finer for GGX α = 0.05), whose narrow
+//!   highlights the coarse texels' four lobes cannot follow (docs/heightmaps.md, "Glossy
+//!   facets").
 //!
 //! Trilinear (the default), at 2 and 4 texels per pixel: mean radiance within 3.3% of the
 //! truth, every class of sub-texel phase within 0.931–1.044, no pixel brighter than its truth

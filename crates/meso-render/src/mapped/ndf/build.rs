@@ -263,9 +263,10 @@ impl NdfMapped {
     }
 }
 
-/// Above this the default box-filter detail does not go ([`default_box_detail`]): one level
-/// finer costs ≈ 2.5× the render time of a far view, two ≈ 6–8× (docs/benchmarks.md).
-pub const DEFAULT_MAX_BOX_DETAIL: f64 = 1.0;
+/// Above this the default box-filter detail does not go ([`default_box_detail`]): each level
+/// finer costs ≈ 2.5–3× the render time of a far view (docs/benchmarks.md, "Box filter
+/// detail").
+pub const DEFAULT_MAX_BOX_DETAIL: f64 = 2.0;
 
 /// The box filter's default detail for facets of `transfer` ([`NdfMapped::with_box_detail`]):
 /// half the base-2 log of how much sharper the facet's highlight is than the kernel the
@@ -274,8 +275,8 @@ pub const DEFAULT_MAX_BOX_DETAIL: f64 = 1.0;
 /// and λ_fit = [`meso_maps::fit::SHADING_KERNEL_EXPONENT`] (40): the footprint, in level-0
 /// cells, over which four lobes fitted at λ_fit still resolve what the facet sees shrinks with
 /// the ratio of the two angular widths, `√(λ_fit / λ_facet)`. Clamped to
-/// `[0,` [`DEFAULT_MAX_BOX_DETAIL`]`]`; a mirror facet (no kernel) gets the most. GGX α = 0.1 →
-/// 1 (1.16 clamped), α = 0.2 → 0.16, Phong η = 20 and Lambert → 0.
+/// `[0,` [`DEFAULT_MAX_BOX_DETAIL`]`]`; a mirror facet (no kernel) gets the most. GGX α = 0.05 →
+/// 2 (2.16 clamped), α = 0.1 → 1.16, α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
 #[must_use]
 pub fn default_box_detail(transfer: &meso_core::transfer::Transfer) -> f64 {
     match meso_maps::fit::facet_kernel_exponent(transfer) {

@@ -15,8 +15,8 @@ use crate::geometry::ShadingPoint;
 pub(super) type Tap = (usize, usize, f64);
 
 /// The most detail the box filter takes ([`NdfMapped::with_box_detail`]): texels down to a
-/// thirty-second of the footprint box's longer side.
-pub const MAX_BOX_DETAIL: f64 = 2.0;
+/// sixty-fourth of the footprint box's longer side.
+pub const MAX_BOX_DETAIL: f64 = 3.0;
 
 /// Most texels along one axis of one level of a box-filter call: a box spans at most
 /// `2^(3 + detail)` texels of its finer level, `+ 1` where it straddles texel edges (and one
@@ -182,10 +182,9 @@ mod tests {
     use meso_core::material::Material;
     use meso_maps::{extract, fixtures, ExtractParams, Source};
 
-    /// The box filter's taps at detail 0, 1 and 2 for a footprint of 64 cells: the level each
+    /// The box filter's taps at detail 0, 1, 2 and 3 for a footprint of 64 cells: the level each
     /// reads (one finer a unit of detail; a fractional detail blends the two), the texels per
-    /// axis (8, 16, 32, + 1 where the box straddles texel edges) and weights summing to 1, every
-    /// tap inside the box.
+    /// axis (4, 8, 16, 32, + 1 where the box straddles texel edges) and weights summing to 1.
     #[test]
     fn box_detail_reads_finer_levels_with_weights_summing_to_one() {
         let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
@@ -201,7 +200,12 @@ mod tests {
         assert_eq!(m.box_detail(), 0.0, "Lambert facets: detail 0");
         // A 64-cell box at (100.3, 57.8) cells: lod = log2(64) − 2 − detail.
         let sp = local_point(DVec2::new(100.3, 57.8) / tpu, 64.0 / tpu);
-        for (detail, level, per_axis) in [(0.0, 4usize, 4usize), (1.0, 3, 8), (2.0, 2, 16)] {
+        for (detail, level, per_axis) in [
+            (0.0, 4usize, 4usize),
+            (1.0, 3, 8),
+            (2.0, 2, 16),
+            (3.0, 1, 32),
+        ] {
             let m = m.clone().with_box_detail(detail);
             let mut taps = Vec::new();
             m.taps(&sp, &mut taps);
@@ -237,17 +241,17 @@ mod tests {
         assert!((detail("kind = \"phong\"\nexponent = 80.0") - 0.5).abs() < 1e-12);
         let ggx = |a: f64| detail(&format!("kind = \"microfacet\"\nalpha = {a}"));
         assert!((ggx(0.2) - 0.5 * (50.0f64 / 40.0).log2()).abs() < 1e-12);
-        assert_eq!(ggx(0.1), 1.0);
-        assert_eq!(ggx(0.05), 1.0);
+        assert!((ggx(0.1) - 0.5 * 5f64.log2()).abs() < 1e-12);
+        assert_eq!(ggx(0.05), 2.0);
         let mirror = meso_core::transfer::Transfer::Mirror {
             fresnel: meso_core::transfer::Fresnel::None,
             specular: [1.0; 3],
         };
-        assert_eq!(default_box_detail(&mirror), 1.0);
+        assert_eq!(default_box_detail(&mirror), 2.0);
         // And the material takes it.
         let glossy =
             Material::from_toml_str("[transfer]\nkind = \"microfacet\"\nalpha = 0.05\n").unwrap();
         let g = NdfMapped::new(&pyr, &glossy, tpu, false).unwrap();
-        assert_eq!(g.box_detail(), 1.0);
+        assert_eq!(g.box_detail(), 2.0);
     }
 }

@@ -378,7 +378,7 @@ impl NdfMapped {
     /// [`NdfMapped::with_box_detail`]), blended with the next coarser level, so zooming stays
     /// continuous — the default, closer to the supersampled bump map on busy maps (see the
     /// module docs, "Steep maps"). `false`: the trilinear filter, 8 taps per shading call
-    /// instead of up to 136 (detail 0) to 1 378 (detail 2).
+    /// instead of up to 136 (detail 0) to ≈ 5 300 (detail 3).
     #[must_use]
     pub fn with_box_filter(mut self, on: bool) -> NdfMapped {
         self.box_filter = on;
@@ -388,11 +388,12 @@ impl NdfMapped {
     /// How many levels finer than the footprint the box filter reads, `detail ∈ [0,`
     /// [`MAX_BOX_DETAIL`]`]` (clamped; fractional values blend two levels): its texels are
     /// `2^−(2 + detail)` to `2^−(3 + detail)` of the footprint box's longer side, so each unit
-    /// costs about 4× the taps of a far view and reads texels whose fitted lobes are 2× narrower
-    /// in footprint. The default is [`default_box_detail`] of the facet material: 0 for facets
-    /// as broad as the fit's kernel or broader (Lambert, Phong η ≤ 40), up to 1 for glossy
-    /// facets (GGX or Beckmann α ≲ 0.1, sharp Phong, mirrors), whose narrow highlight the
-    /// coarse texels' four lobes cannot follow (docs/heightmaps.md, "Steep maps").
+    /// costs about 2.5–3× the shading time of a far view and reads texels of half the side,
+    /// whose fitted lobes follow a narrow highlight better. The default is
+    /// [`default_box_detail`] of the facet material: 0 for facets as broad as the fit's kernel
+    /// or broader (Lambert, Phong η ≤ 40), up to 2 for glossy facets (GGX or Beckmann α = 0.05,
+    /// sharp Phong, mirrors), whose narrow highlight the coarse texels' four lobes cannot follow
+    /// (docs/heightmaps.md, "Glossy facets").
     #[must_use]
     pub fn with_box_detail(mut self, detail: f64) -> NdfMapped {
         if detail.is_finite() {
@@ -532,8 +533,9 @@ impl Shader for NdfMapped {
         at.clear();
         // Each tap's tile (fetched once per call; the taps of a call share a few) and its
         // texel's index in it.
-        // A call's taps lie on at most two levels, within 2 × 2 tiles on each (a footprint
-        // spans at most 34 texels of a level, a tile 64): 8 places, more on the heap.
+        // A call's taps lie on at most two levels, within 2 × 2 tiles on each up to detail 2 (a
+        // footprint spans at most 34 texels of a level, a tile 64), 3 × 3 at detail 3: 8 places,
+        // more on the heap.
         let mut held: [(usize, usize, Option<Arc<NodeLevel>>); 8] = Default::default();
         let mut more: Vec<(usize, usize, Option<Arc<NodeLevel>>)> = Vec::new();
         let mut nheld = 0;
