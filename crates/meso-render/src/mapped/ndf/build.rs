@@ -165,23 +165,10 @@ impl NdfMapped {
     /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
     #[must_use]
     pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
-        let general = matches!(
-            Facet::new(&surface.transfer),
-            Facet::General(_) | Facet::Lambert { .. }
-        );
-        let mut total = 0u64;
-        for (k, l) in pyramid.levels.iter().enumerate() {
-            let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
-            let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
-            total += lobes * 40 + texels * 4;
-            if general {
-                total += lobes * 7 * 40 + texels * 4;
-            }
-            if shadowing {
-                total += texels * hz + if k == 0 { texels * hz } else { lobes * hz };
-            }
-        }
-        total
+        let facet = Facet::new(&surface.transfer);
+        (0..pyramid.levels.len())
+            .map(|k| level_tables_bytes(pyramid, k, &facet, shadowing))
+            .sum()
     }
 
     /// Bytes of a pyramid as held in memory: its lobes, lobe starts and horizon statistics
@@ -258,9 +245,32 @@ impl NdfMapped {
             sharp_magnification: false,
             box_filter: true,
             box_detail: default_box_detail(&surface.transfer),
+            detail_floor: 0,
             texel_visibility: false,
         }
     }
+}
+
+/// The most memory (bytes) the tables of level `k` of `pyramid` can take with `facet` and
+/// `shadowing` (see [`NdfMapped::tables_bytes_bound`], the sum over the levels).
+pub(super) fn level_tables_bytes(
+    pyramid: &Pyramid,
+    k: usize,
+    facet: &Facet,
+    shadowing: bool,
+) -> u64 {
+    let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
+    let l = &pyramid.levels[k];
+    let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
+    let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
+    let mut total = lobes * 40 + texels * 4;
+    if general {
+        total += lobes * 7 * 40 + texels * 4;
+    }
+    if shadowing {
+        total += texels * hz + if k == 0 { texels * hz } else { lobes * hz };
+    }
+    total
 }
 
 /// Above this the default box-filter detail does not go ([`default_box_detail`]): each level

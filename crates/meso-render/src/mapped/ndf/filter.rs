@@ -130,7 +130,9 @@ impl NdfMapped {
         let top = (self.levels.len() - 1) as f64;
         // Texels of an eighth to a quarter of the box's longer side at detail 0: at most 10 × 10
         // (and 6 × 6 on the coarser level blended in); each unit of detail halves them.
-        let lod = (wx.max(wy).log2() - 2.0 - self.box_detail).clamp(0.0, top);
+        let natural = (wx.max(wy).log2() - 2.0).clamp(0.0, top);
+        // The detail goes no finer than the floor (a footprint already finer keeps its level).
+        let lod = (natural - self.box_detail).max(natural.min(self.detail_floor as f64));
         let l0 = lod.floor() as usize;
         let l1 = (l0 + 1).min(self.levels.len() - 1);
         let t = lod - l0 as f64;
@@ -253,5 +255,30 @@ mod tests {
             Material::from_toml_str("[transfer]\nkind = \"microfacet\"\nalpha = 0.05\n").unwrap();
         let g = NdfMapped::new(&pyr, &glossy, tpu, false).unwrap();
         assert_eq!(g.box_detail(), 2.0);
+        // Under a table cap the detail takes a footprint no finer than the finest level whose
+        // tables fit in half the cap: here level 3 (level 2's do not fit), so the 64-cell box
+        // reads level 3, not 2; a footprint whose own level is finer keeps it.
+        let facet = crate::mapped::Facet::new(&glossy.transfer);
+        let bytes = |k: usize| super::super::build::level_tables_bytes(&pyr, k, &facet, false);
+        let cap = usize::try_from(bytes(2) + bytes(3)).unwrap();
+        assert!(bytes(2) > (cap / 2) as u64 && bytes(3) <= (cap / 2) as u64);
+        let capped = NdfMapped::from_pyramid(pyr.clone(), &glossy, tpu, false)
+            .unwrap()
+            .with_table_cap(cap);
+        let mut taps = Vec::new();
+        capped.taps(&sp, &mut taps);
+        assert!(taps.iter().all(|t| t.0 == 3), "{taps:?}");
+        let near = local_point(DVec2::new(100.3, 57.8) / tpu, 6.0 / tpu);
+        let mut natural = Vec::new();
+        capped.taps(&near, &mut taps);
+        capped
+            .clone()
+            .with_box_detail(0.0)
+            .taps(&near, &mut natural);
+        assert_eq!(taps, natural);
+        assert!(taps.iter().any(|t| t.0 == 0));
+        let uncapped = NdfMapped::from_pyramid(pyr.clone(), &glossy, tpu, false).unwrap();
+        uncapped.taps(&sp, &mut taps);
+        assert!(taps.iter().all(|t| t.0 == 2), "{taps:?}");
     }
 }

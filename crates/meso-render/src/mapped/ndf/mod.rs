@@ -216,6 +216,10 @@ pub struct NdfMapped {
     box_filter: bool,
     /// Levels finer than the footprint the box filter reads ([`NdfMapped::with_box_detail`]).
     box_detail: f64,
+    /// The finest level the box detail may take a footprint to (a footprint whose own level is
+    /// finer keeps it): with a table cap, the finest level whose whole tables fit in half the
+    /// cap ([`NdfMapped::with_table_cap`]); 0 otherwise.
+    detail_floor: usize,
     texel_visibility: bool,
 }
 
@@ -326,9 +330,23 @@ impl NdfMapped {
     /// the oldest (a tile read since the last pass kept one more) to build another: rebuilt
     /// if read again, the same tables. Default: no cap. Tiles of the eager
     /// [`NdfMapped::new`] are not counted.
+    ///
+    /// The cap also bounds the box filter's detail ([`NdfMapped::with_box_detail`]): it takes a
+    /// footprint no finer than the finest level whose whole tables fit in half the cap, so that
+    /// a far view, which reads every part of the map, does not rebuild tiles the cache has
+    /// dropped (a 2048² map under a 1 GiB budget took minutes instead of seconds).
     #[must_use]
     pub fn with_table_cap(mut self, bytes: usize) -> NdfMapped {
         self.cache.cap = bytes;
+        self.detail_floor = match &self.source {
+            Some(src) => (0..self.levels.len())
+                .find(|&k| {
+                    build::level_tables_bytes(src.pyramid(), k, &self.facet, self.shadowing)
+                        <= (bytes / 2) as u64
+                })
+                .unwrap_or(self.levels.len() - 1),
+            None => 0,
+        };
         self
     }
 
@@ -393,7 +411,9 @@ impl NdfMapped {
     /// [`default_box_detail`] of the facet material: 0 for facets as broad as the fit's kernel
     /// or broader (Lambert, Phong η ≤ 40), up to 2 for glossy facets (GGX or Beckmann α = 0.05,
     /// sharp Phong, mirrors), whose narrow highlight the coarse texels' four lobes cannot follow
-    /// (docs/heightmaps.md, "Glossy facets").
+    /// (docs/heightmaps.md, "Glossy facets"). Under a table cap ([`NdfMapped::with_table_cap`])
+    /// the detail takes a footprint no finer than the finest level whose tables fit in half the
+    /// cap.
     #[must_use]
     pub fn with_box_detail(mut self, detail: f64) -> NdfMapped {
         if detail.is_finite() {
