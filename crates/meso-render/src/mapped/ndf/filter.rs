@@ -142,11 +142,25 @@ impl NdfMapped {
             }
             let l = &self.levels[lev];
             // Overlaps of [p − w/2, p + w/2] with the texels [c·s, (c + 1)·s), at most
-            // `BOX_AXIS_TAPS`.
-            let axis = |p: f64, w: f64| -> ([(i64, f64); BOX_AXIS_TAPS], usize) {
+            // `BOX_AXIS_TAPS`; a box wider than the level (`n` texels, which wrap) covers each
+            // texel in several periods: each once, with its overlaps summed.
+            let axis = |p: f64, w: f64, n: usize| -> ([(i64, f64); BOX_AXIS_TAPS], usize) {
                 let mut out = [(0i64, 0.0f64); BOX_AXIS_TAPS];
                 let (lo, hi) = ((p - 0.5 * w) / l.span, (p + 0.5 * w) / l.span);
                 let w = hi - lo;
+                if w > n as f64 && n <= BOX_AXIS_TAPS {
+                    let nf = n as f64;
+                    // Measure of [0, x) inside the texels ≡ j (mod n).
+                    let covered = |x: f64, j: f64| {
+                        let q = ((x - j) / nf).floor();
+                        q + (x - j - nf * q).min(1.0)
+                    };
+                    for (j, o) in out.iter_mut().enumerate().take(n) {
+                        let jf = j as f64;
+                        *o = (j as i64, (covered(hi, jf) - covered(lo, jf)) / w);
+                    }
+                    return (out, n);
+                }
                 let mut m = 0;
                 let mut c = lo.floor();
                 while c < hi && m < BOX_AXIS_TAPS {
@@ -159,7 +173,7 @@ impl NdfMapped {
                 }
                 (out, m)
             };
-            let ((ax, nx), (ay, ny)) = (axis(x, wx), axis(y, wy));
+            let ((ax, nx), (ay, ny)) = (axis(x, wx, l.cols), axis(y, wy, l.rows));
             let (sx, sy) = (
                 ax[..nx].iter().map(|a| a.1).sum::<f64>(),
                 ay[..ny].iter().map(|a| a.1).sum::<f64>(),
@@ -277,6 +291,27 @@ mod tests {
             .taps(&near, &mut natural);
         assert_eq!(taps, natural);
         assert!(taps.iter().any(|t| t.0 == 0));
+        // A box wider than the level it reads (a view from very far, the top level clamped):
+        // each texel once, its overlaps over the periods summed, not 66 × 66 taps.
+        let far = local_point(DVec2::new(0.37, 0.81), 4000.0);
+        let top = m.levels() - 1;
+        for detail in [0.0, 2.0] {
+            m.clone().with_box_detail(detail).taps(&far, &mut taps);
+            let lev = top - detail as usize;
+            let side = 1usize << (detail as usize);
+            assert!(taps.iter().all(|t| t.0 == lev), "{taps:?}");
+            assert_eq!(taps.len(), side * side, "{taps:?}");
+            let mut seen: Vec<usize> = taps.iter().map(|t| t.1).collect();
+            seen.sort_unstable();
+            seen.dedup();
+            assert_eq!(seen.len(), side * side);
+            for t in &taps {
+                let even = 1.0 / (side * side) as f64;
+                assert!((t.2 - even).abs() < 1e-3 * even, "{taps:?}");
+            }
+            let sum: f64 = taps.iter().map(|t| t.2).sum();
+            assert!((sum - 1.0).abs() < 1e-12);
+        }
         let uncapped = NdfMapped::from_pyramid(pyr.clone(), &glossy, tpu, false).unwrap();
         uncapped.taps(&sp, &mut taps);
         assert!(taps.iter().all(|t| t.0 == 2), "{taps:?}");
