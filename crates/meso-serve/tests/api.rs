@@ -992,6 +992,11 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
     assert!(paths.iter().all(|p| p.contains("NDF-mapped")), "{paths:?}");
     assert!(paths[0].contains("shader built"), "{paths:?}");
     assert!(!paths[1].contains("shader built") && !paths[2].contains("shader built"));
+    // Phong 50 facets: the box filter reads ½·log₂(50/40) levels finer (`default_box_detail`).
+    assert!(
+        paths[0].contains("box filter 0.16 levels finer"),
+        "{paths:?}"
+    );
     assert_eq!(
         pngs[1], pngs[2],
         "the material's NDF does not shade a texture"
@@ -1007,6 +1012,7 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
     );
     assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
     assert!(r.header("x-brdf-path").unwrap().contains("shader built"));
+    assert!(!r.header("x-brdf-path").unwrap().contains("finer"));
     assert_ne!(r.body, pngs[1]);
     let msg = post_json(
         "/api/texture/render",
