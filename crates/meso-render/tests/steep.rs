@@ -262,6 +262,28 @@ fn measure_facets(
     out
 }
 
+/// Assert that no measurement is out of bounds by `out` (each one that is, by its line).
+fn assert_in_bounds(measured: Vec<Measurement>, out: impl Fn(&Measurement) -> bool) {
+    let failures: Vec<String> = measured
+        .into_iter()
+        .filter(|m| out(m))
+        .map(|m| m.line)
+        .collect();
+    assert!(
+        failures.is_empty(),
+        "out of bounds:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// The shipped real normal map: ambientCG Facade005's, box-filtered to 256² (CC0,
+/// `tests/data/README.md`), OpenGL convention.
+fn facade_normal_map() -> NormalMap {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_normal_256.png");
+    NormalMap::load(&path, meso_maps::NormalConvention::Gl).unwrap()
+}
+
 const PHONG: &str = r#"
 [transfer]
 kind = "phong"
@@ -332,31 +354,22 @@ fn steep_normal_map_renders_without_sparkle() {
     // texels at or below the horizon.
     assert!((0.15..0.25).contains(&steep), "steep fraction {steep}");
     assert!(below > 100, "{below} texels at or below the horizon");
-    let failures: Vec<String> = measure(&map, &[2.0, 4.0, 8.0, 16.0])
-        .into_iter()
-        .filter(|m| {
-            let (c, (lo, hi)) = (&m.comparison, m.class_range());
-            if m.box_filter {
-                // The box filter: the issue's 3% mean pixel error.
-                let reach = if m.facets == "lambert" { 4.0 } else { 8.0 };
-                m.texels_per_pixel <= reach
-                    && (c.mean_error > 0.03 || lo < 0.95 || hi > 1.05 || c.max_excess > 0.5)
-            } else {
-                m.texels_per_pixel <= 4.0
-                    && ((c.mean_ratio - 1.0).abs() > 0.05
-                        || lo < 0.9
-                        || hi > 1.1
-                        || c.max_excess > 3.0
-                        || c.mean_error > 0.14)
-            }
-        })
-        .map(|m| m.line)
-        .collect();
-    assert!(
-        failures.is_empty(),
-        "out of bounds:\n{}",
-        failures.join("\n")
-    );
+    assert_in_bounds(measure(&map, &[2.0, 4.0, 8.0, 16.0]), |m| {
+        let (c, (lo, hi)) = (&m.comparison, m.class_range());
+        if m.box_filter {
+            // The box filter: the issue's 3% mean pixel error.
+            let reach = if m.facets == "lambert" { 4.0 } else { 8.0 };
+            m.texels_per_pixel <= reach
+                && (c.mean_error > 0.03 || lo < 0.95 || hi > 1.05 || c.max_excess > 0.5)
+        } else {
+            m.texels_per_pixel <= 4.0
+                && ((c.mean_ratio - 1.0).abs() > 0.05
+                    || lo < 0.9
+                    || hi > 1.1
+                    || c.max_excess > 3.0
+                    || c.mean_error > 0.14)
+        }
+    });
 }
 
 /// A real normal map made steep: ambientCG's Facade005 normal map (CC0, box-filtered to 256²,
@@ -368,9 +381,7 @@ fn steep_normal_map_renders_without_sparkle() {
 /// maps".
 #[test]
 fn real_normal_map_made_steep_renders_without_sparkle() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_normal_256.png");
-    let map = NormalMap::load(&path, meso_maps::NormalConvention::Gl).unwrap();
+    let map = facade_normal_map();
     let normals: Vec<DVec3> = map
         .normals()
         .iter()
@@ -381,23 +392,14 @@ fn real_normal_map_made_steep_renders_without_sparkle() {
         map.normals().iter().filter(|n| n.z < 0.2).count() as f64 / map.normals().len() as f64;
     eprintln!("facade ×30: {:.1}% of texels with n_z < 0.2", 100.0 * steep);
     assert!(steep > 0.15, "steep fraction {steep}");
-    let failures: Vec<String> = measure(&map, &[2.0, 4.0])
-        .into_iter()
-        .filter(|m| {
-            let (c, (lo, hi)) = (&m.comparison, m.class_range());
-            if m.box_filter {
-                c.mean_error > 0.03 || lo < 0.95 || hi > 1.05 || c.max_excess > 0.5
-            } else {
-                lo < 0.9 || hi > 1.1 || c.max_excess > 3.0
-            }
-        })
-        .map(|m| m.line)
-        .collect();
-    assert!(
-        failures.is_empty(),
-        "out of bounds:\n{}",
-        failures.join("\n")
-    );
+    assert_in_bounds(measure(&map, &[2.0, 4.0]), |m| {
+        let (c, (lo, hi)) = (&m.comparison, m.class_range());
+        if m.box_filter {
+            c.mean_error > 0.03 || lo < 0.95 || hi > 1.05 || c.max_excess > 0.5
+        } else {
+            lo < 0.9 || hi > 1.1 || c.max_excess > 3.0
+        }
+    });
 }
 
 /// Glossy facets on the stone wall (GGX α = 0.1 and 0.05, mirror-like microfacet facets with
@@ -414,38 +416,32 @@ fn real_normal_map_made_steep_renders_without_sparkle() {
 #[test]
 fn glossy_facets_on_a_steep_map_render_without_sparkle() {
     let map = NormalMap::from_normals(N, N, stone_wall()).unwrap();
-    let failures: Vec<String> = measure_facets(
-        &map,
-        &[2.0, 4.0, 8.0, 16.0],
-        &[("ggx0.1", GGX10), ("ggx0.05", GGX05)],
-    )
-    .into_iter()
-    .filter(|m| {
-        let (c, (lo, hi)) = (&m.comparison, m.class_range());
-        // Up close, every measure; further out (where the glossy facets' default box detail,
-        // 1.16 and 2, reads finer levels than the footprint) the mean and the phase classes: the
-        // 256-spp truth's own noise is 6–27 % per pixel there (docs/heightmaps.md, "Glossy
-        // facets"). At detail 0 the grazing light's 16 texels/px were 0.63 (α = 0.05) and 0.80
-        // (α = 0.1).
-        m.box_filter
-            && if m.texels_per_pixel <= 4.0 {
-                c.mean_error > 0.05
-                    || (c.mean_ratio - 1.0).abs() > 0.01
-                    || lo < 0.97
-                    || hi > 1.03
-                    || c.max_excess > 1.5
-            } else if m.texels_per_pixel <= 8.0 {
-                (c.mean_ratio - 1.0).abs() > 0.01 || lo < 0.95 || hi > 1.05
-            } else {
-                (c.mean_ratio - 1.0).abs() > 0.03 || lo < 0.9 || hi > 1.1
-            }
-    })
-    .map(|m| m.line)
-    .collect();
-    assert!(
-        failures.is_empty(),
-        "out of bounds:\n{}",
-        failures.join("\n")
+    assert_in_bounds(
+        measure_facets(
+            &map,
+            &[2.0, 4.0, 8.0, 16.0],
+            &[("ggx0.1", GGX10), ("ggx0.05", GGX05)],
+        ),
+        |m| {
+            let (c, (lo, hi)) = (&m.comparison, m.class_range());
+            // Up close, every measure; further out (where the glossy facets' default box
+            // detail, 1.16 and 2, reads finer levels than the footprint) the mean and the
+            // phase classes: the 256-spp truth's own noise is 6–27 % per pixel there
+            // (docs/heightmaps.md, "Glossy facets"). At detail 0 the grazing light's
+            // 16 texels/px were 0.63 (α = 0.05) and 0.80 (α = 0.1).
+            m.box_filter
+                && if m.texels_per_pixel <= 4.0 {
+                    c.mean_error > 0.05
+                        || (c.mean_ratio - 1.0).abs() > 0.01
+                        || lo < 0.97
+                        || hi > 1.03
+                        || c.max_excess > 1.5
+                } else if m.texels_per_pixel <= 8.0 {
+                    (c.mean_ratio - 1.0).abs() > 0.01 || lo < 0.95 || hi > 1.05
+                } else {
+                    (c.mean_ratio - 1.0).abs() > 0.03 || lo < 0.9 || hi > 1.1
+                }
+        },
     );
 }
 
@@ -457,25 +453,16 @@ fn glossy_facets_on_a_steep_map_render_without_sparkle() {
 /// off, its mean 1.144 (docs/heightmaps.md, "Glossy facets").
 #[test]
 fn glossy_facets_far_away_on_a_real_normal_map() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_normal_256.png");
-    let map = NormalMap::load(&path, meso_maps::NormalConvention::Gl).unwrap();
-    let failures: Vec<String> =
-        measure_facets(&map, &[8.0, 16.0], &[("ggx0.1", GGX10), ("ggx0.05", GGX05)])
-            .into_iter()
-            .filter(|m| {
-                let (c, (lo, hi)) = (&m.comparison, m.class_range());
-                m.box_filter
-                    && (c.mean_error > 0.04
-                        || (c.mean_ratio - 1.0).abs() > 0.02
-                        || lo < 0.95
-                        || hi > 1.05)
-            })
-            .map(|m| m.line)
-            .collect();
-    assert!(
-        failures.is_empty(),
-        "out of bounds:\n{}",
-        failures.join("\n")
+    let map = facade_normal_map();
+    assert_in_bounds(
+        measure_facets(&map, &[8.0, 16.0], &[("ggx0.1", GGX10), ("ggx0.05", GGX05)]),
+        |m| {
+            let (c, (lo, hi)) = (&m.comparison, m.class_range());
+            m.box_filter
+                && (c.mean_error > 0.04
+                    || (c.mean_ratio - 1.0).abs() > 0.02
+                    || lo < 0.95
+                    || hi > 1.05)
+        },
     );
 }

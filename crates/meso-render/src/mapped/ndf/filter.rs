@@ -18,6 +18,29 @@ pub(super) type Tap = (usize, usize, f64);
 /// sixty-fourth of the footprint box's longer side.
 pub const MAX_BOX_DETAIL: f64 = 3.0;
 
+/// Above this the default box-filter detail does not go ([`default_box_detail`]): each level
+/// finer costs ≈ 2.5–3× the render time of a far view (docs/benchmarks.md, "Box filter
+/// detail").
+pub const DEFAULT_MAX_BOX_DETAIL: f64 = 2.0;
+
+/// The box filter's default detail for facets of `transfer` ([`NdfMapped::with_box_detail`]):
+/// half the base-2 log of how much sharper the facet's highlight is than the kernel the
+/// pyramid's lobes were fitted under, `½·log₂(λ_facet / λ_fit)` with λ_facet from
+/// [`meso_maps::fit::facet_kernel_exponent`] (Phong η → η, Beckmann/GGX α → 2/α², Lambert → 2)
+/// and λ_fit = [`meso_maps::fit::SHADING_KERNEL_EXPONENT`] (40): the footprint, in level-0
+/// cells, over which four lobes fitted at λ_fit still resolve what the facet sees shrinks with
+/// the ratio of the two angular widths, `√(λ_fit / λ_facet)`. Clamped to
+/// `[0,` [`DEFAULT_MAX_BOX_DETAIL`]`]`; a mirror facet (no kernel) gets the most. GGX α = 0.05 →
+/// 2 (2.16 clamped), α = 0.1 → 1.16, α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
+#[must_use]
+pub fn default_box_detail(transfer: &meso_core::transfer::Transfer) -> f64 {
+    match meso_maps::fit::facet_kernel_exponent(transfer) {
+        Some(l) => (0.5 * (l / meso_maps::fit::SHADING_KERNEL_EXPONENT).log2())
+            .clamp(0.0, DEFAULT_MAX_BOX_DETAIL),
+        None => DEFAULT_MAX_BOX_DETAIL,
+    }
+}
+
 /// Most texels along one axis of one level of a box-filter call: a box spans at most
 /// `2^(3 + detail)` texels of its finer level, `+ 1` where it straddles texel edges (and one
 /// spare).
@@ -192,7 +215,6 @@ impl NdfMapped {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mapped::default_box_detail;
     use crate::shader::local_point;
     use glam::DVec2;
     use meso_core::material::Material;

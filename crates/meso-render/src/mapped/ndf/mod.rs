@@ -33,9 +33,8 @@ mod lobes;
 mod peak_quadrature;
 
 use build::Source;
-pub use build::{default_box_detail, DEFAULT_MAX_BOX_DETAIL};
 use filter::Tap;
-pub use filter::MAX_BOX_DETAIL;
+pub use filter::{default_box_detail, DEFAULT_MAX_BOX_DETAIL, MAX_BOX_DETAIL};
 use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
