@@ -188,13 +188,7 @@ pub fn load_bytes(name: &Path, bytes: &[u8], kind: InputKind) -> Result<(Input, 
 fn with_warnings(input: Input) -> (Input, Vec<String>) {
     let warnings = match &input {
         Input::Heights(h) => h.warnings().iter().map(ToString::to_string).collect(),
-        Input::Normals(n) if n.clamped() > 0 => vec![format!(
-            "{} of {} texels point at or below the horizon (n_z ≤ {}); tilted up to it",
-            n.clamped(),
-            n.width() * n.height(),
-            crate::heightmap::MIN_NORMAL_Z
-        )],
-        Input::Normals(_) => Vec::new(),
+        Input::Normals(n) => n.warnings(),
     };
     (input, warnings)
 }

@@ -370,6 +370,21 @@ mod inputs {
             "{e}"
         );
         assert!(e.contains("not a normal") && e.contains("no data"), "{e}");
+        assert!(e.contains("the first of 1 such texels of 64"), "{e}");
+        // A map all of "no data" grey: the first texel in reading order (row 0, column 0), and
+        // how many.
+        let p5b = dir_.join("all-grey.png");
+        image::RgbImage::from_pixel(4, 3, image::Rgb([128, 128, 128]))
+            .save(&p5b)
+            .unwrap();
+        let e = NormalMap::load(&p5b, NormalConvention::Gl)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("image row 0 (from the top), column 0")
+                && e.contains("first of 12 such texels of 12"),
+            "{e}"
+        );
         // A NaN in a float map at the same place: the same image row.
         let mut f = image::Rgb32FImage::from_fn(8, 8, |_, _| image::Rgb([0.5, 0.5, 1.0]));
         f.put_pixel(2, 1, image::Rgb([f32::NAN, 0.5, 1.0]));

@@ -116,13 +116,7 @@ pub fn export<'py>(
                     }
                     _ => {
                         let map = prepare::load_normal_map(&path, conv).map_err(s)?;
-                        if map.clamped() > 0 {
-                            warnings.push(format!(
-                                "{} of {} texels point at or below the horizon; tilted up to it",
-                                map.clamped(),
-                                map.width() * map.height()
-                            ));
-                        }
+                        warnings.extend(map.warnings());
                         Inputs::from_normal_map(&map, alpha)
                     }
                 };

@@ -478,16 +478,7 @@ fn normal_mapped(
     // The load's warnings: said by the caller, kept in the pyramid cache's entry.
     let load = || {
         let map = NormalMap::load(file, convention).map_err(|e| format!("[texture]: {e}"))?;
-        let warnings: Vec<String> = (map.clamped() > 0)
-            .then(|| {
-                format!(
-                    "{} of {} texels point at or below the horizon; tilted up to it",
-                    map.clamped(),
-                    map.width() * map.height()
-                )
-            })
-            .into_iter()
-            .collect();
+        let warnings = map.warnings();
         Ok::<_, String>((map, warnings))
     };
     let surface = t.surface()?;

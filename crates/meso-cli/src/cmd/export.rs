@@ -152,13 +152,8 @@ fn maps_inputs(a: &Args) -> Result<Inputs> {
                 Convention::Dx => NormalConvention::Dx,
             };
             let map = prepare::load_normal_map(&a.map, conv)?;
-            if map.clamped() > 0 {
-                eprintln!(
-                    "{}: warning: {} of {} texels point at or below the horizon; tilted up to it",
-                    a.map.display(),
-                    map.clamped(),
-                    map.width() * map.height()
-                );
+            for w in map.warnings() {
+                eprintln!("{}: warning: {w}", a.map.display());
             }
             Inputs::from_normal_map(&map, alpha)
         }

@@ -119,12 +119,13 @@ impl NormalMap {
             NormalConvention::Dx => -1.0,
         };
         let mut normals = Vec::with_capacity(w * h);
+        // The texels that hold no direction: how many, and the first in reading order (image
+        // row, column, colour, decoded length).
+        let mut bad = 0usize;
+        let mut first_bad: Option<(usize, usize, [f32; 3], f64)> = None;
         // Map row 0 (y = 0) is the image's bottom row: meso's +y is up in the image.
-        for p in (0..h as u32)
-            .rev()
-            .flat_map(|r| (0..w as u32).map(move |c| (c, r)))
-        {
-            let p = rgb.get_pixel(p.0, p.1);
+        for (r, c) in (0..h).rev().flat_map(|r| (0..w).map(move |c| (r, c))) {
+            let p = rgb.get_pixel(c as u32, r as u32);
             let x = 2.0 * p.0[0] as f64 - 1.0;
             let y = gsign * (2.0 * p.0[1] as f64 - 1.0);
             let z = if rebuild_z {
@@ -134,23 +135,28 @@ impl NormalMap {
             };
             let n = DVec3::new(x, y, z);
             if integer && !rebuild_z && n.length() < MIN_CODED_LENGTH {
-                let c = p.0;
-                return Err(MapError::Decode {
-                    path: path.to_path_buf(),
-                    message: format!(
-                        "the texel at image row {} (from the top), column {} is not a normal: \
-                         its colour ({:.3}, {:.3}, {:.3}) of full scale decodes to a vector of \
-                         length {:.3} (a \"no data\" grey?); every texel must hold a direction",
-                        h - 1 - normals.len() / w,
-                        normals.len() % w,
-                        c[0],
-                        c[1],
-                        c[2],
-                        n.length()
-                    ),
-                });
+                bad += 1;
+                // Rows go bottom to top here: a later row is earlier in reading order.
+                if first_bad.is_none_or(|f| r < f.0) {
+                    first_bad = Some((r, c, p.0, n.length()));
+                }
             }
             normals.push(n);
+        }
+        if let Some((r, c, col, len)) = first_bad {
+            return Err(MapError::Decode {
+                path: path.to_path_buf(),
+                message: format!(
+                    "the texel at image row {r} (from the top), column {c} is not a normal \
+                     (the first of {bad} such texels of {}): its colour ({:.3}, {:.3}, {:.3}) of \
+                     full scale decodes to a vector of length {len:.3} (a \"no data\" grey?); \
+                     every texel must hold a direction",
+                    w * h,
+                    col[0],
+                    col[1],
+                    col[2],
+                ),
+            });
         }
         NormalMap::from_normals(w, h, normals).map_err(|e| match e {
             MapError::NonFinite { what, row, col } => MapError::Decode {
@@ -207,6 +213,24 @@ impl NormalMap {
     #[must_use]
     pub fn clamped(&self) -> usize {
         self.clamped
+    }
+
+    /// What a user should be told about the load: how many texels were tilted up to the
+    /// horizon, or nothing (the one wording of `meso extract`, `meso export`, `meso render`, the
+    /// editor and Python).
+    #[must_use]
+    pub fn warnings(&self) -> Vec<String> {
+        (self.clamped > 0)
+            .then(|| {
+                format!(
+                    "{} of {} texels point at or below the horizon (n_z ≤ {MIN_NORMAL_Z}); tilted \
+                     up to it",
+                    self.clamped,
+                    self.width * self.height
+                )
+            })
+            .into_iter()
+            .collect()
     }
 
     grid_size_accessors!("texels");
