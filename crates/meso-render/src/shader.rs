@@ -81,6 +81,13 @@ pub trait Shader: Send + Sync {
         Ok(())
     }
 
+    /// One line that says how the material shades, for a user reading `meso render`'s output
+    /// or the editor's preview (e.g. an NDF-mapped texture's levels, filter and visibility);
+    /// `None` (the default) for materials with nothing to say beyond their file.
+    fn describe(&self) -> Option<String> {
+        None
+    }
+
     /// Whether the BRDF depends on the local directions `wi`, `wo` only (not on the
     /// [`ShadingPoint`]: no position, frame, texture coordinates or footprint). The renderer
     /// then shades whole tiles light by light through [`Shader::eval_pairs`] (its fast path).

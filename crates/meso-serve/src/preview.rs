@@ -467,16 +467,9 @@ pub fn render_textured(
         .shader(texture, material, texels_per_uv, shadowing)
         .map_err(ApiError::bad_request)?;
     let path = format!(
-        "NDF-mapped {:?}: {} levels, box filter{}{}{}",
+        "{:?}: {}{}",
         texture.name,
-        shader.levels(),
-        if shader.box_detail() > 0.0 {
-            // Glossy facets read finer levels than the footprint (`default_box_detail`).
-            format!(" {:.2} levels finer", shader.box_detail())
-        } else {
-            String::new()
-        },
-        if shadowing { ", horizon shadowing" } else { "" },
+        shader.describe().unwrap_or_default(),
         if cached { "" } else { " (shader built)" }
     );
     let img = render_shader(&rr, shader)?;

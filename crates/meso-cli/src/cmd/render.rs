@@ -183,12 +183,22 @@ pub fn run(a: Args) -> Result<()> {
     let mut phases = crate::util::Phases::default();
     // The material files the scene loads are inputs too.
     let loaded = std::sync::Mutex::new(Vec::<PathBuf>::new());
+    // What each textured material says of how it shades (levels, filter, visibility): printed
+    // once the scene has loaded.
+    let described = std::sync::Mutex::new(Vec::<String>::new());
     let resolver = |p: &Path| {
         loaded
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .push(p.to_path_buf());
-        resolve_material(p)
+        let shader = resolve_material(p)?;
+        if let Some(d) = shader.describe() {
+            described
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .push(format!("{}: {d}", p.display()));
+        }
+        Ok(shader)
     };
     PYRAMID_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     FACETS_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
@@ -211,6 +221,12 @@ pub fn run(a: Args) -> Result<()> {
     let loaded = loaded
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
+    for d in described
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    {
+        note!("{d}");
+    }
     let mut inputs: Vec<&Path> = vec![&a.scene];
     inputs.extend(loaded.iter().map(PathBuf::as_path));
     crate::util::check_outputs(&out_paths, &inputs)?;

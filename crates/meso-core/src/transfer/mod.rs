@@ -174,9 +174,7 @@ impl Transfer {
                 let Some(h) = h else {
                     return [0.0; 3];
                 };
-                let g2 = 1.0
-                    / (1.0 + distribution.lambda_isotropic(ci) + distribution.lambda_isotropic(co));
-                let common = distribution.d_isotropic(h.dot(m)) * g2 / (4.0 * ci * co);
+                let common = distribution.d_vis_isotropic(h.dot(m), ci, co);
                 let f = fresnel.eval(i.dot(h));
                 [f[0] * common, f[1] * common, f[2] * common]
             }

@@ -96,6 +96,20 @@ impl BumpMapped {
 }
 
 impl Shader for BumpMapped {
+    /// "bump-mapped: C × R cells[, horizon shadowing]".
+    fn describe(&self) -> Option<String> {
+        Some(format!(
+            "bump-mapped: {} × {} cells{}",
+            self.cols,
+            self.rows,
+            if self.horizon.is_some() {
+                ", horizon shadowing"
+            } else {
+                ""
+            }
+        ))
+    }
+
     fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return [0.0; 3];

@@ -137,18 +137,31 @@
 use crate::geometry::ShadingPoint;
 use crate::shader::{fast_pow, Shader};
 use glam::DVec3;
-use meso_core::frame::Frame;
 use meso_core::material::Material;
 use meso_core::sg;
 use meso_core::transfer::{PhongVariant, Transfer};
 use meso_maps::{FacetNormals, HeightMap, HorizonMap, NormalMap, NormalMode};
 use std::f64::consts::FRAC_1_PI;
 
-/// The facet transfer function, with fast paths for Phong (half vector) and Lambert.
+/// The facet transfer function, with fast paths for Phong (half vector), Lambert and isotropic
+/// microfacets.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Facet {
-    Phong { exponent: f32, specular: [f32; 3] },
-    Lambert { albedo_pi: [f32; 3] },
+    Phong {
+        exponent: f32,
+        specular: [f32; 3],
+    },
+    Lambert {
+        albedo_pi: [f32; 3],
+    },
+    /// An isotropic Beckmann or GGX facet (the common glossy material): its Fresnel factor
+    /// `F(i·h)` is the same for every facet normal of a shading call, so the NDF-mapped
+    /// shader applies it once per light direction as the colour and sums the scalar
+    /// `D(m·h) G₂ / (4 (m·o))` over the nodes ([`Facet::microfacet_scalar`]).
+    Microfacet {
+        distribution: meso_core::ndf::Microfacet,
+        fresnel: meso_core::transfer::Fresnel,
+    },
     General(Transfer),
 }
 
@@ -166,8 +179,36 @@ impl Facet {
             Transfer::Lambert { albedo } => Facet::Lambert {
                 albedo_pi: albedo.map(|a| (a * FRAC_1_PI) as f32),
             },
+            Transfer::Microfacet {
+                distribution,
+                fresnel,
+            } if distribution.is_isotropic() => Facet::Microfacet {
+                distribution,
+                fresnel,
+            },
             other => Facet::General(other),
         }
+    }
+
+    /// Whether the NDF-mapped shader evaluates this facet at its lobes' quadrature nodes (all
+    /// but the Phong facet, whose lobes it convolves in closed form): their tables hold nodes.
+    fn needs_nodes(&self) -> bool {
+        !matches!(self, Facet::Phong { .. })
+    }
+
+    /// `D(m·h) G₂(i, o; m) (m·i) / (4 (m·i)(m·o))` of an isotropic microfacet facet of unit
+    /// normal `m` (1/sr): [`Facet::lit`] without the Fresnel factor, which depends on `i·h`
+    /// only; 0 for a facet that `i` or `o` does not see.
+    #[inline]
+    fn microfacet_scalar(
+        d: &meso_core::ndf::Microfacet,
+        m: DVec3,
+        i: DVec3,
+        o: DVec3,
+        h: DVec3,
+    ) -> f64 {
+        let ci = m.dot(i);
+        d.d_vis_isotropic(h.dot(m), ci, m.dot(o)) * ci
     }
 
     /// `f_μ(i, o; m) · max(0, m·i)` for the unit facet normal `m`; `h` is the unit half vector.
@@ -193,9 +234,18 @@ impl Facet {
                     albedo_pi[2] * mi32,
                 ]
             }
+            Facet::Microfacet {
+                distribution,
+                fresnel,
+            } => {
+                let c = Self::microfacet_scalar(&distribution, m, i, o, h);
+                let f = fresnel.eval(i.dot(h));
+                [(f[0] * c) as f32, (f[1] * c) as f32, (f[2] * c) as f32]
+            }
             Facet::General(t) => {
-                let f = Frame::from_normal_tangent(m, DVec3::X);
-                let v = t.eval(f.to_local(i), f.to_local(o));
+                // From the cosines alone where the transfer is isotropic about `m` (the facet
+                // frame only for anisotropic microfacets: `Transfer::eval_facet`).
+                let v = t.eval_facet(m, i, o, Some(h));
                 [(v[0] * mi) as f32, (v[1] * mi) as f32, (v[2] * mi) as f32]
             }
         }

@@ -260,7 +260,7 @@ pub(super) fn level_tables_bytes(
     facet: &Facet,
     shadowing: bool,
 ) -> u64 {
-    let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
+    let general = facet.needs_nodes();
     let l = &pyramid.levels[k];
     let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
     let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
@@ -307,7 +307,7 @@ fn node_level(
     lobe_horizon: Option<meso_maps::Horizons>,
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
-    let general = matches!(facet, Facet::General(_) | Facet::Lambert { .. });
+    let general = facet.needs_nodes();
     let (ncols, nrows) = (cols.len(), rows.len());
     let mut lobe_start = Vec::with_capacity(ncols * nrows + 1);
     let mut lobes = Vec::with_capacity(shares.len());

@@ -448,8 +448,9 @@ impl NdfMapped {
         self
     }
     /// The facets' response `E[f_μ(i, o; m) (m·i)⁺]` of texel `t` of level `l` (scalar for
-    /// Phong and Lambert facets, whose colour is applied by the caller), each lobe's part
-    /// multiplied by its visibility of the light `wi` (prepared as `dir`) when `dir` is given
+    /// Phong, Lambert and isotropic microfacet facets, whose colour — for microfacets the
+    /// Fresnel factor — is applied by the caller), each lobe's part multiplied by its
+    /// visibility of the light `wi` (prepared as `dir`) when `dir` is given
     /// and the level has per-lobe horizon statistics.
     #[inline]
     #[allow(clippy::too_many_arguments)]
@@ -499,6 +500,17 @@ impl NdfMapped {
                 }
                 [a, 0.0, 0.0]
             }
+            Facet::Microfacet { distribution, .. } => {
+                let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
+                let mut a = 0.0;
+                for nd in nodes {
+                    let v = Facet::microfacet_scalar(&distribution, nd.n, wi, wo, h);
+                    if v > 0.0 {
+                        a += nd.w * v * vis(nd.src);
+                    }
+                }
+                [a, 0.0, 0.0]
+            }
             Facet::General(_) => {
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
                 let mut a = [0.0f64; 3];
@@ -519,6 +531,40 @@ impl NdfMapped {
 }
 
 impl Shader for NdfMapped {
+    /// "NDF-mapped: L levels, box filter[ D levels finer][, no finer than level F], [horizon
+    /// shadowing per lobe | per texel]" (or "trilinear filter").
+    fn describe(&self) -> Option<String> {
+        let filter = if !self.box_filter {
+            "trilinear filter".to_string()
+        } else if self.box_detail > 0.0 {
+            // Glossy facets read finer levels than the footprint (`default_box_detail`); a
+            // table cap bounds how fine.
+            format!(
+                "box filter {:.2} levels finer{}",
+                self.box_detail,
+                if self.detail_floor > 0 {
+                    format!(
+                        " (no finer than level {} under the table cap)",
+                        self.detail_floor
+                    )
+                } else {
+                    String::new()
+                }
+            )
+        } else {
+            "box filter".to_string()
+        };
+        let shadow = match (self.shadowing, self.texel_visibility) {
+            (false, _) => "",
+            (true, false) => ", horizon shadowing per lobe",
+            (true, true) => ", horizon shadowing per texel",
+        };
+        Some(format!(
+            "NDF-mapped: {} levels, {filter}{shadow}",
+            self.levels.len()
+        ))
+    }
+
     /// The source pyramid's [`meso_maps::Pyramid::check_mapped`] (tables built on demand read
     /// a map file's level 0 as they go); `Ok` for [`NdfMapped::new`].
     fn check_sources(&self) -> Result<(), String> {
@@ -541,10 +587,12 @@ impl Shader for NdfMapped {
         if wo.z <= 0.0 {
             return;
         }
-        let colour: [f64; 3] = match self.facet {
+        // The colour of a scalar facet's response: its specular or albedo, or for a
+        // microfacet facet the Fresnel factor of each light direction (below).
+        let mut colour: [f64; 3] = match self.facet {
             Facet::Phong { specular, .. } => specular.map(f64::from),
             Facet::Lambert { albedo_pi } => albedo_pi.map(f64::from),
-            Facet::General(_) => [1.0; 3],
+            Facet::Microfacet { .. } | Facet::General(_) => [1.0; 3],
         };
         let scalar = !matches!(self.facet, Facet::General(_));
         let (mut taps, mut at) = TAPS.with(|t| std::mem::take(&mut *t.borrow_mut()));
@@ -586,6 +634,9 @@ impl Shader for NdfMapped {
                 continue;
             }
             let h = s / len;
+            if let Facet::Microfacet { fresnel, .. } = self.facet {
+                colour = fresnel.eval(i.dot(h));
+            }
             // Per lobe (the default): each lobe's part times its own visibility; per texel:
             // the response times the taps' blended visibility.
             let dir = if self.shadowing {
