@@ -409,7 +409,7 @@ fn real_normal_map_made_steep_renders_without_sparkle() {
 /// class of sub-texel phase within 3 %, no pixel's excess over 1.5 × the mean. At 8 texels per
 /// pixel the mean within 1 % and the classes within 5 %; at 16, within 3 % and 10 %. The far
 /// bounds hold because the box filter's default detail for these facets is 1.16 (α = 0.1) and
-/// 2 (α = 0.05): finer levels than the footprint (`default_box_detail`). At detail 0 the
+/// 3 (α = 0.05; 2 gave the same figures to 0.1 %): finer levels than the footprint (`default_box_detail`). At detail 0 the
 /// grazing light's mean at 16 texels per pixel was 0.63 (α = 0.05) and 0.80 (α = 0.1), now
 /// 0.99 both (docs/heightmaps.md, "Glossy facets"). The far views' per-pixel error is reported
 /// only: the 256-spp truth's own noise is 6–27 % there.

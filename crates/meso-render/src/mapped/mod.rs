@@ -123,7 +123,7 @@
 //!   are an eighth to a quarter of the box, blended with the next level (up to 136 taps
 //!   instead of 8): the default, as the closer of the two on every map measured. For glossy
 //!   facets it reads finer texels still ([`NdfMapped::with_box_detail`], default
-//!   [`default_box_detail`]: up to two levels finer for GGX α = 0.05), whose narrow
+//!   [`default_box_detail`]: three levels finer for GGX α = 0.05), whose narrow
 //!   highlights the coarse texels' four lobes cannot follow (docs/heightmaps.md, "Glossy
 //!   facets").
 //!
@@ -277,4 +277,6 @@ pub(crate) fn check_scale(texels_per_uv: f64) -> Result<(), String> {
 mod bump;
 mod ndf;
 pub use bump::BumpMapped;
-pub use ndf::{default_box_detail, NdfMapped, DEFAULT_MAX_BOX_DETAIL, MAX_BOX_DETAIL};
+pub use ndf::{
+    default_box_detail, NdfMapped, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
+};

@@ -18,25 +18,40 @@ pub(super) type Tap = (usize, usize, f64);
 /// sixty-fourth of the footprint box's longer side.
 pub const MAX_BOX_DETAIL: f64 = 3.0;
 
-/// Above this the default box-filter detail does not go ([`default_box_detail`]): each level
-/// finer costs ≈ 2.5–3× the render time of a far view (docs/benchmarks.md, "Box filter
-/// detail").
-pub const DEFAULT_MAX_BOX_DETAIL: f64 = 2.0;
+/// The default box-filter detail of the glossiest facets ([`default_box_detail`]: those whose
+/// `½·log₂(λ_facet / 40)` reaches [`GLOSSY_BOX_DETAIL_FROM`], GGX or Beckmann α ≤ 0.0559, Phong
+/// η ≥ 640, mirrors). Measured against the bump map (docs/heightmaps.md, "Glossy facets"):
+/// with α = 0.05 detail 3 was as close as detail 2 or closer on every map and distance tried,
+/// and at 64 cells per pixel far closer (the facade normal map 1.02× against 1.28×, its height
+/// map 1.14× against 1.55×); it cost 0.6–2.6× detail 2's render time (docs/benchmarks.md,
+/// "Glossy facets shaded from the cosines").
+pub const DEFAULT_MAX_BOX_DETAIL: f64 = 3.0;
+
+/// From this `½·log₂(λ_facet / 40)` on, the default detail is [`DEFAULT_MAX_BOX_DETAIL`]
+/// ([`default_box_detail`]).
+pub const GLOSSY_BOX_DETAIL_FROM: f64 = 2.0;
 
 /// The box filter's default detail for facets of `transfer` ([`NdfMapped::with_box_detail`]):
 /// half the base-2 log of how much sharper the facet's highlight is than the kernel the
-/// pyramid's lobes were fitted under, `½·log₂(λ_facet / λ_fit)` with λ_facet from
+/// pyramid's lobes were fitted under, `d = ½·log₂(λ_facet / λ_fit)` with λ_facet from
 /// [`meso_maps::fit::facet_kernel_exponent`] (Phong η → η, Beckmann/GGX α → 2/α², Lambert → 2)
 /// and λ_fit = [`meso_maps::fit::SHADING_KERNEL_EXPONENT`] (40): the footprint, in level-0
 /// cells, over which four lobes fitted at λ_fit still resolve what the facet sees shrinks with
-/// the ratio of the two angular widths, `√(λ_fit / λ_facet)`. Clamped to
-/// `[0,` [`DEFAULT_MAX_BOX_DETAIL`]`]`; a mirror facet (no kernel) gets the most. GGX α = 0.05 →
-/// 2 (2.16 clamped), α = 0.1 → 1.16, α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
+/// the ratio of the two angular widths, `√(λ_fit / λ_facet)`. Clamped at 0; from
+/// [`GLOSSY_BOX_DETAIL_FROM`] on, [`DEFAULT_MAX_BOX_DETAIL`] (measured closer at no more than
+/// 2.6× the cost; a mirror facet, with no kernel, gets it too). GGX α = 0.05 → 3, α = 0.1 →
+/// 1.16, α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
 #[must_use]
 pub fn default_box_detail(transfer: &meso_core::transfer::Transfer) -> f64 {
     match meso_maps::fit::facet_kernel_exponent(transfer) {
-        Some(l) => (0.5 * (l / meso_maps::fit::SHADING_KERNEL_EXPONENT).log2())
-            .clamp(0.0, DEFAULT_MAX_BOX_DETAIL),
+        Some(l) => {
+            let d = 0.5 * (l / meso_maps::fit::SHADING_KERNEL_EXPONENT).log2();
+            if d >= GLOSSY_BOX_DETAIL_FROM {
+                DEFAULT_MAX_BOX_DETAIL
+            } else {
+                d.max(0.0)
+            }
+        }
         None => DEFAULT_MAX_BOX_DETAIL,
     }
 }
@@ -269,7 +284,7 @@ mod tests {
         assert_eq!(m.clone().with_box_detail(9.0).box_detail(), MAX_BOX_DETAIL);
         assert_eq!(m.clone().with_box_detail(-1.0).box_detail(), 0.0);
         assert_eq!(m.clone().with_box_detail(f64::NAN).box_detail(), 0.0);
-        // The default follows the facet: ½·log₂(λ / 40), in [0, 1].
+        // The default follows the facet: ½·log₂(λ / 40) from 0, and 3 from 2 on.
         let detail = |t: &str| {
             let s = Material::from_toml_str(&format!("[transfer]\n{t}\n")).unwrap();
             default_box_detail(&s.transfer)
@@ -280,20 +295,23 @@ mod tests {
         let ggx = |a: f64| detail(&format!("kind = \"microfacet\"\nalpha = {a}"));
         assert!((ggx(0.2) - 0.5 * (50.0f64 / 40.0).log2()).abs() < 1e-12);
         assert!((ggx(0.1) - 0.5 * 5f64.log2()).abs() < 1e-12);
-        assert_eq!(ggx(0.05), 2.0);
+        assert_eq!(ggx(0.05), 3.0);
+        // From ½·log₂(λ/40) = 2 on (λ ≥ 640: α ≤ 0.0559) the glossy default, 3.
+        assert!((ggx(0.06) - 0.5 * (2.0 / (0.06f64 * 0.06 * 40.0)).log2()).abs() < 1e-12);
+        assert!(ggx(0.06) < 2.0 && ggx(0.055) == 3.0);
         let mirror = meso_core::transfer::Transfer::Mirror {
             fresnel: meso_core::transfer::Fresnel::None,
             specular: [1.0; 3],
         };
-        assert_eq!(default_box_detail(&mirror), 2.0);
+        assert_eq!(default_box_detail(&mirror), 3.0);
         // And the material takes it.
         let glossy =
             Material::from_toml_str("[transfer]\nkind = \"microfacet\"\nalpha = 0.05\n").unwrap();
         let g = NdfMapped::new(&pyr, &glossy, tpu, false).unwrap();
-        assert_eq!(g.box_detail(), 2.0);
+        assert_eq!(g.box_detail(), 3.0);
         // Under a table cap the detail takes a footprint no finer than the finest level whose
         // tables fit in half the cap: here level 3 (level 2's do not fit), so the 64-cell box
-        // reads level 3, not 2; a footprint whose own level is finer keeps it.
+        // reads level 3, not 1; a footprint whose own level is finer keeps it.
         let facet = crate::mapped::Facet::new(&glossy.transfer);
         let bytes = |k: usize| super::super::build::level_tables_bytes(&pyr, k, &facet, false);
         let cap = usize::try_from(bytes(2) + bytes(3)).unwrap();
@@ -336,6 +354,7 @@ mod tests {
         }
         let uncapped = NdfMapped::from_pyramid(pyr.clone(), &glossy, tpu, false).unwrap();
         uncapped.taps(&sp, &mut taps);
-        assert!(taps.iter().all(|t| t.0 == 2), "{taps:?}");
+        // Detail 3: texels of 1/32–1/64 of the 64-cell box, level 1.
+        assert!(taps.iter().all(|t| t.0 == 1), "{taps:?}");
     }
 }

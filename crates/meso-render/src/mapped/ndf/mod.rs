@@ -34,7 +34,9 @@ mod peak_quadrature;
 
 use build::Source;
 use filter::Tap;
-pub use filter::{default_box_detail, DEFAULT_MAX_BOX_DETAIL, MAX_BOX_DETAIL};
+pub use filter::{
+    default_box_detail, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
+};
 use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -405,11 +407,11 @@ impl NdfMapped {
     /// How many levels finer than the footprint the box filter reads, `detail ∈ [0,`
     /// [`MAX_BOX_DETAIL`]`]` (clamped; fractional values blend two levels): its texels are
     /// `2^−(2 + detail)` to `2^−(3 + detail)` of the footprint box's longer side, so each unit
-    /// costs about 2.5–3× the shading time of a far view and reads texels of half the side,
+    /// costs about 1–3× the shading time of a far view and reads texels of half the side,
     /// whose fitted lobes follow a narrow highlight better. The default is
     /// [`default_box_detail`] of the facet material: 0 for facets as broad as the fit's kernel
-    /// or broader (Lambert, Phong η ≤ 40), up to 2 for glossy facets (GGX or Beckmann α = 0.05,
-    /// sharp Phong, mirrors), whose narrow highlight the coarse texels' four lobes cannot follow
+    /// or broader (Lambert, Phong η ≤ 40), 3 for the glossiest (GGX or Beckmann α ≤ 0.0559,
+    /// Phong η ≥ 640, mirrors), whose narrow highlight the coarse texels' four lobes cannot follow
     /// (docs/heightmaps.md, "Glossy facets"). Under a table cap ([`NdfMapped::with_table_cap`])
     /// the detail takes a footprint no finer than the finest level whose tables fit in half the
     /// cap.
