@@ -703,11 +703,8 @@ impl<'a> Reader<'a> {
     /// `Err` naming the file when the mapped file the reader holds has been cut short since it
     /// was mapped (reading its cut pages would fault): checked before each band (one `fstat`).
     fn check_cut(&self) -> Result<()> {
-        match self.mapped.and_then(lazy::MappedFile::cut) {
-            Some(len) => Err(self.err(format!(
-                "the file is {len} bytes, {} when it was opened: cut while being read",
-                self.b.len()
-            ))),
+        match self.mapped.and_then(lazy::MappedFile::cut_message) {
+            Some(m) => Err(self.err(m)),
             None => Ok(()),
         }
     }

@@ -251,7 +251,10 @@ fn a_file_cut_while_mapped_is_reported_not_a_fault() {
     assert!(lobes.iter().all(|p| p.weight == 0.0), "{lobes:?}");
     let err = lazy.check_mapped().unwrap_err().to_string();
     assert!(err.contains(&path.display().to_string()), "{err}");
-    assert!(err.contains("cut"), "{err}");
+    assert!(
+        err.contains("when it was opened: cut while being read"),
+        "{err}"
+    );
     assert!(err.contains("band 3"), "{err}");
     let again: Vec<_> = l0.lobes.range(s0, e0).collect();
     assert_eq!(before, again);

@@ -46,6 +46,17 @@ impl MappedFile {
         let len = self.file.metadata().map_or(0, |m| m.len());
         (len < self.map.len() as u64).then_some(len)
     }
+
+    /// The message of a file [`Self::cut`] short since it was mapped (the one wording of the
+    /// eager reader and the by-band levels), else `None`.
+    pub(crate) fn cut_message(&self) -> Option<String> {
+        self.cut().map(|len| {
+            format!(
+                "the file is {len} bytes, {} when it was opened: cut while being read",
+                self.map.len()
+            )
+        })
+    }
 }
 
 /// Where one band of a lazily held level lies in the mapped file.
@@ -485,13 +496,10 @@ impl LazyLevel {
     /// the file back (they are read from the file again if it is decoded again).
     fn decode(&self, idx: usize) -> crate::error::Result<Band> {
         let e = self.bands[idx];
-        if let Some(len) = self.map.cut() {
+        if let Some(message) = self.map.cut_message() {
             return Err(crate::MapError::MapFormat {
                 path: self.path.clone(),
-                message: format!(
-                    "the file is {len} bytes, {} when it was read: cut",
-                    self.map.map.len()
-                ),
+                message,
             });
         }
         let mut r = Reader::new(&self.map.map, &self.path);
