@@ -713,21 +713,10 @@ impl<'a> Reader<'a> {
     /// holds a mapped file (they are read again from the file if read again): the file then
     /// takes no more of the process's memory than the pages between two calls.
     fn release(&mut self) {
-        #[cfg(unix)]
-        if let Some(map) = self.mapped.map(|m| &m.map) {
-            const PAGE: usize = 1 << 16; // a multiple of every page size in use
-            let to = self.pos / PAGE * PAGE;
+        if let Some(m) = self.mapped {
+            let to = self.pos / lazy::RELEASE_PAGE * lazy::RELEASE_PAGE;
             if to > self.released {
-                // SAFETY: `map` is a read-only private mapping of the file; dropping pages of it
-                // only makes later reads fault them in from the file again, with the same
-                // bytes. (An error leaves the pages resident: nothing to handle.)
-                let _ = unsafe {
-                    map.unchecked_advise_range(
-                        memmap2::UncheckedAdvice::DontNeed,
-                        self.released,
-                        to - self.released,
-                    )
-                };
+                lazy::release(&m.map, self.released, to);
                 self.released = to;
             }
         }

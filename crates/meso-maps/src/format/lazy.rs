@@ -536,12 +536,15 @@ impl LazyLevel {
     }
 }
 
+/// The unit [`release`] hands pages back in (bytes): a multiple of every page size in use.
+pub(crate) const RELEASE_PAGE: usize = 1 << 16;
+
 /// Hand the whole pages of `map` within bytes `a..b` back to the system (unix; a no-op
 /// elsewhere): read from the file again if read again.
 pub(crate) fn release(map: &memmap2::Mmap, a: usize, b: usize) {
     #[cfg(unix)]
     {
-        const PAGE: usize = 1 << 16; // a multiple of every page size in use
+        const PAGE: usize = RELEASE_PAGE;
         let (from, to) = (a.div_ceil(PAGE) * PAGE, b / PAGE * PAGE);
         if to > from {
             // SAFETY: a read-only private mapping of the file; dropping pages of it only makes
