@@ -184,7 +184,7 @@ pub fn run(a: Args) -> Result<()> {
     // The material files the scene loads are inputs too.
     let loaded = std::sync::Mutex::new(Vec::<PathBuf>::new());
     // What each textured material says of how it shades (levels, filter, visibility): printed
-    // once the scene has loaded.
+    // with the closing line, so that a failed run prints its error alone.
     let described = std::sync::Mutex::new(Vec::<String>::new());
     let resolver = |p: &Path| {
         loaded
@@ -221,12 +221,6 @@ pub fn run(a: Args) -> Result<()> {
     let loaded = loaded
         .into_inner()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
-    for d in described
-        .into_inner()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-    {
-        note!("{d}");
-    }
     let mut inputs: Vec<&Path> = vec![&a.scene];
     inputs.extend(loaded.iter().map(PathBuf::as_path));
     crate::util::check_outputs(&out_paths, &inputs)?;
@@ -273,6 +267,12 @@ pub fn run(a: Args) -> Result<()> {
     }
     meso_core::io::commit_all(staged)?;
     phases.add("write", t.elapsed().as_secs_f64());
+    for d in described
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    {
+        note!("{d}");
+    }
     note!(
         "rendered {}x{} at {} spp in {:.2} s -> {} ({})",
         img.width(),
