@@ -533,8 +533,9 @@ impl NdfMapped {
 }
 
 impl Shader for NdfMapped {
-    /// "NDF-mapped: L levels, box filter[ D levels finer][, no finer than level F], [horizon
-    /// shadowing per lobe | per texel]" (or "trilinear filter").
+    /// "NDF-mapped: L levels, box filter[ D levels finer[ (no finer than level F under the
+    /// table cap)]][, horizon shadowing per lobe | per texel]" ("trilinear filter" for the
+    /// trilinear filter).
     fn describe(&self) -> Option<String> {
         let filter = if !self.box_filter {
             "trilinear filter".to_string()
