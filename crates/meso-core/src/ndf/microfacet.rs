@@ -352,16 +352,24 @@ impl Microfacet {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::quadrature::integrate_sphere;
 
     /// `d_vis_isotropic`'s closed form for GGX is `D G₂ / (4 cos θᵢ cos θₒ)` from `d_isotropic`
     /// and `lambda_isotropic` (1e-12 relative), for glossy to rough α and grazing to normal
-    /// cosines; 0 below the horizon.
+    /// cosines (Beckmann's path is that formula itself: not compared); 0 below the horizon for
+    /// both.
     #[test]
     fn d_vis_isotropic_matches_d_and_smith_lambda() {
         for dist in [Distribution::Ggx, Distribution::Beckmann] {
             for alpha in [0.01, 0.05, 0.1, 0.3, 0.7, 1.0] {
                 let m = Microfacet::isotropic(dist, alpha).unwrap();
-                for &ch in &[1.0, 0.999, 0.95, 0.7, 0.3, 0.01] {
+                // Beckmann's path is the formula itself: only its zeros are checked.
+                let half_cosines: &[f64] = if dist == Distribution::Ggx {
+                    &[1.0, 0.999, 0.95, 0.7, 0.3, 0.01]
+                } else {
+                    &[]
+                };
+                for &ch in half_cosines {
                     for &ci in &[1.0, 0.9, 0.5, 0.1, 0.001] {
                         for &co in &[1.0, 0.8, 0.2, 0.02] {
                             let g2 = 1.0 / (1.0 + m.lambda_isotropic(ci) + m.lambda_isotropic(co));
@@ -380,7 +388,6 @@ mod tests {
             }
         }
     }
-    use crate::quadrature::integrate_sphere;
 
     /// GGX's Λ = ½(√(1+x) − 1), x = α² tan²θ, keeps its relative precision near the normal,
     /// where the direct form cancels (about 1e-8 relative at x ≈ 1e-8): checked against the

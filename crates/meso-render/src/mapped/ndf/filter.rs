@@ -25,7 +25,7 @@ pub const MAX_BOX_DETAIL: f64 = 3.0;
 /// and at 64 cells per pixel far closer (the facade normal map 1.02× against 1.28×, its height
 /// map 1.14× against 1.55×); it cost 0.6–2.6× detail 2's render time (docs/benchmarks.md,
 /// "Glossy facets shaded from the cosines").
-pub const DEFAULT_MAX_BOX_DETAIL: f64 = 3.0;
+pub const DEFAULT_MAX_BOX_DETAIL: f64 = MAX_BOX_DETAIL;
 
 /// From this `½·log₂(λ_facet / 40)` on, the default detail is [`DEFAULT_MAX_BOX_DETAIL`]
 /// ([`default_box_detail`]).
