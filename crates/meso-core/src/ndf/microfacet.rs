@@ -298,10 +298,10 @@ impl Microfacet {
     /// cosines alone: `cos_h` of the half vector with the normal, `ci` and `co` of the two
     /// directions (0 when any is ≤ 0); height-correlated Smith `G₂ = 1/(1 + Λ(i) + Λ(o))`.
     /// The microfacet BRDF without its Fresnel factor ([`crate::transfer::Transfer::eval_facet`]
-    /// and the renderer's NDF-mapped shading). GGX in closed form with one division and two
-    /// roots: `α² / (π (cos²θ_h (α² − 1) + 1)²) · ½ / (cos θₒ √(cos²θᵢ (1 − α²) + α²) + cos θᵢ
-    /// √(cos²θₒ (1 − α²) + α²))`; the others from [`Microfacet::d_isotropic`] and
-    /// [`Microfacet::lambda_isotropic`].
+    /// and the renderer's NDF-mapped shading): [`Microfacet::d_isotropic`] times
+    /// [`Microfacet::vis_isotropic`], GGX in closed form with one division and two roots:
+    /// `α² / (π (cos²θ_h (α² − 1) + 1)²) · ½ / (cos θₒ √(cos²θᵢ (1 − α²) + α²) + cos θᵢ
+    /// √(cos²θₒ (1 − α²) + α²))`.
     #[inline]
     #[must_use]
     pub fn d_vis_isotropic(&self, cos_h: f64, ci: f64, co: f64) -> f64 {
@@ -312,13 +312,32 @@ impl Microfacet {
             Distribution::Ggx => {
                 let a2 = self.alpha_x * self.alpha_y;
                 let q = cos_h * cos_h * (a2 - 1.0) + 1.0;
+                a2 / (PI * q * q) * self.vis_isotropic(ci, co)
+            }
+            _ => self.d_isotropic(cos_h) * self.vis_isotropic(ci, co),
+        }
+    }
+
+    /// The visibility term `G₂(i, o) / (4 cos θᵢ cos θₒ)` of an **isotropic** distribution
+    /// (dimensionless ÷ cosines), from the cosines `ci`, `co` of the two directions with the
+    /// normal (0 when either is ≤ 0); height-correlated Smith `G₂ = 1/(1 + Λ(i) + Λ(o))`. GGX in
+    /// closed form: `½ / (cos θₒ √(cos²θᵢ (1 − α²) + α²) + cos θᵢ √(cos²θₒ (1 − α²) + α²))`.
+    #[inline]
+    #[must_use]
+    pub fn vis_isotropic(&self, ci: f64, co: f64) -> f64 {
+        if ci <= 0.0 || co <= 0.0 {
+            return 0.0;
+        }
+        match self.distribution {
+            Distribution::Ggx => {
+                let a2 = self.alpha_x * self.alpha_y;
                 let si = (ci * ci * (1.0 - a2) + a2).sqrt();
                 let so = (co * co * (1.0 - a2) + a2).sqrt();
-                0.5 * a2 / (PI * q * q * (co * si + ci * so))
+                0.5 / (co * si + ci * so)
             }
             _ => {
                 let g2 = 1.0 / (1.0 + self.lambda_isotropic(ci) + self.lambda_isotropic(co));
-                self.d_isotropic(cos_h) * g2 / (4.0 * ci * co)
+                g2 / (4.0 * ci * co)
             }
         }
     }
@@ -379,11 +398,20 @@ mod tests {
                                 (got - want).abs() <= 1e-12 * want.abs(),
                                 "{dist:?} α {alpha} cos h {ch} ci {ci} co {co}: {got} vs {want}"
                             );
+                            let vis = m.vis_isotropic(ci, co);
+                            let want_vis = g2 / (4.0 * ci * co);
+                            assert!(
+                                (vis - want_vis).abs() <= 1e-12 * want_vis,
+                                "{dist:?} α {alpha} ci {ci} co {co}: {vis} vs {want_vis}"
+                            );
                         }
                     }
                 }
                 for (ch, ci, co) in [(0.0, 0.5, 0.5), (0.5, 0.0, 0.5), (0.5, 0.5, -0.1)] {
                     assert_eq!(m.d_vis_isotropic(ch, ci, co), 0.0);
+                    if ch > 0.0 {
+                        assert_eq!(m.vis_isotropic(ci, co), 0.0);
+                    }
                 }
             }
         }

@@ -157,7 +157,10 @@ enum Facet {
     /// An isotropic Beckmann or GGX facet (the common glossy material): its Fresnel factor
     /// `F(i·h)` is the same for every facet normal of a shading call, so the NDF-mapped
     /// shader applies it once per light direction as the colour and sums the scalar
-    /// `D(m·h) G₂ / (4 (m·o))` over the nodes ([`Facet::microfacet_scalar`]).
+    /// `D(m·h) G₂ / (4 (m·o))`: for a lobe broader than the highlight `D`'s core of
+    /// Blinn–Phong peaks in closed form and the rest at its nodes, for a sharp one `D` at its
+    /// nodes (`ndf/lobes.rs`, `MicrofacetCore`); the bump map per facet
+    /// ([`Facet::microfacet_scalar`]).
     Microfacet {
         distribution: meso_core::ndf::Microfacet,
         fresnel: meso_core::transfer::Fresnel,

@@ -11,7 +11,7 @@
 //! * Each texel's node weights sum to 1.
 
 use super::filter::default_box_detail;
-use super::lobes::{lobe_nodes, Node, SgLobe, Shapes, NO_LOBE};
+use super::lobes::{lobe_nodes, LobeRole, MicrofacetCore, Node, SgLobe, Shapes, NO_LOBE};
 use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
@@ -308,6 +308,11 @@ fn node_level(
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
     let general = facet.needs_nodes();
+    // Isotropic microfacet facets: broad lobes convolved with the facet's core in closed form.
+    let core = match facet {
+        Facet::Microfacet { distribution, .. } => MicrofacetCore::of(distribution),
+        _ => None,
+    };
     let (ncols, nrows) = (cols.len(), rows.len());
     let mut lobe_start = Vec::with_capacity(ncols * nrows + 1);
     let mut lobes = Vec::with_capacity(shares.len());
@@ -338,12 +343,17 @@ fn node_level(
                 continue;
             }
             any = true;
+            if core.is_some_and(|c| c.role(p.exponent) == LobeRole::Whole) {
+                // Shaded whole at its nodes (below).
+                continue;
+            }
             let shape = shapes.intern(p.exponent);
             let norm = sg::normaliser_2pi(shapes.list[shape as usize].kappa);
             lobes.push(SgLobe::new(p.axis, shape, sh / e * norm, first + j as u32));
         }
-        if !any {
-            // No lobe faces up: shade as the flat surface.
+        if !any && core.is_none() {
+            // No lobe faces up: shade as the flat surface (with a microfacet core, the flat
+            // node below).
             let shape = shapes.intern(meso_maps::limits::ETA_MAX);
             let kappa = shapes.list[shape as usize].kappa;
             lobes.push(SgLobe::new(
@@ -358,6 +368,8 @@ fn node_level(
             // Each lobe's nodes weighted by their projected area, scaled to the lobe's
             // share.
             let before = nodes.len();
+            // The shares of the lobes with nodes, or only in the core (below).
+            let mut total_share = 0.0;
             for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
                 tmp.clear();
                 lobe_nodes(p.axis, 1.0, p.exponent, first + j as u32, &mut tmp);
@@ -365,17 +377,36 @@ fn node_level(
                     n.w *= n.n.z.max(0.0);
                 }
                 let total: f64 = tmp.iter().map(|n| n.w).sum();
-                if sh > 0.0 && total > 0.0 {
-                    nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
-                        w: n.w / total * sh,
-                        ..*n
-                    }));
+                if sh <= 0.0 {
+                    continue;
                 }
+                // With a microfacet core, a lobe in the closed form (as above) leaves only
+                // the rest of `D` to its nodes, or nothing when it is broad; its share counts
+                // with or without nodes above the horizon.
+                let role = match core {
+                    Some(c) if peak_projected_area(p.axis.z, p.exponent) > 1e-12 => {
+                        c.role(p.exponent)
+                    }
+                    _ => LobeRole::Whole,
+                };
+                if role != LobeRole::Whole {
+                    total_share += sh;
+                }
+                if role == LobeRole::Core || total <= 0.0 {
+                    continue;
+                }
+                if role == LobeRole::Whole {
+                    total_share += sh;
+                }
+                nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
+                    w: n.w / total * sh,
+                    whole: role == LobeRole::Whole,
+                    ..*n
+                }));
             }
-            let total: f64 = nodes[before..].iter().map(|n| n.w).sum();
-            if total > 0.0 {
+            if total_share > 0.0 {
                 for n in &mut nodes[before..] {
-                    n.w /= total;
+                    n.w /= total_share;
                 }
             } else {
                 nodes.truncate(before);
@@ -383,6 +414,7 @@ fn node_level(
                     n: DVec3::Z,
                     w: 1.0,
                     src: NO_LOBE,
+                    whole: true,
                 });
             }
             node_start.push(nodes.len() as u32);

@@ -1,7 +1,9 @@
 //! The lobes of a texel in the two forms the shading reads: [`SgLobe`], a fitted Phong peak as
 //! the spherical Gaussian of the same mean cosine with the constants of [`phong_texel`]'s
 //! closed-form response under Phong facets, and [`Node`]s, a peak replaced by 7 weighted unit
-//! normals ([`lobe_nodes`]) for Lambert and general facet transfers.
+//! normals ([`lobe_nodes`]) for Lambert and general facet transfers. Isotropic microfacet
+//! facets read both ([`microfacet_texel`]): `D`'s core of Blinn–Phong peaks
+//! ([`MicrofacetCore`]) through the closed form, the rest at the nodes.
 //!
 //! # Conventions
 //! * Directions are unit vectors in the local frame (normal +z); `h` is the half vector.
@@ -20,6 +22,10 @@ pub(super) struct Node {
     /// Index of its lobe among the pyramid level's lobes (for the lobe's horizon statistics),
     /// or [`NO_LOBE`].
     pub(super) src: u32,
+    /// Isotropic microfacet facets: whether the node stands for its lobe's whole response
+    /// (`D` at the node), or only for the rest `D − D_core` beside the lobe's core in closed
+    /// form ([`microfacet_texel`]); unread by other facets.
+    pub(super) whole: bool,
 }
 
 /// The `src` of a lobe or node that stands for no lobe of the pyramid (a texel with nothing
@@ -129,6 +135,7 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
             n: axis,
             w: weight,
             src,
+            whole: true,
         });
         return;
     }
@@ -138,6 +145,7 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
         n: axis,
         w: weight * AXIS_WEIGHT,
         src,
+        whole: true,
     });
     for k in 0..RING {
         let a = std::f64::consts::TAU * k as f64 / RING as f64;
@@ -146,6 +154,7 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
                 .normalize(),
             w: weight * (1.0 - AXIS_WEIGHT) / RING as f64,
             src,
+            whole: true,
         });
     }
 }
@@ -156,8 +165,10 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
 /// integral over the sphere: [`sg::kappa_transfer`]). The product of the lobe and the
 /// transfer's Gaussian is [`sg::product`] written out on the lobe's `κa`, with its
 /// `r − κ` kept apart for the shape corrections (no allocation, one `exp` per lobe). Each
-/// lobe's term is multiplied by `vis(lobe)` (its visibility of the light, in `[0, 1]`; `1`
-/// without shadowing), which is called only for lobes that reflect something.
+/// lobe's term is multiplied by `factor(lobe, m*)`, called only for lobes that reflect
+/// something with the unit axis `m*` of the product of the lobe and the transfer (where the
+/// product's mass lies): the lobe's visibility of the light (in `[0, 1]`; `1` without
+/// shadowing), and for [`microfacet_texel`]'s core the facets' visibility term there.
 #[inline]
 pub(super) fn phong_texel(
     lobes: &[SgLobe],
@@ -166,7 +177,7 @@ pub(super) fn phong_texel(
     h: DVec3,
     eta: f64,
     lambda: f64,
-    vis: impl Fn(&SgLobe) -> f64,
+    factor: impl Fn(&SgLobe, DVec3) -> f64,
 ) -> f64 {
     let mut sum = 0.0;
     for lobe in lobes {
@@ -206,16 +217,188 @@ pub(super) fn phong_texel(
         let (mass, a_r) = (sg::integral_per_2pi(r), sg::mean_cos(r) * inv_r);
         let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
         if q > 0.0 {
-            sum += lobe.w * mass * q * e * vis(lobe);
+            sum += lobe.w * mass * q * e * factor(lobe, m * inv_r);
         }
     }
     sum
+}
+
+/// The core of an isotropic microfacet distribution `D`: a sum of Blinn–Phong peaks `c_k (η_k +
+/// 2)/(2π) (m·h)^{η_k}` that [`microfacet_texel`] convolves with a texel's lobes in closed form,
+/// leaving only the rest, `D − D_core`, to the lobes' 7 nodes.
+///
+/// * **Beckmann** is one peak, `η = 2/α² − 2` (Beckmann's peak and curvature; the rest is
+///   ≈ 0).
+/// * **GGX** is a scale mixture of Beckmanns: with `x = tan²θ/α²`, its shape `(1 + x)^{−2} =
+///   ∫ t e^{−t} e^{−tx} dt`, so `D_GGX = ∫ t e^{−t} (1/t) D_Beckmann(α/√t) dt` exactly. Three
+///   Beckmanns ([`GGX_AS_BECKMANNS`]: `Σ c_k t_k e^{−t_k x}` fitted to `(1 + x)^{−2}` for the
+///   least largest difference with `Σ c_k = 1`) stand for it within 0.24 % of its peak at
+///   every angle, its long tails' mass included (a third of it beyond `x = 2`), so the rest
+///   at the nodes is small and of zero mass.
+/// * Student-t distributions have no core (their nodes as before).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct MicrofacetCore {
+    /// `(η_k, λ_k, c_k (η_k + 2)/(2π))` of each peak: its exponent, its transfer's Gaussian
+    /// ([`sg::kappa_transfer`]) and its normalisation times its weight (1/sr).
+    terms: [(f64, f64, f64); 3],
+    /// How many of `terms` are used.
+    len: usize,
+    /// The Phong exponent from which a lobe is [`LobeRole::Whole`].
+    sharp_eta: f64,
+    /// The Phong exponent up to which a lobe is [`LobeRole::Core`].
+    broad_eta: f64,
+}
+
+/// How a lobe is shaded under a facet with a [`MicrofacetCore`] ([`MicrofacetCore::role`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LobeRole {
+    /// At its nodes, each with the whole `D` (not in the table's core lobes).
+    Whole,
+    /// Through the core in closed form, the rest `D − D_core` at its nodes.
+    CoreAndRest,
+    /// Through the core alone (no nodes in the table).
+    Core,
+}
+
+/// [`MicrofacetCore::role`]: a lobe of exponent `η_n ≥ SHARP_LOBE/α²` is
+/// [`LobeRole::Whole`].
+pub(super) const SHARP_LOBE: f64 = 128.0;
+
+/// [`MicrofacetCore::role`]: a lobe of exponent `η_n ≤ BROAD_LOBE/α²` is [`LobeRole::Core`].
+pub(super) const BROAD_LOBE: f64 = 0.125;
+
+/// GGX as three Beckmanns: `(t_k, c_k)`, the Beckmann of roughness `α/√t_k` with weight `c_k`
+/// (`Σ c_k = 1`; [`MicrofacetCore`]). Fitted by Nelder–Mead on `x ∈ [0, 2000]`: the largest
+/// difference `|(1 + x)^{−2} − Σ c_k t_k e^{−t_k x}|` is 0.0024.
+pub(super) const GGX_AS_BECKMANNS: [(f64, f64); 3] = [
+    (2.923_835, 0.182_590),
+    (0.810_105, 0.532_176),
+    (0.115_448, 0.285_234),
+];
+
+/// The broadest peak a core may hold, `η_k ≥ 2` (a Beckmann of α ≤ 0.71; GGX's broadest
+/// peak has `α/√0.115`, so GGX of α ≤ 0.24): broader facets' highlights span the lobes'
+/// nodes, which sample them well.
+pub(super) const MICROFACET_CORE_MIN_ETA: f64 = 2.0;
+
+impl MicrofacetCore {
+    /// The core of `d` (isotropic), or `None` for a facet too broad to need one
+    /// ([`MICROFACET_CORE_MIN_ETA`]) or a Student-t one.
+    pub(super) fn of(d: &meso_core::ndf::Microfacet) -> Option<MicrofacetCore> {
+        use meso_core::ndf::Distribution;
+        let a2 = d.alpha_x * d.alpha_y;
+        let peaks: &[(f64, f64)] = match d.distribution {
+            Distribution::Beckmann => &[(1.0, 1.0)],
+            Distribution::Ggx => &GGX_AS_BECKMANNS,
+            Distribution::StudentT { .. } => return None,
+        };
+        let mut terms = [(0.0, 0.0, 0.0); 3];
+        for (term, &(t, c)) in terms.iter_mut().zip(peaks) {
+            let eta = 2.0 * t / a2 - 2.0;
+            if eta < MICROFACET_CORE_MIN_ETA {
+                return None;
+            }
+            *term = (
+                eta,
+                sg::kappa_transfer(eta),
+                c * (eta + 2.0) / std::f64::consts::TAU,
+            );
+        }
+        Some(MicrofacetCore {
+            terms,
+            len: peaks.len(),
+            sharp_eta: SHARP_LOBE / a2,
+            broad_eta: BROAD_LOBE / a2,
+        })
+    }
+    /// How a lobe of Phong exponent `eta_n` (width `√(8/η_n)`) is shaded under this facet:
+    /// * at least 4× narrower than the highlight (`√(8/η_n) ≤ α/4`, `η_n ≥ 128/α²`,
+    ///   [`SHARP_LOBE`]): [`LobeRole::Whole`], where its 7 nodes are close to the lobe's
+    ///   integral (a lobe of 1/5.6 the highlight's width: within 10⁻⁴ of its peak response in
+    ///   the tests) and cost less than the core's closed forms;
+    /// * at least 8× broader (`η_n ≤ 1/(8α²)`, [`BROAD_LOBE`]): [`LobeRole::Core`], the rest
+    ///   (of zero mass, within a few α of the half vector) integrating to ≈ 0 over it, where
+    ///   its nodes would sample it at points (a node on the half vector would read the rest
+    ///   at `D`'s peak, `1/(πα²)`);
+    /// * between: [`LobeRole::CoreAndRest`].
+    pub(super) fn role(&self, eta_n: f64) -> LobeRole {
+        if eta_n >= self.sharp_eta {
+            LobeRole::Whole
+        } else if eta_n <= self.broad_eta {
+            LobeRole::Core
+        } else {
+            LobeRole::CoreAndRest
+        }
+    }
+    /// `D_core` at the cosine `cos_h` of the normal with the half vector (1/sr).
+    #[inline]
+    fn d(&self, cos_h: f64) -> f64 {
+        if cos_h <= 0.0 {
+            return 0.0;
+        }
+        let ln = cos_h.ln();
+        self.terms[..self.len]
+            .iter()
+            .map(|&(eta, _, norm)| norm * (eta * ln).exp())
+            .sum()
+    }
+}
+
+/// The isotropic microfacet facets' response of one texel, `E[D(m·h) G₂ (m·i)⁺ / (4 (m·i)(m·o))]`
+/// over its projected area (without the Fresnel factor), from its lobes and their nodes, as
+/// the table was built for the `core` ([`MicrofacetCore::role`]): `D = D_core + (D − D_core)`,
+/// the core over `lobes` through [`phong_texel`]'s closed form with the visibility term
+/// `G₂/(4 (m·i)(m·o))` taken at the product's axis (exact for a lobe much sharper or much
+/// broader than the highlight), the rest at the nodes that are not `whole`. A sharp lobe (and
+/// every lobe without a core) is its nodes alone, `whole`, each shaded with `D`: exact where
+/// the lobe is far narrower than the highlight, and the cheaper. `vis(src)` is a lobe's visibility of the light (its nodes share
+/// it). The sum is kept ≥ 0 (the rest is signed).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn microfacet_texel(
+    lobes: &[SgLobe],
+    shapes: &[Shape],
+    nodes: &[Node],
+    d: &meso_core::ndf::Microfacet,
+    core: Option<&MicrofacetCore>,
+    wi: DVec3,
+    wo: DVec3,
+    h: DVec3,
+    vis: impl Fn(u32) -> f64,
+) -> f64 {
+    let mut a = 0.0;
+    if let Some(core) = core {
+        for &(eta, lambda, norm) in &core.terms[..core.len] {
+            a += phong_texel(lobes, shapes, wi, h, eta, lambda, |lb, m| {
+                let v = d.vis_isotropic(m.dot(wi), m.dot(wo));
+                if v > 0.0 {
+                    norm * v * vis(lb.src)
+                } else {
+                    0.0
+                }
+            });
+        }
+    }
+    for nd in nodes {
+        let (ci, co) = (nd.n.dot(wi), nd.n.dot(wo));
+        let v = d.vis_isotropic(ci, co);
+        if v > 0.0 {
+            let ch = h.dot(nd.n);
+            let dd = match core {
+                Some(core) if !nd.whole => d.d_isotropic(ch) - core.d(ch),
+                _ => d.d_isotropic(ch),
+            };
+            a += nd.w * dd * v * ci * vis(nd.src);
+        }
+    }
+    a.max(0.0)
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::peak_quadrature::for_each_peak_node;
     use super::*;
+    use std::f64::consts::{PI, TAU};
 
     /// `E[(m·h)^η (m·i)⁺ m_z⁺] / E[m_z⁺]` over one Phong peak `cos^η_n(α/2)` by a fine
     /// quadrature in the lobe's frame (independent of the Gaussian forms).
@@ -243,8 +426,181 @@ mod tests {
             h,
             eta,
             sg::kappa_transfer(eta),
-            |_| 1.0,
+            |_, _| 1.0,
         )
+    }
+
+    /// `E[D(m·h) G₂ (m·i)⁺ / (4 (m·i)(m·o)) m_z⁺] / E[m_z⁺]` over one Phong peak of exponent
+    /// `eta_n` by brute force (independent of the closed form and the nodes): a fine grid in
+    /// the peak's frame when the peak is the narrower of the two, else a grid in the half
+    /// vector's frame warped by `D`'s own sampling (`D(m)(m·h)` as the density), so that the
+    /// narrower of the two is always resolved.
+    fn microfacet_quadrature(
+        axis: DVec3,
+        eta_n: f64,
+        d: &meso_core::ndf::Microfacet,
+        wi: DVec3,
+        wo: DVec3,
+    ) -> f64 {
+        let h = (wi + wo).normalize();
+        let f = |m: DVec3| {
+            let ci = m.dot(wi);
+            d.d_vis_isotropic(m.dot(h), ci, m.dot(wo)) * ci * m.z.max(0.0)
+        };
+        let peak =
+            |m: DVec3| (eta_n + 2.0) / (8.0 * PI) * (0.5 * (1.0 + axis.dot(m))).powf(0.5 * eta_n);
+        let num = if (8.0 / eta_n).sqrt() < d.alpha_x {
+            let amax = (12.0 * 2.0 / eta_n.sqrt()).min(PI);
+            let (na, np) = (600, 360);
+            let mut sum = 0.0;
+            for_each_peak_node(axis, DVec3::X, eta_n, amax, (na, np), |w, m| {
+                sum += w * f(m)
+            });
+            sum * (amax / na as f64) * (TAU / np as f64) * (eta_n + 2.0) / (8.0 * PI)
+        } else {
+            let frame = Frame::from_normal_tangent(h, DVec3::X);
+            let n = 700;
+            let mut sum = 0.0;
+            for i in 0..n {
+                let u0 = (i as f64 + 0.5) / n as f64;
+                for j in 0..n {
+                    let u1 = (j as f64 + 0.5) / n as f64;
+                    let m = frame.to_world(d.sample([u0, u1]));
+                    // The density of the warp in h's frame is D(m)(m·h).
+                    let pdf = d.pdf(frame.to_local(m));
+                    if pdf > 0.0 {
+                        sum += peak(m) * f(m) / pdf;
+                    }
+                }
+            }
+            sum / (n * n) as f64
+        };
+        num / meso_maps::peak_projected_area(axis.z, eta_n)
+    }
+
+    /// One lobe under isotropic microfacet facets three ways: the core in closed form and the
+    /// rest at the nodes ([`microfacet_texel`]), the 7 nodes alone, and
+    /// [`microfacet_quadrature`]. Errors as a fraction of the case's largest value (its lobe's
+    /// response with the half vector on its axis).
+    fn microfacet_errors(d: &meso_core::ndf::Microfacet) -> (f64, f64, f64) {
+        let core = MicrofacetCore::of(d);
+        let (mut worst_core, mut worst_nodes, mut mean_core) = (0.0f64, 0.0f64, 0.0);
+        let mut cases = 0;
+        for eta_n in [4.0, 40.0, 400.0, 4000.0, 1e5] {
+            for tilt in [0.0f64, 20.0, 50.0] {
+                let t = tilt.to_radians();
+                let axis = DVec3::new(t.sin() * 0.8, -t.sin() * 0.6, t.cos()).normalize();
+                let mut shapes = Shapes::default();
+                let shape = shapes.intern(eta_n);
+                let kappa = shapes.list[shape as usize].kappa;
+                let e = meso_maps::peak_projected_area(axis.z, eta_n);
+                let lobe = SgLobe::new(axis, shape, sg::normaliser_2pi(kappa) / e, 0);
+                // The table as `build` makes it: a sharp lobe whole at its nodes, a broad one
+                // in the core with the rest at its nodes.
+                let mut nodes = Vec::new();
+                lobe_nodes(axis, 1.0, eta_n, 0, &mut nodes);
+                for n in &mut nodes {
+                    n.w *= n.n.z.max(0.0);
+                }
+                let total: f64 = nodes.iter().map(|n| n.w).sum();
+                nodes.retain(|n| n.w > 0.0);
+                nodes.iter_mut().for_each(|n| n.w /= total);
+                let whole = nodes.clone();
+                let role = core.map_or(LobeRole::Whole, |c| c.role(eta_n));
+                nodes
+                    .iter_mut()
+                    .for_each(|n| n.whole = role == LobeRole::Whole);
+                if role == LobeRole::Core {
+                    nodes.clear();
+                }
+                let lobes: &[SgLobe] = if role == LobeRole::Whole {
+                    &[]
+                } else {
+                    &[lobe]
+                };
+                let run = |wi: DVec3, wo: DVec3, core: Option<&MicrofacetCore>| {
+                    let h = (wi + wo).normalize();
+                    match core {
+                        Some(_) => microfacet_texel(
+                            lobes,
+                            &shapes.list,
+                            &nodes,
+                            d,
+                            core,
+                            wi,
+                            wo,
+                            h,
+                            |_| 1.0,
+                        ),
+                        None => {
+                            microfacet_texel(&[], &shapes.list, &whole, d, None, wi, wo, h, |_| 1.0)
+                        }
+                    }
+                };
+                // The largest value: the half vector on the lobe's axis (o mirrored about it).
+                let wi_peak = DVec3::new(-0.3, 0.2, 0.93).normalize();
+                let wi_peak = if wi_peak.dot(axis) < 0.3 {
+                    axis
+                } else {
+                    wi_peak
+                };
+                let wo_peak = (2.0 * wi_peak.dot(axis) * axis - wi_peak).normalize();
+                let scale = microfacet_quadrature(axis, eta_n, d, wi_peak, wo_peak);
+                let views = [
+                    (DVec3::new(-0.5, 0.3, 0.8), DVec3::new(0.0, -0.5, 0.866)),
+                    (DVec3::new(0.6, -0.2, 0.77), DVec3::new(0.1, 0.5, 0.86)),
+                    (DVec3::new(-0.9, 0.1, 0.42), DVec3::new(0.0, -0.5, 0.866)),
+                    (wi_peak, wo_peak),
+                ];
+                for (wi, wo) in views {
+                    let (wi, wo) = (wi.normalize(), wo.normalize());
+                    if wo.z <= 0.0 || wi.z <= 0.0 {
+                        continue;
+                    }
+                    let q = microfacet_quadrature(axis, eta_n, d, wi, wo);
+                    let c = run(wi, wo, core.as_ref());
+                    let n = run(wi, wo, None);
+                    worst_core = worst_core.max((c - q).abs() / scale);
+                    worst_nodes = worst_nodes.max((n - q).abs() / scale);
+                    mean_core += (c - q).abs() / scale;
+                    cases += 1;
+                }
+            }
+        }
+        (worst_core, mean_core / cases as f64, worst_nodes)
+    }
+
+    /// The core in closed form plus the rest at the nodes is close to the brute-force
+    /// quadrature for glossy GGX and Beckmann facets (α = 0.03–0.2), lobes from broad to
+    /// delta-like and tilted up to 50°, where the 7 nodes alone are far off; facets too broad
+    /// for a core keep the nodes.
+    #[test]
+    fn microfacet_core_and_rest_match_quadrature() {
+        use meso_core::ndf::{Distribution, Microfacet};
+        for dist in [Distribution::Ggx, Distribution::Beckmann] {
+            for alpha in [0.03, 0.05, 0.1, 0.2] {
+                let d = Microfacet::isotropic(dist, alpha).unwrap();
+                assert!(MicrofacetCore::of(&d).is_some());
+                let (worst, mean, nodes) = microfacet_errors(&d);
+                eprintln!(
+                    "{dist:?} α {alpha}: core + rest worst {worst:.4} mean {mean:.4}; \
+                     7 nodes worst {nodes:.4}"
+                );
+                // Measured: worst 0.054 / mean 0.0083 up to α = 0.1 (GGX α = 0.1), 0.150 /
+                // 0.023 at α = 0.2; the 7 nodes alone 7.8 (α = 0.2) to 400 (α = 0.03).
+                let (w, m) = if alpha <= 0.1 {
+                    (0.07, 0.012)
+                } else {
+                    (0.2, 0.03)
+                };
+                assert!(
+                    worst < w && mean < m,
+                    "{dist:?} α {alpha}: worst {worst}, mean {mean} of the peak"
+                );
+            }
+        }
+        let broad = Microfacet::isotropic(Distribution::Ggx, 0.3).unwrap();
+        assert!(MicrofacetCore::of(&broad).is_none());
     }
 
     /// A lobe is 40 bytes (axis, weight, source and shape index) and a level's shapes are one

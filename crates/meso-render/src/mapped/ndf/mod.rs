@@ -11,7 +11,9 @@
 //!   or, per tile, [`meso_maps::rect_lobe_stats_by_cell`] (handed down from the level-0
 //!   normals; level 0's once per texel);
 //! * `lobes` — a texel's lobes as spherical Gaussians and their closed-form response under
-//!   Phong facets, and the 7-node form of a lobe for other facets;
+//!   Phong facets and, through a core of Blinn–Phong peaks, isotropic microfacet facets, and
+//!   the 7-node form of a lobe for other facets (and for microfacets' sharp lobes and the rest
+//!   beside the core);
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
 //!   magnification);
 //! * `peak_quadrature` (tests only) — the brute-force quadrature over one Phong peak that the
@@ -37,7 +39,7 @@ use filter::Tap;
 pub use filter::{
     default_box_detail, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
 };
-use lobes::{phong_texel, Node, SgLobe, Shape, NO_LOBE};
+use lobes::{microfacet_texel, phong_texel, MicrofacetCore, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -485,7 +487,7 @@ impl NdfMapped {
                         h,
                         eta,
                         sg::kappa_transfer(eta),
-                        |lb| vis(lb.src),
+                        |lb, _| vis(lb.src),
                     ),
                     0.0,
                     0.0,
@@ -503,15 +505,23 @@ impl NdfMapped {
                 [a, 0.0, 0.0]
             }
             Facet::Microfacet { distribution, .. } => {
+                let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
-                let mut a = 0.0;
-                for nd in nodes {
-                    let v = Facet::microfacet_scalar(&distribution, nd.n, wi, wo, h);
-                    if v > 0.0 {
-                        a += nd.w * v * vis(nd.src);
-                    }
-                }
-                [a, 0.0, 0.0]
+                [
+                    microfacet_texel(
+                        lobes,
+                        &l.shapes,
+                        nodes,
+                        &distribution,
+                        MicrofacetCore::of(&distribution).as_ref(),
+                        wi,
+                        wo,
+                        h,
+                        vis,
+                    ),
+                    0.0,
+                    0.0,
+                ]
             }
             Facet::General(_) => {
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
