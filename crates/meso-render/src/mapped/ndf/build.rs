@@ -325,6 +325,7 @@ fn node_level(
         node_start.push(0u32);
     }
     let mut src = Vec::new();
+    let mut roles = Vec::new();
     // The tile's lobes seen so far: the first lobe of the texel among them.
     let mut first = 0u32;
     for t in rows.flat_map(|r| cols.clone().map(move |c| r * l.cols + c)) {
@@ -337,13 +338,21 @@ fn node_level(
         // and its own projected area E[m_z⁺] per unit of weight.
         let share = &shares[first as usize..first as usize + src.len()];
         let mut any = false;
+        // How each lobe is shaded: with a microfacet core, a lobe in the closed form leaves
+        // only the rest of `D` to its nodes, or nothing when it is broad.
+        roles.clear();
         for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
             let e = peak_projected_area(p.axis.z, p.exponent);
+            let role = match core {
+                Some(c) if sh > 0.0 && e > 1e-12 => c.role(p.exponent),
+                _ => LobeRole::Whole,
+            };
+            roles.push(role);
             if sh <= 0.0 || e <= 1e-12 {
                 continue;
             }
             any = true;
-            if core.is_some_and(|c| c.role(p.exponent) == LobeRole::Whole) {
+            if role == LobeRole::Whole && core.is_some() {
                 // Shaded whole at its nodes (below).
                 continue;
             }
@@ -380,15 +389,9 @@ fn node_level(
                 if sh <= 0.0 {
                     continue;
                 }
-                // With a microfacet core, a lobe in the closed form (as above) leaves only
-                // the rest of `D` to its nodes, or nothing when it is broad; its share counts
-                // with or without nodes above the horizon.
-                let role = match core {
-                    Some(c) if peak_projected_area(p.axis.z, p.exponent) > 1e-12 => {
-                        c.role(p.exponent)
-                    }
-                    _ => LobeRole::Whole,
-                };
+                // A lobe in the core counts its share with or without nodes above the
+                // horizon.
+                let role = roles[j];
                 if role != LobeRole::Whole {
                     total_share += sh;
                 }

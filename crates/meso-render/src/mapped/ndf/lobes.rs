@@ -161,14 +161,10 @@ pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out:
 
 /// The Phong facets' response of one texel, `E[(m·h)^η (m·i)⁺]` over its projected area
 /// (`m_z`-weighted, normalised), in closed form from its lobes (see
-/// [`NdfMapped`](super::NdfMapped)). `lambda = η + 1` is the Gaussian of the transfer (same
-/// integral over the sphere: [`sg::kappa_transfer`]). The product of the lobe and the
-/// transfer's Gaussian is [`sg::product`] written out on the lobe's `κa`, with its
-/// `r − κ` kept apart for the shape corrections (no allocation, one `exp` per lobe). Each
-/// lobe's term is multiplied by `factor(lobe, m*)`, called only for lobes that reflect
-/// something with the unit axis `m*` of the product of the lobe and the transfer (where the
-/// product's mass lies): the lobe's visibility of the light (in `[0, 1]`; `1` without
-/// shadowing), and for [`microfacet_texel`]'s core the facets' visibility term there.
+/// [`NdfMapped`](super::NdfMapped)): the sum of [`phong_lobe`] over them, each multiplied by
+/// `vis(lobe)` (its visibility of the light, in `[0, 1]`; `1` without shadowing), which is
+/// called only for lobes that reflect something. `lambda = η + 1` is the Gaussian of the
+/// transfer (same integral over the sphere: [`sg::kappa_transfer`]).
 #[inline]
 pub(super) fn phong_texel(
     lobes: &[SgLobe],
@@ -177,50 +173,75 @@ pub(super) fn phong_texel(
     h: DVec3,
     eta: f64,
     lambda: f64,
-    factor: impl Fn(&SgLobe, DVec3) -> f64,
+    vis: impl Fn(&SgLobe) -> f64,
 ) -> f64 {
     let mut sum = 0.0;
     for lobe in lobes {
-        let l = &shapes[lobe.shape as usize];
-        let ka = lobe.axis * l.kappa;
-        let kah = ka.dot(h);
-        let r = (l.kappa * l.kappa + lambda * (2.0 * kah + lambda))
-            .max(1e-24)
-            .sqrt();
-        let inv_r = 1.0 / r;
-        // Axis of the product Gaussian (unnormalised: × r).
-        let m = ka + lambda * h;
-        let mh = (kah + lambda) * inv_r;
-        // Nothing to reflect when the product's axis faces away from the half vector or lies
-        // below the macro surface (it has no projected area there).
-        if mh <= 0.0 || m.z <= 0.0 {
-            continue;
-        }
-        // r − κ without cancellation.
-        let r_minus_k = lambda * (2.0 * kah + lambda) / (r + l.kappa);
-        // exp(r − κ − λ) × (the Phong transfer / its Gaussian) × (the Phong peak / its
-        // Gaussian)^β, both ratios taken at the product's axis m*: a sharp lobe gives exactly
-        // (a·h)^η, a lobe much broader than the transfer its exact density at h. In between
-        // the peak's ratio varies over the product's spread; β = (λ/(λ + κ))² (calibrated
-        // against a quadrature, see the tests) keeps the error under 1% of the peak.
-        let am = (l.kappa + lambda * lobe.axis.dot(h)) * inv_r;
-        let am_minus_1 = -(r_minus_k - lambda * lobe.axis.dot(h)) * inv_r;
-        let beta = lambda / (lambda + l.kappa);
-        let beta = beta * beta;
-        let e = (r_minus_k - lambda * mh
-            + eta * mh.ln()
-            + beta
-                * (l.half_eta * (0.5 * (1.0 + am)).max(1e-300).ln() - l.kappa * am_minus_1
-                    + l.ln_ratio))
-            .exp();
-        // (1 − e^{−2r}) / r, and E[(m·i)(m·z)] = (A/r) i_z + (1 − 3A/r)(m*·i)(m*·z).
-        let (mass, a_r) = (sg::integral_per_2pi(r), sg::mean_cos(r) * inv_r);
-        let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
-        if q > 0.0 {
-            sum += lobe.w * mass * q * e * factor(lobe, m * inv_r);
+        if let Some((v, _)) = phong_lobe(lobe, shapes, wi, h, eta, lambda, f64::INFINITY) {
+            sum += v * vis(lobe);
         }
     }
     sum
+}
+
+/// One lobe's term of [`phong_texel`], with the unit axis `m*` of the product of the lobe and
+/// the transfer (where the product's mass lies), or `None` when it reflects nothing. The
+/// product of the lobe and the transfer's Gaussian is [`sg::product`] written out on the
+/// lobe's `κa`, with its `r − κ` kept apart for the shape corrections (no allocation, one
+/// `exp`). A lobe whose product has at most `e^{−cutoff}` of its mass's bound is skipped
+/// (`f64::INFINITY`: none).
+#[inline]
+pub(super) fn phong_lobe(
+    lobe: &SgLobe,
+    shapes: &[Shape],
+    wi: DVec3,
+    h: DVec3,
+    eta: f64,
+    lambda: f64,
+    cutoff: f64,
+) -> Option<(f64, DVec3)> {
+    let l = &shapes[lobe.shape as usize];
+    let ka = lobe.axis * l.kappa;
+    let kah = ka.dot(h);
+    // `exp(r − κ − λ) ≤ exp(−κλ(1 − a·h)/(κ + λ))` bounds the product's mass: past the cutoff
+    // the lobe gives nothing (a lobe far from the half vector for its width and the
+    // transfer's).
+    if l.kappa * lambda * (1.0 - lobe.axis.dot(h)) > cutoff * (l.kappa + lambda) {
+        return None;
+    }
+    let r = (l.kappa * l.kappa + lambda * (2.0 * kah + lambda))
+        .max(1e-24)
+        .sqrt();
+    let inv_r = 1.0 / r;
+    // Axis of the product Gaussian (unnormalised: × r).
+    let m = ka + lambda * h;
+    let mh = (kah + lambda) * inv_r;
+    // Nothing to reflect when the product's axis faces away from the half vector or lies
+    // below the macro surface (it has no projected area there).
+    if mh <= 0.0 || m.z <= 0.0 {
+        return None;
+    }
+    // r − κ without cancellation.
+    let r_minus_k = lambda * (2.0 * kah + lambda) / (r + l.kappa);
+    // exp(r − κ − λ) × (the Phong transfer / its Gaussian) × (the Phong peak / its
+    // Gaussian)^β, both ratios taken at the product's axis m*: a sharp lobe gives exactly
+    // (a·h)^η, a lobe much broader than the transfer its exact density at h. In between
+    // the peak's ratio varies over the product's spread; β = (λ/(λ + κ))² (calibrated
+    // against a quadrature, see the tests) keeps the error under 1% of the peak.
+    let am = (l.kappa + lambda * lobe.axis.dot(h)) * inv_r;
+    let am_minus_1 = -(r_minus_k - lambda * lobe.axis.dot(h)) * inv_r;
+    let beta = lambda / (lambda + l.kappa);
+    let beta = beta * beta;
+    let e = (r_minus_k - lambda * mh
+        + eta * mh.ln()
+        + beta
+            * (l.half_eta * (0.5 * (1.0 + am)).max(1e-300).ln() - l.kappa * am_minus_1
+                + l.ln_ratio))
+        .exp();
+    // (1 − e^{−2r}) / r, and E[(m·i)(m·z)] = (A/r) i_z + (1 − 3A/r)(m*·i)(m*·z).
+    let (mass, a_r) = (sg::integral_per_2pi(r), sg::mean_cos(r) * inv_r);
+    let q = a_r * wi.z + (1.0 - 3.0 * a_r) * m.dot(wi) * m.z * inv_r * inv_r;
+    (q > 0.0).then(|| (lobe.w * mass * q * e, m * inv_r))
 }
 
 /// The core of an isotropic microfacet distribution `D`: a sum of Blinn–Phong peaks `c_k (η_k +
@@ -247,7 +268,13 @@ pub(super) struct MicrofacetCore {
     sharp_eta: f64,
     /// The Phong exponent up to which a lobe is [`LobeRole::Core`].
     broad_eta: f64,
+    /// The cosine below which every peak is under `e^{−CORE_CUTOFF}` of its maximum.
+    min_cos: f64,
 }
+
+/// The core's lobes and peaks are skipped where their bound is below `e^{−CORE_CUTOFF}` of
+/// their maximum ([`phong_lobe`]'s `cutoff`, [`MicrofacetCore`]'s `D_core`).
+pub(super) const CORE_CUTOFF: f64 = 40.0;
 
 /// How a lobe is shaded under a facet with a [`MicrofacetCore`] ([`MicrofacetCore::role`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -293,6 +320,7 @@ impl MicrofacetCore {
             Distribution::StudentT { .. } => return None,
         };
         let mut terms = [(0.0, 0.0, 0.0); 3];
+        let mut min_eta = f64::INFINITY;
         for (term, &(t, c)) in terms.iter_mut().zip(peaks) {
             let eta = 2.0 * t / a2 - 2.0;
             if eta < MICROFACET_CORE_MIN_ETA {
@@ -303,12 +331,15 @@ impl MicrofacetCore {
                 sg::kappa_transfer(eta),
                 c * (eta + 2.0) / std::f64::consts::TAU,
             );
+            min_eta = min_eta.min(eta);
         }
         Some(MicrofacetCore {
             terms,
             len: peaks.len(),
             sharp_eta: SHARP_LOBE / a2,
             broad_eta: BROAD_LOBE / a2,
+            // cos^η ≤ e^{−CORE_CUTOFF} for cos ≤ e^{−CORE_CUTOFF/η}.
+            min_cos: (-CORE_CUTOFF / min_eta).exp(),
         })
     }
     /// How a lobe of Phong exponent `eta_n` (width `√(8/η_n)`) is shaded under this facet:
@@ -330,10 +361,11 @@ impl MicrofacetCore {
             LobeRole::CoreAndRest
         }
     }
-    /// `D_core` at the cosine `cos_h` of the normal with the half vector (1/sr).
+    /// `D_core` at the cosine `cos_h` of the normal with the half vector (1/sr); 0 where
+    /// even its broadest peak is below `e^{−CORE_CUTOFF}` of its maximum.
     #[inline]
     fn d(&self, cos_h: f64) -> f64 {
-        if cos_h <= 0.0 {
+        if cos_h <= self.min_cos {
             return 0.0;
         }
         let ln = cos_h.ln();
@@ -368,17 +400,22 @@ pub(super) fn microfacet_texel(
 ) -> f64 {
     let mut a = 0.0;
     if let Some(core) = core {
-        for &(eta, lambda, norm) in &core.terms[..core.len] {
-            a += phong_texel(lobes, shapes, wi, h, eta, lambda, |lb, m| {
-                let v = d.vis_isotropic(m.dot(wi), m.dot(wo));
-                if v > 0.0 {
-                    norm * v * vis(lb.src)
-                } else {
-                    0.0
+        for lobe in lobes {
+            // Its visibility of the light, once for the core's peaks.
+            let mut lobe_vis = None;
+            for &(eta, lambda, norm) in &core.terms[..core.len] {
+                let Some((v, m)) = phong_lobe(lobe, shapes, wi, h, eta, lambda, CORE_CUTOFF) else {
+                    continue;
+                };
+                let g = d.vis_isotropic(m.dot(wi), m.dot(wo));
+                if g > 0.0 {
+                    a += v * norm * g * *lobe_vis.get_or_insert_with(|| vis(lobe.src));
                 }
-            });
+            }
         }
     }
+    // The nodes of a lobe are consecutive: its visibility once for them.
+    let mut last: Option<(u32, f64)> = None;
     for nd in nodes {
         let (ci, co) = (nd.n.dot(wi), nd.n.dot(wo));
         let v = d.vis_isotropic(ci, co);
@@ -388,7 +425,15 @@ pub(super) fn microfacet_texel(
                 Some(core) if !nd.whole => d.d_isotropic(ch) - core.d(ch),
                 _ => d.d_isotropic(ch),
             };
-            a += nd.w * dd * v * ci * vis(nd.src);
+            let nv = match last {
+                Some((src, nv)) if src == nd.src => nv,
+                _ => {
+                    let nv = vis(nd.src);
+                    last = Some((nd.src, nv));
+                    nv
+                }
+            };
+            a += nd.w * dd * v * ci * nv;
         }
     }
     a.max(0.0)
@@ -426,7 +471,7 @@ mod tests {
             h,
             eta,
             sg::kappa_transfer(eta),
-            |_, _| 1.0,
+            |_| 1.0,
         )
     }
 

@@ -487,7 +487,7 @@ impl NdfMapped {
                         h,
                         eta,
                         sg::kappa_transfer(eta),
-                        |lb, _| vis(lb.src),
+                        |lb| vis(lb.src),
                     ),
                     0.0,
                     0.0,
