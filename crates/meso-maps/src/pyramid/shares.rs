@@ -27,32 +27,48 @@ use meso_core::sg;
 /// `η/(η + 4) · a_z` (which counts that part negatively) when the lobe lies above the horizon
 /// to within 12 of its standard deviations `2/√η`; otherwise a quadrature over the angle α
 /// from the axis with the azimuth integrated in closed form,
-/// `∫₀^{2π} max(0, c + s cos φ) dφ = 2(c·acos(−c/s) + √(s² − c²))` for `|c| < s`.
+/// `∫₀^{2π} max(0, c + s cos φ) dφ = 2(c·acos(−c/s) + √(s² − c²))` for `|c| < s`:
+/// Gauss–Legendre of 16 nodes (`PROJECTED_AREA_NODES`) on each piece of `[0, 12 deviations]`
+/// between the kinks `α = |π/2 − θ_a|` and `π − |π/2 − θ_a|` of that integral (where the
+/// horizon starts and stops cutting the ring).
 #[must_use]
 pub fn peak_projected_area(a_z: f64, eta: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    static GL: std::sync::OnceLock<(Vec<f64>, Vec<f64>)> = std::sync::OnceLock::new();
     let a_z = a_z.clamp(-1.0, 1.0);
     let reach = 24.0 / eta.max(1e-9).sqrt();
-    if a_z.acos() + reach < std::f64::consts::FRAC_PI_2 {
+    let theta = a_z.acos();
+    if theta + reach < FRAC_PI_2 {
         return sg::phong_peak_mean_cos(eta) * a_z;
     }
+    let (xs, ws) = GL.get_or_init(|| meso_core::quadrature::gauss_legendre(PROJECTED_AREA_NODES));
     let s_a = (1.0 - a_z * a_z).max(0.0).sqrt();
-    let amax = reach.min(std::f64::consts::PI);
-    const N: usize = 512;
+    let amax = reach.min(PI);
+    // |c| = s where tan α = ±a_z/s_a: α = |π/2 − θ| and π − |π/2 − θ|.
+    let k1 = (FRAC_PI_2 - theta).abs();
+    let cuts = [0.0, k1.min(amax), (PI - k1).min(amax), amax];
     let (mut num, mut den) = (0.0, 0.0);
-    for k in 0..N {
-        let a = (k as f64 + 0.5) / N as f64 * amax;
-        let (sa, ca) = a.sin_cos();
-        let d = (0.5 * (1.0 + ca)).powf(0.5 * eta) * sa;
-        let (c, s) = (a_z * ca, s_a * sa);
-        let g = if c >= s {
-            std::f64::consts::TAU * c
-        } else if c <= -s {
-            0.0
-        } else {
-            2.0 * (c * (-c / s).acos() + (s * s - c * c).sqrt())
-        };
-        num += d * g;
-        den += d * std::f64::consts::TAU;
+    for piece in cuts.windows(2) {
+        let (lo, hi) = (piece[0], piece[1]);
+        if hi <= lo {
+            continue;
+        }
+        let (half, mid) = (0.5 * (hi - lo), 0.5 * (hi + lo));
+        for (x, w) in xs.iter().zip(ws) {
+            let a = mid + half * x;
+            let (sa, ca) = a.sin_cos();
+            let d = w * half * (0.5 * (1.0 + ca)).powf(0.5 * eta) * sa;
+            let (c, s) = (a_z * ca, s_a * sa);
+            let g = if c >= s {
+                TAU * c
+            } else if c <= -s {
+                0.0
+            } else {
+                2.0 * (c * (-c / s).acos() + (s * s - c * c).sqrt())
+            };
+            num += d * g;
+            den += d * TAU;
+        }
     }
     if den > 0.0 {
         num / den
@@ -60,6 +76,9 @@ pub fn peak_projected_area(a_z: f64, eta: f64) -> f64 {
         a_z.max(0.0)
     }
 }
+
+/// Gauss–Legendre nodes per piece of [`peak_projected_area`]'s quadrature.
+const PROJECTED_AREA_NODES: usize = 16;
 
 /// Per level of a pyramid, what each lobe stands for (module docs): [`lobe_stats`].
 #[derive(Clone, Debug, PartialEq)]
@@ -479,6 +498,49 @@ mod tests {
     use super::*;
     use crate::fixtures;
     use crate::pyramid::{extract, ExtractParams, Source};
+
+    /// [`peak_projected_area`]'s pieces of Gauss–Legendre agree with a 20 000-point midpoint
+    /// rule of the same integral over the peak's reach, from axes pointing down to up and from
+    /// broad (η = 4) to sharp (η = 4·10⁶) peaks: within 10⁻³ of the value (or of 10⁻³ where it
+    /// is smaller). Measured: 2.0·10⁻⁴ (16 nodes a piece; 6·10⁻⁶ with 32). Without the cuts
+    /// at the kinks (one piece) the same rule is up to 0.14 off.
+    #[test]
+    fn projected_area_pieces_match_a_fine_midpoint_rule() {
+        let reference = |a_z: f64, eta: f64| {
+            let reach = (24.0 / eta.sqrt()).min(std::f64::consts::PI);
+            let s_a = (1.0 - a_z * a_z).max(0.0).sqrt();
+            let n = 20_000;
+            let (mut num, mut den) = (0.0, 0.0);
+            for k in 0..n {
+                let a = (k as f64 + 0.5) / n as f64 * reach;
+                let d = (0.5 * (1.0 + a.cos())).powf(0.5 * eta) * a.sin();
+                let (c, s) = (a_z * a.cos(), s_a * a.sin());
+                let g = if c >= s {
+                    c
+                } else if c <= -s {
+                    0.0
+                } else {
+                    (c * (-c / s).acos() + (s * s - c * c).sqrt()) / std::f64::consts::PI
+                };
+                num += d * g;
+                den += d;
+            }
+            num / den
+        };
+        let mut worst = 0.0f64;
+        for i in 0..=40 {
+            let a_z = -1.0 + i as f64 / 20.0;
+            for j in 0..=12 {
+                let eta = 4.0 * 10f64.powf(j as f64 / 2.0);
+                if a_z.acos() + 24.0 / eta.sqrt() < std::f64::consts::FRAC_PI_2 {
+                    continue; // the closed form above the horizon
+                }
+                let (want, got) = (reference(a_z, eta), peak_projected_area(a_z, eta));
+                worst = worst.max((got - want).abs() / want.abs().max(1e-3));
+            }
+        }
+        assert!(worst < 1e-3, "worst {worst}");
+    }
 
     /// On touching half-cylinders the flattest lobe of a coarse texel stands for the tops
     /// (low horizons along +x) and the one tilted towards +x for the creases (high horizons);
