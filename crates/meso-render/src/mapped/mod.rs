@@ -164,6 +164,9 @@ enum Facet {
     Microfacet {
         distribution: meso_core::ndf::Microfacet,
         fresnel: meso_core::transfer::Fresnel,
+        /// `D`'s core (`MicrofacetCore::of`, once per material: the tables are built for it
+        /// and the shading reads it), `None` for facets too broad to need one.
+        core: Option<ndf::MicrofacetCore>,
     },
     General(Transfer),
 }
@@ -188,6 +191,7 @@ impl Facet {
             } if distribution.is_isotropic() => Facet::Microfacet {
                 distribution,
                 fresnel,
+                core: ndf::MicrofacetCore::of(&distribution),
             },
             other => Facet::General(other),
         }
@@ -240,6 +244,7 @@ impl Facet {
             Facet::Microfacet {
                 distribution,
                 fresnel,
+                ..
             } => {
                 let c = Self::microfacet_scalar(&distribution, m, i, o, h);
                 let f = fresnel.eval(i.dot(h));

@@ -11,7 +11,7 @@
 //! * Each texel's node weights sum to 1.
 
 use super::filter::default_box_detail;
-use super::lobes::{lobe_nodes, LobeRole, MicrofacetCore, Node, SgLobe, Shapes, NO_LOBE};
+use super::lobes::{lobe_nodes, LobeRole, Node, SgLobe, Shapes, NO_LOBE};
 use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
@@ -310,7 +310,7 @@ fn node_level(
     let general = facet.needs_nodes();
     // Isotropic microfacet facets: broad lobes convolved with the facet's core in closed form.
     let core = match facet {
-        Facet::Microfacet { distribution, .. } => MicrofacetCore::of(distribution),
+        Facet::Microfacet { core, .. } => *core,
         _ => None,
     };
     let (ncols, nrows) = (cols.len(), rows.len());
@@ -392,14 +392,11 @@ fn node_level(
                 // A lobe in the core counts its share with or without nodes above the
                 // horizon.
                 let role = roles[j];
-                if role != LobeRole::Whole {
+                if role != LobeRole::Whole || total > 0.0 {
                     total_share += sh;
                 }
                 if role == LobeRole::Core || total <= 0.0 {
                     continue;
-                }
-                if role == LobeRole::Whole {
-                    total_share += sh;
                 }
                 nodes.extend(tmp.iter().filter(|n| n.w > 0.0).map(|n| Node {
                     w: n.w / total * sh,

@@ -258,7 +258,7 @@ pub(super) fn phong_lobe(
 ///   at the nodes is small and of zero mass.
 /// * Student-t distributions have no core (their nodes as before).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct MicrofacetCore {
+pub(in crate::mapped) struct MicrofacetCore {
     /// `(η_k, λ_k, c_k (η_k + 2)/(2π))` of each peak: its exponent, its transfer's Gaussian
     /// ([`sg::kappa_transfer`]) and its normalisation times its weight (1/sr).
     terms: [(f64, f64, f64); 3],
@@ -311,7 +311,7 @@ pub(super) const MICROFACET_CORE_MIN_ETA: f64 = 2.0;
 impl MicrofacetCore {
     /// The core of `d` (isotropic), or `None` for a facet too broad to need one
     /// ([`MICROFACET_CORE_MIN_ETA`]) or a Student-t one.
-    pub(super) fn of(d: &meso_core::ndf::Microfacet) -> Option<MicrofacetCore> {
+    pub(in crate::mapped) fn of(d: &meso_core::ndf::Microfacet) -> Option<MicrofacetCore> {
         use meso_core::ndf::Distribution;
         let a2 = d.alpha_x * d.alpha_y;
         let peaks: &[(f64, f64)] = match d.distribution {

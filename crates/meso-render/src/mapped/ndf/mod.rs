@@ -39,7 +39,8 @@ use filter::Tap;
 pub use filter::{
     default_box_detail, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
 };
-use lobes::{microfacet_texel, phong_texel, MicrofacetCore, Node, SgLobe, Shape, NO_LOBE};
+pub(super) use lobes::MicrofacetCore;
+use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -504,7 +505,9 @@ impl NdfMapped {
                 }
                 [a, 0.0, 0.0]
             }
-            Facet::Microfacet { distribution, .. } => {
+            Facet::Microfacet {
+                distribution, core, ..
+            } => {
                 let lobes = &l.lobes[l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize];
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
                 [
@@ -513,7 +516,7 @@ impl NdfMapped {
                         &l.shapes,
                         nodes,
                         &distribution,
-                        MicrofacetCore::of(&distribution).as_ref(),
+                        core.as_ref(),
                         wi,
                         wo,
                         h,
