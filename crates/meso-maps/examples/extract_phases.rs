@@ -4,8 +4,11 @@
 //!
 //! ```text
 //! cargo build --release -p meso-maps --example extract_phases
-//! ./target/release/examples/extract_phases [N]
+//! ./target/release/examples/extract_phases [N] [none|plain|all]
 //! ```
+//!
+//! The second argument sets `FitParams::merge_levels` (default: its default, plain).
+use meso_maps::fit::MergeLevels;
 use meso_maps::{extract, fixtures, ExtractParams, Source};
 use std::hash::{Hash, Hasher};
 use std::time::Instant;
@@ -22,7 +25,14 @@ fn main() {
     let t0 = Instant::now();
     let mut last = Instant::now();
     let mut calls = 0usize;
-    let pyr = extract(Source::Heights(&map), &ExtractParams::default(), &mut |p| {
+    let mut params = ExtractParams::default();
+    params.fit.merge_levels = match std::env::args().nth(2).as_deref() {
+        None | Some("plain") => MergeLevels::Plain,
+        Some("none") => MergeLevels::None,
+        Some("all") => MergeLevels::All,
+        Some(o) => panic!("{o}: none, plain or all"),
+    };
+    let pyr = extract(Source::Heights(&map), &params, &mut |p| {
         let dt = last.elapsed().as_secs_f64();
         last = Instant::now();
         let (peak, rss) = mem();

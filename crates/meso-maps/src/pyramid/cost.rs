@@ -15,6 +15,11 @@ const FIT_WORK_SMOOTH: u64 = 22;
 /// … on such a level fitted from its children's lobes (`FitParams::smooth_from_children`: no
 /// EM and no greedy start; level 5 of the 1024² Gaussian took ≈ 0.6× the time, 2026-12-04).
 const FIT_WORK_SMOOTH_CHILDREN: u64 = 12;
+/// Estimated cost units of a texel of a level fitted by merging its children's lobes
+/// (`FitParams::merge_levels`; no EM points): ≈ 1.6 µs of one core a texel on level 1 (its
+/// cells' facets merged), ≈ 2.7 µs on level 2 (16 children's lobes) of the 1024² Gaussian map
+/// (2026-12-06).
+const MERGE_WORK: u64 = 3;
 /// … on a level fitted thoroughly (`FitParams::thorough_texels`).
 const FIT_WORK_THOROUGH: u64 = 45;
 
@@ -60,7 +65,11 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 /// 19.9 MB (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap peak and
 /// stay within 3× of it); peak RSS 123 / 288 / 1 032 MB at 1024² / 2048² / 4096² (the
 /// generated map's 8 bytes a sample included) against 136 / 423 / 1 450 MB estimated without it.
-pub const STREAM_BYTES_PER_CELL: u64 = 32;
+/// 38 since 2026-12-06: a level merged from its children's lobes (`FitParams::merge_levels`)
+/// above level 2 reads level 2's lobes, kept in `f32` beside the stream
+/// (`level_fit::ChildLobes`: 20 bytes a lobe, 12 a texel, 4 lobes at most: ≤ 5.75 bytes a
+/// cell; level 2 fits level 1's lobes again instead of keeping them).
+pub const STREAM_BYTES_PER_CELL: u64 = 38;
 /// Peak memory of the streamed extraction per texel of a row batch of level 0
 /// ([`crate::format::BAND_ROWS`] rows, the widest batch): the batch's fitted rows, the band in
 /// the level's precision, its streams' columns, byte planes and deflated bytes, and the band
@@ -137,7 +146,14 @@ pub fn extract_work(
         } else {
             (k as u64) * (entries / 4)
         };
-        let fit = t * (1 + merges + per_point * points);
+        let refined = params.fit.smooth_exponent > 0.0 && texels <= params.fit.smooth_texels;
+        let fit = if params.method == super::Method::Lobes
+            && super::level_fit::merges(&params.fit, k, refined)
+        {
+            t * (MERGE_WORK + if k == 1 { merges } else { 0 })
+        } else {
+            t * (1 + merges + per_point * points)
+        };
         // The residual's histogram comes from the texel's entries.
         let residual = t.min(params.residual_texels.max(1) as u64) * entries / 4;
         out.push(fit + residual);

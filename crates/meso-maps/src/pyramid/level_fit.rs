@@ -14,10 +14,11 @@
 //! ([`facet_bins`], 2 bytes a facet) and read by every level's merges.
 
 use super::{footprint_bounds, ExtractParams, Level, Method};
-use crate::compact::Horizons;
+use crate::compact::{Horizons, Lobe32, Lobes};
 use crate::facets::FacetSource;
 use crate::fit::{
-    entries_l2_error, fit_lobes_seeded, merge_entries, merge_sorted_entries, Entry, ENTRY_GRID_RES,
+    entries_l2_error, fit_lobes_seeded, merge_entries, merge_sorted_entries, Entry, FitParams,
+    MergeLevels, ENTRY_GRID_RES,
 };
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
@@ -35,18 +36,24 @@ pub(super) struct RowOut {
     pub(super) weight: Vec<f64>,
 }
 
-/// The lobes of a level kept for the next level's fits ([`fit_lobes_seeded`]'s children), with
-/// each texel's total facet weight: only for levels whose parents get the smoothed refinement
-/// (≤ 4 × `smooth_texels` texels, a few hundred KB).
+/// What the next level reads of a level's lobes when it fits from its children's lobes
+/// (merged, [`merges`], or as the smoothed refinement's start, [`fit_lobes_seeded`]): each
+/// texel's total facet weight (8 bytes a texel) and, when the level is not kept in memory (the
+/// streamed extraction), its lobes in `f32` ([`Lobe32`]: 20 bytes a lobe). In memory the next
+/// level reads the lobes from the level itself, rounded to `f32` the same way, so that both
+/// extractions give the same pyramid.
 #[derive(Default)]
 pub(super) struct ChildLobes {
     /// Texels along x.
     pub(super) cols: usize,
     /// Texels along y.
     pub(super) rows: usize,
+    /// Whether the lobes are kept here (`start`, `lobes`) rather than read from the level.
+    pub(super) keep_lobes: bool,
     /// `start[t]..start[t + 1]` indexes `lobes` for texel `t`.
     pub(super) start: Vec<u32>,
-    pub(super) lobes: Vec<PhongLobe>,
+    /// Each lobe in `f32`.
+    pub(super) lobes: Vec<Lobe32>,
     /// Each texel's total facet weight.
     pub(super) weight: Vec<f64>,
 }
@@ -54,23 +61,34 @@ pub(super) struct ChildLobes {
 impl ChildLobes {
     /// Append a batch of rows (in order).
     pub(super) fn extend(&mut self, rows: &[RowOut]) {
-        if self.start.is_empty() {
-            self.start.push(0);
-        }
         for row in rows {
+            self.weight.extend_from_slice(&row.weight);
+            if !self.keep_lobes {
+                continue;
+            }
+            if self.start.is_empty() {
+                self.start.push(0);
+            }
             let mut at = *self.start.last().unwrap_or(&0);
             for &n in &row.lcount {
                 at += n;
                 self.start.push(at);
             }
-            self.lobes.extend_from_slice(&row.lobes);
-            self.weight.extend_from_slice(&row.weight);
+            self.lobes.extend(row.lobes.iter().map(Lobe32::from_phong));
         }
     }
 
     /// The lobes of the (up to four) children of texel `(r, c)` of the next level into `out`
-    /// (cleared first), each weight times its child's share of their total weight.
-    fn children_of(&self, r: usize, c: usize, out: &mut Vec<PhongLobe>) {
+    /// (cleared first), each weight times its child's share of their total weight, each lobe
+    /// rounded to `f32` ([`Lobe32`]); read from here or, when not kept, from `level` (the
+    /// level these are the weights of). Returns the children's total weight.
+    fn children_of(
+        &self,
+        level: Option<&Level>,
+        r: usize,
+        c: usize,
+        out: &mut Vec<PhongLobe>,
+    ) -> f64 {
         out.clear();
         let mut total = 0.0;
         for cr in 2 * r..(2 * r + 2).min(self.rows) {
@@ -79,19 +97,36 @@ impl ChildLobes {
             }
         }
         if total <= 0.0 {
-            return;
+            return 0.0;
         }
         for cr in 2 * r..(2 * r + 2).min(self.rows) {
             for cc in 2 * c..(2 * c + 2).min(self.cols) {
                 let t = cr * self.cols + cc;
                 let share = self.weight[t] / total;
-                let (a, b) = (self.start[t] as usize, self.start[t + 1] as usize);
-                out.extend(self.lobes[a..b].iter().map(|l| PhongLobe {
+                let scaled = |l: PhongLobe| PhongLobe {
                     weight: l.weight * share,
-                    ..*l
-                }));
+                    ..l
+                };
+                match level {
+                    Some(lv) if !self.keep_lobes => {
+                        let (a, b) = (lv.lobe_start[t] as usize, lv.lobe_start[t + 1] as usize);
+                        let f32_level = matches!(lv.lobes, Lobes::F32(_));
+                        out.extend(lv.lobes.range(a, b).map(|l| {
+                            scaled(if f32_level {
+                                l
+                            } else {
+                                Lobe32::from_phong(&l).to_phong()
+                            })
+                        }));
+                    }
+                    _ => {
+                        let (a, b) = (self.start[t] as usize, self.start[t + 1] as usize);
+                        out.extend(self.lobes[a..b].iter().map(|l| scaled(l.to_phong())));
+                    }
+                }
             }
         }
+        total
     }
 }
 
@@ -119,6 +154,17 @@ impl PrevHorizon<'_> {
             PrevHorizon::Level(h) => Some(h.get(r * cols + c)),
         }
     }
+}
+
+/// Whether level `k` (its texels getting the smoothed refinement or not: `refined`) is fitted
+/// by merging its children's lobes ([`FitParams::merge_levels`]): never level 0.
+pub(super) fn merges(fit: &FitParams, k: usize, refined: bool) -> bool {
+    k >= 1
+        && match fit.merge_levels {
+            MergeLevels::None => false,
+            MergeLevels::Plain => !refined,
+            MergeLevels::All => true,
+        }
 }
 
 /// What fitting a level reads: the facets (levels 0 and 1) or the previous level's merged
@@ -229,6 +275,11 @@ impl LevelFit<'_> {
         buf.depth.resize_with(self.k + 1, Default::default);
         let mut scratch = Vec::new();
         let mut lobes = Vec::new();
+        let refined = self.params.fit.smooth_exponent > 0.0 && self.smooth;
+        if self.params.method == Method::Lobes && merges(&self.params.fit, self.k, refined) {
+            self.merged_row(r, &mut out, &mut buf, &mut kids, &mut lobes);
+            return out;
+        }
         for c in 0..cols {
             self.texel_entries(self.k, r, c, &mut buf.depth, &mut buf.merged);
             match self.prev {
@@ -240,8 +291,13 @@ impl LevelFit<'_> {
                 Some(prev) => self.merge_child_horizons(prev, r, c, &mut out.horizon),
             }
             out.weight.push(buf.merged.iter().map(|e| e.w).sum());
-            let children = self.children.map(|ch| {
-                ch.children_of(r, c, &mut kids);
+            // The children's lobes start the smoothed refinement only when asked to
+            // (`FitParams::smooth_from_children`); they may be kept for the next level's merges.
+            let children = self
+                .children
+                .filter(|_| self.params.fit.smooth_from_children);
+            let children = children.map(|ch| {
+                ch.children_of(self.prev, r, c, &mut kids);
                 &kids[..]
             });
             self.fit_texel(&buf.merged, children, &mut scratch, &mut lobes);
@@ -259,6 +315,99 @@ impl LevelFit<'_> {
             out.lcount.push(lobes.len() as u32);
         }
         out
+    }
+
+    /// Row `r` of a level that [`merges`] its children: each texel's lobes its children's
+    /// merged ([`crate::fit::merge_lobes`]); level 1's children are its cells' facets (each
+    /// merged bin its own lobe, [`crate::fit::entry_lobes`]), the levels above read the
+    /// previous level's lobes ([`ChildLobes`]). The texel's facet weight is its children's
+    /// sum; its entries are computed only where the residual is measured.
+    fn merged_row(
+        &self,
+        r: usize,
+        out: &mut RowOut,
+        buf: &mut Scratch,
+        kids: &mut Vec<PhongLobe>,
+        lobes: &mut Vec<PhongLobe>,
+    ) {
+        let kmax = self.params.fit.max_lobes;
+        let lambda = self.params.fit.shading_exponent();
+        let mut child = Vec::new();
+        for c in 0..self.cols {
+            let sampled = (r * self.cols + c).is_multiple_of(self.residual_stride);
+            let weight = match (self.k, self.children) {
+                (1, _) => {
+                    self.texel_entries(1, r, c, &mut buf.depth, &mut buf.merged);
+                    let w: f64 = buf.merged.iter().map(|e| e.w).sum();
+                    if w > 0.0 {
+                        *kids = crate::fit::entry_lobes(&buf.merged, w);
+                    } else {
+                        kids.clear();
+                    }
+                    w
+                }
+                (_, Some(ch)) => {
+                    if sampled {
+                        self.texel_entries(self.k, r, c, &mut buf.depth, &mut buf.merged);
+                    }
+                    ch.children_of(self.prev, r, c, kids)
+                }
+                (_, None) => {
+                    // Level 2 of the streamed extraction: its children's (level 1's) lobes
+                    // fitted again from their facets as level 1 fitted them, rounded to `f32`
+                    // as the in-memory extraction reads them.
+                    debug_assert_eq!(self.k, 2, "only level 2 fits its children again");
+                    let mut ws = [0.0; 4];
+                    let mut fits: [Vec<PhongLobe>; 4] = Default::default();
+                    let mut n = 0;
+                    let below = |m: usize| m.div_ceil(2);
+                    let (rows1, cols1) = (below(self.facets.rows()), below(self.facets.cols()));
+                    for cr in 2 * r..(2 * r + 2).min(rows1) {
+                        for cc in 2 * c..(2 * c + 2).min(cols1) {
+                            self.texel_entries(1, cr, cc, &mut buf.depth, &mut buf.merged);
+                            ws[n] = buf.merged.iter().map(|e| e.w).sum();
+                            if ws[n] > 0.0 {
+                                let e = crate::fit::entry_lobes(&buf.merged, ws[n]);
+                                crate::fit::merge_lobes(&e, kmax, lambda, &mut child);
+                                fits[n].clone_from(&child);
+                            }
+                            n += 1;
+                        }
+                    }
+                    let total: f64 = ws[..n].iter().sum();
+                    kids.clear();
+                    if total > 0.0 {
+                        for (f, w) in fits[..n].iter().zip(&ws) {
+                            kids.extend(f.iter().map(|l| PhongLobe {
+                                weight: Lobe32::from_phong(l).to_phong().weight * (w / total),
+                                ..Lobe32::from_phong(l).to_phong()
+                            }));
+                        }
+                    }
+                    if sampled {
+                        self.texel_entries(self.k, r, c, &mut buf.depth, &mut buf.merged);
+                    }
+                    total
+                }
+            };
+            if let Some(prev) = self.prev {
+                self.merge_child_horizons(prev, r, c, &mut out.horizon);
+            }
+            out.weight.push(weight);
+            crate::fit::merge_lobes(kids, kmax, lambda, lobes);
+            if sampled {
+                out.residual.push((
+                    Self::residual(&buf.merged, lobes),
+                    crate::fit::shading_error(
+                        &buf.merged,
+                        lobes,
+                        self.params.fit.shading_exponent(),
+                    ),
+                ));
+            }
+            out.lobes.extend_from_slice(lobes);
+            out.lcount.push(lobes.len() as u32);
+        }
     }
 
     /// The relative NDF L2 error of a texel's lobes against its footprint's facets, from the
