@@ -664,3 +664,68 @@ fn extract_k_chain_reaches_the_chain() {
     );
     ok(&run(&["map", "info", s(&chain)]));
 }
+
+/// `--merge-levels` reaches the extraction: on a 128² gravel map (level 1, 64² texels, the only
+/// level big enough to be merged by default; level 2, 32² = 1024 texels, the first smoothed
+/// one) the default (`plain`) and `none` store the same level 0 and levels 2 and up and differ
+/// on level 1; `all` differs from the default from level 2 up; each file reads back with every
+/// lobe's weights summing to 1. A bad value is refused by name.
+#[test]
+fn extract_merge_levels_reaches_the_fit() {
+    let d = tmpdir("maps-cli", "merge-levels");
+    let png = d.join("gravel.png");
+    gravel_png(&png, 128, 7);
+    let extract_to = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "extract",
+            s(&png),
+            "--texel-size",
+            "0.01",
+            "--height-scale",
+            "0.1",
+            "--out",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        ok(&o);
+        meso_maps::Pyramid::read(out).unwrap()
+    };
+    let plain = extract_to(&[], &d.join("plain.map"));
+    let none = extract_to(&["--merge-levels", "none"], &d.join("none.map"));
+    let all = extract_to(&["--merge-levels", "all"], &d.join("all.map"));
+    let same = |a: &meso_maps::Pyramid, b: &meso_maps::Pyramid, k: usize| {
+        a.levels[k].lobe_start == b.levels[k].lobe_start && a.levels[k].lobes == b.levels[k].lobes
+    };
+    assert!(same(&plain, &none, 0) && same(&plain, &all, 0));
+    assert!(!same(&plain, &none, 1), "level 1 is merged by default");
+    assert!(same(&plain, &all, 1));
+    for k in 2..plain.levels.len() {
+        assert!(same(&plain, &none, k), "level {k} keeps its own fit by default");
+    }
+    assert!(!same(&plain, &all, 2), "--merge-levels all merges level 2");
+    for p in [&plain, &none, &all] {
+        for l in &p.levels {
+            for t in 0..l.texels() {
+                let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
+                let w: f64 = l.lobes.range(a, b).map(|x| x.weight).sum();
+                assert!((w - 1.0).abs() < 1e-3, "weights {w}");
+            }
+        }
+    }
+    let o = run(&[
+        "extract",
+        s(&png),
+        "--texel-size",
+        "0.01",
+        "--height-scale",
+        "0.1",
+        "--merge-levels",
+        "some",
+        "--out",
+        s(&d.join("bad.map")),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--merge-levels"));
+    assert!(!d.join("bad.map").exists());
+}

@@ -100,8 +100,9 @@ pub struct Args {
     pub method: MethodArg,
     /// Roughness α in (0, 1] of the facet BRDF (GGX or Beckmann) the map will be shaded with:
     /// the shading error per level is then reported under that facet's kernel
-    /// `exp(λ(h·m − 1))`, λ = 2/α² (default λ = 40, about α = 0.22), and `--k-choice shading`
-    /// picks the lobes by it.
+    /// `exp(λ(h·m − 1))`, λ = 2/α² (default λ = 40, about α = 0.22), `--k-choice shading`
+    /// picks the lobes by it, and the merged levels (`--merge-levels`) keep lobes apart down
+    /// to 1/250 of its variance.
     #[arg(long)]
     pub facet_alpha: Option<f64>,
     /// How each texel's number of lobes (up to --max-lobes) is chosen: `likelihood` (the
