@@ -701,7 +701,10 @@ fn extract_merge_levels_reaches_the_fit() {
     assert!(!same(&plain, &none, 1), "level 1 is merged by default");
     assert!(same(&plain, &all, 1));
     for k in 2..plain.levels.len() {
-        assert!(same(&plain, &none, k), "level {k} keeps its own fit by default");
+        assert!(
+            same(&plain, &none, k),
+            "level {k} keeps its own fit by default"
+        );
     }
     assert!(!same(&plain, &all, 2), "--merge-levels all merges level 2");
     for p in [&plain, &none, &all] {
