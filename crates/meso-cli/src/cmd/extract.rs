@@ -117,7 +117,8 @@ pub struct Args {
     /// small ones keep their own smoothed fit), `none` (every level its own fit: the fit before
     /// 2026-12-06, ≈ 1.5× the time of `plain` on a 1024² map), or `all` (the fast fit: ≈ 0.5×
     /// the time of `plain`, with the coarse levels' shading error up to 1.4× theirs)
-    /// (docs/heightmaps.md, "Levels merged from their children").
+    /// (docs/heightmaps.md, "Levels merged from their children"). Ignored with --k-chain and
+    /// --k-choice shading, which choose among each texel's own fits.
     #[arg(long, value_enum, default_value = "plain")]
     pub merge_levels: MergeLevelsArg,
     /// Fit K = 1, 2, … up to --max-lobes, each from the fit before, and keep the end of the

@@ -297,7 +297,8 @@ pub struct FitParams {
     /// of the facet weight, merged pairwise down to `max_lobes`, keeping each merged pair's
     /// weight and mean normal) instead of EM on the texel's own facets (module docs, "Levels
     /// merged from their children"). Default [`MergeLevels::Plain`]: the levels without the
-    /// smoothed refinement (more than `smooth_texels` texels).
+    /// smoothed refinement (more than `smooth_texels` texels). Not read with the K chain
+    /// (`k_chain`) or [`KChoice::Shading`]: their candidates are each texel's own fits.
     pub merge_levels: MergeLevels,
     /// Whether the lobes come from the K chain (module docs, "The K chain"): the fit's
     /// objective never rises with `max_lobes`. Default `false`, the single fit at `max_lobes`

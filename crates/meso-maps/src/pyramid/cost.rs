@@ -65,11 +65,13 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 /// 19.9 MB (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap peak and
 /// stay within 3× of it); peak RSS 123 / 288 / 1 032 MB at 1024² / 2048² / 4096² (the
 /// generated map's 8 bytes a sample included) against 136 / 423 / 1 450 MB estimated without it.
-/// 38 since 2026-12-06: a level merged from its children's lobes (`FitParams::merge_levels`)
-/// above level 2 reads level 2's lobes, kept in `f32` beside the stream
-/// (`level_fit::ChildLobes`: 20 bytes a lobe, 12 a texel, 4 lobes at most: ≤ 5.75 bytes a
-/// cell; level 2 fits level 1's lobes again instead of keeping them).
-pub const STREAM_BYTES_PER_CELL: u64 = 38;
+/// Since 2026-12-06 a level merged from its children's lobes (`FitParams::merge_levels`) above
+/// level 2 reads level 2's lobes, kept beside the stream as a map file codes them
+/// (`level_fit::ChildLobes`: 11 bytes a lobe, 12 a texel, 4 lobes at most, reserved exactly:
+/// ≤ 3.5 bytes a cell, within the margin: while they are filled, level 1's statistics, level
+/// 2's and the bins take ≈ 27 bytes a cell); level 2 fits level 1's lobes again instead of
+/// keeping them (≈ 14 bytes a cell, over the margin).
+pub const STREAM_BYTES_PER_CELL: u64 = 32;
 /// Peak memory of the streamed extraction per texel of a row batch of level 0
 /// ([`crate::format::BAND_ROWS`] rows, the widest batch): the batch's fitted rows, the band in
 /// the level's precision, its streams' columns, byte planes and deflated bytes, and the band

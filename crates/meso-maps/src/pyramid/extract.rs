@@ -296,6 +296,20 @@ fn run(
             .fit
             .max_lobes
             .min(per_cell.saturating_mul(1usize << (2 * k.min(8))));
+        if let Some(ch) = &mut next_children {
+            // Exactly what the level can need (vectors grown by doubling could take twice it;
+            // `STREAM_BYTES_PER_CELL` counts this).
+            let reserve =
+                |ch: &mut ChildLobes| -> std::result::Result<(), meso_core::budget::AllocError> {
+                    meso_core::budget::try_reserve(&mut ch.weight, texels)?;
+                    if ch.keep_lobes {
+                        meso_core::budget::try_reserve(&mut ch.start, texels + 1)?;
+                        meso_core::budget::try_reserve(&mut ch.lobes, texels * max_per_texel)?;
+                    }
+                    Ok(())
+                };
+            reserve(ch).map_err(oom)?;
+        }
         let carry_horizon = has_horizon && !last && k > 0;
         let mut acc = match &stream {
             None => LevelOut::Memory(

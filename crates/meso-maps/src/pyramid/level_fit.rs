@@ -14,11 +14,11 @@
 //! ([`facet_bins`], 2 bytes a facet) and read by every level's merges.
 
 use super::{footprint_bounds, ExtractParams, Level, Method};
-use crate::compact::{Horizons, Lobe32, Lobes};
+use crate::compact::{Horizons, Lobe32, LobeCode, Lobes};
 use crate::facets::FacetSource;
 use crate::fit::{
     entries_l2_error, fit_lobes_seeded, merge_entries, merge_sorted_entries, Entry, FitParams,
-    MergeLevels, ENTRY_GRID_RES,
+    KChoice, MergeLevels, ENTRY_GRID_RES,
 };
 use crate::horizon::{HorizonMap, HorizonStats};
 use meso_core::ndf::PhongLobe;
@@ -39,9 +39,9 @@ pub(super) struct RowOut {
 /// What the next level reads of a level's lobes when it fits from its children's lobes
 /// (merged, [`merges`], or as the smoothed refinement's start, [`fit_lobes_seeded`]): each
 /// texel's total facet weight (8 bytes a texel) and, when the level is not kept in memory (the
-/// streamed extraction), its lobes in `f32` ([`Lobe32`]: 20 bytes a lobe). In memory the next
-/// level reads the lobes from the level itself, rounded to `f32` the same way, so that both
-/// extractions give the same pyramid.
+/// streamed extraction), its lobes as a map file codes them ([`child_lobe`], [`LobeCode`]: 11
+/// bytes a lobe). In memory the next level reads the lobes from the level itself, coded the
+/// same way, so that both extractions give the same pyramid.
 #[derive(Default)]
 pub(super) struct ChildLobes {
     /// Texels along x.
@@ -52,8 +52,8 @@ pub(super) struct ChildLobes {
     pub(super) keep_lobes: bool,
     /// `start[t]..start[t + 1]` indexes `lobes` for texel `t`.
     pub(super) start: Vec<u32>,
-    /// Each lobe in `f32`.
-    pub(super) lobes: Vec<Lobe32>,
+    /// Each lobe coded ([`child_lobe`]).
+    pub(super) lobes: Vec<LobeCode>,
     /// Each texel's total facet weight.
     pub(super) weight: Vec<f64>,
 }
@@ -74,14 +74,15 @@ impl ChildLobes {
                 at += n;
                 self.start.push(at);
             }
-            self.lobes.extend(row.lobes.iter().map(Lobe32::from_phong));
+            self.lobes
+                .extend(row.lobes.iter().map(|l| LobeCode::from_phong(&rounded(l))));
         }
     }
 
     /// The lobes of the (up to four) children of texel `(r, c)` of the next level into `out`
     /// (cleared first), each weight times its child's share of their total weight, each lobe
-    /// rounded to `f32` ([`Lobe32`]); read from here or, when not kept, from `level` (the
-    /// level these are the weights of). Returns the children's total weight.
+    /// as [`child_lobe`] reads it; read from here or, when not kept, from `level` (the level
+    /// these are the weights of). Returns the children's total weight.
     fn children_of(
         &self,
         level: Option<&Level>,
@@ -112,11 +113,9 @@ impl ChildLobes {
                         let (a, b) = (lv.lobe_start[t] as usize, lv.lobe_start[t + 1] as usize);
                         let f32_level = matches!(lv.lobes, Lobes::F32(_));
                         out.extend(lv.lobes.range(a, b).map(|l| {
-                            scaled(if f32_level {
-                                l
-                            } else {
-                                Lobe32::from_phong(&l).to_phong()
-                            })
+                            // An `f32` level's lobe is the rounded one already.
+                            let r = if f32_level { l } else { rounded(&l) };
+                            scaled(LobeCode::from_phong(&r).to_phong())
                         }));
                     }
                     _ => {
@@ -128,6 +127,19 @@ impl ChildLobes {
         }
         total
     }
+}
+
+/// A lobe `l` (as fitted, `f64`) rounded to `f32` as a compact level keeps it ([`Lobe32`]).
+fn rounded(l: &PhongLobe) -> PhongLobe {
+    Lobe32::from_phong(l).to_phong()
+}
+
+/// A fitted lobe as the next level reads it when fitting from its children: rounded to `f32`
+/// ([`rounded`]) and coded as a map file codes it ([`LobeCode`]: axis to 20-bit octahedral
+/// codes, exponent to its 16-bit code), so that the in-memory and streamed extractions read
+/// the very same values and the streamed one keeps 11 bytes a lobe.
+fn child_lobe(l: &PhongLobe) -> PhongLobe {
+    LobeCode::from_phong(&rounded(l)).to_phong()
 }
 
 /// Where a level reads the horizon statistics of its children, in `f64`.
@@ -157,9 +169,12 @@ impl PrevHorizon<'_> {
 }
 
 /// Whether level `k` (its texels getting the smoothed refinement or not: `refined`) is fitted
-/// by merging its children's lobes ([`FitParams::merge_levels`]): never level 0.
+/// by merging its children's lobes ([`FitParams::merge_levels`]): never level 0, nor with the
+/// K chain or K by the shading error (their candidates are the texel's own fits).
 pub(super) fn merges(fit: &FitParams, k: usize, refined: bool) -> bool {
     k >= 1
+        && !fit.k_chain
+        && fit.k_choice == KChoice::Objective
         && match fit.merge_levels {
             MergeLevels::None => false,
             MergeLevels::Plain => !refined,
@@ -354,8 +369,8 @@ impl LevelFit<'_> {
                 }
                 (_, None) => {
                     // Level 2 of the streamed extraction: its children's (level 1's) lobes
-                    // fitted again from their facets as level 1 fitted them, rounded to `f32`
-                    // as the in-memory extraction reads them.
+                    // fitted again from their facets as level 1 fitted them, read as the
+                    // in-memory extraction reads them ([`child_lobe`]).
                     debug_assert_eq!(self.k, 2, "only level 2 fits its children again");
                     let mut ws = [0.0; 4];
                     let mut fits: [Vec<PhongLobe>; 4] = Default::default();
@@ -378,9 +393,12 @@ impl LevelFit<'_> {
                     kids.clear();
                     if total > 0.0 {
                         for (f, w) in fits[..n].iter().zip(&ws) {
-                            kids.extend(f.iter().map(|l| PhongLobe {
-                                weight: Lobe32::from_phong(l).to_phong().weight * (w / total),
-                                ..Lobe32::from_phong(l).to_phong()
+                            kids.extend(f.iter().map(|l| {
+                                let c = child_lobe(l);
+                                PhongLobe {
+                                    weight: c.weight * (w / total),
+                                    ..c
+                                }
                             }));
                         }
                     }
