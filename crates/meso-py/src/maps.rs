@@ -3,6 +3,7 @@
 
 use crate::arrays::Arr;
 use crate::error::{meso_err, require_exists, value_err};
+use meso_maps::fit::MergeLevels;
 use meso_maps::{
     Baseline, Border, ExtractParams, HeightMap, InputKind, Method, NormalConvention, NormalMode,
 };
@@ -12,7 +13,12 @@ use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
 /// The extraction parameters named as the CLI's `meso extract` options.
-fn params(max_lobes: usize, normals: &str, method: &str) -> PyResult<ExtractParams> {
+fn params(
+    max_lobes: usize,
+    normals: &str,
+    method: &str,
+    merge_levels: &str,
+) -> PyResult<ExtractParams> {
     if !(1..=meso_maps::limits::MAX_LOBES).contains(&max_lobes) {
         return Err(value_err(format!(
             "max_lobes = {max_lobes}: must be between 1 and {}",
@@ -44,6 +50,16 @@ fn params(max_lobes: usize, normals: &str, method: &str) -> PyResult<ExtractPara
         ..ExtractParams::default()
     };
     p.fit.max_lobes = max_lobes;
+    p.fit.merge_levels = match merge_levels {
+        "plain" => MergeLevels::Plain,
+        "none" => MergeLevels::None,
+        "all" => MergeLevels::All,
+        other => {
+            return Err(value_err(format!(
+                "merge_levels = {other:?}: must be one of \"plain\", \"none\", \"all\""
+            )))
+        }
+    };
     Ok(p)
 }
 
@@ -70,9 +86,10 @@ fn run_extract(
 /// in image order (row 0 is the top of the image, as an image reader returns it; meso's +y is up
 /// in the image); heights are `heights · height_scale`, so codes in
 /// [0, 1] with `height_scale = H` equal `meso extract` of the same image), samples `texel_size`
-/// apart (same length unit). The other parameters are `meso extract`'s options.
+/// apart (same length unit). The other parameters are `meso extract`'s options
+/// (`merge_levels`: `--merge-levels`).
 #[pyfunction]
-#[pyo3(signature = (heights, texel_size, height_scale = 1.0, max_lobes = 4, border = "wrap", normals = "triangles", method = "lobes"))]
+#[pyo3(signature = (heights, texel_size, height_scale = 1.0, max_lobes = 4, border = "wrap", normals = "triangles", method = "lobes", merge_levels = "plain"))]
 #[allow(clippy::too_many_arguments)]
 pub fn extract(
     py: Python<'_>,
@@ -83,8 +100,9 @@ pub fn extract(
     border: &str,
     normals: &str,
     method: &str,
+    merge_levels: &str,
 ) -> PyResult<Pyramid> {
-    let p = params(max_lobes, normals, method)?;
+    let p = params(max_lobes, normals, method, merge_levels)?;
     if !(height_scale.is_finite() && height_scale > 0.0) {
         return Err(value_err(format!(
             "height_scale = {height_scale}: must be a positive number"
@@ -129,7 +147,7 @@ pub fn extract(
 /// `convention` `"gl"` (OpenGL/glTF: green = +Y = up in the image) or `"dx"`. Returns the pyramid
 /// and the warnings the CLI would print.
 #[pyfunction]
-#[pyo3(signature = (path, out, texel_size = None, height_scale = None, max_lobes = 4, normal_map = false, convention = "gl", border = "wrap", normals = "triangles", method = "lobes"))]
+#[pyo3(signature = (path, out, texel_size = None, height_scale = None, max_lobes = 4, normal_map = false, convention = "gl", border = "wrap", normals = "triangles", method = "lobes", merge_levels = "plain"))]
 #[allow(clippy::too_many_arguments)]
 pub fn extract_file(
     py: Python<'_>,
@@ -143,8 +161,9 @@ pub fn extract_file(
     border: &str,
     normals: &str,
     method: &str,
+    merge_levels: &str,
 ) -> PyResult<(Pyramid, Vec<String>)> {
-    let p = params(max_lobes, normals, method)?;
+    let p = params(max_lobes, normals, method, merge_levels)?;
     require_exists(&path)?;
     // The map file must not replace the image it is made from (as `meso extract` refuses).
     meso_core::io::check_not_input(&out, &[&path]).map_err(|e| value_err(e.to_string()))?;

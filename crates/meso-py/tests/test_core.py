@@ -234,6 +234,26 @@ def test_extract_file_equals_the_cli_and_the_array_path(tmp_path):
     assert max(l.shading_error for l in read.levels) > 0
 
 
+def test_extract_merge_levels_equals_the_cli(tmp_path):
+    # 128² cells: level 1 (64²) is merged from its cells by default, kept its own fit with
+    # merge_levels="none"; each equals `meso extract --merge-levels` byte for byte.
+    codes = bumps(128, seed=9)
+    write_gray16(tmp_path / "h.png", codes)
+    maps = {}
+    for m in ["plain", "none", "all"]:
+        meso.extract_file(tmp_path / "h.png", tmp_path / f"py-{m}.map", texel_size=1.0, height_scale=4.0, merge_levels=m)
+        run_cli("extract", tmp_path / "h.png", "--texel-size", 1.0, "--height-scale", 4.0, "--merge-levels", m, "--out", tmp_path / f"cli-{m}.map")
+        maps[m] = (tmp_path / f"py-{m}.map").read_bytes()
+        assert maps[m] == (tmp_path / f"cli-{m}.map").read_bytes()
+    assert maps["plain"] != maps["none"] and maps["plain"] != maps["all"]
+    default = meso.extract(codes / 65535.0, texel_size=1.0, height_scale=4.0)
+    plain = meso.extract(codes / 65535.0, texel_size=1.0, height_scale=4.0, merge_levels="plain")
+    for a, b in zip(default.levels, plain.levels):
+        np.testing.assert_array_equal(a.axes, b.axes)
+    with pytest.raises(ValueError, match="merge_levels"):
+        meso.extract(codes / 65535.0, texel_size=1.0, merge_levels="some")
+
+
 def test_render_of_a_lambert_sphere_is_albedo_over_pi_times_irradiance(tmp_path):
     (tmp_path / "white.toml").write_text('[ndf]\nkind = "sphere"\n[transfer]\nkind = "lambert"\nalbedo = [0.5, 0.5, 0.5]\n')
     (tmp_path / "white.toml").write_text("[diffuse]\nalbedo = [0.5, 0.5, 0.5]\n[transfer]\nkind = \"phong\"\nexponent = 1.0\nspecular = [0.0, 0.0, 0.0]\n")
