@@ -503,20 +503,7 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
     let png = d.join("gravel.png");
     gravel_png(&png, 32, 5);
     let extract_to = |extra: &[&str], out: &Path| {
-        let mut args = vec![
-            "extract",
-            s(&png),
-            "--texel-size",
-            "0.01",
-            "--height-scale",
-            "0.1",
-            "--out",
-            s(out),
-        ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
-        ok(&o);
-        String::from_utf8_lossy(&o.stderr).into_owned()
+        String::from_utf8_lossy(&extract_gravel(&png, extra, out).stderr).into_owned()
     };
     // (kernel λ, [(mean shading error %, mean lobes per texel)] per level) from the report line.
     let parse = |err: &str| -> (String, Vec<(f64, f64)>) {
@@ -665,6 +652,25 @@ fn extract_k_chain_reaches_the_chain() {
     ok(&run(&["map", "info", s(&chain)]));
 }
 
+/// `meso extract PNG --texel-size 0.01 --height-scale 0.1 EXTRA --out OUT` (a gravel map's
+/// scales), required to succeed.
+fn extract_gravel(png: &Path, extra: &[&str], out: &Path) -> std::process::Output {
+    let mut args = vec![
+        "extract",
+        s(png),
+        "--texel-size",
+        "0.01",
+        "--height-scale",
+        "0.1",
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    ok(&o);
+    o
+}
+
 /// `--merge-levels` reaches the extraction: on a 128² gravel map (level 1, 64² texels, the only
 /// level big enough to be merged by default; level 2, 32² = 1024 texels, the first smoothed
 /// one) the default (`plain`) and `none` store the same level 0 and levels 2 and up and differ
@@ -676,19 +682,7 @@ fn extract_merge_levels_reaches_the_fit() {
     let png = d.join("gravel.png");
     gravel_png(&png, 128, 7);
     let extract_to = |extra: &[&str], out: &Path| {
-        let mut args = vec![
-            "extract",
-            s(&png),
-            "--texel-size",
-            "0.01",
-            "--height-scale",
-            "0.1",
-            "--out",
-            s(out),
-        ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
-        ok(&o);
+        extract_gravel(&png, extra, out);
         meso_maps::Pyramid::read(out).unwrap()
     };
     let plain = extract_to(&[], &d.join("plain.map"));
