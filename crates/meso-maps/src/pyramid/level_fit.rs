@@ -348,6 +348,8 @@ impl LevelFit<'_> {
         let kmax = self.params.fit.max_lobes;
         let lambda = self.params.fit.shading_exponent();
         let mut child = Vec::new();
+        // Level 2 streamed: its (up to four) children's refitted lobes and weights.
+        let mut fits: [Vec<PhongLobe>; 4] = Default::default();
         for c in 0..self.cols {
             let sampled = (r * self.cols + c).is_multiple_of(self.residual_stride);
             let weight = match (self.k, self.children) {
@@ -373,7 +375,6 @@ impl LevelFit<'_> {
                     // in-memory extraction reads them ([`child_lobe`]).
                     debug_assert_eq!(self.k, 2, "only level 2 fits its children again");
                     let mut ws = [0.0; 4];
-                    let mut fits: [Vec<PhongLobe>; 4] = Default::default();
                     let mut n = 0;
                     let below = |m: usize| m.div_ceil(2);
                     let (rows1, cols1) = (below(self.facets.rows()), below(self.facets.cols()));
@@ -381,6 +382,7 @@ impl LevelFit<'_> {
                         for cc in 2 * c..(2 * c + 2).min(cols1) {
                             self.texel_entries(1, cr, cc, &mut buf.depth, &mut buf.merged);
                             ws[n] = buf.merged.iter().map(|e| e.w).sum();
+                            fits[n].clear();
                             if ws[n] > 0.0 {
                                 let e = crate::fit::entry_lobes(&buf.merged, ws[n]);
                                 crate::fit::merge_lobes(&e, kmax, lambda, &mut child);
