@@ -681,13 +681,25 @@ fn extract_merge_levels_reaches_the_fit() {
     let d = tmpdir("maps-cli", "merge-levels");
     let png = d.join("gravel.png");
     gravel_png(&png, 128, 7);
-    let extract_to = |extra: &[&str], out: &Path| {
-        extract_gravel(&png, extra, out);
+    let extract_to = |extra: &[&str], out: &Path, says: &str| {
+        let o = extract_gravel(&png, extra, out);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(says), "{says:?} not in {e}");
         meso_maps::Pyramid::read(out).unwrap()
     };
-    let plain = extract_to(&[], &d.join("plain.map"));
-    let none = extract_to(&["--merge-levels", "none"], &d.join("none.map"));
-    let all = extract_to(&["--merge-levels", "all"], &d.join("all.map"));
+    // 128² cells: levels 0–7, level 1 the only one of more than 1024 texels.
+    let merged = "levels fitted by merging their children's lobes (--merge-levels";
+    let plain = extract_to(&[], &d.join("plain.map"), &format!("{merged} plain): 1\n"));
+    let none = extract_to(
+        &["--merge-levels", "none"],
+        &d.join("none.map"),
+        &format!("{merged} none): none"),
+    );
+    let all = extract_to(
+        &["--merge-levels", "all"],
+        &d.join("all.map"),
+        &format!("{merged} all): 1–7"),
+    );
     let same = |a: &meso_maps::Pyramid, b: &meso_maps::Pyramid, k: usize| {
         a.levels[k].lobe_start == b.levels[k].lobe_start && a.levels[k].lobes == b.levels[k].lobes
     };

@@ -65,9 +65,9 @@ pub use horizon::{HorizonDirection, HorizonMap, HorizonStats};
 pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_stream_bytes, extract_to_file, extract_to_writer, extract_work,
-    lobe_stats, lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, texel_lobe_stats,
-    ExtractParams, Level, LevelStats, LobeStat, LobeStats, Method, Progress, ProgressTask, Pyramid,
-    PyramidInfo, Source, StreamedLevel,
+    lobe_stats, lobe_stats_by_cell, merged_levels, peak_projected_area, rect_lobe_stats_by_cell,
+    texel_lobe_stats, ExtractParams, Level, LevelStats, LobeStat, LobeStats, Method, Progress,
+    ProgressTask, Pyramid, PyramidInfo, Source, StreamedLevel,
 };
 pub use radiosity::FacetRadiosity;
 pub use resolver::{ExtractProgress, MapsResolver};

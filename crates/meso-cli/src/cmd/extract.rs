@@ -236,6 +236,22 @@ pub fn run(a: Args) -> Result<()> {
             )
         })
         .collect();
+    // Which levels were fitted by merging their children's lobes (`--merge-levels`).
+    let (cols, rows) = (levels[0].cols, levels[0].rows);
+    let merged = meso_maps::merged_levels(cols, rows, &params);
+    note!(
+        "levels fitted by merging their children's lobes (--merge-levels {}): {}",
+        match params.fit.merge_levels {
+            MergeLevels::None => "none",
+            MergeLevels::Plain => "plain",
+            MergeLevels::All => "all",
+        },
+        match (merged.first(), merged.last()) {
+            (Some(a), Some(b)) if a == b => a.to_string(),
+            (Some(a), Some(b)) => format!("{a}–{b}"),
+            _ => "none".to_owned(),
+        }
+    );
     note!(
         "shading error per level, mean/max % of peak (facet kernel exp({}(h·m − 1))) \
          (mean lobes per texel): {}",

@@ -398,6 +398,25 @@ fn run(
     Ok((header, levels))
 }
 
+/// The levels of a pyramid over `cols × rows` level-0 cells that [`extract`] fits by merging
+/// their children's lobes (`FitParams::merge_levels`; none with another method than
+/// [`Method::Lobes`]), in order: what `meso extract` reports.
+#[must_use]
+pub fn merged_levels(cols: usize, rows: usize, params: &ExtractParams) -> Vec<usize> {
+    if params.method != Method::Lobes {
+        return Vec::new();
+    }
+    super::level_sizes(cols, rows)
+        .take(level_count(cols, rows))
+        .enumerate()
+        .filter(|&(k, (c, r))| {
+            let refined = params.fit.smooth_exponent > 0.0 && c * r <= params.fit.smooth_texels;
+            super::level_fit::merges(&params.fit, k, refined)
+        })
+        .map(|(k, _)| k)
+        .collect()
+}
+
 /// Rows of a level fitted in parallel before they are appended to the level.
 const ROW_BATCH: usize = crate::format::BAND_ROWS;
 

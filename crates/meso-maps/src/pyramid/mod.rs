@@ -36,7 +36,7 @@ pub use cost::{
     EXTRACT_BYTES_PER_EXTRA_NORMAL, EXTRACT_BYTES_PER_SAMPLE, STREAM_BYTES_PER_BAND_TEXEL,
     STREAM_BYTES_PER_CELL,
 };
-pub use extract::{extract, extract_to_file, extract_to_writer, StreamedLevel};
+pub use extract::{extract, extract_to_file, extract_to_writer, merged_levels, StreamedLevel};
 pub use info::{LevelInfo, PyramidInfo};
 pub use shares::{
     lobe_stats, lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, texel_lobe_stats,
