@@ -554,18 +554,7 @@ fn extract_reports_the_facets_shading_error_and_can_choose_k_by_it() {
         );
     }
     let bad = d.join("bad.map");
-    let o = run(&[
-        "extract",
-        s(&png),
-        "--texel-size",
-        "0.01",
-        "--height-scale",
-        "0.1",
-        "--facet-alpha",
-        "0",
-        "--out",
-        s(&bad),
-    ]);
+    let o = run_extract_gravel(&png, &["--facet-alpha", "0"], &bad);
     fails(&o, &bad, "--facet-alpha 0");
 }
 
@@ -652,9 +641,9 @@ fn extract_k_chain_reaches_the_chain() {
     ok(&run(&["map", "info", s(&chain)]));
 }
 
-/// `meso extract PNG --texel-size 0.01 --height-scale 0.1 EXTRA --out OUT` (a gravel map's
-/// scales), required to succeed.
-fn extract_gravel(png: &Path, extra: &[&str], out: &Path) -> std::process::Output {
+/// `meso extract PNG --texel-size 0.01 --height-scale 0.1 --out OUT EXTRA` (a gravel map's
+/// scales), run.
+fn run_extract_gravel(png: &Path, extra: &[&str], out: &Path) -> std::process::Output {
     let mut args = vec![
         "extract",
         s(png),
@@ -666,7 +655,12 @@ fn extract_gravel(png: &Path, extra: &[&str], out: &Path) -> std::process::Outpu
         s(out),
     ];
     args.extend_from_slice(extra);
-    let o = run(&args);
+    run(&args)
+}
+
+/// [`run_extract_gravel`], required to succeed.
+fn extract_gravel(png: &Path, extra: &[&str], out: &Path) -> std::process::Output {
+    let o = run_extract_gravel(png, extra, out);
     ok(&o);
     o
 }
@@ -722,18 +716,7 @@ fn extract_merge_levels_reaches_the_fit() {
             }
         }
     }
-    let o = run(&[
-        "extract",
-        s(&png),
-        "--texel-size",
-        "0.01",
-        "--height-scale",
-        "0.1",
-        "--merge-levels",
-        "some",
-        "--out",
-        s(&d.join("bad.map")),
-    ]);
+    let o = run_extract_gravel(&png, &["--merge-levels", "some"], &d.join("bad.map"));
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--merge-levels"));
     assert!(!d.join("bad.map").exists());

@@ -50,16 +50,16 @@ fn params(
         ..ExtractParams::default()
     };
     p.fit.max_lobes = max_lobes;
-    p.fit.merge_levels = match merge_levels {
-        "plain" => MergeLevels::Plain,
-        "none" => MergeLevels::None,
-        "all" => MergeLevels::All,
-        other => {
-            return Err(value_err(format!(
-                "merge_levels = {other:?}: must be one of \"plain\", \"none\", \"all\""
-            )))
-        }
-    };
+    p.fit.merge_levels = MergeLevels::from_name(merge_levels).ok_or_else(|| {
+        let names: Vec<String> = MergeLevels::NAMES
+            .iter()
+            .map(|(_, n)| format!("{n:?}"))
+            .collect();
+        value_err(format!(
+            "merge_levels = {merge_levels:?}: must be one of {}",
+            names.join(", ")
+        ))
+    })?;
     Ok(p)
 }
 

@@ -241,11 +241,7 @@ pub fn run(a: Args) -> Result<()> {
     let merged = meso_maps::merged_levels(cols, rows, &params);
     note!(
         "levels fitted by merging their children's lobes (--merge-levels {}): {}",
-        match params.fit.merge_levels {
-            MergeLevels::None => "none",
-            MergeLevels::Plain => "plain",
-            MergeLevels::All => "all",
-        },
+        params.fit.merge_levels.name(),
         match (merged.first(), merged.last()) {
             (Some(a), Some(b)) if a == b => a.to_string(),
             (Some(a), Some(b)) => format!("{a}–{b}"),

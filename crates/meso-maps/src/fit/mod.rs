@@ -341,6 +341,33 @@ pub enum MergeLevels {
     All,
 }
 
+impl MergeLevels {
+    /// Every value with its name (`meso extract --merge-levels`, Python `merge_levels=`).
+    pub const NAMES: [(MergeLevels, &'static str); 3] = [
+        (MergeLevels::Plain, "plain"),
+        (MergeLevels::None, "none"),
+        (MergeLevels::All, "all"),
+    ];
+
+    /// Its name: `"plain"`, `"none"` or `"all"`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(m, _)| *m == self)
+            .map_or("plain", |(_, n)| n)
+    }
+
+    /// The value of a name, if it is one of [`Self::NAMES`].
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<MergeLevels> {
+        Self::NAMES
+            .iter()
+            .find(|(_, n)| *n == name)
+            .map(|(m, _)| *m)
+    }
+}
+
 /// How the K chain ([`FitParams::k_chain`]) picks a texel's lobes among its candidates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum KChoice {
@@ -667,15 +694,9 @@ pub fn merge_lobes(children: &[PhongLobe], k: usize, lambda: f64, out: &mut Vec<
     )));
 }
 
-/// The lobes of merged normals `entries` of total weight `total` when each entry is its own
-/// lobe ([`merge_lobes`]' start on level 1).
-#[must_use]
-pub(crate) fn entry_lobes(entries: &[Entry], total: f64) -> Vec<PhongLobe> {
-    exact_lobes(entries, total)
-}
-
-/// Every entry its own lobe: axis = its mean direction, exponent from its spread (exact).
-fn exact_lobes(entries: &[Entry], total: f64) -> Vec<PhongLobe> {
+/// Every entry its own lobe: axis = its mean direction, exponent from its spread (exact; also
+/// [`merge_lobes`]' start on level 1).
+pub(crate) fn exact_lobes(entries: &[Entry], total: f64) -> Vec<PhongLobe> {
     entries
         .iter()
         .map(|e| {

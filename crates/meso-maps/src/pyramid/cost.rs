@@ -148,10 +148,7 @@ pub fn extract_work(
         } else {
             (k as u64) * (entries / 4)
         };
-        let refined = params.fit.smooth_exponent > 0.0 && texels <= params.fit.smooth_texels;
-        let fit = if params.method == super::Method::Lobes
-            && super::level_fit::merges(&params.fit, k, refined)
-        {
+        let fit = if super::level_fit::merges(params, k, texels) {
             t * (MERGE_WORK + if k == 1 { merges } else { 0 })
         } else {
             t * (1 + merges + per_point * points)

@@ -270,6 +270,7 @@ fn run(
                 .clamp(64, params.fit.max_em_points.max(64)),
             thorough: texels <= params.fit.thorough_texels,
             smooth: texels <= params.fit.smooth_texels,
+            merged: super::level_fit::merges(params, k, texels),
             children: children.as_ref(),
         };
         // This level's lobes are kept for the next one when that one fits its smoothed levels
@@ -284,7 +285,7 @@ fn run(
             // cell: the 4 GiB of an 8192² map's budget would not hold them).
             && ((k >= 1
                 && !(k == 1 && stream.is_some())
-                && super::level_fit::merges(&params.fit, k + 1, next_smooth))
+                && super::level_fit::merges(params, k + 1, next_cols * next_rows))
                 || (params.fit.smooth_from_children && next_smooth)))
             .then(|| ChildLobes {
                 cols,
@@ -403,16 +404,10 @@ fn run(
 /// [`Method::Lobes`]), in order: what `meso extract` reports.
 #[must_use]
 pub fn merged_levels(cols: usize, rows: usize, params: &ExtractParams) -> Vec<usize> {
-    if params.method != Method::Lobes {
-        return Vec::new();
-    }
     super::level_sizes(cols, rows)
         .take(level_count(cols, rows))
         .enumerate()
-        .filter(|&(k, (c, r))| {
-            let refined = params.fit.smooth_exponent > 0.0 && c * r <= params.fit.smooth_texels;
-            super::level_fit::merges(&params.fit, k, refined)
-        })
+        .filter(|&(k, (c, r))| super::level_fit::merges(params, k, c * r))
         .map(|(k, _)| k)
         .collect()
 }

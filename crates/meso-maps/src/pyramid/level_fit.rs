@@ -17,7 +17,7 @@ use super::{footprint_bounds, ExtractParams, Level, Method};
 use crate::compact::{Horizons, Lobe32, LobeCode, Lobes};
 use crate::facets::FacetSource;
 use crate::fit::{
-    entries_l2_error, fit_lobes_seeded, merge_entries, merge_sorted_entries, Entry, FitParams,
+    entries_l2_error, exact_lobes, fit_lobes_seeded, merge_entries, merge_sorted_entries, Entry,
     KChoice, MergeLevels, ENTRY_GRID_RES,
 };
 use crate::horizon::{HorizonMap, HorizonStats};
@@ -168,11 +168,17 @@ impl PrevHorizon<'_> {
     }
 }
 
-/// Whether level `k` (its texels getting the smoothed refinement or not: `refined`) is fitted
-/// by merging its children's lobes ([`FitParams::merge_levels`]): never level 0, nor with the
-/// K chain or K by the shading error (their candidates are the texel's own fits).
-pub(super) fn merges(fit: &FitParams, k: usize, refined: bool) -> bool {
+/// Whether level `k` of `texels` texels is fitted by merging its children's lobes
+/// ([`crate::FitParams::merge_levels`]; a level gets the smoothed refinement when
+/// `smooth_exponent` is positive and it has at most `smooth_texels` texels): never level 0,
+/// only with [`Method::Lobes`],
+/// and not with the K chain or K by the shading error (their candidates are the texel's own
+/// fits). The one rule the extraction, its cost estimate and its report read.
+pub(super) fn merges(params: &ExtractParams, k: usize, texels: usize) -> bool {
+    let fit = &params.fit;
+    let refined = fit.smooth_exponent > 0.0 && texels <= fit.smooth_texels;
     k >= 1
+        && params.method == Method::Lobes
         && !fit.k_chain
         && fit.k_choice == KChoice::Objective
         && match fit.merge_levels {
@@ -203,6 +209,8 @@ pub(super) struct LevelFit<'a> {
     pub(super) em_cap: usize,
     pub(super) thorough: bool,
     pub(super) smooth: bool,
+    /// Whether the level is fitted by merging its children's lobes ([`merges`]).
+    pub(super) merged: bool,
     /// The previous level's lobes, when this level starts its smoothed refinement from its
     /// children's lobes ([`fit_lobes_seeded`]).
     pub(super) children: Option<&'a ChildLobes>,
@@ -290,8 +298,7 @@ impl LevelFit<'_> {
         buf.depth.resize_with(self.k + 1, Default::default);
         let mut scratch = Vec::new();
         let mut lobes = Vec::new();
-        let refined = self.params.fit.smooth_exponent > 0.0 && self.smooth;
-        if self.params.method == Method::Lobes && merges(&self.params.fit, self.k, refined) {
+        if self.merged {
             self.merged_row(r, &mut out, &mut buf, &mut kids, &mut lobes);
             return out;
         }
@@ -334,7 +341,7 @@ impl LevelFit<'_> {
 
     /// Row `r` of a level that [`merges`] its children: each texel's lobes its children's
     /// merged ([`crate::fit::merge_lobes`]); level 1's children are its cells' facets (each
-    /// merged bin its own lobe, [`crate::fit::entry_lobes`]), the levels above read the
+    /// merged bin its own lobe, [`Self::cell_lobes`]), the levels above read the
     /// previous level's lobes ([`ChildLobes`]). The texel's facet weight is its children's
     /// sum; its entries are computed only where the residual is measured.
     fn merged_row(
@@ -353,16 +360,7 @@ impl LevelFit<'_> {
         for c in 0..self.cols {
             let sampled = (r * self.cols + c).is_multiple_of(self.residual_stride);
             let weight = match (self.k, self.children) {
-                (1, _) => {
-                    self.texel_entries(1, r, c, &mut buf.depth, &mut buf.merged);
-                    let w: f64 = buf.merged.iter().map(|e| e.w).sum();
-                    if w > 0.0 {
-                        *kids = crate::fit::entry_lobes(&buf.merged, w);
-                    } else {
-                        kids.clear();
-                    }
-                    w
-                }
+                (1, _) => self.cell_lobes(r, c, buf, kids),
                 (_, Some(ch)) => {
                     if sampled {
                         self.texel_entries(self.k, r, c, &mut buf.depth, &mut buf.merged);
@@ -380,14 +378,8 @@ impl LevelFit<'_> {
                     let (rows1, cols1) = (below(self.facets.rows()), below(self.facets.cols()));
                     for cr in 2 * r..(2 * r + 2).min(rows1) {
                         for cc in 2 * c..(2 * c + 2).min(cols1) {
-                            self.texel_entries(1, cr, cc, &mut buf.depth, &mut buf.merged);
-                            ws[n] = buf.merged.iter().map(|e| e.w).sum();
-                            fits[n].clear();
-                            if ws[n] > 0.0 {
-                                let e = crate::fit::entry_lobes(&buf.merged, ws[n]);
-                                crate::fit::merge_lobes(&e, kmax, lambda, &mut child);
-                                fits[n].clone_from(&child);
-                            }
+                            ws[n] = self.cell_lobes(cr, cc, buf, &mut child);
+                            crate::fit::merge_lobes(&child, kmax, lambda, &mut fits[n]);
                             n += 1;
                         }
                     }
@@ -418,16 +410,25 @@ impl LevelFit<'_> {
             if sampled {
                 out.residual.push((
                     Self::residual(&buf.merged, lobes),
-                    crate::fit::shading_error(
-                        &buf.merged,
-                        lobes,
-                        self.params.fit.shading_exponent(),
-                    ),
+                    crate::fit::shading_error(&buf.merged, lobes, lambda),
                 ));
             }
             out.lobes.extend_from_slice(lobes);
             out.lcount.push(lobes.len() as u32);
         }
+    }
+
+    /// Texel `(r, c)` of level 1 as the lobes a merge starts from: its cells' facets merged
+    /// per bin of the entry grid (into `buf.merged`), each entry its own lobe, into `out`
+    /// (empty for no weight). Returns the texel's facet weight.
+    fn cell_lobes(&self, r: usize, c: usize, buf: &mut Scratch, out: &mut Vec<PhongLobe>) -> f64 {
+        self.texel_entries(1, r, c, &mut buf.depth, &mut buf.merged);
+        let w: f64 = buf.merged.iter().map(|e| e.w).sum();
+        out.clear();
+        if w > 0.0 {
+            out.extend(exact_lobes(&buf.merged, w));
+        }
+        w
     }
 
     /// The relative NDF L2 error of a texel's lobes against its footprint's facets, from the
