@@ -17,6 +17,8 @@
 //! filter = "trilinear"     # ndf-mapped: or "box" (NdfMapped::with_box_filter)
 //! box_detail = 2           # ndf-mapped, box filter: levels finer than the footprint, 0–3
 //!                          # (default: from the facet's sharpness, NdfMapped::with_box_detail)
+//! view_weighting = true    # ndf-mapped: lobes counted by the area the viewer sees (default
+//!                          # false, NdfMapped::with_view_weighting)
 //! [transfer]
 //! kind = "phong"
 //! exponent = 20
@@ -58,6 +60,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     let kind = texture_kind(tex).map_err(named)?;
     let box_filter = box_filter(tex, kind).map_err(named)?;
     let box_detail = box_detail(tex, kind, box_filter).map_err(named)?;
+    let view_weighting = view_weighting(tex, kind).map_err(named)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let t = Texture {
         kind,
@@ -66,6 +69,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
         dir,
         box_filter,
         box_detail,
+        view_weighting,
         maps,
     };
     let string = |key: &str| tex_string(tex, key).map_err(named);
@@ -107,13 +111,14 @@ fn check_texture_keys(tex: &toml::Table) -> Result<(), String> {
                 "convention",
                 "filter",
                 "box_detail",
+                "view_weighting",
             ]
             .contains(&k.as_str()))
         {
             return Err(format!(
                 "[texture]: unknown key `{k}` (known: kind, file, normal_map, map, convention, \
                  texel_size, height_scale, texels_per_uv, shadowing, filter, box_detail, \
-                 max_lobes, border, normals)"
+                 view_weighting, max_lobes, border, normals)"
             ));
         }
     }
@@ -154,13 +159,18 @@ struct Texture<'a> {
     box_filter: bool,
     /// `box_detail`, if given (checked: a number in `[0, MAX_BOX_DETAIL]`).
     box_detail: Option<f64>,
+    /// `view_weighting` (ndf-mapped; default false).
+    view_weighting: bool,
     maps: &'a MapsResolver,
 }
 
 impl Texture<'_> {
-    /// `m` with the table's filter: `filter` and, if given, `box_detail`.
+    /// `m` with the table's filter (`filter` and, if given, `box_detail`) and
+    /// `view_weighting`.
     fn filtered(&self, m: NdfMapped) -> NdfMapped {
-        let m = m.with_box_filter(self.box_filter);
+        let m = m
+            .with_box_filter(self.box_filter)
+            .with_view_weighting(self.view_weighting);
         match self.box_detail {
             Some(d) => m.with_box_detail(d),
             None => m,
@@ -451,6 +461,23 @@ fn box_detail(tex: &toml::Table, kind: &str, box_filter: bool) -> Result<Option<
         .ok_or_else(|| {
             format!("[texture] box_detail: must be a number 0–{MAX_BOX_DETAIL}, got {v}")
         })
+}
+
+/// `view_weighting` of a `[texture]` table: `true` or `false` (default), ndf-mapped only
+/// ([`NdfMapped::with_view_weighting`]).
+fn view_weighting(tex: &toml::Table, kind: &str) -> Result<bool, String> {
+    let Some(v) = tex.get("view_weighting") else {
+        return Ok(false);
+    };
+    if kind != "ndf-mapped" {
+        return Err(
+            "[texture] view_weighting: applies to kind = \"ndf-mapped\" (a bump map shades \
+             each point as seen)"
+                .to_string(),
+        );
+    }
+    v.as_bool()
+        .ok_or_else(|| format!("[texture] view_weighting: expected true or false, got {v}"))
 }
 
 /// `texels_per_uv` of a `[texture]` table (default: the map's width, one copy per unit of uv).

@@ -151,6 +151,35 @@ fn box_detail_reaches_the_scene_file_and_matches() {
     assert!(differ > a.pixels().len() / 2, "{differ} pixels differ");
 }
 
+/// `view_weighting = true` (NdfMapped::with_view_weighting) reaches the material: its
+/// description says so, and the steep-walled egg crate seen at ≈ 24° from afar renders
+/// differently (each lobe counted by the area of it the viewer sees).
+#[test]
+fn view_weighting_reaches_the_scene_file() {
+    let d = dir("textured_view");
+    let text = std::fs::read_to_string(d.join("ndf-box.toml")).unwrap();
+    std::fs::write(
+        d.join("ndf-view.toml"),
+        text.replace("[texture]\n", "[texture]\nview_weighting = true\n"),
+    )
+    .unwrap();
+    let maps = meso_maps::MapsResolver::new();
+    let shader = load_textured(&d.join("ndf-view.toml"), &maps)
+        .unwrap()
+        .unwrap();
+    let said = shader.describe().unwrap();
+    assert!(said.ends_with(", view-weighted"), "{said}");
+    let plain = load_textured(&d.join("ndf-box.toml"), &maps)
+        .unwrap()
+        .unwrap();
+    assert!(!plain.describe().unwrap().contains("view-weighted"));
+    let (a, b) = (
+        mean(&render_file(&d, "ndf-view", 20.0, 1)),
+        mean(&render_file(&d, "ndf-box", 20.0, 1)),
+    );
+    assert!((a / b - 1.0).abs() > 1e-3, "{a} vs {b}");
+}
+
 #[test]
 fn ordinary_material_files_are_not_textured() {
     let d = dir("textured_plain");
@@ -222,6 +251,14 @@ fn bad_texture_tables_are_errors_naming_the_problem() {
         (
             format!("[texture]\nkind = \"bump-mapped\"\nbox_detail = 1\n{base}{transfer}"),
             "box_detail: applies to",
+        ),
+        (
+            format!("[texture]\nkind = \"ndf-mapped\"\nview_weighting = 1\n{base}{transfer}"),
+            "view_weighting: expected true or false, got 1",
+        ),
+        (
+            format!("[texture]\nkind = \"bump-mapped\"\nview_weighting = true\n{base}{transfer}"),
+            "view_weighting: applies to kind = \"ndf-mapped\"",
         ),
         ("texture = 3\n".to_string(), "expected a table"),
     ] {

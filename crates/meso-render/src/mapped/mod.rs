@@ -92,6 +92,24 @@
 //! the view's masking is not modelled (as in the bump map). Tables: docs/heightmaps.md,
 //! "Visibility per lobe".
 //!
+//! # View weighting
+//! A pixel of the bump map averages its footprint by **plane** area: a facet turned away from
+//! the viewer, or hidden behind a ridge, counts as much as one facing it. Displaced geometry
+//! counts each facet by the area of it the viewer sees, `(m·o)⁺/m_z` per unit of plane area
+//! times its visibility of the viewer. Seen from afar, the two differ by 10–50 % on maps with
+//! steep walls (the facade height map against `meso gonio`, which traces rays on the displaced
+//! mesh: the bump map is 13–49 % too bright). [`NdfMapped::with_view_weighting`] (scene files:
+//! `view_weighting = true`; off by default) weighs each lobe's response near normal `m` by
+//! `V_j(o) · (m·o)⁺/m_z` (`V_j(o)` its visibility of the viewer, from the same horizon
+//! statistics as the light's; the closed form takes `m` at the product's axis, the nodes their
+//! own normal) and divides the footprint's sum by its seen area, `Σ share_j · V_j(o) ·
+//! E_j[(m·o)⁺]/E_j[m_z⁺]` over the taps' lobes (the expectation by the lobe's 7 nodes; `a·o /
+//! a_z` when the lobe lies well above both horizons). A texel of one normal shades as without it
+//! (its weight cancels); a far view tends to the map's effective BRDF. It is not the default:
+//! the bump map, which the renderer's own tests take as the truth, does not weigh by view, and
+//! these tests and the box filter's defaults were measured against it (docs/heightmaps.md,
+//! "View weighting"). Test `tests/view_weighting.rs`: far views against `meso_maps::Gonio`.
+//!
 //! # Steep maps
 //! On steep normal maps (issue #11: a stone wall with 20% of its texels at `n_z < 0.2`,
 //! some at or below the horizon) NDF-mapped renders had sparkles and false highlights. Test

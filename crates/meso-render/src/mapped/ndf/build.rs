@@ -12,7 +12,7 @@
 
 use super::filter::default_box_detail;
 use super::lobes::{lobe_nodes, LobeRole, Node, SgLobe, Shapes, NO_LOBE};
-use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
+use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache, ViewLobe};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
@@ -248,6 +248,7 @@ impl NdfMapped {
             box_detail: default_box_detail(&surface.transfer),
             detail_floor: 0,
             texel_visibility: false,
+            view_weighting: false,
         }
     }
 }
@@ -264,7 +265,9 @@ pub(super) fn level_tables_bytes(
     let l = &pyramid.levels[k];
     let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
     let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
-    let mut total = lobes * 40 + texels * 4;
+    // Lobes as spherical Gaussians (40 bytes) and what view weighting reads (24), the texels'
+    // starts of both.
+    let mut total = lobes * (40 + 24) + texels * 8;
     if general {
         total += lobes * 7 * 40 + texels * 4;
     }
@@ -326,6 +329,9 @@ fn node_level(
     }
     let mut src = Vec::new();
     let mut roles = Vec::new();
+    let mut view_start = Vec::with_capacity(ncols * nrows + 1);
+    let mut view = Vec::with_capacity(shares.len());
+    view_start.push(0u32);
     // The tile's lobes seen so far: the first lobe of the texel among them.
     let mut first = 0u32;
     for t in rows.flat_map(|r| cols.clone().map(move |c| r * l.cols + c)) {
@@ -343,6 +349,12 @@ fn node_level(
         roles.clear();
         for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
             let e = peak_projected_area(p.axis.z, p.exponent);
+            view.push(ViewLobe {
+                axis: p.axis.as_vec3().to_array(),
+                eta: p.exponent as f32,
+                share: sh as f32,
+                proj_z: e as f32,
+            });
             let role = match core {
                 Some(c) if sh > 0.0 && e > 1e-12 => c.role(p.exponent),
                 _ => LobeRole::Whole,
@@ -420,6 +432,7 @@ fn node_level(
             node_start.push(nodes.len() as u32);
         }
         first += src.len() as u32;
+        view_start.push(first);
     }
     NodeLevel {
         cols: ncols,
@@ -434,6 +447,8 @@ fn node_level(
         // `lobe_stats_by_cell`: level 0's lobe horizons are per texel (its cell's).
         lobe_horizon_by_texel: l.span == 1,
         lobe_horizon,
+        view_start,
+        view,
     }
 }
 

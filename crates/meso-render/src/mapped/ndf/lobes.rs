@@ -125,44 +125,63 @@ const RING: usize = 6;
 /// Weight of the axis node.
 const AXIS_WEIGHT: f64 = 0.25;
 
-/// Replace a Phong peak (lobe `src` of its pyramid level) by 7 weighted nodes (area weights)
-/// with the lobe's mean cosine.
-pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out: &mut Vec<Node>) {
-    let mean = sg::phong_peak_mean_cos(exponent);
-    let c = ((mean - AXIS_WEIGHT) / (1.0 - AXIS_WEIGHT)).clamp(-1.0, 1.0);
+/// A Phong peak of exponent `exponent` about the unit `axis` as at most 7 unit normals with
+/// weights summing to 1 that keep the peak's mean cosine: the axis (weight ¼) and a ring of 6
+/// at the cosine that makes up the rest, or the axis alone for a peak sharper than the ring can
+/// resolve. Returns the nodes and how many of them are used.
+pub(super) fn peak_nodes(axis: DVec3, exponent: f64) -> ([(DVec3, f64); 1 + RING], usize) {
+    let mut out = [(axis, 1.0); 1 + RING];
+    let c = ring_cos(exponent);
     if c > 1.0 - 1e-9 {
-        out.push(Node {
-            n: axis,
-            w: weight,
-            src,
-            whole: true,
-        });
-        return;
+        return (out, 1);
     }
     let s = (1.0 - c * c).max(0.0).sqrt();
     let f = Frame::from_normal_tangent(axis, DVec3::X);
-    out.push(Node {
-        n: axis,
-        w: weight * AXIS_WEIGHT,
+    out[0].1 = AXIS_WEIGHT;
+    for (node, &(ca, sa)) in out[1..].iter_mut().zip(ring()) {
+        *node = (
+            f.to_world(DVec3::new(s * ca, s * sa, c)).normalize(),
+            (1.0 - AXIS_WEIGHT) / RING as f64,
+        );
+    }
+    (out, 1 + RING)
+}
+
+/// The cosines and sines of the ring's azimuths `2πk/RING`, computed once.
+fn ring() -> &'static [(f64, f64); RING] {
+    static RING_AZIMUTHS: std::sync::OnceLock<[(f64, f64); RING]> = std::sync::OnceLock::new();
+    RING_AZIMUTHS.get_or_init(|| {
+        std::array::from_fn(|k| {
+            let a = std::f64::consts::TAU * k as f64 / RING as f64;
+            (a.cos(), a.sin())
+        })
+    })
+}
+
+/// The cosine of the angle between the axis and the ring of [`peak_nodes`] for a Phong peak of
+/// exponent `exponent` (1 or nearly: the axis alone).
+pub(super) fn ring_cos(exponent: f64) -> f64 {
+    let mean = sg::phong_peak_mean_cos(exponent);
+    ((mean - AXIS_WEIGHT) / (1.0 - AXIS_WEIGHT)).clamp(-1.0, 1.0)
+}
+
+/// Replace a Phong peak (lobe `src` of its pyramid level) by its weighted nodes
+/// ([`peak_nodes`]; area weights, times `weight`) with the lobe's mean cosine.
+pub(super) fn lobe_nodes(axis: DVec3, weight: f64, exponent: f64, src: u32, out: &mut Vec<Node>) {
+    let (nodes, n) = peak_nodes(axis, exponent);
+    out.extend(nodes[..n].iter().map(|&(m, w)| Node {
+        n: m,
+        w: weight * w,
         src,
         whole: true,
-    });
-    for k in 0..RING {
-        let a = std::f64::consts::TAU * k as f64 / RING as f64;
-        out.push(Node {
-            n: f.to_world(DVec3::new(s * a.cos(), s * a.sin(), c))
-                .normalize(),
-            w: weight * (1.0 - AXIS_WEIGHT) / RING as f64,
-            src,
-            whole: true,
-        });
-    }
+    }));
 }
 
 /// The Phong facets' response of one texel, `E[(m·h)^η (m·i)⁺]` over its projected area
 /// (`m_z`-weighted, normalised), in closed form from its lobes (see
 /// [`NdfMapped`](super::NdfMapped)): the sum of [`phong_lobe`] over them, each multiplied by
-/// `vis(lobe)` (its visibility of the light, in `[0, 1]`; `1` without shadowing), which is
+/// `vis(lobe, m*)` (its visibility of the light, in `[0, 1]`, times its view weight near the
+/// product's axis `m*` when the material weights by view; `1` without either), which is
 /// called only for lobes that reflect something. `lambda = η + 1` is the Gaussian of the
 /// transfer (same integral over the sphere: [`sg::kappa_transfer`]).
 #[inline]
@@ -173,12 +192,12 @@ pub(super) fn phong_texel(
     h: DVec3,
     eta: f64,
     lambda: f64,
-    vis: impl Fn(&SgLobe) -> f64,
+    vis: impl Fn(&SgLobe, DVec3) -> f64,
 ) -> f64 {
     let mut sum = 0.0;
     for lobe in lobes {
-        if let Some((v, _)) = phong_lobe(lobe, shapes, wi, h, eta, lambda, f64::INFINITY) {
-            sum += v * vis(lobe);
+        if let Some((v, m)) = phong_lobe(lobe, shapes, wi, h, eta, lambda, f64::INFINITY) {
+            sum += v * vis(lobe, m);
         }
     }
     sum
@@ -383,8 +402,10 @@ impl MicrofacetCore {
 /// `G₂/(4 (m·i)(m·o))` taken at the product's axis (exact for a lobe much sharper or much
 /// broader than the highlight), the rest at the nodes that are not `whole`. A sharp lobe (and
 /// every lobe without a core) is its nodes alone, `whole`, each shaded with `D`: exact where
-/// the lobe is far narrower than the highlight, and the cheaper. `vis(src)` is a lobe's visibility of the light (its nodes share
-/// it). The sum is kept ≥ 0 (the rest is signed).
+/// the lobe is far narrower than the highlight, and the cheaper. `vis(src)` is a lobe's
+/// visibility of the light (its nodes share it), `view(src, m)` its view weight near normal
+/// `m` (the product's axis, or the node; 1 when the material does not weigh by view). The sum
+/// is kept ≥ 0 (the rest is signed).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn microfacet_texel(
@@ -397,6 +418,7 @@ pub(super) fn microfacet_texel(
     wo: DVec3,
     h: DVec3,
     vis: impl Fn(u32) -> f64,
+    view: impl Fn(u32, DVec3) -> f64,
 ) -> f64 {
     let mut a = 0.0;
     if let Some(core) = core {
@@ -409,7 +431,11 @@ pub(super) fn microfacet_texel(
                 };
                 let g = d.vis_isotropic(m.dot(wi), m.dot(wo));
                 if g > 0.0 {
-                    a += v * norm * g * *lobe_vis.get_or_insert_with(|| vis(lobe.src));
+                    a += v
+                        * norm
+                        * g
+                        * *lobe_vis.get_or_insert_with(|| vis(lobe.src))
+                        * view(lobe.src, m);
                 }
             }
         }
@@ -433,7 +459,7 @@ pub(super) fn microfacet_texel(
                     nv
                 }
             };
-            a += nd.w * dd * v * ci * nv;
+            a += nd.w * dd * v * ci * nv * view(nd.src, nd.n);
         }
     }
     a.max(0.0)
@@ -471,7 +497,7 @@ mod tests {
             h,
             eta,
             sg::kappa_transfer(eta),
-            |_| 1.0,
+            |_, _| 1.0,
         )
     }
 
@@ -576,10 +602,20 @@ mod tests {
                             wo,
                             h,
                             |_| 1.0,
+                            |_, _| 1.0,
                         ),
-                        None => {
-                            microfacet_texel(&[], &shapes.list, &whole, d, None, wi, wo, h, |_| 1.0)
-                        }
+                        None => microfacet_texel(
+                            &[],
+                            &shapes.list,
+                            &whole,
+                            d,
+                            None,
+                            wi,
+                            wo,
+                            h,
+                            |_| 1.0,
+                            |_, _| 1.0,
+                        ),
                     }
                 };
                 // The largest value: the half vector on the lobe's axis (o mirrored about it).

@@ -74,6 +74,132 @@ struct NodeLevel {
     lobe_horizon: Option<Horizons>,
     /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
     lobe_horizon_by_texel: bool,
+    /// Per texel, its pyramid lobes `view[view_start[t]..view_start[t + 1]]` (indexed by the
+    /// `src` of [`SgLobe`] and [`Node`]), what view weighting reads of each
+    /// ([`NdfMapped::with_view_weighting`]).
+    view_start: Vec<u32>,
+    view: Vec<ViewLobe>,
+}
+
+/// What view weighting ([`NdfMapped::with_view_weighting`]) reads of one pyramid lobe of a
+/// texel: its axis (local frame, z up), Phong exponent, share of the texel's projected area,
+/// and projected area `E[m_z⁺]` per unit of weight ([`meso_maps::peak_projected_area`]; a lobe
+/// of none is not shaded), in `f32` (24 bytes a lobe).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ViewLobe {
+    axis: [f32; 3],
+    eta: f32,
+    share: f32,
+    proj_z: f32,
+}
+
+/// The view weights of one texel's lobes for one viewing direction `o`
+/// ([`NdfMapped::with_view_weighting`]): per pyramid lobe `first + k` (`k < n`) its visibility
+/// of the viewer `u[k]`, `flat` the weight of a texel shaded as the flat surface ([`NO_LOBE`]),
+/// and `den`, the texel's area seen per unit of projected area, `Σ share · E[(m·o)⁺]/E[m_z⁺] ·
+/// u` over its lobes ([`ViewLobe::seen`]). A lobe's response near normal `m` is weighted by
+/// `u · (m·o)⁺/m_z` ([`TexelView::weight`]), whose mean over the lobe is its term of `den`.
+#[derive(Clone, Copy, Debug, Default)]
+struct TexelView {
+    /// The viewing direction.
+    o: DVec3,
+    first: u32,
+    n: usize,
+    /// Per lobe, its visibility of the viewer (1 without shadowing).
+    u: [f64; meso_maps::limits::MAX_LOBES],
+    flat: f64,
+    den: f64,
+}
+
+impl TexelView {
+    /// The weights of texel `t` of `l` seen from `o` (prepared as `dir_o`), each lobe's
+    /// visibility from `vis_o` (1 without shadowing).
+    fn new(l: &NodeLevel, t: usize, o: DVec3, vis_o: impl Fn(u32) -> f64) -> TexelView {
+        let (a, b) = (l.view_start[t], l.view_start[t + 1]);
+        let mut tv = TexelView {
+            o,
+            first: a,
+            n: ((b - a) as usize).min(meso_maps::limits::MAX_LOBES),
+            ..TexelView::default()
+        };
+        let mut any = false;
+        for k in 0..tv.n {
+            let vl = &l.view[a as usize + k];
+            if vl.share <= 0.0 || vl.proj_z <= 1e-12 {
+                continue;
+            }
+            any = true;
+            let seen = vl.seen(o);
+            if seen > 0.0 {
+                let u = vis_o(a + k as u32);
+                tv.u[k] = u;
+                tv.den += f64::from(vl.share) * seen * u;
+            }
+        }
+        if !any {
+            // Shaded as the flat surface (`NO_LOBE`).
+            tv.flat = o.z * vis_o(NO_LOBE);
+            tv.den = tv.flat;
+        }
+        tv
+    }
+
+    /// The view weight of lobe `src` (a tile's pyramid lobe, or [`NO_LOBE`]) near normal `m`:
+    /// its visibility of the viewer times `(m·o)⁺/m_z`, the area seen from `o` per unit of
+    /// projected area of facets of normal `m` (0 below the horizon).
+    #[inline]
+    fn weight(&self, src: u32, m: DVec3) -> f64 {
+        if src == NO_LOBE {
+            return self.flat;
+        }
+        let k = src.wrapping_sub(self.first) as usize;
+        if k >= self.n || m.z <= 0.0 {
+            return 0.0;
+        }
+        self.u[k] * m.dot(self.o).max(0.0) / m.z
+    }
+}
+
+impl ViewLobe {
+    /// The lobe's area seen from `o` per unit of its projected area, `E[(m·o)⁺]/E[m_z⁺]` by the
+    /// lobe's nodes ([`lobes::peak_nodes`], the rule its Lambert and general facets are shaded
+    /// by): `Σ w (m·o)⁺ / Σ w m_z⁺` over the nodes above the horizon; `o_z` for a sharp lobe
+    /// on +z. 0 for a lobe that stands for nothing.
+    #[inline]
+    fn seen(&self, o: DVec3) -> f64 {
+        if self.share <= 0.0 || self.proj_z <= 1e-12 {
+            return 0.0;
+        }
+        let a = DVec3::new(
+            f64::from(self.axis[0]),
+            f64::from(self.axis[1]),
+            f64::from(self.axis[2]),
+        );
+        let a = a.normalize();
+        // Every node above both horizons (the ring's angular radius plus the axis's angle
+        // from `o`, and from +z, under π/2): the nodes' weighted mean is `mean cos · a`, so the
+        // ratio is `a·o / a_z` without them.
+        let (ao, az) = (a.dot(o), a.z);
+        let c = lobes::ring_cos(f64::from(self.eta));
+        let sr = (1.0 - c * c).max(0.0).sqrt();
+        let above = |x: f64| x * c - (1.0 - x * x).max(0.0).sqrt() * sr > 0.0;
+        if above(ao) && above(az) {
+            return ao / az;
+        }
+        let (nodes, n) = lobes::peak_nodes(a, f64::from(self.eta));
+        let (mut num, mut den) = (0.0, 0.0);
+        for &(m, w) in &nodes[..n] {
+            if m.z > 0.0 {
+                num += w * m.dot(o).max(0.0);
+                den += w * m.z;
+            }
+        }
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
+    }
 }
 
 /// One level of the material: its size and its tables, one per tile of `tile × tile` texels
@@ -167,6 +293,8 @@ impl NodeLevel {
             + self.nodes.len() * size_of::<Node>()
             + self.horizon.as_ref().map_or(0, Horizons::bytes)
             + self.lobe_horizon.as_ref().map_or(0, Horizons::bytes)
+            + self.view_start.len() * 4
+            + self.view.len() * size_of::<ViewLobe>()
             + size_of::<NodeLevel>()
     }
 }
@@ -225,6 +353,8 @@ pub struct NdfMapped {
     /// cap ([`NdfMapped::with_table_cap`]); 0 otherwise.
     detail_floor: usize,
     texel_visibility: bool,
+    /// Weight each lobe by the area of it the viewer sees ([`NdfMapped::with_view_weighting`]).
+    view_weighting: bool,
 }
 
 /// A shading call's taps and, per tap, its tile's place among the call's tiles and its texel's
@@ -235,6 +365,8 @@ std::thread_local! {
     /// The shading calls' [`TapBuffers`], reused from call to call on each thread.
     static TAPS: std::cell::RefCell<TapBuffers> =
         const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    /// The shading calls' per-tap view weights ([`TexelView`]), reused likewise.
+    static VIEWS: std::cell::RefCell<Vec<TexelView>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl NdfMapped {
@@ -442,6 +574,28 @@ impl NdfMapped {
         self
     }
 
+    /// With `on`, weight each lobe of the footprint by the area of it that the viewer sees, as
+    /// displaced geometry does: its share of the texel's projected area times
+    /// `E[(m·o)⁺]/E[m_z⁺]` (its facets' area seen from `o` per unit of projected area,
+    /// [`meso_maps::peak_projected_area`]) times, with shadowing, its visibility of `o` (the
+    /// lobe's horizon statistics, as for the light), the footprint's response divided by the
+    /// sum of those weights. A texel of one normal (level 0 magnified) shades as without it;
+    /// from afar the response tends to the height map's effective BRDF (`meso gonio`) instead
+    /// of the bump map's plain average over the surface, which counts the facets facing away
+    /// from the viewer and the hidden ones as if seen ([`crate::mapped`], "View weighting").
+    /// Default off.
+    #[must_use]
+    pub fn with_view_weighting(mut self, on: bool) -> NdfMapped {
+        self.view_weighting = on;
+        self
+    }
+
+    /// Whether view weighting is on ([`NdfMapped::with_view_weighting`]).
+    #[must_use]
+    pub fn view_weighting(&self) -> bool {
+        self.view_weighting
+    }
+
     /// Multiply the ray-differential footprint by `scale` (> 0; default 1) before choosing the
     /// level of detail (for experiments; the renderer already fits the footprint to each
     /// sample's share of the pixel).
@@ -456,7 +610,8 @@ impl NdfMapped {
     /// Phong, Lambert and isotropic microfacet facets, whose colour — for microfacets the
     /// Fresnel factor — is applied by the caller), each lobe's part multiplied by its
     /// visibility of the light `wi` (prepared as `dir`) when `dir` is given
-    /// and the level has per-lobe horizon statistics.
+    /// and the level has per-lobe horizon statistics, and with `view` by its view weight
+    /// ([`TexelView::weight`]).
     #[inline]
     #[allow(clippy::too_many_arguments)]
     fn texel(
@@ -467,12 +622,19 @@ impl NdfMapped {
         wo: DVec3,
         h: DVec3,
         dir: Option<&HorizonDirection>,
+        view: Option<&TexelView>,
     ) -> [f64; 3] {
         let vis = |src: u32| -> f64 {
             match dir {
                 Some(d) => l
                     .lobe_horizon(t, src)
                     .map_or(1.0, |s| s.visibility_along(d)),
+                None => 1.0,
+            }
+        };
+        let seen = |src: u32, m: DVec3| -> f64 {
+            match view {
+                Some(tv) => tv.weight(src, m),
                 None => 1.0,
             }
         };
@@ -488,7 +650,7 @@ impl NdfMapped {
                         h,
                         eta,
                         sg::kappa_transfer(eta),
-                        |lb| vis(lb.src),
+                        |lb, m| vis(lb.src) * seen(lb.src, m),
                     ),
                     0.0,
                     0.0,
@@ -500,7 +662,7 @@ impl NdfMapped {
                 for nd in nodes {
                     let c = nd.n.dot(wi);
                     if nd.n.dot(wo) > 0.0 && c > 0.0 {
-                        a += nd.w * c * vis(nd.src);
+                        a += nd.w * c * vis(nd.src) * seen(nd.src, nd.n);
                     }
                 }
                 [a, 0.0, 0.0]
@@ -521,6 +683,7 @@ impl NdfMapped {
                         wo,
                         h,
                         vis,
+                        seen,
                     ),
                     0.0,
                     0.0,
@@ -534,7 +697,7 @@ impl NdfMapped {
                     if v == [0.0; 3] {
                         continue;
                     }
-                    let w = nd.w * vis(nd.src);
+                    let w = nd.w * vis(nd.src) * seen(nd.src, nd.n);
                     for c in 0..3 {
                         a[c] += w * f64::from(v[c]);
                     }
@@ -547,8 +710,8 @@ impl NdfMapped {
 
 impl Shader for NdfMapped {
     /// "NDF-mapped: L levels, box filter[ D levels finer[ (no finer than level F under the
-    /// table cap)]][, horizon shadowing per lobe | per texel]" ("trilinear filter" for the
-    /// trilinear filter).
+    /// table cap)]][, horizon shadowing per lobe | per texel][, view-weighted]" ("trilinear
+    /// filter" for the trilinear filter).
     fn describe(&self) -> Option<String> {
         let filter = if !self.box_filter {
             "trilinear filter".to_string()
@@ -576,8 +739,13 @@ impl Shader for NdfMapped {
             (true, true) => ", horizon shadowing per texel",
         };
         Some(format!(
-            "NDF-mapped: {} levels, {filter}{shadow}",
-            self.levels.len()
+            "NDF-mapped: {} levels, {filter}{shadow}{}",
+            self.levels.len(),
+            if self.view_weighting {
+                ", view-weighted"
+            } else {
+                ""
+            }
         ))
     }
 
@@ -643,6 +811,35 @@ impl Shader for NdfMapped {
             };
             at.push((h, local));
         }
+        // View weighting: each tap's lobes' weights, once for the call (one viewer).
+        let mut views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
+        views.clear();
+        let mut den = 0.0;
+        if self.view_weighting {
+            let dir_o = HorizonDirection::new(wo);
+            let per_lobe = self.shadowing && !self.texel_visibility;
+            for (k, &(_, _, w)) in taps.iter().enumerate() {
+                let (hi, t) = at[k];
+                let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
+                let l = l.as_deref().expect("fetched above");
+                let tv = TexelView::new(l, t, wo, |src| {
+                    if per_lobe {
+                        l.lobe_horizon(t, src)
+                            .map_or(1.0, |s| s.visibility_along(&dir_o))
+                    } else if self.shadowing {
+                        l.horizon
+                            .as_ref()
+                            .map_or(1.0, |h| h.get(t).visibility_along(&dir_o))
+                    } else {
+                        1.0
+                    }
+                });
+                den += w * tv.den;
+                views.push(tv);
+            }
+        }
+        // Nothing of the footprint seen (or no view weighting): the plain average.
+        let view_on = self.view_weighting && den > 0.0;
         for (k, &i) in wi.iter().enumerate() {
             let s = i + wo;
             let len = s.length();
@@ -667,7 +864,15 @@ impl Shader for NdfMapped {
                 let (hi, t) = at[k];
                 let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
                 let l = l.as_deref().expect("fetched above");
-                let v = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir));
+                let v = self.texel(
+                    l,
+                    t,
+                    i,
+                    wo,
+                    h,
+                    per_lobe.then_some(&dir),
+                    view_on.then(|| &views[k]),
+                );
                 if scalar {
                     acc[0] += w * v[0];
                 } else {
@@ -686,7 +891,7 @@ impl Shader for NdfMapped {
             } else {
                 1.0
             };
-            let s = v / i.z;
+            let s = if view_on { v / (i.z * den) } else { v / i.z };
             for c in 0..3 {
                 let a = if scalar { acc[0] * colour[c] } else { acc[c] };
                 out[k][c] = (a * s) as f32 + self.diffuse[c];
@@ -694,5 +899,6 @@ impl Shader for NdfMapped {
         }
         // The buffers back for the thread's next call.
         TAPS.with(|t| *t.borrow_mut() = (taps, at));
+        VIEWS.with(|v| *v.borrow_mut() = views);
     }
 }
