@@ -204,14 +204,24 @@ fn trace_pixel(
 ) -> [f32; 3] {
     let a = if c.spp == 1 {
         let sampler = PixelSampler::deferred(x, y, c.seed, 0);
-        trace_sample(scene, c, x, y, &sampler, [0.5, 0.5], scratch)
+        trace_sample(scene, c, x, y, &sampler, [0.5, 0.5], scratch, false).0
     } else {
-        let mut acc = DVec3::ZERO;
+        // `Σ w·L / Σ w` with each sample's `Shader::sample_weight` (1 for every material but a
+        // bump map weighted by view, where it is the plain mean to the bit); the plain mean
+        // when no sample weighs anything.
+        let (mut acc, mut plain, mut weight) = (DVec3::ZERO, DVec3::ZERO, 0.0);
         for s in 0..c.spp {
             let (sampler, j) = jittered(x, y, c.seed, s);
-            acc += trace_sample(scene, c, x, y, &sampler, j, scratch);
+            let (l, w) = trace_sample(scene, c, x, y, &sampler, j, scratch, true);
+            acc += w * l;
+            plain += l;
+            weight += w;
         }
-        acc / f64::from(c.spp)
+        if weight > 0.0 {
+            acc / weight
+        } else {
+            plain / f64::from(c.spp)
+        }
     };
     [a.x as f32, a.y as f32, a.z as f32]
 }
@@ -224,8 +234,11 @@ fn jittered(x: u32, y: u32, seed: u32, s: u32) -> (PixelSampler, [f64; 2]) {
     (smp, smp.get2(0))
 }
 
-/// The radiance along the camera ray through `(x + j[0], y + j[1])`.
+/// The radiance along the camera ray through `(x + j[0], y + j[1])` and, when `weighted`, the
+/// sample's weight in its pixel ([`Shader::sample_weight`] of the material it hit; 1 for the
+/// background, and without `weighted`).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn trace_sample(
     scene: &Scene,
     c: &PixelContext,
@@ -234,7 +247,8 @@ fn trace_sample(
     sampler: &PixelSampler,
     j: [f64; 2],
     scratch: &mut ShadeScratch,
-) -> DVec3 {
+    weighted: bool,
+) -> (DVec3, f64) {
     let (px, py) = (f64::from(x) + j[0], f64::from(y) + j[1]);
     let (hit, d) = if c.params {
         let rd = scene.camera.generate_ray(px, py, c.w, c.h);
@@ -248,9 +262,16 @@ fn trace_sample(
             if c.spp > 1 {
                 to_stratum(&mut sp, j, c.strata);
             }
-            shade_impl(scene, &sp, -d, sampler, scratch, skip)
+            let w = if weighted {
+                scene
+                    .shader(sp.material)
+                    .map_or(1.0, |s| s.sample_weight(&sp, sp.frame.to_local(-d)))
+            } else {
+                1.0
+            };
+            (shade_impl(scene, &sp, -d, sampler, scratch, skip), w)
         }
-        None => background(scene, d),
+        None => (background(scene, d), 1.0),
     }
 }
 

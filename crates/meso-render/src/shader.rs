@@ -81,6 +81,18 @@ pub trait Shader: Send + Sync {
         Ok(())
     }
 
+    /// The weight of a pixel sample that hit this material at `sp`, seen from the local unit
+    /// direction `wo`, in its pixel's average (the renderer averages `Σ w·L / Σ w` over a
+    /// pixel's samples): the area of the surface the sample stands for as the viewer sees it,
+    /// relative to the plain surface's. Default 1 (every sample alike: the plain average). A
+    /// bump map weighted by view ([`crate::BumpMapped::with_view_weighting`]) returns its
+    /// facet's `(m·o)⁺/(m_z·o_z)` times the facet's visibility of the viewer, as displaced
+    /// geometry would show it.
+    #[inline]
+    fn sample_weight(&self, _sp: &ShadingPoint, _wo: DVec3) -> f64 {
+        1.0
+    }
+
     /// One line that says how the material shades, for a user reading `meso render`'s output
     /// or the editor's preview (e.g. an NDF-mapped texture's levels, filter and visibility);
     /// `None` (the default) for materials with nothing to say beyond their file.

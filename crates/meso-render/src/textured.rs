@@ -17,8 +17,8 @@
 //! filter = "trilinear"     # ndf-mapped: or "box" (NdfMapped::with_box_filter)
 //! box_detail = 2           # ndf-mapped, box filter: levels finer than the footprint, 0–3
 //!                          # (default: from the facet's sharpness, NdfMapped::with_box_detail)
-//! view_weighting = true    # ndf-mapped: lobes counted by the area the viewer sees (default
-//!                          # false, NdfMapped::with_view_weighting)
+//! view_weighting = true    # facets counted by the area the viewer sees (default false;
+//!                          # NdfMapped::with_view_weighting, BumpMapped::with_view_weighting)
 //! [transfer]
 //! kind = "phong"
 //! exponent = 20
@@ -60,7 +60,7 @@ pub fn load_textured(path: &Path, maps: &MapsResolver) -> Result<Option<Arc<dyn 
     let kind = texture_kind(tex).map_err(named)?;
     let box_filter = box_filter(tex, kind).map_err(named)?;
     let box_detail = box_detail(tex, kind, box_filter).map_err(named)?;
-    let view_weighting = view_weighting(tex, kind).map_err(named)?;
+    let view_weighting = view_weighting(tex).map_err(named)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let t = Texture {
         kind,
@@ -159,7 +159,7 @@ struct Texture<'a> {
     box_filter: bool,
     /// `box_detail`, if given (checked: a number in `[0, MAX_BOX_DETAIL]`).
     box_detail: Option<f64>,
-    /// `view_weighting` (ndf-mapped; default false).
+    /// `view_weighting` (default false).
     view_weighting: bool,
     maps: &'a MapsResolver,
 }
@@ -262,7 +262,10 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
                 .load_heightmap(&map_table, file)
                 .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, map.cells_x())?;
-            Arc::new(BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?)
+            Arc::new(
+                BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?
+                    .with_view_weighting(t.view_weighting),
+            )
         }
         _ => {
             // From the resolver's memory, the disk cache or extracted (`MapsResolver`): the
@@ -463,19 +466,12 @@ fn box_detail(tex: &toml::Table, kind: &str, box_filter: bool) -> Result<Option<
         })
 }
 
-/// `view_weighting` of a `[texture]` table: `true` or `false` (default), ndf-mapped only
-/// ([`NdfMapped::with_view_weighting`]).
-fn view_weighting(tex: &toml::Table, kind: &str) -> Result<bool, String> {
+/// `view_weighting` of a `[texture]` table: `true` or `false` (default)
+/// ([`NdfMapped::with_view_weighting`], [`BumpMapped::with_view_weighting`]).
+fn view_weighting(tex: &toml::Table) -> Result<bool, String> {
     let Some(v) = tex.get("view_weighting") else {
         return Ok(false);
     };
-    if kind != "ndf-mapped" {
-        return Err(
-            "[texture] view_weighting: applies to kind = \"ndf-mapped\" (a bump map shades \
-             each point as seen)"
-                .to_string(),
-        );
-    }
     v.as_bool()
         .ok_or_else(|| format!("[texture] view_weighting: expected true or false, got {v}"))
 }
@@ -515,11 +511,10 @@ fn normal_mapped(
             t.maps.warn(file, w);
         }
         let texels_per_uv = texels_per_uv(t.tex, map.width())?;
-        return Ok(Arc::new(BumpMapped::from_normal_map(
-            &map,
-            &surface,
-            texels_per_uv,
-        )?));
+        return Ok(Arc::new(
+            BumpMapped::from_normal_map(&map, &surface, texels_per_uv)?
+                .with_view_weighting(t.view_weighting),
+        ));
     }
     let mut params = ExtractParams::default();
     if let Some(k) = t.max_lobes()? {

@@ -16,6 +16,9 @@ pub struct BumpMapped {
     facet: Facet,
     diffuse: [f32; 3],
     texels_per_uv: f64,
+    /// Weight each sample by its facet's area seen from the viewer
+    /// ([`BumpMapped::with_view_weighting`]).
+    view_weighting: bool,
 }
 
 impl BumpMapped {
@@ -42,6 +45,7 @@ impl BumpMapped {
             facet: Facet::new(&surface.transfer),
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
+            view_weighting: false,
         })
     }
 
@@ -67,6 +71,7 @@ impl BumpMapped {
             facet: Facet::new(&surface.transfer),
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
+            view_weighting: false,
         })
     }
 
@@ -84,6 +89,18 @@ impl BumpMapped {
         self.normals[i * self.cols + j][tri]
     }
 
+    /// With `on`, weight each pixel sample by the area of its facet the viewer sees,
+    /// `(m·o)⁺/(m_z·o_z)` times the facet's visibility of the viewer (the horizon of the
+    /// nearest height sample, as for the light, when shadowing), the pixel being their
+    /// weighted mean ([`Shader::sample_weight`]): the displaced surface's look without its
+    /// parallax, the truth that [`NdfMapped::with_view_weighting`] filters. Default off (the
+    /// plain average over the surface). One sample per pixel is unchanged.
+    #[must_use]
+    pub fn with_view_weighting(mut self, on: bool) -> BumpMapped {
+        self.view_weighting = on;
+        self
+    }
+
     fn shadow(&self, u: f64, v: f64, wi: DVec3) -> f32 {
         let Some(h) = &self.horizon else {
             return 1.0;
@@ -96,18 +113,39 @@ impl BumpMapped {
 }
 
 impl Shader for BumpMapped {
-    /// "bump-mapped: C × R cells[, horizon shadowing]".
+    /// "bump-mapped: C × R cells[, horizon shadowing][, view-weighted]".
     fn describe(&self) -> Option<String> {
         Some(format!(
-            "bump-mapped: {} × {} cells{}",
+            "bump-mapped: {} × {} cells{}{}",
             self.cols,
             self.rows,
             if self.horizon.is_some() {
                 ", horizon shadowing"
             } else {
                 ""
+            },
+            if self.view_weighting {
+                ", view-weighted"
+            } else {
+                ""
             }
         ))
+    }
+
+    /// With view weighting ([`BumpMapped::with_view_weighting`]), `(m·o)⁺/(m_z·o_z)` times the
+    /// facet's visibility of the viewer; 1 otherwise.
+    fn sample_weight(&self, sp: &ShadingPoint, wo: DVec3) -> f64 {
+        if !self.view_weighting {
+            return 1.0;
+        }
+        if wo.z <= 0.0 {
+            return 0.0;
+        }
+        let m = self.normal_at(sp.uv.x, sp.uv.y);
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        m.dot(wo).max(0.0) / (m.z * wo.z) * f64::from(self.shadow(sp.uv.x, sp.uv.y, wo))
     }
 
     fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {

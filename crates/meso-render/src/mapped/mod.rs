@@ -98,17 +98,28 @@
 //! counts each facet by the area of it the viewer sees, `(m·o)⁺/m_z` per unit of plane area
 //! times its visibility of the viewer. Seen from afar, the two differ by 10–50 % on maps with
 //! steep walls (the facade height map against `meso gonio`, which traces rays on the displaced
-//! mesh: the bump map is 13–49 % too bright). [`NdfMapped::with_view_weighting`] (scene files:
-//! `view_weighting = true`; off by default) weighs each lobe's response near normal `m` by
-//! `V_j(o) · (m·o)⁺/m_z` (`V_j(o)` its visibility of the viewer, from the same horizon
-//! statistics as the light's; the closed form takes `m` at the product's axis, the nodes their
-//! own normal) and divides the footprint's sum by its seen area, `Σ share_j · V_j(o) ·
-//! E_j[(m·o)⁺]/E_j[m_z⁺]` over the taps' lobes (the expectation by the lobe's 7 nodes; `a·o /
-//! a_z` when the lobe lies well above both horizons). A texel of one normal shades as without it
-//! (its weight cancels); a far view tends to the map's effective BRDF. It is not the default:
-//! the bump map, which the renderer's own tests take as the truth, does not weigh by view, and
-//! these tests and the box filter's defaults were measured against it (docs/heightmaps.md,
-//! "View weighting"). Test `tests/view_weighting.rs`: far views against `meso_maps::Gonio`.
+//! mesh: the bump map is 13–49 % too bright). Both materials can weigh by view (scene files:
+//! `view_weighting = true`; off by default):
+//!
+//! * [`BumpMapped::with_view_weighting`]: each pixel sample weighs `(m·o)⁺/(m_z·o_z)` times
+//!   its facet's visibility of the viewer (the nearest sample's horizon, as for the light), and
+//!   the pixel is the samples' weighted mean ([`crate::Shader::sample_weight`]; the render loop
+//!   divides `Σ w·L` by `Σ w`). One sample per pixel is unchanged. Far views then agree with
+//!   `meso gonio` within 2 % on average.
+//! * [`NdfMapped::with_view_weighting`]: each lobe's response near normal `m` is weighed by
+//!   `V_j(o) · (m·o)⁺/m_z` (`V_j(o)` its visibility of the viewer, from the same horizon
+//!   statistics as the light's; the closed form takes `m` at the product's axis, the nodes
+//!   their own normal) and the footprint's sum is divided by its seen area, `Σ share_j · V_j(o)
+//!   · E_j[(m·o)⁺]/E_j[m_z⁺]` over the taps' lobes (the expectation by the lobe's 7 nodes; `a·o
+//!   / a_z` when the lobe lies well above both horizons). A texel of one normal shades as
+//!   without it (its weight cancels); a far view tends to the map's effective BRDF.
+//!
+//! Neither is the default: the renderer's tests of steep normal maps (`tests/steep.rs`) and the
+//! box filter's default detail were measured against the unweighted bump map, and with both
+//! weighted the glossy steep normal map's NDF-mapped far views come out 11–25 % brighter than the
+//! weighted bump map (a normal map has no heights, hence no masking, and its steep facets'
+//! `1/m_z` dominates). Test `tests/view_weighting.rs`: far views against `meso_maps::Gonio`;
+//! docs/heightmaps.md, "View weighting".
 //!
 //! # Steep maps
 //! On steep normal maps (issue #11: a stone wall with 20% of its texels at `n_z < 0.2`,
