@@ -158,9 +158,10 @@ impl NdfMapped {
 
     /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
     /// tile of `pyramid` is built (a view reading all of every level), with the facet
-    /// transfer of `surface` and `shadowing`: per lobe its `SgLobe` (40 bytes; with
-    /// Lambert or general facets also its nodes, at most 7 of 40 bytes), per texel its lobe
-    /// start (4, and 4 more for the node start) and with shadowing its horizon statistics
+    /// transfer of `surface` and `shadowing`: per lobe its `SgLobe` (40 bytes) and what view
+    /// weighting reads of it (`ViewLobe`, 24 bytes; with Lambert or general facets also its
+    /// nodes, at most 7 of 40 bytes), per texel its lobe and view starts (4 + 4, and 4 more for
+    /// the node start) and with shadowing its horizon statistics
     /// (36 bytes in `f32`, 72 in `f64`, twice: the texel's and, on level 0, its cell's), per
     /// coarser lobe its horizon statistics (36 or 72). What `meso render` checks against the
     /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
