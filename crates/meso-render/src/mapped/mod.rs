@@ -118,8 +118,9 @@
 //! box filter's default detail were measured against the unweighted bump map, and with both
 //! weighted the glossy steep normal map's NDF-mapped far views come out 11–25 % brighter than the
 //! weighted bump map (a normal map has no heights, hence no masking, and its steep facets'
-//! `1/m_z` dominates). Test `tests/view_weighting.rs`: far views against `meso_maps::Gonio`;
-//! docs/heightmaps.md, "View weighting".
+//! `1/m_z` dominates the weights; the coarse levels' lobes do not follow it). Test
+//! `tests/view_weighting.rs`: far views against `meso_maps::Gonio`; docs/heightmaps.md, "View
+//! weighting".
 //!
 //! # Steep maps
 //! On steep normal maps (issue #11: a stone wall with 20% of its texels at `n_z < 0.2`,
