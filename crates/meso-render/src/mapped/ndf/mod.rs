@@ -112,8 +112,8 @@ struct TexelView {
 }
 
 impl TexelView {
-    /// The weights of texel `t` of `l` seen from `o` (prepared as `dir_o`), each lobe's
-    /// visibility from `vis_o` (1 without shadowing).
+    /// The weights of texel `t` of `l` seen from `o`, each lobe's visibility of the viewer
+    /// from `vis_o` (called with the lobe's `src`, or [`NO_LOBE`]; 1 without shadowing).
     fn new(l: &NodeLevel, t: usize, o: DVec3, vis_o: impl Fn(u32) -> f64) -> TexelView {
         let (a, b) = (l.view_start[t], l.view_start[t + 1]);
         let mut tv = TexelView {
@@ -576,10 +576,10 @@ impl NdfMapped {
 
     /// With `on`, weight each lobe of the footprint by the area of it that the viewer sees, as
     /// displaced geometry does: its share of the texel's projected area times
-    /// `E[(m·o)⁺]/E[m_z⁺]` (its facets' area seen from `o` per unit of projected area,
-    /// [`meso_maps::peak_projected_area`]) times, with shadowing, its visibility of `o` (the
-    /// lobe's horizon statistics, as for the light), the footprint's response divided by the
-    /// sum of those weights. A texel of one normal (level 0 magnified) shades as without it;
+    /// `E[(m·o)⁺]/E[m_z⁺]` (its facets' area seen from `o` per unit of projected area, by the
+    /// lobe's 7 nodes) times, with shadowing, its visibility of `o` (the lobe's horizon
+    /// statistics, as for the light), the footprint's response divided by the sum of those
+    /// weights; within a lobe, the response near normal `m` is weighed by `(m·o)⁺/m_z`. A texel of one normal (level 0 magnified) shades as without it;
     /// from afar the response tends to the height map's effective BRDF (`meso gonio`) instead
     /// of the bump map's plain average over the surface, which counts the facets facing away
     /// from the viewer and the hidden ones as if seen ([`crate::mapped`], "View weighting").
