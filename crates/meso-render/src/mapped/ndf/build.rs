@@ -88,6 +88,8 @@ impl NdfMapped {
                     &facet,
                     horizon,
                     lobe_horizon,
+                    // Built up front: ready for view weighting, asked for or not.
+                    true,
                 );
                 TexLevel {
                     cols: l.cols,
@@ -158,10 +160,11 @@ impl NdfMapped {
 
     /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
     /// tile of `pyramid` is built (a view reading all of every level), with the facet
-    /// transfer of `surface` and `shadowing`: per lobe its `SgLobe` (40 bytes) and what view
-    /// weighting reads of it (`ViewLobe`, 24 bytes; with Lambert or general facets also its
-    /// nodes, at most 7 of 40 bytes), per texel its lobe and view starts (4 + 4, and 4 more for
-    /// the node start) and with shadowing its horizon statistics
+    /// transfer of `surface` and `shadowing`, view weighting on or off: per lobe its `SgLobe`
+    /// (40 bytes) and what view weighting reads of it (`ViewLobe`, 24 bytes, built only with
+    /// view weighting; with Lambert or general facets also its nodes, at most 7 of 40 bytes),
+    /// per texel its lobe and view starts (4 + 4, and 4 more for the node start) and with
+    /// shadowing its horizon statistics
     /// (36 bytes in `f32`, 72 in `f64`, twice: the texel's and, on level 0, its cell's), per
     /// coarser lobe its horizon statistics (36 or 72). What `meso render` checks against the
     /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
@@ -169,7 +172,7 @@ impl NdfMapped {
     pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
         let facet = Facet::new(&surface.transfer);
         (0..pyramid.levels.len())
-            .map(|k| level_tables_bytes(pyramid, k, &facet, shadowing))
+            .map(|k| level_tables_bytes(pyramid, k, &facet, shadowing, true))
             .sum()
     }
 
@@ -220,6 +223,7 @@ impl NdfMapped {
             &self.facet,
             horizon,
             stats.horizon,
+            self.view_weighting,
         )
     }
 
@@ -254,21 +258,26 @@ impl NdfMapped {
     }
 }
 
-/// The most memory (bytes) the tables of level `k` of `pyramid` can take with `facet` and
-/// `shadowing` (see [`NdfMapped::tables_bytes_bound`], the sum over the levels).
+/// The most memory (bytes) the tables of level `k` of `pyramid` can take with `facet`,
+/// `shadowing` and, when `view_tables`, what view weighting reads (see
+/// [`NdfMapped::tables_bytes_bound`], the sum over the levels).
 pub(super) fn level_tables_bytes(
     pyramid: &Pyramid,
     k: usize,
     facet: &Facet,
     shadowing: bool,
+    view_tables: bool,
 ) -> u64 {
     let general = facet.needs_nodes();
     let l = &pyramid.levels[k];
     let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
     let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
-    // Lobes as spherical Gaussians (40 bytes) and what view weighting reads (24), the texels'
-    // starts of both.
-    let mut total = lobes * (40 + 24) + texels * 8;
+    // Lobes as spherical Gaussians (40 bytes) and their texels' starts; with view weighting
+    // what it reads of each lobe (24) and their starts.
+    let mut total = lobes * 40 + texels * 4;
+    if view_tables {
+        total += lobes * 24 + texels * 4;
+    }
     if general {
         total += lobes * 7 * 40 + texels * 4;
     }
@@ -300,7 +309,9 @@ fn check_levels(pyramid: &Pyramid, texels_per_uv: f64, shadowing: bool) -> Resul
 /// per texel its lobes as spherical Gaussians weighted by `shares` (each lobe's share of its
 /// texel's projected area, [`meso_maps::lobe_stats`], for the tile's lobes in texel order), and
 /// for Lambert and general facets its nodes; with the tile's texel and lobe horizon statistics
-/// when shadowing (`None` otherwise). Lobe sources (`src`) count the tile's lobes.
+/// when shadowing (`None` otherwise), and when `view_tables` what view weighting reads of each
+/// lobe (`ViewLobe`). Lobe sources (`src`) count the tile's lobes.
+#[allow(clippy::too_many_arguments)]
 fn node_level(
     l: &meso_maps::Level,
     rows: std::ops::Range<usize>,
@@ -309,6 +320,7 @@ fn node_level(
     facet: &Facet,
     horizon: Option<meso_maps::Horizons>,
     lobe_horizon: Option<meso_maps::Horizons>,
+    view_tables: bool,
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
     let general = facet.needs_nodes();
@@ -330,9 +342,13 @@ fn node_level(
     }
     let mut src = Vec::new();
     let mut roles = Vec::new();
-    let mut view_start = Vec::with_capacity(ncols * nrows + 1);
-    let mut view = Vec::with_capacity(shares.len());
-    view_start.push(0u32);
+    // What view weighting reads (`ViewLobe`), when asked for.
+    let (mut view_start, mut view) = (Vec::new(), Vec::new());
+    if view_tables {
+        view_start.reserve(ncols * nrows + 1);
+        view.reserve(shares.len());
+        view_start.push(0u32);
+    }
     // The tile's lobes seen so far: the first lobe of the texel among them.
     let mut first = 0u32;
     for t in rows.flat_map(|r| cols.clone().map(move |c| r * l.cols + c)) {
@@ -350,12 +366,14 @@ fn node_level(
         roles.clear();
         for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
             let e = peak_projected_area(p.axis.z, p.exponent);
-            view.push(ViewLobe {
-                axis: p.axis.as_vec3().to_array(),
-                eta: p.exponent as f32,
-                share: sh as f32,
-                proj_z: e as f32,
-            });
+            if view_tables {
+                view.push(ViewLobe {
+                    axis: p.axis.as_vec3().to_array(),
+                    eta: p.exponent as f32,
+                    share: sh as f32,
+                    proj_z: e as f32,
+                });
+            }
             let role = match core {
                 Some(c) if sh > 0.0 && e > 1e-12 => c.role(p.exponent),
                 _ => LobeRole::Whole,
@@ -433,7 +451,9 @@ fn node_level(
             node_start.push(nodes.len() as u32);
         }
         first += src.len() as u32;
-        view_start.push(first);
+        if view_tables {
+            view_start.push(first);
+        }
     }
     NodeLevel {
         cols: ncols,
@@ -624,6 +644,73 @@ mod tests {
                     assert_eq!(eager.table_cache_stats(), (0, 0, 0));
                 }
             }
+        }
+    }
+
+    /// View weighting reads the same from tiles built on demand as from the eager tables, bit
+    /// for bit: set before any tile is built, or after some were built without it (which drops
+    /// them: they hold nothing of it). Tiles built without it hold less.
+    #[test]
+    fn lazy_tiles_with_view_weighting_shade_as_the_eager_tables() {
+        let map = fixtures::gaussian(128, 4.0, 0.3, 5, 0.01).unwrap();
+        let pyr = extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap();
+        let wi: Vec<DVec3> = [(0.3, 0.4), (-0.6, 0.1), (0.05, -0.8)]
+            .iter()
+            .map(|&(x, y)| DVec3::new(x, y, (1.0f64 - x * x - y * y).sqrt()))
+            .collect();
+        let wo = DVec3::new(-0.2, -0.5, 0.84).normalize();
+        let tpu = 128.0;
+        for transfer in [
+            "kind = \"phong\"\nexponent = 20.0",
+            "kind = \"lambert\"",
+            "kind = \"microfacet\"\nalpha = 0.3",
+        ] {
+            let surface = Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
+            let eager = NdfMapped::new(&pyr, &surface, tpu, true)
+                .unwrap()
+                .with_view_weighting(true);
+            let plain = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
+            let lazy = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, true)
+                .unwrap()
+                .with_view_weighting(true);
+            let lazy_plain = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, true).unwrap();
+            let points: Vec<crate::ShadingPoint> = (0..60u32)
+                .map(|i| {
+                    let f = f64::from(i);
+                    let uv = DVec2::new((f * 0.618_034).fract(), (f * 0.414_214).fract());
+                    local_point(uv, (2.0f64).powf(-2.0 + 10.0 * (f * 0.7548).fract()) / tpu)
+                })
+                .collect();
+            let shade = |m: &NdfMapped| -> Vec<[f32; 3]> {
+                let mut all = Vec::new();
+                let mut out = vec![[0.0f32; 3]; wi.len()];
+                for sp in &points {
+                    m.eval_many(sp, wo, &wi, &mut out);
+                    all.extend_from_slice(&out);
+                }
+                all
+            };
+            let want = shade(&eager);
+            assert_eq!(shade(&lazy), want, "{transfer}");
+            assert_ne!(
+                shade(&plain),
+                want,
+                "{transfer}: view weighting changes nothing"
+            );
+            // Tiles built without view weighting hold less, and are dropped when it is turned on.
+            assert_eq!(shade(&lazy_plain), shade(&plain), "{transfer}");
+            let (without, _, _) = lazy_plain.table_cache_stats();
+            let (with, _, _) = lazy.table_cache_stats();
+            assert!(without < with, "{transfer}: {without} vs {with} bytes");
+            assert!(lazy_plain.tiles_built() > 0);
+            let turned = lazy_plain.with_view_weighting(true);
+            assert_eq!((turned.tiles_built(), turned.table_cache_stats().0), (0, 0));
+            assert_eq!(shade(&turned), want, "{transfer}");
         }
     }
 }

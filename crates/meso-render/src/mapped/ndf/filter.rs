@@ -313,7 +313,8 @@ mod tests {
         // tables fit in half the cap: here level 3 (level 2's do not fit), so the 64-cell box
         // reads level 3, not 1; a footprint whose own level is finer keeps it.
         let facet = crate::mapped::Facet::new(&glossy.transfer);
-        let bytes = |k: usize| super::super::build::level_tables_bytes(&pyr, k, &facet, false);
+        let bytes =
+            |k: usize| super::super::build::level_tables_bytes(&pyr, k, &facet, false, false);
         let cap = usize::try_from(bytes(2) + bytes(3)).unwrap();
         assert!(bytes(2) > (cap / 2) as u64 && bytes(3) <= (cap / 2) as u64);
         let capped = NdfMapped::from_pyramid(pyr.clone(), &glossy, tpu, false)

@@ -76,7 +76,7 @@ struct NodeLevel {
     lobe_horizon_by_texel: bool,
     /// Per texel, its pyramid lobes `view[view_start[t]..view_start[t + 1]]` (indexed by the
     /// `src` of [`SgLobe`] and [`Node`]), what view weighting reads of each
-    /// ([`NdfMapped::with_view_weighting`]).
+    /// ([`NdfMapped::with_view_weighting`]); both empty in tiles built on demand without it.
     view_start: Vec<u32>,
     view: Vec<ViewLobe>,
 }
@@ -115,6 +115,11 @@ impl TexelView {
     /// The weights of texel `t` of `l` seen from `o`, each lobe's visibility of the viewer
     /// from `vis_o` (called with the lobe's `src`, or [`NO_LOBE`]; 1 without shadowing).
     fn new(l: &NodeLevel, t: usize, o: DVec3, vis_o: impl Fn(u32) -> f64) -> TexelView {
+        // Tables built without view weighting (none are read with it): seen nowhere, so the
+        // footprint falls back to the plain average if no tap is seen.
+        if l.view_start.is_empty() {
+            return TexelView::default();
+        }
         let (a, b) = (l.view_start[t], l.view_start[t + 1]);
         let mut tv = TexelView {
             o,
@@ -477,8 +482,13 @@ impl NdfMapped {
         self.detail_floor = match &self.source {
             Some(src) => (0..self.levels.len())
                 .find(|&k| {
-                    build::level_tables_bytes(src.pyramid(), k, &self.facet, self.shadowing)
-                        <= (bytes / 2) as u64
+                    build::level_tables_bytes(
+                        src.pyramid(),
+                        k,
+                        &self.facet,
+                        self.shadowing,
+                        self.view_weighting,
+                    ) <= (bytes / 2) as u64
                 })
                 .unwrap_or(self.levels.len() - 1),
             None => 0,
@@ -584,8 +594,26 @@ impl NdfMapped {
     /// of the bump map's plain average over the surface, which counts the facets facing away
     /// from the viewer and the hidden ones as if seen ([`crate::mapped`], "View weighting").
     /// Default off.
+    ///
+    /// Tiles built on demand ([`NdfMapped::from_pyramid`]) hold what view weighting reads only
+    /// when it is on (24 bytes a lobe): turning it on or off drops the tiles built so far.
     #[must_use]
     pub fn with_view_weighting(mut self, on: bool) -> NdfMapped {
+        if on != self.view_weighting && self.source.is_some() {
+            for level in &mut self.levels {
+                for slot in &mut level.tiles {
+                    *slot.table.get_mut().unwrap_or_else(|e| e.into_inner()) = None;
+                    *slot.used.get_mut() = false;
+                }
+            }
+            let st = self
+                .cache
+                .state
+                .get_mut()
+                .unwrap_or_else(|e| e.into_inner());
+            st.bytes = 0;
+            st.order.clear();
+        }
         self.view_weighting = on;
         self
     }
