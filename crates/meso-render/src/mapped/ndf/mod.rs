@@ -839,17 +839,23 @@ impl Shader for NdfMapped {
             };
             at.push((h, local));
         }
-        // View weighting: each tap's lobes' weights, once for the call (one viewer).
-        let mut views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
-        views.clear();
+        // Tap `k`'s tile and its texel's index in it.
+        let tap = |k: usize| -> (&NodeLevel, usize) {
+            let (hi, t) = at[k];
+            let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
+            (l.as_deref().expect("fetched above"), t)
+        };
+        // View weighting: each tap's lobes' weights, once for the call (one viewer); the
+        // thread's buffer only then.
+        let mut views = Vec::new();
         let mut den = 0.0;
         if self.view_weighting {
+            views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
+            views.clear();
             let dir_o = HorizonDirection::new(wo);
             let per_lobe = self.shadowing && !self.texel_visibility;
             for (k, &(_, _, w)) in taps.iter().enumerate() {
-                let (hi, t) = at[k];
-                let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
-                let l = l.as_deref().expect("fetched above");
+                let (l, t) = tap(k);
                 let tv = TexelView::new(l, t, wo, |src| {
                     if per_lobe {
                         l.lobe_horizon(t, src)
@@ -889,9 +895,7 @@ impl Shader for NdfMapped {
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for (k, &(_, _, w)) in taps.iter().enumerate() {
-                let (hi, t) = at[k];
-                let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
-                let l = l.as_deref().expect("fetched above");
+                let (l, t) = tap(k);
                 let v = self.texel(
                     l,
                     t,
@@ -927,6 +931,8 @@ impl Shader for NdfMapped {
         }
         // The buffers back for the thread's next call.
         TAPS.with(|t| *t.borrow_mut() = (taps, at));
-        VIEWS.with(|v| *v.borrow_mut() = views);
+        if self.view_weighting {
+            VIEWS.with(|v| *v.borrow_mut() = views);
+        }
     }
 }
