@@ -17,8 +17,10 @@
 //! filter = "trilinear"     # ndf-mapped: or "box" (NdfMapped::with_box_filter)
 //! box_detail = 2           # ndf-mapped, box filter: levels finer than the footprint, 0–3
 //!                          # (default: from the facet's sharpness, NdfMapped::with_box_detail)
-//! view_weighting = true    # facets counted by the area the viewer sees (default false;
-//!                          # NdfMapped::with_view_weighting, BumpMapped::with_view_weighting)
+//! view_weighting = true    # facets counted by the area the viewer sees (default: true with
+//!                          # shadowing, i.e. for height maps and map files with horizons;
+//!                          # false for normal maps; NdfMapped::with_view_weighting,
+//!                          # BumpMapped::with_view_weighting)
 //! [transfer]
 //! kind = "phong"
 //! exponent = 20
@@ -159,18 +161,20 @@ struct Texture<'a> {
     box_filter: bool,
     /// `box_detail`, if given (checked: a number in `[0, MAX_BOX_DETAIL]`).
     box_detail: Option<f64>,
-    /// `view_weighting` (default false).
-    view_weighting: bool,
+    /// `view_weighting`, if given (else the material's default: on with shadowing).
+    view_weighting: Option<bool>,
     maps: &'a MapsResolver,
 }
 
 impl Texture<'_> {
-    /// `m` with the table's filter (`filter` and, if given, `box_detail`) and
+    /// `m` with the table's filter (`filter` and, if given, `box_detail`) and, if given,
     /// `view_weighting`.
     fn filtered(&self, m: NdfMapped) -> NdfMapped {
-        let m = m
-            .with_box_filter(self.box_filter)
-            .with_view_weighting(self.view_weighting);
+        let m = m.with_box_filter(self.box_filter);
+        let m = match self.view_weighting {
+            Some(on) => m.with_view_weighting(on),
+            None => m,
+        };
         match self.box_detail {
             Some(d) => m.with_box_detail(d),
             None => m,
@@ -262,10 +266,11 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
                 .load_heightmap(&map_table, file)
                 .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, map.cells_x())?;
-            Arc::new(
-                BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?
-                    .with_view_weighting(t.view_weighting),
-            )
+            let bump = BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?;
+            Arc::new(match t.view_weighting {
+                Some(on) => bump.with_view_weighting(on),
+                None => bump,
+            })
         }
         _ => {
             // From the resolver's memory, the disk cache or extracted (`MapsResolver`): the
@@ -466,13 +471,15 @@ fn box_detail(tex: &toml::Table, kind: &str, box_filter: bool) -> Result<Option<
         })
 }
 
-/// `view_weighting` of a `[texture]` table: `true` or `false` (default)
-/// ([`NdfMapped::with_view_weighting`], [`BumpMapped::with_view_weighting`]).
-fn view_weighting(tex: &toml::Table) -> Result<bool, String> {
+/// `view_weighting` of a `[texture]` table, if given: `true` or `false`
+/// ([`NdfMapped::with_view_weighting`], [`BumpMapped::with_view_weighting`]; without it the
+/// material's default, on with shadowing).
+fn view_weighting(tex: &toml::Table) -> Result<Option<bool>, String> {
     let Some(v) = tex.get("view_weighting") else {
-        return Ok(false);
+        return Ok(None);
     };
     v.as_bool()
+        .map(Some)
         .ok_or_else(|| format!("[texture] view_weighting: expected true or false, got {v}"))
 }
 
@@ -511,10 +518,11 @@ fn normal_mapped(
             t.maps.warn(file, w);
         }
         let texels_per_uv = texels_per_uv(t.tex, map.width())?;
-        return Ok(Arc::new(
-            BumpMapped::from_normal_map(&map, &surface, texels_per_uv)?
-                .with_view_weighting(t.view_weighting),
-        ));
+        let bump = BumpMapped::from_normal_map(&map, &surface, texels_per_uv)?;
+        return Ok(Arc::new(match t.view_weighting {
+            Some(on) => bump.with_view_weighting(on),
+            None => bump,
+        }));
     }
     let mut params = ExtractParams::default();
     if let Some(k) = t.max_lobes()? {

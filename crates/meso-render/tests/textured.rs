@@ -151,54 +151,63 @@ fn box_detail_reaches_the_scene_file_and_matches() {
     assert!(differ > a.pixels().len() / 2, "{differ} pixels differ");
 }
 
-/// `view_weighting = true` (NdfMapped::with_view_weighting, BumpMapped::with_view_weighting)
-/// reaches the material: its description says so, and the steep-walled egg crate seen at
-/// ≈ 24° from afar renders differently (each lobe, or sample, counted by the area the viewer
-/// sees); the bump map at one sample per pixel renders the same (the weight cancels).
+/// View weighting (NdfMapped::with_view_weighting, BumpMapped::with_view_weighting) is the
+/// default of a height map with shadowing, and `view_weighting = false` (or `shadowing =
+/// false`) turns it off: the descriptions say so, and the steep-walled egg crate seen at ≈ 24°
+/// from afar renders differently (each lobe, or sample, counted by the area the viewer sees);
+/// the bump map at one sample per pixel renders the same (the weight cancels).
 #[test]
 fn view_weighting_reaches_the_scene_file() {
     let d = dir("textured_view");
-    let text = std::fs::read_to_string(d.join("ndf-box.toml")).unwrap();
-    std::fs::write(
-        d.join("ndf-view.toml"),
-        text.replace("[texture]\n", "[texture]\nview_weighting = true\n"),
-    )
-    .unwrap();
+    let with = |from: &str, to: &str, line: &str| {
+        let text = std::fs::read_to_string(d.join(format!("{from}.toml"))).unwrap();
+        std::fs::write(
+            d.join(format!("{to}.toml")),
+            text.replace("[texture]\n", &format!("[texture]\n{line}\n")),
+        )
+        .unwrap();
+    };
+    with("ndf-box", "ndf-plain", "view_weighting = false");
+    with("ndf-box", "ndf-unshadowed", "shadowing = false");
+    with(
+        "ndf-unshadowed",
+        "ndf-unshadowed-view",
+        "view_weighting = true",
+    );
+    with("bump-mapped", "bump-plain", "view_weighting = false");
     let maps = meso_maps::MapsResolver::new();
-    let shader = load_textured(&d.join("ndf-view.toml"), &maps)
-        .unwrap()
-        .unwrap();
-    let said = shader.describe().unwrap();
-    assert!(said.ends_with(", view-weighted"), "{said}");
-    let text = std::fs::read_to_string(d.join("bump-mapped.toml")).unwrap();
-    std::fs::write(
-        d.join("bump-view.toml"),
-        text.replace("[texture]\n", "[texture]\nview_weighting = true\n"),
-    )
-    .unwrap();
-    let bump = load_textured(&d.join("bump-view.toml"), &maps)
-        .unwrap()
-        .unwrap();
-    let said = bump.describe().unwrap();
-    assert!(said.ends_with(", view-weighted"), "{said}");
+    let said = |name: &str| {
+        load_textured(&d.join(format!("{name}.toml")), &maps)
+            .unwrap()
+            .unwrap()
+            .describe()
+            .unwrap()
+    };
+    for (name, weighted) in [
+        ("ndf-box", true),
+        ("ndf-plain", false),
+        ("ndf-unshadowed", false),
+        ("ndf-unshadowed-view", true),
+        ("bump-mapped", true),
+        ("bump-plain", false),
+    ] {
+        let s = said(name);
+        assert_eq!(s.ends_with(", view-weighted"), weighted, "{name}: {s}");
+    }
     // One sample per pixel: the weight cancels; at 16 the pixels differ.
     let (b1, p1) = (
-        render_file(&d, "bump-view", 20.0, 1),
         render_file(&d, "bump-mapped", 20.0, 1),
+        render_file(&d, "bump-plain", 20.0, 1),
     );
     assert_eq!(b1.pixels(), p1.pixels());
     let (b16, p16) = (
-        mean(&render_file(&d, "bump-view", 20.0, 16)),
         mean(&render_file(&d, "bump-mapped", 20.0, 16)),
+        mean(&render_file(&d, "bump-plain", 20.0, 16)),
     );
     assert!((b16 / p16 - 1.0).abs() > 1e-3, "{b16} vs {p16}");
-    let plain = load_textured(&d.join("ndf-box.toml"), &maps)
-        .unwrap()
-        .unwrap();
-    assert!(!plain.describe().unwrap().contains("view-weighted"));
     let (a, b) = (
-        mean(&render_file(&d, "ndf-view", 20.0, 1)),
         mean(&render_file(&d, "ndf-box", 20.0, 1)),
+        mean(&render_file(&d, "ndf-plain", 20.0, 1)),
     );
     assert!((a / b - 1.0).abs() > 1e-3, "{a} vs {b}");
 }

@@ -65,12 +65,14 @@ fn measure(name: &str, map: &HeightMap, facets: &str, lights: &[DVec3]) -> Vec<[
     let pyr = extract(Source::Heights(map), &ExtractParams::default(), &mut |_| {}).unwrap();
     let surface = Material::from_toml_str(facets).unwrap();
     let tpu = map.width() as f64;
-    let plain = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
-    let weighted: Arc<dyn Shader> = Arc::new(plain.clone().with_view_weighting(true));
-    let plain: Arc<dyn Shader> = Arc::new(plain);
-    let bump = BumpMapped::new(map, &surface, tpu, true).unwrap();
-    let bump_weighted: Arc<dyn Shader> = Arc::new(bump.clone().with_view_weighting(true));
-    let bump: Arc<dyn Shader> = Arc::new(bump);
+    // With shadowing, view weighting is the default: the plain models are asked for.
+    let weighted = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
+    assert!(weighted.view_weighting());
+    let plain: Arc<dyn Shader> = Arc::new(weighted.clone().with_view_weighting(false));
+    let weighted: Arc<dyn Shader> = Arc::new(weighted);
+    let bump_weighted = BumpMapped::new(map, &surface, tpu, true).unwrap();
+    let bump: Arc<dyn Shader> = Arc::new(bump_weighted.clone().with_view_weighting(false));
+    let bump_weighted: Arc<dyn Shader> = Arc::new(bump_weighted);
     let gonio = Gonio::new(map).unwrap();
     let params = GonioParams {
         rays_per_side: 192,
@@ -202,9 +204,9 @@ fn one_normal_per_texel_is_unchanged() {
     .unwrap();
     for text in [LAMBERT, PHONG] {
         let surface = Material::from_toml_str(text).unwrap();
-        let plain = NdfMapped::new(&pyr, &surface, 32.0, true).unwrap();
-        let weighted: Arc<dyn Shader> = Arc::new(plain.clone().with_view_weighting(true));
-        let plain: Arc<dyn Shader> = Arc::new(plain);
+        let weighted = NdfMapped::new(&pyr, &surface, 32.0, true).unwrap();
+        let plain: Arc<dyn Shader> = Arc::new(weighted.clone().with_view_weighting(false));
+        let weighted: Arc<dyn Shader> = Arc::new(weighted.with_view_weighting(true));
         for l in [light(10.0, 30.0), light(50.0, 200.0), light(75.0, 300.0)] {
             for width in [0.5, 8.0] {
                 let a = render_plane(plain.clone(), width, 8, l, 1);

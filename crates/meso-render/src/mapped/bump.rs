@@ -24,7 +24,8 @@ pub struct BumpMapped {
 impl BumpMapped {
     /// A bump map of `map` with the facet transfer function and diffuse term of `surface` (its
     /// NDF is ignored), `texels_per_uv` height-map cells per unit of texture coordinate, and
-    /// horizon shadowing of the light when `shadowing` is true.
+    /// horizon shadowing of the light when `shadowing` is true; with shadowing, weighted by view
+    /// ([`BumpMapped::with_view_weighting`]).
     ///
     /// # Errors
     /// A message when `texels_per_uv` is not a finite positive number.
@@ -45,7 +46,7 @@ impl BumpMapped {
             facet: Facet::new(&surface.transfer),
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
-            view_weighting: false,
+            view_weighting: shadowing,
         })
     }
 
@@ -93,7 +94,8 @@ impl BumpMapped {
     /// `(m·o)⁺/(m_z·o_z)` times the facet's visibility of the viewer (the horizon of the
     /// nearest height sample, as for the light, when shadowing), the pixel being their
     /// weighted mean ([`Shader::sample_weight`]): the displaced surface's look without its
-    /// parallax, the truth that [`NdfMapped::with_view_weighting`] filters. Default off (the
+    /// parallax, the truth that [`NdfMapped::with_view_weighting`] filters. Default: on with
+    /// shadowing ([`BumpMapped::new`] with `shadowing`), off without and for normal maps (the
     /// plain average over the surface). One sample per pixel is unchanged.
     #[must_use]
     pub fn with_view_weighting(mut self, on: bool) -> BumpMapped {

@@ -98,8 +98,9 @@
 //! counts each facet by the area of it the viewer sees, `(m·o)⁺/m_z` per unit of plane area
 //! times its visibility of the viewer. Seen from afar, the two differ by 10–50 % on maps with
 //! steep walls (the facade height map against `meso gonio`, which traces rays on the displaced
-//! mesh: the bump map is 13–49 % too bright). Both materials can weigh by view (scene files:
-//! `view_weighting = true`; off by default):
+//! mesh: the bump map is 13–49 % too bright). Both materials weigh by view where the map has
+//! heights and shadowing is on, the default of height maps and of map files with horizon
+//! statistics (scene files: `view_weighting = true | false` to choose):
 //!
 //! * [`BumpMapped::with_view_weighting`]: each pixel sample weighs `(m·o)⁺/(m_z·o_z)` times
 //!   its facet's visibility of the viewer (the nearest sample's horizon, as for the light), and
@@ -114,13 +115,13 @@
 //!   / a_z` when the lobe lies well above both horizons). A texel of one normal shades as
 //!   without it (its weight cancels); a far view tends to the map's effective BRDF.
 //!
-//! Neither is the default: the renderer's tests of steep normal maps (`tests/steep.rs`) and the
-//! box filter's default detail were measured against the unweighted bump map, and with both
-//! weighted the glossy steep normal map's NDF-mapped far views come out 11–25 % brighter than the
-//! weighted bump map (a normal map has no heights, hence no masking, and its steep facets'
-//! `1/m_z` dominates the weights; the coarse levels' lobes do not follow it). Test
-//! `tests/view_weighting.rs`: far views against `meso_maps::Gonio`; docs/heightmaps.md, "View
-//! weighting".
+//! Normal maps (and height maps with `shadowing = false`) are not weighted by default: with no
+//! heights nothing masks their steep facets from the viewer, whose `1/m_z` then dominates the
+//! weights, and the glossy steep normal map's NDF-mapped far views come out 11–25 % brighter
+//! than its weighted bump map (`tests/steep.rs`; the coarse levels' lobes do not follow it).
+//! Tests: `tests/view_weighting.rs` (far views against `meso_maps::Gonio`), meso-figures'
+//! `tests/zoom.rs` (the zoom sequence's far frames within 0.75 % of the geometry);
+//! docs/heightmaps.md, "View weighting".
 //!
 //! # Steep maps
 //! On steep normal maps (issue #11: a stone wall with 20% of its texels at `n_z < 0.2`,

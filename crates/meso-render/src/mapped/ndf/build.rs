@@ -57,7 +57,8 @@ impl NdfMapped {
     /// The filtered material of `pyramid` with the facet transfer and diffuse term of
     /// `surface` (its NDF is ignored), `texels_per_uv` level-0 cells per unit of texture
     /// coordinate, and horizon shadowing of the light when `shadowing` is true (needs a
-    /// pyramid extracted from a height map). Every level's table is built now, one tile a
+    /// pyramid extracted from a height map) and then weighting by view
+    /// ([`NdfMapped::with_view_weighting`]). Every level's table is built now, one tile a
     /// level ([`NdfMapped::from_pyramid`] builds them as they are read).
     ///
     /// # Errors
@@ -161,7 +162,7 @@ impl NdfMapped {
     /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
     /// tile of `pyramid` is built (a view reading all of every level), with the facet
     /// transfer of `surface` and `shadowing`, view weighting on or off: per lobe its `SgLobe`
-    /// (40 bytes) and what view weighting reads of it (`ViewLobe`, 24 bytes, built only with
+    /// (40 bytes) and what view weighting reads of it (`ViewLobe`, 28 bytes, built only with
     /// view weighting; with Lambert or general facets also its nodes, at most 7 of 40 bytes),
     /// per texel its lobe and view starts (4 + 4, and 4 more for the node start) and with
     /// shadowing its horizon statistics
@@ -227,7 +228,8 @@ impl NdfMapped {
         )
     }
 
-    /// The material of these level tables, with the defaults of the options.
+    /// The material of these level tables, with the defaults of the options (view weighting on
+    /// with `shadowing`).
     fn with_levels(
         levels: Vec<TexLevel>,
         source: Option<Source>,
@@ -253,7 +255,10 @@ impl NdfMapped {
             box_detail: default_box_detail(&surface.transfer),
             detail_floor: 0,
             texel_visibility: false,
-            view_weighting: false,
+            // On where the heights can hide facets from the viewer (docs/heightmaps.md, "View
+            // weighting"): a normal map's steep facets, with nothing to mask them, would count
+            // 1/n_z times more.
+            view_weighting: shadowing,
         }
     }
 }
@@ -273,10 +278,10 @@ pub(super) fn level_tables_bytes(
     let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
     let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
     // Lobes as spherical Gaussians (40 bytes) and their texels' starts; with view weighting
-    // what it reads of each lobe (24) and their starts.
+    // what it reads of each lobe (`ViewLobe`) and their starts.
     let mut total = lobes * 40 + texels * 4;
     if view_tables {
-        total += lobes * 24 + texels * 4;
+        total += lobes * size_of::<super::ViewLobe>() as u64 + texels * 4;
     }
     if general {
         total += lobes * 7 * 40 + texels * 4;
@@ -367,12 +372,7 @@ fn node_level(
         for (j, (p, &sh)) in src.iter().zip(share).enumerate() {
             let e = peak_projected_area(p.axis.z, p.exponent);
             if view_tables {
-                view.push(ViewLobe {
-                    axis: p.axis.as_vec3().to_array(),
-                    eta: p.exponent as f32,
-                    share: sh as f32,
-                    proj_z: e as f32,
-                });
+                view.push(ViewLobe::new(p.axis, p.exponent, sh, e));
             }
             let role = match core {
                 Some(c) if sh > 0.0 && e > 1e-12 => c.role(p.exponent),
@@ -671,14 +671,18 @@ mod tests {
             "kind = \"microfacet\"\nalpha = 0.3",
         ] {
             let surface = Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
-            let eager = NdfMapped::new(&pyr, &surface, tpu, true)
+            // On by default with shadowing, off without.
+            let eager = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
+            assert!(eager.view_weighting());
+            assert!(!NdfMapped::new(&pyr, &surface, tpu, false)
                 .unwrap()
-                .with_view_weighting(true);
-            let plain = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
-            let lazy = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, true)
+                .view_weighting());
+            let plain = eager.clone().with_view_weighting(false);
+            let lazy = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, true).unwrap();
+            assert!(lazy.view_weighting());
+            let lazy_plain = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, true)
                 .unwrap()
-                .with_view_weighting(true);
-            let lazy_plain = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, true).unwrap();
+                .with_view_weighting(false);
             let points: Vec<crate::ShadingPoint> = (0..60u32)
                 .map(|i| {
                     let f = f64::from(i);

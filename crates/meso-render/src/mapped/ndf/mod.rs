@@ -84,13 +84,18 @@ struct NodeLevel {
 /// What view weighting ([`NdfMapped::with_view_weighting`]) reads of one pyramid lobe of a
 /// texel: its axis (local frame, z up), Phong exponent, share of the texel's projected area,
 /// and projected area `E[m_z⁺]` per unit of weight ([`meso_maps::peak_projected_area`]; a lobe
-/// of none is not shaded), in `f32` (24 bytes a lobe).
+/// of none is not shaded), in `f32` (28 bytes a lobe).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct ViewLobe {
+    /// The lobe's unit axis.
     axis: [f32; 3],
     eta: f32,
     share: f32,
     proj_z: f32,
+    /// The sine of the angle between the axis and the ring of its nodes
+    /// ([`lobes::ring_cos`]), or 2 when that angle is 90° or more: every node is above a
+    /// plane of normal `d` when `a·d` exceeds it.
+    ring_sin: f32,
 }
 
 /// The view weights of one texel's lobes for one viewing direction `o`
@@ -166,6 +171,24 @@ impl TexelView {
 }
 
 impl ViewLobe {
+    /// What view weighting reads of a lobe of axis `axis` (normalised here) and Phong
+    /// exponent `eta`, with `share` of its texel's projected area and projected area `proj_z`
+    /// per unit of weight.
+    fn new(axis: DVec3, eta: f64, share: f64, proj_z: f64) -> ViewLobe {
+        let c = lobes::ring_cos(eta);
+        ViewLobe {
+            axis: axis.normalize_or_zero().as_vec3().to_array(),
+            eta: eta as f32,
+            share: share as f32,
+            proj_z: proj_z as f32,
+            ring_sin: if c > 0.0 {
+                (1.0 - c * c).max(0.0).sqrt() as f32
+            } else {
+                2.0
+            },
+        }
+    }
+
     /// The lobe's area seen from `o` per unit of its projected area, `E[(m·o)⁺]/E[m_z⁺]` by the
     /// lobe's nodes ([`lobes::peak_nodes`], the rule its Lambert and general facets are shaded
     /// by): `Σ w (m·o)⁺ / Σ w m_z⁺` over the nodes above the horizon; `o_z` for a sharp lobe
@@ -180,18 +203,15 @@ impl ViewLobe {
             f64::from(self.axis[1]),
             f64::from(self.axis[2]),
         );
-        let a = a.normalize();
-        // Every node above both horizons (the ring's angular radius plus the axis's angle
-        // from `o`, and from +z, under π/2): the nodes' weighted mean is `mean cos · a`, so the
-        // ratio is `a·o / a_z` without them.
+        // Every node above both horizons (the ring's angular radius ρ plus the axis's angle θ
+        // from `o`, and from +z, under π/2, i.e. cos θ > sin ρ): the nodes' weighted mean is
+        // `mean cos · a`, so the ratio is `a·o / a_z` without them.
         let (ao, az) = (a.dot(o), a.z);
-        let c = lobes::ring_cos(f64::from(self.eta));
-        let sr = (1.0 - c * c).max(0.0).sqrt();
-        let above = |x: f64| x * c - (1.0 - x * x).max(0.0).sqrt() * sr > 0.0;
-        if above(ao) && above(az) {
+        let sr = f64::from(self.ring_sin);
+        if ao > sr && az > sr {
             return ao / az;
         }
-        let (nodes, n) = lobes::peak_nodes(a, f64::from(self.eta));
+        let (nodes, n) = lobes::peak_nodes(a.normalize(), f64::from(self.eta));
         let (mut num, mut den) = (0.0, 0.0);
         for &(m, w) in &nodes[..n] {
             if m.z > 0.0 {
@@ -593,10 +613,11 @@ impl NdfMapped {
     /// from afar the response tends to the height map's effective BRDF (`meso gonio`) instead
     /// of the bump map's plain average over the surface, which counts the facets facing away
     /// from the viewer and the hidden ones as if seen ([`crate::mapped`], "View weighting").
-    /// Default off.
+    /// Default: on with shadowing (a height map's pyramid), off without (a normal map's, whose
+    /// steep facets nothing would mask from the viewer).
     ///
     /// Tiles built on demand ([`NdfMapped::from_pyramid`]) hold what view weighting reads only
-    /// when it is on (24 bytes a lobe): turning it on or off drops the tiles built so far.
+    /// when it is on (28 bytes a lobe): turning it on or off drops the tiles built so far.
     #[must_use]
     pub fn with_view_weighting(mut self, on: bool) -> NdfMapped {
         if on != self.view_weighting && self.source.is_some() {
