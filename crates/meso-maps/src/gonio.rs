@@ -148,6 +148,38 @@ impl Gonio {
         self.z[rr * self.w + cc]
     }
 
+    /// The height (cell units) of the tiled surface above `(x, y)` (cell space: `x` along the
+    /// columns, `y` along the rows, any real numbers: the map tiles), on the triangle of its
+    /// cell that holds the point (`(0,0)–(1,0)–(1,1)` where `y ≤ x` in the cell, as
+    /// [`Hit::triangle`] and `crate::facets`).
+    #[must_use]
+    pub fn height_at(&self, x: f64, y: f64) -> f64 {
+        let (fx, fy) = (x.floor(), y.floor());
+        let (tx, ty) = (x - fx, y - fy);
+        let (c, r) = (fx as i64, fy as i64);
+        let z00 = self.zat(r, c);
+        let z11 = self.zat(r + 1, c + 1);
+        if ty <= tx {
+            z00 + tx * (self.zat(r, c + 1) - z00) + ty * (z11 - self.zat(r, c + 1))
+        } else {
+            let z10 = self.zat(r + 1, c);
+            z00 + ty * (z10 - z00) + tx * (z11 - z10)
+        }
+    }
+
+    /// Whether the surface point above `(x, y)` (cell space, as [`Gonio::height_at`]), on a
+    /// facet of unit normal `m`, sees the direction `d` (macro frame, z up; need not be unit):
+    /// no part of the tiled surface lies on the ray towards it, started off the facet as
+    /// [`Gonio::measure`]'s shadow rays are. False for `d` at or below the macro horizon.
+    #[must_use]
+    pub fn sees(&self, x: f64, y: f64, m: DVec3, d: DVec3) -> bool {
+        if d.z <= 0.0 {
+            return false;
+        }
+        let p = DVec3::new(x, y, self.height_at(x, y)) + m * 1e-7;
+        self.intersect(p, d.normalize(), 1e-9).is_none()
+    }
+
     /// First intersection of the ray `o + t·d`, `t > t_min`, with the tiled surface (cell space).
     #[must_use]
     pub fn intersect(&self, o: DVec3, d: DVec3, t_min: f64) -> Option<Hit> {
@@ -482,6 +514,79 @@ mod tests {
             seen[usize::from(hit.triangle)] += 1;
         }
         assert!(seen[0] > 500 && seen[1] > 500, "{seen:?}");
+    }
+
+    /// `height_at` is the height of the triangle a ray hits at that point.
+    #[test]
+    fn height_at_lies_on_the_hit_triangles() {
+        let (w, h) = (8usize, 8usize);
+        let heights: Vec<f64> = (0..w * h)
+            .map(|k| 0.7 * ((k % w) as f64 * 1.9).sin() + 0.5 * ((k / w) as f64 * 1.3).cos())
+            .collect();
+        let map = HeightMap::from_heights(w, h, heights, 0.5, Border::Wrap).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        for _ in 0..2000 {
+            let o = DVec3::new(
+                rng.random::<f64>() * 40.0 - 16.0,
+                rng.random::<f64>() * 40.0 - 16.0,
+                9.0,
+            );
+            let d =
+                DVec3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, -1.0).normalize();
+            let p = o + d * g.intersect(o, d, 0.0).expect("a hit").t;
+            assert!((g.height_at(p.x, p.y) - p.z).abs() < 1e-9, "{p:?}");
+        }
+    }
+
+    /// From a height sample, looking along a grid line, the surface point sees a direction just
+    /// above its horizon angle along that line (`HorizonMap`, exact there) and not one just below
+    /// it: two independent computations of the same visibility (`HorizonMap` by upper convex
+    /// hulls of the line's heights, `sees` by tracing the triangles).
+    #[test]
+    fn sees_agrees_with_the_horizon_angles_along_grid_lines() {
+        let (w, h) = (16usize, 16usize);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        let heights: Vec<f64> = (0..w * h).map(|_| rng.random::<f64>() * 3.0).collect();
+        let map = HeightMap::from_heights(w, h, heights, 1.0, Border::Wrap).unwrap();
+        let g = Gonio::new(&map).unwrap();
+        let horizon = crate::HorizonMap::compute(&map);
+        let dirs: [(f64, f64); 4] = [(1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)];
+        let (mut hidden, mut seen) = (0, 0);
+        for r in 0..h {
+            for c in 0..w {
+                for (k, &(dx, dy)) in dirs.iter().enumerate() {
+                    let a = horizon.angle(k, r * w + c);
+                    // A hair off the sample, inside the triangle whose edge is the grid line
+                    // ahead (a ray exactly on a cell edge can pass between the two triangles
+                    // that share it): for +x the cell's triangle (0,0)–(1,0)–(1,1) near its
+                    // corner (0,0), for −x the neighbour's other triangle near its (1,1), and
+                    // so on.
+                    let (x, y) = (
+                        c as f64 + 1e-6 * (2.0 * dx + dy),
+                        r as f64 + 1e-6 * (dx + 2.0 * dy),
+                    );
+                    for (elev, want) in [(a + 0.01, true), (a - 0.01, false)] {
+                        if elev <= 0.0 || elev >= std::f64::consts::FRAC_PI_2 {
+                            continue;
+                        }
+                        let d = DVec3::new(dx * elev.cos(), dy * elev.cos(), elev.sin());
+                        assert_eq!(
+                            g.sees(x, y, DVec3::Z, d),
+                            want,
+                            "sample ({r}, {c}), direction {k}, horizon {a}"
+                        );
+                        if want {
+                            seen += 1;
+                        } else {
+                            hidden += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(hidden > 500 && seen > 500, "{hidden} hidden, {seen} seen");
+        assert!(!g.sees(3.5, 2.25, DVec3::Z, DVec3::new(1.0, 0.0, -0.1)));
     }
 
     /// The facet-lobe continuation changes the noise, not the answer: on V-grooves with rough

@@ -8,7 +8,8 @@
 //! turned away from the viewer, and hidden ones, count as if seen. On maps with steep walls
 //! that is 10–30 % off the geometry; with view weighting each lobe counts by the area of it the
 //! viewer sees. The bump map weighted by view (each sample by its facet's seen area, the pixel
-//! their weighted mean) is checked the same way, at 256 samples per pixel.
+//! their weighted mean; light and viewer seen or hidden by rays on the displaced surface) is
+//! checked the same way, at 256 samples per pixel.
 
 use glam::DVec3;
 use meso_core::material::Material;
@@ -178,13 +179,16 @@ fn far_views_of_steep_maps_follow_the_displaced_geometry() {
     }
     // Measured (2026-12-06): NDF-mapped worst 33.2 %, mean 13.6 %; view-weighted worst 26.6 %
     // (Phong peaks cannot follow the cylinders' normals, all in one plane), mean 8.4 %. The
-    // bump map: worst 32.6 %, mean 11.6 %; view-weighted worst 9.4 % (the grooves under a
-    // low light, whose nearest-sample horizons shadow coarser than rays), mean 1.8 %.
+    // bump map, shadowed by rays on the displaced surface (`Gonio::sees`, the same tracer as
+    // the truth's; the weighting, footprint and shading are the renderer's own): worst 27.4 %,
+    // mean 11.2 %; view-weighted worst 1.9 %, mean 0.3 %. (Shadowed by its samples' horizons
+    // instead, as before the seventh session of 2026-12-06: view-weighted worst 9.4 %, the
+    // grooves under a low light, mean 1.8 %.)
     assert!(worst[1] <= 0.30, "NDF-mapped view-weighted worst {worst:?}");
     assert!(mean[1] <= 0.10, "NDF-mapped view-weighted mean {mean:?}");
     assert!(mean[1] < 0.75 * mean[0], "NDF-mapped means {mean:?}");
-    assert!(worst[3] <= 0.12, "bump map view-weighted worst {worst:?}");
-    assert!(mean[3] <= 0.03, "bump map view-weighted mean {mean:?}");
+    assert!(worst[3] <= 0.04, "bump map view-weighted worst {worst:?}");
+    assert!(mean[3] <= 0.01, "bump map view-weighted mean {mean:?}");
     assert!(mean[3] < 0.5 * mean[2], "bump map means {mean:?}");
 }
 

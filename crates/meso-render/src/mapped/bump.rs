@@ -11,8 +11,8 @@ pub struct BumpMapped {
     rows: usize,
     /// Two facet normals per cell (triangles A and B), row-major.
     normals: Vec<[DVec3; 2]>,
-    /// Per-sample horizon angles when shadowing is on.
-    horizon: Option<HorizonMap>,
+    /// How a point finds whether it sees a direction, when shadowing is on.
+    shadows: Option<Shadows>,
     facet: Facet,
     diffuse: [f32; 3],
     texels_per_uv: f64,
@@ -21,11 +21,26 @@ pub struct BumpMapped {
     view_weighting: bool,
 }
 
+/// How a bump-mapped point finds whether it sees a direction (the light's, and with view
+/// weighting the viewer's).
+#[derive(Clone, Debug)]
+enum Shadows {
+    /// A ray traced from the point on the displaced surface (the tiled mesh of the heights,
+    /// [`Gonio::sees`]): exact, for wrapped maps.
+    Rays(Arc<Gonio>),
+    /// The horizon angles of the nearest height sample along ±x and ±y, interpolated in
+    /// azimuth ([`meso_maps::HorizonStats::visibility`]): clamped maps, and
+    /// [`BumpMapped::new_horizon_shadowed`].
+    Horizon(HorizonMap),
+}
+
 impl BumpMapped {
     /// A bump map of `map` with the facet transfer function and diffuse term of `surface` (its
     /// NDF is ignored), `texels_per_uv` height-map cells per unit of texture coordinate, and
-    /// horizon shadowing of the light when `shadowing` is true; with shadowing, weighted by view
-    /// ([`BumpMapped::with_view_weighting`]).
+    /// shadowing of the light when `shadowing` is true: a ray traced from the point on the
+    /// displaced surface (the tiled mesh of the heights, as `meso gonio` traces it), or for a
+    /// clamped map the horizon of the nearest height sample; with shadowing, weighted by view
+    /// ([`BumpMapped::with_view_weighting`]), the viewer seen or hidden the same way.
     ///
     /// # Errors
     /// A message when `texels_per_uv` is not a finite positive number.
@@ -42,12 +57,34 @@ impl BumpMapped {
             cols: f.cols,
             rows: f.rows,
             normals,
-            horizon: shadowing.then(|| HorizonMap::compute(map)),
+            shadows: shadowing.then(|| match Gonio::new(map) {
+                Ok(g) => Shadows::Rays(Arc::new(g)),
+                Err(_) => Shadows::Horizon(HorizonMap::compute(map)),
+            }),
             facet: Facet::new(&surface.transfer),
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
             view_weighting: shadowing,
         })
+    }
+
+    /// [`BumpMapped::new`] with shadowing by the horizon of the nearest height sample along ±x
+    /// and ±y instead of rays, for every map: the model of the renderer before 2026-12-06 and
+    /// of the pyramid's statistics (`meso_maps::HorizonMap`), kept to compare with. On steep
+    /// maps, lights and views off those four azimuths see it 25–45 % too dark
+    /// (docs/heightmaps.md, "Shadows of the bump map").
+    ///
+    /// # Errors
+    /// As [`BumpMapped::new`].
+    pub fn new_horizon_shadowed(
+        map: &HeightMap,
+        surface: &Material,
+        texels_per_uv: f64,
+    ) -> Result<BumpMapped, String> {
+        let mut b = BumpMapped::new(map, surface, texels_per_uv, false)?;
+        b.shadows = Some(Shadows::Horizon(HorizonMap::compute(map)));
+        b.view_weighting = true;
+        Ok(b)
     }
 
     /// A normal-mapped material shaded texel by texel: the normal of the texel under the
@@ -68,7 +105,7 @@ impl BumpMapped {
             cols: f.cols,
             rows: f.rows,
             normals: f.normals.iter().map(|&n| [n, n]).collect(),
-            horizon: None,
+            shadows: None,
             facet: Facet::new(&surface.transfer),
             diffuse: surface.diffuse.map(|a| (a * FRAC_1_PI) as f32),
             texels_per_uv,
@@ -91,8 +128,8 @@ impl BumpMapped {
     }
 
     /// With `on`, weight each pixel sample by the area of its facet the viewer sees,
-    /// `(m·o)⁺/(m_z·o_z)` times the facet's visibility of the viewer (the horizon of the
-    /// nearest height sample, as for the light, when shadowing), the pixel being their
+    /// `(m·o)⁺/(m_z·o_z)` times the facet's visibility of the viewer (found as the light's,
+    /// when shadowing: by a ray on the displaced surface), the pixel being their
     /// weighted mean ([`Shader::sample_weight`]): the displaced surface's look without its
     /// parallax, the truth that [`NdfMapped::with_view_weighting`] filters. Default: on with
     /// shadowing ([`BumpMapped::new`] with `shadowing`), off without and for normal maps (the
@@ -103,14 +140,21 @@ impl BumpMapped {
         self
     }
 
-    fn shadow(&self, u: f64, v: f64, wi: DVec3) -> f32 {
-        let Some(h) = &self.horizon else {
+    /// Whether the point at `(u, v)`, on its facet of normal `m`, sees the direction `w`: 1 or
+    /// 0 (1 without shadowing).
+    fn shadow(&self, u: f64, v: f64, m: DVec3, w: DVec3) -> f32 {
+        let Some(shadows) = &self.shadows else {
             return 1.0;
         };
         let (x, y) = super::map_xy(u, v, self.texels_per_uv, self.rows);
-        let j = (x.round() as i64).rem_euclid(h.width as i64) as usize;
-        let i = (y.round() as i64).rem_euclid(h.height as i64) as usize;
-        h.sample_stats(i, j).visibility(wi) as f32
+        match shadows {
+            Shadows::Rays(g) => f32::from(u8::from(g.sees(x, y, m, w))),
+            Shadows::Horizon(h) => {
+                let j = (x.round() as i64).rem_euclid(h.width as i64) as usize;
+                let i = (y.round() as i64).rem_euclid(h.height as i64) as usize;
+                h.sample_stats(i, j).visibility(w) as f32
+            }
+        }
     }
 }
 
@@ -121,10 +165,10 @@ impl Shader for BumpMapped {
             "bump-mapped: {} × {} cells{}{}",
             self.cols,
             self.rows,
-            if self.horizon.is_some() {
-                ", horizon shadowing"
-            } else {
-                ""
+            match self.shadows {
+                Some(Shadows::Rays(_)) => ", ray-traced shadowing",
+                Some(Shadows::Horizon(_)) => ", horizon shadowing",
+                None => "",
             },
             if self.view_weighting {
                 ", view-weighted"
@@ -147,7 +191,11 @@ impl Shader for BumpMapped {
         if m.z <= 0.0 {
             return 0.0;
         }
-        m.dot(wo).max(0.0) / (m.z * wo.z) * f64::from(self.shadow(sp.uv.x, sp.uv.y, wo))
+        let seen = m.dot(wo);
+        if seen <= 0.0 {
+            return 0.0;
+        }
+        seen / (m.z * wo.z) * f64::from(self.shadow(sp.uv.x, sp.uv.y, m, wo))
     }
 
     fn eval(&self, sp: &ShadingPoint, wi: DVec3, wo: DVec3) -> [f32; 3] {
@@ -159,7 +207,12 @@ impl Shader for BumpMapped {
         };
         let m = self.normal_at(sp.uv.x, sp.uv.y);
         let v = self.facet.lit(m, wi, wo, h);
-        let s = self.shadow(sp.uv.x, sp.uv.y, wi) / wi.z as f32;
+        // No ray for a facet that reflects nothing (turned away from the light).
+        let s = if v == [0.0; 3] {
+            0.0
+        } else {
+            self.shadow(sp.uv.x, sp.uv.y, m, wi) / wi.z as f32
+        };
         [
             v[0] * s + self.diffuse[0],
             v[1] * s + self.diffuse[1],
