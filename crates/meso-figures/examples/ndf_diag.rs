@@ -105,7 +105,7 @@ fn main() {
             map,
             pyr,
             meso_figures::bump_surface(),
-            DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6),
+            meso_figures::plane_view(),
             wi,
         )
     };

@@ -212,6 +212,13 @@ pub fn plane_light() -> Light {
     }
 }
 
+/// The direction towards the camera of [`plane_scene`] (unit, the plane's frame: 30° from the
+/// normal, towards −y).
+#[must_use]
+pub fn plane_view() -> DVec3 {
+    DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6)
+}
+
 /// A plane `z = 0` (tangent `+x`, one texture unit per world unit) with `shader`, seen through
 /// an orthographic camera tilted 30° from the normal, `width` world units across, under
 /// [`plane_light`].
@@ -224,7 +231,7 @@ pub fn plane_scene(
     pixels: u32,
     spp: u32,
 ) -> Result<Scene, FigureError> {
-    let dir = DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6);
+    let dir = plane_view();
     let cam = Camera::new(
         Projection::Orthographic { width },
         dir * 10.0 * width.max(1.0),
@@ -251,7 +258,7 @@ pub fn plane_scene(
 /// The scene file of [`plane_scene`] for `meso render`, with `material` as the material path.
 #[must_use]
 pub fn plane_scene_toml(material: &str, width: f64, pixels: u32, spp: u32) -> String {
-    let pos = DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6) * 10.0 * width.max(1.0);
+    let pos = plane_view() * 10.0 * width.max(1.0);
     let Light::Directional {
         direction: l,
         irradiance: e,

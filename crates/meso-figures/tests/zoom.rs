@@ -7,7 +7,7 @@
 //! the geometry does, close to it; and the frames' scene files give the same pictures through
 //! `meso render`'s path.
 
-use meso_figures::{bump_map, bump_surface, mean_luminance, plane_light, run, Options};
+use meso_figures::{bump_map, bump_surface, mean_luminance, plane_light, plane_view, run, Options};
 use meso_render::Light;
 use meso_render::{
     load_textured, render, MaterialShader, RenderOptions, ResolveError, Scene, Shader,
@@ -49,7 +49,7 @@ fn zoom_sequence_has_no_pop() {
     else {
         unreachable!("plane_light is directional")
     };
-    let o = glam::DVec3::new(0.0, -0.5, 0.866_025_403_784_438_6);
+    let o = plane_view();
     let surface = bump_surface().material().expect("surface");
     let gonio = meso_maps::Gonio::new(&bump_map().expect("map")).expect("gonio");
     let params = meso_maps::GonioParams {
