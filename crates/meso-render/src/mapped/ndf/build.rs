@@ -12,7 +12,8 @@
 
 use super::filter::default_box_detail;
 use super::lobes::{lobe_nodes, LobeRole, Node, SgLobe, Shapes, NO_LOBE};
-use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache, ViewLobe};
+use super::view::ViewLobe;
+use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
@@ -281,7 +282,7 @@ pub(super) fn level_tables_bytes(
     // what it reads of each lobe (`ViewLobe`) and their starts.
     let mut total = lobes * 40 + texels * 4;
     if view_tables {
-        total += lobes * size_of::<super::ViewLobe>() as u64 + texels * 4;
+        total += lobes * size_of::<ViewLobe>() as u64 + texels * 4;
     }
     if general {
         total += lobes * 7 * 40 + texels * 4;

@@ -33,6 +33,7 @@ mod filter;
 mod lobes;
 #[cfg(test)]
 mod peak_quadrature;
+mod view;
 
 use build::Source;
 use filter::Tap;
@@ -44,6 +45,7 @@ use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{HorizonDirection, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use view::{TexelView, ViewLobe};
 
 /// The tables of one tile of a level of the filtered pyramid (a rectangle of its texels; a
 /// whole level when built eagerly, [`NdfMapped::new`]): texels are indexed row-major within
@@ -79,152 +81,6 @@ struct NodeLevel {
     /// ([`NdfMapped::with_view_weighting`]); both empty in tiles built on demand without it.
     view_start: Vec<u32>,
     view: Vec<ViewLobe>,
-}
-
-/// What view weighting ([`NdfMapped::with_view_weighting`]) reads of one pyramid lobe of a
-/// texel: its axis (local frame, z up), Phong exponent, share of the texel's projected area,
-/// and projected area `E[m_z⁺]` per unit of weight ([`meso_maps::peak_projected_area`]; a lobe
-/// of none is not shaded), in `f32` (28 bytes a lobe).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct ViewLobe {
-    /// The lobe's unit axis.
-    axis: [f32; 3],
-    eta: f32,
-    share: f32,
-    proj_z: f32,
-    /// The sine of the angle between the axis and the ring of its nodes
-    /// ([`lobes::ring_cos`]), or 2 when that angle is 90° or more: every node is above a
-    /// plane of normal `d` when `a·d` exceeds it.
-    ring_sin: f32,
-}
-
-/// The view weights of one texel's lobes for one viewing direction `o`
-/// ([`NdfMapped::with_view_weighting`]): per pyramid lobe `first + k` (`k < n`) its visibility
-/// of the viewer `u[k]`, `flat` the weight of a texel shaded as the flat surface ([`NO_LOBE`]),
-/// and `den`, the texel's area seen per unit of projected area, `Σ share · E[(m·o)⁺]/E[m_z⁺] ·
-/// u` over its lobes ([`ViewLobe::seen`]). A lobe's response near normal `m` is weighted by
-/// `u · (m·o)⁺/m_z` ([`TexelView::weight`]), whose mean over the lobe is its term of `den`.
-#[derive(Clone, Copy, Debug, Default)]
-struct TexelView {
-    /// The viewing direction.
-    o: DVec3,
-    first: u32,
-    n: usize,
-    /// Per lobe, its visibility of the viewer (1 without shadowing).
-    u: [f64; meso_maps::limits::MAX_LOBES],
-    flat: f64,
-    den: f64,
-}
-
-impl TexelView {
-    /// The weights of texel `t` of `l` seen from `o`, each lobe's visibility of the viewer
-    /// from `vis_o` (called with the lobe's `src`, or [`NO_LOBE`]; 1 without shadowing).
-    fn new(l: &NodeLevel, t: usize, o: DVec3, vis_o: impl Fn(u32) -> f64) -> TexelView {
-        // Tables built without view weighting (none are read with it): seen nowhere, so the
-        // footprint falls back to the plain average if no tap is seen.
-        if l.view_start.is_empty() {
-            return TexelView::default();
-        }
-        let (a, b) = (l.view_start[t], l.view_start[t + 1]);
-        let mut tv = TexelView {
-            o,
-            first: a,
-            n: ((b - a) as usize).min(meso_maps::limits::MAX_LOBES),
-            ..TexelView::default()
-        };
-        let mut any = false;
-        for k in 0..tv.n {
-            let vl = &l.view[a as usize + k];
-            if vl.share <= 0.0 || vl.proj_z <= 1e-12 {
-                continue;
-            }
-            any = true;
-            let seen = vl.seen(o);
-            if seen > 0.0 {
-                let u = vis_o(a + k as u32);
-                tv.u[k] = u;
-                tv.den += f64::from(vl.share) * seen * u;
-            }
-        }
-        if !any {
-            // Shaded as the flat surface (`NO_LOBE`).
-            tv.flat = o.z * vis_o(NO_LOBE);
-            tv.den = tv.flat;
-        }
-        tv
-    }
-
-    /// The view weight of lobe `src` (a tile's pyramid lobe, or [`NO_LOBE`]) near normal `m`:
-    /// its visibility of the viewer times `(m·o)⁺/m_z`, the area seen from `o` per unit of
-    /// projected area of facets of normal `m` (0 below the horizon).
-    #[inline]
-    fn weight(&self, src: u32, m: DVec3) -> f64 {
-        if src == NO_LOBE {
-            return self.flat;
-        }
-        let k = src.wrapping_sub(self.first) as usize;
-        if k >= self.n || m.z <= 0.0 {
-            return 0.0;
-        }
-        self.u[k] * m.dot(self.o).max(0.0) / m.z
-    }
-}
-
-impl ViewLobe {
-    /// What view weighting reads of a lobe of axis `axis` (normalised here) and Phong
-    /// exponent `eta`, with `share` of its texel's projected area and projected area `proj_z`
-    /// per unit of weight.
-    fn new(axis: DVec3, eta: f64, share: f64, proj_z: f64) -> ViewLobe {
-        let c = lobes::ring_cos(eta);
-        ViewLobe {
-            axis: axis.normalize_or_zero().as_vec3().to_array(),
-            eta: eta as f32,
-            share: share as f32,
-            proj_z: proj_z as f32,
-            ring_sin: if c > 0.0 {
-                (1.0 - c * c).max(0.0).sqrt() as f32
-            } else {
-                2.0
-            },
-        }
-    }
-
-    /// The lobe's area seen from `o` per unit of its projected area, `E[(m·o)⁺]/E[m_z⁺]` by the
-    /// lobe's nodes ([`lobes::peak_nodes`], the rule its Lambert and general facets are shaded
-    /// by): `Σ w (m·o)⁺ / Σ w m_z⁺` over the nodes above the horizon; `o_z` for a sharp lobe
-    /// on +z. 0 for a lobe that stands for nothing.
-    #[inline]
-    fn seen(&self, o: DVec3) -> f64 {
-        if self.share <= 0.0 || self.proj_z <= 1e-12 {
-            return 0.0;
-        }
-        let a = DVec3::new(
-            f64::from(self.axis[0]),
-            f64::from(self.axis[1]),
-            f64::from(self.axis[2]),
-        );
-        // Every node above both horizons (the ring's angular radius ρ plus the axis's angle θ
-        // from `o`, and from +z, under π/2, i.e. cos θ > sin ρ): the nodes' weighted mean is
-        // `mean cos · a`, so the ratio is `a·o / a_z` without them.
-        let (ao, az) = (a.dot(o), a.z);
-        let sr = f64::from(self.ring_sin);
-        if ao > sr && az > sr {
-            return ao / az;
-        }
-        let (nodes, n) = lobes::peak_nodes(a.normalize(), f64::from(self.eta));
-        let (mut num, mut den) = (0.0, 0.0);
-        for &(m, w) in &nodes[..n] {
-            if m.z > 0.0 {
-                num += w * m.dot(o).max(0.0);
-                den += w * m.z;
-            }
-        }
-        if den > 0.0 {
-            num / den
-        } else {
-            0.0
-        }
-    }
 }
 
 /// One level of the material: its size and its tables, one per tile of `tile × tile` texels
