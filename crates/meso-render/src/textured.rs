@@ -266,6 +266,12 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
                 .load_heightmap(&map_table, file)
                 .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, map.cells_x())?;
+            meso_core::budget::check(
+                file,
+                "bump-mapping the height map (its facet normals and shadow rays' tracer)",
+                BumpMapped::bytes(map.cells_x(), map.cells_y(), shadowing),
+            )
+            .map_err(|e| format!("[texture] file: {e}"))?;
             let bump = BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?;
             Arc::new(match t.view_weighting {
                 Some(on) => bump.with_view_weighting(on),
@@ -518,6 +524,12 @@ fn normal_mapped(
             t.maps.warn(file, w);
         }
         let texels_per_uv = texels_per_uv(t.tex, map.width())?;
+        meso_core::budget::check(
+            file,
+            "bump-mapping the normal map (its normals)",
+            BumpMapped::bytes(map.width(), map.height(), false),
+        )
+        .map_err(|e| format!("[texture] normal_map: {e}"))?;
         let bump = BumpMapped::from_normal_map(&map, &surface, texels_per_uv)?;
         return Ok(Arc::new(match t.view_weighting {
             Some(on) => bump.with_view_weighting(on),

@@ -68,6 +68,21 @@ impl BumpMapped {
         })
     }
 
+    /// The most memory (bytes) a bump map of `cols × rows` cells holds: two facet normals a
+    /// cell and, with `shadowing`, the shadow rays' tracer (16 bytes a height sample,
+    /// [`Gonio::bytes`]; the horizons of a clamped map take half that).
+    #[must_use]
+    pub fn bytes(cols: usize, rows: usize, shadowing: bool) -> u64 {
+        let cells = (cols as u64).saturating_mul(rows as u64);
+        let normals = cells.saturating_mul(std::mem::size_of::<[DVec3; 2]>() as u64);
+        let tracer = if shadowing {
+            Gonio::bytes(cols + 1, rows + 1)
+        } else {
+            0
+        };
+        normals.saturating_add(tracer)
+    }
+
     /// [`BumpMapped::new`] with shadowing by the horizon of the nearest height sample along ±x
     /// and ±y instead of rays, for every map: the model of the renderer before 2026-12-06 and
     /// of the pyramid's statistics (`meso_maps::HorizonMap`), kept to compare with. On steep
