@@ -181,6 +181,14 @@ impl Texture<'_> {
         }
     }
 
+    /// `b` with the table's `view_weighting`, if given.
+    fn bump(&self, b: BumpMapped) -> Arc<dyn Shader> {
+        Arc::new(match self.view_weighting {
+            Some(on) => b.with_view_weighting(on),
+            None => b,
+        })
+    }
+
     /// The facet material: the file without its `[texture]` table.
     fn surface(&self) -> Result<meso_core::material::Material, String> {
         let rest = toml::to_string(self.doc).map_err(|e| format!("cannot re-read: {e}"))?;
@@ -272,11 +280,7 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
                 BumpMapped::bytes(map.cells_x(), map.cells_y(), shadowing),
             )
             .map_err(|e| format!("[texture] file: {e}"))?;
-            let bump = BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?;
-            Arc::new(match t.view_weighting {
-                Some(on) => bump.with_view_weighting(on),
-                None => bump,
-            })
+            t.bump(BumpMapped::new(&map, &surface, texels_per_uv, shadowing)?)
         }
         _ => {
             // From the resolver's memory, the disk cache or extracted (`MapsResolver`): the
@@ -530,11 +534,7 @@ fn normal_mapped(
             BumpMapped::bytes(map.width(), map.height(), false),
         )
         .map_err(|e| format!("[texture] normal_map: {e}"))?;
-        let bump = BumpMapped::from_normal_map(&map, &surface, texels_per_uv)?;
-        return Ok(Arc::new(match t.view_weighting {
-            Some(on) => bump.with_view_weighting(on),
-            None => bump,
-        }));
+        return Ok(t.bump(BumpMapped::from_normal_map(&map, &surface, texels_per_uv)?));
     }
     let mut params = ExtractParams::default();
     if let Some(k) = t.max_lobes()? {

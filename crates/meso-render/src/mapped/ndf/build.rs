@@ -163,7 +163,7 @@ impl NdfMapped {
     /// The most memory (bytes) the tables of [`NdfMapped::from_pyramid`] can take once every
     /// tile of `pyramid` is built (a view reading all of every level), with the facet
     /// transfer of `surface` and `shadowing`, view weighting on or off: per lobe its `SgLobe`
-    /// (40 bytes) and what view weighting reads of it (`ViewLobe`, 28 bytes, built only with
+    /// (40 bytes) and what view weighting reads of it (`ViewLobe`, 24 bytes, built only with
     /// view weighting; with Lambert or general facets also its nodes, at most 7 of 40 bytes),
     /// per texel its lobe and view starts (4 + 4, and 4 more for the node start) and with
     /// shadowing its horizon statistics

@@ -473,7 +473,7 @@ impl NdfMapped {
     /// steep facets nothing would mask from the viewer).
     ///
     /// Tiles built on demand ([`NdfMapped::from_pyramid`]) hold what view weighting reads only
-    /// when it is on (28 bytes a lobe): turning it on or off drops the tiles built so far.
+    /// when it is on (24 bytes a lobe): turning it on or off drops the tiles built so far.
     #[must_use]
     pub fn with_view_weighting(mut self, on: bool) -> NdfMapped {
         if on != self.view_weighting && self.source.is_some() {
@@ -722,6 +722,9 @@ impl Shader for NdfMapped {
             let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
             (l.as_deref().expect("fetched above"), t)
         };
+        // Per lobe (the default): each lobe's part times its own visibility; per texel: the
+        // response times the taps' blended visibility. The same for the light and the viewer.
+        let per_lobe = self.shadowing && !self.texel_visibility;
         // View weighting: each tap's lobes' weights, once for the call (one viewer); the
         // thread's buffer only then.
         let mut views = Vec::new();
@@ -730,7 +733,6 @@ impl Shader for NdfMapped {
             views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
             views.clear();
             let dir_o = HorizonDirection::new(wo);
-            let per_lobe = self.shadowing && !self.texel_visibility;
             for (k, &(_, _, w)) in taps.iter().enumerate() {
                 let (l, t) = tap(k);
                 let tv = TexelView::new(l, t, wo, |src| {
@@ -761,14 +763,11 @@ impl Shader for NdfMapped {
             if let Facet::Microfacet { fresnel, .. } = self.facet {
                 colour = fresnel.eval(i.dot(h));
             }
-            // Per lobe (the default): each lobe's part times its own visibility; per texel:
-            // the response times the taps' blended visibility.
             let dir = if self.shadowing {
                 HorizonDirection::new(i)
             } else {
                 HorizonDirection::new(DVec3::Z)
             };
-            let per_lobe = self.shadowing && !self.texel_visibility;
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for (k, &(_, _, w)) in taps.iter().enumerate() {

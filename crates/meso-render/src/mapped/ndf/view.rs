@@ -7,16 +7,15 @@ use super::{NodeLevel, NO_LOBE};
 use glam::DVec3;
 
 /// What view weighting ([`crate::NdfMapped::with_view_weighting`]) reads of one pyramid lobe
-/// of a texel: its axis (local frame, z up), Phong exponent, share of the texel's projected
-/// area, and projected area `E[m_z⁺]` per unit of weight ([`meso_maps::peak_projected_area`];
-/// a lobe of none is not shaded), in `f32` (28 bytes a lobe).
+/// of a texel: its axis (local frame, z up), Phong exponent and share of the texel's
+/// projected area (0 for a lobe that is not shaded: no share, or no projected area
+/// [`meso_maps::peak_projected_area`]), in `f32` (24 bytes a lobe).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct ViewLobe {
     /// The lobe's unit axis.
     pub(super) axis: [f32; 3],
     pub(super) eta: f32,
     pub(super) share: f32,
-    pub(super) proj_z: f32,
     /// The sine of the angle between the axis and the ring of its nodes
     /// ([`lobes::ring_cos`]), or 2 when that angle is 90° or more: every node is above a
     /// plane of normal `d` when `a·d` exceeds it.
@@ -61,7 +60,7 @@ impl TexelView {
         let mut any = false;
         for k in 0..tv.n {
             let vl = &l.view[a as usize + k];
-            if vl.share <= 0.0 || vl.proj_z <= 1e-12 {
+            if vl.share <= 0.0 {
                 continue;
             }
             any = true;
@@ -99,14 +98,18 @@ impl TexelView {
 impl ViewLobe {
     /// What view weighting reads of a lobe of axis `axis` (normalised here) and Phong
     /// exponent `eta`, with `share` of its texel's projected area and projected area `proj_z`
-    /// per unit of weight.
+    /// per unit of weight: shaded (a share kept) only when both are positive, as the tables
+    /// shade it.
     pub(super) fn new(axis: DVec3, eta: f64, share: f64, proj_z: f64) -> ViewLobe {
         let c = lobes::ring_cos(eta);
         ViewLobe {
             axis: axis.normalize_or_zero().as_vec3().to_array(),
             eta: eta as f32,
-            share: share as f32,
-            proj_z: proj_z as f32,
+            share: if share > 0.0 && proj_z > 1e-12 {
+                share as f32
+            } else {
+                0.0
+            },
             ring_sin: if c > 0.0 {
                 (1.0 - c * c).max(0.0).sqrt() as f32
             } else {
@@ -118,12 +121,9 @@ impl ViewLobe {
     /// The lobe's area seen from `o` per unit of its projected area, `E[(m·o)⁺]/E[m_z⁺]` by
     /// the lobe's nodes ([`lobes::peak_nodes`], the rule its Lambert and general facets are
     /// shaded by): `Σ w (m·o)⁺ / Σ w m_z⁺` over the nodes above the horizon; `o_z` for a sharp
-    /// lobe on +z. 0 for a lobe that stands for nothing.
+    /// lobe on +z. Asked of the lobes that are shaded (`share > 0`, [`TexelView::new`]).
     #[inline]
     pub(super) fn seen(&self, o: DVec3) -> f64 {
-        if self.share <= 0.0 || self.proj_z <= 1e-12 {
-            return 0.0;
-        }
         let a = DVec3::new(
             f64::from(self.axis[0]),
             f64::from(self.axis[1]),
