@@ -98,9 +98,7 @@ fn main() {
     } else {
         let map = meso_figures::bump_map().expect("map");
         let pyr = meso_figures::pyramid(&map, max_lobes).expect("pyramid");
-        let Light::Directional { direction: wi, .. } = meso_figures::plane_light() else {
-            unreachable!()
-        };
+        let (wi, _) = meso_figures::plane_sun();
         (
             map,
             pyr,

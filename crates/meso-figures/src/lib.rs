@@ -203,13 +203,22 @@ pub fn bump_surface() -> MaterialDef {
     }
 }
 
-/// The light of the zoom sequence: directional, 55° from the plane's normal, from the left.
+/// The light of the zoom sequence: directional, 55° from the plane's normal, from the left
+/// (its direction and irradiance: [`plane_sun`]).
 #[must_use]
 pub fn plane_light() -> Light {
+    let (direction, irradiance) = plane_sun();
     Light::Directional {
-        direction: DVec3::new(-0.75, 0.35, 0.57).normalize(),
-        irradiance: DVec3::splat(2.0),
+        direction,
+        irradiance,
     }
+}
+
+/// [`plane_light`]'s unit direction towards the light (the plane's frame) and its irradiance
+/// (W/m² per channel, perpendicular to that direction).
+#[must_use]
+pub fn plane_sun() -> (DVec3, DVec3) {
+    (DVec3::new(-0.75, 0.35, 0.57).normalize(), DVec3::splat(2.0))
 }
 
 /// The direction towards the camera of [`plane_scene`] (unit, the plane's frame: 30° from the
@@ -259,13 +268,7 @@ pub fn plane_scene(
 #[must_use]
 pub fn plane_scene_toml(material: &str, width: f64, pixels: u32, spp: u32) -> String {
     let pos = plane_view() * 10.0 * width.max(1.0);
-    let Light::Directional {
-        direction: l,
-        irradiance: e,
-    } = plane_light()
-    else {
-        unreachable!("plane_light is directional")
-    };
+    let (l, e) = plane_sun();
     format!(
         "[camera]\nkind = \"orthographic\"\nposition = [{:?}, {:?}, {:?}]\n\
          look_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nwidth = {width:?}\n\

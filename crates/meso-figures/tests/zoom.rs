@@ -7,8 +7,7 @@
 //! the geometry does, close to it; and the frames' scene files give the same pictures through
 //! `meso render`'s path.
 
-use meso_figures::{bump_map, bump_surface, mean_luminance, plane_light, plane_view, run, Options};
-use meso_render::Light;
+use meso_figures::{bump_map, bump_surface, mean_luminance, plane_sun, plane_view, run, Options};
 use meso_render::{
     load_textured, render, MaterialShader, RenderOptions, ResolveError, Scene, Shader,
 };
@@ -42,13 +41,7 @@ fn zoom_sequence_has_no_pop() {
     // The geometry's mean luminance in this view: the height map's effective BRDF (facets of
     // the surface's transfer) by rays on the displaced mesh, plus the surface's diffuse term
     // `albedo/π` (a base under the facets, as `Material::brdf` adds it), times the irradiance.
-    let Light::Directional {
-        direction: l,
-        irradiance: e,
-    } = plane_light()
-    else {
-        unreachable!("plane_light is directional")
-    };
+    let (l, e) = plane_sun();
     let o = plane_view();
     let surface = bump_surface().material().expect("surface");
     let gonio = meso_maps::Gonio::new(&bump_map().expect("map")).expect("gonio");

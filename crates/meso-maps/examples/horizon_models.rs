@@ -26,6 +26,7 @@
 //! ```
 use glam::DVec3;
 use meso_maps::{Border, Gonio, HeightMap, HorizonMap};
+use rand::{RngExt, SeedableRng};
 use std::path::Path;
 
 /// [`meso_maps::HorizonStats::visibility`]'s ramp of half-width √3·σ, smoothstepped.
@@ -38,17 +39,22 @@ fn ramp(mu: f64, var: f64, e: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
 }
 
-/// One random point of the surface: its cell, normal group and weights, and what rays see.
+/// Per point, then summed per group: `[1, μ_x, E[h²]_x, μ_y, E[h²]_y, μ_o, E[h²]_o, lit,
+/// seen, corners_l, corners_o, bilinear_l, bilinear_o, joint]`. `x`, `y`: the two horizon
+/// directions nearest the light's azimuth; `o`: −y, the viewer's; `μ`, `E[h²]`: of the cell's
+/// four corner angles; `lit` = `(m·l)⁺ (m·o)⁺/m_z` (Lambert radiance × π/E, times the seen
+/// area), `seen` = `(m·o)⁺/m_z`; the rest the fractions that see the light, the viewer, both.
+type Sums = [f64; 14];
+
+/// One random point of the surface: its cell and normal group, what rays see from it, and its
+/// share of its group's [`Sums`] (the same at every level, so computed once).
 struct Point {
     row: usize,
     col: usize,
     group: usize,
-    /// `(m·o)⁺/m_z`: the point's seen area per unit of plane area.
-    seen: f64,
-    /// `(m·l)⁺ (m·o)⁺/m_z`: its Lambert radiance (× π/E) times its seen area.
-    lit: f64,
     sees_o: bool,
     sees_l: bool,
+    sums: Sums,
 }
 
 /// Normal groups: flat (slope < 0.1), then 8 azimuth sectors at slope ≤ 1 and > 1.
@@ -64,10 +70,13 @@ fn group(m: DVec3) -> usize {
     1 + sector + 8 * usize::from(slope > 1.0)
 }
 
-/// Per group sums: `[n, μ_x, E[h²]_x, μ_y, E[h²]_y, μ_o, E[h²]_o, lit, seen, corners_l,
-/// corners_o, bilinear_l, bilinear_o, joint]` (`x`, `y`: the two horizon directions nearest
-/// the light's azimuth; `o`: −y, the viewer's).
-type Sums = [f64; 14];
+/// Mean, mean square and fraction below `e` of four corner angles.
+fn corner_stats(a: &[f64; 4], e: f64) -> (f64, f64, f64) {
+    let mean = a.iter().sum::<f64>() / 4.0;
+    let square = a.iter().map(|v| v * v).sum::<f64>() / 4.0;
+    let below = a.iter().filter(|&&v| v < e).count() as f64 / 4.0;
+    (mean, square, below)
+}
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -87,21 +96,14 @@ fn main() {
         let (ca, sa) = (az.to_radians().cos(), az.to_radians().sin());
         let l = DVec3::new(elev_l.cos() * ca, elev_l.cos() * sa, elev_l.sin());
         let (ix, iy) = (if ca >= 0.0 { 0 } else { 2 }, if sa >= 0.0 { 1 } else { 3 });
-        // The angle towards the light of corner (r, c), interpolated in azimuth; towards the
-        // viewer (azimuth 270°: −y, direction 3).
         let (c2, s2) = (ca * ca, sa * sa);
-        let towards_l = |r: usize, c: usize| c2 * angle(ix, r, c) + s2 * angle(iy, r, c);
-        let towards_o = |r: usize, c: usize| angle(3, r, c);
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
         let points: Vec<Point> = (0..1_000_000)
             .map(|_| {
-                let (x, y) = (uniform() * w as f64, uniform() * h as f64);
+                let (x, y) = (
+                    rng.random::<f64>() * w as f64,
+                    rng.random::<f64>() * h as f64,
+                );
                 let (col, row) = (x.floor() as usize, y.floor() as usize);
                 let (tx, ty) = (x - x.floor(), y - y.floor());
                 let z = |r: usize, c: usize| gonio.height_at(c as f64, r as f64);
@@ -119,47 +121,22 @@ fn main() {
                 };
                 let m = DVec3::new(-dx, -dy, 1.0).normalize();
                 let seen = m.dot(o).max(0.0) / m.z;
-                Point {
-                    row,
-                    col,
-                    group: group(m),
-                    seen,
-                    lit: seen * m.dot(l).max(0.0),
-                    sees_o: gonio.sees(x, y, m, o),
-                    sees_l: gonio.sees(x, y, m, l),
-                }
-            })
-            .collect();
-        let (lit, seen) = points.iter().fold((0.0, 0.0), |(a, b), p| {
-            let o = f64::from(u8::from(p.sees_o));
-            (
-                a + p.lit * o * f64::from(u8::from(p.sees_l)),
-                b + p.seen * o,
-            )
-        });
-        let truth = lit / seen;
-        println!("light azimuth {az}°: truth {truth:.4} (radiance·π/E); models / truth by level: ramp, corners, bilinear, joint");
-        for k in (0..=10usize).step_by(2) {
-            let side = 1usize << k;
-            let cols = w.div_ceil(side);
-            let mut sums = vec![[0.0f64; 14]; cols * h.div_ceil(side) * GROUPS];
-            for p in &points {
-                let q: &mut Sums =
-                    &mut sums[((p.row >> k) * cols + (p.col >> k)) * GROUPS + p.group];
+                // The cell's corner angles: along the two directions nearest the light, the
+                // light's (interpolated in azimuth) and the viewer's (−y, direction 3).
                 let corners = [
-                    (p.row, p.col),
-                    (p.row, p.col + 1),
-                    (p.row + 1, p.col),
-                    (p.row + 1, p.col + 1),
+                    (row, col),
+                    (row, col + 1),
+                    (row + 1, col),
+                    (row + 1, col + 1),
                 ];
-                let (al, ao) = (
-                    corners.map(|(r, c)| towards_l(r, c)),
-                    corners.map(|(r, c)| towards_o(r, c)),
-                );
-                let mean = |a: &[f64; 4]| a.iter().sum::<f64>() / 4.0;
-                let square = |a: &[f64; 4]| a.iter().map(|v| v * v).sum::<f64>() / 4.0;
-                let below =
-                    |a: &[f64; 4], e: f64| a.iter().filter(|&&v| v < e).count() as f64 / 4.0;
+                let ax = corners.map(|(r, c)| angle(ix, r, c));
+                let ay = corners.map(|(r, c)| angle(iy, r, c));
+                let ao = corners.map(|(r, c)| angle(3, r, c));
+                let al: [f64; 4] = std::array::from_fn(|k| c2 * ax[k] + s2 * ay[k]);
+                let (mx, qx, _) = corner_stats(&ax, elev_l);
+                let (my, qy, _) = corner_stats(&ay, elev_l);
+                let (mo, qo, below_o) = corner_stats(&ao, elev_o);
+                let (_, _, below_l) = corner_stats(&al, elev_l);
                 let (mut bl, mut bo, mut bj) = (0.0, 0.0, 0.0);
                 for u in 0..4 {
                     for v in 0..4 {
@@ -176,21 +153,47 @@ fn main() {
                         bj += f64::from(u8::from(vl && vo)) / 16.0;
                     }
                 }
-                let add = [
-                    1.0,
-                    mean(&al),
-                    square(&al),
-                    mean(&ao),
-                    square(&ao),
-                    p.lit,
-                    p.seen,
-                    below(&al, elev_l),
-                    below(&ao, elev_o),
-                    bl,
-                    bo,
-                    bj,
-                ];
-                for (s, a) in q.iter_mut().zip(add) {
+                Point {
+                    row,
+                    col,
+                    group: group(m),
+                    sees_o: gonio.sees(x, y, m, o),
+                    sees_l: gonio.sees(x, y, m, l),
+                    sums: [
+                        1.0,
+                        mx,
+                        qx,
+                        my,
+                        qy,
+                        mo,
+                        qo,
+                        seen * m.dot(l).max(0.0),
+                        seen,
+                        below_l,
+                        below_o,
+                        bl,
+                        bo,
+                        bj,
+                    ],
+                }
+            })
+            .collect();
+        let (lit, seen) = points.iter().fold((0.0, 0.0), |(a, b), p| {
+            let o = f64::from(u8::from(p.sees_o));
+            (
+                a + p.sums[7] * o * f64::from(u8::from(p.sees_l)),
+                b + p.sums[8] * o,
+            )
+        });
+        let truth = lit / seen;
+        println!("light azimuth {az}°: truth {truth:.4} (radiance·π/E); models / truth by level: ramp, corners, bilinear, joint");
+        for k in (0..=10usize).step_by(2) {
+            let side = 1usize << k;
+            let cols = w.div_ceil(side);
+            let mut sums: Vec<Sums> = vec![[0.0; 14]; cols * h.div_ceil(side) * GROUPS];
+            for p in &points {
+                let q = &mut sums[((p.row >> k) * cols + (p.col >> k)) * GROUPS + p.group];
+                for (s, a) in q.iter_mut().zip(p.sums) {
                     *s += a;
                 }
             }
@@ -199,21 +202,21 @@ fn main() {
             let mut den = [0.0f64; 4];
             for q in sums.iter().filter(|q| q[0] > 0.0) {
                 let n = q[0];
-                let (ml, mo) = (q[1] / n, q[3] / n);
+                let (mx, my, mo) = (q[1] / n, q[3] / n, q[5] / n);
+                // As HorizonStats::visibility_along: mean and variance interpolated in azimuth.
+                let ml = c2 * mx + s2 * my;
+                let vl = c2 * (q[2] / n - mx * mx) + s2 * (q[4] / n - my * my);
                 let pairs = [
-                    (
-                        ramp(ml, q[2] / n - ml * ml, elev_l),
-                        ramp(mo, q[4] / n - mo * mo, elev_o),
-                    ),
-                    (q[7] / n, q[8] / n),
+                    (ramp(ml, vl, elev_l), ramp(mo, q[6] / n - mo * mo, elev_o)),
                     (q[9] / n, q[10] / n),
+                    (q[11] / n, q[12] / n),
                 ];
                 for (i, (vl, vo)) in pairs.into_iter().enumerate() {
-                    num[i] += q[5] * vl * vo;
-                    den[i] += q[6] * vo;
+                    num[i] += q[7] * vl * vo;
+                    den[i] += q[8] * vo;
                 }
-                num[3] += q[5] * q[11] / n;
-                den[3] += q[6] * q[10] / n;
+                num[3] += q[7] * q[13] / n;
+                den[3] += q[8] * q[12] / n;
             }
             let r: Vec<String> = (0..4)
                 .map(|i| format!("{:.3}", num[i] / den[i] / truth))
