@@ -19,13 +19,17 @@
 //!   elevation (the pooled distribution, no ramp), light and viewer independent;
 //! * `bilinear`: the same of 4 × 4 points a cell with the corner angles interpolated
 //!   bilinearly (the continuous surface's horizons, approximately), independent;
-//! * `joint`: the fraction of those points that see both the light and the viewer.
+//! * `joint`: the fraction of those points that see both the light and the viewer;
+//!
+//! then the same four with **eight azimuths**: at 45° the light's own horizon angles along the
+//! diagonal ([`meso_maps::diagonal_angles`], exact on the same surface) instead of the
+//! interpolation of the +x and +y ones (at 0° and 90° the columns repeat the first four).
 //!
 //! ```text
 //! cargo run --release -p meso-maps --example horizon_models -- HEIGHTS.jpg HEIGHT_SCALE
 //! ```
 use glam::DVec3;
-use meso_maps::{Border, Gonio, HeightMap, HorizonMap};
+use meso_maps::{diagonal_angles, Border, Gonio, HeightMap, HorizonMap};
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
 
@@ -44,7 +48,7 @@ fn ramp(mu: f64, var: f64, e: f64) -> f64 {
 /// directions nearest the light's azimuth; `o`: −y, the viewer's; `μ`, `E[h²]`: of the cell's
 /// four corner angles; `lit` = `(m·l)⁺ (m·o)⁺/m_z` (Lambert radiance × π/E, times the seen
 /// area), `seen` = `(m·o)⁺/m_z`; the rest the fractions that see the light, the viewer, both.
-type Sums = [f64; 14];
+type Sums = [f64; 19];
 
 /// One random point of the surface: its cell and normal group, what rays see from it, and its
 /// share of its group's [`Sums`] (the same at every level, so computed once).
@@ -87,6 +91,7 @@ fn main() {
     let map = HeightMap::load(Path::new(file), 1.0, scale, Border::Wrap).expect("height map");
     let gonio = Gonio::new(&map).expect("tracer");
     let hz = HorizonMap::compute(&map);
+    let diag = diagonal_angles(&map);
     let (w, h) = (map.width(), map.height());
     let angle = |d: usize, r: usize, c: usize| hz.angle(d, (r % h) * w + (c % w));
     let elev_l = 21f64.to_radians();
@@ -133,11 +138,20 @@ fn main() {
                 let ay = corners.map(|(r, c)| angle(iy, r, c));
                 let ao = corners.map(|(r, c)| angle(3, r, c));
                 let al: [f64; 4] = std::array::from_fn(|k| c2 * ax[k] + s2 * ay[k]);
+                // With eight azimuths: the light's own (diagonal) angles at 45°.
+                let a8 = if az == 45.0 {
+                    corners.map(|(r, c)| {
+                        f64::from(diag[0][(r % h) * w + (c % w)]) * meso_maps::ANGLE_STEP
+                    })
+                } else {
+                    al
+                };
+                let (m8, q8, below8) = corner_stats(&a8, elev_l);
                 let (mx, qx, _) = corner_stats(&ax, elev_l);
                 let (my, qy, _) = corner_stats(&ay, elev_l);
                 let (mo, qo, below_o) = corner_stats(&ao, elev_o);
                 let (_, _, below_l) = corner_stats(&al, elev_l);
-                let (mut bl, mut bo, mut bj) = (0.0, 0.0, 0.0);
+                let (mut bl, mut bo, mut bj, mut bl8, mut bj8) = (0.0, 0.0, 0.0, 0.0, 0.0);
                 for u in 0..4 {
                     for v in 0..4 {
                         let (s, t) = ((f64::from(u) + 0.5) / 4.0, (f64::from(v) + 0.5) / 4.0);
@@ -151,6 +165,9 @@ fn main() {
                         bl += f64::from(u8::from(vl)) / 16.0;
                         bo += f64::from(u8::from(vo)) / 16.0;
                         bj += f64::from(u8::from(vl && vo)) / 16.0;
+                        let vl8 = bil(&a8) < elev_l;
+                        bl8 += f64::from(u8::from(vl8)) / 16.0;
+                        bj8 += f64::from(u8::from(vl8 && vo)) / 16.0;
                     }
                 }
                 Point {
@@ -174,6 +191,11 @@ fn main() {
                         bl,
                         bo,
                         bj,
+                        m8,
+                        q8,
+                        below8,
+                        bl8,
+                        bj8,
                     ],
                 }
             })
@@ -186,11 +208,11 @@ fn main() {
             )
         });
         let truth = lit / seen;
-        println!("light azimuth {az}°: truth {truth:.4} (radiance·π/E); models / truth by level: ramp, corners, bilinear, joint");
+        println!("light azimuth {az}°: truth {truth:.4} (radiance·π/E); models / truth by level: ramp, corners, bilinear, joint; with 8 azimuths: the same");
         for k in (0..=10usize).step_by(2) {
             let side = 1usize << k;
             let cols = w.div_ceil(side);
-            let mut sums: Vec<Sums> = vec![[0.0; 14]; cols * h.div_ceil(side) * GROUPS];
+            let mut sums: Vec<Sums> = vec![[0.0; 19]; cols * h.div_ceil(side) * GROUPS];
             for p in &points {
                 let q = &mut sums[((p.row >> k) * cols + (p.col >> k)) * GROUPS + p.group];
                 for (s, a) in q.iter_mut().zip(p.sums) {
@@ -198,8 +220,8 @@ fn main() {
                 }
             }
             // Σ lit·V_l·V_o / Σ seen·V_o per model.
-            let mut num = [0.0f64; 4];
-            let mut den = [0.0f64; 4];
+            let mut num = [0.0f64; 8];
+            let mut den = [0.0f64; 8];
             for q in sums.iter().filter(|q| q[0] > 0.0) {
                 let n = q[0];
                 let (mx, my, mo) = (q[1] / n, q[3] / n, q[5] / n);
@@ -210,15 +232,24 @@ fn main() {
                     (ramp(ml, vl, elev_l), ramp(mo, q[6] / n - mo * mo, elev_o)),
                     (q[9] / n, q[10] / n),
                     (q[11] / n, q[12] / n),
+                    (
+                        ramp(q[14] / n, q[15] / n - (q[14] / n).powi(2), elev_l),
+                        ramp(mo, q[6] / n - mo * mo, elev_o),
+                    ),
+                    (q[16] / n, q[10] / n),
+                    (q[17] / n, q[12] / n),
                 ];
                 for (i, (vl, vo)) in pairs.into_iter().enumerate() {
+                    let i = if i < 3 { i } else { i + 1 };
                     num[i] += q[7] * vl * vo;
                     den[i] += q[8] * vo;
                 }
+                num[7] += q[7] * q[18] / n;
+                den[7] += q[8] * q[12] / n;
                 num[3] += q[7] * q[13] / n;
                 den[3] += q[8] * q[12] / n;
             }
-            let r: Vec<String> = (0..4)
+            let r: Vec<String> = (0..8)
                 .map(|i| format!("{:.3}", num[i] / den[i] / truth))
                 .collect();
             println!("  level {k:2} ({side:4} cells a side): {}", r.join("  "));

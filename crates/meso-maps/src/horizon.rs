@@ -106,6 +106,33 @@ impl Lines {
     }
 }
 
+impl Lines {
+    /// [`Lines::both_ways`] of a line whose every second entry is a sample (from the first):
+    /// `ahead` and `behind` get the samples' angles, one per sample.
+    fn both_ways_strided(
+        &mut self,
+        heights: impl Iterator<Item = f64>,
+        s: f64,
+        wrap: bool,
+        ahead: &mut [u16],
+        behind: &mut [u16],
+    ) {
+        self.line.clear();
+        self.line.extend(heights);
+        let n = self.line.len();
+        self.out.resize(n, 0.0);
+        horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
+        for (j, a) in ahead.iter_mut().enumerate() {
+            *a = angle_code(self.out[2 * j]);
+        }
+        self.line.reverse();
+        horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
+        for (j, a) in behind.iter_mut().enumerate() {
+            *a = angle_code(self.out[n - 1 - 2 * j]);
+        }
+    }
+}
+
 impl HorizonMap {
     /// Horizon angles of every sample of `map` along ±x and ±y. Lines are independent: rows
     /// (±x) and columns (±y, 256 at a time) are computed in parallel on rayon's
@@ -192,6 +219,129 @@ impl HorizonMap {
         }
         s
     }
+}
+
+/// Directions of the four diagonal horizon angles ([`diagonal_angles`]): azimuths 45°
+/// (+x+y), 135° (−x+y), 225° (−x−y) and 315° (+x−y).
+pub const DIAGONAL_AZIMUTHS_DEG: [f64; 4] = [45.0, 135.0, 225.0, 315.0];
+
+/// Greatest common divisor.
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// Samples whose diagonal lines [`diagonal_angles`] hands to rayon at a time (its buffers: 12
+/// bytes a sample of the batch).
+const DIAGONAL_BATCH: usize = 1 << 20;
+
+/// Horizon angles of every sample of `map` along the four diagonals, in the codes of
+/// [`HorizonMap::angles`] and the order of [`DIAGONAL_AZIMUTHS_DEG`], of the same surface:
+/// the two triangles a cell split along its `(i, j)–(i + 1, j + 1)` diagonal (row, column).
+///
+/// Along +x+y (and back) the line through the samples runs on those split diagonals, so the
+/// surface is linear between samples, `√2` texels apart. Along +x−y it crosses each cell's
+/// split diagonal at its midpoint, where the height is the mean of that diagonal's two ends:
+/// the line is linear between samples and midpoints, half as far apart. Either way the horizon
+/// is exact, found in O(n) a line by [`horizon_line`]. On a wrapped map a diagonal line closes
+/// after `lcm(width, height)` samples (`gcd(width, height)` lines a direction) and is looked
+/// along for one whole turn; on a clamped map the lines stop at the border.
+#[must_use]
+pub fn diagonal_angles(map: &HeightMap) -> [Vec<u16>; 4] {
+    let (w, h) = (map.width(), map.height());
+    let s = map.texel_size() * std::f64::consts::SQRT_2;
+    let wrap = map.border() == Border::Wrap;
+    let hs = map.heights();
+    let mut out: [Vec<u16>; 4] = std::array::from_fn(|_| vec![0u16; w * h]);
+    if w == 0 || h == 0 {
+        return out;
+    }
+    // (+x+y, −x−y) with rows stepping +1, then (+x−y, −x+y) with rows stepping −1.
+    for (down, ahead_dir, behind_dir) in [(false, 0usize, 2usize), (true, 3, 1)] {
+        // Each line: its first sample and its number of samples.
+        let lines: Vec<(usize, usize, usize)> = if wrap {
+            let g = gcd(w, h);
+            (0..g).map(|c| (0, c, w / g * h)).collect()
+        } else if down {
+            (0..h)
+                .map(|r| (r, 0, (r + 1).min(w)))
+                .chain((1..w).map(|c| (h - 1, c, h.min(w - c))))
+                .collect()
+        } else {
+            (0..w)
+                .map(|c| (0, c, h.min(w - c)))
+                .chain((1..h).map(|r| (r, 0, (h - r).min(w))))
+                .collect()
+        };
+        let step = |r: usize, c: usize| -> (usize, usize) {
+            let c1 = if c + 1 == w { 0 } else { c + 1 };
+            let r1 = if down {
+                if r == 0 {
+                    h - 1
+                } else {
+                    r - 1
+                }
+            } else if r + 1 == h {
+                0
+            } else {
+                r + 1
+            };
+            (r1, c1)
+        };
+        let mut start = 0;
+        while start < lines.len() {
+            let mut end = start;
+            let mut n = 0;
+            while end < lines.len() && (end == start || n + lines[end].2 <= DIAGONAL_BATCH) {
+                n += lines[end].2;
+                end += 1;
+            }
+            let done: Vec<(Vec<u32>, Vec<u16>, Vec<u16>)> = lines[start..end]
+                .par_iter()
+                .map_init(Lines::default, |ln, &(r0, c0, len)| {
+                    let mut idx = Vec::with_capacity(len);
+                    let (mut r, mut c) = (r0, c0);
+                    for _ in 0..len {
+                        idx.push((r * w + c) as u32);
+                        (r, c) = step(r, c);
+                    }
+                    let (mut a, mut b) = (vec![0u16; len], vec![0u16; len]);
+                    if down {
+                        // Samples and the midpoints of the split diagonals between them.
+                        let mid = |k: usize| {
+                            let (r, c) = ((idx[k] as usize) / w, (idx[k] as usize) % w);
+                            let (r1, c1) = step(r, c);
+                            0.5 * (hs[r1 * w + c] + hs[r * w + c1])
+                        };
+                        let steps = if wrap { 2 * len } else { 2 * len - 1 };
+                        let line = (0..steps).map(|k| {
+                            if k % 2 == 0 {
+                                hs[idx[k / 2] as usize]
+                            } else {
+                                mid(k / 2)
+                            }
+                        });
+                        ln.both_ways_strided(line, 0.5 * s, wrap, &mut a, &mut b);
+                    } else {
+                        let line = idx.iter().map(|&k| hs[k as usize]);
+                        ln.both_ways(line, s, wrap, &mut a, &mut b);
+                    }
+                    (idx, a, b)
+                })
+                .collect();
+            for (idx, a, b) in done {
+                for ((&k, &x), &y) in idx.iter().zip(&a).zip(&b) {
+                    out[ahead_dir][k as usize] = x;
+                    out[behind_dir][k as usize] = y;
+                }
+            }
+            start = end;
+        }
+    }
+    out
 }
 
 /// Mean and variance (radians, radians²) of the horizon angles of a footprint along +x, +y, −x,
@@ -371,6 +521,79 @@ mod tests {
                 rising > 100,
                 "{rising} angles above 0.01 rad: the map is too flat"
             );
+        }
+    }
+
+    /// The height of the triangulated surface at `(x, y)` (columns, rows; cells split along
+    /// `(i, j)–(i + 1, j + 1)`), `None` off a clamped map.
+    fn surface(map: &HeightMap, x: f64, y: f64) -> Option<f64> {
+        let (w, h) = (map.width() as i64, map.height() as i64);
+        let wrap = map.border() == Border::Wrap;
+        let eps = 1e-9;
+        if !wrap && (x < -eps || y < -eps || x > (w - 1) as f64 + eps || y > (h - 1) as f64 + eps) {
+            return None;
+        }
+        let (fx, fy) = (x.floor(), y.floor());
+        let (tx, ty) = (x - fx, y - fy);
+        let z = |r: i64, c: i64| {
+            let (r, c) = if wrap {
+                (r.rem_euclid(h), c.rem_euclid(w))
+            } else {
+                (r.min(h - 1), c.min(w - 1))
+            };
+            map.heights()[(r * w + c) as usize]
+        };
+        let (r, c) = (fy as i64, fx as i64);
+        let (z00, z11) = (z(r, c), z(r + 1, c + 1));
+        Some(if ty <= tx {
+            z00 + tx * (z(r, c + 1) - z00) + ty * (z11 - z(r, c + 1))
+        } else {
+            z00 + ty * (z(r + 1, c) - z00) + tx * (z11 - z(r + 1, c))
+        })
+    }
+
+    #[test]
+    fn diagonal_angles_match_the_surface_marched_finely() {
+        // The surface sampled 8 times a diagonal step (every breakpoint of the line: samples,
+        // and the split diagonals' midpoints across them), one whole turn of a wrapped line.
+        for (border, w, h) in [
+            (Border::Wrap, 13, 7),
+            (Border::Clamp, 13, 7),
+            (Border::Wrap, 12, 8),
+            (Border::Clamp, 6, 11),
+        ] {
+            let map = HeightMap::from_fn(w, h, 0.1, border, |x, y| {
+                0.05 * (7.3 * x).sin() * (3.1 * y + 0.4).cos() + 0.02 * (11.0 * x * y).sin()
+            })
+            .unwrap();
+            let got = diagonal_angles(&map);
+            let turn = w / gcd(w, h) * h;
+            let half = 0.5 * ANGLE_STEP + 1e-12;
+            let mut rising = 0;
+            for i in 0..h {
+                for j in 0..w {
+                    let h0 = map.heights()[i * w + j];
+                    for (d, az) in DIAGONAL_AZIMUTHS_DEG.iter().enumerate() {
+                        let (sa, ca) = az.to_radians().sin_cos();
+                        let (dx, dy) = (ca.signum(), sa.signum());
+                        let mut best = 0.0f64;
+                        for k in 1..=8 * turn {
+                            let t = k as f64 / 8.0;
+                            let (x, y) = (j as f64 + dx * t, i as f64 + dy * t);
+                            let Some(z) = surface(&map, x, y) else { break };
+                            best = best.max((z - h0) / (t * std::f64::consts::SQRT_2 * 0.1));
+                        }
+                        let want = best.atan();
+                        let got = f64::from(got[d][i * w + j]) * ANGLE_STEP;
+                        assert!(
+                            (got - want).abs() < half,
+                            "{border:?} {w}×{h} ({i}, {j}) azimuth {az}: {got} vs {want}"
+                        );
+                        rising += usize::from(want > 0.01);
+                    }
+                }
+            }
+            assert!(rising > 50, "{rising} angles above 0.01 rad");
         }
     }
 }

@@ -61,7 +61,9 @@ pub use format::{LazyLevel, LazyLobes};
 pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;
-pub use horizon::{HorizonDirection, HorizonMap, HorizonStats};
+pub use horizon::{
+    diagonal_angles, HorizonDirection, HorizonMap, HorizonStats, ANGLE_STEP, DIAGONAL_AZIMUTHS_DEG,
+};
 pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_stream_bytes, extract_to_file, extract_to_writer, extract_work,
