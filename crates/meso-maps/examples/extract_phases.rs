@@ -65,7 +65,7 @@ fn main() {
             if let Some(hz) = &l.horizon {
                 let s = hz.get(t);
                 s.weight.to_bits().hash(&mut h);
-                for d in 0..4 {
+                for d in 0..meso_maps::HORIZON_DIRECTIONS {
                     s.mean[d].to_bits().hash(&mut h);
                     s.var[d].to_bits().hash(&mut h);
                 }

@@ -1,6 +1,6 @@
 //! How a pyramid level keeps its lobes and horizon statistics in memory: as `f64`
-//! ([`PhongLobe`], [`HorizonStats`]: 40 and 72 bytes) on small levels, as `f32` ([`Lobe32`],
-//! [`Horizon32`]: 20 and 36 bytes) on the big fine levels, which hold almost all of a pyramid's
+//! ([`PhongLobe`], [`HorizonStats`]: 40 and 136 bytes) on small levels, as `f32` ([`Lobe32`],
+//! [`Horizon32`]: 20 and 68 bytes) on the big fine levels, which hold almost all of a pyramid's
 //! texels (the levels of at least [`COMPACT_TEXELS`] texels by default; the coarse levels keep
 //! full precision, the fine ones half the memory).
 //!
@@ -13,7 +13,7 @@
 //! except for values within that distance of a rounding boundary (one code step then).
 
 use crate::format::LazyLevel;
-use crate::horizon::HorizonStats;
+use crate::horizon::{HorizonStats, HORIZON_DIRECTIONS};
 use glam::DVec3;
 use meso_core::ndf::PhongLobe;
 use std::sync::Arc;
@@ -305,15 +305,16 @@ impl<'a> IntoIterator for &'a Lobes {
     }
 }
 
-/// Horizon statistics in `f32` (36 bytes).
+/// Horizon statistics in `f32` (68 bytes: the weight, then a mean and a variance per
+/// direction of [`crate::HORIZON_AZIMUTHS_DEG`]).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct Horizon32 {
     /// Samples summarised.
     pub weight: f32,
     /// Mean horizon angle per direction (radians).
-    pub mean: [f32; 4],
+    pub mean: [f32; HORIZON_DIRECTIONS],
     /// Variance per direction (radians²).
-    pub var: [f32; 4],
+    pub var: [f32; HORIZON_DIRECTIONS],
 }
 
 impl Horizon32 {
@@ -338,26 +339,40 @@ impl Horizon32 {
     }
 }
 
-/// Horizon statistics as a map file codes them (16 bytes): the weight in `f32` and per
+/// Bytes of a [`HorizonCode`]: the weight (4) and 16 codes of 12 bits (24).
+pub const HORIZON_CODE_BYTES: usize = 28;
+
+/// Horizon statistics as a map file codes them (28 bytes): the weight in `f32` and per
 /// direction the 12-bit codes of the mean horizon angle and of its standard deviation. It
 /// reads back as the [`Horizon32`] of the decoded statistics, bit for bit
 /// ([`HorizonCode::to_stats`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub struct HorizonCode([u8; 16]);
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HorizonCode([u8; HORIZON_CODE_BYTES]);
+
+impl Default for HorizonCode {
+    fn default() -> HorizonCode {
+        HorizonCode([0; HORIZON_CODE_BYTES])
+    }
+}
 
 impl HorizonCode {
-    /// The statistics of weight `weight` and codes `mean` and `sd` (12 bits each; larger codes
-    /// are kept as 4 095, which the map file's decoder reads them as).
+    /// The statistics of weight `weight` and codes `mean` and `sd` (12 bits each, per direction
+    /// of [`crate::HORIZON_AZIMUTHS_DEG`]; larger codes are kept as 4 095, which the map file's
+    /// decoder reads them as).
     #[must_use]
-    pub fn new(weight: f32, mean: [u16; 4], sd: [u16; 4]) -> HorizonCode {
-        let mut b = [0u8; 16];
+    pub fn new(
+        weight: f32,
+        mean: [u16; HORIZON_DIRECTIONS],
+        sd: [u16; HORIZON_DIRECTIONS],
+    ) -> HorizonCode {
+        let mut b = [0u8; HORIZON_CODE_BYTES];
         b[..4].copy_from_slice(&weight.to_le_bytes());
-        let mut bits = 0u128;
-        for (i, q) in mean.iter().chain(&sd).enumerate() {
+        // Two codes in three bytes.
+        for (i, pair) in mean.chunks(2).chain(sd.chunks(2)).enumerate() {
             // A code reads as at most 4 095 (the decoder's clamp): kept so.
-            bits |= u128::from((*q).min(0xFFF)) << (12 * i);
+            let v = u32::from(pair[0].min(0xFFF)) | (u32::from(pair[1].min(0xFFF)) << 12);
+            b[4 + 3 * i..7 + 3 * i].copy_from_slice(&v.to_le_bytes()[..3]);
         }
-        b[4..].copy_from_slice(&bits.to_le_bytes()[..12]);
         HorizonCode(b)
     }
     /// The statistics coded: the angles to the map file's nearest codes, weight to `f32`.
@@ -376,17 +391,18 @@ impl HorizonCode {
     #[must_use]
     pub fn to_stats(&self) -> HorizonStats {
         use crate::format::{angle_decode, MEAN_SPAN, SD_SPAN};
-        let mut a = [0u8; 16];
-        a[..12].copy_from_slice(&self.0[4..]);
-        let bits = u128::from_le_bytes(a);
-        let q = |i: usize| ((bits >> (12 * i)) & 0xFFF) as u16;
+        let q = |i: usize| {
+            let b = &self.0[4 + 3 * (i / 2)..7 + 3 * (i / 2)];
+            let v = u32::from_le_bytes([b[0], b[1], b[2], 0]);
+            ((v >> (12 * (i % 2))) & 0xFFF) as u16
+        };
         let mut h = Horizon32 {
             weight: f32::from_le_bytes([self.0[0], self.0[1], self.0[2], self.0[3]]),
             ..Horizon32::default()
         };
-        for d in 0..4 {
+        for d in 0..HORIZON_DIRECTIONS {
             h.mean[d] = angle_decode(q(d), MEAN_SPAN) as f32;
-            let sd = angle_decode(q(4 + d), SD_SPAN);
+            let sd = angle_decode(q(HORIZON_DIRECTIONS + d), SD_SPAN);
             h.var[d] = (sd * sd) as f32;
         }
         h.to_stats()
@@ -470,7 +486,7 @@ impl Horizons {
     pub fn to_vec(&self) -> Vec<HorizonStats> {
         self.iter().collect()
     }
-    /// Bytes they occupy (texels × 72, 36 or 16; held by band, 0: counted by the level's
+    /// Bytes they occupy (texels × 136, 68 or 28; held by band, 0: counted by the level's
     /// [`Lobes::bytes`]).
     #[must_use]
     pub fn bytes(&self) -> usize {
@@ -577,7 +593,7 @@ mod tests {
             if big {
                 n_coded += 1;
                 assert_eq!(b.lobes.bytes(), 11 * b.lobes.len());
-                assert_eq!(hb.bytes(), 16 * b.texels());
+                assert_eq!(hb.bytes(), HORIZON_CODE_BYTES * b.texels());
             }
         }
         assert_eq!(n_coded, 1, "level 0 (256²) is coded");
@@ -618,15 +634,33 @@ mod tests {
         assert!(c.iter().all(|x| x == back));
         let h = HorizonStats {
             weight: 16.0,
-            mean: [0.1, 0.2, 0.3, 1.5],
-            var: [0.01, 0.0, 0.002, 0.3],
+            mean: [0.1, 0.2, 0.3, 1.5, 0.05, 0.7, 1.1, 0.0],
+            var: [0.01, 0.0, 0.002, 0.3, 0.2, 0.04, 0.0, 0.5],
         };
         let hb = Horizons::new(vec![h], true).get(0);
         assert_eq!(hb.weight, 16.0);
-        for d in 0..4 {
+        for d in 0..HORIZON_DIRECTIONS {
             assert!((hb.mean[d] - h.mean[d]).abs() <= 6e-8 * h.mean[d]);
             assert!((hb.var[d] - h.var[d]).abs() <= 6e-8 * h.var[d]);
         }
         assert_eq!(Horizons::new(vec![h], false).get(0), h);
+    }
+
+    #[test]
+    fn horizon_codes_keep_every_direction_in_its_slot() {
+        use crate::format::{angle_decode, MEAN_SPAN, SD_SPAN};
+        // Distinct codes in every slot, the largest too (4 095), and one above it (kept as
+        // 4 095, as the decoder clamps).
+        let mean: [u16; HORIZON_DIRECTIONS] = std::array::from_fn(|d| 17 + 511 * d as u16);
+        let mut sd: [u16; HORIZON_DIRECTIONS] = std::array::from_fn(|d| 4_095 - 300 * d as u16);
+        sd[3] = 5_000;
+        let h = HorizonCode::new(3.5, mean, sd).to_stats();
+        assert_eq!(h.weight, 3.5);
+        for d in 0..HORIZON_DIRECTIONS {
+            let m = angle_decode(mean[d], MEAN_SPAN) as f32;
+            let s = angle_decode(sd[d].min(4_095), SD_SPAN);
+            assert_eq!(h.mean[d], f64::from(m), "mean {d}");
+            assert_eq!(h.var[d], f64::from((s * s) as f32), "sd {d}");
+        }
     }
 }

@@ -25,7 +25,7 @@ pub use crate::disk_cache::Cached;
 use crate::facet_ndf::FacetVisibility;
 use crate::facets::NormalMode;
 use crate::heightmap::{Border, HeightMap};
-use crate::horizon::HorizonStats;
+use crate::horizon::{HorizonStats, HORIZON_DIRECTIONS};
 use crate::visibility::BinnedVisibility;
 use glam::DVec3;
 use meso_core::ndf::{DeltaSum, Ndf, WeightedNormal};
@@ -35,8 +35,9 @@ use std::sync::Arc;
 
 /// The cache file format; bumped whenever what is stored or how it is built changes (3 since
 /// 2026-12-04: the height map's load warnings are kept in the entry; 4: the facets' horizons
-/// are marched from random points, `crate::visibility::jitter`).
-pub const FORMAT: u32 = 4;
+/// are marched from random points, `crate::visibility::jitter`; 5 since 2026-12-07: the map's
+/// horizon statistics have eight azimuths).
+pub const FORMAT: u32 = 5;
 const MAGIC: &[u8; 8] = b"MESOFCT\0";
 /// The largest cache file read back (4 GiB).
 pub const MAX_CACHE_BYTES: u64 = crate::disk_cache::MAX_CACHE_BYTES;
@@ -153,11 +154,11 @@ fn decode(bytes: &[u8], key: &[u8; 32]) -> Option<(Ndf, FacetVisibility, Vec<Str
         });
     }
     let deltas = DeltaSum::new(normals).ok()?;
-    let [weight, m0, m1, m2, m3, v0, v1, v2, v3] = f64s::<9>(&mut b)?;
+    let [weight] = f64s::<1>(&mut b)?;
     let horizon = HorizonStats {
         weight,
-        mean: [m0, m1, m2, m3],
-        var: [v0, v1, v2, v3],
+        mean: f64s::<HORIZON_DIRECTIONS>(&mut b)?,
+        var: f64s::<HORIZON_DIRECTIONS>(&mut b)?,
     };
     let exact: Vec<DVec3> = deltas.normals().iter().map(|n| n.normal).collect();
     let bins = BinnedVisibility::decode(&mut b, &exact)?;

@@ -47,14 +47,16 @@ pub(crate) use v3::{
 };
 pub use v3::{MAX_DEFLATE_RATIO, SHADING_TAG};
 pub(crate) use v4::{check_band, write_band, write_level_end};
-pub use v4::{BAND_ROWS, VERSION_4};
+pub use v4::{BAND_ROWS, VERSION_4, VERSION_5};
 
-/// The format version written by this build: 4 ([`VERSION_4`], `docs/map-format.md`): version
+/// The format version written by this build: 5 ([`VERSION_5`], `docs/map-format.md`): version
 /// 3's quantised, deflated streams per band of [`BAND_ROWS`] rows, then each level's end record
 /// ([`Pyramid::write`], [`Pyramid::to_bytes`], the pyramid cache and the streamed extraction,
-/// [`crate::pyramid::extract_to_file`], all write it). Versions 2 (uncompressed `f32`),
-/// [`VERSION_3`] and 4 are read; version 1 stored projected-area lobe weights and is refused.
-pub const VERSION: u32 = VERSION_4;
+/// [`crate::pyramid::extract_to_file`], all write it), with the horizon statistics of eight
+/// azimuths. Versions 2 (uncompressed `f32`), [`VERSION_3`] and [`VERSION_4`] (four azimuths:
+/// the diagonals are filled in from the axes, [`crate::HorizonStats::from_axes`]) are read;
+/// version 1 stored projected-area lobe weights and is refused.
+pub const VERSION: u32 = VERSION_5;
 /// Version 3 (quantised and compressed, one set of streams for the whole pyramid): read, no
 /// longer written.
 pub const VERSION_3: u32 = v3::VERSION_3;
@@ -119,7 +121,7 @@ pub fn read_bytes(file_bytes: u64) -> u64 {
 }
 
 impl Pyramid {
-    /// Serialise into a writer in the current format ([`VERSION`] 4, `docs/map-format.md`):
+    /// Serialise into a writer in the current format ([`VERSION`] 5, `docs/map-format.md`):
     /// lobes and horizon statistics quantised to 16 bits and deflated, per band of
     /// [`BAND_ROWS`] rows of each level, then the level's end record; the bytes the streamed
     /// extraction ([`crate::pyramid::extract_to_file`]) writes for the same pyramid.
@@ -310,7 +312,7 @@ impl Pyramid {
         let Ok(h) = read_header(&mut r) else {
             return Ok(fallback);
         };
-        let bytes = if h.version == VERSION_4 {
+        let bytes = if h.version >= VERSION_4 {
             v4::auto_need(&mut r, &h).unwrap_or(fallback.bytes)
         } else {
             fallback.bytes
@@ -352,7 +354,7 @@ impl Pyramid {
         let mut r = Reader::new(&map.map, path);
         r.mapped = Some(&map);
         let h = read_header(&mut r)?;
-        if h.version != VERSION_4 {
+        if h.version < VERSION_4 {
             return Pyramid::read(path);
         }
         let levels = v4::read_levels(&mut r, &h, mode, Some(&map), report)?;
@@ -366,7 +368,7 @@ impl Pyramid {
     pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Pyramid> {
         let mut r = Reader::new(bytes, path);
         let h = read_header(&mut r)?;
-        let levels = if h.version == VERSION_4 {
+        let levels = if h.version >= VERSION_4 {
             v4::read_levels(&mut r, &h, v4::Mode::Full, None, &mut |_| {})?
         } else if h.version == VERSION_3 {
             let mut levels = v3::read_levels(&mut r, &h)?;
@@ -397,7 +399,7 @@ impl Pyramid {
     pub fn check_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
         let mut r = Reader::new(bytes, path);
         let h = read_header(&mut r)?;
-        if h.version == VERSION_4 {
+        if h.version >= VERSION_4 {
             v4::read_levels(&mut r, &h, v4::Mode::Check, None, &mut |_| {})?;
         } else if h.version == VERSION_3 {
             v3::check_levels(&mut r, &h)?;
@@ -500,7 +502,7 @@ fn read_sizes(r: &mut Reader<'_>) -> Result<(u32, usize, usize, usize, usize)> {
         return Err(r.err("not a meso map file (bad magic bytes)".into()));
     }
     let version = r.u32("version")?;
-    if version != VERSION_2 && version != VERSION_3 && version != VERSION_4 {
+    if ![VERSION_2, VERSION_3, VERSION_4, VERSION_5].contains(&version) {
         return Err(MapError::MapVersion {
             path: r.path.clone(),
             found: version,
@@ -651,7 +653,7 @@ fn read_levels_v2(r: &mut Reader<'_>, h: &Header) -> Result<Vec<Level>> {
                 if var.iter().any(|v| *v < 0.0) {
                     return Err(r.err(format!("level {k}: negative horizon variance {:?}", var)));
                 }
-                h.push(HorizonStats { weight, mean, var });
+                h.push(HorizonStats::from_axes(weight, mean, var));
             }
             Some(crate::compact::Horizons::new(h, compact))
         } else {

@@ -1,24 +1,39 @@
 //! Horizon angles (Max 1988, "Horizon mapping"): for every sample of a height map, the elevation
-//! angle of the horizon seen along +x, +y, −x and −y (azimuths 0°, 90°, 180°, 270°), in
-//! radians in `[0, π/2)`; 0 means nothing rises above the sample's own tangent plane... of the
-//! macro surface (the horizontal plane through the sample).
+//! angle of the horizon seen along eight azimuths — +x, +y, −x, −y (0°, 90°, 180°, 270°) and
+//! the four diagonals (45°, 135°, 225°, 315°) — in radians in `[0, π/2)`; 0 means nothing
+//! rises above the horizontal plane through the sample (the macro surface's tangent plane).
 //!
 //! The piecewise-linear surface along a grid line is linear between samples, so the horizon is
 //! the largest slope from the sample to any later sample on its line: found for a whole line in
 //! O(n) with the upper convex hull of the samples ahead. Wrapped maps look one full period ahead
 //! (enough: farther copies are seen under smaller angles); clamped maps stop at the border.
+//! Along the diagonals the line also crosses the cells' split diagonals ([`diagonal_angles`]).
 //!
 //! [`HorizonStats`] filters the angles over a footprint as a mean and a variance per direction;
 //! [`HorizonStats::visibility`] turns them into the fraction of the footprint that sees a
 //! direction: the horizon angle is modelled as uniformly distributed with that mean and variance
-//! (a ramp of half-width √3·σ around the mean) and the ramp is smoothed by a smoothstep.
+//! (a ramp of half-width √3·σ around the mean) and the ramp is smoothed by a smoothstep. A
+//! direction between two of the eight azimuths interpolates their means and variances.
+//!
+//! Until 2026-12-07 only the four axes were kept and the diagonals interpolated from them: on
+//! the facade height map under a light at 45° that left the NDF-mapped shadows 0.52–0.68 of
+//! the bump map's (docs/heightmaps.md, "Eight azimuths").
 
 use crate::heightmap::{Border, HeightMap};
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// Directions of the four horizon angles: +x, +y, −x, −y.
-pub const HORIZON_AZIMUTHS_DEG: [f64; 4] = [0.0, 90.0, 180.0, 270.0];
+/// Number of horizon directions kept per sample and footprint.
+pub const HORIZON_DIRECTIONS: usize = 8;
+
+/// Azimuths (degrees, from +x towards +y) of the horizon directions, in the order of
+/// [`HorizonMap::angles`] and [`HorizonStats`]: the four axes +x, +y, −x, −y, then the four
+/// diagonals +x+y, −x+y, −x−y, +x−y ([`DIAGONAL_AZIMUTHS_DEG`]).
+pub const HORIZON_AZIMUTHS_DEG: [f64; HORIZON_DIRECTIONS] =
+    [0.0, 90.0, 180.0, 270.0, 45.0, 135.0, 225.0, 315.0];
+
+/// The slot (order of [`HORIZON_AZIMUTHS_DEG`]) of the direction at azimuth `k · 45°`.
+const SLOT_OF_OCTANT: [usize; HORIZON_DIRECTIONS] = [0, 4, 1, 5, 2, 6, 3, 7];
 
 /// The step of a stored horizon angle ([`HorizonMap::angles`]): `[0, π/2]` in 65 535 steps,
 /// ≈ 2.4·10⁻⁵ rad (a stored angle is within half a step of the exact one). The map file keeps
@@ -28,8 +43,7 @@ pub const ANGLE_STEP: f64 = std::f64::consts::FRAC_PI_2 / 65_535.0;
 /// Horizon elevation angles of every sample, quantised to 16 bits: `angles[d][i·width + j]`
 /// for direction `d` (order of [`HORIZON_AZIMUTHS_DEG`]) is the angle in units of
 /// [`ANGLE_STEP`] ([`HorizonMap::angle`] gives radians). Two bytes a sample and direction: the
-/// extraction holds every sample's four angles until level 1 is fitted (at 8192², 0.5 GB; it
-/// was 2.1 GB in `f64`).
+/// extraction holds every sample's eight angles until level 2 is fitted (at 8192², 1 GB).
 #[derive(Clone, Debug, PartialEq)]
 pub struct HorizonMap {
     /// Samples along x.
@@ -38,7 +52,7 @@ pub struct HorizonMap {
     pub height: usize,
     /// Per direction, per sample (row-major) horizon elevation angle in units of
     /// [`ANGLE_STEP`] (0 = the horizontal, 65 535 = π/2).
-    pub angles: [Vec<u16>; 4],
+    pub angles: [Vec<u16>; HORIZON_DIRECTIONS],
 }
 
 /// The stored code of a horizon angle in radians (`[0, π/2]`, rounded to [`ANGLE_STEP`]).
@@ -134,10 +148,11 @@ impl Lines {
 }
 
 impl HorizonMap {
-    /// Horizon angles of every sample of `map` along ±x and ±y. Lines are independent: rows
-    /// (±x) and columns (±y, 256 at a time) are computed in parallel on rayon's
-    /// pool, each line exactly as one after the other would (the same angles, bit for bit,
-    /// whatever the threads), with no more memory than the four angle arrays and one block.
+    /// Horizon angles of every sample of `map` along ±x, ±y and the diagonals
+    /// ([`diagonal_angles`]). Lines are independent: rows (±x) and columns (±y, 256 at a
+    /// time) are computed in parallel on rayon's pool, each line exactly as one after the other
+    /// would (the same angles, bit for bit, whatever the threads), with no more memory than the
+    /// eight angle arrays and one block.
     #[must_use]
     pub fn compute(map: &HeightMap) -> HorizonMap {
         let (w, h) = (map.width(), map.height());
@@ -183,10 +198,11 @@ impl HorizonMap {
                     });
             }
         }
+        let [ne, nw, sw, se] = diagonal_angles(map);
         HorizonMap {
             width: w,
             height: h,
-            angles: [east, north, west, south],
+            angles: [east, north, west, south, ne, nw, sw, se],
         }
     }
 
@@ -204,7 +220,7 @@ impl HorizonMap {
         HorizonStats {
             weight: 1.0,
             mean: std::array::from_fn(|d| self.angle(d, k)),
-            var: [0.0; 4],
+            var: [0.0; HORIZON_DIRECTIONS],
         }
     }
 
@@ -344,26 +360,45 @@ pub fn diagonal_angles(map: &HeightMap) -> [Vec<u16>; 4] {
     out
 }
 
-/// Mean and variance (radians, radians²) of the horizon angles of a footprint along +x, +y, −x,
-/// −y, with the weight (number of samples) they summarise.
+/// Mean and variance (radians, radians²) of the horizon angles of a footprint along the eight
+/// directions of [`HORIZON_AZIMUTHS_DEG`], with the weight (number of samples) they summarise.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct HorizonStats {
     /// Number of samples summarised (0 = no information: everything is visible).
     pub weight: f64,
     /// Mean horizon elevation angle per direction (radians).
-    pub mean: [f64; 4],
+    pub mean: [f64; HORIZON_DIRECTIONS],
     /// Variance of the horizon angle per direction (radians²).
-    pub var: [f64; 4],
+    pub var: [f64; HORIZON_DIRECTIONS],
 }
 
 impl HorizonStats {
+    /// Statistics of the four axes only (+x, +y, −x, −y: map files before version 5), the
+    /// diagonals filled in as the model before 2026-12-07 saw them: each the mean of its two
+    /// neighbours' means and of their variances (its interpolation at 45°).
+    #[must_use]
+    pub fn from_axes(weight: f64, mean: [f64; 4], var: [f64; 4]) -> HorizonStats {
+        let mut s = HorizonStats {
+            weight,
+            ..HorizonStats::default()
+        };
+        s.mean[..4].copy_from_slice(&mean);
+        s.var[..4].copy_from_slice(&var);
+        for k in 0..4 {
+            let (a, b) = (k, (k + 1) % 4);
+            s.mean[4 + k] = 0.5 * (mean[a] + mean[b]);
+            s.var[4 + k] = 0.5 * (var[a] + var[b]);
+        }
+        s
+    }
+
     /// Merge another footprint's statistics into this one (exact pooled mean and variance).
     pub fn merge(&mut self, o: &HorizonStats) {
         if o.weight <= 0.0 {
             return;
         }
         let n = self.weight + o.weight;
-        for d in 0..4 {
+        for d in 0..HORIZON_DIRECTIONS {
             let delta = o.mean[d] - self.mean[d];
             let mean = self.mean[d] + delta * o.weight / n;
             let m2 = self.var[d] * self.weight
@@ -377,7 +412,8 @@ impl HorizonStats {
 
     /// Fraction of the footprint from which the direction `w` (local frame, z up) is above the
     /// horizon, in `[0, 1]`. Mean and variance are interpolated in azimuth between the two
-    /// nearest of the four directions with weights cos²φ and sin²φ.
+    /// nearest of the eight directions, `φ` from the first of them, with weights cos²2φ and
+    /// sin²2φ.
     #[must_use]
     pub fn visibility(&self, w: DVec3) -> f64 {
         self.visibility_along(&HorizonDirection::new(w))
@@ -406,7 +442,8 @@ impl HorizonStats {
 }
 
 /// A direction prepared for [`HorizonStats::visibility_along`]: its elevation (radians) and
-/// its azimuth's two nearest horizon directions with their weights cos²φ and sin²φ.
+/// the two of the eight horizon directions nearest its azimuth, with their weights cos²2φ and
+/// sin²2φ (`φ` from the first).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HorizonDirection {
     elev: f64,
@@ -427,7 +464,7 @@ impl HorizonDirection {
         let mut d = HorizonDirection {
             elev: w.z.atan2(rxy),
             ix: 0,
-            iy: 1,
+            iy: 4,
             c2: 1.0,
             s2: 0.0,
             fixed: None,
@@ -437,9 +474,12 @@ impl HorizonDirection {
         } else if rxy < 1e-12 {
             d.fixed = Some(1.0);
         } else {
-            let (c, s) = (w.x / rxy, w.y / rxy);
-            d.ix = if c >= 0.0 { 0 } else { 2 };
-            d.iy = if s >= 0.0 { 1 } else { 3 };
+            // The octant and the azimuth within it, in units of 45°.
+            let a = w.y.atan2(w.x).rem_euclid(std::f64::consts::TAU) / std::f64::consts::FRAC_PI_4;
+            let k = (a.floor() as usize).min(HORIZON_DIRECTIONS - 1);
+            let (s, c) = ((a - k as f64) * std::f64::consts::FRAC_PI_2).sin_cos();
+            d.ix = SLOT_OF_OCTANT[k];
+            d.iy = SLOT_OF_OCTANT[(k + 1) % HORIZON_DIRECTIONS];
             d.c2 = c * c;
             d.s2 = s * s;
         }
@@ -595,5 +635,42 @@ mod tests {
             }
             assert!(rising > 50, "{rising} angles above 0.01 rad");
         }
+    }
+
+    #[test]
+    fn visibility_reads_each_of_the_eight_azimuths_and_interpolates_between_them() {
+        // A distinct sharp horizon per direction (no variance): the visibility at a direction's
+        // own azimuth is the step at its angle; halfway between two, at their mean.
+        let mean: [f64; HORIZON_DIRECTIONS] = std::array::from_fn(|d| 0.1 + 0.08 * d as f64);
+        let s = HorizonStats {
+            weight: 1.0,
+            mean,
+            var: [0.0; HORIZON_DIRECTIONS],
+        };
+        let dir = |az: f64, elev: f64| {
+            let (sa, ca) = az.to_radians().sin_cos();
+            DVec3::new(elev.cos() * ca, elev.cos() * sa, elev.sin())
+        };
+        for (d, az) in HORIZON_AZIMUTHS_DEG.iter().enumerate() {
+            assert_eq!(s.visibility(dir(*az, mean[d] + 1e-6)), 1.0, "azimuth {az}");
+            assert_eq!(s.visibility(dir(*az, mean[d] - 1e-6)), 0.0, "azimuth {az}");
+        }
+        for k in 0..HORIZON_DIRECTIONS {
+            let (a, b) = (
+                SLOT_OF_OCTANT[k],
+                SLOT_OF_OCTANT[(k + 1) % HORIZON_DIRECTIONS],
+            );
+            let mid = 0.5 * (mean[a] + mean[b]);
+            let az = 45.0 * k as f64 + 22.5;
+            assert_eq!(s.visibility(dir(az, mid + 1e-6)), 1.0, "azimuth {az}");
+            assert_eq!(s.visibility(dir(az, mid - 1e-6)), 0.0, "azimuth {az}");
+        }
+        // Old files' statistics: the diagonals are the axes' interpolation at 45°.
+        let old = HorizonStats::from_axes(2.0, [0.1, 0.3, 0.5, 0.7], [0.01, 0.02, 0.03, 0.04]);
+        let want = [(0.2, 0.015), (0.4, 0.025), (0.6, 0.035), (0.4, 0.025)];
+        for (k, (m, v)) in want.into_iter().enumerate() {
+            assert!((old.mean[4 + k] - m).abs() < 1e-15 && (old.var[4 + k] - v).abs() < 1e-15);
+        }
+        assert_eq!(old.mean[..4], [0.1, 0.3, 0.5, 0.7]);
     }
 }

@@ -63,6 +63,7 @@ pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, Nor
 pub use horizon::HorizonVisibility;
 pub use horizon::{
     diagonal_angles, HorizonDirection, HorizonMap, HorizonStats, ANGLE_STEP, DIAGONAL_AZIMUTHS_DEG,
+    HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS,
 };
 pub use input::{Input, InputKind};
 pub use pyramid::{

@@ -41,7 +41,9 @@ use std::path::Path;
 /// docs), which gives a few texels more lobes than a format-5 entry holds. 7 since 2026-12-05
 /// (afternoon): on small footprints (≤ 4 entries per lobe) the K chain goes on past a K whose
 /// k-means clusters lose to K − 1, so such texels can get more lobes than a format-6 entry holds.
-pub const FORMAT: u32 = 7;
+/// 8 since 2026-12-07: the horizon statistics have eight azimuths (map format 5); an entry of
+/// format 7 would read with its diagonals interpolated, so it is rebuilt.
+pub const FORMAT: u32 = 8;
 const MAGIC: &[u8; 8] = b"MESOPYC\0";
 const PREFIX: &str = "pyramid";
 /// The map format version hashed into every key: 3, the version the cache wrote until

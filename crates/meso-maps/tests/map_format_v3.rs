@@ -10,8 +10,10 @@
 use glam::DVec3;
 use meso_core::frame::spherical_direction_deg as dir;
 use meso_core::material::{MaterialError, MaterialSpec, NdfResolver, ResolvedNdf};
-use meso_maps::format::{SHADING_TAG, VERSION, VERSION_2, VERSION_3};
-use meso_maps::{extract, fixtures, ExtractParams, MapError, MapsResolver, Pyramid, Source};
+use meso_maps::format::{SHADING_TAG, VERSION, VERSION_2, VERSION_3, VERSION_4};
+use meso_maps::{
+    extract, fixtures, ExtractParams, HorizonStats, MapError, MapsResolver, Pyramid, Source,
+};
 use std::path::{Path, PathBuf};
 
 fn tmp(name: &str) -> PathBuf {
@@ -565,4 +567,41 @@ fn compact_levels_match_the_f64_path_within_f32_rounding() {
     rc.compact(0);
     assert!(rc.levels.iter().all(|l| l.lobes.is_compact()));
     assert_eq!(rc.to_bytes(), fb);
+}
+
+/// A version-4 file (four horizon azimuths; `tests/data/heights16.v4.map`, the version-3
+/// fixture written by the last build that wrote version 4) reads back to the very pyramid of its
+/// version-3 twin: the diagonals' statistics filled in from the axes', each diagonal's mean the
+/// mean of its two neighbours' and its variance the mean of theirs (within the codes' steps);
+/// re-encoded as version 5 it reads back the same.
+#[test]
+fn version_4_files_read_with_their_diagonals_filled_in_from_the_axes() {
+    let (path, v4) = fixture("heights16", "v4");
+    assert_eq!(version_of(&v4), VERSION_4);
+    let r4 = Pyramid::from_bytes(&path, &v4).unwrap();
+    Pyramid::check_bytes(&path, &v4).unwrap();
+    let (p3, v3) = fixture("heights16", "v3");
+    let r3 = Pyramid::from_bytes(&p3, &v3).unwrap();
+    assert!(r4 == r3, "version 4 reads back differently from version 3");
+    let mut checked = 0;
+    for l in &r4.levels {
+        let h = l.horizon.as_ref().unwrap();
+        for t in 0..l.texels() {
+            let s = h.get(t);
+            let mean: [f64; 4] = std::array::from_fn(|d| s.mean[d]);
+            let var: [f64; 4] = std::array::from_fn(|d| s.var[d]);
+            let want = HorizonStats::from_axes(s.weight, mean, var);
+            for d in 4..8 {
+                // Half a mean code (1.92e-4 rad) plus the f32 rounding; the standard
+                // deviation within half an sd code (9.6e-5 rad).
+                assert!((s.mean[d] - want.mean[d]).abs() < 2e-4, "{s:?}");
+                assert!((s.var[d].sqrt() - want.var[d].sqrt()).abs() < 1e-4, "{s:?}");
+            }
+            checked += usize::from(s.mean[..4].iter().any(|&m| m > 0.01));
+        }
+    }
+    assert!(checked > 20, "{checked} texels with a rising horizon");
+    let v5 = r4.to_bytes();
+    assert_eq!(version_of(&v5), VERSION);
+    assert!(Pyramid::from_bytes(&path, &v5).unwrap() == r4);
 }

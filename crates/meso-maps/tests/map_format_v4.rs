@@ -1,4 +1,5 @@
-//! Map format 4, the one written, and the streamed extraction (docs/map-format.md): the file
+//! Map formats 4 and 5 (5, written since 2026-12-07, is 4 with the diagonals' horizon
+//! statistics) and the streamed extraction (docs/map-format.md): the file
 //! `extract_to_file` streams band by band holds the bytes `Pyramid::write_to` (`write`,
 //! `to_bytes`) writes for the pyramid `extract` returns, and reads back to a pyramid that writes
 //! the same bytes again (that a version-3 file reads back to the same pyramid as its version-4
@@ -6,7 +7,7 @@
 //! problem (never a panic); a pyramid a map file cannot hold is not written; a failed
 //! extraction leaves no output and nothing of an existing file changed.
 
-use meso_maps::format::{BAND_ROWS, VERSION, VERSION_4};
+use meso_maps::format::{BAND_ROWS, VERSION, VERSION_5};
 use meso_maps::{
     extract, extract_to_file, extract_to_writer, fixtures, ExtractParams, MapError, Pyramid, Source,
 };
@@ -48,11 +49,11 @@ fn streamed_extraction_matches_the_pyramid_in_memory_and_damage_is_refused() {
     assert_eq!(last.work_done, last.work_total);
     let mut v4 = Vec::new();
     p.write_to(&mut v4).unwrap();
-    assert_eq!(VERSION, VERSION_4, "the version written");
+    assert_eq!(VERSION, VERSION_5, "the version written");
     assert!(p.to_bytes() == v4, "to_bytes and write_to differ");
     assert_eq!(
         u32::from_le_bytes(streamed[8..12].try_into().unwrap()),
-        VERSION_4
+        VERSION_5
     );
     assert!(
         streamed == v4,
@@ -100,7 +101,7 @@ fn chunks(b: &[u8], has_h: bool) -> Vec<(usize, [u8; 4])> {
             pos += 52;
         } else {
             pos += 20;
-            for _ in 0..if has_h { 6 } else { 4 } {
+            for _ in 0..if has_h { 7 } else { 4 } {
                 let comp = u64::from_le_bytes(b[pos + 12..pos + 20].try_into().unwrap());
                 pos += 20 + comp as usize;
             }

@@ -714,7 +714,7 @@ mod pyramid {
                 e,
                 MapError::MapVersion {
                     found: 1,
-                    expected: 4,
+                    expected: 5,
                     ..
                 }
             ),

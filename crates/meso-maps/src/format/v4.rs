@@ -19,11 +19,11 @@
 //! budget, all before inflating anything.
 
 use super::v3::{
-    build_level, decode_columns, pyramid_bytes, read_counts, read_stream, stream_header,
-    unstorable_level, write_streams, Layout, TableEntry, STREAMS,
+    build_level, decode_columns, pyramid_bytes, read_counts, read_stream, stream_count,
+    stream_header, unstorable_level, write_streams, Layout, TableEntry, STREAMS,
 };
 use super::{Header, Reader};
-use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
+use crate::compact::{Horizons, Lobes, COMPACT_TEXELS, HORIZON_CODE_BYTES};
 use crate::error::{MapError, Result};
 use crate::pyramid::{Level, Pyramid, Residual};
 use std::io::Write;
@@ -31,6 +31,9 @@ use std::path::Path;
 
 /// The format version of this module.
 pub const VERSION_4: u32 = 4;
+/// Version 5: version 4 with the horizon statistics of the four diagonals beside the axes'
+/// (a seventh stream in each band, `docs/map-format.md`), written since 2026-12-07.
+pub const VERSION_5: u32 = 5;
 /// Rows of a level per band when a pyramid in memory is written ([`Pyramid::write_to`]); the
 /// streamed extraction writes its row batches, of as many rows.
 pub const BAND_ROWS: usize = 64;
@@ -221,9 +224,9 @@ fn level_end(r: &mut Reader<'_>, k: usize, lobes: usize) -> Result<Residual> {
 /// Walk the chunks of a format-4 file after the common header without inflating anything:
 /// their order, every band's and stream's header against its level and the file's length.
 /// Returns the level table, the largest memory of reading one band, and the largest codes of
-/// a band of level 0 (bytes: 11 a lobe, 16 a texel with horizon statistics).
+/// a band of level 0 (bytes: 11 a lobe, 28 a texel with horizon statistics).
 fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64, u64)> {
-    let n_streams = if h.has_h { STREAMS.len() } else { 4 };
+    let n_streams = stream_count(h.has_h, h.version);
     let mut table = Vec::with_capacity(h.nlev);
     let (mut cols, mut rows, mut t0, mut band_max) = (h.cols, h.rows, 0usize, 0u64);
     let mut codes0 = 0u64;
@@ -242,7 +245,7 @@ fn scan(r: &mut Reader<'_>, h: &Header) -> Result<(Vec<TableEntry>, u64, u64)> {
                 // Inflated, decoded (4 bytes a value) and built (`f64`).
                 need += e + 4 * cols_of as u64 * if per_lobe { b.lobes as u64 } else { texels };
             }
-            band_max = band_max.max(need + 9 * texels + b.lobes as u64 * 40 + texels * 76);
+            band_max = band_max.max(need + 9 * texels + b.lobes as u64 * 40 + texels * 140);
             if k == 0 {
                 codes0 = codes0.max(codes_bytes(b.lobes as u64, texels, h.has_h));
             }
@@ -282,7 +285,7 @@ pub(super) fn read_band(
     let b = band_head(r, h, k, (e.cols, e.rows), next_row)?
         .ok_or_else(|| r.err(format!("level {k}: a band expected")))?;
     let texels = b.rows * e.cols;
-    let n_streams = if h.has_h { STREAMS.len() } else { 4 };
+    let n_streams = stream_count(h.has_h, h.version);
     let mut raws = Vec::with_capacity(n_streams);
     for s in 0..n_streams {
         raws.push(read_stream(r, s, expect(s, texels as u64, b.lobes as u64))?);
@@ -313,7 +316,7 @@ pub(super) fn read_band(
 
 /// The memory (bytes) of the levels of `table` read with their codes kept on the compact
 /// levels ([`read_levels`] with `coded`): per lobe 11 bytes ([`crate::compact::LobeCode`]) and
-/// per texel its lobe start (4) and horizon codes (16, [`crate::compact::HorizonCode`]) on the
+/// per texel its lobe start (4) and horizon codes (28, [`crate::compact::HorizonCode`]) on the
 /// compact levels, [`pyramid_bytes`]'s on the others.
 fn coded_pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
     table
@@ -328,10 +331,11 @@ fn coded_pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
         .sum()
 }
 
-/// Bytes of the codes of `lobes` lobes and `texels` texels' horizon statistics (11 a lobe, 16
-/// a texel when the file has them): a compact level's values as the file codes them.
+/// Bytes of the codes of `lobes` lobes and `texels` texels' horizon statistics (11 a lobe, 28
+/// a texel when the file has them, [`HORIZON_CODE_BYTES`]): a compact level's values as the
+/// file codes them.
 fn codes_bytes(lobes: u64, texels: u64, has_h: bool) -> u64 {
-    lobes * 11 + texels * if has_h { 16 } else { 0 }
+    lobes * 11 + texels * if has_h { HORIZON_CODE_BYTES as u64 } else { 0 }
 }
 
 /// Append band `b` to level `l` (same precision).

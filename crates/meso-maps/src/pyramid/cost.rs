@@ -37,10 +37,10 @@ pub const EXTRACT_BYTES_PER_CELL: u64 = 600;
 /// Extra peak memory of [`extract`](super::extract) per cell for each further normal of the cell
 /// (triangles: 2).
 pub const EXTRACT_BYTES_PER_EXTRA_NORMAL: u64 = 250;
-/// Peak memory of [`extract`](super::extract) per height sample: the four horizon angles
-/// (`u16`, [`crate::horizon::ANGLE_STEP`]: 8 bytes) and a margin (bytes). 40 until 2026-12-04,
-/// when the angles were `f64`.
-pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 12;
+/// Peak memory of [`extract`](super::extract) per height sample: the eight horizon angles
+/// (`u16`, [`crate::horizon::ANGLE_STEP`]: 16 bytes) and a margin (bytes). 40 until 2026-12-04,
+/// when the four angles were `f64`; 12 until 2026-12-07, when there were four.
+pub const EXTRACT_BYTES_PER_SAMPLE: u64 = 20;
 
 /// The estimated peak memory (bytes) of [`extract`](super::extract) on a `cols × rows` cell grid
 /// with `per_cell` normals per cell and `samples` height samples (0 for a normal map), including
@@ -57,21 +57,22 @@ pub fn extract_bytes(cols: usize, rows: usize, per_cell: usize, samples: usize) 
 }
 
 /// Peak memory of the streamed extraction ([`extract_to_file`](super::extract_to_file)) per
-/// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 8 bytes a
-/// sample are allocated): level 1's horizon statistics in `f64`, which level 2 reads (72 bytes a
-/// texel, a quarter of the cells: 18 bytes a cell), the facets' entry-grid bins that every level
-/// reads (`level_fit::facet_bins`, 4 bytes a cell since 2026-12-04), and a margin. Measured (2026-12-03,
-/// `docs/benchmarks.md`, "Streamed extraction"): 10.7 MB of heap at 256² against an estimate of
-/// 19.9 MB (`crates/meso-maps/tests/extract_memory.rs` requires it to cover the heap peak and
-/// stay within 3× of it); peak RSS 123 / 288 / 1 032 MB at 1024² / 2048² / 4096² (the
-/// generated map's 8 bytes a sample included) against 136 / 423 / 1 450 MB estimated without it.
-/// Since 2026-12-06 a level merged from its children's lobes (`FitParams::merge_levels`) above
-/// level 2 reads level 2's lobes, kept beside the stream as a map file codes them
+/// level-0 cell (bytes), beside the horizon angles ([`EXTRACT_BYTES_PER_SAMPLE`]; 16 bytes a
+/// sample are allocated, held until level 2 is done): level 2's horizon statistics in `f64`,
+/// which level 3 reads (136 bytes a texel, a sixteenth of the cells: 8.5 bytes a cell; level 2
+/// pools level 1's again from the samples, `level_fit::PrevHorizon::SampleBlocks`, so level 1
+/// keeps none), the facets' entry-grid bins that every level reads (`level_fit::facet_bins`, 4
+/// bytes a cell since 2026-12-04), level 2's lobes kept for the levels merged from them
 /// (`level_fit::ChildLobes`: 11 bytes a lobe, 12 a texel, 4 lobes at most, reserved exactly:
-/// ≤ 3.5 bytes a cell, within the margin: while they are filled, level 1's statistics, level
-/// 2's and the bins take ≈ 27 bytes a cell); level 2 fits level 1's lobes again instead of
-/// keeping them (≈ 14 bytes a cell, over the margin).
-pub const STREAM_BYTES_PER_CELL: u64 = 32;
+/// ≤ 3.5 bytes a cell), and a margin.
+///
+/// History: 32 until 2026-12-07, when level 1 carried its statistics for level 2 (four
+/// azimuths, 18 bytes a cell). Measured then (2026-12-03, `docs/benchmarks.md`, "Streamed
+/// extraction"): 10.7 MB of heap at 256² against an estimate of 19.9 MB; peak RSS 123 / 288 /
+/// 1 032 MB at 1024² / 2048² / 4096² (the generated map's 8 bytes a sample included) against
+/// 136 / 423 / 1 450 MB estimated without it. `crates/meso-maps/tests/extract_memory.rs`
+/// requires the estimate to cover the heap peak and stay within 4× of it.
+pub const STREAM_BYTES_PER_CELL: u64 = 24;
 /// Peak memory of the streamed extraction per texel of a row batch of level 0
 /// ([`crate::format::BAND_ROWS`] rows, the widest batch): the batch's fitted rows, the band in
 /// the level's precision, its streams' columns, byte planes and deflated bytes, and the band

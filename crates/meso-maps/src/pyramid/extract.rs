@@ -11,7 +11,7 @@ use super::{level_count, ExtractParams, Level, Method, Progress, Pyramid, Residu
 use crate::error::{MapError, Result};
 use crate::facets::{FacetSource, NormalMode};
 use crate::fit::MAX_LOBES;
-use crate::format::{check_band, write_band, write_level_end, Header, VERSION_4};
+use crate::format::{check_band, write_band, write_level_end, Header, VERSION};
 use crate::heightmap::Border;
 use crate::horizon::HorizonMap;
 use rayon::prelude::*;
@@ -46,7 +46,7 @@ pub struct StreamedLevel {
 /// Extract the pyramid of `source` as [`extract`] does, writing it as a map file of format 4
 /// (`docs/map-format.md`) at `path` as it goes: each row batch of each level is encoded,
 /// checked as the reader will check it, written and dropped, so that memory holds the source,
-/// the horizon angles (until level 1 is done), the previous level's horizon statistics and one
+/// the horizon angles (until level 2 is done), the previous level's horizon statistics and one
 /// row batch, never the pyramid ([`super::extract_stream_bytes`]). The file is written
 /// atomically (`meso_core::io::write_atomic_with`): on any error nothing is left and an
 /// existing `path` is untouched. It reads back ([`Pyramid::read`]) as the pyramid [`extract`]
@@ -197,7 +197,7 @@ fn run(
     let nlev = level_count(facets.cols(), facets.rows());
     debug_assert_eq!(nlev, level_work.len());
     let header = Header {
-        version: VERSION_4,
+        version: VERSION,
         width,
         height,
         cols: facets.cols(),
@@ -239,6 +239,7 @@ fn run(
     let mut children: Option<ChildLobes> = None;
     let mut done = 0u64;
     let (mut cols, mut rows) = (facets.cols(), facets.rows());
+    let (cols0, rows0) = (cols, rows);
     for (k, &work) in level_work.iter().enumerate() {
         let texels = cols * rows;
         let compact = texels >= params.compact_texels;
@@ -250,6 +251,11 @@ fn run(
         let prev_horizon = match (prev_level, &horizon) {
             (None, _) => PrevHorizon::None,
             (Some(_), Some(map)) if k == 1 => PrevHorizon::Samples(map),
+            (Some(_), Some(map)) if k == 2 => PrevHorizon::SampleBlocks {
+                map,
+                rows: rows0,
+                cols: cols0,
+            },
             (Some(l), _) => match (&prev.horizon, &l.horizon) {
                 (Some(h), _) => PrevHorizon::Stats(h),
                 (None, Some(h)) => PrevHorizon::Level(h),
@@ -311,7 +317,9 @@ fn run(
                 };
             reserve(ch).map_err(oom)?;
         }
-        let carry_horizon = has_horizon && !last && k > 0;
+        // Level 2 pools level 1's statistics again from the samples (`SampleBlocks`): from
+        // level 2 on, a level carries them for the next.
+        let carry_horizon = has_horizon && !last && k > 1;
         let mut acc = match &stream {
             None => LevelOut::Memory(
                 LevelBuilder::new(
@@ -382,8 +390,8 @@ fn run(
             }
             (LevelOut::Stream(_), None) => unreachable!("a streamed level has a stream"),
         }
-        if k >= 1 {
-            // Level 1 has read the samples' horizon angles.
+        if k >= 2 {
+            // Levels 1 and 2 have read the samples' horizon angles.
             horizon = None;
         }
         children = next_children;

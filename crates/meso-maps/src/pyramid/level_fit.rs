@@ -149,6 +149,15 @@ pub(super) enum PrevHorizon<'a> {
     None,
     /// Level 1: level 0's statistics are the samples' own ([`HorizonMap::sample_stats`]).
     Samples(&'a HorizonMap),
+    /// Level 2: level 1's statistics pooled again from the samples, each level-1 texel's
+    /// 2 × 2 as level 1 pooled them (the very values, bit for bit), so that level 1 keeps no
+    /// `f64` copy of its statistics (136 bytes a texel since the eight azimuths: 34 bytes a
+    /// cell) while the samples' angles are still held. `rows` × `cols`: level 0's.
+    SampleBlocks {
+        map: &'a HorizonMap,
+        rows: usize,
+        cols: usize,
+    },
     /// The previous level's statistics kept in `f64` beside its `f32` copy.
     Stats(&'a [HorizonStats]),
     /// The previous level's own (`f64`) statistics.
@@ -162,6 +171,15 @@ impl PrevHorizon<'_> {
         match self {
             PrevHorizon::None => None,
             PrevHorizon::Samples(m) => Some(m.sample_stats(r, c)),
+            PrevHorizon::SampleBlocks { map, rows, cols } => {
+                let mut s = HorizonStats::default();
+                for cr in 2 * r..(2 * r + 2).min(*rows) {
+                    for cc in 2 * c..(2 * c + 2).min(*cols) {
+                        s.merge(&map.sample_stats(cr, cc));
+                    }
+                }
+                Some(s)
+            }
             PrevHorizon::Stats(v) => Some(v[r * cols + c]),
             PrevHorizon::Level(h) => Some(h.get(r * cols + c)),
         }

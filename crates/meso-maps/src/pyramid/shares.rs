@@ -109,7 +109,7 @@ pub struct LobeStats {
 ///
 /// Cost: one log-density per level-0 lobe, level and lobe of the covering texel, plus one
 /// pooled merge per lobe it hands area to; the levels run in parallel. Memory: the shares
-/// (8 bytes per lobe) and the horizon statistics (72 or 36 bytes per lobe).
+/// (8 bytes per lobe) and the horizon statistics (136 or 68 bytes per lobe).
 #[must_use]
 pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
     stats(pyramid, horizons, false)

@@ -49,7 +49,7 @@ pub(in crate::format) use read::{
     build_level, check_levels, decode_columns, read_counts, read_levels,
 };
 pub(in crate::format) use shading::read_shading;
-pub(in crate::format) use streams::{read_stream, stream_header, Layout, STREAMS};
+pub(in crate::format) use streams::{read_stream, stream_count, stream_header, Layout, STREAMS};
 pub(in crate::format) use table::{pyramid_bytes, TableEntry};
 pub(in crate::format) use write::{unstorable, unstorable_level, write_streams};
 

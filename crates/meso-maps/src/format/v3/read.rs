@@ -2,18 +2,20 @@
 //! inflated and decoded, the lobe counts, weight codes and horizon weights checked, the levels
 //! built; or the same checks stream by stream without building the levels.
 
+use super::codes::angle_encode;
 use super::codes::{angle_decode, eta_decode, oct_decode, MEAN_SPAN, SD_SPAN};
-use super::streams::{decode, read_stream, Layout, STREAMS};
+use super::streams::{decode, read_stream, stream_count, Layout, STREAMS};
 use super::table::{pyramid_bytes, read_table, TableEntry};
 use crate::compact::{HorizonCode, Horizons, LobeCode, Lobes};
 use crate::error::Result;
 use crate::format::{Header, Reader};
-use crate::horizon::HorizonStats;
+use crate::horizon::{HorizonStats, HORIZON_DIRECTIONS};
 use crate::pyramid::Level;
 use meso_core::ndf::PhongLobe;
 
-/// The decoded columns of streams 1–5: octahedral axis codes (u, v), weight codes, exponent
-/// codes, horizon weights (`f32` bits) and the 8 horizon angle codes.
+/// The decoded columns of streams 1–6: octahedral axis codes (u, v), weight codes, exponent
+/// codes, horizon weights (`f32` bits) and the horizon angle codes: the axes' 4 means and 4
+/// standard deviations, then (version 5) the diagonals'.
 pub(in crate::format) struct Columns {
     axes: Vec<Vec<u32>>,
     weights: Vec<u32>,
@@ -22,13 +24,48 @@ pub(in crate::format) struct Columns {
     ha: Vec<Vec<u32>>,
 }
 
+impl Columns {
+    /// The horizon angle codes of texel `t` (all levels' texels, finest first): the means' and
+    /// the standard deviations' per direction of [`crate::HORIZON_AZIMUTHS_DEG`]. A file before
+    /// version 5 has the axes' only: each diagonal's mean code is the mean of its two
+    /// neighbours' (rounded half up) and its standard deviation that of the mean of their
+    /// variances, as `HorizonStats::from_axes` fills them.
+    fn horizon_codes(&self, t: usize) -> ([u16; HORIZON_DIRECTIONS], [u16; HORIZON_DIRECTIONS]) {
+        let q = |c: usize| self.ha[c][t] as u16;
+        if self.ha.len() == 4 * HORIZON_DIRECTIONS / 2 {
+            // Version 5: axes' means, axes' sds, diagonals' means, diagonals' sds.
+            let slot = |d: usize, sd: bool| {
+                let (block, i) = if d < 4 { (0, d) } else { (2, d - 4) };
+                q(4 * (block + usize::from(sd)) + i)
+            };
+            return (
+                std::array::from_fn(|d| slot(d, false)),
+                std::array::from_fn(|d| slot(d, true)),
+            );
+        }
+        let mut mean = [0u16; HORIZON_DIRECTIONS];
+        let mut sd = [0u16; HORIZON_DIRECTIONS];
+        for d in 0..4 {
+            mean[d] = q(d);
+            sd[d] = q(4 + d);
+        }
+        for k in 0..4 {
+            let (a, b) = (k, (k + 1) % 4);
+            mean[4 + k] = (u32::from(mean[a]) + u32::from(mean[b])).div_ceil(2) as u16;
+            let (sa, sb) = (angle_decode(sd[a], SD_SPAN), angle_decode(sd[b], SD_SPAN));
+            sd[4 + k] = angle_encode((0.5 * (sa * sa + sb * sb)).sqrt(), SD_SPAN);
+        }
+        (mean, sd)
+    }
+}
+
 /// Read the levels of a format-3 file after the common header (`docs/map-format.md`): the
 /// level table, the memory budget, the streams inflated, the lobe counts checked, the columns
 /// decoded, the levels built.
 pub(in crate::format) fn read_levels(r: &mut Reader<'_>, h: &Header) -> Result<Vec<Level>> {
     let (max_lobes, has_h) = (h.max_lobes, h.has_h);
     let (table, texels, lobes) = read_table(r, h)?;
-    let n_streams = if has_h { STREAMS.len() } else { 4 };
+    let n_streams = stream_count(has_h, h.version);
     let expect = |s: usize| {
         (if STREAMS[s].1 { lobes } else { texels }) * (STREAMS[s].2 * STREAMS[s].3) as u64
     };
@@ -103,6 +140,8 @@ pub(in crate::format) fn decode_columns(
     mut raws: Vec<(Vec<u8>, bool)>,
     has_h: bool,
 ) -> Result<Columns> {
+    // Version 5 has the diagonals' angles (stream 6).
+    let diagonals = raws.len() > 6;
     let mut next = |s: usize| {
         let c = decode(r, layout, s, &raws[s]);
         raws[s].0 = Vec::new();
@@ -112,7 +151,12 @@ pub(in crate::format) fn decode_columns(
     let weights = next(2)?.swap_remove(0);
     let etas = next(3)?.swap_remove(0);
     let (hw, ha) = if has_h {
-        (next(4)?.swap_remove(0), next(5)?)
+        let hw = next(4)?.swap_remove(0);
+        let mut ha = next(5)?;
+        if diagonals {
+            ha.extend(next(6)?);
+        }
+        (hw, ha)
     } else {
         (Vec::new(), Vec::new())
     };
@@ -161,7 +205,7 @@ pub(in crate::format) fn check_levels(r: &mut Reader<'_>, h: &Header) -> Result<
     let counts = read_counts(r, &table, &levels_at, texels as usize, &raw, max_lobes)?;
     drop(raw);
     let layout = Layout::new(levels_at, counts);
-    for s in 1..if has_h { STREAMS.len() } else { 4 } {
+    for s in 1..stream_count(has_h, h.version) {
         let raw = read_stream(r, s, expect(s))?;
         let cols = decode(r, &layout, s, &raw)?;
         drop(raw);
@@ -240,22 +284,18 @@ pub(in crate::format) fn build_level(
         };
         for t in t0..t0 + n {
             let weight = horizon_weight(r, k, c.hw[t])?;
+            let (mean, sd) = c.horizon_codes(t);
             if let Horizons::Coded(v) = &mut h {
-                v.push(HorizonCode::new(
-                    weight as f32,
-                    std::array::from_fn(|d| c.ha[d][t] as u16),
-                    std::array::from_fn(|d| c.ha[4 + d][t] as u16),
-                ));
+                v.push(HorizonCode::new(weight as f32, mean, sd));
                 continue;
             }
             let mut s = HorizonStats {
                 weight,
                 ..HorizonStats::default()
             };
-            for d in 0..4 {
-                let (qm, qs) = (c.ha[d][t], c.ha[4 + d][t]);
-                s.mean[d] = angle_decode(qm as u16, MEAN_SPAN);
-                let sd = angle_decode(qs as u16, SD_SPAN);
+            for d in 0..HORIZON_DIRECTIONS {
+                s.mean[d] = angle_decode(mean[d], MEAN_SPAN);
+                let sd = angle_decode(sd[d], SD_SPAN);
                 s.var[d] = sd * sd;
             }
             h.extend_from_slice(&[s]);

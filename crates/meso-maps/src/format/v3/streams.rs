@@ -15,14 +15,27 @@ const RATIO_SLACK: u64 = 1024;
 const STREAM_HEADER: usize = 20;
 /// The streams, in file order: name, per-lobe (else per-texel), columns, bytes per value,
 /// bits per value (a stored value or prediction residual above them is refused).
-pub(in crate::format) const STREAMS: [(&str, bool, usize, usize, u32); 6] = [
+/// The sixth, the diagonals' horizon angles, is in files of version 5 only
+/// ([`stream_count`]).
+pub(in crate::format) const STREAMS: [(&str, bool, usize, usize, u32); 7] = [
     ("lobe counts", false, 1, 1, 8),
     ("lobe axes", true, 2, 3, 20),
     ("lobe weights", true, 1, 2, 16),
     ("lobe exponents", true, 1, 2, 16),
     ("horizon weights", false, 1, 4, 32),
     ("horizon angles", false, 8, 2, 12),
+    ("diagonal horizon angles", false, 8, 2, 12),
 ];
+
+/// The number of streams of a file (a band in formats 4 and 5) of `version`: 4 without horizon
+/// statistics; with them 6 before version 5 (the axes' angles), 7 from it (and the diagonals').
+pub(in crate::format) fn stream_count(has_h: bool, version: u32) -> usize {
+    match (has_h, version >= crate::format::VERSION_5) {
+        (false, _) => 4,
+        (true, false) => 6,
+        (true, true) => 7,
+    }
+}
 
 fn mask(bits: u32) -> u32 {
     if bits >= 32 {

@@ -8,9 +8,9 @@ use crate::format::{Header, Reader, LEVEL_HEADER_BYTES};
 use crate::pyramid::Residual;
 
 /// Bytes in memory of one `f64` lobe (`PhongLobe`) and of one texel's `f64` horizon statistics
-/// (half on the levels kept in `f32`, `crate::compact`).
+/// (eight azimuths, 136; half on the levels kept in `f32`, `crate::compact`).
 const LOBE_MEM: u64 = 40;
-const HORIZON_MEM: u64 = 72;
+const HORIZON_MEM: u64 = 136;
 /// One entry of a format-3 level table, with where the level starts among all texels.
 #[derive(Clone, Copy)]
 pub(in crate::format) struct TableEntry {
@@ -34,7 +34,7 @@ impl TableEntry {
 }
 
 /// The memory (bytes) of the pyramid a level table describes: per lobe 40 bytes (`f64`) or 20
-/// (`f32` levels), per texel a lobe start (4) and with horizon statistics 72 or 36.
+/// (`f32` levels), per texel a lobe start (4) and with horizon statistics 136 or 68.
 pub(in crate::format) fn pyramid_bytes(table: &[TableEntry], has_h: bool) -> u64 {
     table
         .iter()

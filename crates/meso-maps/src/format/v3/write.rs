@@ -4,7 +4,7 @@
 //! level table and one set of streams for the whole pyramid) is no longer written.
 
 use super::codes::{angle_encode, eta_encode, oct_encode, weight_codes, MEAN_SPAN, SD_SPAN};
-use super::streams::{deflate, planes, Layout, STREAMS};
+use super::streams::{deflate, planes, stream_count, Layout, STREAMS};
 use crate::compact::Horizons;
 use crate::limits::ETA_MAX;
 use crate::pyramid::{Level, Pyramid};
@@ -102,15 +102,17 @@ fn columns(parts: &[&Level], s: usize) -> Vec<Vec<u32>> {
         3 => vec![lobes().map(|l| u32::from(eta_encode(l.exponent))).collect()],
         4 => vec![horizon().map(|h| (h.weight as f32).to_bits()).collect()],
         _ => {
+            // Stream 5: the axes' (directions 0–3); stream 6: the diagonals' (4–7).
+            let dirs = if s == 5 { 0..4 } else { 4..8 };
             let mut cols = Vec::with_capacity(8);
-            for d in 0..4 {
+            for d in dirs.clone() {
                 cols.push(
                     horizon()
                         .map(|h| u32::from(angle_encode(h.mean[d], MEAN_SPAN)))
                         .collect(),
                 );
             }
-            for d in 0..4 {
+            for d in dirs {
                 cols.push(
                     horizon()
                         .map(|h| u32::from(angle_encode(h.var[d].sqrt(), SD_SPAN)))
@@ -139,7 +141,7 @@ pub(in crate::format) fn write_streams(
     }
     let counts: Vec<u8> = columns(parts, 0)[0].iter().map(|&c| c as u8).collect();
     let layout = Layout::new(levels, counts);
-    let n = if has_h { STREAMS.len() } else { 4 };
+    let n = stream_count(has_h, crate::format::VERSION);
     // One stream at a time (its columns, both byte-plane layouts and their deflated bytes are
     // all that is held beside the pyramid), compressed with and without prediction in
     // parallel; the smaller is kept.
