@@ -22,6 +22,7 @@
 use crate::heightmap::{Border, HeightMap};
 use glam::DVec3;
 use rayon::prelude::*;
+use std::f64::consts::FRAC_PI_2;
 
 /// Number of horizon directions kept per sample and footprint.
 pub const HORIZON_DIRECTIONS: usize = 8;
@@ -441,6 +442,174 @@ impl HorizonStats {
     }
 }
 
+/// Elevations (degrees) at which a [`HorizonCdf`] keeps the fraction of its footprint whose
+/// horizon lies at or below them, per direction; with 0 at 0° and 1 at 90° (every horizon
+/// angle is below 90°), the nodes of a piecewise-linear distribution function. Denser near the
+/// horizontal plane, where the horizons of gentle maps and the lights that graze them lie.
+pub const CDF_ELEVATIONS_DEG: [f64; CDF_NODES] = [0.5, 5.0, 10.0, 15.0, 22.0, 32.0, 45.0, 62.0];
+
+/// Number of stored nodes of a [`HorizonCdf`] per direction.
+pub const CDF_NODES: usize = 8;
+
+/// The distribution of the horizon angles of a footprint, per direction of
+/// [`HORIZON_AZIMUTHS_DEG`]: at each elevation of [`CDF_ELEVATIONS_DEG`] the fraction of the
+/// footprint whose horizon is at or below it, to 1/255 (68 bytes). Unlike a mean and a
+/// variance ([`HorizonStats`]), fractions pool exactly ([`HorizonCdfSum`]) and keep a
+/// two-peaked distribution two-peaked: the texel of a facade that holds window floors
+/// (horizons high) and wall tops (horizons 0) sees a grazing light from its tops, where a ramp
+/// of the pooled mean and variance hides nearly all of it (docs/heightmaps.md, "Horizon
+/// distributions per lobe").
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct HorizonCdf {
+    /// The footprint's weight (level-0 cells or projected area handed over; 0 = it stands for
+    /// nothing: visible from everywhere).
+    pub weight: f32,
+    /// Per direction, per node, the fraction in units of 1/255.
+    pub frac: [[u8; CDF_NODES]; HORIZON_DIRECTIONS],
+}
+
+impl HorizonCdf {
+    /// The fraction of the footprint from which the direction `w` (local frame, z up) is
+    /// above the horizon, in `[0, 1]` ([`HorizonCdf::visibility_along`]).
+    #[must_use]
+    pub fn visibility(&self, w: DVec3) -> f64 {
+        self.visibility_along(&HorizonDirection::new(w))
+    }
+
+    /// The fraction of the footprint from which the direction prepared as `d` is above the
+    /// horizon: along each of the two directions nearest its azimuth the distribution read
+    /// at its elevation (linear between the nodes), interpolated with the weights of
+    /// [`HorizonStats::visibility_along`].
+    #[inline]
+    #[must_use]
+    pub fn visibility_along(&self, d: &HorizonDirection) -> f64 {
+        if self.weight <= 0.0 {
+            return 1.0;
+        }
+        if let Some(v) = d.fixed {
+            return v;
+        }
+        let at = |slot: usize| {
+            let f = &self.frac[slot];
+            let node = |k: usize| match k {
+                0 => 0.0,
+                k if k > CDF_NODES => 1.0,
+                k => f64::from(f[k - 1]) / 255.0,
+            };
+            node(d.node) + d.node_t * (node(d.node + 1) - node(d.node))
+        };
+        d.c2 * at(d.ix) + d.s2 * at(d.iy)
+    }
+}
+
+impl HorizonCdf {
+    /// The horizon angle (radians) below which a fraction `p` (in `[0, 1]`) of the footprint's
+    /// horizons along direction `d` (order of [`HORIZON_AZIMUTHS_DEG`]) lie: the inverse of the
+    /// piecewise-linear distribution (the median at `p = 0.5`; 0 for a footprint of no
+    /// weight).
+    #[must_use]
+    pub fn quantile(&self, d: usize, p: f64) -> f64 {
+        if self.weight <= 0.0 {
+            return 0.0;
+        }
+        let nodes = cdf_nodes_rad()
+            .into_iter()
+            .zip(self.frac[d].map(|q| f64::from(q) / 255.0))
+            .chain([(FRAC_PI_2, 1.0)]);
+        let (mut e0, mut f0) = (0.0, 0.0);
+        for (e1, f1) in nodes {
+            if f1 >= p {
+                return if f1 > f0 {
+                    e0 + (p - f0) / (f1 - f0) * (e1 - e0)
+                } else {
+                    e0
+                };
+            }
+            (e0, f0) = (e1, f1);
+        }
+        FRAC_PI_2
+    }
+}
+
+/// Weighted sums of the horizon distributions of footprints ([`HorizonCdf`] before rounding):
+/// add footprints, then [`HorizonCdfSum::finish`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HorizonCdfSum {
+    weight: f64,
+    sum: [[f32; CDF_NODES]; HORIZON_DIRECTIONS],
+}
+
+impl Default for HorizonCdfSum {
+    fn default() -> HorizonCdfSum {
+        HorizonCdfSum {
+            weight: 0.0,
+            sum: [[0.0; CDF_NODES]; HORIZON_DIRECTIONS],
+        }
+    }
+}
+
+impl HorizonCdfSum {
+    /// The distribution of one point set: per direction, `angles[d]` (radians) of `n` points
+    /// of equal weight, the whole set of weight `weight`.
+    #[must_use]
+    pub fn of_points(angles: &[[f64; 16]; HORIZON_DIRECTIONS], weight: f64) -> HorizonCdfSum {
+        let mut s = HorizonCdfSum {
+            weight,
+            ..HorizonCdfSum::default()
+        };
+        let nodes = cdf_nodes_rad();
+        let each = (weight / 16.0) as f32;
+        for (d, a) in angles.iter().enumerate() {
+            for &h in a {
+                // The first node at or above h and every later one count this point.
+                let first = nodes.iter().position(|&e| h <= e).unwrap_or(CDF_NODES);
+                for v in &mut s.sum[d][first..] {
+                    *v += each;
+                }
+            }
+        }
+        s
+    }
+
+    /// Add footprint `o` (its sums) scaled by `scale`: the pooled distribution.
+    pub fn add(&mut self, o: &HorizonCdfSum, scale: f64) {
+        if o.weight <= 0.0 || scale <= 0.0 {
+            return;
+        }
+        self.weight += o.weight * scale;
+        let k = scale as f32;
+        for (a, b) in self.sum.iter_mut().zip(&o.sum) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += k * y;
+            }
+        }
+    }
+
+    /// The pooled footprints' distribution, rounded to 1/255 (weight 0 when nothing was added).
+    #[must_use]
+    pub fn finish(&self) -> HorizonCdf {
+        let mut out = HorizonCdf {
+            weight: self.weight as f32,
+            ..HorizonCdf::default()
+        };
+        if self.weight <= 0.0 {
+            return out;
+        }
+        let inv = 1.0 / self.weight;
+        for (o, s) in out.frac.iter_mut().zip(&self.sum) {
+            for (q, &v) in o.iter_mut().zip(s) {
+                *q = (f64::from(v) * inv * 255.0).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        out
+    }
+}
+
+/// [`CDF_ELEVATIONS_DEG`] in radians.
+fn cdf_nodes_rad() -> [f64; CDF_NODES] {
+    CDF_ELEVATIONS_DEG.map(f64::to_radians)
+}
+
 /// A direction prepared for [`HorizonStats::visibility_along`]: its elevation (radians) and
 /// the two of the eight horizon directions nearest its azimuth, with their weights cos²2φ and
 /// sin²2φ (`φ` from the first).
@@ -451,6 +620,10 @@ pub struct HorizonDirection {
     iy: usize,
     c2: f64,
     s2: f64,
+    /// The elevation's segment among 0°, [`CDF_ELEVATIONS_DEG`] and 90° (0 = below the first
+    /// node) and its position in it, for [`HorizonCdf::visibility_along`].
+    node: usize,
+    node_t: f64,
     /// The visibility when it does not depend on the statistics: 0 below the horizon, 1 at
     /// the zenith.
     fixed: Option<f64>,
@@ -467,8 +640,17 @@ impl HorizonDirection {
             iy: 4,
             c2: 1.0,
             s2: 0.0,
+            node: 0,
+            node_t: 0.0,
             fixed: None,
         };
+        let nodes = cdf_nodes_rad();
+        let e = d.elev.max(0.0);
+        let k = nodes.iter().position(|&x| e < x).unwrap_or(CDF_NODES);
+        let lo = if k == 0 { 0.0 } else { nodes[k - 1] };
+        let hi = if k == CDF_NODES { FRAC_PI_2 } else { nodes[k] };
+        d.node = k;
+        d.node_t = ((e - lo) / (hi - lo)).clamp(0.0, 1.0);
         if w.z <= 0.0 {
             d.fixed = Some(0.0);
         } else if rxy < 1e-12 {
@@ -672,5 +854,58 @@ mod tests {
             assert!((old.mean[4 + k] - m).abs() < 1e-15 && (old.var[4 + k] - v).abs() < 1e-15);
         }
         assert_eq!(old.mean[..4], [0.1, 0.3, 0.5, 0.7]);
+    }
+
+    #[test]
+    fn horizon_distributions_pool_exactly_and_read_back_their_fractions() {
+        // Two footprints of 16 points each along +x (the other directions flat): one with a
+        // two-peaked set (half at 0, half at 50°), one spread evenly over 0–60°. Their pooled
+        // distribution, weighted 3 : 1, is the fraction of all the points (weighted) at or
+        // below each node; read at a node's elevation, the visibility is that fraction; the
+        // median inverts it.
+        let deg = |x: f64| x.to_radians();
+        let mut a = [[0.0f64; 16]; HORIZON_DIRECTIONS];
+        let mut b = [[0.0f64; 16]; HORIZON_DIRECTIONS];
+        for k in 0..16 {
+            a[0][k] = if k < 8 { 0.0 } else { deg(50.0) };
+            b[0][k] = deg(60.0 * k as f64 / 15.0);
+        }
+        let mut sum = HorizonCdfSum::default();
+        sum.add(&HorizonCdfSum::of_points(&a, 1.0), 3.0);
+        sum.add(&HorizonCdfSum::of_points(&b, 1.0), 1.0);
+        let cdf = sum.finish();
+        assert_eq!(cdf.weight, 4.0);
+        for (n, &e) in CDF_ELEVATIONS_DEG.iter().enumerate() {
+            let below = |p: &[f64; 16]| p.iter().filter(|&&h| h <= deg(e)).count() as f64 / 16.0;
+            let want = (3.0 * below(&a[0]) + below(&b[0])) / 4.0;
+            assert!(
+                (f64::from(cdf.frac[0][n]) / 255.0 - want).abs() <= 0.5 / 255.0,
+                "node {n}"
+            );
+            // Every other direction is flat: all visible from the first node on.
+            assert_eq!(cdf.frac[1][n], 255);
+            // A light along +x at the node's elevation (a hair above: the node counts the
+            // horizons at or below it).
+            let el = deg(e) + 1e-9;
+            let w = DVec3::new(el.cos(), 0.0, el.sin());
+            let v = cdf.visibility(w);
+            assert!(
+                (v - f64::from(cdf.frac[0][n]) / 255.0).abs() < 1e-6,
+                "node {n}: {v}"
+            );
+        }
+        // Two-peaked: the tops (3/8 + 1/4 · 1/16 of the weight at 0) see any light above the
+        // first node; a ramp of the pooled mean and variance would not.
+        assert!(cdf.visibility(DVec3::new(0.94, 0.0, 0.34)) > 0.39);
+        let median = cdf.quantile(0, 0.5);
+        let back = cdf.visibility(DVec3::new(median.cos(), 0.0, median.sin()));
+        assert!((back - 0.5).abs() < 1e-9, "{median} {back}");
+        // Nothing pooled: visible from everywhere above the horizon.
+        assert_eq!(
+            HorizonCdfSum::default()
+                .finish()
+                .visibility(DVec3::new(1.0, 0.0, 0.1)),
+            1.0
+        );
     }
 }

@@ -500,8 +500,7 @@ impl Level {
             return Ok(None);
         };
         let h = &h[self.index];
-        self.per_lobe_index(py, |i| h.get(i).visibility(w))
-            .map(Some)
+        self.per_lobe_index(py, |i| h[i].visibility(w)).map(Some)
     }
 
     fn __repr__(&self) -> String {

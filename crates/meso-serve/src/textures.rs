@@ -209,10 +209,18 @@ impl Texture {
                 if ph < 0.0 {
                     ph += 360.0;
                 }
+                // Per direction of `HORIZON_AZIMUTHS_DEG`, the median horizon angle and the
+                // quartiles of the cells the lobe stands for (degrees).
                 let horizon = st.horizon.map(|h| {
+                    let q = |p: f64| -> Vec<f64> {
+                        (0..meso_maps::HORIZON_DIRECTIONS)
+                            .map(|d| r(h.quantile(d, p).to_degrees()))
+                            .collect()
+                    };
                     json!({
-                        "mean": h.mean.map(|a| r(a.to_degrees())),
-                        "sd": h.var.map(|v| r(v.max(0.0).sqrt().to_degrees())),
+                        "azimuths": meso_maps::HORIZON_AZIMUTHS_DEG,
+                        "median": q(0.5),
+                        "quartiles": [q(0.25), q(0.75)],
                     })
                 });
                 json!({

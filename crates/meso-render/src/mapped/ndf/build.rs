@@ -167,8 +167,8 @@ impl NdfMapped {
     /// view weighting; with Lambert or general facets also its nodes, at most 7 of 40 bytes),
     /// per texel its lobe and view starts (4 + 4, and 4 more for the node start) and with
     /// shadowing its horizon statistics
-    /// (36 bytes in `f32`, 72 in `f64`, twice: the texel's and, on level 0, its cell's), per
-    /// coarser lobe its horizon statistics (36 or 72). What `meso render` checks against the
+    /// (68 bytes in `f32`, 136 in `f64`: eight azimuths; twice: the texel's and, on level 0,
+    /// its cell's), per coarser lobe its horizon statistics (68 or 136). What `meso render` checks against the
     /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
     #[must_use]
     pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
@@ -277,7 +277,11 @@ pub(super) fn level_tables_bytes(
     let general = facet.needs_nodes();
     let l = &pyramid.levels[k];
     let (texels, lobes) = (l.texels() as u64, l.lobes.len().max(l.texels()) as u64);
-    let hz: u64 = if l.lobes.is_compact() { 36 } else { 72 };
+    let hz = if l.lobes.is_compact() {
+        size_of::<meso_maps::Horizon32>()
+    } else {
+        size_of::<meso_maps::HorizonStats>()
+    } as u64;
     // Lobes as spherical Gaussians (40 bytes) and their texels' starts; with view weighting
     // what it reads of each lobe (`ViewLobe`) and their starts.
     let mut total = lobes * 40 + texels * 4;
@@ -288,7 +292,8 @@ pub(super) fn level_tables_bytes(
         total += lobes * 7 * 40 + texels * 4;
     }
     if shadowing {
-        total += texels * hz + if k == 0 { texels * hz } else { lobes * hz };
+        let cdf = size_of::<meso_maps::HorizonCdf>() as u64;
+        total += texels * hz + if k == 0 { texels * cdf } else { lobes * cdf };
     }
     total
 }
@@ -325,7 +330,7 @@ fn node_level(
     shares: &[f64],
     facet: &Facet,
     horizon: Option<meso_maps::Horizons>,
-    lobe_horizon: Option<meso_maps::Horizons>,
+    lobe_horizon: Option<Vec<meso_maps::HorizonCdf>>,
     view_tables: bool,
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
@@ -476,6 +481,7 @@ fn node_level(
 
 #[cfg(test)]
 mod tests {
+    use super::super::LobeHorizon;
     use super::*;
     use crate::shader::local_point;
     use crate::shader::Shader;
@@ -519,9 +525,9 @@ mod tests {
                                     continue;
                                 }
                                 let want = if sg.src == NO_LOBE {
-                                    l.horizon.as_ref().unwrap().get(t)
+                                    LobeHorizon::Texel(l.horizon.as_ref().unwrap().get(t))
                                 } else {
-                                    hz[k].get(sg.src as usize)
+                                    LobeHorizon::Lobe(hz[k][sg.src as usize])
                                 };
                                 assert_eq!(got, Some(want), "level {k} texel {t}");
                             }

@@ -42,7 +42,7 @@ pub use filter::{
 };
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
-use meso_maps::{HorizonDirection, Horizons};
+use meso_maps::{HorizonCdf, HorizonDirection, HorizonStats, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use view::{TexelView, ViewLobe};
@@ -70,10 +70,10 @@ struct NodeLevel {
     /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
     horizon: Option<Horizons>,
     /// Per pyramid lobe of the tile (the `src` of [`SgLobe`] and [`Node`]), the horizon
-    /// statistics of the cells it stands for (with shadowing); on level 0
+    /// distribution of the cells it stands for (with shadowing); on level 0
     /// (`lobe_horizon_by_texel`) per texel instead, each its cell's, which all the texel's lobes
     /// stand for (`meso_maps::lobe_stats_by_cell`).
-    lobe_horizon: Option<Horizons>,
+    lobe_horizon: Option<Vec<HorizonCdf>>,
     /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
     lobe_horizon_by_texel: bool,
     /// Per texel, its pyramid lobes `view[view_start[t]..view_start[t + 1]]` (indexed by the
@@ -173,7 +173,10 @@ impl NodeLevel {
             + self.node_start.len() * 4
             + self.nodes.len() * size_of::<Node>()
             + self.horizon.as_ref().map_or(0, Horizons::bytes)
-            + self.lobe_horizon.as_ref().map_or(0, Horizons::bytes)
+            + self
+                .lobe_horizon
+                .as_ref()
+                .map_or(0, |v| v.len() * size_of::<HorizonCdf>())
             + self.view_start.len() * 4
             + self.view.len() * size_of::<ViewLobe>()
             + size_of::<NodeLevel>()
@@ -192,19 +195,40 @@ impl TexLevel {
     }
 }
 
-impl NodeLevel {
-    /// The horizon statistics that lobe `src` of texel `t` is shadowed with: the lobe's own
-    /// (per texel on level 0, where all of a texel's lobes stand for its cell), or the texel's
-    /// for [`NO_LOBE`]; `None` without shadowing.
+/// What a lobe is shadowed with: its horizon distribution, or for [`NO_LOBE`] its texel's
+/// horizon statistics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LobeHorizon {
+    /// A lobe's own ([`meso_maps::lobe_stats_by_cell`]).
+    Lobe(HorizonCdf),
+    /// The texel's (`Level::horizon`).
+    Texel(HorizonStats),
+}
+
+impl LobeHorizon {
+    /// The fraction of what it stands for that sees the prepared direction `d`.
     #[inline]
-    fn lobe_horizon(&self, t: usize, src: u32) -> Option<meso_maps::HorizonStats> {
+    fn visibility_along(&self, d: &HorizonDirection) -> f64 {
+        match self {
+            LobeHorizon::Lobe(c) => c.visibility_along(d),
+            LobeHorizon::Texel(s) => s.visibility_along(d),
+        }
+    }
+}
+
+impl NodeLevel {
+    /// What lobe `src` of texel `t` is shadowed with: the lobe's own distribution (per texel on
+    /// level 0, where all of a texel's lobes stand for its cell), or the texel's statistics for
+    /// [`NO_LOBE`]; `None` without shadowing.
+    #[inline]
+    fn lobe_horizon(&self, t: usize, src: u32) -> Option<LobeHorizon> {
         match (&self.lobe_horizon, &self.horizon) {
             (Some(lh), Some(th)) => Some(if src == NO_LOBE {
-                th.get(t)
+                LobeHorizon::Texel(th.get(t))
             } else if self.lobe_horizon_by_texel {
-                lh.get(t)
+                LobeHorizon::Lobe(lh[t])
             } else {
-                lh.get(src as usize)
+                LobeHorizon::Lobe(lh[src as usize])
             }),
             _ => None,
         }

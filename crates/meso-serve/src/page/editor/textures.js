@@ -171,7 +171,7 @@
       sw.append(dot, ` ${i + 1}`);
       tr.append(sw);
       const share = typeof l.share === 'number' ? `${(100 * l.share).toFixed(1)}%` : '';
-      const horizon = l.horizon ? l.horizon.mean.map((a) => a.toFixed(0)).join(' ') : '—';
+      const horizon = l.horizon ? l.horizon.median.map((a) => a.toFixed(0)).join(' ') : '—';
       for (const x of [l.axis[0].toFixed(2), l.axis[1].toFixed(2), l.weight.toFixed(4), l.exponent.toPrecision(4), share, horizon]) {
         const td = document.createElement('td'); td.textContent = x; tr.append(td);
       }

@@ -1,0 +1,70 @@
+//! Shadows of a real, steep height map, on and between the grid's axes: the NDF-mapped
+//! material's per-lobe shadowing against the bump map shadowed by rays on the displaced
+//! surface (the truth of the same view, which the NDF-mapped material never reads). The map is
+//! a facade with recessed windows (`tests/data/facade_disp_256.png`, 8-bit), at two height
+//! scales (5: gentle walls; 20: walls of the window recesses near vertical); Lambert facets;
+//! a light 69° from the normal at azimuths on the axes, on the diagonals and between them;
+//! 4 and 16 map cells per pixel (pyramid levels ≈ 1.5 and 3.5).
+//!
+//! Each lobe's visibility is read from the distribution of the horizon angles of the cells it
+//! stands for along eight azimuths (`meso_maps::HorizonCdf`). Measured (2026-12-07): 0.88–1.00
+//! of the truth. Before, with four azimuths and a ramp of each lobe's pooled mean and variance,
+//! the same renders were 0.29–1.19 (the steep map at 16 cells a pixel under the light along +y:
+//! 0.29; at 4 cells a pixel on the diagonals: 1.19); docs/heightmaps.md, "Horizon
+//! distributions per lobe".
+
+use glam::DVec3;
+use meso_core::material::Material;
+use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
+use meso_render::*;
+use std::path::Path;
+use std::sync::Arc;
+
+mod common;
+use common::render_plane;
+
+/// The mean red radiance of an image.
+fn mean(img: &Image) -> f64 {
+    let px = img.pixels();
+    px.iter().map(|p| f64::from(p[0])).sum::<f64>() / px.len() as f64
+}
+
+#[test]
+fn lights_on_and_between_the_axes_shadow_like_the_geometry() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
+    let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
+    let size = 48;
+    let mut worst: (f64, String) = (0.0, String::new());
+    for height in [5.0, 20.0] {
+        let map = HeightMap::load(&path, 1.0, height, Border::Wrap).unwrap();
+        let pyr = extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap();
+        let tpu = map.width() as f64;
+        let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, true).unwrap());
+        let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, true).unwrap());
+        for cells_per_pixel in [4.0, 16.0] {
+            let width = cells_per_pixel * f64::from(size) / tpu;
+            for az in [0.0f64, 22.5, 45.0, 90.0, 135.0] {
+                let (t, p) = (69f64.to_radians(), az.to_radians());
+                let l = DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
+                let n = mean(&render_plane(ndf.clone(), width, size, l, 1));
+                let b = mean(&render_plane(bump.clone(), width, size, l, 64));
+                let what = format!(
+                    "height {height}, {cells_per_pixel} cells a pixel, light azimuth {az}°: \
+                     NDF-mapped / bump map {:.3}",
+                    n / b
+                );
+                eprintln!("{what}");
+                let off = (n / b - 1.0).abs();
+                if off > worst.0 {
+                    worst = (off, what);
+                }
+            }
+        }
+    }
+    assert!(worst.0 < 0.15, "worst: {}", worst.1);
+}
