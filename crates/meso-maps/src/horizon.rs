@@ -263,7 +263,7 @@ const DIAGONAL_BATCH: usize = 1 << 20;
 /// surface is linear between samples, `√2` texels apart. Along +x−y it crosses each cell's
 /// split diagonal at its midpoint, where the height is the mean of that diagonal's two ends:
 /// the line is linear between samples and midpoints, half as far apart. Either way the horizon
-/// is exact, found in O(n) a line by [`horizon_line`]. On a wrapped map a diagonal line closes
+/// is exact, found in O(n) a line by the convex hull of the samples ahead (as along the axes). On a wrapped map a diagonal line closes
 /// after `lcm(width, height)` samples (`gcd(width, height)` lines a direction) and is looked
 /// along for one whole turn; on a clamped map the lines stop at the border.
 #[must_use]
@@ -446,14 +446,16 @@ impl HorizonStats {
 /// horizon lies at or below them, per direction; with 0 at 0° and 1 at 90° (every horizon
 /// angle is below 90°), the nodes of a piecewise-linear distribution function. Denser near the
 /// horizontal plane, where the horizons of gentle maps and the lights that graze them lie.
-pub const CDF_ELEVATIONS_DEG: [f64; CDF_NODES] = [0.5, 5.0, 10.0, 15.0, 22.0, 32.0, 45.0, 62.0];
+pub const CDF_ELEVATIONS_DEG: [f64; CDF_NODES] = [
+    0.5, 3.0, 6.0, 9.0, 12.0, 15.0, 18.0, 21.0, 25.0, 29.0, 34.0, 40.0, 47.0, 55.0, 65.0, 77.0,
+];
 
 /// Number of stored nodes of a [`HorizonCdf`] per direction.
-pub const CDF_NODES: usize = 8;
+pub const CDF_NODES: usize = 16;
 
 /// The distribution of the horizon angles of a footprint, per direction of
 /// [`HORIZON_AZIMUTHS_DEG`]: at each elevation of [`CDF_ELEVATIONS_DEG`] the fraction of the
-/// footprint whose horizon is at or below it, to 1/255 (68 bytes). Unlike a mean and a
+/// footprint whose horizon is at or below it, to 1/255 (132 bytes). Unlike a mean and a
 /// variance ([`HorizonStats`]), fractions pool exactly ([`HorizonCdfSum`]) and keep a
 /// two-peaked distribution two-peaked: the texel of a facade that holds window floors
 /// (horizons high) and wall tops (horizons 0) sees a grazing light from its tops, where a ramp
@@ -557,15 +559,69 @@ impl HorizonCdfSum {
             weight,
             ..HorizonCdfSum::default()
         };
-        let nodes = cdf_nodes_rad();
         let each = (weight / 16.0) as f32;
         for (d, a) in angles.iter().enumerate() {
+            // Per point, the number of nodes below it: the first node that counts it (at or
+            // above it; every later one does too). Counted per node, then summed up.
+            let mut first = [0u8; CDF_NODES + 1];
             for &h in a {
-                // The first node at or above h and every later one count this point.
-                let first = nodes.iter().position(|&e| h <= e).unwrap_or(CDF_NODES);
-                for v in &mut s.sum[d][first..] {
-                    *v += each;
+                first[usize::from(nodes_below(h))] += 1;
+            }
+            let mut count = 0u8;
+            for (v, &c) in s.sum[d].iter_mut().zip(&first) {
+                count += c;
+                *v = f32::from(count) * each;
+            }
+        }
+        s
+    }
+
+    /// The distribution of a cell whose horizon angles are its corners' interpolated
+    /// bilinearly, at the centres of its 4 × 4 sub-cells (the points [`HorizonCdfSum::of_points`]
+    /// would take), weight `weight`: `corners[d]` per direction are the angles (radians) at
+    /// `(x, y)` = (0, 0), (1, 0), (0, 1), (1, 1). Where the four corners lie between the same
+    /// two nodes, so do all the points, and none is interpolated.
+    #[must_use]
+    pub fn of_bilinear_cell(
+        corners: &[[f64; 4]; HORIZON_DIRECTIONS],
+        weight: f64,
+    ) -> HorizonCdfSum {
+        let mut s = HorizonCdfSum {
+            weight,
+            ..HorizonCdfSum::default()
+        };
+        let each = (weight / 16.0) as f32;
+        let nodes = cdf_nodes_rad();
+        for (d, a) in corners.iter().enumerate() {
+            let lo = a.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let (blo, bhi) = (usize::from(nodes_below(lo)), usize::from(nodes_below(hi)));
+            if blo == bhi {
+                // Every point between the same two nodes: none below the first `blo` nodes.
+                for (n, v) in s.sum[d].iter_mut().enumerate() {
+                    *v = if n < blo { 0.0 } else { 16.0 * each };
                 }
+                continue;
+            }
+            // The 16 points, then per node the count at or below it (a fixed-size loop the
+            // compiler vectorises).
+            let mut h = [0.0f64; 16];
+            for (k, v) in h.iter_mut().enumerate() {
+                let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
+                *v = a[0] * (1.0 - x) * (1.0 - y)
+                    + a[1] * x * (1.0 - y)
+                    + a[2] * (1.0 - x) * y
+                    + a[3] * x * y;
+            }
+            for (n, v) in s.sum[d].iter_mut().enumerate() {
+                *v = if n < blo {
+                    0.0
+                } else if n >= bhi {
+                    16.0 * each
+                } else {
+                    let e = nodes[n];
+                    h.iter().map(|&p| u32::from(p <= e)).sum::<u32>() as f32 * each
+                };
             }
         }
         s
@@ -598,16 +654,47 @@ impl HorizonCdfSum {
         let inv = 1.0 / self.weight;
         for (o, s) in out.frac.iter_mut().zip(&self.sum) {
             for (q, &v) in o.iter_mut().zip(s) {
-                *q = (f64::from(v) * inv * 255.0).round().clamp(0.0, 255.0) as u8;
+                // Non-negative: `as` truncates after the half is added (saturating at 255).
+                *q = (f64::from(v) * inv * 255.0 + 0.5) as u8;
             }
         }
         out
     }
 }
 
+/// The step of [`CDF_ELEVATIONS_DEG`]'s nodes (all are multiples of it): 0.5°.
+const CDF_GRID_DEG: f64 = 0.5;
+
+/// How many nodes of [`CDF_ELEVATIONS_DEG`] lie strictly below the angle `h` (radians), by a
+/// table of the 0.5° steps (the nodes lie on them), checked against the nearest nodes.
+#[inline]
+fn nodes_below(h: f64) -> u8 {
+    const STEPS: usize = 180;
+    static TABLE: std::sync::OnceLock<[u8; STEPS + 1]> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        // Entry k: the nodes strictly below any angle in (k, k + 1] steps.
+        std::array::from_fn(|k| {
+            let lo = k as f64 * CDF_GRID_DEG;
+            CDF_ELEVATIONS_DEG.iter().filter(|&&e| e <= lo).count() as u8
+        })
+    });
+    let x = (h.to_degrees() / CDF_GRID_DEG).clamp(0.0, STEPS as f64);
+    let mut n = usize::from(table[(x as usize).min(STEPS)]);
+    // Exact in radians near a node (the conversion may land a hair either side of a step).
+    let nodes = cdf_nodes_rad();
+    while n > 0 && nodes[n - 1] >= h {
+        n -= 1;
+    }
+    while n < CDF_NODES && nodes[n] < h {
+        n += 1;
+    }
+    n as u8
+}
+
 /// [`CDF_ELEVATIONS_DEG`] in radians.
 fn cdf_nodes_rad() -> [f64; CDF_NODES] {
-    CDF_ELEVATIONS_DEG.map(f64::to_radians)
+    static NODES: std::sync::OnceLock<[f64; CDF_NODES]> = std::sync::OnceLock::new();
+    *NODES.get_or_init(|| CDF_ELEVATIONS_DEG.map(f64::to_radians))
 }
 
 /// A direction prepared for [`HorizonStats::visibility_along`]: its elevation (radians) and
@@ -907,5 +994,27 @@ mod tests {
                 .visibility(DVec3::new(1.0, 0.0, 0.1)),
             1.0
         );
+    }
+
+    #[test]
+    fn nodes_below_counts_the_nodes_strictly_below_an_angle() {
+        for k in 0..=2000 {
+            let deg = 90.0 * k as f64 / 2000.0;
+            for h in [deg.to_radians(), (deg + 1e-9).to_radians()] {
+                let want = CDF_ELEVATIONS_DEG
+                    .iter()
+                    .filter(|&&e| e.to_radians() < h)
+                    .count();
+                assert_eq!(usize::from(nodes_below(h)), want, "{deg}°");
+            }
+        }
+        for e in CDF_ELEVATIONS_DEG {
+            let h = e.to_radians();
+            let want = CDF_ELEVATIONS_DEG
+                .iter()
+                .filter(|&&x| x.to_radians() < h)
+                .count();
+            assert_eq!(usize::from(nodes_below(h)), want, "on the node {e}°");
+        }
     }
 }

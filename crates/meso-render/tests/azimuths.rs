@@ -7,7 +7,7 @@
 //! 4 and 16 map cells per pixel (pyramid levels ≈ 1.5 and 3.5).
 //!
 //! Each lobe's visibility is read from the distribution of the horizon angles of the cells it
-//! stands for along eight azimuths (`meso_maps::HorizonCdf`). Measured (2026-12-07): 0.88–1.00
+//! stands for along eight azimuths (`meso_maps::HorizonCdf`). Measured (2026-12-07): 0.90–1.02
 //! of the truth. Before, with four azimuths and a ramp of each lobe's pooled mean and variance,
 //! the same renders were 0.29–1.19 (the steep map at 16 cells a pixel under the light along +y:
 //! 0.29; at 4 cells a pixel on the diagonals: 1.19); docs/heightmaps.md, "Horizon

@@ -177,8 +177,11 @@ fn far_views_of_steep_maps_follow_the_displaced_geometry() {
             100.0 * mean[k]
         );
     }
-    // Measured (2026-12-06): NDF-mapped worst 33.2 %, mean 13.6 %; view-weighted worst 26.6 %
-    // (Phong peaks cannot follow the cylinders' normals, all in one plane), mean 8.4 %. The
+    // Measured (2026-12-07, each lobe's horizon distribution along eight azimuths): NDF-mapped
+    // worst 33.8 %, mean 13.4 %; view-weighted worst 29.0 % (the grooves' Phong facets under
+    // the high light: Phong peaks cannot follow the cylinders' normals, all in one plane), mean
+    // 7.8 % (2026-12-06, with the ramp of the lobes' pooled means and variances: worst 33.2 %
+    // and 26.6 %, means 13.6 % and 8.4 %). The
     // bump map, shadowed by rays on the displaced surface (`Gonio::sees`, the same tracer as
     // the truth's; the weighting, footprint and shading are the renderer's own): worst 27.4 %,
     // mean 11.2 %; view-weighted worst 1.9 %, mean 0.3 %. (Shadowed by its samples' horizons

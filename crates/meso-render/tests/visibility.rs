@@ -42,15 +42,6 @@ kind = "lambert"
 albedo = [0.7, 0.6, 0.5]
 "#;
 
-/// How the truth, the bump map, shadows: by rays on the displaced surface (the default,
-/// exact) or by the nearest height sample's horizon along ±x, ±y (the model whose statistics
-/// the pyramid's lobes carry, `BumpMapped::new_horizon_shadowed`).
-#[derive(Clone, Copy)]
-enum Truth {
-    Rays,
-    Horizon,
-}
-
 /// One case: the facets, the visibility model, the light's angle from the normal, texels per
 /// pixel, and the NDF-mapped render's `(error, mean ratio)` against the truth.
 struct Case {
@@ -67,23 +58,15 @@ struct Case {
 /// shadowing at 256 spp: a plane seen from ≈ 24° (32² pixels), Phong η = 20 and Lambert
 /// facets, a directional light in the xz plane (across the cylinders) at each of `lights_deg`
 /// from the normal, at each of `texels_per_pixel`. Prints every case.
-fn measure(
-    name: &str,
-    map: &HeightMap,
-    lights_deg: &[f64],
-    texels_per_pixel: &[f64],
-    truth_shadows: Truth,
-) -> Vec<Case> {
+fn measure(name: &str, map: &HeightMap, lights_deg: &[f64], texels_per_pixel: &[f64]) -> Vec<Case> {
     let pyr = extract(Source::Heights(map), &ExtractParams::default(), &mut |_| {}).unwrap();
     let tpu = map.width() as f64;
     let size = 32u32;
     let mut out = Vec::new();
     for (facets, text) in [("phong20", PHONG), ("lambert", LAMBERT)] {
         let surface = Material::from_toml_str(text).unwrap();
-        let bump: Arc<dyn Shader> = Arc::new(match truth_shadows {
-            Truth::Rays => BumpMapped::new(map, &surface, tpu, true).unwrap(),
-            Truth::Horizon => BumpMapped::new_horizon_shadowed(map, &surface, tpu).unwrap(),
-        });
+        // The truth: shadowed by rays on the displaced surface.
+        let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(map, &surface, tpu, true).unwrap());
         let ndf = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
         let per_lobe: Arc<dyn Shader> = Arc::new(ndf.clone());
         let per_texel: Arc<dyn Shader> = Arc::new(ndf.with_texel_visibility(true));
@@ -118,14 +101,18 @@ fn measure(
 }
 
 /// The bound of the mean pixel error and of the mean ratio's distance from 1 at a light
-/// `deg` from the normal: 2% at 65°, 13% at 75° (where the truth is a few percent of the
-/// unshadowed radiance in the grooves, and the horizon statistics' ramp over a cell's four
-/// corner samples is coarser than the truth's nearest-sample step).
-fn bound(deg: f64) -> f64 {
-    if deg < 70.0 {
-        0.02
+/// `deg` from the normal, against rays on the displaced surface: 3% at 65°, 5% at 75°; and
+/// 25% for the glossy grooves at 75° and 32 texels per pixel, where the truth is a few percent of
+/// the unshadowed radiance and a coarse texel's lobes cannot say which of their facets reflect
+/// the highlight (1.20× with the model before 2026-12-07, 1.22× now; docs/heightmaps.md,
+/// "Visibility per lobe").
+fn bound(c: &Case) -> f64 {
+    if c.light_deg < 70.0 {
+        0.03
+    } else if c.facets == "phong20" && c.texels_per_pixel >= 32.0 {
+        0.25
     } else {
-        0.13
+        0.05
     }
 }
 
@@ -134,7 +121,7 @@ fn outside(name: &str, cases: &[Case], model: &str) -> Vec<String> {
     cases
         .iter()
         .filter(|c| c.model == model)
-        .filter(|c| c.error > bound(c.light_deg) || (c.ratio - 1.0).abs() > bound(c.light_deg))
+        .filter(|c| c.error > bound(c) || (c.ratio - 1.0).abs() > bound(c))
         .map(|c| {
             format!(
                 "{name}, {}, {}, light {}°, {} texels/px: error {:.4}, mean ratio {:.4}",
@@ -147,29 +134,22 @@ fn outside(name: &str, cases: &[Case], model: &str) -> Vec<String> {
 /// Touching half-cylinders (256², period 64 texels: radius 32 cells) and the same heights
 /// upside down (grooves), Phong η = 20 and Lambert facets, lit at 65° and 75° from the normal
 /// across the cylinders, at 8, 16 and 32 texels per pixel: with each lobe's own visibility
-/// (the default) every case is within [`bound`] of the truth (2% at 65°, 13% at 75°, both for
-/// the mean pixel error and the mean). The truth here is the bump map shadowed by its samples'
-/// horizons ([`Truth::Horizon`]), the model the lobes' statistics filter; against rays on the
-/// displaced surface (the bump map's default) the per-lobe errors were 0.04–1.5% at 65° and
-/// 0.1–4.9% at 75° but for the grooves' Phong facets at 32 texels per pixel, 20% (1.20×), where
-/// the truth is a few percent of the unshadowed radiance (docs/heightmaps.md, "Shadows of the
-/// bump map"). Measured against the horizon truth: errors 0.02–1.3% at 65°, 2.4–11.8% at 75°.
-/// One visibility per texel ([`NdfMapped::with_texel_visibility`], the model before) fails the
-/// bound on both maps, and the test checks that it does: on the bumps up to 16% error at 65°
-/// (tops and creases given the same visibility: too dark), 23% at 75°; on the grooves up to
-/// 53% at 65° and 5.3× the truth at 75°. Table: docs/heightmaps.md, "Visibility per lobe".
+/// (the default) every case is within [`bound`] of the truth, the bump map shadowed by rays on
+/// the displaced surface , both for the mean pixel error and the mean.
+/// Measured (2026-12-07, each lobe's horizon distribution, `meso_maps::HorizonCdf`): errors
+/// 0.1–2.3% at 65°, 0.5–3.7% at 75° but the glossy grooves at 32 texels per pixel, 22%
+/// (1.22×). With the ramp of each lobe's pooled mean and variance before: 0.04–1.5% at 65°,
+/// 0.1–4.9% at 75°, that case 20%; the test then took as truth the bump map shadowed by its
+/// nearest sample's horizon, the model the ramp filtered. One visibility per texel
+/// ([`NdfMapped::with_texel_visibility`], the model before per-lobe visibility) fails the bound
+/// on both maps, and the test checks that it does. Table: docs/heightmaps.md, "Visibility per
+/// lobe".
 #[test]
 fn bumps_and_grooves_shadow_apart() {
     let mut failures = Vec::new();
     for (name, sign) in [("bumps", 1.0), ("grooves", -1.0)] {
         let map = fixtures::half_cylinders(256, 64, 1.0 / 256.0, sign).unwrap();
-        let cases = measure(
-            name,
-            &map,
-            &[65.0, 75.0],
-            &[8.0, 16.0, 32.0],
-            Truth::Horizon,
-        );
+        let cases = measure(name, &map, &[65.0, 75.0], &[8.0, 16.0, 32.0]);
         failures.extend(outside(name, &cases, "per lobe"));
         // The model before fails the same bound on this map.
         assert!(
@@ -193,13 +173,7 @@ fn bumps_and_grooves_shadow_apart() {
 #[test]
 fn gentle_gaussian_surface() {
     let map = fixtures::gaussian(128, 4.0, 0.7 / 128.0, 3, 1.0 / 128.0).unwrap();
-    let cases = measure(
-        "gaussian",
-        &map,
-        &[65.0, 75.0],
-        &[8.0, 16.0, 32.0],
-        Truth::Rays,
-    );
+    let cases = measure("gaussian", &map, &[65.0, 75.0], &[8.0, 16.0, 32.0]);
     let (lobe, texel): (Vec<&Case>, Vec<&Case>) = cases.iter().partition(|c| c.model == "per lobe");
     for (a, b) in lobe.iter().zip(&texel) {
         assert_eq!(

@@ -117,8 +117,8 @@ pub struct LobeStats {
 /// Cost: one log-density per level-0 lobe, level and lobe of the covering texel, plus one
 /// pooled sum per lobe it hands area to (a cell's distribution recomputed per level: 4 × 4
 /// points and 8 directions); the levels run in parallel. Memory: the shares (8 bytes per
-/// lobe) and the horizon distributions (68 bytes per lobe; 264 per lobe of a level while it
-/// is summed).
+/// lobe) and the horizon distributions (132 bytes per lobe; 520 per lobe of the texel row
+/// being summed).
 #[must_use]
 pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
     stats(pyramid, horizons, false)
@@ -155,10 +155,15 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     for t in 0..l0.texels() {
         cell_shares(l0, t, &mut base);
     }
+    // The coarse levels as whole rectangles: a row of texels' sums at a time (520 bytes a lobe
+    // of the row), not a level's.
     let coarse: Vec<(Vec<f64>, Option<Vec<HorizonCdf>>)> = pyramid.levels[1..]
         .par_iter()
         .enumerate()
-        .map(|(k1, l)| hand_down(pyramid, &base, h0, l, k1 + 1))
+        .map(|(k1, l)| {
+            let st = rect_lobe_stats_by_cell(pyramid, k1 + 1, 0..l.rows, 0..l.cols, horizons);
+            (st.shares, st.horizon)
+        })
         .collect();
     let base_horizon = base_horizon.map(|h| {
         if by_cell {
@@ -376,17 +381,9 @@ pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdfS
     let (r1, c1) = (next(r, l0.rows), next(c, l0.cols));
     let corner = |rr: usize, cc: usize| h.get(rr * l0.cols + cc).mean;
     let (a00, a01, a10, a11) = (corner(r, c), corner(r, c1), corner(r1, c), corner(r1, c1));
-    let mut pts = [[0.0f64; 16]; HORIZON_DIRECTIONS];
-    for (d, p) in pts.iter_mut().enumerate() {
-        for (k, v) in p.iter_mut().enumerate() {
-            let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
-            *v = a00[d] * (1.0 - x) * (1.0 - y)
-                + a01[d] * x * (1.0 - y)
-                + a10[d] * (1.0 - x) * y
-                + a11[d] * x * y;
-        }
-    }
-    HorizonCdfSum::of_points(&pts, 1.0)
+    let corners: [[f64; 4]; HORIZON_DIRECTIONS] =
+        std::array::from_fn(|d| [a00[d], a01[d], a10[d], a11[d]]);
+    HorizonCdfSum::of_bilinear_cell(&corners, 1.0)
 }
 
 /// Appends to `out` the shares of level-0 texel `t`'s lobes: `w·E[m_z⁺]` each
@@ -403,18 +400,6 @@ fn cell_shares(l0: &Level, t: usize, out: &mut Vec<f64>) {
     for m in &mut out[start..] {
         *m = if total > 0.0 { *m / total } else { 0.0 };
     }
-}
-
-/// `mass` (per lobe of `l`) divided by its texel's total, or 0 where that is 0.
-fn normalise_per_texel(l: &Level, mut mass: Vec<f64>) -> Vec<f64> {
-    for t in 0..l.texels() {
-        let (a, b) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
-        let total: f64 = mass[a..b].iter().sum();
-        for m in &mut mass[a..b] {
-            *m = if total > 0.0 { *m / total } else { 0.0 };
-        }
-    }
-    mass
 }
 
 /// Hands level-0 cell `ct`'s projected area (its lobes' `shares`) to the lobes `pa..pb` of
@@ -475,40 +460,6 @@ fn hand_cell(
             }
         }
     }
-}
-
-/// Level `k`'s (`l`) shares and lobe horizon distributions from level 0 (its lobes' shares
-/// `base`, its texels' horizon statistics `h0`, each cell's distribution by [`cell_cdf`]).
-fn hand_down(
-    pyramid: &Pyramid,
-    base: &[f64],
-    h0: Option<&Horizons>,
-    l: &Level,
-    k: usize,
-) -> (Vec<f64>, Option<Vec<HorizonCdf>>) {
-    let l0 = &pyramid.levels[0];
-    let mut mass = vec![0.0f64; l.lobes.len()];
-    let mut hz = h0.map(|_| vec![HorizonCdfSum::default(); l.lobes.len()]);
-    let mut logr = Vec::with_capacity(8);
-    for row in 0..l0.rows {
-        for col in 0..l0.cols {
-            let ct = row * l0.cols + col;
-            let pt = (row >> k).min(l.rows - 1) * l.cols + (col >> k).min(l.cols - 1);
-            let (pa, pb) = (l.lobe_start[pt] as usize, l.lobe_start[pt + 1] as usize);
-            let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
-            let cell_h = h0.map(|h| cell_cdf(pyramid, h, ct));
-            hand_cell(l0, ct, &base[ca..cb], l, pa, pb, &mut logr, |j, m| {
-                mass[j] += m;
-                if let (Some(hz), Some(s)) = (&mut hz, &cell_h) {
-                    hz[j].add(s, m);
-                }
-            });
-        }
-    }
-    (
-        normalise_per_texel(l, mass),
-        hz.map(|v| v.iter().map(HorizonCdfSum::finish).collect()),
-    )
 }
 
 #[cfg(test)]

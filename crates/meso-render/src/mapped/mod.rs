@@ -69,30 +69,36 @@
 //! the bottoms shadowed, and one visibility per texel gives both the same answer (issue #11,
 //! item 1). [`meso_maps::lobe_stats`] hands each level-0 cell's projected area to a coarse
 //! texel's lobes by the mixture's posterior (the shares above) and, weighted by the same
-//! area, the cell's horizon statistics (its four corner samples pooled: the bump map shadows
-//! a point by its nearest sample): each lobe gets the horizons of the cells whose normals it
-//! stands for. Level 0's lobes take their cell's. Shading multiplies each lobe's closed-form
-//! term (Phong facets) or each node (Lambert and general facets) by its lobe's `V_j(i)`;
-//! the light's azimuth and elevation are prepared once per light
-//! ([`meso_maps::HorizonDirection`]), so a lobe costs one interpolation, a square root and a
-//! smoothstep. The same code serves in-memory pyramids and `.map` files (level 0 of a stored
-//! pyramid holds the samples' angles); a pyramid without horizon statistics cannot shadow.
+//! area, the cell's horizon distribution ([`meso_maps::HorizonCdf`]: along eight azimuths,
+//! the fraction of the cell whose horizon lies at or below each of 16 elevations, from its
+//! four corner samples' angles interpolated bilinearly at 4 × 4 points): each lobe gets the
+//! distribution of the horizons of the cells whose normals it stands for, pooled exactly.
+//! Level 0's lobes take their cell's. Shading multiplies each lobe's closed-form term (Phong
+//! facets) or each node (Lambert and general facets) by its lobe's `V_j(i)`; the light's
+//! azimuth and elevation are prepared once per light ([`meso_maps::HorizonDirection`]), so a
+//! lobe costs two table reads and two interpolations. The same code serves in-memory pyramids
+//! and `.map` files (level 0 of a stored pyramid holds the samples' angles); a pyramid without
+//! horizon statistics cannot shadow.
+//!
+//! Until 2026-12-07 a lobe pooled its cells' angles as a mean and a variance along four
+//! azimuths, read through a uniform ramp: a lobe holding both wall tops (horizon 0) and
+//! recess floors (horizons high) then hid a grazing light from nearly all of it, and lights
+//! between the axes read an interpolation of the axes' horizons (a steep facade map at 16
+//! cells a pixel under a light along +y: 0.29 of the truth; now 0.90–1.02 at every azimuth,
+//! `tests/azimuths.rs`).
 //!
 //! Test `tests/visibility.rs`: half-cylinders (256², radius 32 cells) and their negative,
 //! Phong η = 20 and Lambert facets, lights 65° and 75° from the normal across the cylinders,
-//! 8–32 texels per pixel, NDF-mapped at 1 spp against the bump map at 256 spp, both
-//! shadowed. Per lobe: mean pixel errors 0.0–1.3% at 65°, 2.4–11.8% at 75° (where the
-//! grooves' truth is a few percent of the unshadowed radiance), means within 12%; per texel:
-//! up to 16% (bumps) and 53% (grooves) at 65°, 23% and 5.3× the truth at 75°. A gentle
-//! Gaussian surface is no worse (0.2–4.4% against 0.2–5.1%). What is left: a lobe's horizon
-//! statistics are the pooled mean and variance of the cells it stands for, seen through the
-//! uniform-ramp model of `HorizonStats::visibility`, so within a lobe the facets that reflect
-//! most (a sharp highlight picks a few normals of a broad lobe) get the lobe's average
-//! visibility; on coarsely sampled curvature (radius 8 cells) the ramp over a cell's four
-//! corners is wider than the truth's nearest-sample step (grooves under Phong facets:
-//! 1.3–1.4× the truth at 65°, 0.30–0.37× at 75°);
-//! the view's masking is not modelled (as in the bump map). Tables: docs/heightmaps.md,
-//! "Visibility per lobe".
+//! 8–32 texels per pixel, NDF-mapped at 1 spp against the bump map shadowed by rays at 256
+//! spp. Per lobe: mean pixel errors 0.1–2.3 % at 65°, 0.5–3.7 % at 75° but the glossy grooves
+//! at 32 texels per pixel (1.22×: within a lobe the facets that reflect most, a sharp
+//! highlight picking a few normals of a broad lobe, get the lobe's average visibility); per
+//! texel far worse (up to 55 % at 65° and 6× the truth at 75° on the grooves). A gentle
+//! Gaussian surface is no worse than per texel. What is left: the view's visibility and the
+//! light's are independent per lobe (their product; on a recess lit from one side and seen
+//! from the other they are anti-correlated, and far views of the facade drift up to 1.14×).
+//! Tables: docs/heightmaps.md, "Visibility per lobe" and "Eight azimuths and horizon
+//! distributions per lobe".
 //!
 //! # View weighting
 //! A pixel of the bump map averages its footprint by **plane** area: a facet turned away from

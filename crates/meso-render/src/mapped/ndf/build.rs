@@ -167,8 +167,9 @@ impl NdfMapped {
     /// view weighting; with Lambert or general facets also its nodes, at most 7 of 40 bytes),
     /// per texel its lobe and view starts (4 + 4, and 4 more for the node start) and with
     /// shadowing its horizon statistics
-    /// (68 bytes in `f32`, 136 in `f64`: eight azimuths; twice: the texel's and, on level 0,
-    /// its cell's), per coarser lobe its horizon statistics (68 or 136). What `meso render` checks against the
+    /// (68 bytes in `f32`, 136 in `f64`: eight azimuths), on level 0 its cell's horizon
+    /// distribution (132 bytes, `meso_maps::HorizonCdf`), per coarser lobe its distribution
+    /// (132). What `meso render` checks against the
     /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
     #[must_use]
     pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
