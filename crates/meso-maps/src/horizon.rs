@@ -627,6 +627,18 @@ impl HorizonCdfSum {
         s
     }
 
+    /// The sums of a finished distribution (its fractions times its weight): what
+    /// [`HorizonCdfSum::finish`] rounded, pooled again.
+    #[must_use]
+    pub fn of(c: &HorizonCdf) -> HorizonCdfSum {
+        let w = f64::from(c.weight);
+        let k = (w / 255.0) as f32;
+        HorizonCdfSum {
+            weight: w,
+            sum: c.frac.map(|f| f.map(|q| f32::from(q) * k)),
+        }
+    }
+
     /// Add footprint `o` (its sums) scaled by `scale`: the pooled distribution.
     pub fn add(&mut self, o: &HorizonCdfSum, scale: f64) {
         if o.weight <= 0.0 || scale <= 0.0 {

@@ -16,8 +16,9 @@
 //! * A lobe's horizon distribution has as weight the projected area handed to it (level-0
 //!   cells; 0 = it stands for nothing: visible from everywhere, [`HorizonCdf::visibility`]).
 //! * A cell's distribution is that of its surface, approximately: its four corner samples'
-//!   angles interpolated bilinearly at 4 × 4 points of the cell ([`cell_cdf`]). Level 0's
-//!   lobes take their cell's.
+//!   angles interpolated bilinearly at 4 × 4 points of the cell ([`cell_cdf`]), rounded to
+//!   1/255 as stored and pooled as such (so a whole level reuses level 0's cells, and a tile
+//!   computes the same values). Level 0's lobes take their cell's.
 //!
 //! Until 2026-12-07 a lobe pooled its cells' horizon angles as a mean and a variance and read
 //! them through the ramp of [`crate::HorizonStats::visibility`]; on the steep facade map a
@@ -147,7 +148,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     let base_horizon: Option<Vec<HorizonCdf>> = h0.map(|h| {
         (0..l0.texels())
             .into_par_iter()
-            .map(|t| cell_cdf(pyramid, h, t).finish())
+            .map(|t| cell_cdf(pyramid, h, t))
             .collect()
     });
     // Level 0: projected area per lobe, one cell per texel.
@@ -161,7 +162,8 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         .par_iter()
         .enumerate()
         .map(|(k1, l)| {
-            let st = rect_lobe_stats_by_cell(pyramid, k1 + 1, 0..l.rows, 0..l.cols, horizons);
+            let cells = base_horizon.as_deref();
+            let st = rect_stats(pyramid, k1 + 1, 0..l.rows, 0..l.cols, horizons, cells);
             (st.shares, st.horizon)
         })
         .collect();
@@ -211,6 +213,19 @@ pub fn rect_lobe_stats_by_cell(
     cols: std::ops::Range<usize>,
     horizons: bool,
 ) -> LevelStats {
+    rect_stats(pyramid, level, rows, cols, horizons, None)
+}
+
+/// [`rect_lobe_stats_by_cell`], reading level 0's cells' distributions from `cells` (indexed like
+/// level 0's texels, each [`cell_cdf`]'s: the same values) when given instead of computing them.
+fn rect_stats(
+    pyramid: &Pyramid,
+    level: usize,
+    rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
+    horizons: bool,
+    cells: Option<&[HorizonCdf]>,
+) -> LevelStats {
     let l = &pyramid.levels[level];
     let l0 = &pyramid.levels[0];
     assert!(
@@ -229,7 +244,7 @@ pub fn rect_lobe_stats_by_cell(
                 let t = row * l.cols + col;
                 cell_shares(l0, t, &mut shares);
                 if let (Some(v), Some(h)) = (&mut hz, h0) {
-                    v.push(cell_cdf(pyramid, h, t).finish());
+                    v.push(cell_cdf(pyramid, h, t));
                 }
             }
             continue;
@@ -263,7 +278,10 @@ pub fn rect_lobe_stats_by_cell(
                     let ct = r * l0.cols + c;
                     cell.clear();
                     cell_shares(l0, ct, &mut cell);
-                    let cell_h = h0.map(|h| cell_cdf(pyramid, h, ct));
+                    let cell_h = h0.map(|h| match cells {
+                        Some(c) => HorizonCdfSum::of(&c[ct]),
+                        None => HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)),
+                    });
                     hand_cell(l0, ct, &cell, l, pa, pb, &mut logr, |j, m| {
                         mass[j - pa] += m;
                         if let Some(s) = &cell_h {
@@ -338,7 +356,7 @@ pub fn texel_lobe_stats(
             let ct = r * l0.cols + c;
             shares.clear();
             cell_shares(l0, ct, &mut shares);
-            let cell_h = h0.map(|h| cell_cdf(pyramid, h, ct));
+            let cell_h = h0.map(|h| HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)));
             hand_cell(l0, ct, &shares, l, pa, pb, &mut logr, |j, m| {
                 mass[j - pa] += m;
                 if let (Some(hz), Some(s)) = (&mut hz, &cell_h) {
@@ -365,7 +383,7 @@ pub fn texel_lobe_stats(
 /// sub-cells: the continuous surface's horizons, approximately (on the facade height map the
 /// bilinear points' visibility is 0.86–1.03 of rays on the displaced surface where the corners'
 /// own is 0.71–0.82; `examples/horizon_models.rs`).
-pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdfSum {
+pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdf {
     let l0 = &pyramid.levels[0];
     let wrap = pyramid.border == crate::heightmap::Border::Wrap;
     let next = |i: usize, n: usize| {
@@ -383,7 +401,7 @@ pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdfS
     let (a00, a01, a10, a11) = (corner(r, c), corner(r, c1), corner(r1, c), corner(r1, c1));
     let corners: [[f64; 4]; HORIZON_DIRECTIONS] =
         std::array::from_fn(|d| [a00[d], a01[d], a10[d], a11[d]]);
-    HorizonCdfSum::of_bilinear_cell(&corners, 1.0)
+    HorizonCdfSum::of_bilinear_cell(&corners, 1.0).finish()
 }
 
 /// Appends to `out` the shares of level-0 texel `t`'s lobes: `w·E[m_z⁺]` each
