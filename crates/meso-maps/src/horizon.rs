@@ -95,40 +95,16 @@ struct Lines {
 }
 
 impl Lines {
-    /// The horizon angle codes of the line of heights `heights` towards increasing index
-    /// (`ahead`) and towards decreasing index (`behind`), both in the line's order.
+    /// The horizon angle codes of the line of heights `heights`, `s` apart, towards increasing
+    /// index (`ahead`) and towards decreasing index (`behind`), both in the line's order, of
+    /// every `stride`-th entry from the first (1: every entry; 2 along the diagonals that cross
+    /// the cells' split diagonals, whose midpoints lie between the samples).
     fn both_ways(
         &mut self,
         heights: impl Iterator<Item = f64>,
         s: f64,
         wrap: bool,
-        ahead: &mut [u16],
-        behind: &mut [u16],
-    ) {
-        self.line.clear();
-        self.line.extend(heights);
-        let n = self.line.len();
-        self.out.resize(n, 0.0);
-        horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
-        for (a, &o) in ahead.iter_mut().zip(&self.out) {
-            *a = angle_code(o);
-        }
-        self.line.reverse();
-        horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
-        for (j, a) in behind.iter_mut().enumerate() {
-            *a = angle_code(self.out[n - 1 - j]);
-        }
-    }
-}
-
-impl Lines {
-    /// [`Lines::both_ways`] of a line whose every second entry is a sample (from the first):
-    /// `ahead` and `behind` get the samples' angles, one per sample.
-    fn both_ways_strided(
-        &mut self,
-        heights: impl Iterator<Item = f64>,
-        s: f64,
-        wrap: bool,
+        stride: usize,
         ahead: &mut [u16],
         behind: &mut [u16],
     ) {
@@ -138,12 +114,12 @@ impl Lines {
         self.out.resize(n, 0.0);
         horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
         for (j, a) in ahead.iter_mut().enumerate() {
-            *a = angle_code(self.out[2 * j]);
+            *a = angle_code(self.out[stride * j]);
         }
         self.line.reverse();
         horizon_line(&self.line, s, wrap, &mut self.out, &mut self.stack);
         for (j, a) in behind.iter_mut().enumerate() {
-            *a = angle_code(self.out[n - 1 - 2 * j]);
+            *a = angle_code(self.out[n - 1 - stride * j]);
         }
     }
 }
@@ -167,7 +143,7 @@ impl HorizonMap {
                 .zip(west.par_chunks_mut(w))
                 .zip(hs.par_chunks(w))
                 .for_each_init(Lines::default, |ln, ((e, wst), row)| {
-                    ln.both_ways(row.iter().copied(), s, wrap, e, wst);
+                    ln.both_ways(row.iter().copied(), s, wrap, 1, e, wst);
                 });
         }
         // ±y along the columns: a block of columns at a time in parallel into column-major
@@ -185,7 +161,7 @@ impl HorizonMap {
                     .enumerate()
                     .for_each_init(Lines::default, |ln, (jj, (u, d))| {
                         let j = j0 + jj;
-                        ln.both_ways((0..h).map(|i| hs[i * w + j]), s, wrap, u, d);
+                        ln.both_ways((0..h).map(|i| hs[i * w + j]), s, wrap, 1, u, d);
                     });
                 north
                     .par_chunks_mut(w)
@@ -341,10 +317,10 @@ pub fn diagonal_angles(map: &HeightMap) -> [Vec<u16>; 4] {
                                 mid(k / 2)
                             }
                         });
-                        ln.both_ways_strided(line, 0.5 * s, wrap, &mut a, &mut b);
+                        ln.both_ways(line, 0.5 * s, wrap, 2, &mut a, &mut b);
                     } else {
                         let line = idx.iter().map(|&k| hs[k as usize]);
-                        ln.both_ways(line, s, wrap, &mut a, &mut b);
+                        ln.both_ways(line, s, wrap, 1, &mut a, &mut b);
                     }
                     (idx, a, b)
                 })
@@ -551,7 +527,7 @@ impl Default for HorizonCdfSum {
 }
 
 impl HorizonCdfSum {
-    /// The distribution of one point set: per direction, `angles[d]` (radians) of `n` points
+    /// The distribution of one point set: per direction, `angles[d]` (radians) of 16 points
     /// of equal weight, the whole set of weight `weight`.
     #[must_use]
     pub fn of_points(angles: &[[f64; 16]; HORIZON_DIRECTIONS], weight: f64) -> HorizonCdfSum {
@@ -560,18 +536,8 @@ impl HorizonCdfSum {
             ..HorizonCdfSum::default()
         };
         let each = (weight / 16.0) as f32;
-        for (d, a) in angles.iter().enumerate() {
-            // Per point, the number of nodes below it: the first node that counts it (at or
-            // above it; every later one does too). Counted per node, then summed up.
-            let mut first = [0u8; CDF_NODES + 1];
-            for &h in a {
-                first[usize::from(nodes_below(h))] += 1;
-            }
-            let mut count = 0u8;
-            for (v, &c) in s.sum[d].iter_mut().zip(&first) {
-                count += c;
-                *v = f32::from(count) * each;
-            }
+        for (v, h) in s.sum.iter_mut().zip(angles) {
+            count_points(v, h, each, || *h);
         }
         s
     }
@@ -591,38 +557,16 @@ impl HorizonCdfSum {
             ..HorizonCdfSum::default()
         };
         let each = (weight / 16.0) as f32;
-        let nodes = cdf_nodes_rad();
-        for (d, a) in corners.iter().enumerate() {
-            let lo = a.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let (blo, bhi) = (usize::from(nodes_below(lo)), usize::from(nodes_below(hi)));
-            if blo == bhi {
-                // Every point between the same two nodes: none below the first `blo` nodes.
-                for (n, v) in s.sum[d].iter_mut().enumerate() {
-                    *v = if n < blo { 0.0 } else { 16.0 * each };
-                }
-                continue;
-            }
-            // The 16 points, then per node the count at or below it (a fixed-size loop the
-            // compiler vectorises).
-            let mut h = [0.0f64; 16];
-            for (k, v) in h.iter_mut().enumerate() {
-                let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
-                *v = a[0] * (1.0 - x) * (1.0 - y)
-                    + a[1] * x * (1.0 - y)
-                    + a[2] * (1.0 - x) * y
-                    + a[3] * x * y;
-            }
-            for (n, v) in s.sum[d].iter_mut().enumerate() {
-                *v = if n < blo {
-                    0.0
-                } else if n >= bhi {
-                    16.0 * each
-                } else {
-                    let e = nodes[n];
-                    h.iter().map(|&p| u32::from(p <= e)).sum::<u32>() as f32 * each
-                };
-            }
+        for (v, a) in s.sum.iter_mut().zip(corners) {
+            count_points(v, a, each, || {
+                std::array::from_fn(|k| {
+                    let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
+                    a[0] * (1.0 - x) * (1.0 - y)
+                        + a[1] * x * (1.0 - y)
+                        + a[2] * (1.0 - x) * y
+                        + a[3] * x * y
+                })
+            });
         }
         s
     }
@@ -671,6 +615,34 @@ impl HorizonCdfSum {
             }
         }
         out
+    }
+}
+
+/// One direction's sums `v` of 16 points of weight `each`: per node, the weight of the points
+/// at or below it. `bounds` holds values whose range contains the points' (the points
+/// themselves, or a cell's corners around their bilinear points); the nodes outside that range
+/// count none or all of them, and `points` is asked for only when a node lies inside it (a
+/// fixed-size loop a node, which the compiler vectorises).
+fn count_points(
+    v: &mut [f32; CDF_NODES],
+    bounds: &[f64],
+    each: f32,
+    points: impl FnOnce() -> [f64; 16],
+) {
+    let lo = bounds.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = bounds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let (blo, bhi) = (usize::from(nodes_below(lo)), usize::from(nodes_below(hi)));
+    let h = if blo < bhi { points() } else { [0.0; 16] };
+    let nodes = cdf_nodes_rad();
+    for (n, x) in v.iter_mut().enumerate() {
+        *x = if n < blo {
+            0.0
+        } else if n >= bhi {
+            16.0 * each
+        } else {
+            let e = nodes[n];
+            h.iter().map(|&p| u32::from(p <= e)).sum::<u32>() as f32 * each
+        };
     }
 }
 

@@ -115,9 +115,9 @@ pub struct LobeStats {
 /// fit can make the two very different near the horizon, where a texel's area weight `1/n_z`
 /// is large but its projected area one cell), and the horizons of where those normals are.
 ///
-/// Cost: one log-density per level-0 lobe, level and lobe of the covering texel, plus one
-/// pooled sum per lobe it hands area to (a cell's distribution recomputed per level: 4 × 4
-/// points and 8 directions); the levels run in parallel. Memory: the shares (8 bytes per
+/// Cost: level 0's shares and cells' distributions once (4 × 4 points and 8 directions a
+/// cell), then one log-density per level-0 lobe, level and lobe of the covering texel, plus
+/// one pooled sum per lobe it hands area to; the levels run in parallel. Memory: the shares (8 bytes per
 /// lobe) and the horizon distributions (132 bytes per lobe; 520 per lobe of the texel row
 /// being summed).
 #[must_use]
@@ -162,8 +162,18 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         .par_iter()
         .enumerate()
         .map(|(k1, l)| {
-            let cells = base_horizon.as_deref();
-            let st = rect_stats(pyramid, k1 + 1, 0..l.rows, 0..l.cols, horizons, cells);
+            let level0 = Level0 {
+                shares: &base,
+                cells: base_horizon.as_deref(),
+            };
+            let st = rect_stats(
+                pyramid,
+                k1 + 1,
+                0..l.rows,
+                0..l.cols,
+                horizons,
+                Some(&level0),
+            );
             (st.shares, st.horizon)
         })
         .collect();
@@ -216,15 +226,23 @@ pub fn rect_lobe_stats_by_cell(
     rect_stats(pyramid, level, rows, cols, horizons, None)
 }
 
-/// [`rect_lobe_stats_by_cell`], reading level 0's cells' distributions from `cells` (indexed like
-/// level 0's texels, each [`cell_cdf`]'s: the same values) when given instead of computing them.
+/// What a whole pyramid's stats hold of level 0 already, for the coarse levels to read instead
+/// of computing it again per level: its lobes' shares (indexed like its lobes, [`cell_shares`]'s)
+/// and its cells' horizon distributions (indexed like its texels, [`cell_cdf`]'s).
+struct Level0<'a> {
+    shares: &'a [f64],
+    cells: Option<&'a [HorizonCdf]>,
+}
+
+/// [`rect_lobe_stats_by_cell`], reading level 0's shares and cells' distributions from
+/// `level0` when given (the same values) instead of computing them.
 fn rect_stats(
     pyramid: &Pyramid,
     level: usize,
     rows: std::ops::Range<usize>,
     cols: std::ops::Range<usize>,
     horizons: bool,
-    cells: Option<&[HorizonCdf]>,
+    level0: Option<&Level0<'_>>,
 ) -> LevelStats {
     let l = &pyramid.levels[level];
     let l0 = &pyramid.levels[0];
@@ -276,13 +294,21 @@ fn rect_stats(
                 };
                 for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
                     let ct = r * l0.cols + c;
-                    cell.clear();
-                    cell_shares(l0, ct, &mut cell);
-                    let cell_h = h0.map(|h| match cells {
+                    let cell_s: &[f64] = match level0 {
+                        Some(z) => {
+                            &z.shares[l0.lobe_start[ct] as usize..l0.lobe_start[ct + 1] as usize]
+                        }
+                        None => {
+                            cell.clear();
+                            cell_shares(l0, ct, &mut cell);
+                            &cell
+                        }
+                    };
+                    let cell_h = h0.map(|h| match level0.and_then(|z| z.cells) {
                         Some(c) => HorizonCdfSum::of(&c[ct]),
                         None => HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)),
                     });
-                    hand_cell(l0, ct, &cell, l, pa, pb, &mut logr, |j, m| {
+                    hand_cell(l0, ct, cell_s, l, pa, pb, &mut logr, |j, m| {
                         mass[j - pa] += m;
                         if let Some(s) = &cell_h {
                             acc[j - pa].add(s, m);
