@@ -28,6 +28,10 @@
 //! ```text
 //! cargo run --release -p meso-maps --example horizon_models -- HEIGHTS.jpg HEIGHT_SCALE
 //! ```
+//!
+//! `AZ=a,b,…` sets the light's azimuths (degrees; default 0,45,90; on a diagonal the eight
+//! azimuths' columns read that diagonal's angles), `ELO=e` the viewer's elevation (degrees;
+//! default 59).
 use glam::DVec3;
 use meso_maps::{diagonal_angles, Border, Gonio, HeightMap, HorizonMap};
 use rand::{RngExt, SeedableRng};
@@ -95,9 +99,14 @@ fn main() {
     let (w, h) = (map.width(), map.height());
     let angle = |d: usize, r: usize, c: usize| hz.angle(d, (r % h) * w + (c % w));
     let elev_l = 21f64.to_radians();
-    let elev_o = 59f64.to_radians();
+    let elev_o = std::env::var("ELO")
+        .map_or(59.0, |v| v.parse::<f64>().expect("elevation"))
+        .to_radians();
     let o = DVec3::new(0.0, -elev_o.cos(), elev_o.sin());
-    for az in [0.0f64, 45.0, 90.0] {
+    let azs: Vec<f64> = std::env::var("AZ").map_or(vec![0.0, 45.0, 90.0], |v| {
+        v.split(',').map(|x| x.parse().expect("azimuth")).collect()
+    });
+    for az in azs {
         let (ca, sa) = (az.to_radians().cos(), az.to_radians().sin());
         let l = DVec3::new(elev_l.cos() * ca, elev_l.cos() * sa, elev_l.sin());
         let (ix, iy) = (if ca >= 0.0 { 0 } else { 2 }, if sa >= 0.0 { 1 } else { 3 });
@@ -139,9 +148,10 @@ fn main() {
                 let ao = corners.map(|(r, c)| angle(3, r, c));
                 let al: [f64; 4] = std::array::from_fn(|k| c2 * ax[k] + s2 * ay[k]);
                 // With eight azimuths: the light's own (diagonal) angles at 45°.
-                let a8 = if az == 45.0 {
+                let a8 = if (az - 45.0).rem_euclid(90.0) == 0.0 {
+                    let di = ((az - 45.0) / 90.0).rem_euclid(4.0) as usize;
                     corners.map(|(r, c)| {
-                        f64::from(diag[0][(r % h) * w + (c % w)]) * meso_maps::ANGLE_STEP
+                        f64::from(diag[di][(r % h) * w + (c % w)]) * meso_maps::ANGLE_STEP
                     })
                 } else {
                     al

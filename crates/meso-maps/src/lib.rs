@@ -62,9 +62,9 @@ pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;
 pub use horizon::{
-    diagonal_angles, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonMap, HorizonStats,
-    ANGLE_STEP, CDF_ELEVATIONS_DEG, CDF_NODES, DIAGONAL_AZIMUTHS_DEG, HORIZON_AZIMUTHS_DEG,
-    HORIZON_DIRECTIONS,
+    diagonal_angles, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonMap, HorizonPair,
+    HorizonStats, ANGLE_STEP, CDF_ELEVATIONS_DEG, CDF_NODES, DIAGONAL_AZIMUTHS_DEG,
+    HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS,
 };
 pub use input::{Input, InputKind};
 pub use pyramid::{

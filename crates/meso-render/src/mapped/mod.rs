@@ -94,9 +94,16 @@
 //! at 32 texels per pixel (1.22×: within a lobe the facets that reflect most, a sharp
 //! highlight picking a few normals of a broad lobe, get the lobe's average visibility); per
 //! texel far worse (up to 55 % at 65° and 6× the truth at 75° on the grooves). A gentle
-//! Gaussian surface is no worse than per texel. What is left: the view's visibility and the
-//! light's are independent per lobe (their product; on a recess lit from one side and seen
-//! from the other they are anti-correlated, and far views of the facade drift up to 1.14×).
+//! Gaussian surface is no worse than per texel.
+//!
+//! With view weighting, a lobe's visibility of the light is read among what of it sees the
+//! viewer ([`meso_maps::HorizonCdf::visibility_given`]): light and viewer 0° or 45° apart in
+//! azimuth are one event (the smaller of the two fractions), farther apart independent (their
+//! product). On the steep facade seen 60° from the normal with the light beside the viewer,
+//! 0.71–0.79 of the truth with the product at 16 cells a pixel, 1.01–1.06 now
+//! (`tests/azimuths.rs`). What is left: light and viewer far apart at grazing angles, which
+//! the product cannot say (the facade, light opposite the viewer 60° from the normal: 0.14;
+//! docs/heightmaps.md, "Light and viewer together per lobe").
 //! Tables: docs/heightmaps.md, "Visibility per lobe" and "Eight azimuths and horizon
 //! distributions per lobe".
 //!

@@ -12,9 +12,21 @@ use std::sync::Arc;
 /// `width` world units, 1 spp, black background, under a directional light of irradiance 2 W/m²
 /// from `light` (towards the light; the builder normalises it).
 pub fn plane_scene(shader: Arc<dyn Shader>, width: f64, size: u32, light: DVec3) -> Scene {
+    plane_scene_from(shader, width, size, light, DVec3::new(0.0, -0.4, 0.9))
+}
+
+/// [`plane_scene`] seen from the direction `camera` (towards the camera, normalised here; not
+/// along ±y, the camera's up).
+pub fn plane_scene_from(
+    shader: Arc<dyn Shader>,
+    width: f64,
+    size: u32,
+    light: DVec3,
+    camera: DVec3,
+) -> Scene {
     let cam = Camera::new(
         Projection::Orthographic { width },
-        DVec3::new(0.0, -0.4, 0.9).normalize() * 50.0,
+        camera.normalize() * 50.0,
         DVec3::ZERO,
         DVec3::Y,
     )

@@ -42,7 +42,7 @@ pub use filter::{
 };
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
-use meso_maps::{HorizonCdf, HorizonDirection, HorizonStats, Horizons};
+use meso_maps::{HorizonCdf, HorizonDirection, HorizonPair, HorizonStats, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use view::{TexelView, ViewLobe};
@@ -540,7 +540,11 @@ impl NdfMapped {
     /// Fresnel factor — is applied by the caller), each lobe's part multiplied by its
     /// visibility of the light `wi` (prepared as `dir`) when `dir` is given
     /// and the level has per-lobe horizon statistics, and with `view` by its view weight
-    /// ([`TexelView::weight`]).
+    /// ([`TexelView::weight`], which holds the lobe's visibility of the viewer): the light's
+    /// visibility is then that of what of the lobe sees the viewer (`pair`: the light and the
+    /// viewer prepared together)
+    /// ([`meso_maps::HorizonCdf::visibility_given`]), so that the two together are the
+    /// lobe's joint visibility, not the product of its two.
     #[inline]
     #[allow(clippy::too_many_arguments)]
     fn texel(
@@ -552,13 +556,18 @@ impl NdfMapped {
         h: DVec3,
         dir: Option<&HorizonDirection>,
         view: Option<&TexelView>,
+        pair: Option<&HorizonPair>,
     ) -> [f64; 3] {
+        // With view weighting, a lobe's visibility of the light among what of it sees the
+        // viewer (its view weight holds that part): the two together, not their product.
         let vis = |src: u32| -> f64 {
-            match dir {
-                Some(d) => l
-                    .lobe_horizon(t, src)
-                    .map_or(1.0, |s| s.visibility_along(d)),
-                None => 1.0,
+            match (dir, l.lobe_horizon(t, src)) {
+                (Some(d), Some(LobeHorizon::Lobe(c))) => match pair {
+                    Some(p) => c.visibility_given(p),
+                    None => c.visibility_along(d),
+                },
+                (Some(d), Some(s)) => s.visibility_along(d),
+                _ => 1.0,
             }
         };
         let seen = |src: u32, m: DVec3| -> f64 {
@@ -753,10 +762,10 @@ impl Shader for NdfMapped {
         // thread's buffer only then.
         let mut views = Vec::new();
         let mut den = 0.0;
+        let dir_o = HorizonDirection::new(wo);
         if self.view_weighting {
             views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
             views.clear();
-            let dir_o = HorizonDirection::new(wo);
             for (k, &(_, _, w)) in taps.iter().enumerate() {
                 let (l, t) = tap(k);
                 let tv = TexelView::new(l, t, wo, |src| {
@@ -792,6 +801,7 @@ impl Shader for NdfMapped {
             } else {
                 HorizonDirection::new(DVec3::Z)
             };
+            let pair = (view_on && per_lobe).then(|| HorizonPair::new(&dir, &dir_o));
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for (k, &(_, _, w)) in taps.iter().enumerate() {
@@ -804,6 +814,7 @@ impl Shader for NdfMapped {
                     h,
                     per_lobe.then_some(&dir),
                     view_on.then(|| &views[k]),
+                    pair.as_ref(),
                 );
                 if scalar {
                     acc[0] += w * v[0];
