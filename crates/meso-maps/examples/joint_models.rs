@@ -23,7 +23,10 @@
 //! cargo run --release -p meso-maps --example joint_models -- HEIGHTS.jpg HEIGHT_SCALE [GRID]
 //! ```
 use glam::DVec3;
-use meso_maps::{Border, HeightMap, HorizonMap, CDF_ELEVATIONS_DEG};
+use meso_maps::{
+    Border, HeightMap, HorizonCdfSum, HorizonDirection, HorizonJointSum, HorizonMap,
+    CDF_ELEVATIONS_DEG, HORIZON_AZIMUTHS_DEG,
+};
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
 
@@ -116,9 +119,25 @@ fn main() {
             members[((p.row >> k) * cols + (p.col >> k)) * GROUPS + p.group].push(i);
         }
         // For relative octant 0..=4 and each model: Σ|err|, Σ err; [6] Σ exact.
-        let mut stat = [[[0.0f64; 2]; 4]; 5];
+        let mut stat = [[[0.0f64; 2]; 5]; 5];
         let gn = nodes.len();
         for g in members.iter().filter(|g| !g.is_empty()) {
+            // The library's own: each point as a set of 16 equal points, pooled.
+            let (mut cs, mut js) = (HorizonCdfSum::default(), HorizonJointSum::default());
+            for &i in g {
+                let pts16 = pts[i].h.map(|x| [x; 16]);
+                cs.add(&HorizonCdfSum::of_points(&pts16, 1.0), 1.0);
+                js.add(&HorizonJointSum::of_points(&pts16, 1.0), 1.0);
+            }
+            let (lib_cdf, lib_joint) = (cs.finish(), js.finish());
+            let dir = |slot: usize, el: f64| {
+                let (az, el) = (HORIZON_AZIMUTHS_DEG[slot].to_radians(), el.to_radians());
+                HorizonDirection::new(DVec3::new(
+                    el.cos() * az.cos(),
+                    el.cos() * az.sin(),
+                    el.sin(),
+                ))
+            };
             let n = g.len() as f64;
             let frac = |d: usize, e: f64| g.iter().filter(|&&i| pts[i].h[d] < e).count() as f64 / n;
             let jfrac = |a: usize, ea: f64, b: usize, eb: f64| {
@@ -204,20 +223,25 @@ fn main() {
                             let all = if rel == 0 { m } else { cop(a, b, ua, ub) };
                             // The rule HorizonCdf::joint_visibility_along applies.
                             let rule = if rel <= 1 { m } else { prod };
-                            for (mi, v) in [prod, all, rule].into_iter().enumerate() {
+                            let lib = lib_cdf.joint_visibility_along(
+                                Some(&lib_joint),
+                                &dir(a, e1),
+                                &dir(b, e2),
+                            );
+                            for (mi, v) in [prod, all, rule, lib].into_iter().enumerate() {
                                 stat[rel][mi][0] += n * (v - exact).abs();
                                 stat[rel][mi][1] += n * (v - exact);
                             }
-                            stat[rel][3][0] += n * exact;
+                            stat[rel][4][0] += n * exact;
                         }
                     }
                 }
             }
         }
-        println!("level {k}: |err| bias per relative azimuth: product; every pair of azimuths as a copula on the grid; the rule (0°/45° apart: the smaller, else the product)");
+        println!("level {k}: |err| bias per relative azimuth: product; every pair of azimuths as a copula on the grid; the rule (0°/45° apart: the smaller, else the product); the library (HorizonCdf with HorizonJoint)");
         for (rel, s) in stat.iter().enumerate() {
-            let t = s[3][0];
-            let cols: Vec<String> = (0..3)
+            let t = s[4][0];
+            let cols: Vec<String> = (0..4)
                 .map(|m| format!("{:.3} {:+.3}", s[m][0] / t, s[m][1] / t))
                 .collect();
             println!("  {:3}°: {}", rel * 45, cols.join("   "));

@@ -486,20 +486,26 @@ impl HorizonCdf {
     /// The fraction of the footprint from which both directions prepared as `a` and `b` are
     /// above the horizon: shadowing and masking together. Each direction is read along the
     /// two stored azimuths nearest its own, with the weights of
-    /// [`HorizonCdf::visibility_along`]; a pair of stored azimuths 0° or 45° apart counts the
-    /// smaller of the two fractions (exact along one azimuth: a horizon below the higher
-    /// elevation is below the lower too; a point that sees along one azimuth mostly sees
-    /// along its neighbour), a pair farther apart their product (as if independent). Hence
-    /// `joint(a, a) = visibility(a)`, between the Fréchet bounds
+    /// [`HorizonCdf::visibility_along`]; of each pair of stored azimuths, those 0° or 45° apart
+    /// count the smaller of the two fractions (exact along one azimuth: a horizon below the
+    /// lower elevation is below the higher too; a point that sees along one azimuth mostly
+    /// sees along its neighbour), those farther apart the footprint's `joint` fractions where
+    /// given ([`HorizonJoint::copula`], of the same cells), else their product (as if
+    /// independent). Hence `joint(a, a) = visibility(a)`, within the Fréchet bounds
     /// `max(0, V(a) + V(b) − 1) ≤ joint ≤ min(V(a), V(b))`, and continuous in both azimuths.
     ///
-    /// The product for every pair (the model before 2026-12-07) errs by 13–25 % of the truth
-    /// per lobe on the steep facade map at 16–256 cells a texel, 25 % too low with light and
-    /// viewer along one azimuth; this rule by none there, 6 % at 45° (too high), and as the
-    /// product beyond (docs/heightmaps.md, "Light and viewer together per lobe";
-    /// `examples/joint_models.rs`).
+    /// On the steep facade map (16–256 cells a texel, elevations 7.5°–60°) the product for
+    /// every pair (the model before 2026-12-07) errs by 9–25 % of the truth per lobe, 25 % too
+    /// low with light and viewer along one azimuth; the smaller fraction by none there and 2–7 %
+    /// at 45°, the joint fractions by 2–5 % farther apart (docs/heightmaps.md, "Light and
+    /// viewer together per lobe"; `examples/joint_models.rs`).
     #[must_use]
-    pub fn joint_visibility_along(&self, a: &HorizonDirection, b: &HorizonDirection) -> f64 {
+    pub fn joint_visibility_along(
+        &self,
+        joint: Option<&HorizonJoint>,
+        a: &HorizonDirection,
+        b: &HorizonDirection,
+    ) -> f64 {
         if self.weight <= 0.0 {
             return 1.0;
         }
@@ -508,46 +514,341 @@ impl HorizonCdf {
             (_, Some(vb)) => return vb * self.visibility_along(a),
             _ => {}
         }
-        self.both(a, b).0
+        self.both(joint.filter(|j| j.weight > 0.0), a, b).0
     }
 
     /// The fraction of what sees the view of `pair` that also sees its light:
     /// [`HorizonCdf::joint_visibility_along`] over the view's visibility (the light's alone
-    /// where nothing sees the view, and where no two of their stored azimuths that carry
-    /// weight are read together, which the rule then counts as independent).
+    /// where nothing sees the view, and, without `joint`, where no two of their stored
+    /// azimuths that carry weight are read together, which the rule then counts as
+    /// independent).
     #[inline]
     #[must_use]
-    pub fn visibility_given(&self, pair: &HorizonPair) -> f64 {
-        if !pair.together || self.weight <= 0.0 {
+    pub fn visibility_given(&self, joint: Option<&HorizonJoint>, pair: &HorizonPair) -> f64 {
+        let joint = joint.filter(|j| j.weight > 0.0 && pair.fixed_none);
+        if self.weight <= 0.0 || (joint.is_none() && !pair.together) {
             return self.visibility_along(&pair.light);
         }
-        let (joint, seen) = self.both(&pair.light, &pair.view);
+        let (both, seen) = self.both(joint, &pair.light, &pair.view);
         if seen <= 0.0 {
             return self.visibility_along(&pair.light);
         }
-        (joint / seen).min(1.0)
+        (both / seen).min(1.0)
     }
 
     /// The rule of [`HorizonCdf::joint_visibility_along`] for two directions of no fixed
     /// visibility, and the second's visibility.
     #[inline]
-    fn both(&self, a: &HorizonDirection, b: &HorizonDirection) -> (f64, f64) {
+    fn both(
+        &self,
+        joint: Option<&HorizonJoint>,
+        a: &HorizonDirection,
+        b: &HorizonDirection,
+    ) -> (f64, f64) {
         let fa = [self.at(a.ix, a), self.at(a.iy, a)];
         let fb = [self.at(b.ix, b), self.at(b.iy, b)];
+        let (sa, sb) = ([a.ix, a.iy], [b.ix, b.iy]);
         let (wa, wb) = ([a.c2, a.s2], [b.c2, b.s2]);
         let near = near_pairs(a, b);
-        let mut joint = 0.0;
+        let mut both = 0.0;
         for p in 0..2 {
             for q in 0..2 {
-                let both = if near[2 * p + q] {
+                let w = wa[p] * wb[q];
+                if w <= 0.0 {
+                    continue;
+                }
+                let v = if near[2 * p + q] {
                     fa[p].min(fb[q])
+                } else if let Some(j) = joint {
+                    j.copula(sa[p], fa[p], sb[q], fb[q])
                 } else {
                     fa[p] * fb[q]
                 };
-                joint += wa[p] * wb[q] * both;
+                both += w * v;
             }
         }
-        (joint, wb[0] * fb[0] + wb[1] * fb[1])
+        (both, wb[0] * fb[0] + wb[1] * fb[1])
+    }
+}
+
+/// Elevations (degrees) of a [`HorizonJoint`]'s grid: nodes 1, 5, 9 and 13 of
+/// [`CDF_ELEVATIONS_DEG`].
+pub const JOINT_ELEVATIONS_DEG: [f64; JOINT_NODES] = [3.0, 15.0, 29.0, 55.0];
+
+/// Nodes of a [`HorizonJoint`]'s grid per direction.
+pub const JOINT_NODES: usize = 4;
+
+/// Pairs of stored azimuths a [`HorizonJoint`] holds: those 90°, 135° and 180° apart (8 + 8 +
+/// 4; nearer pairs are read by the rule of [`HorizonCdf::joint_visibility_along`]).
+pub const JOINT_PAIRS: usize = 20;
+
+/// [`JOINT_ELEVATIONS_DEG`]'s places among [`CDF_ELEVATIONS_DEG`].
+const JOINT_NODE_INDICES: [usize; JOINT_NODES] = [1, 5, 9, 13];
+
+/// Marks a transposed entry of [`PAIR_OF_SLOTS`].
+const TRANSPOSED: u8 = 0x80;
+/// Marks a pair of slots [`HorizonJoint`] does not hold.
+const NO_PAIR: u8 = 0xFF;
+
+/// The stored azimuths (slots of [`HORIZON_AZIMUTHS_DEG`]) of each pair a [`HorizonJoint`]
+/// holds, the first's octant the lower.
+const JOINT_PAIR_SLOTS: [(usize, usize); JOINT_PAIRS] = joint_pair_slots();
+
+/// For two slots, the index of their pair in [`JOINT_PAIR_SLOTS`] (`| TRANSPOSED` when they
+/// come in the other order), or [`NO_PAIR`] (less than 90° apart).
+const PAIR_OF_SLOTS: [[u8; HORIZON_DIRECTIONS]; HORIZON_DIRECTIONS] = pair_of_slots();
+
+const fn joint_pair_slots() -> [(usize, usize); JOINT_PAIRS] {
+    let mut out = [(0, 0); JOINT_PAIRS];
+    let (mut n, mut oa) = (0, 0);
+    while oa < HORIZON_DIRECTIONS {
+        let mut ob = oa + 1;
+        while ob < HORIZON_DIRECTIONS {
+            let d = ob - oa;
+            if d >= 2 && d <= 6 {
+                out[n] = (SLOT_OF_OCTANT[oa], SLOT_OF_OCTANT[ob]);
+                n += 1;
+            }
+            ob += 1;
+        }
+        oa += 1;
+    }
+    out
+}
+
+const fn pair_of_slots() -> [[u8; HORIZON_DIRECTIONS]; HORIZON_DIRECTIONS] {
+    let mut out = [[NO_PAIR; HORIZON_DIRECTIONS]; HORIZON_DIRECTIONS];
+    let pairs = joint_pair_slots();
+    let mut n = 0;
+    while n < JOINT_PAIRS {
+        let (a, b) = pairs[n];
+        out[a][b] = n as u8;
+        out[b][a] = n as u8 | TRANSPOSED;
+        n += 1;
+    }
+    out
+}
+
+/// The joint distribution of a footprint's horizons along pairs of stored azimuths 90°–180°
+/// apart, for light and viewer far apart in azimuth ([`HorizonCdf::joint_visibility_along`]):
+/// per pair `(a, b)` of [`JOINT_PAIRS`], the fraction of the footprint whose horizon along `a`
+/// lies at or below elevation `E_i` and along `b` at or below `E_j`, on the grid
+/// [`JOINT_ELEVATIONS_DEG`]², and per direction the fraction at or below each `E_i` (of the same
+/// points: the grid's own margins), all to 1/255 (356 bytes). Pooled exactly like
+/// [`HorizonCdf`] ([`HorizonJointSum`]). Read as a copula: between the nodes bilinearly in the
+/// two margins' fractions, so that a lobe's own distributions ([`HorizonCdf`]) set how much
+/// sees each direction and the grid how the two go together.
+///
+/// On a facade, the points that see a grazing light and a grazing viewer on opposite sides are
+/// the wall tops, open every way, and a recess floor sees neither: visibility along opposite
+/// azimuths is strongly correlated, which a product cannot say (the facade seen 60° from the
+/// normal with the light opposite: 0.14 of the truth with the product).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HorizonJoint {
+    /// The footprint's weight (0: no joint known; the product is read).
+    pub weight: f32,
+    /// Per direction, per node of [`JOINT_ELEVATIONS_DEG`], the fraction at or below it, in
+    /// units of 1/255.
+    pub margin: [[u8; JOINT_NODES]; HORIZON_DIRECTIONS],
+    /// Per pair, `[i · 4 + j]`: the fraction at or below `E_i` along the pair's first azimuth
+    /// and `E_j` along its second, in units of 1/255.
+    pub both: [[u8; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
+}
+
+impl Default for HorizonJoint {
+    fn default() -> HorizonJoint {
+        HorizonJoint {
+            weight: 0.0,
+            margin: [[0; JOINT_NODES]; HORIZON_DIRECTIONS],
+            both: [[0; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
+        }
+    }
+}
+
+impl HorizonJoint {
+    /// The fraction that sees along stored azimuth `a` an elevation a fraction `u` of the
+    /// footprint sees (the lobe's own distribution read there) and along `b` one a fraction
+    /// `v` sees: the grid's copula at `(u, v)`. The cell of the grid is found by `u` among the
+    /// grid's own fractions along `a` (0, the margins at the nodes, 1) and `v` along `b`, and
+    /// read bilinearly in them (0 and the other margin on the edges): Sklar's combination of
+    /// the grid's dependence with the lobe's margins, which may differ from the grid's (a
+    /// coarse texel's grid pools a sample of its cells). Within the Fréchet bounds; the
+    /// product `u · v` for a pair it does not hold (less than 90° apart).
+    #[must_use]
+    pub fn copula(&self, a: usize, u: f64, b: usize, v: f64) -> f64 {
+        let code = PAIR_OF_SLOTS[a][b];
+        if code == NO_PAIR {
+            return u * v;
+        }
+        let pair = &self.both[usize::from(code & !TRANSPOSED)];
+        // In the pair's order: the first azimuth and its fraction, then the second.
+        let ((a, u), (b, v)) = if code & TRANSPOSED == 0 {
+            ((a, u), (b, v))
+        } else {
+            ((b, v), (a, u))
+        };
+        let q = |x: u8| f64::from(x) / 255.0;
+        let (ma, mb) = (&self.margin[a], &self.margin[b]);
+        // Node k of a direction's fractions: 0 below the grid, 1 above it.
+        let node = |m: &[u8; JOINT_NODES], k: usize| match k {
+            0 => 0.0,
+            k if k > JOINT_NODES => 1.0,
+            k => q(m[k - 1]),
+        };
+        let grid = |i: usize, j: usize| -> f64 {
+            if i == 0 || j == 0 {
+                0.0
+            } else if i > JOINT_NODES {
+                node(mb, j)
+            } else if j > JOINT_NODES {
+                node(ma, i)
+            } else {
+                q(pair[(i - 1) * JOINT_NODES + (j - 1)])
+            }
+        };
+        // The cell holding `x` among a direction's fractions (the last of equal ones) and the
+        // position in it.
+        let cell = |m: &[u8; JOINT_NODES], x: f64| {
+            let mut s = 0;
+            while s < JOINT_NODES && node(m, s + 1) <= x {
+                s += 1;
+            }
+            let (lo, hi) = (node(m, s), node(m, s + 1));
+            let t = if hi - lo > 1e-9 {
+                ((x - lo) / (hi - lo)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (s, t)
+        };
+        let ((sa, tu), (sb, tv)) = (cell(ma, u), cell(mb, v));
+        let c = grid(sa, sb) * (1.0 - tu) * (1.0 - tv)
+            + grid(sa + 1, sb) * tu * (1.0 - tv)
+            + grid(sa, sb + 1) * (1.0 - tu) * tv
+            + grid(sa + 1, sb + 1) * tu * tv;
+        c.min(u.min(v)).max((u + v - 1.0).max(0.0))
+    }
+}
+
+/// Weighted sums of [`HorizonJoint`]s, pooled exactly: [`HorizonJointSum::finish`] gives the
+/// fractions of everything added.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HorizonJointSum {
+    weight: f64,
+    margin: [[f32; JOINT_NODES]; HORIZON_DIRECTIONS],
+    both: [[f32; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
+}
+
+impl Default for HorizonJointSum {
+    fn default() -> HorizonJointSum {
+        HorizonJointSum {
+            weight: 0.0,
+            margin: [[0.0; JOINT_NODES]; HORIZON_DIRECTIONS],
+            both: [[0.0; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
+        }
+    }
+}
+
+impl HorizonJointSum {
+    /// The joint distribution of one point set: per direction, `angles[d]` (radians) of 16
+    /// points of equal weight, the whole set of weight `weight`.
+    #[must_use]
+    pub fn of_points(angles: &[[f64; 16]; HORIZON_DIRECTIONS], weight: f64) -> HorizonJointSum {
+        let nodes = JOINT_NODE_INDICES.map(|i| CDF_ELEVATIONS_DEG[i].to_radians());
+        // Per direction and point, the grid nodes strictly below its angle: the point lies at
+        // or below nodes k.. .
+        let below: [[u8; 16]; HORIZON_DIRECTIONS] = std::array::from_fn(|d| {
+            std::array::from_fn(|p| nodes.iter().filter(|&&e| e < angles[d][p]).count() as u8)
+        });
+        let mut s = HorizonJointSum {
+            weight,
+            ..HorizonJointSum::default()
+        };
+        let each = (weight / 16.0) as f32;
+        for (m, k) in s.margin.iter_mut().zip(&below) {
+            for (i, x) in m.iter_mut().enumerate() {
+                *x = k.iter().filter(|&&kp| usize::from(kp) <= i).count() as f32 * each;
+            }
+        }
+        for (out, &(a, b)) in s.both.iter_mut().zip(&JOINT_PAIR_SLOTS) {
+            // Histogram of (k_a, k_b), then its cumulative sums.
+            let mut hist = [[0u8; JOINT_NODES + 1]; JOINT_NODES + 1];
+            for p in 0..16 {
+                hist[usize::from(below[a][p])][usize::from(below[b][p])] += 1;
+            }
+            for i in 0..JOINT_NODES {
+                for j in 0..JOINT_NODES {
+                    let mut n = 0u32;
+                    for row in &hist[..=i] {
+                        n += row[..=j].iter().map(|&c| u32::from(c)).sum::<u32>();
+                    }
+                    out[i * JOINT_NODES + j] = n as f32 * each;
+                }
+            }
+        }
+        s
+    }
+
+    /// The joint distribution of a cell whose horizon angles are its corners' interpolated
+    /// bilinearly at the centres of its 4 × 4 sub-cells (the points of
+    /// [`HorizonCdfSum::of_bilinear_cell`]), weight `weight`.
+    #[must_use]
+    pub fn of_bilinear_cell(
+        corners: &[[f64; 4]; HORIZON_DIRECTIONS],
+        weight: f64,
+    ) -> HorizonJointSum {
+        let points = corners.map(|a| {
+            std::array::from_fn(|k| {
+                let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
+                a[0] * (1.0 - x) * (1.0 - y)
+                    + a[1] * x * (1.0 - y)
+                    + a[2] * (1.0 - x) * y
+                    + a[3] * x * y
+            })
+        });
+        HorizonJointSum::of_points(&points, weight)
+    }
+
+    /// Add footprint `o` (its sums) scaled by `scale`: the pooled distribution.
+    pub fn add(&mut self, o: &HorizonJointSum, scale: f64) {
+        if o.weight <= 0.0 || scale <= 0.0 {
+            return;
+        }
+        self.weight += o.weight * scale;
+        let k = scale as f32;
+        for (a, b) in self.margin.iter_mut().zip(&o.margin) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += k * y;
+            }
+        }
+        for (a, b) in self.both.iter_mut().zip(&o.both) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += k * y;
+            }
+        }
+    }
+
+    /// The pooled footprints' joint distribution, rounded to 1/255 (weight 0 when nothing was
+    /// added).
+    #[must_use]
+    pub fn finish(&self) -> HorizonJoint {
+        let mut out = HorizonJoint {
+            weight: self.weight as f32,
+            ..HorizonJoint::default()
+        };
+        if self.weight <= 0.0 {
+            return out;
+        }
+        let k = 255.0 / self.weight;
+        // Non-negative: `as` truncates after the half is added (saturating at 255).
+        let q = |v: f32| (f64::from(v) * k + 0.5) as u8;
+        for (o, s) in out.margin.iter_mut().zip(&self.margin) {
+            *o = s.map(q);
+        }
+        for (o, s) in out.both.iter_mut().zip(&self.both) {
+            *o = s.map(q);
+        }
+        out
     }
 }
 
@@ -561,6 +862,8 @@ pub struct HorizonPair {
     /// Some pair of their stored azimuths, 0° or 45° apart, carries weight, and neither
     /// direction's visibility is fixed.
     together: bool,
+    /// Neither direction's visibility is fixed (a lobe's [`HorizonJoint`] is read).
+    fixed_none: bool,
 }
 
 impl HorizonPair {
@@ -575,6 +878,7 @@ impl HorizonPair {
             together: light.fixed.is_none()
                 && view.fixed.is_none()
                 && (0..4).any(|k| near[k] && wl[k / 2] * wv[k % 2] > 0.0),
+            fixed_none: light.fixed.is_none() && view.fixed.is_none(),
         }
     }
 }
@@ -1116,21 +1420,21 @@ mod tests {
                 let a = dir(az, el);
                 let va = cdf.visibility_along(&a);
                 // One direction twice: shadowing and masking are one event.
-                assert!((cdf.joint_visibility_along(&a, &a) - va).abs() < 1e-12);
+                assert!((cdf.joint_visibility_along(None, &a, &a) - va).abs() < 1e-12);
                 // Along one azimuth, the higher elevation sees from all that the lower does
                 // (exact on stored azimuths, where one distribution is read).
                 let same = dir(az, el + 20.0);
                 let on_slot = az % 45.0 == 0.0;
                 if on_slot {
-                    let j = cdf.joint_visibility_along(&a, &same);
+                    let j = cdf.joint_visibility_along(None, &a, &same);
                     assert!((j - va).abs() < 1e-12, "{az}° {el}°: {j} vs {va}");
                 }
                 for az_b in (0..24).map(|k| f64::from(k) * 15.0) {
                     for el_b in [5.0, 25.0, 60.0] {
                         let b = dir(az_b, el_b);
                         let vb = cdf.visibility_along(&b);
-                        let j = cdf.joint_visibility_along(&a, &b);
-                        let jr = cdf.joint_visibility_along(&b, &a);
+                        let j = cdf.joint_visibility_along(None, &a, &b);
+                        let jr = cdf.joint_visibility_along(None, &b, &a);
                         assert!((j - jr).abs() < 1e-12, "symmetric");
                         assert!(j <= va.min(vb) + 1e-12, "{az}° {az_b}°: {j} > min");
                         assert!(j >= (va + vb - 1.0).max(0.0) - 1e-12, "{az}° {az_b}°");
@@ -1139,7 +1443,7 @@ mod tests {
                         if on_slot && az_b % 45.0 == 0.0 && (90.0..=270.0).contains(&apart) {
                             assert!((j - va * vb).abs() < 1e-12);
                         }
-                        let given = cdf.visibility_given(&HorizonPair::new(&a, &b));
+                        let given = cdf.visibility_given(None, &HorizonPair::new(&a, &b));
                         if vb > 0.0 {
                             assert!((given * vb - j).abs() < 1e-12);
                         }
@@ -1150,9 +1454,9 @@ mod tests {
         // Continuous in azimuth: a sweep of the viewer's azimuth moves the joint by little per
         // step (the rule changes only where a stored azimuth's weight is 0).
         let a = dir(10.0, 20.0);
-        let mut last = cdf.joint_visibility_along(&a, &dir(0.0, 30.0));
+        let mut last = cdf.joint_visibility_along(None, &a, &dir(0.0, 30.0));
         for k in 1..=3600 {
-            let j = cdf.joint_visibility_along(&a, &dir(f64::from(k) * 0.1, 30.0));
+            let j = cdf.joint_visibility_along(None, &a, &dir(f64::from(k) * 0.1, 30.0));
             assert!(
                 (j - last).abs() < 0.01,
                 "at {}°: {last} -> {j}",
@@ -1162,9 +1466,102 @@ mod tests {
         }
         // A direction at the zenith or below the horizon: the other's visibility, or none.
         let up = HorizonDirection::new(DVec3::Z);
-        assert!((cdf.joint_visibility_along(&up, &a) - cdf.visibility_along(&a)).abs() < 1e-12);
+        assert!(
+            (cdf.joint_visibility_along(None, &up, &a) - cdf.visibility_along(&a)).abs() < 1e-12
+        );
         let below = HorizonDirection::new(DVec3::new(1.0, 0.0, -0.1));
-        assert_eq!(cdf.joint_visibility_along(&below, &a), 0.0);
+        assert_eq!(cdf.joint_visibility_along(None, &below, &a), 0.0);
+    }
+
+    #[test]
+    fn joint_fractions_pool_exactly_and_give_the_fraction_that_sees_both() {
+        // Two point sets (weights 3 : 1) whose horizons along opposite azimuths go together in
+        // the first (a wall top sees both ways, a floor neither) and against each other in the
+        // second. Every pair the joint holds reads back, at its grid's nodes and on stored
+        // azimuths, the weighted fraction of the points that see both directions; between the
+        // nodes it stays within the Fréchet bounds, and without the joint the product is read.
+        let deg = |x: f64| x.to_radians();
+        let mut a = [[0.0f64; 16]; HORIZON_DIRECTIONS];
+        let mut b = [[0.0f64; 16]; HORIZON_DIRECTIONS];
+        for k in 0..16 {
+            let hi = deg(2.0 + 4.0 * k as f64);
+            for d in 0..HORIZON_DIRECTIONS {
+                a[d][k] = hi;
+                b[d][k] = if d % 2 == 0 { hi } else { deg(62.0) - hi };
+            }
+        }
+        let mut cdf = HorizonCdfSum::default();
+        cdf.add(&HorizonCdfSum::of_points(&a, 1.0), 3.0);
+        cdf.add(&HorizonCdfSum::of_points(&b, 1.0), 1.0);
+        let cdf = cdf.finish();
+        let mut sum = HorizonJointSum::default();
+        sum.add(&HorizonJointSum::of_points(&a, 1.0), 3.0);
+        sum.add(&HorizonJointSum::of_points(&b, 1.0), 1.0);
+        let joint = sum.finish();
+        assert_eq!(joint.weight, 4.0);
+        let exact = |da: usize, ea: f64, db: usize, eb: f64| {
+            let f = |p: &[[f64; 16]; HORIZON_DIRECTIONS]| {
+                (0..16)
+                    .filter(|&k| p[da][k] <= ea && p[db][k] <= eb)
+                    .count() as f64
+                    / 16.0
+            };
+            (3.0 * f(&a) + f(&b)) / 4.0
+        };
+        let dir = |slot: usize, el: f64| {
+            let az = HORIZON_AZIMUTHS_DEG[slot].to_radians();
+            HorizonDirection::new(DVec3::new(
+                el.cos() * az.cos(),
+                el.cos() * az.sin(),
+                el.sin(),
+            ))
+        };
+        for (p, &(sa, sb)) in JOINT_PAIR_SLOTS.iter().enumerate() {
+            for (i, &ei) in JOINT_ELEVATIONS_DEG.iter().enumerate() {
+                for (j, &ej) in JOINT_ELEVATIONS_DEG.iter().enumerate() {
+                    let want = exact(sa, deg(ei), sb, deg(ej));
+                    let got = f64::from(joint.both[p][i * JOINT_NODES + j]) / 255.0;
+                    assert!((got - want).abs() <= 0.5 / 255.0, "pair {p} ({i}, {j})");
+                    // Read through the lobe's distributions, a hair above the nodes (they
+                    // count the horizons at or below them), both orders.
+                    let (da, db) = (dir(sa, deg(ei) + 1e-9), dir(sb, deg(ej) + 1e-9));
+                    for v in [
+                        cdf.joint_visibility_along(Some(&joint), &da, &db),
+                        cdf.joint_visibility_along(Some(&joint), &db, &da),
+                    ] {
+                        assert!((v - want).abs() < 2.0 / 255.0, "pair {p}: {v} vs {want}");
+                    }
+                }
+            }
+            // Between the nodes and off the grid: within the bounds.
+            for ea in [1.0, 8.0, 22.0, 40.0, 70.0] {
+                for eb in [1.5, 10.0, 33.0, 60.0] {
+                    let (da, db) = (dir(sa, deg(ea)), dir(sb, deg(eb)));
+                    let (va, vb) = (cdf.visibility_along(&da), cdf.visibility_along(&db));
+                    let v = cdf.joint_visibility_along(Some(&joint), &da, &db);
+                    assert!(v <= va.min(vb) + 1e-12 && v >= (va + vb - 1.0).max(0.0) - 1e-12);
+                    let none = cdf.joint_visibility_along(None, &da, &db);
+                    assert!((none - va * vb).abs() < 1e-12);
+                }
+            }
+        }
+        // The opposite pairs of the first set go together: far more than the product sees both.
+        let (l, o) = (dir(1, deg(21.0)), dir(3, deg(30.0)));
+        let (vl, vo) = (cdf.visibility_along(&l), cdf.visibility_along(&o));
+        let both = cdf.joint_visibility_along(Some(&joint), &l, &o);
+        assert!(both > 1.3 * vl * vo, "{both} vs {}", vl * vo);
+        let want = exact(1, deg(21.0), 3, deg(30.0));
+        assert!((both - want).abs() < 0.05, "{both} vs {want}");
+        let given = cdf.visibility_given(Some(&joint), &HorizonPair::new(&l, &o));
+        assert!((given * vo - both).abs() < 1e-12);
+        // The pairs held are the 20 stored azimuths 90°-180° apart, each once.
+        let mut seen = std::collections::HashSet::new();
+        for &(sa, sb) in &JOINT_PAIR_SLOTS {
+            let apart = (HORIZON_AZIMUTHS_DEG[sa] - HORIZON_AZIMUTHS_DEG[sb]).abs();
+            let apart = apart.min(360.0 - apart);
+            assert!((90.0..=180.0).contains(&apart));
+            assert!(seen.insert((sa.min(sb), sa.max(sb))));
+        }
     }
 
     #[test]

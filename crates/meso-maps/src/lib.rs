@@ -62,16 +62,17 @@ pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;
 pub use horizon::{
-    diagonal_angles, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonMap, HorizonPair,
-    HorizonStats, ANGLE_STEP, CDF_ELEVATIONS_DEG, CDF_NODES, DIAGONAL_AZIMUTHS_DEG,
-    HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS,
+    diagonal_angles, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonJoint, HorizonJointSum,
+    HorizonMap, HorizonPair, HorizonStats, ANGLE_STEP, CDF_ELEVATIONS_DEG, CDF_NODES,
+    DIAGONAL_AZIMUTHS_DEG, HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS, JOINT_ELEVATIONS_DEG,
+    JOINT_NODES, JOINT_PAIRS,
 };
 pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_stream_bytes, extract_to_file, extract_to_writer, extract_work,
     lobe_stats, lobe_stats_by_cell, merged_levels, peak_projected_area, rect_lobe_stats_by_cell,
     texel_lobe_stats, ExtractParams, Level, LevelStats, LobeStat, LobeStats, Method, Progress,
-    ProgressTask, Pyramid, PyramidInfo, Source, StreamedLevel,
+    ProgressTask, Pyramid, PyramidInfo, Source, StreamedLevel, JOINT_CELLS_SIDE, JOINT_FROM_LEVEL,
 };
 pub use radiosity::FacetRadiosity;
 pub use resolver::{ExtractProgress, MapsResolver};

@@ -40,7 +40,7 @@ pub use extract::{extract, extract_to_file, extract_to_writer, merged_levels, St
 pub use info::{LevelInfo, PyramidInfo};
 pub use shares::{
     lobe_stats, lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, texel_lobe_stats,
-    LevelStats, LobeStat, LobeStats,
+    LevelStats, LobeStat, LobeStats, JOINT_CELLS_SIDE, JOINT_FROM_LEVEL,
 };
 
 use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};

@@ -28,7 +28,9 @@
 
 use super::{Level, Pyramid};
 use crate::compact::Horizons;
-use crate::horizon::{HorizonCdf, HorizonCdfSum, HORIZON_DIRECTIONS};
+use crate::horizon::{
+    HorizonCdf, HorizonCdfSum, HorizonJoint, HorizonJointSum, HORIZON_DIRECTIONS,
+};
 use meso_core::sg;
 
 /// The projected area `E[m_z⁺]` of a Phong peak `((1 + a·m)/2)^(η/2)` (normalised over the
@@ -86,6 +88,20 @@ pub fn peak_projected_area(a_z: f64, eta: f64) -> f64 {
     }
 }
 
+/// The first level whose lobes get a joint horizon distribution ([`HorizonJoint`]): below it
+/// a texel spans at most 2 × 2 cells, whose horizons the product reads well (on the steep
+/// facade map the product of the joint's pairs errs by 2 % of the exact at level 2 on
+/// average, by 10–25 % from level 4 on; docs/heightmaps.md, "Light and viewer together per
+/// lobe").
+pub const JOINT_FROM_LEVEL: usize = 2;
+
+/// A texel's joint horizon distributions are pooled from at most this many cells a side of
+/// its footprint: one cell of each of `JOINT_CELLS_SIDE²` blocks, at a place hashed from the
+/// texel and block (a regular stride would alias with a periodic map). What they estimate is
+/// how two directions go together, not how much sees each (the lobe's [`HorizonCdf`], of every
+/// cell); 16 cells of 16 points each.
+pub const JOINT_CELLS_SIDE: usize = 8;
+
 /// Gauss–Legendre nodes per piece of [`peak_projected_area`]'s quadrature.
 const PROJECTED_AREA_NODES: usize = 16;
 
@@ -99,6 +115,11 @@ pub struct LobeStats {
     /// weighted by the projected area handed to it (weight in level-0 cells). `None` for
     /// pyramids without horizon statistics (normal maps), or when not asked for.
     pub horizon: Option<Vec<Vec<HorizonCdf>>>,
+    /// Per level and lobe, from level [`JOINT_FROM_LEVEL`] on (empty below), the joint
+    /// horizon distribution of the cells the lobe stands for ([`HorizonJoint`]: along pairs of
+    /// azimuths 90°–180° apart, of a sample of [`JOINT_CELLS_SIDE`]² cells a texel, weighted
+    /// by the projected area handed over). `None` with `horizon`.
+    pub joint: Option<Vec<Vec<HorizonJoint>>>,
 }
 
 /// What each lobe of `pyramid` stands for: its share of its texel's projected area and, when
@@ -142,6 +163,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         return LobeStats {
             shares: Vec::new(),
             horizon: None,
+            joint: None,
         };
     };
     let h0 = l0.horizon.as_ref().filter(|_| horizons);
@@ -158,7 +180,9 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     }
     // The coarse levels as whole rectangles: a row of texels' sums at a time (520 bytes a lobe
     // of the row), not a level's.
-    let coarse: Vec<(Vec<f64>, Option<Vec<HorizonCdf>>)> = pyramid.levels[1..]
+    #[allow(clippy::type_complexity)]
+    let coarse: Vec<(Vec<f64>, Option<Vec<HorizonCdf>>, Option<Vec<HorizonJoint>>)> = pyramid
+        .levels[1..]
         .par_iter()
         .enumerate()
         .map(|(k1, l)| {
@@ -174,7 +198,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
                 horizons,
                 Some(&level0),
             );
-            (st.shares, st.horizon)
+            (st.shares, st.horizon, st.joint)
         })
         .collect();
     let base_horizon = base_horizon.map(|h| {
@@ -190,14 +214,22 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         out
     });
     let mut shares = vec![base];
+    let mut joint = base_horizon.as_ref().map(|_| vec![Vec::new()]);
     let mut horizon = base_horizon.map(|h| vec![h]);
-    for (s, h) in coarse {
+    for (s, h, j) in coarse {
         shares.push(s);
         if let (Some(v), Some(h)) = (&mut horizon, h) {
             v.push(h);
         }
+        if let Some(v) = &mut joint {
+            v.push(j.unwrap_or_default());
+        }
     }
-    LobeStats { shares, horizon }
+    LobeStats {
+        shares,
+        horizon,
+        joint,
+    }
 }
 
 /// [`lobe_stats_by_cell`] of the texels of a rectangle of one level: rows `rows` and columns
@@ -251,9 +283,12 @@ fn rect_stats(
         "rectangle out of level {level}"
     );
     let h0 = l0.horizon.as_ref().filter(|_| horizons);
+    let with_joint = h0.is_some() && level >= JOINT_FROM_LEVEL;
     let mut shares = Vec::new();
     let mut hz: Option<Vec<HorizonCdf>> = h0.map(|_| Vec::new());
+    let mut jz: Option<Vec<HorizonJoint>> = with_joint.then(Vec::new);
     let (mut cell, mut logr, mut mass, mut acc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut jacc: Vec<HorizonJointSum> = Vec::new();
     // A coarse row's texels: their lobes and, at `off[i]`, their accumulators.
     let (mut lobes, mut off) = (Vec::new(), Vec::new());
     for row in rows {
@@ -281,6 +316,8 @@ fn rect_stats(
         mass.resize(n, 0.0f64);
         acc.clear();
         acc.resize(if h0.is_some() { n } else { 0 }, HorizonCdfSum::default());
+        jacc.clear();
+        jacc.resize(if with_joint { n } else { 0 }, HorizonJointSum::default());
         // Level 0's rows in order (a level held by band decodes each band once), each texel's
         // cells row by row of its footprint as before: the same sums in the same order.
         for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
@@ -291,6 +328,11 @@ fn rect_stats(
                     &mut acc[off[i]..off[i + 1]]
                 } else {
                     &mut acc[..]
+                };
+                let jacc = if with_joint {
+                    &mut jacc[off[i]..off[i + 1]]
+                } else {
+                    &mut jacc[..]
                 };
                 for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
                     let ct = r * l0.cols + c;
@@ -308,10 +350,19 @@ fn rect_stats(
                         Some(c) => HorizonCdfSum::of(&c[ct]),
                         None => HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)),
                     });
+                    let cell_j = match h0 {
+                        Some(h) if with_joint && joint_sampled(l.span, row, col, r, c) => Some(
+                            HorizonJointSum::of_bilinear_cell(&cell_corners(pyramid, h, ct), 1.0),
+                        ),
+                        _ => None,
+                    };
                     hand_cell(l0, ct, cell_s, l, pa, pb, &mut logr, |j, m| {
                         mass[j - pa] += m;
                         if let Some(s) = &cell_h {
                             acc[j - pa].add(s, m);
+                        }
+                        if let Some(s) = &cell_j {
+                            jacc[j - pa].add(s, m);
                         }
                     });
                 }
@@ -327,11 +378,15 @@ fn rect_stats(
             if let Some(v) = &mut hz {
                 v.extend(acc[off[i]..off[i + 1]].iter().map(HorizonCdfSum::finish));
             }
+            if let Some(v) = &mut jz {
+                v.extend(jacc[off[i]..off[i + 1]].iter().map(HorizonJointSum::finish));
+            }
         }
     }
     LevelStats {
         shares,
         horizon: hz,
+        joint: jz,
     }
 }
 
@@ -343,6 +398,9 @@ pub struct LevelStats {
     /// The horizon distributions: per texel on level 0, per lobe on coarser levels (as
     /// [`lobe_stats_by_cell`]'s); `None` without.
     pub horizon: Option<Vec<HorizonCdf>>,
+    /// Per lobe, the joint horizon distributions (as [`LobeStats::joint`]'s), from level
+    /// [`JOINT_FROM_LEVEL`] on with `horizon`; `None` otherwise.
+    pub joint: Option<Vec<HorizonJoint>>,
 }
 
 /// What one lobe of a texel stands for ([`texel_lobe_stats`]).
@@ -410,6 +468,12 @@ pub fn texel_lobe_stats(
 /// bilinear points' visibility is 0.86–1.03 of rays on the displaced surface where the corners'
 /// own is 0.71–0.82; `examples/horizon_models.rs`).
 pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdf {
+    HorizonCdfSum::of_bilinear_cell(&cell_corners(pyramid, h, t), 1.0).finish()
+}
+
+/// Level-0 cell `t`'s four corner samples' horizon angles per direction, at `(x, y)` = (0, 0),
+/// (1, 0), (0, 1), (1, 1) ([`cell_cdf`]).
+fn cell_corners(pyramid: &Pyramid, h: &Horizons, t: usize) -> [[f64; 4]; HORIZON_DIRECTIONS] {
     let l0 = &pyramid.levels[0];
     let wrap = pyramid.border == crate::heightmap::Border::Wrap;
     let next = |i: usize, n: usize| {
@@ -425,9 +489,28 @@ pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdf 
     let (r1, c1) = (next(r, l0.rows), next(c, l0.cols));
     let corner = |rr: usize, cc: usize| h.get(rr * l0.cols + cc).mean;
     let (a00, a01, a10, a11) = (corner(r, c), corner(r, c1), corner(r1, c), corner(r1, c1));
-    let corners: [[f64; 4]; HORIZON_DIRECTIONS] =
-        std::array::from_fn(|d| [a00[d], a01[d], a10[d], a11[d]]);
-    HorizonCdfSum::of_bilinear_cell(&corners, 1.0).finish()
+    std::array::from_fn(|d| [a00[d], a01[d], a10[d], a11[d]])
+}
+
+/// Whether level-0 cell `(r, c)` is one of those texel `(row, col)` of a level `span` cells a
+/// side pools its joint horizon distributions from ([`JOINT_CELLS_SIDE`]): every cell of a
+/// texel of at most that many a side, else one of each block of the footprint, at a place
+/// hashed from the texel and the block.
+fn joint_sampled(span: usize, row: usize, col: usize, r: usize, c: usize) -> bool {
+    let block = span / JOINT_CELLS_SIDE;
+    if block <= 1 {
+        return true;
+    }
+    let (lr, lc) = (r - row * span, c - col * span);
+    let (br, bc) = (lr / block, lc / block);
+    // SplitMix64's finaliser of the texel and the block.
+    let mut x = (row as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (col as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+        ^ ((br * JOINT_CELLS_SIDE + bc) as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^= x >> 31;
+    lr % block == (x % block as u64) as usize && lc % block == ((x >> 32) % block as u64) as usize
 }
 
 /// Appends to `out` the shares of level-0 texel `t`'s lobes: `w·E[m_z⁺]` each
@@ -717,15 +800,32 @@ mod tests {
                             if k > 0 {
                                 assert_eq!(gh[i], hz[k][j], "level {k} lobe {j}");
                             }
+                            if k >= JOINT_FROM_LEVEL {
+                                let gj = got.joint.as_ref().unwrap();
+                                let aj = &all.joint.as_ref().unwrap()[k];
+                                assert_eq!(gj[i], aj[j], "joint, level {k} lobe {j}");
+                                assert!(gj[i].weight > 0.0 || gh[i].weight <= 0.0);
+                            }
                             i += 1;
                         }
                     }
                 }
                 assert_eq!(got.shares.len(), i);
                 assert!(i > 0);
+                // Joint distributions from level JOINT_FROM_LEVEL on, one a lobe.
+                assert_eq!(got.joint.is_some(), k >= JOINT_FROM_LEVEL);
+                assert_eq!(
+                    all.joint.as_ref().unwrap()[k].len(),
+                    if k >= JOINT_FROM_LEVEL {
+                        l.lobes.len()
+                    } else {
+                        0
+                    }
+                );
             }
             let none = rect_lobe_stats_by_cell(&pyr, 1, 0..1, 0..1, false);
             assert!(none.horizon.is_none());
+            assert!(none.joint.is_none());
         }
     }
 }

@@ -75,6 +75,7 @@ impl NdfMapped {
         let facet = Facet::new(&surface.transfer);
         let stats = lobe_stats_by_cell(pyramid, shadowing);
         let mut lobe_horizons = stats.horizon.map(Vec::into_iter);
+        let mut lobe_joints = stats.joint.map(Vec::into_iter);
         let levels = pyramid
             .levels
             .iter()
@@ -82,6 +83,10 @@ impl NdfMapped {
             .map(|(l, shares)| {
                 let horizon = if shadowing { l.horizon.clone() } else { None };
                 let lobe_horizon = lobe_horizons.as_mut().and_then(Iterator::next);
+                let lobe_joint = lobe_joints
+                    .as_mut()
+                    .and_then(Iterator::next)
+                    .filter(|j| !j.is_empty());
                 let table = node_level(
                     l,
                     0..l.rows,
@@ -90,6 +95,7 @@ impl NdfMapped {
                     &facet,
                     horizon,
                     lobe_horizon,
+                    lobe_joint,
                     // Built up front: ready for view weighting, asked for or not.
                     true,
                 );
@@ -226,6 +232,7 @@ impl NdfMapped {
             &self.facet,
             horizon,
             stats.horizon,
+            stats.joint,
             self.view_weighting,
         )
     }
@@ -321,7 +328,8 @@ fn check_levels(pyramid: &Pyramid, texels_per_uv: f64, shadowing: bool) -> Resul
 /// per texel its lobes as spherical Gaussians weighted by `shares` (each lobe's share of its
 /// texel's projected area, [`meso_maps::lobe_stats`], for the tile's lobes in texel order), and
 /// for Lambert and general facets its nodes; with the tile's texel and lobe horizon statistics
-/// when shadowing (`None` otherwise), and when `view_tables` what view weighting reads of each
+/// and its lobes' joint horizon distributions when shadowing (`None` otherwise, and the joint
+/// also on levels below [`meso_maps::JOINT_FROM_LEVEL`]), and when `view_tables` what view weighting reads of each
 /// lobe (`ViewLobe`). Lobe sources (`src`) count the tile's lobes.
 #[allow(clippy::too_many_arguments)]
 fn node_level(
@@ -332,6 +340,7 @@ fn node_level(
     facet: &Facet,
     horizon: Option<meso_maps::Horizons>,
     lobe_horizon: Option<Vec<meso_maps::HorizonCdf>>,
+    lobe_joint: Option<Vec<meso_maps::HorizonJoint>>,
     view_tables: bool,
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
@@ -475,6 +484,7 @@ fn node_level(
         // `lobe_stats_by_cell`: level 0's lobe horizons are per texel (its cell's).
         lobe_horizon_by_texel: l.span == 1,
         lobe_horizon,
+        lobe_joint,
         view_start,
         view,
     }

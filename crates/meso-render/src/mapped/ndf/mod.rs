@@ -42,7 +42,7 @@ pub use filter::{
 };
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
-use meso_maps::{HorizonCdf, HorizonDirection, HorizonPair, HorizonStats, Horizons};
+use meso_maps::{HorizonCdf, HorizonDirection, HorizonJoint, HorizonPair, HorizonStats, Horizons};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use view::{TexelView, ViewLobe};
@@ -76,6 +76,10 @@ struct NodeLevel {
     lobe_horizon: Option<Vec<HorizonCdf>>,
     /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
     lobe_horizon_by_texel: bool,
+    /// Per pyramid lobe of the tile, from level [`meso_maps::JOINT_FROM_LEVEL`] on (with
+    /// shadowing), the joint horizon distribution of the cells it stands for: how it sees a
+    /// light and a viewer far apart in azimuth together.
+    lobe_joint: Option<Vec<HorizonJoint>>,
     /// Per texel, its pyramid lobes `view[view_start[t]..view_start[t + 1]]` (indexed by the
     /// `src` of [`SgLobe`] and [`Node`]), what view weighting reads of each
     /// ([`NdfMapped::with_view_weighting`]); both empty in tiles built on demand without it.
@@ -177,6 +181,10 @@ impl NodeLevel {
                 .lobe_horizon
                 .as_ref()
                 .map_or(0, |v| v.len() * size_of::<HorizonCdf>())
+            + self
+                .lobe_joint
+                .as_ref()
+                .map_or(0, |v| v.len() * size_of::<HorizonJoint>())
             + self.view_start.len() * 4
             + self.view.len() * size_of::<ViewLobe>()
             + size_of::<NodeLevel>()
@@ -232,6 +240,13 @@ impl NodeLevel {
             }),
             _ => None,
         }
+    }
+
+    /// Lobe `src`'s joint horizon distribution, where the level has them (`None` for
+    /// [`NO_LOBE`]).
+    #[inline]
+    fn lobe_joint(&self, src: u32) -> Option<&HorizonJoint> {
+        self.lobe_joint.as_ref()?.get(src as usize)
     }
 }
 
@@ -563,7 +578,7 @@ impl NdfMapped {
         let vis = |src: u32| -> f64 {
             match (dir, l.lobe_horizon(t, src)) {
                 (Some(d), Some(LobeHorizon::Lobe(c))) => match pair {
-                    Some(p) => c.visibility_given(p),
+                    Some(p) => c.visibility_given(l.lobe_joint(src), p),
                     None => c.visibility_along(d),
                 },
                 (Some(d), Some(s)) => s.visibility_along(d),
