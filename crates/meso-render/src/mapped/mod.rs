@@ -98,12 +98,15 @@
 //!
 //! With view weighting, a lobe's visibility of the light is read among what of it sees the
 //! viewer ([`meso_maps::HorizonCdf::visibility_given`]): light and viewer 0° or 45° apart in
-//! azimuth are one event (the smaller of the two fractions), farther apart independent (their
-//! product). On the steep facade seen 60° from the normal with the light beside the viewer,
-//! 0.71–0.79 of the truth with the product at 16 cells a pixel, 1.01–1.06 now
-//! (`tests/azimuths.rs`). What is left: light and viewer far apart at grazing angles, which
-//! the product cannot say (the facade, light opposite the viewer 60° from the normal: 0.14;
-//! docs/heightmaps.md, "Light and viewer together per lobe").
+//! azimuth are one event (the smaller of the two fractions); farther apart, from level 2 on,
+//! the lobe's joint horizon distribution says how the two go together
+//! ([`meso_maps::HorizonJoint`]: on a facade the wall tops see both, the recess floors
+//! neither), below it they are independent (their product). On the steep facade seen 60° from
+//! the normal at 16 cells a pixel, with the product: 0.71–0.79 of the truth with the light
+//! beside the viewer, 0.14–0.47 with it 90°–180° away; now 1.01–1.06 and 0.74–0.93
+//! (`tests/azimuths.rs`); the 1K facade's far views under a light opposite the viewer, which
+//! drifted up to 1.14× with the level, stay within 1.06× (docs/heightmaps.md, "Light and
+//! viewer together per lobe").
 //! Tables: docs/heightmaps.md, "Visibility per lobe" and "Eight azimuths and horizon
 //! distributions per lobe".
 //!
