@@ -643,7 +643,7 @@ const fn pair_of_slots() -> [[u8; HORIZON_DIRECTIONS]; HORIZON_DIRECTIONS] {
 /// the wall tops, open every way, and a recess floor sees neither: visibility along opposite
 /// azimuths is strongly correlated, which a product cannot say (the facade seen 60° from the
 /// normal with the light opposite: 0.14 of the truth with the product).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct HorizonJoint {
     /// The footprint's weight (0: no joint known; the product is read).
     pub weight: f32,
@@ -653,16 +653,6 @@ pub struct HorizonJoint {
     /// Per pair, `[i · 4 + j]`: the fraction at or below `E_i` along the pair's first azimuth
     /// and `E_j` along its second, in units of 1/255.
     pub both: [[u8; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
-}
-
-impl Default for HorizonJoint {
-    fn default() -> HorizonJoint {
-        HorizonJoint {
-            weight: 0.0,
-            margin: [[0; JOINT_NODES]; HORIZON_DIRECTIONS],
-            both: [[0; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
-        }
-    }
 }
 
 impl HorizonJoint {
@@ -732,21 +722,11 @@ impl HorizonJoint {
 
 /// Weighted sums of [`HorizonJoint`]s, pooled exactly: [`HorizonJointSum::finish`] gives the
 /// fractions of everything added.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct HorizonJointSum {
     weight: f64,
     margin: [[f32; JOINT_NODES]; HORIZON_DIRECTIONS],
     both: [[f32; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
-}
-
-impl Default for HorizonJointSum {
-    fn default() -> HorizonJointSum {
-        HorizonJointSum {
-            weight: 0.0,
-            margin: [[0.0; JOINT_NODES]; HORIZON_DIRECTIONS],
-            both: [[0.0; JOINT_NODES * JOINT_NODES]; JOINT_PAIRS],
-        }
-    }
 }
 
 impl HorizonJointSum {
@@ -797,16 +777,7 @@ impl HorizonJointSum {
         corners: &[[f64; 4]; HORIZON_DIRECTIONS],
         weight: f64,
     ) -> HorizonJointSum {
-        let points = corners.map(|a| {
-            std::array::from_fn(|k| {
-                let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
-                a[0] * (1.0 - x) * (1.0 - y)
-                    + a[1] * x * (1.0 - y)
-                    + a[2] * (1.0 - x) * y
-                    + a[3] * x * y
-            })
-        });
-        HorizonJointSum::of_points(&points, weight)
+        HorizonJointSum::of_points(&corners.map(|a| bilinear_points(&a)), weight)
     }
 
     /// Add footprint `o` (its sums) scaled by `scale`: the pooled distribution.
@@ -974,15 +945,7 @@ impl HorizonCdfSum {
         };
         let each = (weight / 16.0) as f32;
         for (v, a) in s.sum.iter_mut().zip(corners) {
-            count_points(v, a, each, || {
-                std::array::from_fn(|k| {
-                    let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
-                    a[0] * (1.0 - x) * (1.0 - y)
-                        + a[1] * x * (1.0 - y)
-                        + a[2] * (1.0 - x) * y
-                        + a[3] * x * y
-                })
-            });
+            count_points(v, a, each, || bilinear_points(a));
         }
         s
     }
@@ -1032,6 +995,15 @@ impl HorizonCdfSum {
         }
         out
     }
+}
+
+/// A cell's corner values `a` (at `(x, y)` = (0, 0), (1, 0), (0, 1), (1, 1)) interpolated
+/// bilinearly at the centres of its 4 × 4 sub-cells, row by row.
+fn bilinear_points(a: &[f64; 4]) -> [f64; 16] {
+    std::array::from_fn(|k| {
+        let (x, y) = ((k % 4) as f64 * 0.25 + 0.125, (k / 4) as f64 * 0.25 + 0.125);
+        a[0] * (1.0 - x) * (1.0 - y) + a[1] * x * (1.0 - y) + a[2] * (1.0 - x) * y + a[3] * x * y
+    })
 }
 
 /// One direction's sums `v` of 16 points of weight `each`: per node, the weight of the points

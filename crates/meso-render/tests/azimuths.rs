@@ -40,23 +40,31 @@ fn mean(img: &Image) -> f64 {
     px.iter().map(|p| f64::from(p[0])).sum::<f64>() / px.len() as f64
 }
 
-#[test]
-fn lights_on_and_between_the_axes_shadow_like_the_geometry() {
+/// The facade (`tests/data/facade_disp_256.png`, texel 1, height scale `height`) with Lambert
+/// facets: the NDF-mapped material of its pyramid and the bump map shadowed by rays, both with
+/// shadowing (and so view weighting), and its texels per unit of texture coordinate.
+fn facade(height: f64) -> (Arc<dyn Shader>, Arc<dyn Shader>, f64) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
     let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
+    let map = HeightMap::load(&path, 1.0, height, Border::Wrap).unwrap();
+    let pyr = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let tpu = map.width() as f64;
+    let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, true).unwrap());
+    let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, true).unwrap());
+    (ndf, bump, tpu)
+}
+
+#[test]
+fn lights_on_and_between_the_axes_shadow_like_the_geometry() {
     let size = 48;
     let mut worst: (f64, String) = (0.0, String::new());
     for height in [5.0, 20.0] {
-        let map = HeightMap::load(&path, 1.0, height, Border::Wrap).unwrap();
-        let pyr = extract(
-            Source::Heights(&map),
-            &ExtractParams::default(),
-            &mut |_| {},
-        )
-        .unwrap();
-        let tpu = map.width() as f64;
-        let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, true).unwrap());
-        let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, true).unwrap());
+        let (ndf, bump, tpu) = facade(height);
         for cells_per_pixel in [4.0, 16.0] {
             let width = cells_per_pixel * f64::from(size) / tpu;
             for az in [0.0f64, 22.5, 45.0, 90.0, 135.0] {
@@ -89,19 +97,8 @@ fn grazing_view_ratios(
     cells_per_pixel: &[f64],
     azimuths: &[f64],
 ) -> Vec<(f64, f64, f64)> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
-    let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
     let size = 48;
-    let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).unwrap();
-    let pyr = extract(
-        Source::Heights(&map),
-        &ExtractParams::default(),
-        &mut |_| {},
-    )
-    .unwrap();
-    let tpu = map.width() as f64;
-    let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, true).unwrap());
-    let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, true).unwrap());
+    let (ndf, bump, tpu) = facade(20.0);
     let v = view_deg.to_radians();
     let camera = DVec3::new(0.0, -v.sin(), v.cos());
     let mut out = Vec::new();
