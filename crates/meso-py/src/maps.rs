@@ -483,24 +483,48 @@ impl Level {
     /// `(rows, cols, K)` float64: per lobe, the fraction of the cells it stands for from which
     /// the unit `direction` (meso's frame: +z the surface normal, +y up in the image) is above
     /// the horizon: the visibility `V_j(ω)` the renderer's NDF-mapped shading multiplies that
-    /// lobe by (docs/heightmaps.md, "Visibility per lobe"). `None` for a pyramid without horizon
-    /// statistics (one extracted from a normal map). Zero-padded like `weights`.
+    /// lobe by (docs/heightmaps.md, "Visibility per lobe"). With `view` (a unit vector too), the
+    /// fraction from which both are: shadowing and masking together, `G_j(i, o)`, as the
+    /// renderer reads them with view weighting (`meso_maps::HorizonCdf::joint_visibility_along`:
+    /// from level 2 on each lobe's joint distribution for azimuths 90°–180° apart; docs
+    /// "Light and viewer together per lobe"). `None` for a pyramid without horizon statistics
+    /// (one extracted from a normal map). Zero-padded like `weights`.
+    #[pyo3(signature = (direction, view = None))]
     fn lobe_visibility<'py>(
         &self,
         py: Python<'py>,
         direction: [f64; 3],
+        view: Option<[f64; 3]>,
     ) -> PyResult<Option<Bound<'py, PyArray3<f64>>>> {
-        let w = glam::DVec3::from_array(direction);
-        if !(w.is_finite() && (w.length() - 1.0).abs() < 1e-6) {
-            return Err(value_err(format!(
-                "direction {direction:?} is not a unit vector"
-            )));
-        }
-        let Some(h) = self.stats(py)?.horizon.as_ref() else {
+        let unit = |d: [f64; 3]| {
+            let w = glam::DVec3::from_array(d);
+            if w.is_finite() && (w.length() - 1.0).abs() < 1e-6 {
+                Ok(w)
+            } else {
+                Err(value_err(format!("direction {d:?} is not a unit vector")))
+            }
+        };
+        let w = unit(direction)?;
+        let o = view.map(unit).transpose()?;
+        let stats = self.stats(py)?;
+        let Some(h) = stats.horizon.as_ref() else {
             return Ok(None);
         };
         let h = &h[self.index];
-        self.per_lobe_index(py, |i| h[i].visibility(w)).map(Some)
+        match o {
+            None => self.per_lobe_index(py, |i| h[i].visibility(w)).map(Some),
+            Some(o) => {
+                let joint = stats.joint.as_ref().map(|j| &j[self.index]);
+                let (a, b) = (
+                    meso_maps::HorizonDirection::new(w),
+                    meso_maps::HorizonDirection::new(o),
+                );
+                self.per_lobe_index(py, |i| {
+                    h[i].joint_visibility_along(joint.and_then(|j| j.get(i)), &a, &b)
+                })
+                .map(Some)
+            }
+        }
     }
 
     fn __repr__(&self) -> String {

@@ -97,9 +97,12 @@ class Level:
     @property
     def lobe_shares(self) -> npt.NDArray[np.float64]:
         """(rows, cols, K) each lobe's share of its texel's projected area (summing to 1)."""
-    def lobe_visibility(self, direction: Sequence[float]) -> Optional[npt.NDArray[np.float64]]:
+    def lobe_visibility(
+        self, direction: Sequence[float], view: Optional[Sequence[float]] = None
+    ) -> Optional[npt.NDArray[np.float64]]:
         """(rows, cols, K) per lobe, the fraction of the cells it stands for from which the unit
-        ``direction`` (+z the normal, +y up in the image) is above the horizon; None for a
+        ``direction`` (+z the normal, +y up in the image) is above the horizon, or with ``view``
+        (a unit vector) from which both are (shadowing and masking together); None for a
         pyramid from a normal map."""
 
 class Pyramid:
