@@ -745,24 +745,32 @@ impl HorizonJointSum {
             ..HorizonJointSum::default()
         };
         let each = (weight / 16.0) as f32;
+        const N: usize = JOINT_NODES;
         for (m, k) in s.margin.iter_mut().zip(&below) {
-            for (i, x) in m.iter_mut().enumerate() {
-                *x = k.iter().filter(|&&kp| usize::from(kp) <= i).count() as f32 * each;
+            // Per node, the points at or below it: a histogram of `k`, summed up.
+            let mut hist = [0u32; N + 1];
+            for &kp in k {
+                hist[usize::from(kp)] += 1;
+            }
+            let mut n = 0;
+            for (x, h) in m.iter_mut().zip(hist) {
+                n += h;
+                *x = n as f32 * each;
             }
         }
         for (out, &(a, b)) in s.both.iter_mut().zip(&JOINT_PAIR_SLOTS) {
-            // Histogram of (k_a, k_b), then its cumulative sums.
-            let mut hist = [[0u8; JOINT_NODES + 1]; JOINT_NODES + 1];
-            for p in 0..16 {
-                hist[usize::from(below[a][p])][usize::from(below[b][p])] += 1;
+            // A histogram of (k_a, k_b), then its two-dimensional running sums over the grid.
+            let mut hist = [[0u32; N + 1]; N + 1];
+            for (&ka, &kb) in below[a].iter().zip(&below[b]) {
+                hist[usize::from(ka)][usize::from(kb)] += 1;
             }
-            for i in 0..JOINT_NODES {
-                for j in 0..JOINT_NODES {
-                    let mut n = 0u32;
-                    for row in &hist[..=i] {
-                        n += row[..=j].iter().map(|&c| u32::from(c)).sum::<u32>();
-                    }
-                    out[i * JOINT_NODES + j] = n as f32 * each;
+            let mut cum = [[0u32; N]; N];
+            for i in 0..N {
+                let mut row = 0;
+                for j in 0..N {
+                    row += hist[i][j];
+                    cum[i][j] = row + if i > 0 { cum[i - 1][j] } else { 0 };
+                    out[i * N + j] = cum[i][j] as f32 * each;
                 }
             }
         }
