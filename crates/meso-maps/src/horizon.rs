@@ -514,7 +514,8 @@ impl HorizonCdf {
             (_, Some(vb)) => return vb * self.visibility_along(a),
             _ => {}
         }
-        self.both(joint.filter(|j| j.weight > 0.0), a, b).0
+        self.both(joint.filter(|j| j.weight > 0.0), a, b, near_pairs(a, b))
+            .0
     }
 
     /// The fraction of what sees the view of `pair` that also sees its light:
@@ -525,11 +526,13 @@ impl HorizonCdf {
     #[inline]
     #[must_use]
     pub fn visibility_given(&self, joint: Option<&HorizonJoint>, pair: &HorizonPair) -> f64 {
-        let joint = joint.filter(|j| j.weight > 0.0 && pair.fixed_none);
+        let (light, view) = (&pair.light, &pair.view);
+        let joint =
+            joint.filter(|j| j.weight > 0.0 && light.fixed.is_none() && view.fixed.is_none());
         if self.weight <= 0.0 || (joint.is_none() && !pair.together) {
-            return self.visibility_along(&pair.light);
+            return self.visibility_along(light);
         }
-        let (both, seen) = self.both(joint, &pair.light, &pair.view);
+        let (both, seen) = self.both(joint, light, view, pair.near);
         if seen <= 0.0 {
             return self.visibility_along(&pair.light);
         }
@@ -537,19 +540,20 @@ impl HorizonCdf {
     }
 
     /// The rule of [`HorizonCdf::joint_visibility_along`] for two directions of no fixed
-    /// visibility, and the second's visibility.
+    /// visibility whose pairs of stored azimuths `near` are 0° or 45° apart ([`near_pairs`]),
+    /// and the second's visibility.
     #[inline]
     fn both(
         &self,
         joint: Option<&HorizonJoint>,
         a: &HorizonDirection,
         b: &HorizonDirection,
+        near: [bool; 4],
     ) -> (f64, f64) {
         let fa = [self.at(a.ix, a), self.at(a.iy, a)];
         let fb = [self.at(b.ix, b), self.at(b.iy, b)];
         let (sa, sb) = ([a.ix, a.iy], [b.ix, b.iy]);
         let (wa, wb) = ([a.c2, a.s2], [b.c2, b.s2]);
-        let near = near_pairs(a, b);
         let mut both = 0.0;
         for p in 0..2 {
             for q in 0..2 {
@@ -581,9 +585,6 @@ pub const JOINT_NODES: usize = 4;
 /// Pairs of stored azimuths a [`HorizonJoint`] holds: those 90°, 135° and 180° apart (8 + 8 +
 /// 4; nearer pairs are read by the rule of [`HorizonCdf::joint_visibility_along`]).
 pub const JOINT_PAIRS: usize = 20;
-
-/// [`JOINT_ELEVATIONS_DEG`]'s places among [`CDF_ELEVATIONS_DEG`].
-const JOINT_NODE_INDICES: [usize; JOINT_NODES] = [1, 5, 9, 13];
 
 /// Marks a transposed entry of [`PAIR_OF_SLOTS`].
 const TRANSPOSED: u8 = 0x80;
@@ -734,7 +735,7 @@ impl HorizonJointSum {
     /// points of equal weight, the whole set of weight `weight`.
     #[must_use]
     pub fn of_points(angles: &[[f64; 16]; HORIZON_DIRECTIONS], weight: f64) -> HorizonJointSum {
-        let nodes = JOINT_NODE_INDICES.map(|i| CDF_ELEVATIONS_DEG[i].to_radians());
+        let nodes = JOINT_ELEVATIONS_DEG.map(f64::to_radians);
         // Per direction and point, the grid nodes strictly below its angle: the point lies at
         // or below nodes k.. .
         let below: [[u8; 16]; HORIZON_DIRECTIONS] = std::array::from_fn(|d| {
@@ -794,17 +795,8 @@ impl HorizonJointSum {
             return;
         }
         self.weight += o.weight * scale;
-        let k = scale as f32;
-        for (a, b) in self.margin.iter_mut().zip(&o.margin) {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x += k * y;
-            }
-        }
-        for (a, b) in self.both.iter_mut().zip(&o.both) {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x += k * y;
-            }
-        }
+        add_scaled(&mut self.margin, &o.margin, scale as f32);
+        add_scaled(&mut self.both, &o.both, scale as f32);
     }
 
     /// The pooled footprints' joint distribution, rounded to 1/255 (weight 0 when nothing was
@@ -818,14 +810,12 @@ impl HorizonJointSum {
         if self.weight <= 0.0 {
             return out;
         }
-        let k = 255.0 / self.weight;
-        // Non-negative: `as` truncates after the half is added (saturating at 255).
-        let q = |v: f32| (f64::from(v) * k + 0.5) as u8;
+        let inv = 1.0 / self.weight;
         for (o, s) in out.margin.iter_mut().zip(&self.margin) {
-            *o = s.map(q);
+            *o = s.map(|v| to_255(v, inv));
         }
         for (o, s) in out.both.iter_mut().zip(&self.both) {
-            *o = s.map(q);
+            *o = s.map(|v| to_255(v, inv));
         }
         out
     }
@@ -838,11 +828,11 @@ impl HorizonJointSum {
 pub struct HorizonPair {
     light: HorizonDirection,
     view: HorizonDirection,
+    /// Which of their pairs of stored azimuths are 0° or 45° apart ([`near_pairs`]).
+    near: [bool; 4],
     /// Some pair of their stored azimuths, 0° or 45° apart, carries weight, and neither
     /// direction's visibility is fixed.
     together: bool,
-    /// Neither direction's visibility is fixed (a lobe's [`HorizonJoint`] is read).
-    fixed_none: bool,
 }
 
 impl HorizonPair {
@@ -854,10 +844,10 @@ impl HorizonPair {
         HorizonPair {
             light: *light,
             view: *view,
+            near,
             together: light.fixed.is_none()
                 && view.fixed.is_none()
                 && (0..4).any(|k| near[k] && wl[k / 2] * wv[k % 2] > 0.0),
-            fixed_none: light.fixed.is_none() && view.fixed.is_none(),
         }
     }
 }
@@ -976,12 +966,7 @@ impl HorizonCdfSum {
             return;
         }
         self.weight += o.weight * scale;
-        let k = scale as f32;
-        for (a, b) in self.sum.iter_mut().zip(&o.sum) {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x += k * y;
-            }
-        }
+        add_scaled(&mut self.sum, &o.sum, scale as f32);
     }
 
     /// The pooled footprints' distribution, rounded to 1/255 (weight 0 when nothing was added).
@@ -996,13 +981,27 @@ impl HorizonCdfSum {
         }
         let inv = 1.0 / self.weight;
         for (o, s) in out.frac.iter_mut().zip(&self.sum) {
-            for (q, &v) in o.iter_mut().zip(s) {
-                // Non-negative: `as` truncates after the half is added (saturating at 255).
-                *q = (f64::from(v) * inv * 255.0 + 0.5) as u8;
-            }
+            *o = s.map(|v| to_255(v, inv));
         }
         out
     }
+}
+
+/// `dst += k · src`, row by row: the sums of [`HorizonCdfSum`] and [`HorizonJointSum`] pooled.
+fn add_scaled<const N: usize>(dst: &mut [[f32; N]], src: &[[f32; N]], k: f32) {
+    for (a, b) in dst.iter_mut().zip(src) {
+        for (x, y) in a.iter_mut().zip(b) {
+            *x += k * y;
+        }
+    }
+}
+
+/// A pooled sum `v` as a fraction of the weight (`inv` its inverse), to 1/255, rounded half
+/// up: what [`HorizonCdf`] and [`HorizonJoint`] store.
+#[inline]
+fn to_255(v: f32, inv: f64) -> u8 {
+    // Non-negative: `as` truncates after the half is added (saturating at 255).
+    (f64::from(v) * inv * 255.0 + 0.5) as u8
 }
 
 /// A cell's corner values `a` (at `(x, y)` = (0, 0), (1, 0), (0, 1), (1, 1)) interpolated

@@ -777,8 +777,9 @@ impl Shader for NdfMapped {
         // thread's buffer only then.
         let mut views = Vec::new();
         let mut den = 0.0;
-        let dir_o = HorizonDirection::new(wo);
-        if self.view_weighting {
+        // The viewer prepared once a call, with view weighting only.
+        let dir_o = self.view_weighting.then(|| HorizonDirection::new(wo));
+        if let Some(dir_o) = &dir_o {
             views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
             views.clear();
             for (k, &(_, _, w)) in taps.iter().enumerate() {
@@ -786,11 +787,11 @@ impl Shader for NdfMapped {
                 let tv = TexelView::new(l, t, wo, |src| {
                     if per_lobe {
                         l.lobe_horizon(t, src)
-                            .map_or(1.0, |s| s.visibility_along(&dir_o))
+                            .map_or(1.0, |s| s.visibility_along(dir_o))
                     } else if self.shadowing {
                         l.horizon
                             .as_ref()
-                            .map_or(1.0, |h| h.get(t).visibility_along(&dir_o))
+                            .map_or(1.0, |h| h.get(t).visibility_along(dir_o))
                     } else {
                         1.0
                     }
@@ -816,7 +817,10 @@ impl Shader for NdfMapped {
             } else {
                 HorizonDirection::new(DVec3::Z)
             };
-            let pair = (view_on && per_lobe).then(|| HorizonPair::new(&dir, &dir_o));
+            let pair = dir_o
+                .as_ref()
+                .filter(|_| view_on && per_lobe)
+                .map(|o| HorizonPair::new(&dir, o));
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
             for (k, &(_, _, w)) in taps.iter().enumerate() {
