@@ -276,7 +276,7 @@ pub enum LobeIter<'a> {
 
 impl Iterator for LobeIter<'_> {
     type Item = PhongLobe;
-    #[inline]
+    #[inline(always)]
     fn next(&mut self) -> Option<PhongLobe> {
         match self {
             LobeIter::F64(i) => i.next().copied(),

@@ -62,10 +62,10 @@ pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;
 pub use horizon::{
-    diagonal_angles, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonJoint, HorizonJointSum,
-    HorizonMap, HorizonPair, HorizonStats, ANGLE_STEP, CDF_ELEVATIONS_DEG, CDF_NODES,
-    DIAGONAL_AZIMUTHS_DEG, HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS, JOINT_ELEVATIONS_DEG,
-    JOINT_NODES, JOINT_PAIRS,
+    diagonal_angles, CellHorizon, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonJoint,
+    HorizonJointSum, HorizonMap, HorizonPair, HorizonStats, ANGLE_STEP, CDF_ELEVATIONS_DEG,
+    CDF_NODES, DIAGONAL_AZIMUTHS_DEG, HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS,
+    JOINT_ELEVATIONS_DEG, JOINT_NODES, JOINT_PAIRS,
 };
 pub use input::{Input, InputKind};
 pub use pyramid::{

@@ -341,12 +341,12 @@ impl Level {
         Ok(self.stats.get_or_init(|| s))
     }
 
-    /// `(rows, cols, K)` array of a per-lobe value `f(index of the lobe in the level)`,
-    /// zero-padded.
+    /// `(rows, cols, K)` array of a per-lobe value `f(index of its texel in the level, index
+    /// of the lobe in the level)`, zero-padded.
     fn per_lobe_index<'py>(
         &self,
         py: Python<'py>,
-        f: impl Fn(usize) -> f64,
+        f: impl Fn(usize, usize) -> f64,
     ) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let l = self.level();
         let k = self.pyramid.max_lobes;
@@ -355,7 +355,7 @@ impl Level {
             let m = map_texel(l, t);
             let (a, b) = (l.lobe_start[m] as usize, l.lobe_start[m + 1] as usize);
             for (j, i) in (a..b).enumerate().take(k) {
-                v[t * k + j] = f(i);
+                v[t * k + j] = f(m, i);
             }
         }
         PyArray1::from_vec(py, v).reshape([l.rows, l.cols, k])
@@ -477,7 +477,7 @@ impl Level {
     #[getter]
     fn lobe_shares<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray3<f64>>> {
         let shares = &self.stats(py)?.shares[self.index];
-        self.per_lobe_index(py, |i| shares[i])
+        self.per_lobe_index(py, |_, i| shares[i])
     }
 
     /// `(rows, cols, K)` float64: per lobe, the fraction of the cells it stands for from which
@@ -487,8 +487,10 @@ impl Level {
     /// fraction from which both are: shadowing and masking together, `G_j(i, o)`, as the
     /// renderer reads them with view weighting (`meso_maps::HorizonCdf::joint_visibility_along`:
     /// from level 2 on each lobe's joint distribution for azimuths 90°–180° apart; docs
-    /// "Light and viewer together per lobe"). `None` for a pyramid without horizon statistics
-    /// (one extracted from a normal map). Zero-padded like `weights`.
+    /// "Light and viewer together per lobe"). On level 0 each lobe reads its cell's horizons
+    /// point by point (`meso_maps::CellHorizon`), with or without `view`, as the renderer
+    /// does. `None` for a pyramid without horizon statistics (one extracted from a normal
+    /// map). Zero-padded like `weights`.
     #[pyo3(signature = (direction, view = None))]
     fn lobe_visibility<'py>(
         &self,
@@ -511,15 +513,24 @@ impl Level {
             return Ok(None);
         };
         let h = &h[self.index];
+        let a = meso_maps::HorizonDirection::new(w);
+        // Level 0 as the renderer reads it: each lobe its cell's horizons, point by point.
+        if let (0, Some(cells)) = (self.index, stats.cells.as_ref()) {
+            return match o {
+                None => self.per_lobe_index(py, |t, _| cells[t].visibility_along(&a)),
+                Some(o) => {
+                    let b = meso_maps::HorizonDirection::new(o);
+                    self.per_lobe_index(py, |t, _| cells[t].joint_visibility_along(&a, &b))
+                }
+            }
+            .map(Some);
+        }
         match o {
-            None => self.per_lobe_index(py, |i| h[i].visibility(w)).map(Some),
+            None => self.per_lobe_index(py, |_, i| h[i].visibility(w)).map(Some),
             Some(o) => {
                 let joint = stats.joint.as_ref().map(|j| &j[self.index]);
-                let (a, b) = (
-                    meso_maps::HorizonDirection::new(w),
-                    meso_maps::HorizonDirection::new(o),
-                );
-                self.per_lobe_index(py, |i| {
+                let b = meso_maps::HorizonDirection::new(o);
+                self.per_lobe_index(py, |_, i| {
                     h[i].joint_visibility_along(joint.and_then(|j| j.get(i)), &a, &b)
                 })
                 .map(Some)

@@ -79,7 +79,7 @@ fn main() {
         println!("lobe_stats, {what}: best {wall:.0} ms wall, mean {cpu:.0} ms CPU");
     }
     let ndf = NdfMapped::new(&pyr, &surface, tpu, true).unwrap();
-    for cells in [8.0, 32.0] {
+    for cells in [2.0, 8.0, 32.0] {
         let width = cells * f64::from(size) / tpu;
         for (what, shader) in [
             ("per lobe", Arc::new(ndf.clone()) as Arc<dyn Shader>),

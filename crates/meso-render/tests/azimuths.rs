@@ -23,6 +23,11 @@
 //! distribution (`meso_maps::HorizonJoint`) says how the two go together: on the facade the
 //! wall tops see both, the recess floors neither. Measured (2026-12-07): 0.74–0.93 of the
 //! truth; with the product 0.14–0.47.
+//!
+//! A fourth reads level 0 alone, where each cell's light and viewer are read together per
+//! sub-cell (`meso_maps::CellHorizon`), and a fifth footprints the viewer barely sees, which
+//! read as the plain average rather than as the ratio of two numbers near 0
+//! (docs/heightmaps.md, "One cell, light and viewer together; footprints barely seen").
 
 use glam::DVec3;
 use meso_core::material::Material;
@@ -44,6 +49,11 @@ fn mean(img: &Image) -> f64 {
 /// facets: the NDF-mapped material of its pyramid and the bump map shadowed by rays, both with
 /// shadowing (and so view weighting), and its texels per unit of texture coordinate.
 fn facade(height: f64) -> (Arc<dyn Shader>, Arc<dyn Shader>, f64) {
+    facade_to_level(height, usize::MAX)
+}
+
+/// [`facade`] with the NDF-mapped material reading levels up to `max_level` only.
+fn facade_to_level(height: f64, max_level: usize) -> (Arc<dyn Shader>, Arc<dyn Shader>, f64) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
     let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
     let map = HeightMap::load(&path, 1.0, height, Border::Wrap).unwrap();
@@ -54,7 +64,11 @@ fn facade(height: f64) -> (Arc<dyn Shader>, Arc<dyn Shader>, f64) {
     )
     .unwrap();
     let tpu = map.width() as f64;
-    let ndf: Arc<dyn Shader> = Arc::new(NdfMapped::new(&pyr, &surface, tpu, true).unwrap());
+    let ndf: Arc<dyn Shader> = Arc::new(
+        NdfMapped::new(&pyr, &surface, tpu, true)
+            .unwrap()
+            .with_max_level(max_level),
+    );
     let bump: Arc<dyn Shader> = Arc::new(BumpMapped::new(&map, &surface, tpu, true).unwrap());
     (ndf, bump, tpu)
 }
@@ -97,8 +111,18 @@ fn grazing_view_ratios(
     cells_per_pixel: &[f64],
     azimuths: &[f64],
 ) -> Vec<(f64, f64, f64)> {
+    grazing_view_ratios_to_level(view_deg, usize::MAX, cells_per_pixel, azimuths)
+}
+
+/// [`grazing_view_ratios`] with the NDF-mapped material reading levels up to `max_level`.
+fn grazing_view_ratios_to_level(
+    view_deg: f64,
+    max_level: usize,
+    cells_per_pixel: &[f64],
+    azimuths: &[f64],
+) -> Vec<(f64, f64, f64)> {
     let size = 48;
-    let (ndf, bump, tpu) = facade(20.0);
+    let (ndf, bump, tpu) = facade_to_level(20.0, max_level);
     let v = view_deg.to_radians();
     let camera = DVec3::new(0.0, -v.sin(), v.cos());
     let mut out = Vec::new();
@@ -154,5 +178,48 @@ fn a_light_beside_a_grazing_viewer_lights_what_the_viewer_sees() {
         worst.0,
         worst.1,
         worst.2
+    );
+}
+
+/// The worst ratio of `ratios` (the farthest from 1): (cells per pixel, light azimuth, ratio).
+fn worst(ratios: &[(f64, f64, f64)]) -> (f64, f64, f64) {
+    *ratios
+        .iter()
+        .max_by(|a, b| (a.2 - 1.0).abs().total_cmp(&(b.2 - 1.0).abs()))
+        .unwrap()
+}
+
+/// Level 0 alone, the viewer 45° from the normal, 4 cells a pixel (a footprint of 4 × 6 cells):
+/// a pixel's ratio of seen-and-lit to seen hangs on which points of each cell see both, which
+/// level 0 reads per sub-cell (`meso_maps::CellHorizon`). Measured (2026-12-07): 0.92–0.98;
+/// with each cell's two fractions multiplied, as before, 0.72–0.82.
+#[test]
+fn level_zero_sees_light_and_viewer_together_point_by_point() {
+    let w = worst(&grazing_view_ratios_to_level(
+        45.0,
+        0,
+        &[4.0],
+        &[0.0, 45.0, 135.0],
+    ));
+    assert!(
+        (w.2 - 1.0).abs() < 0.12,
+        "light azimuth {}°: {:.3}",
+        w.1,
+        w.2
+    );
+}
+
+/// The viewer 60° from the normal, the light on the other side, 2 cells a pixel: rows of pixels
+/// whose footprints the viewer cannot see, but whose box filter grazes a lit row of cells,
+/// read as the plain average there (as the bump map's pixel with no sample seen), not as that
+/// row's radiance. Measured (2026-12-07): 0.91–0.97; with the bare weighted mean 3.0–6.8.
+#[test]
+fn a_footprint_barely_seen_is_not_lit_by_the_edge_of_its_filter() {
+    let w = worst(&grazing_view_ratios(60.0, &[2.0], &[45.0, 90.0, 135.0]));
+    assert!(
+        (w.2 - 1.0).abs() < 0.15,
+        "light azimuth {}°: {:.3}",
+        w.1,
+        w.2
     );
 }

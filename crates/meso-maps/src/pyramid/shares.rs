@@ -19,6 +19,10 @@
 //!   angles interpolated bilinearly at 4 × 4 points of the cell ([`cell_cdf`]), rounded to
 //!   1/255 as stored and pooled as such (so a whole level reuses level 0's cells, and a tile
 //!   computes the same values). Level 0's lobes take their cell's.
+//! * Level 0 keeps its cells' horizons point by point too ([`LobeStats::cells`],
+//!   [`CellHorizon`]): the renderer shades level 0 with them, reading the light and the viewer
+//!   together per sub-cell, since one cell's distribution cannot say which of its points see
+//!   both (its joint grid degenerates to the product there).
 //!
 //! Until 2026-12-07 a lobe pooled its cells' horizon angles as a mean and a variance and read
 //! them through the ramp of [`crate::HorizonStats::visibility`]; on the steep facade map a
@@ -29,7 +33,7 @@
 use super::{Level, Pyramid};
 use crate::compact::Horizons;
 use crate::horizon::{
-    HorizonCdf, HorizonCdfSum, HorizonJoint, HorizonJointSum, HORIZON_DIRECTIONS,
+    CellHorizon, HorizonCdf, HorizonCdfSum, HorizonJoint, HorizonJointSum, HORIZON_DIRECTIONS,
 };
 use meso_core::sg;
 
@@ -120,6 +124,10 @@ pub struct LobeStats {
     /// azimuths 90°–180° apart, of a sample of [`JOINT_CELLS_SIDE`]² cells a texel, weighted
     /// by the projected area handed over). `None` with `horizon`.
     pub joint: Option<Vec<Vec<HorizonJoint>>>,
+    /// Level 0's cells' horizons kept point by point, per texel (`row · cols + col`): what
+    /// the renderer shades level 0 with, seeing the light and the viewer together
+    /// ([`CellHorizon`]). `None` with `horizon`.
+    pub cells: Option<Vec<CellHorizon>>,
 }
 
 /// What each lobe of `pyramid` stands for: its share of its texel's projected area and, when
@@ -164,6 +172,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
             shares: Vec::new(),
             horizon: None,
             joint: None,
+            cells: None,
         };
     };
     let h0 = l0.horizon.as_ref().filter(|_| horizons);
@@ -171,6 +180,12 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         (0..l0.texels())
             .into_par_iter()
             .map(|t| cell_cdf(pyramid, h, t))
+            .collect()
+    });
+    let cells: Option<Vec<CellHorizon>> = h0.map(|h| {
+        (0..l0.texels())
+            .into_par_iter()
+            .map(|t| cell_horizon(pyramid, h, t))
             .collect()
     });
     // Level 0: projected area per lobe, one cell per texel.
@@ -229,14 +244,17 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         shares,
         horizon,
         joint,
+        cells,
     }
 }
 
 /// [`lobe_stats_by_cell`] of the texels of a rectangle of one level: rows `rows` and columns
 /// `cols` of level `level`, row-major. `shares` holds the rectangle's lobes' shares in order
-/// (texel by texel, each texel's lobes as in [`Level::lobes`]); `horizon` (when `horizons` is
-/// true and the pyramid has horizon statistics) on level 0 one entry per texel of the
-/// rectangle (its cell's, as [`lobe_stats_by_cell`]), on coarser levels one per lobe. The very values (same bits) of [`lobe_stats_by_cell`]'s entries for
+/// (texel by texel, each texel's lobes as in [`Level::lobes`]); when `horizons` is true and
+/// the pyramid has horizon statistics, on level 0 `cells`, one per texel of the rectangle
+/// (its cell's, as [`LobeStats::cells`]), on coarser levels `horizon` (and from
+/// [`JOINT_FROM_LEVEL`] on `joint`), one per lobe. The very values (same bits) of
+/// [`lobe_stats_by_cell`]'s entries for
 /// those texels: a coarse texel's cells are visited in the same order (row by row of its
 /// footprint) and their shares and horizons computed alike; level 0's rows are visited in
 /// order, a coarse row of the rectangle at a time, so that a level 0 held by band
@@ -285,7 +303,8 @@ fn rect_stats(
     let h0 = l0.horizon.as_ref().filter(|_| horizons);
     let with_joint = h0.is_some() && level >= JOINT_FROM_LEVEL;
     let mut shares = Vec::new();
-    let mut hz: Option<Vec<HorizonCdf>> = h0.map(|_| Vec::new());
+    let mut hz: Option<Vec<HorizonCdf>> = h0.filter(|_| level > 0).map(|_| Vec::new());
+    let mut cz: Option<Vec<CellHorizon>> = h0.filter(|_| level == 0).map(|_| Vec::new());
     let mut jz: Option<Vec<HorizonJoint>> = with_joint.then(Vec::new);
     let (mut cell, mut logr, mut mass, mut acc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut jacc: Vec<HorizonJointSum> = Vec::new();
@@ -296,8 +315,8 @@ fn rect_stats(
             for col in cols.clone() {
                 let t = row * l.cols + col;
                 cell_shares(l0, t, &mut shares);
-                if let (Some(v), Some(h)) = (&mut hz, h0) {
-                    v.push(cell_cdf(pyramid, h, t));
+                if let (Some(v), Some(h)) = (&mut cz, h0) {
+                    v.push(cell_horizon(pyramid, h, t));
                 }
             }
             continue;
@@ -387,6 +406,7 @@ fn rect_stats(
         shares,
         horizon: hz,
         joint: jz,
+        cells: cz,
     }
 }
 
@@ -395,12 +415,15 @@ fn rect_stats(
 pub struct LevelStats {
     /// Per lobe, its share of its texel's projected area (as [`LobeStats::shares`]).
     pub shares: Vec<f64>,
-    /// The horizon distributions: per texel on level 0, per lobe on coarser levels (as
-    /// [`lobe_stats_by_cell`]'s); `None` without.
+    /// The horizon distributions per lobe, on levels above 0 (as [`lobe_stats_by_cell`]'s);
+    /// `None` without, and on level 0, which has `cells`.
     pub horizon: Option<Vec<HorizonCdf>>,
     /// Per lobe, the joint horizon distributions (as [`LobeStats::joint`]'s), from level
     /// [`JOINT_FROM_LEVEL`] on with `horizon`; `None` otherwise.
     pub joint: Option<Vec<HorizonJoint>>,
+    /// On level 0 (with horizon statistics), per texel its cell's horizons kept point by
+    /// point ([`CellHorizon`], as [`LobeStats::cells`]); `None` otherwise.
+    pub cells: Option<Vec<CellHorizon>>,
 }
 
 /// What one lobe of a texel stands for ([`texel_lobe_stats`]).
@@ -468,7 +491,12 @@ pub fn texel_lobe_stats(
 /// bilinear points' visibility is 0.86–1.03 of rays on the displaced surface where the corners'
 /// own is 0.71–0.82; `examples/horizon_models.rs`).
 pub(crate) fn cell_cdf(pyramid: &Pyramid, h: &Horizons, t: usize) -> HorizonCdf {
-    HorizonCdfSum::of_bilinear_cell(&cell_corners(pyramid, h, t), 1.0).finish()
+    cell_horizon(pyramid, h, t).cdf()
+}
+
+/// Level-0 cell `t`'s horizons kept point by point: its corners' angles ([`cell_cdf`]'s).
+pub(crate) fn cell_horizon(pyramid: &Pyramid, h: &Horizons, t: usize) -> CellHorizon {
+    CellHorizon::new(&cell_corners(pyramid, h, t))
 }
 
 /// Level-0 cell `t`'s four corner samples' horizon angles per direction, at `(x, y)` = (0, 0),
@@ -782,29 +810,37 @@ mod tests {
             let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
             let all = lobe_stats_by_cell(&pyr, true);
             let hz = all.horizon.as_ref().unwrap();
+            let cells = all.cells.as_ref().unwrap();
+            assert_eq!(cells.len(), pyr.levels[0].texels());
             for (k, l) in pyr.levels.iter().enumerate() {
                 let (r0, c0) = (l.rows / 3, l.cols / 2);
                 let (r1, c1) = ((r0 + 5).min(l.rows), (c0 + 3).min(l.cols));
                 let got = rect_lobe_stats_by_cell(&pyr, k, r0..r1, c0..c1, true);
-                let gh = got.horizon.as_ref().unwrap();
+                // Level 0 has its cells' horizons, the others their lobes' distributions.
+                assert_eq!(got.cells.is_some(), k == 0);
+                assert_eq!(got.horizon.is_some(), k > 0);
                 let (mut i, mut n) = (0, 0);
                 for r in r0..r1 {
                     for c in c0..c1 {
                         let t = r * l.cols + c;
                         if k == 0 {
-                            assert_eq!(gh[n], hz[0][t], "level 0 texel {t}");
+                            let gc = got.cells.as_ref().unwrap();
+                            assert_eq!(gc[n], cells[t], "level 0 texel {t}");
+                            // The cell's distribution is its horizons' distribution.
+                            assert_eq!(gc[n].cdf(), hz[0][t], "level 0 texel {t}");
                         }
                         n += 1;
                         for j in l.lobe_start[t] as usize..l.lobe_start[t + 1] as usize {
                             assert_eq!(got.shares[i].to_bits(), all.shares[k][j].to_bits());
                             if k > 0 {
+                                let gh = got.horizon.as_ref().unwrap();
                                 assert_eq!(gh[i], hz[k][j], "level {k} lobe {j}");
-                            }
-                            if k >= JOINT_FROM_LEVEL {
-                                let gj = got.joint.as_ref().unwrap();
-                                let aj = &all.joint.as_ref().unwrap()[k];
-                                assert_eq!(gj[i], aj[j], "joint, level {k} lobe {j}");
-                                assert!(gj[i].weight > 0.0 || gh[i].weight <= 0.0);
+                                if k >= JOINT_FROM_LEVEL {
+                                    let gj = got.joint.as_ref().unwrap();
+                                    let aj = &all.joint.as_ref().unwrap()[k];
+                                    assert_eq!(gj[i], aj[j], "joint, level {k} lobe {j}");
+                                    assert!(gj[i].weight > 0.0 || gh[i].weight <= 0.0);
+                                }
                             }
                             i += 1;
                         }
@@ -826,6 +862,8 @@ mod tests {
             let none = rect_lobe_stats_by_cell(&pyr, 1, 0..1, 0..1, false);
             assert!(none.horizon.is_none());
             assert!(none.joint.is_none());
+            let none0 = rect_lobe_stats_by_cell(&pyr, 0, 0..1, 0..1, false);
+            assert!(none0.cells.is_none() && none0.horizon.is_none());
         }
     }
 }

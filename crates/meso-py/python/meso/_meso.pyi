@@ -102,7 +102,8 @@ class Level:
     ) -> Optional[npt.NDArray[np.float64]]:
         """(rows, cols, K) per lobe, the fraction of the cells it stands for from which the unit
         ``direction`` (+z the normal, +y up in the image) is above the horizon, or with ``view``
-        (a unit vector) from which both are (shadowing and masking together); None for a
+        (a unit vector) from which both are (shadowing and masking together); on level 0 each
+        lobe reads its cell's horizons point by point, as the renderer does; None for a
         pyramid from a normal map."""
 
 class Pyramid:

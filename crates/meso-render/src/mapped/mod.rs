@@ -131,7 +131,12 @@
 //!   their own normal) and the footprint's sum is divided by its seen area, `Σ share_j · V_j(o)
 //!   · E_j[(m·o)⁺]/E_j[m_z⁺]` over the taps' lobes (the expectation by the lobe's 7 nodes; `a·o
 //!   / a_z` when the lobe lies well above both horizons). A texel of one normal shades as
-//!   without it (its weight cancels); a far view tends to the map's effective BRDF.
+//!   without it (its weight cancels); a far view tends to the map's effective BRDF. Level 0
+//!   reads each cell's visibility of the light and of the viewer together, per sub-cell
+//!   (`meso_maps::CellHorizon`); coarser levels per lobe (`meso_maps::HorizonJoint`). A
+//!   footprint of which under 1/16 is seen turns continuously into the plain average, which
+//!   one wholly hidden reads (the ratio of two numbers near 0 is not a pixel's colour:
+//!   `SEEN_FLOOR` in `ndf/view.rs`).
 //!
 //! Normal maps (and height maps with `shadowing = false`) are not weighted by default: with no
 //! heights nothing masks their steep facets from the viewer, whose `1/m_z` then dominates the

@@ -75,6 +75,8 @@ impl NdfMapped {
         let facet = Facet::new(&surface.transfer);
         let stats = lobe_stats_by_cell(pyramid, shadowing);
         let mut lobe_horizons = stats.horizon.map(Vec::into_iter);
+        // Level 0 shades with its cells' horizons, not its cells' distributions.
+        let mut cells = stats.cells;
         let mut lobe_joints = stats.joint.map(Vec::into_iter);
         let levels = pyramid
             .levels
@@ -82,7 +84,11 @@ impl NdfMapped {
             .zip(&stats.shares)
             .map(|(l, shares)| {
                 let horizon = if shadowing { l.horizon.clone() } else { None };
-                let lobe_horizon = lobe_horizons.as_mut().and_then(Iterator::next);
+                let lobe_horizon = lobe_horizons
+                    .as_mut()
+                    .and_then(Iterator::next)
+                    .filter(|_| l.span > 1);
+                let cells = if l.span == 1 { cells.take() } else { None };
                 let lobe_joint = lobe_joints
                     .as_mut()
                     .and_then(Iterator::next)
@@ -95,6 +101,7 @@ impl NdfMapped {
                     &facet,
                     horizon,
                     lobe_horizon,
+                    cells,
                     lobe_joint,
                     // Built up front: ready for view weighting, asked for or not.
                     true,
@@ -232,6 +239,7 @@ impl NdfMapped {
             &self.facet,
             horizon,
             stats.horizon,
+            stats.cells,
             stats.joint,
             self.view_weighting,
         )
@@ -328,8 +336,9 @@ fn check_levels(pyramid: &Pyramid, texels_per_uv: f64, shadowing: bool) -> Resul
 /// per texel its lobes as spherical Gaussians weighted by `shares` (each lobe's share of its
 /// texel's projected area, [`meso_maps::lobe_stats`], for the tile's lobes in texel order), and
 /// for Lambert and general facets its nodes; with the tile's texel and lobe horizon statistics
-/// and its lobes' joint horizon distributions when shadowing (`None` otherwise, and the joint
-/// also on levels below [`meso_maps::JOINT_FROM_LEVEL`]), and when `view_tables` what view weighting reads of each
+/// (on level 0 its cells' horizons, `cells`, instead of the lobes') and its lobes' joint
+/// horizon distributions when shadowing (`None` otherwise, and the joint also on levels below
+/// [`meso_maps::JOINT_FROM_LEVEL`]), and when `view_tables` what view weighting reads of each
 /// lobe (`ViewLobe`). Lobe sources (`src`) count the tile's lobes.
 #[allow(clippy::too_many_arguments)]
 fn node_level(
@@ -340,6 +349,7 @@ fn node_level(
     facet: &Facet,
     horizon: Option<meso_maps::Horizons>,
     lobe_horizon: Option<Vec<meso_maps::HorizonCdf>>,
+    cells: Option<Vec<meso_maps::CellHorizon>>,
     lobe_joint: Option<Vec<meso_maps::HorizonJoint>>,
     view_tables: bool,
 ) -> NodeLevel {
@@ -481,9 +491,8 @@ fn node_level(
         node_start,
         nodes,
         horizon,
-        // `lobe_stats_by_cell`: level 0's lobe horizons are per texel (its cell's).
-        lobe_horizon_by_texel: l.span == 1,
         lobe_horizon,
+        cells,
         lobe_joint,
         view_start,
         view,
@@ -500,7 +509,7 @@ mod tests {
     use meso_maps::{extract, fixtures, lobe_stats, ExtractParams, Source};
 
     /// [`NdfMapped::new`] builds one tile a level whose lobes are shadowed with the statistics
-    /// [`lobe_stats`] gives them (level 0's held once per texel), every texel with its
+    /// [`lobe_stats`] gives them (level 0 with its cells' horizons, once per texel), every texel with its
     /// pyramid texel's, and whose lobes and shapes are the pyramid's lobes' (axis, η) — on
     /// compact (`f32`) and `f64` levels, Phong and Lambert facets.
     #[test]
@@ -515,6 +524,7 @@ mod tests {
             let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
             let stats = lobe_stats(&pyr, true);
             let hz = stats.horizon.as_ref().unwrap();
+            let cells = stats.cells.as_ref().unwrap();
             for transfer in ["kind = \"phong\"\nexponent = 20.0", "kind = \"lambert\""] {
                 let surface =
                     Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
@@ -526,7 +536,7 @@ mod tests {
                     for (k, (l, tl)) in pyr.levels.iter().zip(&a.levels).enumerate() {
                         let nl = tl.tiles[0].get().unwrap();
                         let nl = &*nl;
-                        assert_eq!(nl.lobe_horizon_by_texel, k == 0);
+                        assert_eq!(nl.cells.is_some(), k == 0 && shadowing);
                         for t in 0..l.texels() {
                             let (s, e) = (nl.lobe_start[t] as usize, nl.lobe_start[t + 1] as usize);
                             for sg in &nl.lobes[s..e] {
@@ -537,8 +547,10 @@ mod tests {
                                 }
                                 let want = if sg.src == NO_LOBE {
                                     LobeHorizon::Texel(l.horizon.as_ref().unwrap().get(t))
+                                } else if k == 0 {
+                                    LobeHorizon::Cell(cells.get(t).unwrap())
                                 } else {
-                                    LobeHorizon::Lobe(hz[k][sg.src as usize])
+                                    LobeHorizon::Lobe(&hz[k][sg.src as usize])
                                 };
                                 assert_eq!(got, Some(want), "level {k} texel {t}");
                             }

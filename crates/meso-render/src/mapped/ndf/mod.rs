@@ -42,10 +42,12 @@ pub use filter::{
 };
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
-use meso_maps::{HorizonCdf, HorizonDirection, HorizonJoint, HorizonPair, HorizonStats, Horizons};
+use meso_maps::{
+    CellHorizon, HorizonCdf, HorizonDirection, HorizonJoint, HorizonPair, HorizonStats, Horizons,
+};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use view::{TexelView, ViewLobe};
+use view::{TexelView, ViewLobe, SEEN_FADE, SEEN_FLOOR};
 
 /// The tables of one tile of a level of the filtered pyramid (a rectangle of its texels; a
 /// whole level when built eagerly, [`NdfMapped::new`]): texels are indexed row-major within
@@ -70,12 +72,12 @@ struct NodeLevel {
     /// (`f32` on its big levels, read back as the same `f64` values: `Horizons::get`).
     horizon: Option<Horizons>,
     /// Per pyramid lobe of the tile (the `src` of [`SgLobe`] and [`Node`]), the horizon
-    /// distribution of the cells it stands for (with shadowing); on level 0
-    /// (`lobe_horizon_by_texel`) per texel instead, each its cell's, which all the texel's lobes
-    /// stand for (`meso_maps::lobe_stats_by_cell`).
+    /// distribution of the cells it stands for (with shadowing, above level 0).
     lobe_horizon: Option<Vec<HorizonCdf>>,
-    /// Whether `lobe_horizon` is indexed by texel (level 0) rather than by lobe.
-    lobe_horizon_by_texel: bool,
+    /// On level 0 (with shadowing), per texel its cell's horizons kept point by point, which
+    /// all the texel's lobes stand for (`meso_maps::LobeStats::cells`): the light and the
+    /// viewer read together per sub-cell.
+    cells: Option<Vec<CellHorizon>>,
     /// Per pyramid lobe of the tile, from level [`meso_maps::JOINT_FROM_LEVEL`] on (with
     /// shadowing), the joint horizon distribution of the cells it stands for: how it sees a
     /// light and a viewer far apart in azimuth together.
@@ -182,6 +184,10 @@ impl NodeLevel {
                 .as_ref()
                 .map_or(0, |v| v.len() * size_of::<HorizonCdf>())
             + self
+                .cells
+                .as_ref()
+                .map_or(0, |v| v.len() * size_of::<CellHorizon>())
+            + self
                 .lobe_joint
                 .as_ref()
                 .map_or(0, |v| v.len() * size_of::<HorizonJoint>())
@@ -203,42 +209,44 @@ impl TexLevel {
     }
 }
 
-/// What a lobe is shadowed with: its horizon distribution, or for [`NO_LOBE`] its texel's
-/// horizon statistics.
+/// What a lobe is shadowed with: its horizon distribution, on level 0 its cell's horizons,
+/// or for [`NO_LOBE`] its texel's horizon statistics.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum LobeHorizon {
+enum LobeHorizon<'a> {
     /// A lobe's own ([`meso_maps::lobe_stats_by_cell`]).
-    Lobe(HorizonCdf),
+    Lobe(&'a HorizonCdf),
+    /// The lobe's cell's, on level 0 ([`meso_maps::LobeStats::cells`]).
+    Cell(&'a CellHorizon),
     /// The texel's (`Level::horizon`).
     Texel(HorizonStats),
 }
 
-impl LobeHorizon {
+impl LobeHorizon<'_> {
     /// The fraction of what it stands for that sees the prepared direction `d`.
     #[inline]
     fn visibility_along(&self, d: &HorizonDirection) -> f64 {
         match self {
             LobeHorizon::Lobe(c) => c.visibility_along(d),
+            LobeHorizon::Cell(c) => c.visibility_along(d),
             LobeHorizon::Texel(s) => s.visibility_along(d),
         }
     }
 }
 
 impl NodeLevel {
-    /// What lobe `src` of texel `t` is shadowed with: the lobe's own distribution (per texel on
-    /// level 0, where all of a texel's lobes stand for its cell), or the texel's statistics for
-    /// [`NO_LOBE`]; `None` without shadowing.
+    /// What lobe `src` of texel `t` is shadowed with: the lobe's own distribution (on level 0
+    /// its cell's horizons, which all of a texel's lobes stand for), or the texel's statistics
+    /// for [`NO_LOBE`]; `None` without shadowing.
     #[inline]
-    fn lobe_horizon(&self, t: usize, src: u32) -> Option<LobeHorizon> {
-        match (&self.lobe_horizon, &self.horizon) {
-            (Some(lh), Some(th)) => Some(if src == NO_LOBE {
-                LobeHorizon::Texel(th.get(t))
-            } else if self.lobe_horizon_by_texel {
-                LobeHorizon::Lobe(lh[t])
-            } else {
-                LobeHorizon::Lobe(lh[src as usize])
-            }),
-            _ => None,
+    fn lobe_horizon(&self, t: usize, src: u32) -> Option<LobeHorizon<'_>> {
+        let th = self.horizon.as_ref()?;
+        if src == NO_LOBE {
+            return Some(LobeHorizon::Texel(th.get(t)));
+        }
+        match (&self.cells, &self.lobe_horizon) {
+            (Some(c), _) => Some(LobeHorizon::Cell(&c[t])),
+            (None, Some(lh)) => Some(LobeHorizon::Lobe(&lh[src as usize])),
+            (None, None) => None,
         }
     }
 
@@ -581,6 +589,10 @@ impl NdfMapped {
                     Some(p) => c.visibility_given(l.lobe_joint(src), p),
                     None => c.visibility_along(d),
                 },
+                (Some(d), Some(LobeHorizon::Cell(c))) => match pair {
+                    Some(p) => c.visibility_given(p),
+                    None => c.visibility_along(d),
+                },
                 (Some(d), Some(s)) => s.visibility_along(d),
                 _ => 1.0,
             }
@@ -800,7 +812,16 @@ impl Shader for NdfMapped {
                 views.push(tv);
             }
         }
-        // Nothing of the footprint seen (or no view weighting): the plain average.
+        // A footprint barely seen reads partly as the plain average, wholly when nothing of it
+        // is seen (or without view weighting): `plain_w`, the plain average's weight beside
+        // the seen area `den` (`SEEN_FLOOR`).
+        let plain_w = if self.view_weighting {
+            let total: f64 = taps.iter().map(|&(_, _, w)| w).sum();
+            let seen = den / (wo.z * total).max(1e-300);
+            SEEN_FLOOR * (1.0 - seen / SEEN_FADE).max(0.0) * wo.z * total
+        } else {
+            0.0
+        };
         let view_on = self.view_weighting && den > 0.0;
         for (k, &i) in wi.iter().enumerate() {
             let s = i + wo;
@@ -825,7 +846,7 @@ impl Shader for NdfMapped {
             let mut vis = 0.0f64;
             for (k, &(_, _, w)) in taps.iter().enumerate() {
                 let (l, t) = tap(k);
-                let v = self.texel(
+                let mut v = self.texel(
                     l,
                     t,
                     i,
@@ -835,6 +856,14 @@ impl Shader for NdfMapped {
                     view_on.then(|| &views[k]),
                     pair.as_ref(),
                 );
+                if view_on && plain_w > 0.0 {
+                    // The plain average's part: `(Σ w·seen·L + plain_w · Σ w·L) / (den +
+                    // plain_w)`.
+                    let p = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir), None, None);
+                    for c in 0..3 {
+                        v[c] += plain_w * p[c];
+                    }
+                }
                 if scalar {
                     acc[0] += w * v[0];
                 } else {
@@ -853,7 +882,11 @@ impl Shader for NdfMapped {
             } else {
                 1.0
             };
-            let s = if view_on { v / (i.z * den) } else { v / i.z };
+            let s = if view_on {
+                v / (i.z * (den + plain_w))
+            } else {
+                v / i.z
+            };
             for c in 0..3 {
                 let a = if scalar { acc[0] * colour[c] } else { acc[c] };
                 out[k][c] = (a * s) as f32 + self.diffuse[c];

@@ -3,6 +3,21 @@
 //! weights ([`TexelView`]). Module docs of [`crate::mapped`], "View weighting".
 
 use super::lobes;
+
+/// The plain average's weight beside a footprint's seen area, in units of the seen area of a
+/// flat footprint wholly seen (`o_z`): a footprint of which a fraction `D` is seen reads
+/// `(Σ seen · L + e · Σ L) / (D + e)` per unit of projected area, `e = SEEN_FLOOR · (1 −
+/// D / SEEN_FADE)⁺`. So a footprint barely seen, whose weighted mean is the ratio of two
+/// small numbers (the edge of a lit texel the box filter grazes, beside texels the viewer
+/// cannot see), turns continuously into the plain average, which one wholly hidden reads —
+/// as the bump map's pixel does with no sample seen. On the steep facade map (view 60°, light
+/// opposite it, 2 cells a pixel) the bare ratio lit rows of hidden pixels, 6.7× the bump
+/// map's mean (docs/heightmaps.md, "Footprints barely seen").
+pub(super) const SEEN_FLOOR: f64 = 1.0 / 64.0;
+
+/// The seen fraction of a footprint from which the plain average has no part
+/// ([`SEEN_FLOOR`]).
+pub(super) const SEEN_FADE: f64 = 4.0 * SEEN_FLOOR;
 use super::{NodeLevel, NO_LOBE};
 use glam::DVec3;
 

@@ -24,6 +24,9 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::FRAC_PI_2;
 
+mod cell;
+pub use cell::CellHorizon;
+
 /// Number of horizon directions kept per sample and footprint.
 pub const HORIZON_DIRECTIONS: usize = 8;
 
