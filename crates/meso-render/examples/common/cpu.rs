@@ -1,5 +1,6 @@
-//! Process CPU time for the timing examples (`bench_sphere`, `bench_mapped`, `bench_bvh`), which
-//! include this file by `#[path]`: CPU time stays meaningful on a loaded machine.
+//! Process CPU time for the timing examples (`bench_sphere`, `bench_mapped`, `bench_facade`,
+//! `bench_bvh`), which include this file by `#[path]`: CPU time stays meaningful on a loaded
+//! machine.
 
 /// User + system CPU seconds of this process (Linux `/proc/self/stat`, 100 ticks/s; 0 elsewhere).
 pub fn cpu_seconds() -> f64 {

@@ -583,7 +583,7 @@ impl NdfMapped {
     ) -> [f64; 3] {
         // With view weighting, a lobe's visibility of the light among what of it sees the
         // viewer (its view weight holds that part): the two together, not their product.
-        let vis = |src: u32| -> f64 {
+        let vis_of = |src: u32| -> f64 {
             match (dir, l.lobe_horizon(t, src)) {
                 (Some(d), Some(LobeHorizon::Lobe(c))) => match pair {
                     Some(p) => c.visibility_given(l.lobe_joint(src), p),
@@ -596,6 +596,23 @@ impl NdfMapped {
                 (Some(d), Some(s)) => s.visibility_along(d),
                 _ => 1.0,
             }
+        };
+        // Asked per node (Lambert, general facets), so the last lobe's value is kept: a lobe's
+        // nodes come together, and on level 0 every lobe of the texel reads its one cell.
+        let last = std::cell::Cell::new((NO_LOBE, f64::NAN));
+        let vis = |src: u32| -> f64 {
+            let key = if src != NO_LOBE && l.cells.is_some() {
+                NO_LOBE - 1
+            } else {
+                src
+            };
+            let (k, v) = last.get();
+            if k == key && !v.is_nan() {
+                return v;
+            }
+            let v = vis_of(src);
+            last.set((key, v));
+            v
         };
         let seen = |src: u32, m: DVec3| -> f64 {
             match view {
@@ -796,10 +813,16 @@ impl Shader for NdfMapped {
             views.clear();
             for (k, &(_, _, w)) in taps.iter().enumerate() {
                 let (l, t) = tap(k);
+                // On level 0 every lobe of the texel reads its one cell: read once.
+                let cell_o = std::cell::OnceCell::new();
                 let tv = TexelView::new(l, t, wo, |src| {
                     if per_lobe {
-                        l.lobe_horizon(t, src)
-                            .map_or(1.0, |s| s.visibility_along(dir_o))
+                        match l.lobe_horizon(t, src) {
+                            Some(LobeHorizon::Cell(c)) => {
+                                *cell_o.get_or_init(|| c.visibility_along(dir_o))
+                            }
+                            s => s.map_or(1.0, |s| s.visibility_along(dir_o)),
+                        }
                     } else if self.shadowing {
                         l.horizon
                             .as_ref()
