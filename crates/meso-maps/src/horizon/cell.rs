@@ -17,7 +17,9 @@
 //! 135°, the sub-cells together 0.98 / 0.81 / 0.93 (docs/heightmaps.md, "One cell, light and
 //! viewer together").
 
-use super::{HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonPair, HORIZON_DIRECTIONS};
+use super::{
+    bilinear_points, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonPair, HORIZON_DIRECTIONS,
+};
 
 /// Sub-cells a side (the points of [`HorizonCdfSum::of_bilinear_cell`]).
 const SUB: usize = 4;
@@ -100,15 +102,14 @@ impl CellHorizon {
             return Seen::Uniform(0.0);
         }
         let step = 1.0 / SUB as f64;
+        // The sub-cells' centres' angles, as the cell's distribution counts them.
+        let mids = bilinear_points(&a);
         Seen::Points(std::array::from_fn(|k| {
             let (x, y) = (
                 (k % SUB) as f64 * step + 0.5 * step,
                 (k / SUB) as f64 * step + 0.5 * step,
             );
-            let mid = a[0] * (1.0 - x) * (1.0 - y)
-                + a[1] * x * (1.0 - y)
-                + a[2] * (1.0 - x) * y
-                + a[3] * x * y;
+            let mid = mids[k];
             // The angle's gradient at the centre; across the sub-cell it spans ± half of
             // (|∂x| + |∂y|) times the side.
             let gx = (a[1] - a[0]) * (1.0 - y) + (a[3] - a[2]) * y;
