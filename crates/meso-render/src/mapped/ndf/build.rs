@@ -179,11 +179,13 @@ impl NdfMapped {
     /// (40 bytes) and what view weighting reads of it (`ViewLobe`, 24 bytes, built only with
     /// view weighting; with Lambert or general facets also its nodes, at most 7 of 40 bytes),
     /// per texel its lobe and view starts (4 + 4, and 4 more for the node start) and with
-    /// shadowing its horizon statistics
-    /// (68 bytes in `f32`, 136 in `f64`: eight azimuths), on level 0 its cell's horizon
-    /// distribution (132 bytes, `meso_maps::HorizonCdf`), per coarser lobe its distribution
-    /// (132). What `meso render` checks against the
-    /// memory budget, with the pyramid, before rendering (`docs/limits.md`).
+    /// shadowing its horizon statistics (68 bytes in `f32`, 136 in `f64`: eight azimuths),
+    /// on level 0 its cell's horizons (128 bytes, `meso_maps::CellHorizon`), per coarser lobe
+    /// its distribution (132, `meso_maps::HorizonCdf`) and from level
+    /// `meso_maps::JOINT_FROM_LEVEL` on its joint distribution (356, `meso_maps::HorizonJoint`);
+    /// per level the lobes' shapes (24 bytes per distinct exponent) and the table itself. What
+    /// `meso render` checks against the memory budget, with the pyramid, before rendering
+    /// (`docs/limits.md`).
     #[must_use]
     pub fn tables_bytes_bound(pyramid: &Pyramid, surface: &Material, shadowing: bool) -> u64 {
         let facet = Facet::new(&surface.transfer);
@@ -298,18 +300,30 @@ pub(super) fn level_tables_bytes(
     } else {
         size_of::<meso_maps::HorizonStats>()
     } as u64;
-    // Lobes as spherical Gaussians (40 bytes) and their texels' starts; with view weighting
-    // what it reads of each lobe (`ViewLobe`) and their starts.
-    let mut total = lobes * 40 + texels * 4;
+    // Lobes as spherical Gaussians (40 bytes) and their texels' starts (one more than the
+    // texels), their shapes (at most one a lobe, and a map file's 16-bit exponents give at
+    // most 65 536 and the cap's), and the table itself; with view weighting what it reads of
+    // each lobe (`ViewLobe`) and their starts.
+    let shapes = lobes.min(65_537) * size_of::<super::lobes::Shape>() as u64;
+    let mut total = lobes * 40 + (texels + 1) * 4 + shapes + size_of::<super::NodeLevel>() as u64;
     if view_tables {
-        total += lobes * size_of::<ViewLobe>() as u64 + texels * 4;
+        total += lobes * size_of::<ViewLobe>() as u64 + (texels + 1) * 4;
     }
     if general {
-        total += lobes * 7 * 40 + texels * 4;
+        total += lobes * 7 * 40 + (texels + 1) * 4;
     }
     if shadowing {
-        let cdf = size_of::<meso_maps::HorizonCdf>() as u64;
-        total += texels * hz + if k == 0 { texels * cdf } else { lobes * cdf };
+        // Level 0: each texel's cell's horizons; above: each lobe's distribution, and from
+        // `JOINT_FROM_LEVEL` on its joint distribution.
+        total += texels * hz;
+        total += if k == 0 {
+            texels * size_of::<meso_maps::CellHorizon>() as u64
+        } else {
+            lobes * size_of::<meso_maps::HorizonCdf>() as u64
+        };
+        if k >= meso_maps::JOINT_FROM_LEVEL {
+            total += lobes * size_of::<meso_maps::HorizonJoint>() as u64;
+        }
     }
     total
 }
@@ -745,6 +759,35 @@ mod tests {
             let turned = lazy_plain.with_view_weighting(true);
             assert_eq!((turned.tiles_built(), turned.table_cache_stats().0), (0, 0));
             assert_eq!(shade(&turned), want, "{transfer}");
+        }
+    }
+
+    /// The bound a budget is checked against holds every level's tables as built (with
+    /// shadowing and view weighting: the cells on level 0, the lobes' distributions above and
+    /// their joints from `JOINT_FROM_LEVEL` on), Phong and Lambert facets.
+    #[test]
+    fn level_tables_bytes_bound_the_tables_built() {
+        let map = fixtures::gaussian(32, 4.0, 0.1, 3, 0.01).unwrap();
+        let pyr = extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap();
+        for transfer in ["kind = \"phong\"\nexponent = 20.0", "kind = \"lambert\""] {
+            let surface = Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
+            let facet = Facet::new(&surface.transfer);
+            for shadowing in [true, false] {
+                let a = NdfMapped::new(&pyr, &surface, 32.0, shadowing).unwrap();
+                for (k, tl) in a.levels.iter().enumerate() {
+                    let built = tl.tiles[0].get().unwrap().bytes() as u64;
+                    let bound = level_tables_bytes(&pyr, k, &facet, shadowing, true);
+                    assert!(
+                        built <= bound,
+                        "level {k}: {built} B built, bound {bound} B"
+                    );
+                }
+            }
         }
     }
 }
