@@ -177,8 +177,9 @@ impl Texture {
     /// Phong exponent η, in the JSON form of a `phong-peaks` lobe, plus what it stands for
     /// ([`meso_maps::texel_lobe_stats`]): `share`, its share of the texel's projected area, and
     /// for height maps `horizon`, the horizon angles of the cells whose normals it stands for
-    /// along +x, +y, −x, −y as `{"mean": [4], "sd": [4]}` in degrees (`null` for normal maps),
-    /// from which the renderer takes the lobe's visibility of the light; the level's size and
+    /// along the eight stored azimuths as `{"azimuths": [8], "median": [8], "quartiles": [[8],
+    /// [8]]}` in degrees (`null` for normal maps), the distribution from which the renderer
+    /// takes the lobe's visibility of the light; the level's size and
     /// the texel's footprint in level-0 cells. Cost: one visit of each level-0 cell of the
     /// footprint (the whole map for the top level).
     ///
