@@ -62,6 +62,15 @@ impl Seen {
         }
     }
 
+    /// The fraction seeing both of two directions seen as `a` and `b`: per sub-cell the
+    /// smaller of the two fractions, averaged.
+    fn both(a: &Seen, b: &Seen) -> f64 {
+        match (a, b) {
+            (Seen::Uniform(x), Seen::Uniform(y)) => x.min(*y),
+            _ => (0..POINTS).map(|k| a.at(k).min(b.at(k))).sum::<f64>() / POINTS as f64,
+        }
+    }
+
     /// `a · self + b · other`, point by point.
     fn mix(self, a: f64, other: Seen, b: f64) -> Seen {
         match (self, other) {
@@ -148,7 +157,7 @@ impl CellHorizon {
     /// `joint(a, a) = visibility(a)` and `joint ≤ min(V(a), V(b))`.
     #[must_use]
     pub fn joint_visibility_along(&self, a: &HorizonDirection, b: &HorizonDirection) -> f64 {
-        self.both(a, b).0
+        Seen::both(&self.seen(a), &self.seen(b))
     }
 
     /// The fraction of what of the cell sees the view of `pair` that also sees its light (the
@@ -156,21 +165,12 @@ impl CellHorizon {
     /// holds the cell's visibility of the viewer, the two together.
     #[must_use]
     pub fn visibility_given(&self, pair: &HorizonPair) -> f64 {
-        let (both, seen) = self.both(&pair.light, &pair.view);
+        let (light, view) = (self.seen(&pair.light), self.seen(&pair.view));
+        let seen = view.mean();
         if seen <= 0.0 {
-            return self.visibility_along(&pair.light);
+            return light.mean();
         }
-        (both / seen).min(1.0)
-    }
-
-    /// The fraction seeing both `a` and `b`, and the fraction seeing `b`.
-    fn both(&self, a: &HorizonDirection, b: &HorizonDirection) -> (f64, f64) {
-        let (sa, sb) = (self.seen(a), self.seen(b));
-        let both = match (sa, sb) {
-            (Seen::Uniform(x), Seen::Uniform(y)) => x.min(y),
-            _ => (0..POINTS).map(|k| sa.at(k).min(sb.at(k))).sum::<f64>() / POINTS as f64,
-        };
-        (both, sb.mean())
+        (Seen::both(&light, &view) / seen).min(1.0)
     }
 }
 

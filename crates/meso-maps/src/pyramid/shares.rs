@@ -176,18 +176,16 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         };
     };
     let h0 = l0.horizon.as_ref().filter(|_| horizons);
-    let base_horizon: Option<Vec<HorizonCdf>> = h0.map(|h| {
-        (0..l0.texels())
-            .into_par_iter()
-            .map(|t| cell_cdf(pyramid, h, t))
-            .collect()
-    });
+    // Level 0's cells' horizons, and their distributions (`cell_cdf`'s) from them.
     let cells: Option<Vec<CellHorizon>> = h0.map(|h| {
         (0..l0.texels())
             .into_par_iter()
             .map(|t| cell_horizon(pyramid, h, t))
             .collect()
     });
+    let base_horizon: Option<Vec<HorizonCdf>> = cells
+        .as_ref()
+        .map(|c| c.par_iter().map(CellHorizon::cdf).collect());
     // Level 0: projected area per lobe, one cell per texel.
     let mut base = Vec::with_capacity(l0.lobes.len());
     for t in 0..l0.texels() {
@@ -203,7 +201,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         .map(|(k1, l)| {
             let level0 = Level0 {
                 shares: &base,
-                cells: base_horizon.as_deref(),
+                cdfs: base_horizon.as_deref(),
             };
             let st = rect_stats(
                 pyramid,
@@ -281,7 +279,7 @@ pub fn rect_lobe_stats_by_cell(
 /// and its cells' horizon distributions (indexed like its texels, [`cell_cdf`]'s).
 struct Level0<'a> {
     shares: &'a [f64],
-    cells: Option<&'a [HorizonCdf]>,
+    cdfs: Option<&'a [HorizonCdf]>,
 }
 
 /// [`rect_lobe_stats_by_cell`], reading level 0's shares and cells' distributions from
@@ -365,7 +363,7 @@ fn rect_stats(
                             &cell
                         }
                     };
-                    let cell_h = h0.map(|h| match level0.and_then(|z| z.cells) {
+                    let cell_h = h0.map(|h| match level0.and_then(|z| z.cdfs) {
                         Some(c) => HorizonCdfSum::of(&c[ct]),
                         None => HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)),
                     });

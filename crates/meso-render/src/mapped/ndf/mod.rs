@@ -599,20 +599,19 @@ impl NdfMapped {
         };
         // Asked per node (Lambert, general facets), so the last lobe's value is kept: a lobe's
         // nodes come together, and on level 0 every lobe of the texel reads its one cell.
-        let last = std::cell::Cell::new((NO_LOBE, f64::NAN));
+        let last = std::cell::Cell::new(None);
         let vis = |src: u32| -> f64 {
-            let key = if src != NO_LOBE && l.cells.is_some() {
-                NO_LOBE - 1
-            } else {
-                src
-            };
-            let (k, v) = last.get();
-            if k == key && !v.is_nan() {
-                return v;
+            // The key of what `src` reads: its own distribution, or its texel's cell.
+            let key = (src, src != NO_LOBE && l.cells.is_some());
+            let key = if key.1 { (NO_LOBE, true) } else { key };
+            match last.get() {
+                Some((k, v)) if k == key => v,
+                _ => {
+                    let v = vis_of(src);
+                    last.set(Some((key, v)));
+                    v
+                }
             }
-            let v = vis_of(src);
-            last.set((key, v));
-            v
         };
         let seen = |src: u32, m: DVec3| -> f64 {
             match view {
