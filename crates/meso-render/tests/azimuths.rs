@@ -21,8 +21,9 @@
 //!
 //! A third puts the light 90°–180° away from that viewer, where a lobe's joint horizon
 //! distribution (`meso_maps::HorizonJoint`) says how the two go together: on the facade the
-//! wall tops see both, the recess floors neither. Measured (2026-12-07): 0.74–0.93 of the
-//! truth; with the product 0.14–0.47.
+//! wall tops see both, the recess floors neither. Measured (2026-12-07): 0.94–0.95 of the
+//! truth, bound 10 %; with the grid read bilinearly between its nodes, as before, 0.74–0.93;
+//! with the product 0.14–0.47.
 //!
 //! A fourth reads level 0 alone, where each cell's light and viewer are read together per
 //! sub-cell (`meso_maps::CellHorizon`), and a fifth footprints the viewer barely sees, which
@@ -162,7 +163,7 @@ fn worst(ratios: &[(f64, f64, f64)]) -> (f64, f64, f64) {
 fn a_light_opposite_a_grazing_viewer_lights_the_tops_the_viewer_sees() {
     let w = worst(&grazing_view_ratios(60.0, &[16.0], &[45.0, 90.0, 135.0]));
     assert!(
-        (w.2 - 1.0).abs() < 0.3,
+        (w.2 - 1.0).abs() < 0.1,
         "light azimuth {}°: {:.3}",
         w.1,
         w.2
