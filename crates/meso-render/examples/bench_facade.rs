@@ -3,11 +3,13 @@
 //! the normal under a light 69° from it, at 4, 16 and 64 cells per pixel and box detail 0, 1
 //! and 2 (`NdfMapped::with_box_detail`):
 //!
-//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES]`
+//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS]`
 //!
 //! `SIZE`: image side in pixels (default 256); `FRAMES`: frames per case (default 3), after
-//! one untimed frame that builds nothing (the tables are built up front). Prints the best wall
-//! time and the mean process CPU time per case.
+//! one untimed frame that builds nothing (the tables are built up front); `MAX_LOBES`: the
+//! extraction's lobes per texel at most (default 4, the default of `ExtractParams`);
+//! `DETAILS`: box details timed, 0 to this (default 2). Prints the extraction's time, then
+//! the best wall time and the mean process CPU time per case.
 
 use glam::DVec3;
 use meso_core::material::Material;
@@ -26,18 +28,22 @@ mod cpu;
 fn main() {
     let args: Vec<usize> = std::env::args()
         .skip(1)
-        .map(|a| a.parse().expect("numbers: SIZE FRAMES"))
+        .map(|a| a.parse().expect("numbers: SIZE FRAMES MAX_LOBES DETAILS"))
         .collect();
     let size = args.first().copied().unwrap_or(256) as u32;
     let frames = args.get(1).copied().unwrap_or(3) as u32;
+    let mut params = ExtractParams::default();
+    params.fit.max_lobes = args.get(2).copied().unwrap_or(params.fit.max_lobes);
+    let details = args.get(3).copied().unwrap_or(2);
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
     let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).expect("the test facade");
-    let pyr = extract(
-        Source::Heights(&map),
-        &ExtractParams::default(),
-        &mut |_| {},
-    )
-    .expect("extraction");
+    let t0 = Instant::now();
+    let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");
+    println!(
+        "extraction, at most {} lobes a texel: {:.2} s wall",
+        params.fit.max_lobes,
+        t0.elapsed().as_secs_f64()
+    );
     let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").expect("material");
     let tpu = map.width() as f64;
     let v = 45f64.to_radians();
@@ -49,7 +55,7 @@ fn main() {
         ..RenderOptions::default()
     };
     for cells in [4.0, 16.0, 64.0] {
-        for detail in [0.0, 1.0, 2.0] {
+        for detail in (0..=details).map(|d| d as f64) {
             let ndf: Arc<dyn Shader> = Arc::new(
                 NdfMapped::new(&pyr, &surface, tpu, true)
                     .expect("material")
