@@ -62,10 +62,11 @@ pub use gonio::{Gonio, GonioParams};
 pub use heightmap::{probe, Border, HeightMap, ImageHeader, NormalConvention, NormalMap};
 pub use horizon::HorizonVisibility;
 pub use horizon::{
-    diagonal_angles, CellHorizon, HorizonCdf, HorizonCdfSum, HorizonDirection, HorizonJoint,
-    HorizonJointSum, HorizonMap, HorizonPair, HorizonStats, ANGLE_STEP, CDF_ELEVATIONS_DEG,
+    diagonal_angles, frechet_dependence, with_frechet_dependence, CellHorizon, HorizonCdf,
+    HorizonCdfSum, HorizonDirection, HorizonJoint, HorizonJointSum, HorizonMap, HorizonPair,
+    HorizonStats, HorizonToward, HorizonTowardSum, TowardReading, ANGLE_STEP, CDF_ELEVATIONS_DEG,
     CDF_NODES, DIAGONAL_AZIMUTHS_DEG, HORIZON_AZIMUTHS_DEG, HORIZON_DIRECTIONS,
-    JOINT_ELEVATIONS_DEG, JOINT_NODES, JOINT_PAIRS,
+    JOINT_ELEVATIONS_DEG, JOINT_NODES, JOINT_PAIRS, TOWARD_TILT,
 };
 pub use input::{Input, InputKind};
 pub use pyramid::{

@@ -25,7 +25,9 @@ use rayon::prelude::*;
 use std::f64::consts::FRAC_PI_2;
 
 mod cell;
+mod toward;
 pub use cell::CellHorizon;
+pub use toward::{HorizonToward, HorizonTowardSum, TowardReading, TOWARD_TILT};
 
 /// Number of horizon directions kept per sample and footprint.
 pub const HORIZON_DIRECTIONS: usize = 8;
@@ -542,6 +544,24 @@ impl HorizonCdf {
         (both / seen).min(1.0)
     }
 
+    /// The fractions of the footprint that see the light of `pair`, its viewer, and both
+    /// ([`HorizonCdf::joint_visibility_along`]'s rule, with `joint` as there), in one pass.
+    #[inline]
+    #[must_use]
+    pub fn pair_fractions(&self, joint: Option<&HorizonJoint>, pair: &HorizonPair) -> [f64; 3] {
+        let (l, v) = (&pair.light, &pair.view);
+        if self.weight <= 0.0 {
+            return [1.0; 3];
+        }
+        let joint = joint.filter(|j| j.weight > 0.0);
+        if l.fixed.is_some() || v.fixed.is_some() || (joint.is_none() && !pair.together) {
+            let (a, b) = (self.visibility_along(l), self.visibility_along(v));
+            return [a, b, a * b];
+        }
+        let (both, seen) = self.both(joint, l, v, pair.near);
+        [self.visibility_along(l), seen, both]
+    }
+
     /// The rule of [`HorizonCdf::joint_visibility_along`] for two directions of no fixed
     /// visibility whose pairs of stored azimuths `near` are 0° or 45° apart ([`near_pairs`]),
     /// and the second's visibility.
@@ -768,6 +788,23 @@ impl HorizonJoint {
     }
 }
 
+/// The dependence of a copula's value `c` at `(u, v)`, in [−1, 1]: `(c − uv)/(min(u, v) − uv)`
+/// at or above the product, `−(uv − c)/(uv − max(0, u + v − 1))` below it, 0 where the two
+/// Fréchet bounds meet (`u` or `v` 0 or 1). With [`with_frechet_dependence`], how a lobe's joint
+/// visibility of two directions is carried to the fractions of a part of it.
+#[must_use]
+pub fn frechet_dependence(u: f64, v: f64, c: f64) -> f64 {
+    dependence(u, v, c).unwrap_or(0.0)
+}
+
+/// The copula at `(u, v)` of dependence `t` in [−1, 1] ([`frechet_dependence`]): the product
+/// moved a share `t` of the way to the upper Fréchet bound `min(u, v)`, or `−t` of the way to
+/// the lower `max(0, u + v − 1)`.
+#[must_use]
+pub fn with_frechet_dependence(u: f64, v: f64, t: f64) -> f64 {
+    with_dependence(u, v, t)
+}
+
 /// The dependence of a copula's value `c` at `(u, v)`: `(c − uv)/(min(u, v) − uv)` at or above
 /// the product, `−(uv − c)/(uv − max(0, u + v − 1))` below it, in [−1, 1]; `None` where the two
 /// Fréchet bounds meet (`u` or `v` 0 or 1).
@@ -929,6 +966,22 @@ impl HorizonPair {
                 && view.fixed.is_none()
                 && (0..4).any(|k| near[k] && wl[k / 2] * wv[k % 2] > 0.0),
         }
+    }
+
+    /// The weight of the pairs of their stored azimuths 90° or more apart, in [0, 1]: where
+    /// light and viewer are read apart (the rest, 0° or 45° apart, are read together as one
+    /// event along nearly one azimuth). 0 where either direction's visibility is fixed.
+    /// Continuous in both directions' azimuths.
+    #[must_use]
+    pub fn far_weight(&self) -> f64 {
+        if self.light.fixed.is_some() || self.view.fixed.is_some() {
+            return 0.0;
+        }
+        let (wl, wv) = ([self.light.c2, self.light.s2], [self.view.c2, self.view.s2]);
+        (0..4)
+            .filter(|&k| !self.near[k])
+            .map(|k| wl[k / 2] * wv[k % 2])
+            .sum()
     }
 }
 

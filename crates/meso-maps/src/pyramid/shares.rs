@@ -33,7 +33,8 @@
 use super::{Level, Pyramid};
 use crate::compact::Horizons;
 use crate::horizon::{
-    CellHorizon, HorizonCdf, HorizonCdfSum, HorizonJoint, HorizonJointSum, HORIZON_DIRECTIONS,
+    CellHorizon, HorizonCdf, HorizonCdfSum, HorizonJoint, HorizonJointSum, HorizonToward,
+    HorizonTowardSum, HORIZON_DIRECTIONS,
 };
 use meso_core::sg;
 
@@ -124,6 +125,11 @@ pub struct LobeStats {
     /// azimuths 90°–180° apart, of a sample of [`JOINT_CELLS_SIDE`]² cells a texel, weighted
     /// by the projected area handed over). `None` with `horizon`.
     pub joint: Option<Vec<Vec<HorizonJoint>>>,
+    /// Per level and lobe, from level [`JOINT_FROM_LEVEL`] on (empty below), the horizon
+    /// distributions of the facets the lobe stands for that are turned towards each stored
+    /// azimuth ([`HorizonToward`]: visibility conditioned on the normal within the lobe),
+    /// weighted by the projected area handed over. `None` with `horizon`.
+    pub toward: Option<Vec<Vec<HorizonToward>>>,
     /// Level 0's cells' horizons kept point by point, per texel (`row · cols + col`): what
     /// the renderer shades level 0 with, seeing the light and the viewer together
     /// ([`CellHorizon`]). `None` with `horizon`.
@@ -172,6 +178,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
             shares: Vec::new(),
             horizon: None,
             joint: None,
+            toward: None,
             cells: None,
         };
     };
@@ -194,8 +201,12 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     // The coarse levels as whole rectangles: a row of texels' sums at a time (520 bytes a lobe
     // of the row), not a level's.
     #[allow(clippy::type_complexity)]
-    let coarse: Vec<(Vec<f64>, Option<Vec<HorizonCdf>>, Option<Vec<HorizonJoint>>)> = pyramid
-        .levels[1..]
+    let coarse: Vec<(
+        Vec<f64>,
+        Option<Vec<HorizonCdf>>,
+        Option<Vec<HorizonJoint>>,
+        Option<Vec<HorizonToward>>,
+    )> = pyramid.levels[1..]
         .par_iter()
         .enumerate()
         .map(|(k1, l)| {
@@ -211,7 +222,7 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
                 horizons,
                 Some(&level0),
             );
-            (st.shares, st.horizon, st.joint)
+            (st.shares, st.horizon, st.joint, st.toward)
         })
         .collect();
     let base_horizon = base_horizon.map(|h| {
@@ -228,8 +239,9 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     });
     let mut shares = vec![base];
     let mut joint = base_horizon.as_ref().map(|_| vec![Vec::new()]);
+    let mut toward = base_horizon.as_ref().map(|_| vec![Vec::new()]);
     let mut horizon = base_horizon.map(|h| vec![h]);
-    for (s, h, j) in coarse {
+    for (s, h, j, tw) in coarse {
         shares.push(s);
         if let (Some(v), Some(h)) = (&mut horizon, h) {
             v.push(h);
@@ -237,11 +249,15 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         if let Some(v) = &mut joint {
             v.push(j.unwrap_or_default());
         }
+        if let Some(v) = &mut toward {
+            v.push(tw.unwrap_or_default());
+        }
     }
     LobeStats {
         shares,
         horizon,
         joint,
+        toward,
         cells,
     }
 }
@@ -304,8 +320,10 @@ fn rect_stats(
     let mut hz: Option<Vec<HorizonCdf>> = h0.filter(|_| level > 0).map(|_| Vec::new());
     let mut cz: Option<Vec<CellHorizon>> = h0.filter(|_| level == 0).map(|_| Vec::new());
     let mut jz: Option<Vec<HorizonJoint>> = with_joint.then(Vec::new);
+    let mut tz: Option<Vec<HorizonToward>> = with_joint.then(Vec::new);
     let (mut cell, mut logr, mut mass, mut acc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut jacc: Vec<HorizonJointSum> = Vec::new();
+    let mut tacc: Vec<HorizonTowardSum> = Vec::new();
     // A coarse row's texels: their lobes and, at `off[i]`, their accumulators.
     let (mut lobes, mut off) = (Vec::new(), Vec::new());
     for row in rows {
@@ -335,6 +353,8 @@ fn rect_stats(
         acc.resize(if h0.is_some() { n } else { 0 }, HorizonCdfSum::default());
         jacc.clear();
         jacc.resize(if with_joint { n } else { 0 }, HorizonJointSum::default());
+        tacc.clear();
+        tacc.resize(if with_joint { n } else { 0 }, HorizonTowardSum::default());
         // Level 0's rows in order (a level held by band decodes each band once), each texel's
         // cells row by row of its footprint as before: the same sums in the same order.
         for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
@@ -346,10 +366,10 @@ fn rect_stats(
                 } else {
                     &mut acc[..]
                 };
-                let jacc = if with_joint {
-                    &mut jacc[off[i]..off[i + 1]]
+                let (jacc, tacc) = if with_joint {
+                    (&mut jacc[off[i]..off[i + 1]], &mut tacc[off[i]..off[i + 1]])
                 } else {
-                    &mut jacc[..]
+                    (&mut jacc[..], &mut tacc[..])
                 };
                 for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
                     let ct = r * l0.cols + c;
@@ -373,10 +393,13 @@ fn rect_stats(
                         ),
                         _ => None,
                     };
-                    hand_cell(l0, ct, cell_s, l, pa, pb, &mut logr, |j, m| {
+                    hand_cell(l0, ct, cell_s, l, pa, pb, &mut logr, |j, m, normal| {
                         mass[j - pa] += m;
                         if let Some(s) = &cell_h {
                             acc[j - pa].add(s, m);
+                            if with_joint {
+                                tacc[j - pa].add(s, normal, m);
+                            }
                         }
                         if let Some(s) = &cell_j {
                             jacc[j - pa].add(s, m);
@@ -398,12 +421,20 @@ fn rect_stats(
             if let Some(v) = &mut jz {
                 v.extend(jacc[off[i]..off[i + 1]].iter().map(HorizonJointSum::finish));
             }
+            if let Some(v) = &mut tz {
+                v.extend(
+                    tacc[off[i]..off[i + 1]]
+                        .iter()
+                        .map(HorizonTowardSum::finish),
+                );
+            }
         }
     }
     LevelStats {
         shares,
         horizon: hz,
         joint: jz,
+        toward: tz,
         cells: cz,
     }
 }
@@ -419,6 +450,10 @@ pub struct LevelStats {
     /// Per lobe, the joint horizon distributions (as [`LobeStats::joint`]'s), from level
     /// [`JOINT_FROM_LEVEL`] on with `horizon`; `None` otherwise.
     pub joint: Option<Vec<HorizonJoint>>,
+    /// Per lobe, the distributions of its facets turned towards each stored azimuth (as
+    /// [`LobeStats::toward`]'s), from level [`JOINT_FROM_LEVEL`] on with `horizon`; `None`
+    /// otherwise.
+    pub toward: Option<Vec<HorizonToward>>,
     /// On level 0 (with horizon statistics), per texel its cell's horizons kept point by
     /// point ([`CellHorizon`], as [`LobeStats::cells`]); `None` otherwise.
     pub cells: Option<Vec<CellHorizon>>,
@@ -462,7 +497,7 @@ pub fn texel_lobe_stats(
             shares.clear();
             cell_shares(l0, ct, &mut shares);
             let cell_h = h0.map(|h| HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)));
-            hand_cell(l0, ct, &shares, l, pa, pb, &mut logr, |j, m| {
+            hand_cell(l0, ct, &shares, l, pa, pb, &mut logr, |j, m, _| {
                 mass[j - pa] += m;
                 if let (Some(hz), Some(s)) = (&mut hz, &cell_h) {
                     hz[j - pa].add(s, m);
@@ -556,7 +591,8 @@ fn cell_shares(l0: &Level, t: usize, out: &mut Vec<f64>) {
 }
 
 /// Hands level-0 cell `ct`'s projected area (its lobes' `shares`) to the lobes `pa..pb` of
-/// level `l` by the mixture's posterior: `give(j, m)` for each lobe `j` and area `m` > 0.
+/// level `l` by the mixture's posterior: `give(j, m, normal)` for each lobe `j` and area
+/// `m` > 0, `normal` the axis of the level-0 lobe it comes from.
 /// `logr` is scratch.
 #[allow(clippy::too_many_arguments)]
 fn hand_cell(
@@ -567,7 +603,7 @@ fn hand_cell(
     pa: usize,
     pb: usize,
     logr: &mut Vec<f64>,
-    mut give: impl FnMut(usize, f64),
+    mut give: impl FnMut(usize, f64, glam::DVec3),
 ) {
     if pa == pb {
         return;
@@ -602,14 +638,14 @@ fn hand_cell(
                         .total_cmp(&l.lobes.get(y).axis.dot(m))
                 })
                 .unwrap_or(pa);
-            give(near, mj);
+            give(near, mj, m);
             continue;
         }
         let z: f64 = logr.iter().map(|v| (v - best).exp()).sum();
         for (i, v) in logr.iter().enumerate() {
             let r = (v - best).exp() / z;
             if r > 0.0 {
-                give(pa + i, mj * r);
+                give(pa + i, mj * r, m);
             }
         }
     }
@@ -672,6 +708,45 @@ mod tests {
     /// pyramid's. Median horizons along +x, measured (32², period 16, level 4): bumps 0.321
     /// rad for the flat lobe (it also stands for the normals tilted towards −x, which see their
     /// own cylinder's top along +x) and 0.589 for the steep one; grooves 0.979 and 0.250.
+    /// Each lobe's facets turned towards a stored azimuth are a part of it: their share and
+    /// distribution never claim more than the lobe's own (to rounding), on bumps and grooves;
+    /// levels below `JOINT_FROM_LEVEL` have none.
+    #[test]
+    fn facets_turned_towards_an_azimuth_are_part_of_their_lobe() {
+        for sign in [1.0, -1.0] {
+            let map = fixtures::half_cylinders(32, 16, 1.0, sign).unwrap();
+            let pyr = extract(
+                Source::Heights(&map),
+                &ExtractParams::default(),
+                &mut |_| {},
+            )
+            .unwrap();
+            let st = lobe_stats(&pyr, true);
+            let (hz, tw) = (st.horizon.as_ref().unwrap(), st.toward.as_ref().unwrap());
+            let mut some = false;
+            for (k, (hl, tl)) in hz.iter().zip(tw).enumerate() {
+                if k < JOINT_FROM_LEVEL {
+                    assert!(tl.is_empty(), "level {k}");
+                    continue;
+                }
+                assert_eq!(tl.len(), hl.len(), "level {k}");
+                for (c, t) in hl.iter().zip(tl) {
+                    for d in 0..HORIZON_DIRECTIONS {
+                        let s = f64::from(t.share[d]) / 255.0;
+                        some |= s > 0.1;
+                        for n in 0..crate::CDF_NODES {
+                            let f = f64::from(c.frac[d][n]) / 255.0;
+                            let g = f64::from(t.frac[d][n]) / 255.0;
+                            assert!(s * g <= f + 2.0 / 255.0, "level {k}: {s} · {g} > {f}");
+                            assert!(f - s * g <= 1.0 - s + 2.0 / 255.0, "level {k}");
+                        }
+                    }
+                }
+            }
+            assert!(some, "the cylinders' flanks are turned towards ±x");
+        }
+    }
+
     #[test]
     fn lobe_horizons_tell_bumps_from_grooves() {
         for sign in [1.0, -1.0] {

@@ -78,6 +78,7 @@ impl NdfMapped {
         // Level 0 shades with its cells' horizons, not its cells' distributions.
         let mut cells = stats.cells;
         let mut lobe_joints = stats.joint.map(Vec::into_iter);
+        let mut lobe_towards = stats.toward.map(Vec::into_iter);
         let levels = pyramid
             .levels
             .iter()
@@ -93,6 +94,10 @@ impl NdfMapped {
                     .as_mut()
                     .and_then(Iterator::next)
                     .filter(|j| !j.is_empty());
+                let lobe_toward = lobe_towards
+                    .as_mut()
+                    .and_then(Iterator::next)
+                    .filter(|j| !j.is_empty());
                 let table = node_level(
                     l,
                     0..l.rows,
@@ -103,6 +108,7 @@ impl NdfMapped {
                     lobe_horizon,
                     cells,
                     lobe_joint,
+                    lobe_toward,
                     // Built up front: ready for view weighting, asked for or not.
                     true,
                 );
@@ -182,7 +188,8 @@ impl NdfMapped {
     /// shadowing its horizon statistics (68 bytes in `f32`, 136 in `f64`: eight azimuths),
     /// on level 0 its cell's horizons (128 bytes, `meso_maps::CellHorizon`), per coarser lobe
     /// its distribution (132, `meso_maps::HorizonCdf`) and from level
-    /// `meso_maps::JOINT_FROM_LEVEL` on its joint distribution (356, `meso_maps::HorizonJoint`);
+    /// `meso_maps::JOINT_FROM_LEVEL` on its joint distribution (356, `meso_maps::HorizonJoint`)
+    /// and its facets turned towards each azimuth (136, `meso_maps::HorizonToward`);
     /// per level the lobes' shapes (24 bytes per distinct exponent) and the table itself. What
     /// `meso render` checks against the memory budget, with the pyramid, before rendering
     /// (`docs/limits.md`).
@@ -243,6 +250,7 @@ impl NdfMapped {
             stats.horizon,
             stats.cells,
             stats.joint,
+            stats.toward,
             self.view_weighting,
         )
     }
@@ -322,7 +330,9 @@ pub(super) fn level_tables_bytes(
             lobes * size_of::<meso_maps::HorizonCdf>() as u64
         };
         if k >= meso_maps::JOINT_FROM_LEVEL {
-            total += lobes * size_of::<meso_maps::HorizonJoint>() as u64;
+            total += lobes
+                * (size_of::<meso_maps::HorizonJoint>() + size_of::<meso_maps::HorizonToward>())
+                    as u64;
         }
     }
     total
@@ -365,6 +375,7 @@ fn node_level(
     lobe_horizon: Option<Vec<meso_maps::HorizonCdf>>,
     cells: Option<Vec<meso_maps::CellHorizon>>,
     lobe_joint: Option<Vec<meso_maps::HorizonJoint>>,
+    lobe_toward: Option<Vec<meso_maps::HorizonToward>>,
     view_tables: bool,
 ) -> NodeLevel {
     // Lambert facets read nodes too: their response clips `m·i` and `m·o` (see `texel`).
@@ -508,6 +519,7 @@ fn node_level(
         lobe_horizon,
         cells,
         lobe_joint,
+        lobe_toward,
         view_start,
         view,
     }

@@ -417,31 +417,23 @@ pub(super) fn microfacet_texel(
     wi: DVec3,
     wo: DVec3,
     h: DVec3,
-    vis: impl Fn(u32) -> f64,
+    vis: impl Fn(u32, DVec3) -> f64,
     view: impl Fn(u32, DVec3) -> f64,
 ) -> f64 {
     let mut a = 0.0;
     if let Some(core) = core {
         for lobe in lobes {
-            // Its visibility of the light, once for the core's peaks.
-            let mut lobe_vis = None;
             for &(eta, lambda, norm) in &core.terms[..core.len] {
                 let Some((v, m)) = phong_lobe(lobe, shapes, wi, h, eta, lambda, CORE_CUTOFF) else {
                     continue;
                 };
                 let g = d.vis_isotropic(m.dot(wi), m.dot(wo));
                 if g > 0.0 {
-                    a += v
-                        * norm
-                        * g
-                        * *lobe_vis.get_or_insert_with(|| vis(lobe.src))
-                        * view(lobe.src, m);
+                    a += v * norm * g * vis(lobe.src, m) * view(lobe.src, m);
                 }
             }
         }
     }
-    // The nodes of a lobe are consecutive: its visibility once for them.
-    let mut last: Option<(u32, f64)> = None;
     for nd in nodes {
         let (ci, co) = (nd.n.dot(wi), nd.n.dot(wo));
         let v = d.vis_isotropic(ci, co);
@@ -451,15 +443,7 @@ pub(super) fn microfacet_texel(
                 Some(core) if !nd.whole => d.d_isotropic(ch) - core.d(ch),
                 _ => d.d_isotropic(ch),
             };
-            let nv = match last {
-                Some((src, nv)) if src == nd.src => nv,
-                _ => {
-                    let nv = vis(nd.src);
-                    last = Some((nd.src, nv));
-                    nv
-                }
-            };
-            a += nd.w * dd * v * ci * nv * view(nd.src, nd.n);
+            a += nd.w * dd * v * ci * vis(nd.src, nd.n) * view(nd.src, nd.n);
         }
     }
     a.max(0.0)
@@ -601,7 +585,7 @@ mod tests {
                             wi,
                             wo,
                             h,
-                            |_| 1.0,
+                            |_, _| 1.0,
                             |_, _| 1.0,
                         ),
                         None => microfacet_texel(
@@ -613,7 +597,7 @@ mod tests {
                             wi,
                             wo,
                             h,
-                            |_| 1.0,
+                            |_, _| 1.0,
                             |_, _| 1.0,
                         ),
                     }

@@ -43,7 +43,8 @@ pub use filter::{
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
 use meso_maps::{
-    CellHorizon, HorizonCdf, HorizonDirection, HorizonJoint, HorizonPair, HorizonStats, Horizons,
+    frechet_dependence, with_frechet_dependence, CellHorizon, HorizonCdf, HorizonDirection,
+    HorizonJoint, HorizonPair, HorizonStats, HorizonToward, Horizons, TowardReading,
 };
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -82,6 +83,10 @@ struct NodeLevel {
     /// shadowing), the joint horizon distribution of the cells it stands for: how it sees a
     /// light and a viewer far apart in azimuth together.
     lobe_joint: Option<Vec<HorizonJoint>>,
+    /// Per pyramid lobe of the tile, from level [`meso_maps::JOINT_FROM_LEVEL`] on (with
+    /// shadowing), the horizon distributions of its facets turned towards each stored azimuth:
+    /// each of its nodes reads the light and the viewer by its own normal.
+    lobe_toward: Option<Vec<HorizonToward>>,
     /// Per texel, its pyramid lobes `view[view_start[t]..view_start[t + 1]]` (indexed by the
     /// `src` of [`SgLobe`] and [`Node`]), what view weighting reads of each
     /// ([`NdfMapped::with_view_weighting`]); both empty in tiles built on demand without it.
@@ -191,6 +196,10 @@ impl NodeLevel {
                 .lobe_joint
                 .as_ref()
                 .map_or(0, |v| v.len() * size_of::<HorizonJoint>())
+            + self
+                .lobe_toward
+                .as_ref()
+                .map_or(0, |v| v.len() * size_of::<HorizonToward>())
             + self.view_start.len() * 4
             + self.view.len() * size_of::<ViewLobe>()
             + size_of::<NodeLevel>()
@@ -233,6 +242,57 @@ impl LobeHorizon<'_> {
     }
 }
 
+/// What a lobe's nodes read of the light: one value for all of them, or each by its own normal
+/// (from level [`meso_maps::JOINT_FROM_LEVEL`] on, [`meso_maps::HorizonToward`]).
+#[derive(Clone, Copy, Debug)]
+enum LobeRead {
+    /// The lobe's visibility of the light (given the viewer's, with view weighting).
+    Uniform(f64),
+    /// Per normal: the light's reading, and with view weighting the lobe's visibility of the
+    /// viewer `u` and the dependence `theta` each normal's fraction of the light takes with it.
+    Toward {
+        light: TowardReading,
+        given: Option<Given>,
+    },
+}
+
+/// With view weighting, what a lobe read per normal ([`LobeRead::Toward`]) holds of the viewer:
+/// its visibility `u`, the dependence `theta` each normal's fraction of the light takes with it,
+/// and the weight `far` of the reading per normal beside the lobe's own value `own`
+/// (`meso_maps::HorizonPair::far_weight`: a light beside the viewer's azimuth is read with it as
+/// one event).
+#[derive(Clone, Copy, Debug)]
+struct Given {
+    u: f64,
+    theta: f64,
+    far: f64,
+    own: f64,
+}
+
+impl LobeRead {
+    /// The visibility of the light of the lobe's facets of unit normal `m`: with view
+    /// weighting, among those that see the viewer (their joint fraction over `u`).
+    #[inline]
+    fn light(&self, m: DVec3) -> f64 {
+        match self {
+            LobeRead::Uniform(v) => *v,
+            LobeRead::Toward { light, given: None } => light.at(m),
+            LobeRead::Toward {
+                light,
+                given: Some(g),
+            } => {
+                let a = light.at(m);
+                let per_normal = if g.u <= 0.0 {
+                    a
+                } else {
+                    (with_frechet_dependence(a, g.u, g.theta) / g.u).min(1.0)
+                };
+                g.far * per_normal + (1.0 - g.far) * g.own
+            }
+        }
+    }
+}
+
 impl NodeLevel {
     /// What lobe `src` of texel `t` is shadowed with: the lobe's own distribution (on level 0
     /// its cell's horizons, which all of a texel's lobes stand for), or the texel's statistics
@@ -255,6 +315,13 @@ impl NodeLevel {
     #[inline]
     fn lobe_joint(&self, src: u32) -> Option<&HorizonJoint> {
         self.lobe_joint.as_ref()?.get(src as usize)
+    }
+
+    /// Lobe `src`'s facets turned towards each stored azimuth, where the level has them
+    /// (`None` for [`NO_LOBE`]).
+    #[inline]
+    fn lobe_toward(&self, src: u32) -> Option<&HorizonToward> {
+        self.lobe_toward.as_ref()?.get(src as usize)
     }
 }
 
@@ -567,7 +634,9 @@ impl NdfMapped {
     /// visibility is then that of what of the lobe sees the viewer (`pair`: the light and the
     /// viewer prepared together)
     /// ([`meso_maps::HorizonCdf::visibility_given`]), so that the two together are the
-    /// lobe's joint visibility, not the product of its two.
+    /// lobe's joint visibility, not the product of its two. From
+    /// [`meso_maps::JOINT_FROM_LEVEL`] on each node of a lobe reads the light by its own normal
+    /// ([`meso_maps::HorizonToward`], `LobeRead`).
     #[inline]
     #[allow(clippy::too_many_arguments)]
     fn texel(
@@ -582,33 +651,70 @@ impl NdfMapped {
         pair: Option<&HorizonPair>,
     ) -> [f64; 3] {
         // With view weighting, a lobe's visibility of the light among what of it sees the
-        // viewer (its view weight holds that part): the two together, not their product.
-        let vis_of = |src: u32| -> f64 {
+        // viewer (its view weight holds that part): the two together, not their product. From
+        // `JOINT_FROM_LEVEL` on each node reads both by its own normal.
+        let read_of = |src: u32| -> LobeRead {
             match (dir, l.lobe_horizon(t, src)) {
-                (Some(d), Some(LobeHorizon::Lobe(c))) => match pair {
-                    Some(p) => c.visibility_given(l.lobe_joint(src), p),
-                    None => c.visibility_along(d),
-                },
-                (Some(d), Some(LobeHorizon::Cell(c))) => match pair {
+                (Some(d), Some(LobeHorizon::Lobe(c))) => {
+                    if let Some(tw) = l.lobe_toward(src) {
+                        return match pair {
+                            Some(p) => {
+                                let far = p.far_weight();
+                                if far <= 0.0 {
+                                    return LobeRead::Uniform(
+                                        c.visibility_given(l.lobe_joint(src), p),
+                                    );
+                                }
+                                // The lobe's own fractions that see the light, the viewer and
+                                // both ([`HorizonCdf::visibility_given`]'s from them).
+                                let [vl, u, both] = c.pair_fractions(l.lobe_joint(src), p);
+                                let own = if u > 0.0 { (both / u).min(1.0) } else { vl };
+                                let light = tw.reading(c, d);
+                                let theta = frechet_dependence(vl, u, both);
+                                if light.uniform_value().is_some() {
+                                    // Every normal reads alike: the lobe's own.
+                                    return LobeRead::Uniform(own);
+                                }
+                                LobeRead::Toward {
+                                    light,
+                                    given: Some(Given { u, theta, far, own }),
+                                }
+                            }
+                            None => LobeRead::Toward {
+                                light: tw.reading(c, d),
+                                given: None,
+                            },
+                        };
+                    }
+                    LobeRead::Uniform(match pair {
+                        Some(p) => c.visibility_given(l.lobe_joint(src), p),
+                        None => c.visibility_along(d),
+                    })
+                }
+                (Some(d), Some(LobeHorizon::Cell(c))) => LobeRead::Uniform(match pair {
                     Some(p) => c.visibility_given(p),
                     None => c.visibility_along(d),
-                },
-                (Some(d), Some(s)) => s.visibility_along(d),
-                _ => 1.0,
+                }),
+                (Some(d), Some(s)) => LobeRead::Uniform(s.visibility_along(d)),
+                _ => LobeRead::Uniform(1.0),
             }
         };
-        // Asked per node (Lambert, general facets), so the last lobe's value is kept: a lobe's
-        // nodes come together, and on level 0 every lobe of the texel reads its one cell.
-        let last = std::cell::Cell::new(None);
-        let vis = |src: u32| -> f64 {
+        // Asked per node (Lambert, general facets), so the last lobe's reading is kept: a
+        // lobe's nodes come together, and on level 0 every lobe of the texel reads its one
+        // cell.
+        let last: std::cell::RefCell<Option<((u32, bool), LobeRead)>> =
+            std::cell::RefCell::new(None);
+        let vis = |src: u32, m: DVec3| -> f64 {
             // The key of what `src` reads: its own distribution, or its texel's cell.
             let key = (src, src != NO_LOBE && l.cells.is_some());
             let key = if key.1 { (NO_LOBE, true) } else { key };
-            match last.get() {
-                Some((k, v)) if k == key => v,
+            let mut last = last.borrow_mut();
+            match &*last {
+                Some((k, r)) if *k == key => r.light(m),
                 _ => {
-                    let v = vis_of(src);
-                    last.set(Some((key, v)));
+                    let r = read_of(src);
+                    let v = r.light(m);
+                    *last = Some((key, r));
                     v
                 }
             }
@@ -631,7 +737,7 @@ impl NdfMapped {
                         h,
                         eta,
                         sg::kappa_transfer(eta),
-                        |lb, m| vis(lb.src) * seen(lb.src, m),
+                        |lb, m| vis(lb.src, m) * seen(lb.src, m),
                     ),
                     0.0,
                     0.0,
@@ -643,7 +749,7 @@ impl NdfMapped {
                 for nd in nodes {
                     let c = nd.n.dot(wi);
                     if nd.n.dot(wo) > 0.0 && c > 0.0 {
-                        a += nd.w * c * vis(nd.src) * seen(nd.src, nd.n);
+                        a += nd.w * c * vis(nd.src, nd.n) * seen(nd.src, nd.n);
                     }
                 }
                 [a, 0.0, 0.0]
@@ -678,7 +784,7 @@ impl NdfMapped {
                     if v == [0.0; 3] {
                         continue;
                     }
-                    let w = nd.w * vis(nd.src) * seen(nd.src, nd.n);
+                    let w = nd.w * vis(nd.src, nd.n) * seen(nd.src, nd.n);
                     for c in 0..3 {
                         a[c] += w * f64::from(v[c]);
                     }
