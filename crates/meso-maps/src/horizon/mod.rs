@@ -479,13 +479,7 @@ impl HorizonCdf {
     /// elevation of `d` (the distribution linear between its nodes).
     #[inline]
     fn at(&self, slot: usize, d: &HorizonDirection) -> f64 {
-        let f = &self.frac[slot];
-        let node = |k: usize| match k {
-            0 => 0.0,
-            k if k > CDF_NODES => 1.0,
-            k => f64::from(f[k - 1]) / 255.0,
-        };
-        node(d.node) + d.node_t * (node(d.node + 1) - node(d.node))
+        fraction_at(&self.frac[slot], d)
     }
 
     /// The fraction of the footprint from which both directions prepared as `a` and `b` are
@@ -1118,6 +1112,18 @@ impl HorizonCdfSum {
         }
         out
     }
+}
+
+/// One direction's distribution `f` (fractions at the nodes of [`CDF_ELEVATIONS_DEG`], to
+/// 1/255; 0 at 0° and 1 at 90°) read at the elevation of `d`, linear between the nodes.
+#[inline]
+fn fraction_at(f: &[u8; CDF_NODES], d: &HorizonDirection) -> f64 {
+    let node = |k: usize| match k {
+        0 => 0.0,
+        k if k > CDF_NODES => 1.0,
+        k => f64::from(f[k - 1]) / 255.0,
+    };
+    node(d.node) + d.node_t * (node(d.node + 1) - node(d.node))
 }
 
 /// `dst += k · src`, row by row: the sums of [`HorizonCdfSum`] and [`HorizonJointSum`] pooled.

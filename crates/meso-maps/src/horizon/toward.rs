@@ -198,13 +198,7 @@ impl HorizonToward {
     /// The fraction of the facets turned towards stored azimuth `slot` whose horizon along it
     /// lies below the elevation of `d` (linear between the nodes).
     fn at(&self, slot: usize, d: &HorizonDirection) -> f64 {
-        let f = &self.frac[slot];
-        let node = |k: usize| match k {
-            0 => 0.0,
-            k if k > CDF_NODES => 1.0,
-            k => f64::from(f[k - 1]) / 255.0,
-        };
-        node(d.node) + d.node_t * (node(d.node + 1) - node(d.node))
+        super::fraction_at(&self.frac[slot], d)
     }
 }
 
