@@ -1591,6 +1591,16 @@ mod tests {
         assert_eq!(cdf.joint_visibility_along(None, &below, &a), 0.0);
     }
 
+    /// The direction along stored azimuth `slot` at elevation `el` (radians), prepared.
+    fn stored_dir(slot: usize, el: f64) -> HorizonDirection {
+        let az = HORIZON_AZIMUTHS_DEG[slot].to_radians();
+        HorizonDirection::new(DVec3::new(
+            el.cos() * az.cos(),
+            el.cos() * az.sin(),
+            el.sin(),
+        ))
+    }
+
     #[test]
     fn joint_fractions_pool_exactly_and_give_the_fraction_that_sees_both() {
         // Two point sets (weights 3 : 1) whose horizons along opposite azimuths go together in
@@ -1626,14 +1636,7 @@ mod tests {
             };
             (3.0 * f(&a) + f(&b)) / 4.0
         };
-        let dir = |slot: usize, el: f64| {
-            let az = HORIZON_AZIMUTHS_DEG[slot].to_radians();
-            HorizonDirection::new(DVec3::new(
-                el.cos() * az.cos(),
-                el.cos() * az.sin(),
-                el.sin(),
-            ))
-        };
+        let dir = stored_dir;
         for (p, &(sa, sb)) in JOINT_PAIR_SLOTS.iter().enumerate() {
             for (i, &ei) in JOINT_ELEVATIONS_DEG.iter().enumerate() {
                 for (j, &ej) in JOINT_ELEVATIONS_DEG.iter().enumerate() {
@@ -1691,14 +1694,7 @@ mod tests {
         // reading before 2026-12-07) loses up to half the dependence between two nodes.
         let deg = |x: f64| x.to_radians();
         let angle = |k: usize| deg(2.0 + 4.0 * k as f64);
-        let dir = |slot: usize, el: f64| {
-            let az = HORIZON_AZIMUTHS_DEG[slot].to_radians();
-            HorizonDirection::new(DVec3::new(
-                el.cos() * az.cos(),
-                el.cos() * az.sin(),
-                el.sin(),
-            ))
-        };
+        let dir = stored_dir;
         type Rule = fn(f64, f64) -> f64;
         let upper: Rule = |u, v| u.min(v);
         let product: Rule = |u, v| u * v;

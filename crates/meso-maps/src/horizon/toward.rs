@@ -34,12 +34,6 @@ const AZIMUTH_UNITS: [[f64; 2]; HORIZON_DIRECTIONS] = {
     ]
 };
 
-/// The unit vectors of [`super::HORIZON_AZIMUTHS_DEG`] in the plane.
-#[inline]
-fn azimuth_units() -> [[f64; 2]; HORIZON_DIRECTIONS] {
-    AZIMUTH_UNITS
-}
-
 /// Whether unit normal `m` is turned towards the stored azimuth of unit vector `u`.
 #[inline]
 fn turned_towards(m: DVec3, u: [f64; 2]) -> bool {
@@ -79,7 +73,7 @@ impl HorizonTowardSum {
         let w = cell.weight * scale;
         self.weight += w;
         let k = scale as f32;
-        for (d, u) in azimuth_units().into_iter().enumerate() {
+        for (d, &u) in AZIMUTH_UNITS.iter().enumerate() {
             if turned_towards(m, u) {
                 self.toward[d] += w;
                 for (x, y) in self.sum[d].iter_mut().zip(&cell.sum[d]) {
@@ -119,29 +113,22 @@ pub struct TowardReading {
 
 impl TowardReading {
     /// A reading the same for every normal: `v`.
-    #[must_use]
-    pub fn uniform(v: f64) -> TowardReading {
+    fn uniform(v: f64) -> TowardReading {
         TowardReading {
             slots: [([0.0; 2], 0.0, v, v); 2],
             fixed: Some(v),
         }
     }
 
-    /// The one value every normal reads, where the groups of both stored azimuths read alike
-    /// (to 10⁻⁶), or none.
+    /// Whether every normal reads alike: a fixed direction, or the groups of both stored
+    /// azimuths reading the same (to 10⁻⁶).
     #[must_use]
-    pub fn uniform_value(&self) -> Option<f64> {
-        if let Some(v) = self.fixed {
-            return Some(v);
-        }
-        if self
-            .slots
-            .iter()
-            .all(|s| (s.2 - s.3).abs() <= 1e-6 || s.1 <= 0.0)
-        {
-            return Some(self.slots.iter().map(|s| s.1 * s.3).sum());
-        }
-        None
+    pub fn is_uniform(&self) -> bool {
+        self.fixed.is_some()
+            || self
+                .slots
+                .iter()
+                .all(|s| (s.2 - s.3).abs() <= 1e-6 || s.1 <= 0.0)
     }
 
     /// The fraction that sees the direction of the lobe's facets of unit normal `m`: along
@@ -177,7 +164,6 @@ impl HorizonToward {
         if let Some(v) = d.fixed {
             return TowardReading::uniform(v);
         }
-        let units = azimuth_units();
         let slot = |k: usize, w: f64| {
             let f = cdf.at(k, d);
             let s = f64::from(self.share[k]) / 255.0;
@@ -187,7 +173,7 @@ impl HorizonToward {
             } else {
                 f
             };
-            (units[k], w, t, rest)
+            (AZIMUTH_UNITS[k], w, t, rest)
         };
         TowardReading {
             slots: [slot(d.ix, d.c2), slot(d.iy, d.s2)],

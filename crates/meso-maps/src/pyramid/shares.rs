@@ -700,27 +700,25 @@ mod tests {
         assert!(worst < 1e-3, "worst {worst}");
     }
 
-    /// On touching half-cylinders the flattest lobe of a coarse texel stands for the tops
-    /// (low horizons along +x) and the one tilted towards +x for the creases (high horizons);
-    /// on the same heights upside down (grooves: the same NDF) the other way round. Level 0's
-    /// lobes take their cell's distribution (its four corners interpolated bilinearly), and
-    /// each texel's shares sum to 1; one texel's [`texel_lobe_stats`] agrees with the whole
-    /// pyramid's. Median horizons along +x, measured (32², period 16, level 4): bumps 0.321
-    /// rad for the flat lobe (it also stands for the normals tilted towards −x, which see their
-    /// own cylinder's top along +x) and 0.589 for the steep one; grooves 0.979 and 0.250.
+    /// The pyramid of touching half-cylinders (32², period 16; `sign` −1: grooves), default
+    /// extraction.
+    fn half_cylinder_pyramid(sign: f64) -> Pyramid {
+        let map = fixtures::half_cylinders(32, 16, 1.0, sign).unwrap();
+        extract(
+            Source::Heights(&map),
+            &ExtractParams::default(),
+            &mut |_| {},
+        )
+        .unwrap()
+    }
+
     /// Each lobe's facets turned towards a stored azimuth are a part of it: their share and
     /// distribution never claim more than the lobe's own (to rounding), on bumps and grooves;
     /// levels below `JOINT_FROM_LEVEL` have none.
     #[test]
     fn facets_turned_towards_an_azimuth_are_part_of_their_lobe() {
         for sign in [1.0, -1.0] {
-            let map = fixtures::half_cylinders(32, 16, 1.0, sign).unwrap();
-            let pyr = extract(
-                Source::Heights(&map),
-                &ExtractParams::default(),
-                &mut |_| {},
-            )
-            .unwrap();
+            let pyr = half_cylinder_pyramid(sign);
             let st = lobe_stats(&pyr, true);
             let (hz, tw) = (st.horizon.as_ref().unwrap(), st.toward.as_ref().unwrap());
             let mut some = false;
@@ -747,16 +745,18 @@ mod tests {
         }
     }
 
+    /// On touching half-cylinders the flattest lobe of a coarse texel stands for the tops
+    /// (low horizons along +x) and the one tilted towards +x for the creases (high horizons);
+    /// on the same heights upside down (grooves: the same NDF) the other way round. Level 0's
+    /// lobes take their cell's distribution (its four corners interpolated bilinearly), and
+    /// each texel's shares sum to 1; one texel's [`texel_lobe_stats`] agrees with the whole
+    /// pyramid's. Median horizons along +x, measured (32², period 16, level 4): bumps 0.321
+    /// rad for the flat lobe (it also stands for the normals tilted towards −x, which see their
+    /// own cylinder's top along +x) and 0.589 for the steep one; grooves 0.979 and 0.250.
     #[test]
     fn lobe_horizons_tell_bumps_from_grooves() {
         for sign in [1.0, -1.0] {
-            let map = fixtures::half_cylinders(32, 16, 1.0, sign).unwrap();
-            let pyr = extract(
-                Source::Heights(&map),
-                &ExtractParams::default(),
-                &mut |_| {},
-            )
-            .unwrap();
+            let pyr = half_cylinder_pyramid(sign);
             let st = lobe_stats(&pyr, true);
             let hz = st.horizon.as_ref().unwrap();
             let l0 = &pyr.levels[0];

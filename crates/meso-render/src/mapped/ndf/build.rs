@@ -776,7 +776,8 @@ mod tests {
 
     /// The bound a budget is checked against holds every level's tables as built (with
     /// shadowing and view weighting: the cells on level 0, the lobes' distributions above and
-    /// their joints from `JOINT_FROM_LEVEL` on), Phong and Lambert facets.
+    /// their joints and facets turned towards each azimuth from `JOINT_FROM_LEVEL` on), Phong
+    /// and Lambert facets.
     #[test]
     fn level_tables_bytes_bound_the_tables_built() {
         let map = fixtures::gaussian(32, 4.0, 0.1, 3, 0.01).unwrap();

@@ -85,7 +85,7 @@ struct NodeLevel {
     lobe_joint: Option<Vec<HorizonJoint>>,
     /// Per pyramid lobe of the tile, from level [`meso_maps::JOINT_FROM_LEVEL`] on (with
     /// shadowing), the horizon distributions of its facets turned towards each stored azimuth:
-    /// each of its nodes reads the light and the viewer by its own normal.
+    /// each of its nodes reads the light by its own normal.
     lobe_toward: Option<Vec<HorizonToward>>,
     /// Per texel, its pyramid lobes `view[view_start[t]..view_start[t + 1]]` (indexed by the
     /// `src` of [`SgLobe`] and [`Node`]), what view weighting reads of each
@@ -652,7 +652,7 @@ impl NdfMapped {
     ) -> [f64; 3] {
         // With view weighting, a lobe's visibility of the light among what of it sees the
         // viewer (its view weight holds that part): the two together, not their product. From
-        // `JOINT_FROM_LEVEL` on each node reads both by its own normal.
+        // `JOINT_FROM_LEVEL` on each node reads the light by its own normal.
         let read_of = |src: u32| -> LobeRead {
             match (dir, l.lobe_horizon(t, src)) {
                 (Some(d), Some(LobeHorizon::Lobe(c))) => {
@@ -671,7 +671,7 @@ impl NdfMapped {
                                 let own = if u > 0.0 { (both / u).min(1.0) } else { vl };
                                 let light = tw.reading(c, d);
                                 let theta = frechet_dependence(vl, u, both);
-                                if light.uniform_value().is_some() {
+                                if light.is_uniform() {
                                     // Every normal reads alike: the lobe's own.
                                     return LobeRead::Uniform(own);
                                 }
