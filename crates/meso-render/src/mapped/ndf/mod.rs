@@ -737,7 +737,16 @@ impl NdfMapped {
                         h,
                         eta,
                         sg::kappa_transfer(eta),
-                        |lb, m| vis(lb.src, m) * seen(lb.src, m),
+                        // One reading per lobe: kept for the next lobe only where every lobe
+                        // of the texel reads its one cell (level 0).
+                        |lb, m| {
+                            let v = if l.cells.is_some() {
+                                vis(lb.src, m)
+                            } else {
+                                read_of(lb.src).light(m)
+                            };
+                            v * seen(lb.src, m)
+                        },
                     ),
                     0.0,
                     0.0,
