@@ -293,6 +293,52 @@ impl LobeRead {
     }
 }
 
+/// The nodes `nodes` of a texel (Lambert and general facets; a lobe's nodes come together) by
+/// runs of one `key` (what a lobe reads: its own distribution, or on level 0 its texel's
+/// cell): `f(node, its run's reading)`, the reading made by `read` of the run's first lobe
+/// when a node of the run first asks for it ([`RunRead::light`]), at most once a run.
+#[inline]
+fn by_runs<R: Fn(u32) -> LobeRead>(
+    nodes: &[Node],
+    key: impl Fn(u32) -> (u32, bool),
+    read: R,
+    mut f: impl FnMut(&Node, &mut RunRead<'_, R>),
+) {
+    let mut i = 0;
+    while i < nodes.len() {
+        let k = key(nodes[i].src);
+        let mut j = i + 1;
+        while j < nodes.len() && key(nodes[j].src) == k {
+            j += 1;
+        }
+        let mut run = RunRead {
+            src: nodes[i].src,
+            read: &read,
+            made: None,
+        };
+        for nd in &nodes[i..j] {
+            f(nd, &mut run);
+        }
+        i = j;
+    }
+}
+
+/// A run's reading of the light ([`by_runs`]), made when first asked for.
+struct RunRead<'a, R> {
+    src: u32,
+    read: &'a R,
+    made: Option<LobeRead>,
+}
+
+impl<R: Fn(u32) -> LobeRead> RunRead<'_, R> {
+    /// The visibility of the light of the run's facets of unit normal `m`.
+    #[inline]
+    fn light(&mut self, m: DVec3) -> f64 {
+        let (src, read) = (self.src, self.read);
+        self.made.get_or_insert_with(|| read(src)).light(m)
+    }
+}
+
 impl NodeLevel {
     /// What lobe `src` of texel `t` is shadowed with: the lobe's own distribution (on level 0
     /// its cell's horizons, which all of a texel's lobes stand for), or the texel's statistics
@@ -699,22 +745,28 @@ impl NdfMapped {
                 _ => LobeRead::Uniform(1.0),
             }
         };
-        // Asked per node (Lambert, general facets), so the last lobe's reading is kept: a
-        // lobe's nodes come together, and on level 0 every lobe of the texel reads its one
-        // cell.
+        // The key of what lobe `src` reads: its own distribution, or (level 0) its texel's one
+        // cell, which every lobe of the texel reads.
+        let key = |src: u32| -> (u32, bool) {
+            if src != NO_LOBE && l.cells.is_some() {
+                (NO_LOBE, true)
+            } else {
+                (src, false)
+            }
+        };
+        // Asked per node of the microfacet facets (a lobe's core peaks, then its nodes), so
+        // the last lobe's reading is kept.
         let last: std::cell::RefCell<Option<((u32, bool), LobeRead)>> =
             std::cell::RefCell::new(None);
         let vis = |src: u32, m: DVec3| -> f64 {
-            // The key of what `src` reads: its own distribution, or its texel's cell.
-            let key = (src, src != NO_LOBE && l.cells.is_some());
-            let key = if key.1 { (NO_LOBE, true) } else { key };
+            let k = key(src);
             let mut last = last.borrow_mut();
             match &*last {
-                Some((k, r)) if *k == key => r.light(m),
+                Some((lk, r)) if *lk == k => r.light(m),
                 _ => {
                     let r = read_of(src);
                     let v = r.light(m);
-                    *last = Some((key, r));
+                    *last = Some((k, r));
                     v
                 }
             }
@@ -755,12 +807,12 @@ impl NdfMapped {
             Facet::Lambert { .. } => {
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
                 let mut a = 0.0;
-                for nd in nodes {
+                by_runs(nodes, key, read_of, |nd, run| {
                     let c = nd.n.dot(wi);
                     if nd.n.dot(wo) > 0.0 && c > 0.0 {
-                        a += nd.w * c * vis(nd.src, nd.n) * seen(nd.src, nd.n);
+                        a += nd.w * c * run.light(nd.n) * seen(nd.src, nd.n);
                     }
-                }
+                });
                 [a, 0.0, 0.0]
             }
             Facet::Microfacet {
@@ -788,16 +840,16 @@ impl NdfMapped {
             Facet::General(_) => {
                 let nodes = &l.nodes[l.node_start[t] as usize..l.node_start[t + 1] as usize];
                 let mut a = [0.0f64; 3];
-                for nd in nodes {
+                by_runs(nodes, key, read_of, |nd, run| {
                     let v = self.facet.lit(nd.n, wi, wo, h);
                     if v == [0.0; 3] {
-                        continue;
+                        return;
                     }
-                    let w = nd.w * vis(nd.src, nd.n) * seen(nd.src, nd.n);
+                    let w = nd.w * run.light(nd.n) * seen(nd.src, nd.n);
                     for c in 0..3 {
                         a[c] += w * f64::from(v[c]);
                     }
-                }
+                });
                 a
             }
         }
