@@ -147,6 +147,40 @@ pub(super) fn peak_nodes(axis: DVec3, exponent: f64) -> ([(DVec3, f64); 1 + RING
     (out, 1 + RING)
 }
 
+/// Over the nodes of [`peak_nodes`] above the horizon (`m_z > 0`): `Σ w (m·o)⁺` and `Σ w m_z`,
+/// from the dot products of the ring's frame with `o` and `+z` (no node formed, no square
+/// root per node): what a lobe's seen area reads per texel and viewing direction
+/// ([`super::view::ViewLobe::seen`]). The same sums as over `peak_nodes`' nodes, to rounding.
+#[inline]
+pub(super) fn peak_node_sums(axis: DVec3, exponent: f64, o: DVec3) -> (f64, f64) {
+    let (ao, az) = (axis.dot(o), axis.z);
+    let c = ring_cos(exponent);
+    if c > 1.0 - 1e-9 {
+        return if az > 0.0 {
+            (ao.max(0.0), az)
+        } else {
+            (0.0, 0.0)
+        };
+    }
+    let s = (1.0 - c * c).max(0.0).sqrt();
+    let f = Frame::from_normal_tangent(axis, DVec3::X);
+    let (to, bo, tz, bz) = (f.t.dot(o), f.b.dot(o), f.t.z, f.b.z);
+    let (mut num, mut den) = (0.0, 0.0);
+    if az > 0.0 {
+        num += AXIS_WEIGHT * ao.max(0.0);
+        den += AXIS_WEIGHT * az;
+    }
+    let w = (1.0 - AXIS_WEIGHT) / RING as f64;
+    for &(ca, sa) in ring() {
+        let mz = c * az + s * (ca * tz + sa * bz);
+        if mz > 0.0 {
+            num += w * (c * ao + s * (ca * to + sa * bo)).max(0.0);
+            den += w * mz;
+        }
+    }
+    (num, den)
+}
+
 /// The cosines and sines of the ring's azimuths `2πk/RING`, computed once.
 fn ring() -> &'static [(f64, f64); RING] {
     static RING_AZIMUTHS: std::sync::OnceLock<[(f64, f64); RING]> = std::sync::OnceLock::new();
@@ -454,6 +488,34 @@ mod tests {
     use super::super::peak_quadrature::for_each_peak_node;
     use super::*;
     use std::f64::consts::{PI, TAU};
+
+    /// The node sums without the nodes are the sums over `peak_nodes`' nodes (random axes,
+    /// some below the horizon, sharp to broad exponents, random viewing directions).
+    #[test]
+    fn node_sums_are_the_sums_over_the_nodes() {
+        let mut rng = meso_testkit::rng(0x5eed_5e11);
+        for _ in 0..2000 {
+            let [u, v] = meso_testkit::uniform2(&mut rng);
+            let [p, q] = meso_testkit::uniform2(&mut rng);
+            let axis = DVec3::new(3.0 * (u - 0.5), 3.0 * (v - 0.5), p - 0.1).normalize();
+            let eta = 10f64.powf(6.0 * q);
+            let [x, y] = meso_testkit::uniform2(&mut rng);
+            let o = DVec3::new(2.0 * x - 1.0, 2.0 * y - 1.0, 0.2 + x * y).normalize();
+            let (nodes, n) = peak_nodes(axis, eta);
+            let (mut num, mut den) = (0.0, 0.0);
+            for &(m, w) in &nodes[..n] {
+                if m.z > 0.0 {
+                    num += w * m.dot(o).max(0.0);
+                    den += w * m.z;
+                }
+            }
+            let (gn, gd) = peak_node_sums(axis, eta, o);
+            assert!(
+                (gn - num).abs() < 1e-12 && (gd - den).abs() < 1e-12,
+                "axis {axis}, η {eta}: ({gn}, {gd}) vs ({num}, {den})"
+            );
+        }
+    }
 
     /// `E[(m·h)^η (m·i)⁺ m_z⁺] / E[m_z⁺]` over one Phong peak `cos^η_n(α/2)` by a fine
     /// quadrature in the lobe's frame (independent of the Gaussian forms).

@@ -152,14 +152,7 @@ impl ViewLobe {
         if ao > sr && az > sr {
             return ao / az;
         }
-        let (nodes, n) = lobes::peak_nodes(a.normalize(), f64::from(self.eta));
-        let (mut num, mut den) = (0.0, 0.0);
-        for &(m, w) in &nodes[..n] {
-            if m.z > 0.0 {
-                num += w * m.dot(o).max(0.0);
-                den += w * m.z;
-            }
-        }
+        let (num, den) = lobes::peak_node_sums(a.normalize(), f64::from(self.eta), o);
         if den > 0.0 {
             num / den
         } else {
