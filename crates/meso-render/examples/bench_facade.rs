@@ -1,15 +1,17 @@
 //! Time NDF-mapped frames of a steep height map with shadowing and view weighting: the facade
-//! of the tests (`tests/data/facade_disp_256.png`, height 20, Lambert facets), seen 45° from
+//! of the tests (`tests/data/facade_disp_256.png`, height 20, Lambert or glossy facets), seen 45° from
 //! the normal under a light 69° from it, at 4, 16 and 64 cells per pixel and box detail 0, 1
 //! and 2 (`NdfMapped::with_box_detail`):
 //!
-//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS]`
+//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS] [ALPHA]`
 //!
 //! `SIZE`: image side in pixels (default 256); `FRAMES`: frames per case (default 3), after
 //! one untimed frame that builds nothing (the tables are built up front); `MAX_LOBES`: the
 //! extraction's lobes per texel at most (default 4, the default of `ExtractParams`);
-//! `DETAILS`: box details timed, 0 to this (default 2). Prints the extraction's time, then
-//! the best wall time and the mean process CPU time per case.
+//! `DETAILS`: box details timed, 0 to this (default 2); `ALPHA`: glossy facets instead of
+//! Lambert, GGX of this roughness with a diffuse albedo of 0.1 (the glossy facets of
+//! `tests/steep.rs`; default 0: Lambert). Prints the extraction's time, then the best wall
+//! time and the mean process CPU time per case.
 
 use glam::DVec3;
 use meso_core::material::Material;
@@ -26,10 +28,12 @@ mod common;
 mod cpu;
 
 fn main() {
-    let args: Vec<usize> = std::env::args()
+    let nums: Vec<f64> = std::env::args()
         .skip(1)
-        .map(|a| a.parse().expect("numbers: SIZE FRAMES MAX_LOBES DETAILS"))
+        .map(|a| a.parse().expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA"))
         .collect();
+    let args: Vec<usize> = nums.iter().map(|&x| x as usize).collect();
+    let alpha = nums.get(4).copied().unwrap_or(0.0);
     let size = args.first().copied().unwrap_or(256) as u32;
     let frames = args.get(1).copied().unwrap_or(3) as u32;
     let mut params = ExtractParams::default();
@@ -44,7 +48,15 @@ fn main() {
         params.fit.max_lobes,
         t0.elapsed().as_secs_f64()
     );
-    let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").expect("material");
+    let surface = if alpha > 0.0 {
+        Material::from_toml_str(&format!(
+            "[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n\
+             [diffuse]\nalbedo = [0.1, 0.1, 0.1]\n"
+        ))
+    } else {
+        Material::from_toml_str("[transfer]\nkind = \"lambert\"\n")
+    }
+    .expect("material");
     let tpu = map.width() as f64;
     let v = 45f64.to_radians();
     let camera = DVec3::new(0.0, -v.sin(), v.cos());

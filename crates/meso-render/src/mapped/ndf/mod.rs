@@ -339,6 +339,44 @@ impl<R: Fn(u32) -> LobeRead> RunRead<'_, R> {
     }
 }
 
+/// The readings of the light a texel's lobes have made (at most one per lobe and the texel's
+/// own statistics, by the key of what each reads): kept where a texel's lobes are asked in
+/// turn more than once (the microfacet facets' core peaks, then their nodes).
+struct Readings {
+    n: usize,
+    keys: [(u32, bool); READINGS],
+    reads: [LobeRead; READINGS],
+}
+
+/// Most readings [`Readings`] keeps: a texel's lobes and its own statistics ([`NO_LOBE`]).
+const READINGS: usize = meso_maps::limits::MAX_LOBES + 1;
+
+impl Readings {
+    fn new() -> Readings {
+        Readings {
+            n: 0,
+            keys: [(0, false); READINGS],
+            reads: [LobeRead::Uniform(1.0); READINGS],
+        }
+    }
+
+    /// The visibility of the light of the facets of unit normal `m` of what reads by `key`,
+    /// its reading made by `make` the first time the key is asked for.
+    #[inline]
+    fn light(&mut self, key: (u32, bool), m: DVec3, make: impl FnOnce() -> LobeRead) -> f64 {
+        if let Some(i) = self.keys[..self.n].iter().position(|&k| k == key) {
+            return self.reads[i].light(m);
+        }
+        let r = make();
+        if self.n < READINGS {
+            self.keys[self.n] = key;
+            self.reads[self.n] = r;
+            self.n += 1;
+        }
+        r.light(m)
+    }
+}
+
 impl NodeLevel {
     /// What lobe `src` of texel `t` is shadowed with: the lobe's own distribution (on level 0
     /// its cell's horizons, which all of a texel's lobes stand for), or the texel's statistics
@@ -754,22 +792,12 @@ impl NdfMapped {
                 (src, false)
             }
         };
-        // Asked per node of the microfacet facets (a lobe's core peaks, then its nodes), so
-        // the last lobe's reading is kept.
-        let last: std::cell::RefCell<Option<((u32, bool), LobeRead)>> =
-            std::cell::RefCell::new(None);
+        // Asked lobe by lobe and node by node by the microfacet facets (every core peak of
+        // every lobe, then the nodes) and by level 0's Phong lobes: each reading is made once
+        // and kept for the texel.
+        let readings = std::cell::RefCell::new(Readings::new());
         let vis = |src: u32, m: DVec3| -> f64 {
-            let k = key(src);
-            let mut last = last.borrow_mut();
-            match &*last {
-                Some((lk, r)) if *lk == k => r.light(m),
-                _ => {
-                    let r = read_of(src);
-                    let v = r.light(m);
-                    *last = Some((k, r));
-                    v
-                }
-            }
+            readings.borrow_mut().light(key(src), m, || read_of(src))
         };
         let seen = |src: u32, m: DVec3| -> f64 {
             match view {
