@@ -1,7 +1,7 @@
 //! Time NDF-mapped frames of a steep height map with shadowing and view weighting: the facade
-//! of the tests (`tests/data/facade_disp_256.png`, height 20, Lambert or glossy facets), seen 45° from
-//! the normal under a light 69° from it, at 4, 16 and 64 cells per pixel and box detail 0, 1
-//! and 2 (`NdfMapped::with_box_detail`):
+//! of the tests (`tests/data/facade_disp_256.png`, height 20, Lambert or glossy facets), seen
+//! 45° from the normal under a light 69° from it, at 4, 16 and 64 cells per pixel and box
+//! detail 0, 1 and 2 (`NdfMapped::with_box_detail`):
 //!
 //! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS] [ALPHA]`
 //!
