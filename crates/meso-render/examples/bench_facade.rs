@@ -30,7 +30,10 @@ mod cpu;
 fn main() {
     let nums: Vec<f64> = std::env::args()
         .skip(1)
-        .map(|a| a.parse().expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA"))
+        .map(|a| {
+            a.parse()
+                .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA")
+        })
         .collect();
     let args: Vec<usize> = nums.iter().map(|&x| x as usize).collect();
     let alpha = nums.get(4).copied().unwrap_or(0.0);
