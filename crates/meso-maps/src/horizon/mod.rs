@@ -531,7 +531,7 @@ impl HorizonCdf {
         if self.weight <= 0.0 || (joint.is_none() && !pair.together) {
             return self.visibility_along(light);
         }
-        let (both, seen) = self.both(joint, light, view, pair.near);
+        let (both, seen, _) = self.both(joint, light, view, pair.near);
         if seen <= 0.0 {
             return self.visibility_along(&pair.light);
         }
@@ -552,13 +552,14 @@ impl HorizonCdf {
             let (a, b) = (self.visibility_along(l), self.visibility_along(v));
             return [a, b, a * b];
         }
-        let (both, seen) = self.both(joint, l, v, pair.near);
-        [self.visibility_along(l), seen, both]
+        let (both, seen, light) = self.both(joint, l, v, pair.near);
+        [light, seen, both]
     }
 
     /// The rule of [`HorizonCdf::joint_visibility_along`] for two directions of no fixed
     /// visibility whose pairs of stored azimuths `near` are 0° or 45° apart ([`near_pairs`]),
-    /// and the second's visibility.
+    /// the second's visibility and the first's ([`HorizonCdf::visibility_along`]'s, from the
+    /// fractions the rule reads).
     #[inline]
     fn both(
         &self,
@@ -566,7 +567,7 @@ impl HorizonCdf {
         a: &HorizonDirection,
         b: &HorizonDirection,
         near: [bool; 4],
-    ) -> (f64, f64) {
+    ) -> (f64, f64, f64) {
         let fa = [self.at(a.ix, a), self.at(a.iy, a)];
         let fb = [self.at(b.ix, b), self.at(b.iy, b)];
         let (sa, sb) = ([a.ix, a.iy], [b.ix, b.iy]);
@@ -588,7 +589,11 @@ impl HorizonCdf {
                 both += w * v;
             }
         }
-        (both, wb[0] * fb[0] + wb[1] * fb[1])
+        (
+            both,
+            wb[0] * fb[0] + wb[1] * fb[1],
+            wa[0] * fa[0] + wa[1] * fa[1],
+        )
     }
 }
 

@@ -754,11 +754,11 @@ impl NdfMapped {
                                 let [vl, u, both] = c.pair_fractions(l.lobe_joint(src), p);
                                 let own = if u > 0.0 { (both / u).min(1.0) } else { vl };
                                 let light = tw.reading(c, d);
-                                let theta = frechet_dependence(vl, u, both);
                                 if light.is_uniform() {
                                     // Every normal reads alike: the lobe's own.
                                     return LobeRead::Uniform(own);
                                 }
+                                let theta = frechet_dependence(vl, u, both);
                                 LobeRead::Toward {
                                     light,
                                     given: Some(Given { u, theta, far, own }),
