@@ -8,21 +8,26 @@
 //!
 //! `S = Σ share · E[(m·o)⁺ (m·l)⁺ / m_z] / Σ share · E[(m·o)⁺ / m_z]`,
 //!
+//! and GGX facets of roughness α (given as the last argument; Fresnel 1, no shadowing inside a
+//! facet) the same with `(m·o)⁺ (m·l)⁺` replaced by `D_α(h·m)/4`, `h` the half vector of `l`
+//! and `o` (the facet BRDF `D/(4 (m·l)(m·o))` times both cosines),
+//!
 //! each lobe's expectation over its projected area (`m_z`-weighted, its part below the horizon
 //! dropped, as the renderer drops it) and `share` its part of the texel's projected area
 //! ([`meso_maps::lobe_stats`]). Per level, the lobes' `S` summed over the map (each lobe
-//! integrated finely: 400 cosines × 48 azimuths) is printed as a ratio to the same sum over
-//! level 0's facets, the exact value. No horizon statistics are read: a ratio away from 1 is
-//! the lobes' shape alone.
+//! integrated finely: 400 angles to its axis out to 12 widths of the peak × 48 azimuths) is
+//! printed as a ratio to the same sum over level 0's facets, the exact value. No horizon
+//! statistics are read: a ratio away from 1 is the lobes' shape alone.
 //!
 //! ```text
 //! cargo run --release -p meso-maps --example seen_weighted -- HEIGHTS HEIGHT_SCALE \
-//!     [MAX_LOBES] [LIGHT_AZ LIGHT_ELEV VIEW_AZ VIEW_ELEV]
+//!     [MAX_LOBES] [LIGHT_AZ LIGHT_ELEV VIEW_AZ VIEW_ELEV] [GGX_ALPHA]
 //! ```
 //!
 //! Angles in degrees (azimuth from +x towards +y, elevation above the plane); defaults: 4
 //! lobes, the light at azimuth 90° and elevation 21°, the viewer at 270° and 30° (the light
-//! opposite a grazing viewer). The map tiles (`Border::Wrap`), texel size 1.
+//! opposite a grazing viewer), Lambert facets (`GGX_ALPHA` 0). The map tiles
+//! (`Border::Wrap`), texel size 1.
 use glam::DVec3;
 use meso_core::frame::Frame;
 use meso_maps::{extract, lobe_stats, Border, ExtractParams, HeightMap, Source};
@@ -39,7 +44,7 @@ fn main() {
     if args.len() < 2 {
         eprintln!(
             "usage: seen_weighted HEIGHTS HEIGHT_SCALE [MAX_LOBES] \
-             [LIGHT_AZ LIGHT_ELEV VIEW_AZ VIEW_ELEV]"
+             [LIGHT_AZ LIGHT_ELEV VIEW_AZ VIEW_ELEV] [GGX_ALPHA]"
         );
         std::process::exit(2);
     }
@@ -60,7 +65,25 @@ fn main() {
     let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");
     let stats = lobe_stats(&pyr, false);
     // The seen-weighted response and the seen weight of a normal, per unit of projected area.
-    let lit_seen = |m: DVec3| m.dot(o).max(0.0) * m.dot(l).max(0.0) / m.z;
+    let alpha = num(7, 0.0);
+    let ggx = (alpha > 0.0).then(|| {
+        meso_core::ndf::microfacet::Microfacet::isotropic(
+            meso_core::ndf::microfacet::Distribution::Ggx,
+            alpha,
+        )
+        .unwrap_or_else(|e| panic!("GGX_ALPHA {alpha}: {e}"))
+    });
+    let h = (l + o).normalize();
+    let lit_seen = |m: DVec3| {
+        let (ml, mo) = (m.dot(l), m.dot(o));
+        if ml <= 0.0 || mo <= 0.0 {
+            return 0.0;
+        }
+        match &ggx {
+            Some(g) => g.d_isotropic(h.dot(m)) / (4.0 * m.z),
+            None => mo * ml / m.z,
+        }
+    };
     let seen = |m: DVec3| m.dot(o).max(0.0) / m.z;
     // Level 0: its facets (sharp lobes) by their share of their cell's projected area.
     let l0 = &pyr.levels[0];
@@ -80,8 +103,8 @@ fn main() {
         num(1, 1.0),
         params.fit.max_lobes
     );
-    // A fine rule for a Phong peak `cos^η(α/2)` about its axis: cosines to the axis.
-    const COSINES: usize = 400;
+    // A fine rule for a Phong peak `cos^η(θ/2)` about its axis: angles to the axis.
+    const ANGLES: usize = 400;
     const AZIMUTHS: usize = 48;
     for (k, lv) in pyr.levels.iter().enumerate().skip(1) {
         let (mut n, mut d) = (0.0, 0.0);
@@ -91,13 +114,15 @@ fn main() {
             }
             let f = Frame::from_normal_tangent(p.axis.normalize(), DVec3::X);
             let (mut wz, mut a, mut b) = (0.0, 0.0, 0.0);
-            for i in 0..COSINES {
-                let c = -1.0 + (i as f64 + 0.5) * 2.0 / COSINES as f64;
-                let dens = (0.5 * (1.0 + c)).powf(0.5 * p.exponent);
+            // Angles to the axis out to 12 widths of the peak (`cos^η(θ/2) ≈ e^{−ηθ²/8}`).
+            let reach = (24.0 / p.exponent.max(1e-9).sqrt()).min(std::f64::consts::PI);
+            for i in 0..ANGLES {
+                let th = (i as f64 + 0.5) * reach / ANGLES as f64;
+                let (s, c) = th.sin_cos();
+                let dens = (0.5 * (1.0 + c)).powf(0.5 * p.exponent) * s;
                 if dens < 1e-300 {
                     continue;
                 }
-                let s = (1.0 - c * c).max(0.0).sqrt();
                 for j in 0..AZIMUTHS {
                     let ph = std::f64::consts::TAU * (j as f64 + 0.5) / AZIMUTHS as f64;
                     let m = f.to_world(DVec3::new(s * ph.cos(), s * ph.sin(), c));
