@@ -531,11 +531,22 @@ impl HorizonCdf {
         if self.weight <= 0.0 || (joint.is_none() && !pair.together) {
             return self.visibility_along(light);
         }
-        let (both, seen, _) = self.both(joint, light, view, pair.near);
-        if seen <= 0.0 {
-            return self.visibility_along(&pair.light);
+        let (both, seen, light) = self.both(joint, light, view, pair.near);
+        Self::light_given_view([light, seen, both])
+    }
+
+    /// The rule of [`HorizonCdf::visibility_given`] from a footprint's three fractions in
+    /// [`HorizonCdf::pair_fractions`]' order (those that see the light, the viewer, both): the
+    /// share of what sees the viewer that also sees the light, `both / viewer` (at most 1), or
+    /// the light's own fraction where nothing sees the viewer.
+    #[inline]
+    #[must_use]
+    pub fn light_given_view([light, seen, both]: [f64; 3]) -> f64 {
+        if seen > 0.0 {
+            (both / seen).min(1.0)
+        } else {
+            light
         }
-        (both / seen).min(1.0)
     }
 
     /// The fractions of the footprint that see the light of `pair`, its viewer, and both
@@ -1566,10 +1577,18 @@ mod tests {
                         if on_slot && az_b % 45.0 == 0.0 && (90.0..=270.0).contains(&apart) {
                             assert!((j - va * vb).abs() < 1e-12);
                         }
-                        let given = cdf.visibility_given(None, &HorizonPair::new(&a, &b));
+                        let pair = HorizonPair::new(&a, &b);
+                        let given = cdf.visibility_given(None, &pair);
                         if vb > 0.0 {
                             assert!((given * vb - j).abs() < 1e-12);
                         }
+                        // The three fractions in one pass, and the rule of them the renderer
+                        // reads with its per-normal light.
+                        let f = cdf.pair_fractions(None, &pair);
+                        for (got, want) in f.iter().zip([va, vb, j]) {
+                            assert!((got - want).abs() < 1e-12, "{az}° {az_b}°: {f:?}");
+                        }
+                        assert!((HorizonCdf::light_given_view(f) - given).abs() < 1e-12);
                     }
                 }
             }

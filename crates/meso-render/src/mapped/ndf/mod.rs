@@ -750,9 +750,10 @@ impl NdfMapped {
                                     );
                                 }
                                 // The lobe's own fractions that see the light, the viewer and
-                                // both ([`HorizonCdf::visibility_given`]'s from them).
-                                let [vl, u, both] = c.pair_fractions(l.lobe_joint(src), p);
-                                let own = if u > 0.0 { (both / u).min(1.0) } else { vl };
+                                // both, and [`HorizonCdf::visibility_given`]'s rule of them.
+                                let fractions = c.pair_fractions(l.lobe_joint(src), p);
+                                let [vl, u, both] = fractions;
+                                let own = HorizonCdf::light_given_view(fractions);
                                 let light = tw.reading(c, d);
                                 if light.is_uniform() {
                                     // Every normal reads alike: the lobe's own.
