@@ -483,7 +483,9 @@ impl Level {
     /// `(rows, cols, K)` float64: per lobe, the fraction of the cells it stands for from which
     /// the unit `direction` (meso's frame: +z the surface normal, +y up in the image) is above
     /// the horizon: the visibility `V_j(ω)` the renderer's NDF-mapped shading multiplies that
-    /// lobe by (docs/heightmaps.md, "Visibility per lobe"). With `view` (a unit vector too), the
+    /// lobe by (docs/heightmaps.md, "Visibility per lobe"); from level 2 on its mean over the
+    /// lobe's facets, where the renderer reads each of the lobe's nodes by its own normal
+    /// (docs "The light read by each lobe node's normal"). With `view` (a unit vector too), the
     /// fraction from which both are: shadowing and masking together, `G_j(i, o)`, as the
     /// renderer reads them with view weighting (`meso_maps::HorizonCdf::joint_visibility_along`:
     /// from level 2 on each lobe's joint distribution for azimuths 90°–180° apart; docs
