@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! cargo run --release -p meso-render --example facade_sweep -- \
-//!     [MAX_LOBES] [ALPHA] [THETAS] [VIEWS] [CELLS] [AZIMUTHS] [DETAIL]
+//!     [MAX_LOBES] [ALPHA] [THETAS] [VIEWS] [CELLS] [AZIMUTHS] [DETAIL] [HEIGHTS HEIGHT_SCALE]
 //! ```
 //!
 //! `MAX_LOBES`: the extraction's lobes per texel at most (default 4, `ExtractParams`'
@@ -16,7 +16,9 @@
 //! −y), `CELLS` cells per pixel (default 1,2,4,16,64), `AZIMUTHS` the light's azimuths from +x
 //! towards +y (default 0,45,90,135,180,270: 90° is opposite the viewer); `DETAIL` the box
 //! filter's detail (`NdfMapped::with_box_detail`; default the facet's own,
-//! `default_box_detail`: 0 for Lambert, 1.16 for GGX α = 0.1, 3 from α ≈ 0.056). A 48² image per
+//! `default_box_detail`: 0 for Lambert, 1.16 for GGX α = 0.1, 3 from α ≈ 0.056; `-` for that
+//! default); `HEIGHTS` another height map in its place (any format `meso extract` reads; texel
+//! size 1, tiled) and its `HEIGHT_SCALE` (the height of the full code range). A 48² image per
 //! scene. Prints each scene's ratio of mean pixels (NDF-mapped over bump-mapped), then the mean
 //! of |ln ratio| per cells per pixel and over all scenes, the figure the docs' tables give.
 
@@ -57,8 +59,21 @@ fn main() {
     let views = list(&args, 3, "24,45,60");
     let cells = list(&args, 4, "1,2,4,16,64");
     let azimuths = list(&args, 5, "0,45,90,135,180,270");
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
-    let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).expect("the test facade");
+    let (path, scale) = match args.get(7) {
+        Some(p) => (
+            Path::new(p).to_path_buf(),
+            list(&args, 8, "")
+                .first()
+                .copied()
+                .expect("HEIGHT_SCALE after HEIGHTS"),
+        ),
+        None => (
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png"),
+            20.0,
+        ),
+    };
+    let map = HeightMap::load(&path, 1.0, scale, Border::Wrap)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let surface = if alpha > 0.0 {
         Material::from_toml_str(&format!(
             "[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n"
@@ -72,7 +87,7 @@ fn main() {
     let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");
     let tpu = map.width() as f64;
     let mut ndf = NdfMapped::new(&pyr, &surface, tpu, true).expect("NDF-mapped shader");
-    if let Some(d) = args.get(6) {
+    if let Some(d) = args.get(6).filter(|d| d.as_str() != "-") {
         ndf = ndf.with_box_detail(
             d.parse()
                 .unwrap_or_else(|_| panic!("argument 7: not a number: {d}")),
@@ -88,7 +103,10 @@ fn main() {
     } else {
         "Lambert".to_string()
     };
-    println!("facade, {facet} facets, at most {max_lobes} lobes a texel, box detail {detail:.2}");
+    println!(
+        "{} (height {scale}), {facet} facets, at most {max_lobes} lobes a texel, box detail {detail:.2}",
+        path.display()
+    );
     let (mut sum, mut n) = (0.0, 0.0);
     let mut by_cells: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
     for &theta in &thetas {
