@@ -531,8 +531,8 @@ impl HorizonCdf {
         if self.weight <= 0.0 || (joint.is_none() && !pair.together) {
             return self.visibility_along(light);
         }
-        let (both, seen, light) = self.both(joint, light, view, pair.near);
-        Self::light_given_view([light, seen, both])
+        let (both, seen, lit) = self.both(joint, light, view, pair.near);
+        Self::light_given_view([lit, seen, both])
     }
 
     /// The rule of [`HorizonCdf::visibility_given`] from a footprint's three fractions in
