@@ -795,10 +795,14 @@ impl NdfMapped {
         };
         // Asked lobe by lobe and node by node by the microfacet facets (every core peak of
         // every lobe, then the nodes) and by level 0's Phong lobes: each reading is made once
-        // and kept for the texel.
-        let readings = std::cell::RefCell::new(Readings::new());
+        // and kept for the texel. Set up on first use: the Lambert and general facets read by
+        // runs, and Phong lobes above level 0 directly.
+        let readings = std::cell::OnceCell::new();
         let vis = |src: u32, m: DVec3| -> f64 {
-            readings.borrow_mut().light(key(src), m, || read_of(src))
+            readings
+                .get_or_init(|| std::cell::RefCell::new(Readings::new()))
+                .borrow_mut()
+                .light(key(src), m, || read_of(src))
         };
         let seen = |src: u32, m: DVec3| -> f64 {
             match view {
