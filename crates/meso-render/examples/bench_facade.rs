@@ -1,22 +1,26 @@
 //! Time NDF-mapped frames of a steep height map with shadowing and view weighting: the facade
 //! of the tests (`tests/data/facade_disp_256.png`, height 20, Lambert or glossy facets), seen
 //! 45° from the normal under a light 69° from it, at 4, 16 and 64 cells per pixel and box
-//! detail 0, 1 and 2 (`NdfMapped::with_box_detail`):
+//! details 0, 1 and 2 or those asked for (`NdfMapped::with_box_detail`), and optionally the
+//! bump-mapped truth of the same scenes beside them:
 //!
-//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS] [ALPHA]`
+//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS] [ALPHA] [BUMP_SPP]`
 //!
 //! `SIZE`: image side in pixels (default 256); `FRAMES`: frames per case (default 3), after
 //! one untimed frame that builds nothing (the tables are built up front); `MAX_LOBES`: the
 //! extraction's lobes per texel at most (default 4, the default of `ExtractParams`);
-//! `DETAILS`: box details timed, 0 to this (default 2); `ALPHA`: glossy facets instead of
-//! Lambert, GGX of this roughness with a diffuse albedo of 0.1 (the glossy facets of
-//! `tests/steep.rs`; default 0: Lambert). Prints the extraction's time, then the best wall
-//! time and the mean process CPU time per case.
+//! `DETAILS`: box details timed, 0 to this whole number (default 2), or a comma-separated
+//! list of details (e.g. `1.16,3`: a fractional detail blends two levels); `ALPHA`: glossy
+//! facets instead of Lambert, GGX of this roughness with a diffuse albedo of 0.1 (the glossy
+//! facets of `tests/steep.rs`; default 0: Lambert); `BUMP_SPP`: also time one frame of the
+//! bump-mapped truth (`BumpMapped`, shadowed and masked by rays on the displaced mesh) at
+//! this many samples per pixel (default 0: not timed). Prints the extraction's time, then the
+//! best wall time and the mean process CPU time per case.
 
 use glam::DVec3;
 use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
-use meso_render::{NdfMapped, RenderOptions, Shader};
+use meso_render::{BumpMapped, NdfMapped, RenderOptions, Shader};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -28,12 +32,20 @@ mod common;
 mod cpu;
 
 fn main() {
-    let nums: Vec<f64> = std::env::args()
-        .skip(1)
-        .map(|a| {
-            a.parse()
-                .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA")
-        })
+    let words: Vec<String> = std::env::args().skip(1).collect();
+    let number = |a: &str| -> f64 {
+        a.parse()
+            .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA")
+    };
+    // DETAILS: a whole number N (details 0 to N) or a list.
+    let details: Vec<f64> = match words.get(3) {
+        Some(w) if w.contains(',') || w.contains('.') => w.split(',').map(number).collect(),
+        Some(w) => (0..=number(w) as usize).map(|d| d as f64).collect(),
+        None => vec![0.0, 1.0, 2.0],
+    };
+    let nums: Vec<f64> = words
+        .iter()
+        .map(|w| if w.contains(',') { 0.0 } else { number(w) })
         .collect();
     let args: Vec<usize> = nums.iter().map(|&x| x as usize).collect();
     let alpha = nums.get(4).copied().unwrap_or(0.0);
@@ -41,7 +53,6 @@ fn main() {
     let frames = args.get(1).copied().unwrap_or(3) as u32;
     let mut params = ExtractParams::default();
     params.fit.max_lobes = args.get(2).copied().unwrap_or(params.fit.max_lobes);
-    let details = args.get(3).copied().unwrap_or(2);
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
     let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).expect("the test facade");
     let t0 = Instant::now();
@@ -69,14 +80,32 @@ fn main() {
         spp: Some(1),
         ..RenderOptions::default()
     };
+    let bump_spp = nums.get(5).copied().unwrap_or(0.0) as u32;
+    let bump: Arc<dyn Shader> =
+        Arc::new(BumpMapped::new(&map, &surface, tpu, true).expect("bump-mapped shader"));
     for cells in [4.0, 16.0, 64.0] {
-        for detail in (0..=details).map(|d| d as f64) {
+        let width = cells * f64::from(size) / tpu;
+        if bump_spp > 0 {
+            let scene = common::plane_scene_from(bump.clone(), width, size, light, camera);
+            let bump_opts = RenderOptions {
+                spp: Some(bump_spp),
+                ..RenderOptions::default()
+            };
+            let (c0, t0) = (cpu::cpu_seconds(), Instant::now());
+            std::hint::black_box(meso_render::render(&scene, &bump_opts, None));
+            println!(
+                "{size}² frame, {cells} cells/px, bump-mapped at {bump_spp} spp: {:.1} ms wall, \
+                 {:.1} ms CPU",
+                t0.elapsed().as_secs_f64() * 1e3,
+                (cpu::cpu_seconds() - c0) * 1e3
+            );
+        }
+        for &detail in &details {
             let ndf: Arc<dyn Shader> = Arc::new(
                 NdfMapped::new(&pyr, &surface, tpu, true)
                     .expect("material")
                     .with_box_detail(detail),
             );
-            let width = cells * f64::from(size) / tpu;
             let scene = common::plane_scene_from(ndf, width, size, light, camera);
             std::hint::black_box(meso_render::render(&scene, &opts, None));
             let c0 = cpu::cpu_seconds();
