@@ -35,7 +35,7 @@ fn main() {
     let words: Vec<String> = std::env::args().skip(1).collect();
     let number = |a: &str| -> f64 {
         a.parse()
-            .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA")
+            .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA BUMP_SPP")
     };
     // DETAILS: a whole number N (details 0 to N) or a list.
     let details: Vec<f64> = match words.get(3) {
@@ -43,9 +43,11 @@ fn main() {
         Some(w) => (0..=number(w) as usize).map(|d| d as f64).collect(),
         None => vec![0.0, 1.0, 2.0],
     };
+    // The other arguments by position (DETAILS, read above, as 0).
     let nums: Vec<f64> = words
         .iter()
-        .map(|w| if w.contains(',') { 0.0 } else { number(w) })
+        .enumerate()
+        .map(|(i, w)| if i == 3 { 0.0 } else { number(w) })
         .collect();
     let args: Vec<usize> = nums.iter().map(|&x| x as usize).collect();
     let alpha = nums.get(4).copied().unwrap_or(0.0);
@@ -81,11 +83,12 @@ fn main() {
         ..RenderOptions::default()
     };
     let bump_spp = nums.get(5).copied().unwrap_or(0.0) as u32;
-    let bump: Arc<dyn Shader> =
-        Arc::new(BumpMapped::new(&map, &surface, tpu, true).expect("bump-mapped shader"));
+    let bump: Option<Arc<dyn Shader>> = (bump_spp > 0).then(|| {
+        Arc::new(BumpMapped::new(&map, &surface, tpu, true).expect("bump-mapped shader")) as _
+    });
     for cells in [4.0, 16.0, 64.0] {
         let width = cells * f64::from(size) / tpu;
-        if bump_spp > 0 {
+        if let Some(bump) = &bump {
             let scene = common::plane_scene_from(bump.clone(), width, size, light, camera);
             let bump_opts = RenderOptions {
                 spp: Some(bump_spp),

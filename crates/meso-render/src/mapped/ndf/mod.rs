@@ -630,10 +630,10 @@ impl NdfMapped {
     /// whose fitted lobes follow a narrow highlight better. The default is
     /// [`default_box_detail`] of the facet material: 0 for facets as broad as the fit's kernel
     /// or broader (Lambert, Phong η ≤ 40), 3 for glossy ones (GGX or Beckmann α ≤ 0.1118,
-    /// Phong η ≥ 160, mirrors), whose narrow highlight the coarse texels' four lobes cannot follow
-    /// (docs/heightmaps.md, "Glossy facets"), fractional between. Under a table cap ([`NdfMapped::with_table_cap`])
-    /// the detail takes a footprint no finer than the finest level whose tables fit in half the
-    /// cap.
+    /// Phong η ≥ 160, mirrors), whose narrow highlight the coarse texels' four lobes cannot
+    /// follow (docs/heightmaps.md, "Glossy facets"), fractional between. Under a table cap
+    /// ([`NdfMapped::with_table_cap`]) the detail takes a footprint no finer than the finest
+    /// level whose tables fit in half the cap.
     #[must_use]
     pub fn with_box_detail(mut self, detail: f64) -> NdfMapped {
         if detail.is_finite() {
