@@ -18,7 +18,6 @@
 //! best wall time and the mean process CPU time per case.
 
 use glam::DVec3;
-use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
 use meso_render::{BumpMapped, NdfMapped, RenderOptions, Shader};
 use std::path::Path;
@@ -30,6 +29,9 @@ mod common;
 
 #[path = "common/cpu.rs"]
 mod cpu;
+
+#[path = "common/facets.rs"]
+mod facets;
 
 fn main() {
     let words: Vec<String> = std::env::args().skip(1).collect();
@@ -64,15 +66,7 @@ fn main() {
         params.fit.max_lobes,
         t0.elapsed().as_secs_f64()
     );
-    let surface = if alpha > 0.0 {
-        Material::from_toml_str(&format!(
-            "[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n\
-             [diffuse]\nalbedo = [0.1, 0.1, 0.1]\n"
-        ))
-    } else {
-        Material::from_toml_str("[transfer]\nkind = \"lambert\"\n")
-    }
-    .expect("material");
+    let surface = facets::facet_material(alpha, 0.1);
     let tpu = map.width() as f64;
     let v = 45f64.to_radians();
     let camera = DVec3::new(0.0, -v.sin(), v.cos());
