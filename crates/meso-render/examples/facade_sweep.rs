@@ -16,7 +16,7 @@
 //! −y), `CELLS` cells per pixel (default 1,2,4,16,64), `AZIMUTHS` the light's azimuths from +x
 //! towards +y (default 0,45,90,135,180,270: 90° is opposite the viewer); `DETAIL` the box
 //! filter's detail (`NdfMapped::with_box_detail`; default the facet's own,
-//! `default_box_detail`: 0 for Lambert, 0.16 for GGX α = 0.2, 3 from α ≈ 0.112; `-` for that
+//! `default_box_detail`: 0 for Lambert, 0.16 for GGX α = 0.2, 3 from α ≈ 0.158; `-` for that
 //! default); `HEIGHTS` another height map in its place (any format `meso extract` reads; texel
 //! size 1, tiled) and its `HEIGHT_SCALE` (the height of the full code range). A 48² image per
 //! scene. Prints each scene's ratio of mean pixels (NDF-mapped over bump-mapped), then the mean

@@ -177,7 +177,7 @@
 //!   are an eighth to a quarter of the box, blended with the next level (up to 136 taps
 //!   instead of 8): the default, as the closer of the two on every map measured. For glossy
 //!   facets it reads finer texels still ([`NdfMapped::with_box_detail`], default
-//!   [`default_box_detail`]: three levels finer for GGX α ≤ 0.11), whose narrow
+//!   [`default_box_detail`]: three levels finer for GGX α ≤ 0.158), whose narrow
 //!   highlights the coarse texels' four lobes cannot follow (docs/heightmaps.md, "Glossy
 //!   facets").
 //!

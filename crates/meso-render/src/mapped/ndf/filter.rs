@@ -19,20 +19,21 @@ pub(super) type Tap = (usize, usize, f64);
 pub const MAX_BOX_DETAIL: f64 = 3.0;
 
 /// The default box-filter detail of the glossy facets ([`default_box_detail`]: those whose
-/// `½·log₂(λ_facet / 40)` reaches [`GLOSSY_BOX_DETAIL_FROM`], GGX or Beckmann α ≤ 0.1118, Phong
-/// η ≥ 160, mirrors). Measured against the bump map (docs/heightmaps.md, "Glossy facets" and
-/// "Detail 3 for GGX α = 0.1 on more maps"): with α = 0.05 and α = 0.1 detail 3 was as close
-/// as the lower details or closer on every map and distance tried, and at 32–64 cells per
-/// pixel far closer (α = 0.1: the stone wall's grazing view 0.75 → 0.96–1.00 of the truth, a
-/// Gaussian height map's far views 0.218 → 0.040 in mean |ln ratio|); it cost 0.6–2.6× detail
-/// 2's render time at α = 0.05, and 0.55–1.7× the old default 1.16's at 16 cells per pixel,
-/// 1.7–6× at 64 at α = 0.1 (docs/benchmarks.md, "What the finer box details cost against the
-/// bump map").
+/// `½·log₂(λ_facet / 40)` reaches [`GLOSSY_BOX_DETAIL_FROM`], GGX or Beckmann α ≤ 0.158, Phong
+/// η ≥ 80, mirrors). Measured against the bump map and the displaced geometry
+/// (docs/heightmaps.md, "Glossy facets" and "Detail 3 for GGX α = 0.1 on more maps"): with
+/// α = 0.05, 0.1 and 0.15 detail 3 was as close as the lower details or closer on every map
+/// and distance tried, and at 32–64 cells per pixel far closer (the stone wall's far views at
+/// α = 0.1 0.75 → 0.96–1.00 of the truth, at α = 0.15 0.69 → 0.98–0.99; a Gaussian height
+/// map's far views at α = 0.1 0.218 → 0.040 in mean |ln ratio|); it cost 0.6–2.6× detail 2's
+/// render time at α = 0.05, and against the fractional details it replaced 0.55–1.8× at 16
+/// cells per pixel and 1.7–8× at 64 (docs/benchmarks.md, "What the finer box details cost
+/// against the bump map").
 pub const DEFAULT_MAX_BOX_DETAIL: f64 = MAX_BOX_DETAIL;
 
 /// From this `½·log₂(λ_facet / 40)` on, the default detail is [`DEFAULT_MAX_BOX_DETAIL`]
 /// ([`default_box_detail`]).
-pub const GLOSSY_BOX_DETAIL_FROM: f64 = 1.0;
+pub const GLOSSY_BOX_DETAIL_FROM: f64 = 0.5;
 
 /// The box filter's default detail for facets of `transfer` ([`NdfMapped::with_box_detail`]):
 /// half the base-2 log of how much sharper the facet's highlight is than the kernel the
@@ -42,8 +43,8 @@ pub const GLOSSY_BOX_DETAIL_FROM: f64 = 1.0;
 /// cells, over which four lobes fitted at λ_fit still resolve what the facet sees shrinks with
 /// the ratio of the two angular widths, `√(λ_fit / λ_facet)`. Clamped at 0; from
 /// [`GLOSSY_BOX_DETAIL_FROM`] on, [`DEFAULT_MAX_BOX_DETAIL`] (measured closer on every map
-/// tried; a mirror facet, with no kernel, gets it too). GGX α = 0.05 and 0.1 → 3, α = 0.15 →
-/// 0.58, α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
+/// tried; a mirror facet, with no kernel, gets it too). GGX α = 0.05, 0.1 and 0.15 → 3,
+/// α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
 #[must_use]
 pub fn default_box_detail(transfer: &meso_core::transfer::Transfer) -> f64 {
     match meso_maps::fit::facet_kernel_exponent(transfer) {
@@ -294,18 +295,16 @@ mod tests {
         };
         assert_eq!(detail("kind = \"lambert\""), 0.0);
         assert_eq!(detail("kind = \"phong\"\nexponent = 20.0"), 0.0);
-        assert!((detail("kind = \"phong\"\nexponent = 80.0") - 0.5).abs() < 1e-12);
+        assert!((detail("kind = \"phong\"\nexponent = 70.0") - 0.5 * 1.75f64.log2()).abs() < 1e-12);
+        assert_eq!(detail("kind = \"phong\"\nexponent = 80.0"), 3.0);
         let ggx = |a: f64| detail(&format!("kind = \"microfacet\"\nalpha = {a}"));
         assert!((ggx(0.2) - 0.5 * (50.0f64 / 40.0).log2()).abs() < 1e-12);
         assert_eq!(ggx(0.1), 3.0);
         assert_eq!(ggx(0.05), 3.0);
-        // From ½·log₂(λ/40) = 1 on (λ ≥ 160: α ≤ 0.1118) the glossy default, 3.
-        assert!((ggx(0.12) - 0.5 * (2.0 / (0.12f64 * 0.12 * 40.0)).log2()).abs() < 1e-12);
-        assert!(ggx(0.12) < 1.0 && ggx(0.11) == 3.0);
-        assert!(
-            (detail("kind = \"phong\"\nexponent = 150.0") - 0.5 * 3.75f64.log2()).abs() < 1e-12
-        );
-        assert_eq!(detail("kind = \"phong\"\nexponent = 160.0"), 3.0);
+        assert_eq!(ggx(0.15), 3.0);
+        // From ½·log₂(λ/40) = ½ on (λ ≥ 80: α ≤ 0.158) the glossy default, 3.
+        assert!((ggx(0.16) - 0.5 * (2.0 / (0.16f64 * 0.16 * 40.0)).log2()).abs() < 1e-12);
+        assert!(ggx(0.16) < 0.5 && ggx(0.155) == 3.0);
         let mirror = meso_core::transfer::Transfer::Mirror {
             fresnel: meso_core::transfer::Fresnel::None,
             specular: [1.0; 3],

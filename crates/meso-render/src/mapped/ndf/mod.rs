@@ -629,8 +629,8 @@ impl NdfMapped {
     /// costs about 1–3× the shading time of a far view and reads texels of half the side,
     /// whose fitted lobes follow a narrow highlight better. The default is
     /// [`default_box_detail`] of the facet material: 0 for facets as broad as the fit's kernel
-    /// or broader (Lambert, Phong η ≤ 40), 3 for glossy ones (GGX or Beckmann α ≤ 0.1118,
-    /// Phong η ≥ 160, mirrors), whose narrow highlight the coarse texels' four lobes cannot
+    /// or broader (Lambert, Phong η ≤ 40), 3 for glossy ones (GGX or Beckmann α ≤ 0.158,
+    /// Phong η ≥ 80, mirrors), whose narrow highlight the coarse texels' four lobes cannot
     /// follow (docs/heightmaps.md, "Glossy facets"), fractional between. Under a table cap
     /// ([`NdfMapped::with_table_cap`]) the detail takes a footprint no finer than the finest
     /// level whose tables fit in half the cap.
