@@ -293,32 +293,13 @@ specular = [0.6, 0.6, 0.6]
 albedo = [0.5, 0.4, 0.3]
 "#;
 
-const GGX10: &str = r#"
-[transfer]
-kind = "microfacet"
-distribution = "ggx"
-alpha = 0.1
-[diffuse]
-albedo = [0.1, 0.1, 0.1]
-"#;
-
-const GGX15: &str = r#"
-[transfer]
-kind = "microfacet"
-distribution = "ggx"
-alpha = 0.15
-[diffuse]
-albedo = [0.1, 0.1, 0.1]
-"#;
-
-const GGX05: &str = r#"
-[transfer]
-kind = "microfacet"
-distribution = "ggx"
-alpha = 0.05
-[diffuse]
-albedo = [0.1, 0.1, 0.1]
-"#;
+/// Glossy facets: GGX of roughness `alpha` with a small diffuse term (albedo 0.1).
+fn ggx(alpha: f64) -> String {
+    format!(
+        "[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n\
+         [diffuse]\nalbedo = [0.1, 0.1, 0.1]\n"
+    )
+}
 
 const LAMBERT: &str = r#"
 [transfer]
@@ -430,7 +411,7 @@ fn glossy_facets_on_a_steep_map_render_without_sparkle() {
         measure_facets(
             &map,
             &[2.0, 4.0, 8.0, 16.0],
-            &[("ggx0.1", GGX10), ("ggx0.05", GGX05)],
+            &[("ggx0.1", &ggx(0.1)), ("ggx0.05", &ggx(0.05))],
         ),
         |m| {
             let (c, (lo, hi)) = (&m.comparison, m.class_range());
@@ -465,7 +446,11 @@ fn glossy_facets_on_a_steep_map_render_without_sparkle() {
 fn glossy_facets_far_away_on_a_real_normal_map() {
     let map = facade_normal_map();
     assert_in_bounds(
-        measure_facets(&map, &[8.0, 16.0], &[("ggx0.1", GGX10), ("ggx0.05", GGX05)]),
+        measure_facets(
+            &map,
+            &[8.0, 16.0],
+            &[("ggx0.1", &ggx(0.1)), ("ggx0.05", &ggx(0.05))],
+        ),
         |m| {
             let (c, (lo, hi)) = (&m.comparison, m.class_range());
             m.box_filter
@@ -499,7 +484,11 @@ fn glossy_facets_seen_from_very_far() {
             measure_facets(
                 map,
                 &[32.0, 64.0],
-                &[("ggx0.15", GGX15), ("ggx0.1", GGX10), ("ggx0.05", GGX05)],
+                &[
+                    ("ggx0.15", &ggx(0.15)),
+                    ("ggx0.1", &ggx(0.1)),
+                    ("ggx0.05", &ggx(0.05)),
+                ],
             ),
             |m| {
                 let (c, (lo, hi)) = (&m.comparison, m.class_range());
