@@ -18,6 +18,7 @@
 //! best wall time and the mean process CPU time per case.
 
 use glam::DVec3;
+use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
 use meso_render::{BumpMapped, NdfMapped, RenderOptions, Shader};
 use std::path::Path;
@@ -29,9 +30,6 @@ mod common;
 
 #[path = "common/cpu.rs"]
 mod cpu;
-
-#[path = "common/facets.rs"]
-mod facets;
 
 fn main() {
     let words: Vec<String> = std::env::args().skip(1).collect();
@@ -66,7 +64,8 @@ fn main() {
         params.fit.max_lobes,
         t0.elapsed().as_secs_f64()
     );
-    let surface = facets::facet_material(alpha, 0.1);
+    let surface =
+        Material::from_toml_str(&common::facet_toml(alpha, 0.1)).expect("the facet material");
     let tpu = map.width() as f64;
     let v = 45f64.to_radians();
     let camera = DVec3::new(0.0, -v.sin(), v.cos());

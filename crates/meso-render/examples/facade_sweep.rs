@@ -23,6 +23,7 @@
 //! of |ln ratio| per cells per pixel and over all scenes, the figure the docs' tables give.
 
 use glam::DVec3;
+use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
 use meso_render::{BumpMapped, Image, NdfMapped, Shader};
 use std::collections::BTreeMap;
@@ -31,9 +32,6 @@ use std::sync::Arc;
 
 #[path = "../tests/common/mod.rs"]
 mod common;
-
-#[path = "common/facets.rs"]
-mod facets;
 
 /// The mean of an image's first channel.
 fn mean(img: &Image) -> f64 {
@@ -76,7 +74,8 @@ fn main() {
     };
     let map = HeightMap::load(&path, 1.0, scale, Border::Wrap)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let surface = facets::facet_material(alpha, 0.0);
+    let surface =
+        Material::from_toml_str(&common::facet_toml(alpha, 0.0)).expect("the facet material");
     let mut params = ExtractParams::default();
     params.fit.max_lobes = max_lobes;
     let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");

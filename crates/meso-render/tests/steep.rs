@@ -212,17 +212,33 @@ fn measure_facets(
         let surface = Material::from_toml_str(text).unwrap();
         let bump: Arc<dyn Shader> =
             Arc::new(BumpMapped::from_normal_map(map, &surface, tpu).unwrap());
+        let lights = [DVec3::new(-0.5, 0.3, 0.8), DVec3::new(0.2, 0.9, 0.35)];
+        // The 256-spp truth of each light and distance, rendered once for both filters.
+        let truths: Vec<Image> = lights
+            .iter()
+            .flat_map(|&light| texels_per_pixel.iter().map(move |&cells| (light, cells)))
+            .map(|(light, cells)| {
+                render_plane(
+                    bump.clone(),
+                    cells * f64::from(size) / tpu,
+                    size,
+                    light,
+                    256,
+                )
+            })
+            .collect();
         for box_filter in [false, true] {
             let ndf = NdfMapped::new(&pyr, &surface, tpu, false)
                 .unwrap()
                 .with_box_filter(box_filter);
-            for light in [DVec3::new(-0.5, 0.3, 0.8), DVec3::new(0.2, 0.9, 0.35)] {
+            let mut truth = truths.iter();
+            for light in lights {
                 for &cells in texels_per_pixel {
                     let width = cells * f64::from(size) / tpu;
-                    let truth = render_plane(bump.clone(), width, size, light, 256);
+                    let truth = truth.next().unwrap();
                     let scene = plane_scene(Arc::new(ndf.clone()), width, size, light);
                     let filtered = render_at(&scene, 1);
-                    let comparison = compare(&scene, &ndf, tpu, &filtered, &truth);
+                    let comparison = compare(&scene, &ndf, tpu, &filtered, truth);
                     let filter = if box_filter { "box" } else { "trilinear" };
                     let mut m = Measurement {
                         facets,
@@ -295,10 +311,7 @@ albedo = [0.5, 0.4, 0.3]
 
 /// Glossy facets: GGX of roughness `alpha` with a small diffuse term (albedo 0.1).
 fn ggx(alpha: f64) -> String {
-    format!(
-        "[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n\
-         [diffuse]\nalbedo = [0.1, 0.1, 0.1]\n"
-    )
+    common::facet_toml(alpha, 0.1)
 }
 
 const LAMBERT: &str = r#"

@@ -266,10 +266,7 @@ fn glossy_facets_on_creased_geometry_follow_it_one_period_a_pixel() {
         .unwrap();
         let gonio = Gonio::new(&map).unwrap();
         for alpha in [0.1, 0.05] {
-            let surface = Material::from_toml_str(&format!(
-                "[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n"
-            ))
-            .unwrap();
+            let surface = Material::from_toml_str(&common::facet_toml(alpha, 0.0)).unwrap();
             let ndf = NdfMapped::new(&pyr, &surface, 256.0, true).unwrap();
             assert_eq!(ndf.box_detail(), 3.0);
             let ndf: Arc<dyn Shader> = Arc::new(ndf);

@@ -74,3 +74,20 @@ pub fn render_plane(
 ) -> Image {
     render_at(&plane_scene(shader, width, size, light), spp)
 }
+
+/// The TOML of the facet material the glossy far-field tests and examples share: GGX facets of
+/// roughness `alpha` when `alpha > 0`, with a grey Lambert diffuse term of albedo `diffuse`
+/// when `diffuse > 0` (`tests/steep.rs` uses 0.1); otherwise Lambert facets of the default
+/// albedo.
+#[allow(dead_code)] // Not every including file shades glossy facets.
+pub fn facet_toml(alpha: f64, diffuse: f64) -> String {
+    if alpha <= 0.0 {
+        return "[transfer]\nkind = \"lambert\"\n".to_string();
+    }
+    let mut t =
+        format!("[transfer]\nkind = \"microfacet\"\ndistribution = \"ggx\"\nalpha = {alpha}\n");
+    if diffuse > 0.0 {
+        t += &format!("[diffuse]\nalbedo = [{diffuse}, {diffuse}, {diffuse}]\n");
+    }
+    t
+}
