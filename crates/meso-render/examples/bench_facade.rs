@@ -4,7 +4,7 @@
 //! details 0, 1 and 2 or those asked for (`NdfMapped::with_box_detail`), and optionally the
 //! bump-mapped truth of the same scenes beside them:
 //!
-//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS] [ALPHA] [BUMP_SPP]`
+//! `cargo run --release -p meso-render --example bench_facade -- [SIZE] [FRAMES] [MAX_LOBES] [DETAILS] [ALPHA] [BUMP_SPP] [FOV]`
 //!
 //! `SIZE`: image side in pixels (default 256); `FRAMES`: frames per case (default 3), after
 //! one untimed frame that builds nothing (the tables are built up front); `MAX_LOBES`: the
@@ -14,7 +14,10 @@
 //! facets instead of Lambert, GGX of this roughness with a diffuse albedo of 0.1 (the glossy
 //! facets of `tests/steep.rs`; default 0: Lambert); `BUMP_SPP`: also time one frame of the
 //! bump-mapped truth (`BumpMapped`, shadowed and masked by rays on the displaced mesh) at
-//! this many samples per pixel (default 0: not timed). Prints the extraction's time, then the
+//! this many samples per pixel (default 0: not timed); `FOV`: a pinhole camera of this
+//! horizontal field of view in degrees, placed to see the same width of the plane at its
+//! centre (default 0: orthographic; under a pinhole no two pixels share their viewing
+//! direction, so no texel response is kept from one shading call to the next). Prints the extraction's time, then the
 //! best wall time and the mean process CPU time per case.
 
 use glam::DVec3;
@@ -35,7 +38,7 @@ fn main() {
     let words: Vec<String> = std::env::args().skip(1).collect();
     let number = |a: &str| -> f64 {
         a.parse()
-            .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA BUMP_SPP")
+            .expect("numbers: SIZE FRAMES MAX_LOBES DETAILS ALPHA BUMP_SPP FOV")
     };
     // DETAILS: a whole number N (details 0 to N) or a list.
     let details: Vec<f64> = match words.get(3) {
@@ -76,13 +79,14 @@ fn main() {
         ..RenderOptions::default()
     };
     let bump_spp = nums.get(5).copied().unwrap_or(0.0) as u32;
+    let fov = nums.get(6).copied().unwrap_or(0.0);
     let bump: Option<Arc<dyn Shader>> = (bump_spp > 0).then(|| {
         Arc::new(BumpMapped::new(&map, &surface, tpu, true).expect("bump-mapped shader")) as _
     });
     for cells in [4.0, 16.0, 64.0] {
         let width = cells * f64::from(size) / tpu;
         if let Some(bump) = &bump {
-            let scene = common::plane_scene_from(bump.clone(), width, size, light, camera);
+            let scene = common::plane_scene_through(bump.clone(), width, fov, size, light, camera);
             let bump_opts = RenderOptions {
                 spp: Some(bump_spp),
                 ..RenderOptions::default()
@@ -102,7 +106,7 @@ fn main() {
                     .expect("material")
                     .with_box_detail(detail),
             );
-            let scene = common::plane_scene_from(ndf, width, size, light, camera);
+            let scene = common::plane_scene_through(ndf, width, fov, size, light, camera);
             std::hint::black_box(meso_render::render(&scene, &opts, None));
             let c0 = cpu::cpu_seconds();
             let mut best = f64::MAX;

@@ -69,7 +69,7 @@ pub use image::Image;
 pub use light::{EnvironmentMap, Light, LightSample};
 pub use mapped::{
     default_box_detail, BumpMapped, NdfMapped, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM,
-    MAX_BOX_DETAIL,
+    MAX_BOX_DETAIL, MEMO_BYTES,
 };
 pub use material::MaterialShader;
 pub use render::{render, render_pixel, shade, shade_with, RenderOptions, ShadeScratch};

@@ -342,4 +342,5 @@ mod ndf;
 pub use bump::BumpMapped;
 pub use ndf::{
     default_box_detail, NdfMapped, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
+    MEMO_BYTES,
 };

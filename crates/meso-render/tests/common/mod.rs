@@ -24,9 +24,32 @@ pub fn plane_scene_from(
     light: DVec3,
     camera: DVec3,
 ) -> Scene {
+    plane_scene_through(shader, width, 0.0, size, light, camera)
+}
+
+/// [`plane_scene_from`] through a pinhole camera of horizontal field of view `fov_deg`
+/// (orthographic for 0), placed along `camera` so that the image spans `width` world units
+/// across the plane's centre.
+#[allow(dead_code)] // Not every including file renders through a pinhole.
+pub fn plane_scene_through(
+    shader: Arc<dyn Shader>,
+    width: f64,
+    fov_deg: f64,
+    size: u32,
+    light: DVec3,
+    camera: DVec3,
+) -> Scene {
+    let (projection, distance) = if fov_deg > 0.0 {
+        (
+            Projection::Perspective { fov_deg },
+            0.5 * width / (0.5 * fov_deg.to_radians()).tan(),
+        )
+    } else {
+        (Projection::Orthographic { width }, 50.0)
+    };
     let cam = Camera::new(
-        Projection::Orthographic { width },
-        camera.normalize() * 50.0,
+        projection,
+        camera.normalize() * distance,
         DVec3::ZERO,
         DVec3::Y,
     )

@@ -13,7 +13,7 @@
 use super::filter::default_box_detail;
 use super::lobes::{lobe_nodes, LobeRole, Node, SgLobe, Shapes, NO_LOBE};
 use super::view::ViewLobe;
-use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache};
+use super::{NdfMapped, NodeLevel, Slot, TexLevel, TileCache, NEXT_MEMO_ID};
 use crate::mapped::{check_scale, Facet};
 use glam::DVec3;
 use meso_core::material::Material;
@@ -286,6 +286,8 @@ impl NdfMapped {
             // weighting"): a normal map's steep facets, with nothing to mask them, would count
             // 1/n_z times more.
             view_weighting: shadowing,
+            memo_id: NEXT_MEMO_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            memo_cap: super::MEMO_BYTES,
         }
     }
 }

@@ -16,6 +16,10 @@
 //!   beside the core);
 //! * `filter` — the level of detail and the filter taps (trilinear, box, sharp
 //!   magnification);
+//! * `memo` — the texels' responses a thread keeps from one shading call to the next when
+//!   they ask the same directions (an orthographic camera and directional lights on a flat
+//!   surface: a far view reads each texel for every pixel whose footprint holds it), the
+//!   image the same bit for bit;
 //! * `peak_quadrature` (tests only) — the brute-force quadrature over one Phong peak that the
 //!   tests of `lobes` check against.
 //!
@@ -31,6 +35,7 @@ use super::*;
 mod build;
 mod filter;
 mod lobes;
+mod memo;
 #[cfg(test)]
 mod peak_quadrature;
 mod view;
@@ -42,6 +47,8 @@ pub use filter::{
 };
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
+pub use memo::MEMO_BYTES;
+use memo::{TexelMemo, HEAD, PER_LIGHT};
 use meso_maps::{
     frechet_dependence, with_frechet_dependence, CellHorizon, HorizonCdf, HorizonDirection,
     HorizonJoint, HorizonPair, HorizonStats, HorizonToward, Horizons, TowardReading,
@@ -434,21 +441,100 @@ pub struct NdfMapped {
     texel_visibility: bool,
     /// Weight each lobe by the area of it the viewer sees ([`NdfMapped::with_view_weighting`]).
     view_weighting: bool,
+    /// This material's id among those constructed ([`TexelMemo`]'s key; a clone shares it, and
+    /// its tables).
+    memo_id: u64,
+    /// Bytes a thread's [`TexelMemo`] may keep of this material: [`MEMO_BYTES`], or under a
+    /// table cap half of it shared among the rendering threads, if less.
+    memo_cap: usize,
 }
 
-/// A shading call's taps and, per tap, its tile's place among the call's tiles and its texel's
-/// index in it.
-type TapBuffers = (Vec<Tap>, Vec<(usize, usize)>);
+/// One light of a shading call, prepared once for the call's taps.
+#[derive(Clone, Copy, Debug)]
+struct LightPrep {
+    /// Its direction in the surface's frame.
+    i: DVec3,
+    /// Above the surface and not opposite the viewer: shaded.
+    lit: bool,
+    /// The half vector with the viewer.
+    h: DVec3,
+    /// The colour of a scalar facet's response to it (a microfacet facet's Fresnel factor).
+    colour: [f64; 3],
+    /// The light's direction among the horizon statistics (+z without shadowing).
+    dir: HorizonDirection,
+    /// The light and the viewer prepared together (view weighting per lobe).
+    pair: Option<HorizonPair>,
+}
+
+/// A shading call's buffers, reused from call to call on each thread: its taps, each tap's
+/// entry in the memo, its lights, and the thread's [`TexelMemo`].
+#[derive(Debug, Default)]
+struct Call {
+    taps: Vec<Tap>,
+    entries: Vec<usize>,
+    lights: Vec<LightPrep>,
+    memo: TexelMemo,
+}
 
 std::thread_local! {
-    /// The shading calls' [`TapBuffers`], reused from call to call on each thread.
-    static TAPS: std::cell::RefCell<TapBuffers> =
-        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
-    /// The shading calls' per-tap view weights ([`TexelView`]), reused likewise.
-    static VIEWS: std::cell::RefCell<Vec<TexelView>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The thread's [`Call`] buffers.
+    static CALL: std::cell::RefCell<Call> = std::cell::RefCell::new(Call::default());
 }
 
+/// The tiles a shading call has fetched (the taps of a call share a few): at most two levels,
+/// within 2 × 2 tiles on each up to detail 2 (a footprint spans at most 34 texels of a level,
+/// a tile 64), 3 × 3 at detail 3: 8 places, more on the heap.
+#[derive(Default)]
+struct CallTiles {
+    held: [(usize, usize, Option<Arc<NodeLevel>>); 8],
+    more: Vec<(usize, usize, Option<Arc<NodeLevel>>)>,
+    n: usize,
+}
+
+impl CallTiles {
+    /// The tile holding texel `t` of level `lev` (fetched from `m` on first use) and the
+    /// texel's index in it.
+    fn get(&mut self, m: &NdfMapped, lev: usize, t: usize) -> (&NodeLevel, usize) {
+        let (i, local, _) = m.tile_of(lev, t);
+        let h = match self.held[..self.n.min(8)]
+            .iter()
+            .chain(&self.more)
+            .position(|(hl, hi, _)| (*hl, *hi) == (lev, i))
+        {
+            Some(h) => h,
+            None => {
+                let e = (lev, i, Some(m.tile(lev, i)));
+                if self.n < 8 {
+                    self.held[self.n] = e;
+                } else {
+                    self.more.push(e);
+                }
+                self.n += 1;
+                self.n - 1
+            }
+        };
+        let tile = if h < 8 {
+            &self.held[h].2
+        } else {
+            &self.more[h - 8].2
+        };
+        (tile.as_deref().expect("fetched above"), local)
+    }
+}
+
+/// The next material's id for [`TexelMemo`]'s key.
+static NEXT_MEMO_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
 impl NdfMapped {
+    /// The key of this material and its options that change a texel's response, for
+    /// [`TexelMemo`].
+    fn memo_key(&self) -> u64 {
+        (self.memo_id << 3)
+            | u64::from(self.shadowing)
+            | (u64::from(self.texel_visibility) << 1)
+            | (u64::from(self.view_weighting) << 2)
+    }
+
     /// Tile `i` of level `lev` and texel `t`'s index in it: the tile and the texel's index.
     #[inline]
     fn tile_of(&self, lev: usize, t: usize) -> (usize, usize, usize) {
@@ -549,10 +635,14 @@ impl NdfMapped {
     /// The cap also bounds the box filter's detail ([`NdfMapped::with_box_detail`]): it takes a
     /// footprint no finer than the finest level whose whole tables fit in half the cap, so that
     /// a far view, which reads every part of the map, does not rebuild tiles the cache has
-    /// dropped (a 2048² map under a 1 GiB budget took minutes instead of seconds).
+    /// dropped (a 2048² map under a 1 GiB budget took minutes instead of seconds), and the
+    /// texel responses each rendering thread keeps between shading calls that share their
+    /// directions (at most [`MEMO_BYTES`]) to half the cap shared among the threads
+    /// (`rayon::current_num_threads` when called): at most 1.5 × the cap in all.
     #[must_use]
     pub fn with_table_cap(mut self, bytes: usize) -> NdfMapped {
         self.cache.cap = bytes;
+        self.memo_cap = MEMO_BYTES.min(bytes / (2 * rayon::current_num_threads().max(1)));
         self.detail_floor = match &self.source {
             Some(src) => (0..self.levels.len())
                 .find(|&k| {
@@ -954,85 +1044,113 @@ impl Shader for NdfMapped {
         }
         // The colour of a scalar facet's response: its specular or albedo, or for a
         // microfacet facet the Fresnel factor of each light direction (below).
-        let mut colour: [f64; 3] = match self.facet {
+        let base: [f64; 3] = match self.facet {
             Facet::Phong { specular, .. } => specular.map(f64::from),
             Facet::Lambert { albedo_pi } => albedo_pi.map(f64::from),
             Facet::Microfacet { .. } | Facet::General(_) => [1.0; 3],
         };
         let scalar = !matches!(self.facet, Facet::General(_));
-        let (mut taps, mut at) = TAPS.with(|t| std::mem::take(&mut *t.borrow_mut()));
-        self.taps(sp, &mut taps);
-        at.clear();
-        // Each tap's tile (fetched once per call; the taps of a call share a few) and its
-        // texel's index in it.
-        // A call's taps lie on at most two levels, within 2 × 2 tiles on each up to detail 2 (a
-        // footprint spans at most 34 texels of a level, a tile 64), 3 × 3 at detail 3: 8 places,
-        // more on the heap.
-        let mut held: [(usize, usize, Option<Arc<NodeLevel>>); 8] = Default::default();
-        let mut more: Vec<(usize, usize, Option<Arc<NodeLevel>>)> = Vec::new();
-        let mut nheld = 0;
-        for &(lev, t, _) in &taps {
-            let (i, local, _) = self.tile_of(lev, t);
-            let h = match held[..nheld.min(8)]
-                .iter()
-                .chain(&more)
-                .position(|(hl, hi, _)| (*hl, *hi) == (lev, i))
-            {
-                Some(h) => h,
-                None => {
-                    let e = (lev, i, Some(self.tile(lev, i)));
-                    if nheld < 8 {
-                        held[nheld] = e;
-                    } else {
-                        more.push(e);
-                    }
-                    nheld += 1;
-                    nheld - 1
-                }
-            };
-            at.push((h, local));
-        }
-        // Tap `k`'s tile and its texel's index in it.
-        let tap = |k: usize| -> (&NodeLevel, usize) {
-            let (hi, t) = at[k];
-            let l = if hi < 8 { &held[hi].2 } else { &more[hi - 8].2 };
-            (l.as_deref().expect("fetched above"), t)
-        };
+        let mut call = CALL.with(|c| std::mem::take(&mut *c.borrow_mut()));
+        let Call {
+            taps,
+            entries,
+            lights,
+            memo,
+        } = &mut call;
+        self.taps(sp, taps);
         // Per lobe (the default): each lobe's part times its own visibility; per texel: the
         // response times the taps' blended visibility. The same for the light and the viewer.
         let per_lobe = self.shadowing && !self.texel_visibility;
-        // View weighting: each tap's lobes' weights, once for the call (one viewer); the
-        // thread's buffer only then.
-        let mut views = Vec::new();
-        let mut den = 0.0;
         // The viewer prepared once a call, with view weighting only.
         let dir_o = self.view_weighting.then(|| HorizonDirection::new(wo));
-        if let Some(dir_o) = &dir_o {
-            views = VIEWS.with(|v| std::mem::take(&mut *v.borrow_mut()));
-            views.clear();
-            for (k, &(_, _, w)) in taps.iter().enumerate() {
-                let (l, t) = tap(k);
-                // On level 0 every lobe of the texel reads its one cell: read once.
-                let cell_o = std::cell::OnceCell::new();
-                let tv = TexelView::new(l, t, wo, |src| {
-                    if per_lobe {
-                        match l.lobe_horizon(t, src) {
-                            Some(LobeHorizon::Cell(c)) => {
-                                *cell_o.get_or_init(|| c.visibility_along(dir_o))
-                            }
-                            s => s.map_or(1.0, |s| s.visibility_along(dir_o)),
-                        }
-                    } else if self.shadowing {
-                        l.horizon
-                            .as_ref()
-                            .map_or(1.0, |h| h.get(t).visibility_along(dir_o))
-                    } else {
-                        1.0
+        // Each light prepared once a call: its half vector, colour, direction and pair.
+        lights.clear();
+        lights.extend(wi.iter().map(|&i| {
+            let s = i + wo;
+            let len = s.length();
+            let h = s / len;
+            let dir = if self.shadowing {
+                HorizonDirection::new(i)
+            } else {
+                HorizonDirection::new(DVec3::Z)
+            };
+            LightPrep {
+                i,
+                lit: i.z > 0.0 && len > 1e-12,
+                h,
+                colour: match self.facet {
+                    Facet::Microfacet { fresnel, .. } if i.z > 0.0 && len > 1e-12 => {
+                        fresnel.eval(i.dot(h))
                     }
-                });
-                den += w * tv.den;
-                views.push(tv);
+                    _ => base,
+                },
+                dir,
+                // Used only where the footprint is seen (`view_on` below).
+                pair: dir_o
+                    .as_ref()
+                    .filter(|_| per_lobe)
+                    .map(|o| HorizonPair::new(&dir, o)),
             }
+        }));
+        // Each tap's texel's part (`memo`): kept from the thread's last calls if they asked
+        // the same directions of this material, made now otherwise.
+        memo.begin(self.memo_key(), wo, wi);
+        let mut tiles = CallTiles::default();
+        entries.clear();
+        let mut den = 0.0;
+        for &(lev, t, w) in taps.iter() {
+            let (e, fresh) = memo.entry(lev, t, self.memo_cap);
+            if fresh {
+                let (l, t) = tiles.get(self, lev, t);
+                let d = &mut memo.data[e..e + memo.stride];
+                d[1] = 0.0;
+                if let Some(dir_o) = &dir_o {
+                    // On level 0 every lobe of the texel reads its one cell: read once.
+                    let cell_o = std::cell::OnceCell::new();
+                    let tv = TexelView::new(l, t, wo, |src| {
+                        if per_lobe {
+                            match l.lobe_horizon(t, src) {
+                                Some(LobeHorizon::Cell(c)) => {
+                                    *cell_o.get_or_init(|| c.visibility_along(dir_o))
+                                }
+                                s => s.map_or(1.0, |s| s.visibility_along(dir_o)),
+                            }
+                        } else if self.shadowing {
+                            l.horizon
+                                .as_ref()
+                                .map_or(1.0, |h| h.get(t).visibility_along(dir_o))
+                        } else {
+                            1.0
+                        }
+                    });
+                    d[0] = tv.den;
+                    for (k, lp) in lights.iter().enumerate().filter(|(_, lp)| lp.lit) {
+                        let v = self.texel(
+                            l,
+                            t,
+                            lp.i,
+                            wo,
+                            lp.h,
+                            per_lobe.then_some(&lp.dir),
+                            Some(&tv),
+                            lp.pair.as_ref(),
+                        );
+                        d[HEAD + PER_LIGHT * k..][..3].copy_from_slice(&v);
+                    }
+                } else {
+                    d[0] = 0.0;
+                }
+                for (k, lp) in lights.iter().enumerate().filter(|(_, lp)| lp.lit) {
+                    d[HEAD + PER_LIGHT * k + 6] = match (&l.horizon, per_lobe) {
+                        (Some(hz), false) => hz.get(t).visibility_along(&lp.dir),
+                        _ => 0.0,
+                    };
+                }
+            }
+            if dir_o.is_some() {
+                den += w * memo.data[e];
+            }
+            entries.push(e);
         }
         // A footprint barely seen reads partly as the plain average, wholly when nothing of it
         // is seen (or without view weighting): `plain_w`, the plain average's weight beside
@@ -1045,45 +1163,45 @@ impl Shader for NdfMapped {
             0.0
         };
         let view_on = self.view_weighting && den > 0.0;
-        for (k, &i) in wi.iter().enumerate() {
-            let s = i + wo;
-            let len = s.length();
-            if i.z <= 0.0 || len <= 1e-12 {
-                continue;
+        // The plain responses, where read: made once an entry.
+        if !view_on || plain_w > 0.0 {
+            for (&(lev, t, _), &e) in taps.iter().zip(entries.iter()) {
+                if memo.data[e + 1] == 1.0 {
+                    continue;
+                }
+                let (l, t) = tiles.get(self, lev, t);
+                let d = &mut memo.data[e..e + memo.stride];
+                for (k, lp) in lights.iter().enumerate().filter(|(_, lp)| lp.lit) {
+                    let p = self.texel(
+                        l,
+                        t,
+                        lp.i,
+                        wo,
+                        lp.h,
+                        per_lobe.then_some(&lp.dir),
+                        None,
+                        None,
+                    );
+                    d[HEAD + PER_LIGHT * k + 3..][..3].copy_from_slice(&p);
+                }
+                d[1] = 1.0;
             }
-            let h = s / len;
-            if let Facet::Microfacet { fresnel, .. } = self.facet {
-                colour = fresnel.eval(i.dot(h));
-            }
-            let dir = if self.shadowing {
-                HorizonDirection::new(i)
-            } else {
-                HorizonDirection::new(DVec3::Z)
-            };
-            let pair = dir_o
-                .as_ref()
-                .filter(|_| view_on && per_lobe)
-                .map(|o| HorizonPair::new(&dir, o));
+        }
+        for (k, lp) in lights.iter().enumerate().filter(|(_, lp)| lp.lit) {
             let mut acc = [0.0f64; 3];
             let mut vis = 0.0f64;
-            for (k, &(_, _, w)) in taps.iter().enumerate() {
-                let (l, t) = tap(k);
-                let mut v = self.texel(
-                    l,
-                    t,
-                    i,
-                    wo,
-                    h,
-                    per_lobe.then_some(&dir),
-                    view_on.then(|| &views[k]),
-                    pair.as_ref(),
-                );
+            for (&(_, _, w), &e) in taps.iter().zip(entries.iter()) {
+                let d = &memo.data[e + HEAD + PER_LIGHT * k..][..PER_LIGHT];
+                let mut v = if view_on {
+                    [d[0], d[1], d[2]]
+                } else {
+                    [d[3], d[4], d[5]]
+                };
                 if view_on && plain_w > 0.0 {
                     // The plain average's part: `(Σ w·seen·L + plain_w · Σ w·L) / (den +
                     // plain_w)`.
-                    let p = self.texel(l, t, i, wo, h, per_lobe.then_some(&dir), None, None);
                     for c in 0..3 {
-                        v[c] += plain_w * p[c];
+                        v[c] += plain_w * d[3 + c];
                     }
                 }
                 if scalar {
@@ -1094,9 +1212,7 @@ impl Shader for NdfMapped {
                     }
                 }
                 if !per_lobe {
-                    if let Some(hz) = &l.horizon {
-                        vis += w * hz.get(t).visibility_along(&dir);
-                    }
+                    vis += w * d[6];
                 }
             }
             let v = if self.shadowing && !per_lobe {
@@ -1105,19 +1221,20 @@ impl Shader for NdfMapped {
                 1.0
             };
             let s = if view_on {
-                v / (i.z * (den + plain_w))
+                v / (lp.i.z * (den + plain_w))
             } else {
-                v / i.z
+                v / lp.i.z
             };
             for c in 0..3 {
-                let a = if scalar { acc[0] * colour[c] } else { acc[c] };
+                let a = if scalar {
+                    acc[0] * lp.colour[c]
+                } else {
+                    acc[c]
+                };
                 out[k][c] = (a * s) as f32 + self.diffuse[c];
             }
         }
         // The buffers back for the thread's next call.
-        TAPS.with(|t| *t.borrow_mut() = (taps, at));
-        if self.view_weighting {
-            VIEWS.with(|v| *v.borrow_mut() = views);
-        }
+        CALL.with(|c| *c.borrow_mut() = call);
     }
 }
