@@ -111,7 +111,7 @@ fn encoding_round_trip() {
 fn pyramid() -> meso_maps::Pyramid {
     let map = meso_maps::fixtures::gaussian(32, 3.0, 2.0, 11, 1.0).unwrap();
     let mut p = meso_maps::ExtractParams::default();
-    p.fit.max_lobes = 3;
+    p = p.with_max_lobes(3);
     meso_maps::extract(meso_maps::Source::Heights(&map), &p, &mut |_| {}).unwrap()
 }
 

@@ -83,7 +83,7 @@ fn lobe_grid_is_read_from_the_header() {
     )
     .unwrap();
     let mut params = meso_maps::ExtractParams::default();
-    params.fit.max_lobes = 1;
+    params = params.with_max_lobes(1);
     let pyr = meso_maps::extract(meso_maps::Source::Heights(&map), &params, &mut |_| {}).unwrap();
     let f = d.join("p.map");
     pyr.write(&f).unwrap();
@@ -153,7 +153,7 @@ fn lobe_memory_covers_the_packed_textures_and_their_files() {
         )
         .unwrap();
         let mut params = ExtractParams::default();
-        params.fit.max_lobes = 3;
+        params = params.with_max_lobes(3);
         let p = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
         let path = d.join(format!("m{w}x{h}.map"));
         p.write(&path).unwrap();

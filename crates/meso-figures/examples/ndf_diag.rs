@@ -78,7 +78,7 @@ fn main() {
             })
             .expect("map");
         let mut p = meso_maps::ExtractParams::default();
-        p.fit.max_lobes = max_lobes;
+        p = p.with_max_lobes(max_lobes);
         let pyr =
             meso_maps::extract(meso_maps::Source::Heights(&map), &p, &mut |_| {}).expect("pyramid");
         let def = meso_figures::MaterialDef {

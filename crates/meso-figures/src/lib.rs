@@ -72,7 +72,7 @@ pub fn cylinder_map() -> Result<HeightMap, FigureError> {
 /// The extractor's message.
 pub fn pyramid(map: &HeightMap, max_lobes: usize) -> Result<Pyramid, FigureError> {
     let mut p = ExtractParams::default();
-    p.fit.max_lobes = max_lobes;
+    p = p.with_max_lobes(max_lobes);
     // Fit every normal of a footprint (the default strided subset of 512 aliases with periodic
     // bump maps and biases the top-level lobes); the maps here are small.
     p.fit.max_em_points = 1 << 14;

@@ -70,8 +70,7 @@ fn main() {
         let facets = fnorm.normalized();
         let exact = fnorm.to_deltas().unwrap();
         for k in [1, 2, 4, 7] {
-            let mut p = ExtractParams::default();
-            p.fit.max_lobes = k;
+            let p = ExtractParams::default().with_max_lobes(k);
             let pyr = extract(Source::Heights(map), &p, &mut |_| {}).unwrap();
             let ndf = Ndf::PhongPeaks(PhongPeaks::new(pyr.top().lobes.iter().collect()).unwrap());
             println!(

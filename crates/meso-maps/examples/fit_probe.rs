@@ -76,8 +76,7 @@ fn main() {
         ("gauss", &gauss, 512, 20.0, diag_test),
     ] {
         let eta = if feta > 0.0 { feta } else { eta };
-        let mut p = ExtractParams::default();
-        p.fit.max_lobes = k;
+        let mut p = ExtractParams::default().with_max_lobes(k);
         p.fit.max_em_points = em_points;
         if let Ok(v) = std::env::var("SMOOTH") {
             p.fit.smooth_exponent = v.parse().unwrap();

@@ -39,8 +39,7 @@ const FITS: [(&str, bool, KChoice, f64); 5] = [
 
 /// The extraction parameters of a way of choosing K (`FITS`) at `max_lobes` K.
 fn params(fit: &(&str, bool, KChoice, f64), k: usize) -> ExtractParams {
-    let mut p = ExtractParams::default();
-    p.fit.max_lobes = k;
+    let mut p = ExtractParams::default().with_max_lobes(k);
     p.fit.k_chain = fit.1;
     p.fit.k_choice = fit.2;
     p.fit.facet_exponent = fit.3;

@@ -56,8 +56,7 @@ fn main() {
     };
     let map = HeightMap::load(Path::new(&args[0]), 1.0, num(1, 1.0), Border::Wrap)
         .unwrap_or_else(|e| panic!("{}: {e}", args[0]));
-    let mut params = ExtractParams::default();
-    params.fit.max_lobes = num(2, 4.0) as usize;
+    let params = ExtractParams::default().with_max_lobes(num(2, 4.0) as usize);
     let (l, o) = (
         dir(num(3, 90.0), num(4, 21.0)),
         dir(num(5, 270.0), num(6, 30.0)),

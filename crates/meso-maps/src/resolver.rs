@@ -7,7 +7,7 @@
 //! | `file` | the height map (PNG, TIFF, EXR), relative to the material file |
 //! | `texel_size` | distance between samples `S` (> 0, length units) |
 //! | `height_scale` | height of the full code range `H` (> 0, same unit) |
-//! | `max_lobes` | lobes per texel, 1–8 (default 4) |
+//! | `max_lobes` | lobes per texel, 1–8 (default 4, 6 on a map of faces and walls: `ExtractParams::walls_max_lobes`) |
 //! | `border` | `"wrap"` (default) or `"clamp"` |
 //! | `normals` | `"triangles"` (default) or `"central"` (central differences) |
 //! | `represent` | `"facets"` (default: every facet normal of the map, binned to ≈ 0.8°, as a delta sum with each bin's own visibility, `shadowing = "visibility"`: within 0.1–6% of the ray-traced BRDF where the lobes miss by 3–88%, docs/heightmaps.md; see [`MapsResolver::heightmap_facets`]) or `"lobes"` (the pyramid's top-level fitted Phong peaks, with Smith or horizon masking) |
@@ -86,8 +86,10 @@ pub struct HeightmapParams {
     pub texel_size: f64,
     /// Height scale `H` (length units).
     pub height_scale: f64,
-    /// Largest number of lobes per texel.
-    pub max_lobes: usize,
+    /// Largest number of lobes per texel, when the table gives it (on every map); `None`: the
+    /// extraction's default, 4, or [`crate::WALLS_MAX_LOBES`] on a map of faces and walls
+    /// ([`ExtractParams::max_lobes_for`]).
+    pub max_lobes: Option<usize>,
     /// Border mode.
     pub border: Border,
     /// How normals are derived.
@@ -101,7 +103,7 @@ struct CacheKey {
     modified: Option<std::time::SystemTime>,
     texel_size: u64,
     height_scale: u64,
-    max_lobes: usize,
+    max_lobes: Option<usize>,
     clamp: bool,
     central: bool,
 }
@@ -351,7 +353,7 @@ impl MapsResolver {
         let texel_size = positive_number(table, "texel_size")?;
         let height_scale = positive_number(table, "height_scale")?;
         let max_lobes = match table.get("max_lobes") {
-            None => 4,
+            None => None,
             Some(v) => {
                 let k = integer(v, "max_lobes")?;
                 if !(1..=crate::fit::MAX_LOBES).contains(&k) {
@@ -360,7 +362,7 @@ impl MapsResolver {
                         crate::fit::MAX_LOBES
                     ));
                 }
-                k
+                Some(k)
             }
         };
         let border = match choice(table, "border", &["wrap", "clamp"])? {
@@ -427,7 +429,9 @@ impl MapsResolver {
             normal_mode,
             ..ExtractParams::default()
         };
-        params.fit.max_lobes = max_lobes;
+        if let Some(k) = max_lobes {
+            params = params.with_max_lobes(k);
+        }
         // From the disk cache (`crate::pyramid_cache`) when it has this map and parameters.
         let got = crate::pyramid_cache::pyramid_cached(
             file,

@@ -85,7 +85,7 @@ fn normal_maps_cached_and_the_folder_pruned_least_recently_used_first() {
     let got = normal_pyramid_cached(&file, dx, &params, || build(dx)).unwrap();
     assert!(!got.hit && got.value != p1 && builds.get() == 2);
     let mut two = params.clone();
-    two.fit.max_lobes = 2;
+    two = two.with_max_lobes(2);
     assert_ne!(
         normal_key(&bytes, gl, &two),
         normal_key(&bytes, gl, &params)

@@ -24,7 +24,7 @@ fn tmp(name: &str) -> PathBuf {
 
 fn pyramid(map: &meso_maps::HeightMap) -> Pyramid {
     let mut p = ExtractParams::default();
-    p.fit.max_lobes = 4;
+    p = p.with_max_lobes(4);
     extract(Source::Heights(map), &p, &mut |_| {}).unwrap()
 }
 

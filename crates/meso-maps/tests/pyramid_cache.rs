@@ -93,7 +93,7 @@ fn stored_read_back_keyed_and_off() {
     assert_eq!(e.unwrap_err(), "rebuilt");
     // Another parameter, another key: built again.
     let mut two = params.clone();
-    two.fit.max_lobes = 2;
+    two = two.with_max_lobes(2);
     assert_ne!(
         key(&std::fs::read(&file).unwrap(), s, h, Border::Wrap, &two),
         k

@@ -12,7 +12,7 @@ fn the_need_from_the_headers_is_what_reading_checks() {
     std::fs::create_dir_all(&dir).unwrap();
     let map = fixtures::gaussian(256, 4.0, 0.1, 3, 0.01).unwrap();
     let mut params = ExtractParams::default();
-    params.fit.max_lobes = 3;
+    params = params.with_max_lobes(3);
     let p = extract(Source::Heights(&map), &params, &mut |_| {}).unwrap();
     let path = dir.join("g256.map");
     p.write(&path).unwrap();

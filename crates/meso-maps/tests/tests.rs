@@ -10,7 +10,7 @@ use meso_maps::*;
 
 fn pyr(map: &HeightMap, k: usize) -> Pyramid {
     let mut p = ExtractParams::default();
-    p.fit.max_lobes = k;
+    p = p.with_max_lobes(k);
     extract(Source::Heights(map), &p, &mut |_| {}).unwrap()
 }
 
@@ -554,6 +554,64 @@ mod inputs {
 mod pyramid {
     use super::*;
 
+    /// Maps of faces and walls get six lobes a texel by default, other maps four
+    /// (`ExtractParams::walls_max_lobes`): the shares of a terraced map in closed form (a step
+    /// of 3 cells' height every 4 cells along x: of each 8 cells 2 are walls at 71.6°, 6 flat
+    /// faces), its extraction's header and a texel of more than four lobes; a steep Gaussian
+    /// relief (walls, no faces) and a gentle one keep four; a K asked for applies to every map.
+    #[test]
+    fn maps_of_faces_and_walls_get_six_lobes() {
+        let terraces = HeightMap::from_fn(64, 64, 1.0, Border::Wrap, |x, y| {
+            3.0 * (((x as i64) / 4 + (y as i64) / 8) % 2) as f64
+        })
+        .unwrap();
+        let (faces, walls) = relief_shares(Source::Heights(&terraces), NormalMode::Triangles);
+        assert!(faces > 0.5 && walls > 0.2, "{faces} {walls}");
+        let p = ExtractParams::default();
+        assert_eq!(p.max_lobes_for(Source::Heights(&terraces)), WALLS_MAX_LOBES);
+        let pyr = extract(Source::Heights(&terraces), &p, &mut |_| {}).unwrap();
+        assert_eq!(pyr.max_lobes, 6);
+        let most = pyr
+            .levels
+            .iter()
+            .flat_map(|l| (0..l.rows * l.cols).map(move |t| (l, t)))
+            .map(|(l, t)| l.texel_lobes(t / l.cols, t % l.cols).unwrap().len())
+            .max()
+            .unwrap();
+        assert!(most > 4, "at most {most} lobes a texel");
+        let asked = p.clone().with_max_lobes(4);
+        assert_eq!(asked.max_lobes_for(Source::Heights(&terraces)), 4);
+        assert_eq!(
+            extract(Source::Heights(&terraces), &asked, &mut |_| {})
+                .unwrap()
+                .max_lobes,
+            4
+        );
+        // A step along x only: exactly 2 wall cells of 8, 6 flat.
+        let steps = HeightMap::from_fn(64, 8, 1.0, Border::Wrap, |x, _| {
+            3.0 * (((x as i64) / 4) % 2) as f64
+        })
+        .unwrap();
+        let (faces, walls) = relief_shares(Source::Heights(&steps), NormalMode::Triangles);
+        assert!(
+            (faces - 0.75).abs() < 1e-12 && (walls - 0.25).abs() < 1e-12,
+            "{faces} {walls}"
+        );
+        // Continuous reliefs: the steep Gaussian has walls but no faces, the gentle one no walls.
+        for (g, steep) in [
+            (fixtures::gaussian(64, 4.0, 0.1, 3, 0.01).unwrap(), true),
+            (fixtures::gaussian(64, 3.0, 0.15, 11, 0.1).unwrap(), false),
+        ] {
+            let (faces, walls) = relief_shares(Source::Heights(&g), NormalMode::Triangles);
+            if steep {
+                assert!(faces < FACE_SHARE && walls > 0.5, "{faces} {walls}");
+            } else {
+                assert!(walls < WALL_SHARE, "{faces} {walls}");
+            }
+            assert_eq!(p.max_lobes_for(Source::Heights(&g)), 4);
+        }
+    }
+
     /// Issue #11 item 4, as a property over random maps: steep Gaussian surfaces (RMS slope up
     /// to ≈ 2) and random normal maps with texels below the horizon. Every fitted lobe of every
     /// level has its axis above the horizon and a bounded exponent; weights sum to 1.
@@ -578,7 +636,7 @@ mod pyramid {
             assert!(nm.clamped() > 0);
             for k in [1, 4, 8] {
                 let mut p = ExtractParams::default();
-                p.fit.max_lobes = k;
+                p = p.with_max_lobes(k);
                 for src in [Source::Heights(&map), Source::Normals(&nm)] {
                     let pyr = extract(src, &p, &mut |_| {}).unwrap();
                     for l in &pyr.levels {

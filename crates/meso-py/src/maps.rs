@@ -14,16 +14,18 @@ use std::sync::{Arc, OnceLock};
 
 /// The extraction parameters named as the CLI's `meso extract` options.
 fn params(
-    max_lobes: usize,
+    max_lobes: Option<usize>,
     normals: &str,
     method: &str,
     merge_levels: &str,
 ) -> PyResult<ExtractParams> {
-    if !(1..=meso_maps::limits::MAX_LOBES).contains(&max_lobes) {
-        return Err(value_err(format!(
-            "max_lobes = {max_lobes}: must be between 1 and {}",
-            meso_maps::limits::MAX_LOBES
-        )));
+    if let Some(k) = max_lobes {
+        if !(1..=meso_maps::limits::MAX_LOBES).contains(&k) {
+            return Err(value_err(format!(
+                "max_lobes = {k}: must be between 1 and {}",
+                meso_maps::limits::MAX_LOBES
+            )));
+        }
     }
     let mut p = ExtractParams {
         normal_mode: match normals {
@@ -49,7 +51,9 @@ fn params(
         },
         ..ExtractParams::default()
     };
-    p.fit.max_lobes = max_lobes;
+    if let Some(k) = max_lobes {
+        p = p.with_max_lobes(k);
+    }
     p.fit.merge_levels = MergeLevels::from_name(merge_levels).ok_or_else(|| {
         let names: Vec<String> = MergeLevels::NAMES
             .iter()
@@ -89,14 +93,14 @@ fn run_extract(
 /// apart (same length unit). The other parameters are `meso extract`'s options
 /// (`merge_levels`: `--merge-levels`).
 #[pyfunction]
-#[pyo3(signature = (heights, texel_size, height_scale = 1.0, max_lobes = 4, border = "wrap", normals = "triangles", method = "lobes", merge_levels = "plain"))]
+#[pyo3(signature = (heights, texel_size, height_scale = 1.0, max_lobes = None, border = "wrap", normals = "triangles", method = "lobes", merge_levels = "plain"))]
 #[allow(clippy::too_many_arguments)]
 pub fn extract(
     py: Python<'_>,
     heights: Arr<'_>,
     texel_size: f64,
     height_scale: f64,
-    max_lobes: usize,
+    max_lobes: Option<usize>,
     border: &str,
     normals: &str,
     method: &str,
@@ -147,7 +151,7 @@ pub fn extract(
 /// `convention` `"gl"` (OpenGL/glTF: green = +Y = up in the image) or `"dx"`. Returns the pyramid
 /// and the warnings the CLI would print.
 #[pyfunction]
-#[pyo3(signature = (path, out, texel_size = None, height_scale = None, max_lobes = 4, normal_map = false, convention = "gl", border = "wrap", normals = "triangles", method = "lobes", merge_levels = "plain"))]
+#[pyo3(signature = (path, out, texel_size = None, height_scale = None, max_lobes = None, normal_map = false, convention = "gl", border = "wrap", normals = "triangles", method = "lobes", merge_levels = "plain"))]
 #[allow(clippy::too_many_arguments)]
 pub fn extract_file(
     py: Python<'_>,
@@ -155,7 +159,7 @@ pub fn extract_file(
     out: PathBuf,
     texel_size: Option<f64>,
     height_scale: Option<f64>,
-    max_lobes: usize,
+    max_lobes: Option<usize>,
     normal_map: bool,
     convention: &str,
     border: &str,

@@ -291,7 +291,7 @@ def test_item_key_is_content_and_parameter_hash(tmp_path):
     it = batch.Item(0, str(p), "extract", {"texel_size": TEXEL, "height_scale": SCALE}, str(tmp_path))
     k1 = batch.item_key(it)[2]
     it2 = batch.Item(0, str(p), "extract", {"texel_size": str(TEXEL), "height_scale": SCALE,
-                                             "max_lobes": 4}, str(tmp_path))
+                                             "border": "wrap"}, str(tmp_path))
     assert batch.item_key(it2)[2] == k1  # defaults and spelling do not change the key
     it3 = batch.Item(0, str(p), "extract", {"texel_size": TEXEL, "height_scale": SCALE * 2},
                      str(tmp_path))

@@ -8,7 +8,8 @@
 //!
 //! `SIZE`: image side in pixels (default 256); `FRAMES`: frames per case (default 3), after
 //! one untimed frame that builds nothing (the tables are built up front); `MAX_LOBES`: the
-//! extraction's lobes per texel at most (default 4, the default of `ExtractParams`);
+//! extraction's lobes per texel at most (default 0: the default of `ExtractParams`, 6 on this
+//! map of faces and walls);
 //! `DETAILS`: box details timed, 0 to this whole number (default 2), or a comma-separated
 //! list of details (e.g. `1.16,3`: a fractional detail blends two levels); `ALPHA`: glossy
 //! facets instead of Lambert, GGX of this roughness with a diffuse albedo of 0.1 (the glossy
@@ -56,15 +57,19 @@ fn main() {
     let alpha = nums.get(4).copied().unwrap_or(0.0);
     let size = args.first().copied().unwrap_or(256) as u32;
     let frames = args.get(1).copied().unwrap_or(3) as u32;
-    let mut params = ExtractParams::default();
-    params.fit.max_lobes = args.get(2).copied().unwrap_or(params.fit.max_lobes);
+    // MAX_LOBES 0 (or absent): the extraction's default (6 on the facade, a map of faces and
+    // walls); a number: that many.
+    let params = match args.get(2).copied() {
+        Some(k) if k > 0 => ExtractParams::default().with_max_lobes(k),
+        _ => ExtractParams::default(),
+    };
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
     let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).expect("the test facade");
     let t0 = Instant::now();
     let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");
     println!(
         "extraction, at most {} lobes a texel: {:.2} s wall",
-        params.fit.max_lobes,
+        pyr.max_lobes,
         t0.elapsed().as_secs_f64()
     );
     let surface =

@@ -9,8 +9,8 @@
 //!     [MAX_LOBES] [ALPHA] [THETAS] [VIEWS] [CELLS] [AZIMUTHS] [DETAIL] [HEIGHTS HEIGHT_SCALE]
 //! ```
 //!
-//! `MAX_LOBES`: the extraction's lobes per texel at most (default 4, `ExtractParams`'
-//! default); `ALPHA`: GGX facets of this roughness (Fresnel 1, no diffuse part) instead of
+//! `MAX_LOBES`: the extraction's lobes per texel at most on any map (default `-`:
+//! `ExtractParams`' default, 4, or 6 on a map of faces and walls such as the facade); `ALPHA`: GGX facets of this roughness (Fresnel 1, no diffuse part) instead of
 //! Lambert (default 0: Lambert); then comma-separated lists, in degrees: `THETAS` the light's
 //! angles from the normal (default 69), `VIEWS` the viewer's (default 24,45,60; the viewer on
 //! −y), `CELLS` cells per pixel (default 1,2,4,16,64), `AZIMUTHS` the light's azimuths from +x
@@ -53,7 +53,12 @@ fn list(args: &[String], i: usize, default: &str) -> Vec<f64> {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let max_lobes = list(&args, 0, "4")[0] as usize;
+    // MAX_LOBES: `-` (or absent) for the extraction's default (4, or 6 on a map of faces and
+    // walls such as the facade), a number for that many on any map.
+    let max_lobes = match args.first().map(String::as_str) {
+        None | Some("-") => None,
+        Some(_) => Some(list(&args, 0, "4")[0] as usize),
+    };
     let alpha = list(&args, 1, "0")[0];
     let thetas = list(&args, 2, "69");
     let views = list(&args, 3, "24,45,60");
@@ -76,9 +81,12 @@ fn main() {
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let surface =
         Material::from_toml_str(&common::facet_toml(alpha, 0.0)).expect("the facet material");
-    let mut params = ExtractParams::default();
-    params.fit.max_lobes = max_lobes;
+    let params = match max_lobes {
+        Some(k) => ExtractParams::default().with_max_lobes(k),
+        None => ExtractParams::default(),
+    };
     let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");
+    let max_lobes = pyr.max_lobes;
     let tpu = map.width() as f64;
     let mut ndf = NdfMapped::new(&pyr, &surface, tpu, true).expect("NDF-mapped shader");
     if let Some(d) = args.get(6).filter(|d| d.as_str() != "-") {

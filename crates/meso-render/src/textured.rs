@@ -538,7 +538,7 @@ fn normal_mapped(
     }
     let mut params = ExtractParams::default();
     if let Some(k) = t.max_lobes()? {
-        params.fit.max_lobes = k;
+        params = params.with_max_lobes(k);
     }
     // From the disk cache (keyed by the file's bytes, convention and parameters) or extracted
     // and stored there: the normal map is only decoded to extract.

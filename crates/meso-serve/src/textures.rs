@@ -474,7 +474,7 @@ pub fn check_params(p: &UploadParams) -> Result<Checked, ApiError> {
                 meso_maps::limits::MAX_LOBES
             )));
         }
-        params.fit.max_lobes = k;
+        params = params.with_max_lobes(k);
     }
     let positive = |key: &str, v: Option<f64>| -> Result<f64, ApiError> {
         match v {

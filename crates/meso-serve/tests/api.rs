@@ -810,7 +810,7 @@ fn own_pyramid(png: &[u8], s: f64, scale: f64) -> Pyramid {
     )
     .unwrap();
     let mut p = ExtractParams::default();
-    p.fit.max_lobes = 3;
+    p = p.with_max_lobes(3);
     extract(Source::Heights(&map), &p, &mut |_| {}).unwrap()
 }
 

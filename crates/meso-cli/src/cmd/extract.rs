@@ -77,9 +77,11 @@ pub struct Args {
     /// Height of the full code range H (same unit, > 0); required for height maps.
     #[arg(long)]
     pub height_scale: Option<f64>,
-    /// Largest number of lobes per texel (1–8).
-    #[arg(long, default_value_t = 4)]
-    pub max_lobes: usize,
+    /// Largest number of lobes per texel (1–8), on every map. Default: 4, or 6 on a map of
+    /// faces and walls (at least a tenth of its projected area within 10° of the normal and a
+    /// tenth more than 45° from it; the report says so).
+    #[arg(long)]
+    pub max_lobes: Option<usize>,
     /// The input is a tangent-space normal map (no heights: no horizon statistics).
     #[arg(long)]
     pub normal_map: bool,
@@ -134,12 +136,13 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(a: Args) -> Result<()> {
-    if !(1..=meso_maps::limits::MAX_LOBES).contains(&a.max_lobes) {
-        bail!(
-            "--max-lobes {}: must be between 1 and {}",
-            a.max_lobes,
-            meso_maps::limits::MAX_LOBES
-        );
+    if let Some(k) = a.max_lobes {
+        if !(1..=meso_maps::limits::MAX_LOBES).contains(&k) {
+            bail!(
+                "--max-lobes {k}: must be between 1 and {}",
+                meso_maps::limits::MAX_LOBES
+            );
+        }
     }
     crate::util::check_outputs(&[&a.out], &[&a.heightmap])?;
     let border = if a.clamp { Border::Clamp } else { Border::Wrap };
@@ -157,7 +160,9 @@ pub fn run(a: Args) -> Result<()> {
         },
         ..ExtractParams::default()
     };
-    params.fit.max_lobes = a.max_lobes;
+    if let Some(k) = a.max_lobes {
+        params = params.with_max_lobes(k);
+    }
     if let Some(alpha) = a.facet_alpha {
         if !(alpha.is_finite() && alpha > 0.0 && alpha <= 1.0) {
             bail!("--facet-alpha {alpha}: must be a roughness in (0, 1]");
@@ -199,6 +204,17 @@ pub fn run(a: Args) -> Result<()> {
     }
     let source = input.source();
     phases.add("load", t.elapsed().as_secs_f64());
+    // A map of faces and walls gets more lobes a texel unless --max-lobes was given: say so.
+    let k = params.max_lobes_for(source);
+    if k > params.fit.max_lobes {
+        let (faces, walls) = meso_maps::relief_shares(source, params.normal_mode);
+        note!(
+            "{}: faces and walls ({:.0} % of the projected area within 10° of the normal, {:.0} % more than 45° from it): up to {k} lobes a texel (--max-lobes sets it)",
+            a.heightmap.display(),
+            100.0 * faces,
+            100.0 * walls
+        );
+    }
     let bar = crate::util::progress_work(1, "pyramid");
     // The pyramid's levels are fitted and written band by band: one phase, "pyramid" (the
     // writing included).

@@ -74,6 +74,98 @@ pub struct ExtractParams {
     /// [`COMPACT_TEXELS`]; `usize::MAX` keeps every level in `f64`, 0 none). The fit itself
     /// always runs in `f64`, and each level is fitted from the `f64` data of the one below.
     pub compact_texels: usize,
+    /// The most lobes a texel of a map of *faces and walls* is fitted with, in place of
+    /// `fit.max_lobes` when larger: a map at least [`WALL_SHARE`] of whose projected area is
+    /// more than 45° from +z and at least [`FACE_SHARE`] within 10° of it ([`relief_shares`]:
+    /// architecture, bricks, stones, terraced relief). Default [`WALLS_MAX_LOBES`]; 0 (or any
+    /// value up to `fit.max_lobes`) keeps `fit.max_lobes` on every map, as
+    /// [`ExtractParams::with_max_lobes`] does for a K the user asked for. See
+    /// [`ExtractParams::max_lobes_for`].
+    pub walls_max_lobes: usize,
+}
+
+/// The default [`ExtractParams::walls_max_lobes`]: six lobes a texel on maps of faces and
+/// walls. Measured (docs/heightmaps.md, "Six lobes on maps of faces and walls"): the steep
+/// facade's coarse texels hold its flat tops and its walls facing four ways, five groups of
+/// normals, which four lobes merge; with six, its far views under a light behind the viewer
+/// went from 1.2–3.2× the bump-mapped truth to 1.07–1.14× (GGX α = 0.1), and its 90-scene
+/// sweep's error fell for every facet tried (GGX α = 0.05, 0.1, 0.2, Lambert); eight lobes
+/// were no closer. A continuous relief (a Gaussian surface, even a steep one) gained nothing
+/// and is not counted.
+pub const WALLS_MAX_LOBES: usize = 6;
+
+/// The share of a map's projected area more than 45° from +z from which it has walls
+/// ([`ExtractParams::walls_max_lobes`]).
+pub const WALL_SHARE: f64 = 0.1;
+
+/// The share of a map's projected area within 10° of +z from which it has faces
+/// ([`ExtractParams::walls_max_lobes`]).
+pub const FACE_SHARE: f64 = 0.1;
+
+impl ExtractParams {
+    /// These parameters with at most `k` lobes a texel on every map, of faces and walls or
+    /// not (`fit.max_lobes = k`, [`ExtractParams::walls_max_lobes`] off): for a K the user
+    /// asked for.
+    #[must_use]
+    pub fn with_max_lobes(mut self, k: usize) -> ExtractParams {
+        self.fit.max_lobes = k;
+        self.walls_max_lobes = 0;
+        self
+    }
+
+    /// The most lobes a texel of `source` is fitted with: `fit.max_lobes`, or
+    /// [`ExtractParams::walls_max_lobes`] if larger and the map is one of faces and walls
+    /// ([`relief_shares`] at least [`FACE_SHARE`] and [`WALL_SHARE`]). Capped at
+    /// [`crate::fit::MAX_LOBES`].
+    #[must_use]
+    pub fn max_lobes_for(&self, source: Source<'_>) -> usize {
+        let k = self.fit.max_lobes;
+        if self.walls_max_lobes > k {
+            let (faces, walls) = relief_shares(source, self.normal_mode);
+            if faces >= FACE_SHARE && walls >= WALL_SHARE {
+                return self.walls_max_lobes.min(crate::fit::MAX_LOBES);
+            }
+        }
+        k
+    }
+}
+
+/// The shares of `source`'s projected area (level 0's facets, with `normal_mode` for a height
+/// map) whose normal is within 10° of +z (faces) and more than 45° from it (walls), each in
+/// `[0, 1]`; `(0, 0)` for a map without facets.
+#[must_use]
+pub fn relief_shares(source: Source<'_>, normal_mode: NormalMode) -> (f64, f64) {
+    use rayon::prelude::*;
+    let facets = match source {
+        Source::Heights(m) => crate::facets::FacetSource::Heights(m, normal_mode),
+        Source::Normals(n) => crate::facets::FacetSource::Normals(n),
+    };
+    let face_cos = 10f64.to_radians().cos();
+    let (faces, walls, total) = (0..facets.rows())
+        .into_par_iter()
+        .map(|r| {
+            let mut acc = (0.0, 0.0, 0.0);
+            for c in 0..facets.cols() {
+                let (f, n) = facets.cell(r, c);
+                // The facets' weights are their areas: projected, `w·m_z`.
+                for &(m, w) in &f[..n] {
+                    let p = w * m.z;
+                    acc.2 += p;
+                    if m.z > face_cos {
+                        acc.0 += p;
+                    } else if m.z < std::f64::consts::FRAC_1_SQRT_2 {
+                        acc.1 += p;
+                    }
+                }
+            }
+            acc
+        })
+        .reduce(|| (0.0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    if total > 0.0 {
+        (faces / total, walls / total)
+    } else {
+        (0.0, 0.0)
+    }
 }
 
 /// What [`extract`] stores per texel.
@@ -95,6 +187,7 @@ impl Default for ExtractParams {
             residual_texels: 64,
             method: Method::Lobes,
             compact_texels: COMPACT_TEXELS,
+            walls_max_lobes: WALLS_MAX_LOBES,
         }
     }
 }

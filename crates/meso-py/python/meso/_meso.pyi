@@ -130,21 +130,24 @@ def extract(
     heights: _Array,
     texel_size: float,
     height_scale: float = 1.0,
-    max_lobes: int = 4,
+    max_lobes: Optional[int] = None,
     border: str = "wrap",
     normals: str = "triangles",
     method: str = "lobes",
 ) -> Pyramid:
     """The NDF pyramid of a (rows, cols) height array (heights × height_scale, length units;
     row 0 at the top of the image). texel_size and height_scale must lie in [1e-12, 1e12] and
-    height_scale / texel_size be at most 1e6, as for `meso extract` (else ValueError)."""
+    height_scale / texel_size be at most 1e6, as for `meso extract` (else ValueError).
+    max_lobes: lobes per texel at most, on every map; None: 4, or 6 on a map of faces and walls
+    (a tenth of its projected area within 10° of the normal and a tenth more than 45° from it),
+    as `meso extract`."""
 
 def extract_file(
     path: _Path,
     out: _Path,
     texel_size: Optional[float] = None,
     height_scale: Optional[float] = None,
-    max_lobes: int = 4,
+    max_lobes: Optional[int] = None,
     normal_map: bool = False,
     convention: str = "gl",
     border: str = "wrap",

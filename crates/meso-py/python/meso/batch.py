@@ -111,7 +111,7 @@ OPERATIONS: Dict[str, Operation] = {
         {
             "texel_size": (float, None),
             "height_scale": (float, None),
-            "max_lobes": (int, 4),
+            "max_lobes": (int, None),
             "normal_map": (bool, False),
             "convention": (str, "gl"),
             "border": (str, "wrap"),

@@ -35,7 +35,7 @@
     $('tex-kind').value = n.kind === 'map' ? 'map' : 'height';
     if (n.texel_size !== undefined) $('tex-texel-size').value = n.texel_size;
     if (n.height_scale !== undefined) $('tex-height-scale').value = n.height_scale;
-    $('tex-max-lobes').value = n.max_lobes || 4;
+    $('tex-max-lobes').value = n.max_lobes || '';
     showTexDialog(null, `${label}: its NDF comes from "${n.file}", which the server does not read. Choose that file to open it here.`);
   }
   $('btn-texture').addEventListener('click', () => { texPending = null; $('texture-input').click(); });
@@ -54,7 +54,8 @@
     if (!f) return;
     const k = $('tex-kind').value;
     const q = new URLSearchParams({ kind: k, name: f.name });
-    if (k !== 'map') q.set('max_lobes', $('tex-max-lobes').value);
+    // Empty: the server's default (4, or 6 on a map of faces and walls).
+    if (k !== 'map' && $('tex-max-lobes').value !== '') q.set('max_lobes', $('tex-max-lobes').value);
     if (k === 'height') { q.set('texel_size', $('tex-texel-size').value); q.set('height_scale', $('tex-height-scale').value); }
     if (k === 'normal') q.set('convention', $('tex-convention').value);
     const pend = texPending;
