@@ -34,7 +34,8 @@ pub(super) const PER_LIGHT: usize = 7;
 /// viewer's weight" flag.
 pub(super) const HEAD: usize = 2;
 
-/// Bytes an entry's index costs beside its floats (key, slot and the hash table's spare room).
+/// Bytes an entry's index costs beside its floats: key and slot (16) and the hash table's
+/// control byte and spare buckets (at most 8/7, before the doubling counted in `entry`).
 const INDEX_BYTES: usize = 24;
 
 /// What the entries were made for: the material, its options and the directions.
@@ -124,7 +125,9 @@ impl TexelMemo {
                 self.counts.0 += 1;
                 return (o as usize, false);
             }
-            let room = (at + self.stride) * 8 + (self.slots.len() + 1) * INDEX_BYTES;
+            // Twice the entries' bytes: the array and the index grow by doubling, so what they
+            // hold is at most twice what they use.
+            let room = 2 * ((at + self.stride) * 8 + (self.slots.len() + 1) * INDEX_BYTES);
             // Kept only while the kept entries are all there is (no call's own among them) and
             // the offset fits the index.
             if self.kept == at && room <= cap.min(MEMO_BYTES) && at <= u32::MAX as usize {
@@ -263,5 +266,21 @@ mod tests {
             m.begin(id, o, &[i]);
             assert_eq!(m.entry(2, 9, MEMO_BYTES), (0, true));
         }
+        // Under a cap of 4 KiB: entries are kept while twice their bytes fit, then made for
+        // the call only, and dropped with it.
+        for _ in 0..2 {
+            m.begin(9, wo, &wi);
+        }
+        let cap = 4096;
+        for t in 0..100 {
+            let (o, _) = m.entry(0, t, cap);
+            m.data[o..o + m.stride].fill(1.0);
+        }
+        let kept = m.kept;
+        assert!(kept > 0 && 2 * (kept * 8 + m.slots.len() * INDEX_BYTES) <= cap);
+        assert!(m.data.len() == kept + (100 - m.slots.len()) * m.stride);
+        m.begin(9, wo, &wi);
+        assert_eq!(m.data.len(), kept);
+        assert!(!m.entry(0, 0, cap).1 && m.entry(0, 99, cap).1);
     }
 }
