@@ -721,3 +721,49 @@ fn extract_merge_levels_reaches_the_fit() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--merge-levels"));
     assert!(!d.join("bad.map").exists());
 }
+
+/// A map of faces and walls (terraces: flat steps 4 cells wide, 3 cells high) gets up to six
+/// lobes a texel from `meso extract` without `--max-lobes`, which says so and records it in the
+/// file; `--max-lobes 4` keeps four, silently; a gentle gravel map keeps four.
+#[test]
+fn extract_gives_maps_of_faces_and_walls_six_lobes() {
+    let d = tmpdir("maps-cli", "faces-walls");
+    let png = d.join("terraces.png");
+    let n = 64u32;
+    let img = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(n, n, |j, i| {
+        image::Luma([if (j / 4 + i / 8) % 2 == 1 { 60000 } else { 0 }])
+    });
+    img.save(&png).unwrap();
+    let extract = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "extract",
+            s(&png),
+            "--texel-size",
+            "1",
+            "--height-scale",
+            "3",
+            "--out",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        ok(&o);
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let (a, b) = (d.join("a.map"), d.join("b.map"));
+    let said = extract(&[], &a);
+    assert!(
+        said.contains("faces and walls (") && said.contains("up to 6 lobes a texel"),
+        "{said}"
+    );
+    assert_eq!(meso_maps::Pyramid::read(&a).unwrap().max_lobes, 6);
+    let said = extract(&["--max-lobes", "4"], &b);
+    assert!(!said.contains("faces and walls"), "{said}");
+    assert_eq!(meso_maps::Pyramid::read(&b).unwrap().max_lobes, 4);
+    let gravel = d.join("gravel.png");
+    gravel_png(&gravel, 32, 7);
+    let c = d.join("c.map");
+    let said = String::from_utf8_lossy(&extract_gravel(&gravel, &[], &c).stderr).into_owned();
+    assert!(!said.contains("faces and walls"), "{said}");
+    assert_eq!(meso_maps::Pyramid::read(&c).unwrap().max_lobes, 4);
+}

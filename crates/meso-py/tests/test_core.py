@@ -234,6 +234,16 @@ def test_extract_file_equals_the_cli_and_the_array_path(tmp_path):
     assert max(l.shading_error for l in read.levels) > 0
 
 
+def test_extract_gives_maps_of_faces_and_walls_six_lobes():
+    """max_lobes=None (the default) is the CLI's rule: terraces (flat steps 4 cells wide, 3
+    high) get up to six lobes a texel, a gentle map four; a K asked for applies to any map."""
+    j = np.arange(64)
+    terraces = 3.0 * ((j[None, :] // 4 + j[:, None] // 8) % 2)
+    assert meso.extract(terraces, texel_size=1.0).max_lobes == 6
+    assert meso.extract(terraces, texel_size=1.0, max_lobes=4).max_lobes == 4
+    assert meso.extract(bumps(32, seed=4) / 65535.0, texel_size=1.0, height_scale=0.5).max_lobes == 4
+
+
 def test_extract_merge_levels_equals_the_cli(tmp_path):
     # 128² cells: level 1 (64²) is merged from its cells by default, kept its own fit with
     # merge_levels="none"; each equals `meso extract --merge-levels` byte for byte.
