@@ -616,20 +616,8 @@ fn extract_k_chain_reaches_the_chain() {
     let png =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../meso-maps/tests/data/facade_disp_256.png");
     let extract_to = |extra: &[&str], out: &Path| {
-        let mut args = vec![
-            "extract",
-            s(&png),
-            "--texel-size",
-            "1",
-            "--height-scale",
-            "20",
-            "--max-lobes",
-            "4",
-            "--out",
-            s(out),
-        ];
-        args.extend_from_slice(extra);
-        ok(&run(&args));
+        let extra: Vec<&str> = ["--max-lobes", "4"].iter().chain(extra).copied().collect();
+        ok(&run_extract(&png, ["1", "20"], &extra, out));
     };
     let (single, chain) = (d.join("single.map"), d.join("chain.map"));
     extract_to(&[], &single);
@@ -641,21 +629,25 @@ fn extract_k_chain_reaches_the_chain() {
     ok(&run(&["map", "info", s(&chain)]));
 }
 
-/// `meso extract PNG --texel-size 0.01 --height-scale 0.1 --out OUT EXTRA` (a gravel map's
-/// scales), run.
-fn run_extract_gravel(png: &Path, extra: &[&str], out: &Path) -> std::process::Output {
+/// `meso extract PNG --texel-size S --height-scale H --out OUT EXTRA`, run.
+fn run_extract(png: &Path, scales: [&str; 2], extra: &[&str], out: &Path) -> Output {
     let mut args = vec![
         "extract",
         s(png),
         "--texel-size",
-        "0.01",
+        scales[0],
         "--height-scale",
-        "0.1",
+        scales[1],
         "--out",
         s(out),
     ];
     args.extend_from_slice(extra);
     run(&args)
+}
+
+/// [`run_extract`] with a gravel map's scales (0.01, 0.1).
+fn run_extract_gravel(png: &Path, extra: &[&str], out: &Path) -> Output {
+    run_extract(png, ["0.01", "0.1"], extra, out)
 }
 
 /// [`run_extract_gravel`], required to succeed.
@@ -735,18 +727,7 @@ fn extract_gives_maps_of_faces_and_walls_six_lobes() {
     });
     img.save(&png).unwrap();
     let extract = |extra: &[&str], out: &Path| {
-        let mut args = vec![
-            "extract",
-            s(&png),
-            "--texel-size",
-            "1",
-            "--height-scale",
-            "3",
-            "--out",
-            s(out),
-        ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
+        let o = run_extract(&png, ["1", "3"], extra, out);
         ok(&o);
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
