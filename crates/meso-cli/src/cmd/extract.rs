@@ -205,8 +205,10 @@ pub fn run(a: Args) -> Result<()> {
     let source = input.source();
     phases.add("load", t.elapsed().as_secs_f64());
     // A map of faces and walls gets more lobes a texel unless --max-lobes was given: say so.
-    let k = params.max_lobes_for(source);
-    if k > params.fit.max_lobes {
+    let asked = params.fit.max_lobes;
+    let params = params.for_source(source);
+    let k = params.fit.max_lobes;
+    if k > asked {
         let (faces, walls) = meso_maps::relief_shares(source, params.normal_mode);
         note!(
             "{}: faces and walls ({:.0} % of the projected area within 10° of the normal, {:.0} % more than 45° from it): up to {k} lobes a texel (--max-lobes sets it)",

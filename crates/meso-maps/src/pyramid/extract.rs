@@ -10,7 +10,7 @@ use super::level_fit::{ChildLobes, LevelFit, PrevHorizon, RowOut};
 use super::{level_count, ExtractParams, Level, Method, Progress, Pyramid, Residual, Source};
 use crate::error::{MapError, Result};
 use crate::facets::{FacetSource, NormalMode};
-use crate::fit::{FitParams, MAX_LOBES};
+use crate::fit::MAX_LOBES;
 use crate::format::{check_band, write_band, write_level_end, Header, VERSION};
 use crate::heightmap::Border;
 use crate::horizon::HorizonMap;
@@ -138,22 +138,7 @@ fn run(
     check_params(params)?;
     // Maps of faces and walls get more lobes a texel (`ExtractParams::walls_max_lobes`): from
     // here on the fit's `max_lobes` is the one this map gets, and the header records it.
-    let resolved;
-    let params = {
-        let k = params.max_lobes_for(source);
-        if k == params.fit.max_lobes {
-            params
-        } else {
-            resolved = ExtractParams {
-                fit: FitParams {
-                    max_lobes: k,
-                    ..params.fit.clone()
-                },
-                ..params.clone()
-            };
-            &resolved
-        }
-    };
+    let params = &params.for_source(source);
     let (cells_x, cells_y, per_cell, samples) = match source {
         Source::Heights(m) => (
             m.cells_x(),

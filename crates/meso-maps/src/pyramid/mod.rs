@@ -128,6 +128,13 @@ impl ExtractParams {
         }
         k
     }
+
+    /// These parameters as they extract `source`: `fit.max_lobes` the one it gets
+    /// ([`ExtractParams::max_lobes_for`]), on every map from here on.
+    #[must_use]
+    pub fn for_source(&self, source: Source<'_>) -> ExtractParams {
+        self.clone().with_max_lobes(self.max_lobes_for(source))
+    }
 }
 
 /// The shares of `source`'s projected area (level 0's facets, with `normal_mode` for a height

@@ -94,7 +94,8 @@ impl TexelMemo {
     /// they are dropped and the key becomes this call's.
     pub(super) fn begin(&mut self, material: u64, wo: glam::DVec3, wi: &[glam::DVec3]) {
         let stride = HEAD + PER_LIGHT * wi.len();
-        if self.key.is(material, wo, wi) && self.stride == stride {
+        // (The key holds the lights, so a key kept holds the stride too.)
+        if self.key.is(material, wo, wi) {
             if !self.armed {
                 self.armed = true;
                 self.slots.clear();
