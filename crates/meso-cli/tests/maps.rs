@@ -356,7 +356,7 @@ fn bad_inputs_fail_cleanly() {
 /// Issue #15's bad inputs through the command line: a corrupt and a truncated JPEG, an empty
 /// (zero-size) image file, and a 0 × 0 PNG, given to `meso extract` and to `meso export` — each
 /// one error line naming the file, a non-zero exit, and no output (no map file, no export
-/// folder).
+/// folder); and a grey height map given to both as a normal map.
 #[test]
 fn bad_images_fail_cleanly_in_extract_and_export() {
     let d = tmpdir("maps-cli", "bad-images");
@@ -421,6 +421,29 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
         e.contains("--convention applies to a normal-map input"),
+        "{e}"
+    );
+    // A grey height map given as a normal map: `meso extract --normal-map` refuses it as
+    // `meso export` does (it once read it as a uniform 55° tilt), naming the file and what it
+    // looks like; no output.
+    let heights = d.join("heights.png");
+    image::GrayImage::from_fn(32, 32, |c, r| image::Luma([(4 * c + 2 * r) as u8]))
+        .save(&heights)
+        .unwrap();
+    let out = d.join("heights.map");
+    let o = run(&["extract", s(&heights), "--normal-map", "--out", s(&out)]);
+    fails(&o, &out, "extract a grey image as a normal map");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("heights.png") && e.contains("single-channel grey") && e.contains("height map"),
+        "{e}"
+    );
+    let dir = d.join("exported-grey");
+    let o = run(&["export", s(&heights), "--alpha", "0.1", "--out", s(&dir)]);
+    fails(&o, &dir, "export a grey image as a normal map");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("heights.png") && e.contains("--texel-size and --height-scale"),
         "{e}"
     );
     // The good JPEG goes through both.

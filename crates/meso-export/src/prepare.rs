@@ -48,9 +48,9 @@ const HEIGHT_HINT: &str = "it looks like a height map: give --texel-size and --h
                            (Python: texel_size=, height_scale=) to export it from its heights";
 
 /// Load a tangent-space normal map as `meso export` does ([`NormalMap::load`]), saying when the
-/// image looks like a height map instead: a single-channel grey image (no normal map is one),
-/// or a texel that decodes to no direction (the mid-grey of a height map reads as the "no data"
-/// grey of a normal map).
+/// image looks like a height map instead: a single-channel grey image (no normal map is one,
+/// [`meso_maps::heightmap::GREY_NOT_NORMALS`]), or a texel that decodes to no direction (the
+/// mid-grey of a height map reads as the "no data" grey of a normal map).
 ///
 /// # Errors
 /// [`ExportError::Invalid`] for a grey image or a texel that is no direction (with the hint);
@@ -59,22 +59,15 @@ pub fn load_normal_map(
     path: &Path,
     convention: NormalConvention,
 ) -> Result<NormalMap, ExportError> {
-    if let Some(h) = export::header(path)? {
-        if !h.color {
-            let img = meso_maps::heightmap::decode_image(
-                path,
-                "loading the normal map",
-                meso_maps::ImageHeader::normal_map_bytes,
-            )?;
-            if matches!(img.color(), image::ColorType::L8 | image::ColorType::L16) {
-                return Err(ExportError::Invalid(format!(
-                    "{}: a single-channel grey image, read as a normal map; {HEIGHT_HINT}",
-                    path.display()
-                )));
-            }
-        }
-    }
     NormalMap::load(path, convention).map_err(|e| match e {
+        meso_maps::MapError::Decode { path, message }
+            if message == meso_maps::heightmap::GREY_NOT_NORMALS =>
+        {
+            ExportError::Invalid(format!(
+                "{}: a single-channel grey image, read as a normal map; {HEIGHT_HINT}",
+                path.display()
+            ))
+        }
         meso_maps::MapError::Decode { path, message }
             if message.contains("is not a normal") || message.contains("usable direction") =>
         {

@@ -385,6 +385,29 @@ mod inputs {
                 && e.contains("first of 12 such texels of 12"),
             "{e}"
         );
+        // A single-channel grey image (a height map given as a normal map, 8- and 16-bit; a
+        // grey of 200 would read as a uniform 55° tilt): refused, naming the file and saying
+        // what it looks like; grey + alpha stays a two-channel normal map (above).
+        let p5c = dir_.join("heights8.png");
+        image::GrayImage::from_fn(8, 8, |x, y| image::Luma([(20 * x + 7 * y) as u8]))
+            .save(&p5c)
+            .unwrap();
+        let p5d = dir_.join("heights16.png");
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(8, 8, |x, _| {
+            image::Luma([5000 * x as u16])
+        })
+        .save(&p5d)
+        .unwrap();
+        for p in [&p5c, &p5d] {
+            let e = NormalMap::load(p, NormalConvention::Gl)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(&p.display().to_string())
+                    && e.contains(meso_maps::heightmap::GREY_NOT_NORMALS),
+                "{e}"
+            );
+        }
         // A NaN in a float map at the same place: the same image row.
         let mut f = image::Rgb32FImage::from_fn(8, 8, |_, _| image::Rgb([0.5, 0.5, 1.0]));
         f.put_pixel(2, 1, image::Rgb([f32::NAN, 0.5, 1.0]));

@@ -55,7 +55,7 @@ pub use decode::{
     decode_image, probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_STREAM_TEXELS, MAX_TEXELS,
 };
 pub use load::{check_scales, MAX_SLOPE_SCALE, SCALE_RANGE};
-pub use normal::{NormalConvention, NormalMap, MIN_CODED_LENGTH, MIN_NORMAL_Z};
+pub use normal::{NormalConvention, NormalMap, GREY_NOT_NORMALS, MIN_CODED_LENGTH, MIN_NORMAL_Z};
 pub use terraces::{DEQUANTIZE_ITERATIONS, TERRACE_FRACTION};
 
 use crate::error::{positive, MapError, Result};

@@ -55,6 +55,12 @@ pub const MIN_NORMAL_Z: f64 = 0.01;
 /// directions) are renormalised.
 pub const MIN_CODED_LENGTH: f64 = 0.25;
 
+/// Why a single-channel grey image is refused as a normal map ([`NormalMap::load`]): the
+/// message of its [`MapError::Decode`].
+pub const GREY_NOT_NORMALS: &str = "a single-channel grey image cannot be a normal map (a \
+     normal map holds red, green and blue, or red and green, channels); it looks like a height \
+     map: read it as heights instead";
+
 impl NormalMap {
     /// Load a tangent-space normal map (PNG 8/16-bit, JPEG, TGA, TIFF, EXR).
     ///
@@ -65,7 +71,8 @@ impl NormalMap {
     /// map's green is +y and a `dx` map's −y. Two-channel maps (grey + alpha, or RGB whose blue channel is all zero:
     /// BC5-style RG maps) get `z = √(1 − x² − y²)` rebuilt. Each normal is renormalised; texels at or
     /// below the horizon (`n_z ≤ 0`, common in real maps) are tilted up to [`MIN_NORMAL_Z`] and
-    /// counted ([`NormalMap::clamped`]); NaN or zero-length texels are an error naming the file.
+    /// counted ([`NormalMap::clamped`]); NaN or zero-length texels are an error naming the file,
+    /// and so is a single-channel grey image ([`GREY_NOT_NORMALS`]: a height map most likely).
     pub fn load(path: &Path, convention: NormalConvention) -> Result<NormalMap> {
         let img = open_image_budgeted(
             path,
@@ -93,6 +100,15 @@ impl NormalMap {
         img: image::DynamicImage,
         convention: NormalConvention,
     ) -> Result<NormalMap> {
+        // No normal map is one grey channel (a normal needs two components at least); such an
+        // image read as one would decode every texel to the same tilted vector (grey g gives
+        // (g, g, g) → a 55° tilt for white), a height map most likely.
+        if matches!(img.color(), image::ColorType::L8 | image::ColorType::L16) {
+            return Err(MapError::Decode {
+                path: path.to_path_buf(),
+                message: GREY_NOT_NORMALS.to_string(),
+            });
+        }
         let (w, h) = (img.width() as usize, img.height() as usize);
         let two_channel = matches!(img.color(), image::ColorType::La8 | image::ColorType::La16);
         let rgb = if two_channel {
