@@ -184,12 +184,13 @@ fn textured_material_files_render() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::metadata(&out).unwrap().len() > 0);
-    // The material says how it shades: Phong 20 facets read the footprint's own level (box
-    // detail 0), each lobe shadowed by its horizon statistics.
+    // The material says how it shades: Phong 20 facets read two levels finer than the
+    // footprint (the broad facets' box detail, `meso_render::BROAD_BOX_DETAIL`), each lobe
+    // shadowed by its horizon statistics.
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("bumpy.toml: NDF-mapped: ")
-            && err.contains(" levels, box filter, horizon shadowing per lobe"),
+            && err.contains(" levels, box filter 2.00 levels finer, horizon shadowing per lobe"),
         "{err}"
     );
     let bad_out = d.join("broken.png");

@@ -16,11 +16,16 @@
 //! −y), `CELLS` cells per pixel (default 1,2,4,16,64), `AZIMUTHS` the light's azimuths from +x
 //! towards +y (default 0,45,90,135,180,270: 90° is opposite the viewer); `DETAIL` the box
 //! filter's detail (`NdfMapped::with_box_detail`; default the facet's own,
-//! `default_box_detail`: 0 for Lambert, 0.16 for GGX α = 0.2, 3 from α ≈ 0.158; `-` for that
+//! `default_box_detail`: 2, or 3 for GGX α ≤ 0.158; `-` for that
 //! default); `HEIGHTS` another height map in its place (any format `meso extract` reads; texel
 //! size 1, tiled) and its `HEIGHT_SCALE` (the height of the full code range). A 48² image per
 //! scene. Prints each scene's ratio of mean pixels (NDF-mapped over bump-mapped), then the mean
 //! of |ln ratio| per cells per pixel and over all scenes, the figure the docs' tables give.
+//!
+//! Environment: `FACADE_SWEEP_FOV=F` renders every scene through a pinhole of horizontal field
+//! of view `F` degrees instead of the orthographic camera, placed to see the same width of the
+//! plane at its centre (so `CELLS` is the cells per pixel there; the far rows see more, and
+//! more obliquely).
 
 use glam::DVec3;
 use meso_core::material::Material;
@@ -100,14 +105,25 @@ fn main() {
     let bump: Arc<dyn Shader> =
         Arc::new(BumpMapped::new(&map, &surface, tpu, true).expect("bump-mapped shader"));
     let size = 48u32;
+    let fov: f64 = match std::env::var("FACADE_SWEEP_FOV") {
+        Ok(f) => f
+            .parse()
+            .unwrap_or_else(|_| panic!("FACADE_SWEEP_FOV: not a number of degrees: {f}")),
+        Err(_) => 0.0,
+    };
     let facet = if alpha > 0.0 {
         format!("GGX α = {alpha}")
     } else {
         "Lambert".to_string()
     };
     println!(
-        "{} (height {scale}), {facet} facets, at most {max_lobes} lobes a texel, box detail {detail:.2}",
-        path.display()
+        "{} (height {scale}), {facet} facets, at most {max_lobes} lobes a texel, box detail {detail:.2}, {}",
+        path.display(),
+        if fov > 0.0 {
+            format!("pinhole {fov}°")
+        } else {
+            "orthographic".to_string()
+        }
     );
     let (mut sum, mut n) = (0.0, 0.0);
     let mut by_cells: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
@@ -121,7 +137,7 @@ fn main() {
                     let (t, p) = (theta.to_radians(), az.to_radians());
                     let light = DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
                     let scene = |s: &Arc<dyn Shader>| {
-                        common::plane_scene_from(s.clone(), width, size, light, camera)
+                        common::plane_scene_through(s.clone(), width, fov, size, light, camera)
                     };
                     let truth = mean(&common::render_at(&scene(&bump), 64));
                     let r = mean(&common::render_at(&scene(&mapped), 1)) / truth;

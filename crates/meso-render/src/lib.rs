@@ -68,8 +68,8 @@ pub use geometry::{MaterialId, Mesh, Plane, Quad, ShadingPoint, Sphere};
 pub use image::Image;
 pub use light::{EnvironmentMap, Light, LightSample};
 pub use mapped::{
-    default_box_detail, BumpMapped, NdfMapped, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM,
-    MAX_BOX_DETAIL, MEMO_BYTES,
+    default_box_detail, BumpMapped, NdfMapped, BROAD_BOX_DETAIL, DEFAULT_MAX_BOX_DETAIL,
+    GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL, MEMO_BYTES,
 };
 pub use material::MaterialShader;
 pub use render::{render, render_pixel, shade, shade_with, RenderOptions, ShadeScratch};

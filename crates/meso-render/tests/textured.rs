@@ -43,7 +43,7 @@ fn write_fixture(dir: &Path) {
     std::fs::write(
         dir.join("ndf-detail.toml"),
         format!(
-            "[texture]\nkind = \"ndf-mapped\"\nbox_detail = 2\nfile = \"bumps.exr\"\n\
+            "[texture]\nkind = \"ndf-mapped\"\nbox_detail = 0\nfile = \"bumps.exr\"\n\
              texel_size = 0.03125\nheight_scale = 0.035\n{surface}"
         ),
     )
@@ -132,8 +132,8 @@ fn box_filtered_file_matches_supersampled_bump_mapped_file() {
     filtered_matches_texel_by_texel(&d, "ndf-box", "bump-mapped");
 }
 
-/// `box_detail = 2` (NdfMapped::with_box_detail) reaches the scene file: the image differs from
-/// the default's (Phong 20 facets: detail 0), reading two levels finer, and still matches.
+/// `box_detail = 0` (NdfMapped::with_box_detail) reaches the scene file: the image differs from
+/// the default's (Phong 20 facets: detail 2), reading two levels coarser, and still matches.
 #[test]
 fn box_detail_reaches_the_scene_file_and_matches() {
     let d = dir("textured_detail");

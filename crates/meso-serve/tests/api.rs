@@ -992,9 +992,9 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
     assert!(paths.iter().all(|p| p.contains("NDF-mapped")), "{paths:?}");
     assert!(paths[0].contains("shader built"), "{paths:?}");
     assert!(!paths[1].contains("shader built") && !paths[2].contains("shader built"));
-    // Phong 50 facets: the box filter reads ½·log₂(50/40) levels finer (`default_box_detail`).
+    // Phong 50 facets, broad: the box filter reads two levels finer (`default_box_detail`).
     assert!(
-        paths[0].contains("box filter 0.16 levels finer"),
+        paths[0].contains("box filter 2.00 levels finer"),
         "{paths:?}"
     );
     assert_eq!(
@@ -1012,7 +1012,11 @@ fn a_height_map_opens_and_its_texels_are_meso_maps_own() {
     );
     assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
     assert!(r.header("x-brdf-path").unwrap().contains("shader built"));
-    assert!(!r.header("x-brdf-path").unwrap().contains("finer"));
+    // Lambert facets, broad: two levels finer (`meso_render::BROAD_BOX_DETAIL`).
+    assert!(r
+        .header("x-brdf-path")
+        .unwrap()
+        .contains("box filter 2.00 levels finer"));
     assert_ne!(r.body, pngs[1]);
     let msg = post_json(
         "/api/texture/render",

@@ -175,11 +175,11 @@
 //!   2 texels per pixel, where levels 0 and 1 are exact. [`NdfMapped::with_box_filter`] takes
 //!   the texels the footprint's box overlaps, weighted by overlap, on the level whose texels
 //!   are an eighth to a quarter of the box, blended with the next level (up to 136 taps
-//!   instead of 8): the default, as the closer of the two on every map measured. For glossy
-//!   facets it reads finer texels still ([`NdfMapped::with_box_detail`], default
-//!   [`default_box_detail`]: three levels finer for GGX α ≤ 0.158), whose narrow
-//!   highlights the coarse texels' four lobes cannot follow (docs/heightmaps.md, "Glossy
-//!   facets").
+//!   instead of 8): the default, as the closer of the two on every map measured. By default
+//!   it reads finer texels still ([`NdfMapped::with_box_detail`], default
+//!   [`default_box_detail`]: two levels finer, three for GGX α ≤ 0.158), whose lobes hold
+//!   separate groups of normals and narrow highlights that the coarse texels' lobes merge
+//!   (docs/heightmaps.md, "Glossy facets" and "Broad facets read two levels finer").
 //!
 //! Trilinear (the default), at 2 and 4 texels per pixel: mean radiance within 3.3% of the
 //! truth, every class of sub-texel phase within 0.931–1.044, no pixel brighter than its truth
@@ -341,6 +341,6 @@ mod bump;
 mod ndf;
 pub use bump::BumpMapped;
 pub use ndf::{
-    default_box_detail, NdfMapped, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
-    MEMO_BYTES,
+    default_box_detail, NdfMapped, BROAD_BOX_DETAIL, DEFAULT_MAX_BOX_DETAIL,
+    GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL, MEMO_BYTES,
 };

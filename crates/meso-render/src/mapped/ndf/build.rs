@@ -634,17 +634,22 @@ mod tests {
             let surface = Material::from_toml_str(&format!("[transfer]\n{transfer}\n")).unwrap();
             for shadowing in [true, false] {
                 for box_filter in [true, false] {
+                    // Box detail 0 on all three: under a table cap a finer detail reads no
+                    // finer than the cap allows, by design (`with_box_detail`).
                     let eager = NdfMapped::new(&pyr, &surface, tpu, shadowing)
                         .unwrap()
-                        .with_box_filter(box_filter);
+                        .with_box_filter(box_filter)
+                        .with_box_detail(0.0);
                     let lazy = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, shadowing)
                         .unwrap()
-                        .with_box_filter(box_filter);
+                        .with_box_filter(box_filter)
+                        .with_box_detail(0.0);
                     // Capped at 1 byte: every tile dropped as soon as another is built (bar
                     // those read since the last pass), rebuilt when read again.
                     let capped = NdfMapped::from_pyramid(pyr.clone(), &surface, tpu, shadowing)
                         .unwrap()
                         .with_box_filter(box_filter)
+                        .with_box_detail(0.0)
                         .with_table_cap(1);
                     let mut c = vec![[0.0f32; 3]; 4];
                     assert_eq!(lazy.tiles_built(), 0);

@@ -35,28 +35,39 @@ pub const DEFAULT_MAX_BOX_DETAIL: f64 = MAX_BOX_DETAIL;
 /// ([`default_box_detail`]).
 pub const GLOSSY_BOX_DETAIL_FROM: f64 = 0.5;
 
+/// The default box-filter detail of the broad facets ([`default_box_detail`]: those below
+/// [`GLOSSY_BOX_DETAIL_FROM`], Lambert, Phong η < 80, GGX or Beckmann α > 0.158). Measured
+/// against the displaced geometry (`meso_maps::Gonio`, rays on the mesh; docs/heightmaps.md,
+/// "Broad facets read two levels finer"): on the steep facade at 16 and 64 cells per pixel,
+/// Lambert's far views came 0.094 and 0.252 off the geometry in mean |ln ratio| at detail 0
+/// (up to 1.67× and 0.62×), 0.033 and 0.092 at detail 2 (0.024 and 0.064 at 3); GGX α = 0.2
+/// 0.254 and 0.372 at its former fractional detail 0.16, 0.035 and 0.283 at 2; a steep real
+/// wood texture 0.128 → 0.090 (Lambert, 64 cells per pixel); gentle maps alike at every
+/// detail. It costs 3.4× detail 0's frame time at 16 cells per pixel and 7.6× at 64 through a
+/// pinhole (Lambert; detail 3 21×), none up close (docs/benchmarks.md).
+pub const BROAD_BOX_DETAIL: f64 = 2.0;
+
 /// The box filter's default detail for facets of `transfer` ([`NdfMapped::with_box_detail`]):
-/// half the base-2 log of how much sharper the facet's highlight is than the kernel the
-/// pyramid's lobes were fitted under, `d = ½·log₂(λ_facet / λ_fit)` with λ_facet from
+/// [`DEFAULT_MAX_BOX_DETAIL`] (3) for glossy facets, [`BROAD_BOX_DETAIL`] (2) for the others.
+/// A facet is glossy when half the base-2 log of how much sharper its highlight is than the
+/// kernel the pyramid's lobes were fitted under, `½·log₂(λ_facet / λ_fit)` with λ_facet from
 /// [`meso_maps::fit::facet_kernel_exponent`] (Phong η → η, Beckmann/GGX α → 2/α², Lambert → 2)
-/// and λ_fit = [`meso_maps::fit::SHADING_KERNEL_EXPONENT`] (40): the footprint, in level-0
-/// cells, over which four lobes fitted at λ_fit still resolve what the facet sees shrinks with
-/// the ratio of the two angular widths, `√(λ_fit / λ_facet)`. Clamped at 0; from
-/// [`GLOSSY_BOX_DETAIL_FROM`] on, [`DEFAULT_MAX_BOX_DETAIL`] (measured closer on every map
-/// tried; a mirror facet, with no kernel, gets it too). GGX α = 0.05, 0.1 and 0.15 → 3,
-/// α = 0.2 → 0.16, Phong η ≤ 40 and Lambert → 0.
+/// and λ_fit = [`meso_maps::fit::SHADING_KERNEL_EXPONENT`] (40), reaches
+/// [`GLOSSY_BOX_DETAIL_FROM`]: GGX or Beckmann α ≤ 0.158, Phong η ≥ 80, and a mirror facet,
+/// with no kernel. GGX α = 0.05, 0.1 and 0.15 → 3; α = 0.2, Phong η ≤ 40 and Lambert → 2.
+/// The coarse levels' fitted lobes merge a texel's separate groups of normals (a facade's
+/// faces and walls) and their visibility, so every facet reads finer texels than its
+/// footprint; the glossy ones, whose narrow highlight the lobes follow least, one level more.
 #[must_use]
 pub fn default_box_detail(transfer: &meso_core::transfer::Transfer) -> f64 {
     match meso_maps::fit::facet_kernel_exponent(transfer) {
-        Some(l) => {
-            let d = 0.5 * (l / meso_maps::fit::SHADING_KERNEL_EXPONENT).log2();
-            if d >= GLOSSY_BOX_DETAIL_FROM {
-                DEFAULT_MAX_BOX_DETAIL
-            } else {
-                d.max(0.0)
-            }
+        Some(l)
+            if 0.5 * (l / meso_maps::fit::SHADING_KERNEL_EXPONENT).log2()
+                < GLOSSY_BOX_DETAIL_FROM =>
+        {
+            BROAD_BOX_DETAIL
         }
-        None => DEFAULT_MAX_BOX_DETAIL,
+        _ => DEFAULT_MAX_BOX_DETAIL,
     }
 }
 
@@ -254,7 +265,7 @@ mod tests {
         let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
         let tpu = 256.0;
         let m = NdfMapped::new(&pyr, &surface, tpu, false).unwrap();
-        assert_eq!(m.box_detail(), 0.0, "Lambert facets: detail 0");
+        assert_eq!(m.box_detail(), BROAD_BOX_DETAIL, "Lambert facets: detail 2");
         // A 64-cell box at (100.3, 57.8) cells: lod = log2(64) − 2 − detail.
         let sp = local_point(DVec2::new(100.3, 57.8) / tpu, 64.0 / tpu);
         for (detail, level, per_axis) in [
@@ -287,24 +298,28 @@ mod tests {
         // Clamped to [0, MAX_BOX_DETAIL]; a NaN leaves it as it was.
         assert_eq!(m.clone().with_box_detail(9.0).box_detail(), MAX_BOX_DETAIL);
         assert_eq!(m.clone().with_box_detail(-1.0).box_detail(), 0.0);
-        assert_eq!(m.clone().with_box_detail(f64::NAN).box_detail(), 0.0);
-        // The default follows the facet: ½·log₂(λ / 40) from 0, and 3 from 2 on.
+        assert_eq!(
+            m.clone().with_box_detail(f64::NAN).box_detail(),
+            BROAD_BOX_DETAIL
+        );
+        // The default follows the facet: 2 for the broad ones, 3 from ½·log₂(λ/40) = ½ on
+        // (λ ≥ 80: GGX α ≤ 0.158, Phong η ≥ 80).
         let detail = |t: &str| {
             let s = Material::from_toml_str(&format!("[transfer]\n{t}\n")).unwrap();
             default_box_detail(&s.transfer)
         };
-        assert_eq!(detail("kind = \"lambert\""), 0.0);
-        assert_eq!(detail("kind = \"phong\"\nexponent = 20.0"), 0.0);
-        assert!((detail("kind = \"phong\"\nexponent = 70.0") - 0.5 * 1.75f64.log2()).abs() < 1e-12);
+        assert_eq!(detail("kind = \"lambert\""), 2.0);
+        assert_eq!(detail("kind = \"phong\"\nexponent = 20.0"), 2.0);
+        assert_eq!(detail("kind = \"phong\"\nexponent = 79.0"), 2.0);
         assert_eq!(detail("kind = \"phong\"\nexponent = 80.0"), 3.0);
         let ggx = |a: f64| detail(&format!("kind = \"microfacet\"\nalpha = {a}"));
-        assert!((ggx(0.2) - 0.5 * (50.0f64 / 40.0).log2()).abs() < 1e-12);
+        assert_eq!(ggx(0.5), 2.0);
+        assert_eq!(ggx(0.2), 2.0);
+        assert_eq!(ggx(0.16), 2.0);
+        assert_eq!(ggx(0.155), 3.0);
+        assert_eq!(ggx(0.15), 3.0);
         assert_eq!(ggx(0.1), 3.0);
         assert_eq!(ggx(0.05), 3.0);
-        assert_eq!(ggx(0.15), 3.0);
-        // From ½·log₂(λ/40) = ½ on (λ ≥ 80: α ≤ 0.158) the glossy default, 3.
-        assert!((ggx(0.16) - 0.5 * (2.0 / (0.16f64 * 0.16 * 40.0)).log2()).abs() < 1e-12);
-        assert!(ggx(0.16) < 0.5 && ggx(0.155) == 3.0);
         let mirror = meso_core::transfer::Transfer::Mirror {
             fresnel: meso_core::transfer::Fresnel::None,
             specular: [1.0; 3],

@@ -43,7 +43,8 @@ mod view;
 use build::Source;
 use filter::Tap;
 pub use filter::{
-    default_box_detail, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM, MAX_BOX_DETAIL,
+    default_box_detail, BROAD_BOX_DETAIL, DEFAULT_MAX_BOX_DETAIL, GLOSSY_BOX_DETAIL_FROM,
+    MAX_BOX_DETAIL,
 };
 pub(super) use lobes::MicrofacetCore;
 use lobes::{microfacet_texel, phong_texel, Node, SgLobe, Shape, NO_LOBE};
@@ -706,7 +707,8 @@ impl NdfMapped {
     /// [`NdfMapped::with_box_detail`]), blended with the next coarser level, so zooming stays
     /// continuous — the default, closer to the supersampled bump map on busy maps (see the
     /// module docs, "Steep maps"). `false`: the trilinear filter, 8 taps per shading call
-    /// instead of up to 136 (detail 0) to ≈ 5 300 (detail 3).
+    /// instead of up to 136 (detail 0), ≈ 1 500 (detail 2, the broad facets' default) or
+    /// ≈ 5 300 (detail 3, the glossy ones').
     #[must_use]
     pub fn with_box_filter(mut self, on: bool) -> NdfMapped {
         self.box_filter = on;
@@ -718,10 +720,11 @@ impl NdfMapped {
     /// `2^−(2 + detail)` to `2^−(3 + detail)` of the footprint box's longer side, so each unit
     /// costs about 1–3× the shading time of a far view and reads texels of half the side,
     /// whose fitted lobes follow a narrow highlight better. The default is
-    /// [`default_box_detail`] of the facet material: 0 for facets as broad as the fit's kernel
-    /// or broader (Lambert, Phong η ≤ 40), 3 for glossy ones (GGX or Beckmann α ≤ 0.158,
-    /// Phong η ≥ 80, mirrors), whose narrow highlight the coarse texels' four lobes cannot
-    /// follow (docs/heightmaps.md, "Glossy facets"), fractional between. Under a table cap
+    /// [`default_box_detail`] of the facet material: 3 for glossy facets (GGX or Beckmann
+    /// α ≤ 0.158, Phong η ≥ 80, mirrors), whose narrow highlight the coarse texels' lobes
+    /// cannot follow (docs/heightmaps.md, "Glossy facets"), 2 for the others ([`BROAD_BOX_DETAIL`]:
+    /// the coarse lobes merge a texel's faces and walls; docs/heightmaps.md, "Broad facets read
+    /// two levels finer"). Under a table cap
     /// ([`NdfMapped::with_table_cap`]) the detail takes a footprint no finer than the finest
     /// level whose tables fit in half the cap.
     #[must_use]
