@@ -366,3 +366,44 @@ fn the_lobe_pyramid_counts_in_the_budget() {
     assert!(o.stdout.is_empty(), "refused before the fit");
     ok(&run(&args(false)));
 }
+
+/// A second export into the folder of an earlier, larger one (a 64² normal map, then a 16²
+/// one): the earlier export's extra mip levels (`normal_mip5.png`, `normal_mip6.png`, …) are left
+/// untouched (nothing of the user's is removed) and named in one warning line, since the new
+/// `scene.gltf` does not use them; an export into a fresh folder, or again at the same size,
+/// warns of nothing.
+#[test]
+fn a_second_export_names_the_earlier_ones_files_it_left() {
+    let d = tmpdir("export-cli", "stale");
+    let (big, small) = (d.join("big.png"), d.join("small.png"));
+    normal_png(&big, 64, 64);
+    normal_png(&small, 16, 16);
+    let out = d.join("out");
+    let first = run(&["export", s(&big), "--out", s(&out)]);
+    ok(&first);
+    assert!(!String::from_utf8_lossy(&first.stderr).contains("warning"));
+    assert!(out.join("normal_mip6.png").exists());
+    let o = run(&["export", s(&small), "--out", s(&out)]);
+    ok(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.contains("warning"))
+        .unwrap_or_else(|| panic!("no warning: {err}"));
+    assert!(
+        line.starts_with(&format!("{}: warning: ", out.display()))
+            && line.contains("earlier export")
+            && line.contains("normal_mip5.png")
+            && line.contains("normal_mip6.png")
+            && line.contains("metallic_roughness_mip6.png")
+            && !line.contains("normal_mip4.png"),
+        "{line}"
+    );
+    // Left as they were, and not in the new glTF.
+    assert!(out.join("normal_mip6.png").exists());
+    let gltf = std::fs::read_to_string(out.join("scene.gltf")).unwrap();
+    assert!(!gltf.contains("mip5") && !gltf.contains("mip6"));
+    let again = run(&["export", s(&small), "--out", s(&d.join("fresh"))]);
+    ok(&again);
+    assert!(!String::from_utf8_lossy(&again.stderr).contains("warning"));
+}

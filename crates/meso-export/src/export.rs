@@ -633,6 +633,75 @@ pub fn errors_csv(stats: &[LevelStats]) -> String {
     s
 }
 
+/// Whether a file name is one an export writes: the fixed names ([`NORMAL_KTX2`], [`GLTF`], …,
+/// the lobe shaders) or a level's PNG, `<stem>_mip<k>.png`.
+fn is_export_file_name(name: &str) -> bool {
+    const FIXED: [&str; 9] = [
+        NORMAL_KTX2,
+        ROUGHNESS_KTX2,
+        ANISOTROPY_KTX2,
+        GLTF,
+        GLTF_BIN,
+        BASE_COLOR_PNG,
+        ERRORS_CSV,
+        "meso_lobes.wgsl",
+        "meso_lobes.glsl",
+    ];
+    FIXED.contains(&name)
+        || name
+            .strip_suffix(".png")
+            .and_then(|s| s.rsplit_once("_mip"))
+            .is_some_and(|(stem, k)| {
+                !stem.is_empty() && !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit())
+            })
+}
+
+/// The files in `dir` named as an export's files ([`Export::files`]' names: the KTX2 and glTF
+/// files, the CSV, the shaders and the per-level PNGs `<stem>_mip<k>.png`) that `export` does
+/// not write: left there by an earlier export into the same folder (a larger map's extra mip
+/// levels, an anisotropy chain, a base colour), which this export's glTF does not reference.
+/// [`write`] leaves them (nothing of the user's is removed); `meso export` warns of them.
+/// Sorted; empty when `dir` cannot be read.
+#[must_use]
+pub fn stale_files(export: &Export, dir: &Path) -> Vec<PathBuf> {
+    let ours: std::collections::HashSet<&str> =
+        export.files.iter().map(|(n, _)| n.as_str()).collect();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut out: Vec<PathBuf> = entries
+        .filter_map(Result::ok)
+        .filter(|e| {
+            e.file_name()
+                .to_str()
+                .is_some_and(|n| is_export_file_name(n) && !ours.contains(n) && e.path().is_file())
+        })
+        .map(|e| e.path())
+        .collect();
+    out.sort();
+    out
+}
+
+/// The warning for [`stale_files`] in `dir`, when there are any: how many, and their names
+/// (what `meso export` prints after the folder's name, and Python's `export` returns among its
+/// warnings).
+#[must_use]
+pub fn stale_warning(export: &Export, dir: &Path) -> Option<String> {
+    let names: Vec<String> = stale_files(export, dir)
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
+    (!names.is_empty()).then(|| {
+        format!(
+            "{} file{} of an earlier export left in the folder, not written by this one and not \
+             used by its scene.gltf: {}",
+            names.len(),
+            if names.len() == 1 { "" } else { "s" },
+            names.join(", ")
+        )
+    })
+}
+
 /// Write the export's files into `dir` (created if missing). All or nothing, and nothing of
 /// the user's lost: every file is first written in full to a temporary file beside its target
 /// (`meso_core::io::stage_with`); only when all are written are they renamed into place

@@ -156,6 +156,9 @@ pub fn export<'py>(
             .map(std::path::PathBuf::as_path)
             .collect();
             let files = ex_lib::write(&ex, &out, &inputs).map_err(s)?;
+            if let Some(w) = ex_lib::stale_warning(&ex, &out) {
+                warnings.push(format!("{}: {w}", out.display()));
+            }
             Ok((files, ex.stats, warnings))
         })
         .map_err(meso_err)?;

@@ -203,6 +203,9 @@ fn export_inputs(a: &Args, inputs: &Inputs) -> Result<()> {
     .map(std::path::PathBuf::as_path)
     .collect();
     let files = export::write(&ex, &a.out, &inputs)?;
+    if let Some(w) = export::stale_warning(&ex, &a.out) {
+        eprintln!("{}: warning: {w}", a.out.display());
+    }
     use std::fmt::Write as _;
     let mut table = String::new();
     if a.anisotropic {
