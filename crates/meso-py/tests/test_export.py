@@ -115,3 +115,17 @@ def test_outputs_never_replace_their_inputs(tmp_path):
         meso.export(inside, out, texel_size=1.0, height_scale=1.0)
     assert inside.read_bytes() == before
     assert sorted(p.name for p in out.iterdir()) == names_before
+
+
+def test_a_second_export_warns_of_the_earlier_ones_files(tmp_path):
+    # A 64² height map exported, then a 16² one into the same folder: the first one's extra mip
+    # levels stay (nothing removed) and the warnings name them, as the CLI's warning line does.
+    write_gray16(tmp_path / "big.png", bumps(64, seed=5))
+    write_gray16(tmp_path / "small.png", bumps(16, seed=6))
+    out = tmp_path / "out"
+    _, _, warnings = meso.export(tmp_path / "big.png", out, texel_size=1.0, height_scale=2.0)
+    assert not any("earlier export" in w for w in warnings)
+    _, _, warnings = meso.export(tmp_path / "small.png", out, texel_size=1.0, height_scale=2.0)
+    stale = [w for w in warnings if "earlier export" in w]
+    assert len(stale) == 1 and "normal_mip6.png" in stale[0] and "normal_mip4.png" not in stale[0]
+    assert (out / "normal_mip6.png").exists()
