@@ -92,9 +92,13 @@ impl std::fmt::Display for PyramidInfo {
         writeln!(
             f,
             "residual: the NDF residual over n texels sampled per level (at most 64, spread over \
-             the level), mean and max of those; shading error: the BRDF error of the lobes as a \
-             % of its peak, for the facet kernel `meso extract` printed (the file does not \
-             record it)"
+             the level), mean and max of those: the relative L2 distance between the lobes' NDF \
+             and the histogram of the texel's normals on equal-area bins of about 6° (0: equal; \
+             1 or more when the two fall in different bins, as on a relief whose normals all \
+             lie within a few degrees of +z, where four bins meet, however good the fit); \
+             shading error: \
+             the BRDF error of the lobes as a % of its peak, for the facet kernel `meso extract` \
+             printed (the file does not record it), the measure of how the lobes shade"
         )?;
         Ok(())
     }
