@@ -21,6 +21,9 @@
 //! size 1, tiled) and its `HEIGHT_SCALE` (the height of the full code range). A 48² image per
 //! scene. Prints each scene's ratio of mean pixels (NDF-mapped over bump-mapped), then the mean
 //! of |ln ratio| per cells per pixel and over all scenes, the figure the docs' tables give.
+//! The bump map is a truth up to views of about 45°: from 60° on it drifts from the displaced
+//! geometry itself (up to 5× at 75° with the light opposite; docs/heightmaps.md, "Broad facets
+//! read two levels finer"), which `far_gonio` measures far views against.
 //!
 //! Environment: `FACADE_SWEEP_FOV=F` renders every scene through a pinhole of horizontal field
 //! of view `F` degrees instead of the orthographic camera, placed to see the same width of the
