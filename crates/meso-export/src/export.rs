@@ -660,7 +660,7 @@ fn is_export_file_name(name: &str) -> bool {
 /// files, the CSV, the shaders and the per-level PNGs `<stem>_mip<k>.png`) that `export` does
 /// not write: left there by an earlier export into the same folder (a larger map's extra mip
 /// levels, an anisotropy chain, a base colour), which this export's glTF does not reference.
-/// [`write`] leaves them (nothing of the user's is removed); `meso export` warns of them.
+/// [`write()`] leaves them (nothing of the user's is removed); `meso export` warns of them.
 /// Sorted; empty when `dir` cannot be read.
 #[must_use]
 pub fn stale_files(export: &Export, dir: &Path) -> Vec<PathBuf> {
