@@ -276,12 +276,21 @@ fn output_identity(p: &Path) -> std::path::PathBuf {
 
 /// Refuse outputs that would overwrite one of the command's inputs
 /// ([`meso_core::io::check_not_input`]: those given, and every file read so far, the input
-/// log) or name the same file twice.
+/// log), that are existing directories, whose directory does not exist, or that name the same
+/// file twice.
 pub fn check_outputs(outputs: &[&Path], inputs: &[&Path]) -> Result<()> {
     for (j, out) in outputs.iter().enumerate() {
         meso_core::io::check_not_input(out, inputs)?;
         // And every file read so far (a scene's materials, their height maps, …).
         meso_core::io::check_not_recorded_input(out)?;
+        // A folder where a file is asked for: said before the work, naming the output (not the
+        // input the work was on, as the write's own error did).
+        if out.is_dir() {
+            bail!(
+                "{}: cannot write: it is a directory (the output is a file: give its name)",
+                out.display()
+            );
+        }
         if std::fs::symlink_metadata(out).is_err() {
             // Fail before the work, not after it: the output's directory must exist.
             let dir = match out.parent() {

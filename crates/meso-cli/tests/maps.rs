@@ -356,7 +356,7 @@ fn bad_inputs_fail_cleanly() {
 /// Issue #15's bad inputs through the command line: a corrupt and a truncated JPEG, an empty
 /// (zero-size) image file, and a 0 × 0 PNG, given to `meso extract` and to `meso export` — each
 /// one error line naming the file, a non-zero exit, and no output (no map file, no export
-/// folder); and a grey height map given to both as a normal map.
+/// folder); a grey height map given to both as a normal map; and an `--out` that is a folder.
 #[test]
 fn bad_images_fail_cleanly_in_extract_and_export() {
     let d = tmpdir("maps-cli", "bad-images");
@@ -446,6 +446,21 @@ fn bad_images_fail_cleanly_in_extract_and_export() {
         e.contains("heights.png") && e.contains("--texel-size and --height-scale"),
         "{e}"
     );
+    // An `--out` that is a folder: refused before the work, naming the folder (the write's
+    // own error once came after the extraction, prefixed with the input's name).
+    let folder = d.join("a-folder");
+    std::fs::create_dir(&folder).unwrap();
+    let o = run(&["extract", s(&good), "--normal-map", "--out", s(&folder)]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.starts_with(&format!(
+            "meso: error: {}: cannot write: it is a directory",
+            folder.display()
+        )) && e.trim_end().lines().count() == 1,
+        "{e}"
+    );
+    assert_eq!(std::fs::read_dir(&folder).unwrap().count(), 0);
     // The good JPEG goes through both.
     let out = d.join("good.map");
     ok(&run(&[

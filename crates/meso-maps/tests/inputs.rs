@@ -159,6 +159,12 @@ fn corrupt_jpegs_are_refused_naming_the_file() {
         let e = HeightMap::from_bytes(Path::new(name), bytes, 1.0, 1.0, Border::Wrap).unwrap_err();
         assert!(matches!(e, MapError::Decode { .. }), "{name}: {e}");
         assert!(e.to_string().contains(name), "{name}: {e}");
+        // One line, no trailing blank (the JPEG decoder's own messages end in newlines).
+        assert_eq!(e.to_string().trim_end(), e.to_string(), "{name}: {e:?}");
+        assert!(!e.to_string().contains('\n'), "{name}: {e:?}");
+        if name.starts_with("cut") {
+            assert!(e.to_string().contains("truncated"), "{name}: {e}");
+        }
         let e = NormalMap::from_bytes(Path::new(name), bytes, NormalConvention::Gl).unwrap_err();
         assert!(matches!(e, MapError::Decode { .. }), "{name}: {e}");
         assert!(e.to_string().contains(name), "{name}: {e}");

@@ -76,7 +76,19 @@ pub(super) fn check_dims_within(path: &Path, w: u64, h: u64, max_texels: u64) ->
 pub(super) fn decode_err(path: &Path, e: impl std::fmt::Display) -> MapError {
     MapError::Decode {
         path: path.to_path_buf(),
-        message: e.to_string(),
+        message: tidy_message(&e.to_string()),
+    }
+}
+
+/// A decoder's message for ours: trimmed (the JPEG decoder's end in a blank line), and a JPEG
+/// cut off in its header (the decoder's "Not enough bytes" or "No more bytes") said to be
+/// truncated, the decoder's words following in parentheses.
+fn tidy_message(m: &str) -> String {
+    let m = m.trim();
+    if m.contains("Not enough bytes") || m.contains("No more bytes") {
+        format!("truncated: the file ends before its image data does ({m})")
+    } else {
+        m.to_string()
     }
 }
 
@@ -333,13 +345,14 @@ pub(super) fn open_image_budgeted(
 }
 
 /// A decoder's error for messages: a read past the end of the bytes (a TGA or TIFF cut off in
-/// its pixel data: the reader's "failed to fill whole buffer") says that the file is truncated.
+/// its pixel data: the reader's "failed to fill whole buffer") says that the file is
+/// truncated; other messages as [`tidy_message`] makes them.
 fn decode_message(e: image::ImageError) -> String {
     match &e {
         image::ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
             "truncated: the file ends before its pixel data does".into()
         }
-        _ => e.to_string(),
+        _ => tidy_message(&e.to_string()),
     }
 }
 
