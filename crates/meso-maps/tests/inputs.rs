@@ -170,3 +170,46 @@ fn corrupt_jpegs_are_refused_naming_the_file() {
         assert!(e.to_string().contains(name), "{name}: {e}");
     }
 }
+
+/// A height map that does not tile (a smooth ramp with a ripple: its left and right edges far
+/// apart) is warned about when read with the wrapped border, the default, whose seam would be a
+/// cliff; not with the clamped one, nor when it tiles (the same ripple, periodic).
+#[test]
+fn maps_that_do_not_tile_are_warned_about_under_wrap() {
+    let n = 64u32;
+    let ramp = image::DynamicImage::ImageLuma16(image::ImageBuffer::from_fn(n, n, |c, r| {
+        let v = 8000.0 + 700.0 * f64::from(c) + 2000.0 * (f64::from(r) * 0.3).sin();
+        image::Luma([v.round() as u16])
+    }));
+    let tiles = image::DynamicImage::ImageLuma16(image::ImageBuffer::from_fn(n, n, |c, r| {
+        let t = std::f64::consts::TAU / f64::from(n);
+        let v =
+            30000.0 + 9000.0 * (t * f64::from(c)).sin() + 6000.0 * (2.0 * t * f64::from(r)).cos();
+        image::Luma([v.round() as u16])
+    }));
+    let (ramp, tiles) = (
+        encode(&ramp, image::ImageFormat::Png),
+        encode(&tiles, image::ImageFormat::Png),
+    );
+    let warned = |bytes: &[u8], border: Border| {
+        let m = HeightMap::from_bytes(Path::new("h.png"), bytes, 1.0, 10.0, border).unwrap();
+        m.warnings()
+            .iter()
+            .find(|w| w.contains("does not tile"))
+            .cloned()
+    };
+    let w = warned(&ramp, Border::Wrap).expect("the ramp is warned about");
+    assert!(
+        w.contains("left and right edges")
+            && !w.contains("top and bottom")
+            && w.contains("--clamp"),
+        "{w}"
+    );
+    let m = HeightMap::from_bytes(Path::new("h.png"), &ramp, 1.0, 10.0, Border::Wrap).unwrap();
+    let (x, y) = m.seam_ratios();
+    // The seam: 63 steps of 700 codes against one of 700 inside, x; the ripple wraps along y
+    // within about a step.
+    assert!(x > 50.0 && y < meso_maps::heightmap::SEAM_RATIO, "{x} {y}");
+    assert!(warned(&ramp, Border::Clamp).is_none());
+    assert!(warned(&tiles, Border::Wrap).is_none());
+}

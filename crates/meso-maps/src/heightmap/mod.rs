@@ -54,7 +54,7 @@ use decode::{check_dims, check_dims_within};
 pub use decode::{
     decode_image, probe, probe_bytes, ImageHeader, MAX_DIMENSION, MAX_STREAM_TEXELS, MAX_TEXELS,
 };
-pub use load::{check_scales, MAX_SLOPE_SCALE, SCALE_RANGE};
+pub use load::{check_scales, MAX_SLOPE_SCALE, SCALE_RANGE, SEAM_RATIO};
 pub use normal::{NormalConvention, NormalMap, GREY_NOT_NORMALS, MIN_CODED_LENGTH, MIN_NORMAL_Z};
 pub use terraces::{DEQUANTIZE_ITERATIONS, TERRACE_FRACTION};
 
@@ -151,6 +151,50 @@ impl HeightMap {
     #[must_use]
     pub fn warnings(&self) -> &[String] {
         &self.warnings
+    }
+
+    /// How far the map's opposite edges are from meeting, along x and along y: the mean
+    /// absolute step between the last and the first sample of each row (each column), over the
+    /// mean absolute step between neighbours inside the rows (the columns). About 1 on a map
+    /// that tiles; much more on a crop of a larger surface, whose seam a wrapped border reads
+    /// as a cliff ([`SEAM_RATIO`]). Infinite when the inside is flat and the seam is not; 0
+    /// for a map too small to tell (under 3 samples along the axis) or flat throughout.
+    #[must_use]
+    pub fn seam_ratios(&self) -> (f64, f64) {
+        let (w, h) = (self.width, self.height);
+        let at = |r: usize, c: usize| self.heights[r * w + c];
+        let ratio = |seam: f64, inside: f64| {
+            if inside > 0.0 {
+                seam / inside
+            } else if seam > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            }
+        };
+        let x = if w >= 3 {
+            let seam = (0..h).map(|r| (at(r, w - 1) - at(r, 0)).abs()).sum::<f64>() / h as f64;
+            let inside = (0..h)
+                .flat_map(|r| (1..w).map(move |c| (r, c)))
+                .map(|(r, c)| (at(r, c) - at(r, c - 1)).abs())
+                .sum::<f64>()
+                / (h * (w - 1)) as f64;
+            ratio(seam, inside)
+        } else {
+            0.0
+        };
+        let y = if h >= 3 {
+            let seam = (0..w).map(|c| (at(h - 1, c) - at(0, c)).abs()).sum::<f64>() / w as f64;
+            let inside = (1..h)
+                .flat_map(|r| (0..w).map(move |c| (r, c)))
+                .map(|(r, c)| (at(r, c) - at(r - 1, c)).abs())
+                .sum::<f64>()
+                / ((h - 1) * w) as f64;
+            ratio(seam, inside)
+        } else {
+            0.0
+        };
+        (x, y)
     }
 
     grid_size_accessors!("samples");
