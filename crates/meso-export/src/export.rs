@@ -644,8 +644,8 @@ fn is_export_file_name(name: &str) -> bool {
         GLTF_BIN,
         BASE_COLOR_PNG,
         ERRORS_CSV,
-        "meso_lobes.wgsl",
-        "meso_lobes.glsl",
+        crate::lobes::WGSL_FILE,
+        crate::lobes::GLSL_FILE,
     ];
     FIXED.contains(&name)
         || name

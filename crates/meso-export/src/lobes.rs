@@ -56,6 +56,10 @@ use std::f64::consts::PI;
 pub const WGSL: &str = include_str!("../shaders/meso_lobes.wgsl");
 /// The GLSL ES 3.00 functions (same names and formula as [`WGSL`]).
 pub const GLSL: &str = include_str!("../shaders/meso_lobes.glsl");
+/// The file name the export writes [`WGSL`] under.
+pub const WGSL_FILE: &str = "meso_lobes.wgsl";
+/// The file name the export writes [`GLSL`] under.
+pub const GLSL_FILE: &str = "meso_lobes.glsl";
 
 /// `log2(1 + η)` range of the B channel: `η = 2^(ETA_LOG2_RANGE · b) − 1`.
 pub const ETA_LOG2_RANGE: f64 = 20.0;
@@ -285,8 +289,8 @@ pub fn files(tex: &LobeTextures) -> Result<Vec<(String, Vec<u8>)>, ExportError> 
             out.push((lobe_png(k, l), png));
         }
     }
-    out.push(("meso_lobes.wgsl".into(), WGSL.as_bytes().to_vec()));
-    out.push(("meso_lobes.glsl".into(), GLSL.as_bytes().to_vec()));
+    out.push((WGSL_FILE.into(), WGSL.as_bytes().to_vec()));
+    out.push((GLSL_FILE.into(), GLSL.as_bytes().to_vec()));
     Ok(out)
 }
 

@@ -25,7 +25,6 @@ use glam::DVec3;
 use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
 use meso_render::{BumpMapped, NdfMapped, RenderOptions, Shader};
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -63,7 +62,7 @@ fn main() {
         Some(k) if k > 0 => ExtractParams::default().with_max_lobes(k),
         _ => ExtractParams::default(),
     };
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
+    let path = common::facade_path();
     let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).expect("the test facade");
     let t0 = Instant::now();
     let pyr = extract(Source::Heights(&map), &params, &mut |_| {}).expect("extraction");

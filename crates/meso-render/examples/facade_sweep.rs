@@ -80,10 +80,7 @@ fn main() {
                 .copied()
                 .expect("HEIGHT_SCALE after HEIGHTS"),
         ),
-        None => (
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png"),
-            20.0,
-        ),
+        None => (common::facade_path(), 20.0),
     };
     let map = HeightMap::load(&path, 1.0, scale, Border::Wrap)
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()));

@@ -63,10 +63,7 @@ fn main() {
         .map(|_| number(3, "DETAIL"));
     let (path, scale) = match args.get(4) {
         Some(p) => (PathBuf::from(p), number(5, "HEIGHT_SCALE")),
-        None => (
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png"),
-            20.0,
-        ),
+        None => (common::facade_path(), 20.0),
     };
     let brief = std::env::var_os("FAR_GONIO_BRIEF").is_some();
     let map = HeightMap::load(&path, 1.0, scale, Border::Wrap)

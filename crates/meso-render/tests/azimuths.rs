@@ -39,7 +39,6 @@ use glam::DVec3;
 use meso_core::material::Material;
 use meso_maps::{extract, Border, ExtractParams, HeightMap, Source};
 use meso_render::*;
-use std::path::Path;
 use std::sync::Arc;
 
 mod common;
@@ -60,7 +59,7 @@ fn facade(height: f64) -> (Arc<dyn Shader>, Arc<dyn Shader>, f64) {
 
 /// [`facade`] with the NDF-mapped material reading levels up to `max_level` only.
 fn facade_to_level(height: f64, max_level: usize) -> (Arc<dyn Shader>, Arc<dyn Shader>, f64) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
+    let path = common::facade_path();
     let surface = Material::from_toml_str("[transfer]\nkind = \"lambert\"\n").unwrap();
     let map = HeightMap::load(&path, 1.0, height, Border::Wrap).unwrap();
     let pyr = extract(

@@ -19,8 +19,7 @@ mod common;
 
 #[test]
 fn far_views_of_faces_and_walls_follow_the_geometry_at_the_default_detail() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png");
+    let path = common::facade_path();
     let map = HeightMap::load(&path, 1.0, 20.0, Border::Wrap).unwrap();
     let pyr = extract(
         Source::Heights(&map),

@@ -162,8 +162,21 @@ impl HeightMap {
     #[must_use]
     pub fn seam_ratios(&self) -> (f64, f64) {
         let (w, h) = (self.width, self.height);
-        let at = |r: usize, c: usize| self.heights[r * w + c];
-        let ratio = |seam: f64, inside: f64| {
+        // One axis: `along` samples a line, `across` lines; `at(a, k)` the sample `a` along
+        // line `k`.
+        let ratio = |along: usize, across: usize, at: &dyn Fn(usize, usize) -> f64| {
+            if along < 3 {
+                return 0.0;
+            }
+            let seam = (0..across)
+                .map(|k| (at(along - 1, k) - at(0, k)).abs())
+                .sum::<f64>()
+                / across as f64;
+            let inside = (0..across)
+                .flat_map(|k| (1..along).map(move |a| (a, k)))
+                .map(|(a, k)| (at(a, k) - at(a - 1, k)).abs())
+                .sum::<f64>()
+                / (across * (along - 1)) as f64;
             if inside > 0.0 {
                 seam / inside
             } else if seam > 0.0 {
@@ -172,29 +185,10 @@ impl HeightMap {
                 0.0
             }
         };
-        let x = if w >= 3 {
-            let seam = (0..h).map(|r| (at(r, w - 1) - at(r, 0)).abs()).sum::<f64>() / h as f64;
-            let inside = (0..h)
-                .flat_map(|r| (1..w).map(move |c| (r, c)))
-                .map(|(r, c)| (at(r, c) - at(r, c - 1)).abs())
-                .sum::<f64>()
-                / (h * (w - 1)) as f64;
-            ratio(seam, inside)
-        } else {
-            0.0
-        };
-        let y = if h >= 3 {
-            let seam = (0..w).map(|c| (at(h - 1, c) - at(0, c)).abs()).sum::<f64>() / w as f64;
-            let inside = (1..h)
-                .flat_map(|r| (0..w).map(move |c| (r, c)))
-                .map(|(r, c)| (at(r, c) - at(r - 1, c)).abs())
-                .sum::<f64>()
-                / ((h - 1) * w) as f64;
-            ratio(seam, inside)
-        } else {
-            0.0
-        };
-        (x, y)
+        (
+            ratio(w, h, &|a, k| self.heights[k * w + a]),
+            ratio(h, w, &|a, k| self.heights[a * w + k]),
+        )
     }
 
     grid_size_accessors!("samples");

@@ -7,6 +7,14 @@ use glam::DVec3;
 use meso_render::*;
 use std::sync::Arc;
 
+/// The steep facade height map of the tests and examples (`tests/data/facade_disp_256.png`:
+/// 256², 8-bit, flat faces and walls; read with texel size 1 and a height scale of 20 cells
+/// unless said otherwise).
+#[allow(dead_code)] // Not every including file reads the facade.
+pub fn facade_path() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/facade_disp_256.png")
+}
+
 /// A unit-tiled plane `z = 0` (one map tile per world unit, u along +x) seen orthographically
 /// from ≈ 24° off its normal (the camera at `(0, −0.4, 0.9)`, up +y), `size²` pixels covering
 /// `width` world units, 1 spp, black background, under a directional light of irradiance 2 W/m²
