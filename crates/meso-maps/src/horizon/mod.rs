@@ -862,34 +862,82 @@ impl HorizonJointSum {
     /// points of equal weight, the whole set of weight `weight`.
     #[must_use]
     pub fn of_points(angles: &[[f64; 16]; HORIZON_DIRECTIONS], weight: f64) -> HorizonJointSum {
+        HorizonJointSum::of_below(&angles.map(|a| Below::Points(joint_below(&a))), weight)
+    }
+
+    /// The joint distribution of a cell whose horizon angles are its corners' interpolated
+    /// bilinearly at the centres of its 4 × 4 sub-cells (the points of
+    /// [`HorizonCdfSum::of_bilinear_cell`]), weight `weight`. Where a direction's four corners
+    /// lie between the same two nodes, so do all its points, and none is interpolated.
+    #[must_use]
+    pub fn of_bilinear_cell(
+        corners: &[[f64; 4]; HORIZON_DIRECTIONS],
+        weight: f64,
+    ) -> HorizonJointSum {
+        // Nodes this close to a corner's angle count the points one by one (an interpolated
+        // point may round a hair beyond its corners).
+        const MARGIN: f64 = 1e-9;
         let nodes = JOINT_ELEVATIONS_DEG.map(f64::to_radians);
-        // Per direction and point, the grid nodes strictly below its angle: the point lies at
-        // or below nodes k.. .
-        let below: [[u8; 16]; HORIZON_DIRECTIONS] = std::array::from_fn(|d| {
-            std::array::from_fn(|p| nodes.iter().filter(|&&e| e < angles[d][p]).count() as u8)
+        let below = corners.map(|a| {
+            let lo = a.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let k = nodes.iter().filter(|&&e| e < lo - MARGIN).count();
+            if k == nodes.iter().filter(|&&e| e < hi + MARGIN).count() {
+                Below::All(k as u8)
+            } else {
+                Below::Points(joint_below(&bilinear_points(&a)))
+            }
         });
+        HorizonJointSum::of_below(&below, weight)
+    }
+
+    /// The joint distribution of 16 points of equal weight, the whole set of weight
+    /// `weight`, from per direction the grid nodes strictly below each point's angle.
+    fn of_below(below: &[Below; HORIZON_DIRECTIONS], weight: f64) -> HorizonJointSum {
         let mut s = HorizonJointSum {
             weight,
             ..HorizonJointSum::default()
         };
         let each = (weight / 16.0) as f32;
         const N: usize = JOINT_NODES;
-        for (m, k) in s.margin.iter_mut().zip(&below) {
-            // Per node, the points at or below it: a histogram of `k`, summed up.
-            let mut hist = [0u32; N + 1];
-            for &kp in k {
-                hist[usize::from(kp)] += 1;
-            }
-            let mut n = 0;
-            for (x, h) in m.iter_mut().zip(hist) {
-                n += h;
-                *x = n as f32 * each;
+        let all = 16.0 * each;
+        for (m, k) in s.margin.iter_mut().zip(below) {
+            match k {
+                // Every point at or below the nodes from `k` on.
+                Below::All(k) => {
+                    for (i, x) in m.iter_mut().enumerate() {
+                        *x = if i >= usize::from(*k) { all } else { 0.0 };
+                    }
+                }
+                Below::Points(k) => {
+                    // Per node, the points at or below it: a histogram of `k`, summed up.
+                    let mut hist = [0u32; N + 1];
+                    for &kp in k {
+                        hist[usize::from(kp)] += 1;
+                    }
+                    let mut n = 0;
+                    for (x, h) in m.iter_mut().zip(hist) {
+                        n += h;
+                        *x = n as f32 * each;
+                    }
+                }
             }
         }
         for (out, &(a, b)) in s.both.iter_mut().zip(&JOINT_PAIR_SLOTS) {
+            if let (Below::All(ka), Below::All(kb)) = (&below[a], &below[b]) {
+                // Every point in one cell of the grid: at or below the nodes from it on.
+                let (ka, kb) = (usize::from(*ka), usize::from(*kb));
+                for i in 0..N {
+                    for j in 0..N {
+                        out[i * N + j] = if i >= ka && j >= kb { all } else { 0.0 };
+                    }
+                }
+                continue;
+            }
             // A histogram of (k_a, k_b), then its two-dimensional running sums over the grid.
+            let (pa, pb) = (below[a].points(), below[b].points());
             let mut hist = [[0u32; N + 1]; N + 1];
-            for (&ka, &kb) in below[a].iter().zip(&below[b]) {
+            for (&ka, &kb) in pa.iter().zip(&pb) {
                 hist[usize::from(ka)][usize::from(kb)] += 1;
             }
             let mut cum = [[0u32; N]; N];
@@ -903,17 +951,6 @@ impl HorizonJointSum {
             }
         }
         s
-    }
-
-    /// The joint distribution of a cell whose horizon angles are its corners' interpolated
-    /// bilinearly at the centres of its 4 × 4 sub-cells (the points of
-    /// [`HorizonCdfSum::of_bilinear_cell`]), weight `weight`.
-    #[must_use]
-    pub fn of_bilinear_cell(
-        corners: &[[f64; 4]; HORIZON_DIRECTIONS],
-        weight: f64,
-    ) -> HorizonJointSum {
-        HorizonJointSum::of_points(&corners.map(|a| bilinear_points(&a)), weight)
     }
 
     /// Add footprint `o` (its sums) scaled by `scale`: the pooled distribution.
@@ -1157,6 +1194,30 @@ fn add_scaled<const N: usize>(dst: &mut [[f32; N]], src: &[[f32; N]], k: f32) {
 fn to_255(v: f32, inv: f64) -> u8 {
     // Non-negative: `as` truncates after the half is added (saturating at 255).
     (f64::from(v) * inv * 255.0 + 0.5) as u8
+}
+
+/// Per point of a set of 16, the nodes of a [`HorizonJoint`]'s grid strictly below its angle
+/// (the point lies at or below nodes `k..`): all the same, or each its own.
+#[derive(Clone, Copy, Debug)]
+enum Below {
+    All(u8),
+    Points([u8; 16]),
+}
+
+impl Below {
+    /// Per point, its count.
+    fn points(&self) -> [u8; 16] {
+        match self {
+            Below::All(k) => [*k; 16],
+            Below::Points(p) => *p,
+        }
+    }
+}
+
+/// [`Below::Points`] of 16 angles (radians).
+fn joint_below(angles: &[f64; 16]) -> [u8; 16] {
+    let nodes = JOINT_ELEVATIONS_DEG.map(f64::to_radians);
+    std::array::from_fn(|p| nodes.iter().filter(|&&e| e < angles[p]).count() as u8)
 }
 
 /// A cell's corner values `a` (at `(x, y)` = (0, 0), (1, 0), (0, 1), (1, 1)) interpolated
@@ -1623,6 +1684,56 @@ mod tests {
             el.cos() * az.sin(),
             el.sin(),
         ))
+    }
+
+    #[test]
+    fn a_cells_joint_is_its_bilinear_points_joint_to_the_bit() {
+        // Corners within one interval of the grid (the points skipped), straddling a node,
+        // on a node exactly and a hair either side of one, below the first node and above
+        // the last, mixed across the directions: the cell's joint is that of its 16 points.
+        let nodes = JOINT_ELEVATIONS_DEG.map(f64::to_radians);
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut kinds_seen = [0usize; 2];
+        for case in 0..4000 {
+            let corners: [[f64; 4]; HORIZON_DIRECTIONS] = std::array::from_fn(|d| {
+                let pick = (case + d) % 6;
+                std::array::from_fn(|_| match pick {
+                    // Inside one interval: between nodes 1 and 2.
+                    0 => nodes[1] + (nodes[2] - nodes[1]) * (0.05 + 0.9 * uniform()),
+                    // Anywhere from 0° to 70°.
+                    1 => 70f64.to_radians() * uniform(),
+                    // On a node, or a hair either side of it.
+                    2 => nodes[case % JOINT_NODES] + [0.0, 1e-12, -1e-12, 1e-10][case % 4],
+                    // Below the first node, above the last.
+                    3 => nodes[0] * uniform(),
+                    4 => nodes[3] + 0.3 * uniform(),
+                    // A narrow spread around a node.
+                    _ => nodes[2] + 1e-3 * (uniform() - 0.5),
+                })
+            });
+            let points = corners.map(|a| bilinear_points(&a));
+            let w = 0.25 + uniform();
+            assert_eq!(
+                HorizonJointSum::of_bilinear_cell(&corners, w),
+                HorizonJointSum::of_points(&points, w),
+                "case {case}: {corners:?}"
+            );
+            for a in &corners {
+                let lo = a.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = a.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let same = nodes.iter().filter(|&&e| e < lo).count()
+                    == nodes.iter().filter(|&&e| e < hi).count();
+                kinds_seen[usize::from(same)] += 1;
+            }
+        }
+        // Both ways of reading a direction were exercised.
+        assert!(kinds_seen.iter().all(|&n| n > 1000), "{kinds_seen:?}");
     }
 
     #[test]

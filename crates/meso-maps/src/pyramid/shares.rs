@@ -324,8 +324,9 @@ fn rect_stats(
     let (mut cell, mut logr, mut mass, mut acc) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut jacc: Vec<HorizonJointSum> = Vec::new();
     let mut tacc: Vec<HorizonTowardSum> = Vec::new();
-    // A coarse row's texels: their lobes and, at `off[i]`, their accumulators.
-    let (mut lobes, mut off) = (Vec::new(), Vec::new());
+    // A coarse row's texels: their lobes and, at `off[i]`, their accumulators and their lobes
+    // as read to hand the cells' area out.
+    let (mut lobes, mut off, mut hand) = (Vec::new(), Vec::new(), Vec::new());
     for row in rows {
         if level == 0 {
             for col in cols.clone() {
@@ -339,11 +340,13 @@ fn rect_stats(
         }
         lobes.clear();
         off.clear();
+        hand.clear();
         off.push(0);
         for col in cols.clone() {
             let t = row * l.cols + col;
             let (pa, pb) = (l.lobe_start[t] as usize, l.lobe_start[t + 1] as usize);
             lobes.push((pa, pb));
+            hand_lobes(l, pa, pb, &mut hand);
             off.push(off[off.len() - 1] + pb - pa);
         }
         let n = off[off.len() - 1];
@@ -359,7 +362,8 @@ fn rect_stats(
         // cells row by row of its footprint as before: the same sums in the same order.
         for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
             for (i, col) in cols.clone().enumerate() {
-                let (pa, pb) = lobes[i];
+                let (pa, _) = lobes[i];
+                let hand = &hand[off[i]..off[i + 1]];
                 let mass = &mut mass[off[i]..off[i + 1]];
                 let acc = if h0.is_some() {
                     &mut acc[off[i]..off[i + 1]]
@@ -373,10 +377,9 @@ fn rect_stats(
                 };
                 for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
                     let ct = r * l0.cols + c;
+                    let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
                     let cell_s: &[f64] = match level0 {
-                        Some(z) => {
-                            &z.shares[l0.lobe_start[ct] as usize..l0.lobe_start[ct + 1] as usize]
-                        }
+                        Some(z) => &z.shares[ca..cb],
                         None => {
                             cell.clear();
                             cell_shares(l0, ct, &mut cell);
@@ -393,18 +396,25 @@ fn rect_stats(
                         ),
                         _ => None,
                     };
-                    hand_cell(l0, ct, cell_s, l, pa, pb, &mut logr, |j, m, normal| {
-                        mass[j - pa] += m;
-                        if let Some(s) = &cell_h {
-                            acc[j - pa].add(s, m);
-                            if with_joint {
-                                tacc[j - pa].add(s, normal, m);
+                    hand_cell(
+                        l0.lobes.range(ca, cb).map(|p| p.axis),
+                        cell_s,
+                        hand,
+                        pa,
+                        &mut logr,
+                        |j, m, normal| {
+                            mass[j - pa] += m;
+                            if let Some(s) = &cell_h {
+                                acc[j - pa].add(s, m);
+                                if with_joint {
+                                    tacc[j - pa].add(s, normal, m);
+                                }
                             }
-                        }
-                        if let Some(s) = &cell_j {
-                            jacc[j - pa].add(s, m);
-                        }
-                    });
+                            if let Some(s) = &cell_j {
+                                jacc[j - pa].add(s, m);
+                            }
+                        },
+                    );
                 }
             }
         }
@@ -490,14 +500,17 @@ pub fn texel_lobe_stats(
     let mut mass = vec![0.0f64; pb - pa];
     let h0 = l0.horizon.as_ref();
     let mut hz = h0.map(|_| vec![HorizonCdfSum::default(); pb - pa]);
-    let (mut shares, mut logr) = (Vec::new(), Vec::new());
+    let (mut shares, mut logr, mut hand) = (Vec::new(), Vec::new(), Vec::new());
+    hand_lobes(l, pa, pb, &mut hand);
     for r in row * l.span..((row + 1) * l.span).min(l0.rows) {
         for c in col * l.span..((col + 1) * l.span).min(l0.cols) {
             let ct = r * l0.cols + c;
             shares.clear();
             cell_shares(l0, ct, &mut shares);
             let cell_h = h0.map(|h| HorizonCdfSum::of(&cell_cdf(pyramid, h, ct)));
-            hand_cell(l0, ct, &shares, l, pa, pb, &mut logr, |j, m, _| {
+            let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
+            let axes = l0.lobes.range(ca, cb).map(|p| p.axis);
+            hand_cell(axes, &shares, &hand, pa, &mut logr, |j, m, _| {
                 mass[j - pa] += m;
                 if let (Some(hz), Some(s)) = (&mut hz, &cell_h) {
                     hz[j - pa].add(s, m);
@@ -590,37 +603,69 @@ fn cell_shares(l0: &Level, t: usize, out: &mut Vec<f64>) {
     }
 }
 
-/// Hands level-0 cell `ct`'s projected area (its lobes' `shares`) to the lobes `pa..pb` of
-/// level `l` by the mixture's posterior: `give(j, m, normal)` for each lobe `j` and area
-/// `m` > 0, `normal` the axis of the level-0 lobe it comes from.
-/// `logr` is scratch.
-#[allow(clippy::too_many_arguments)]
+/// A lobe of a coarse texel as [`hand_cell`] reads it, decoded once per texel instead of once
+/// per level-0 cell under it: its axis, and the two terms of its log-density
+/// `ln w + ln(η + 2) + ½η · ln x` that do not depend on the normal (`log_norm`, the first two
+/// summed as the density sums them, and `half_eta`), or `log_norm` = −∞ for a lobe of no
+/// weight.
+#[derive(Clone, Copy, Debug)]
+struct HandLobe {
+    axis: glam::DVec3,
+    log_norm: f64,
+    half_eta: f64,
+}
+
+impl HandLobe {
+    fn new(p: &meso_core::ndf::PhongLobe) -> HandLobe {
+        HandLobe {
+            axis: p.axis,
+            log_norm: if p.weight > 0.0 {
+                p.weight.ln() + (p.exponent + 2.0).ln()
+            } else {
+                f64::NEG_INFINITY
+            },
+            half_eta: 0.5 * p.exponent,
+        }
+    }
+}
+
+/// Appends to `out` the lobes `pa..pb` of level `l` as [`hand_cell`] reads them.
+fn hand_lobes(l: &Level, pa: usize, pb: usize, out: &mut Vec<HandLobe>) {
+    out.extend(l.lobes.range(pa, pb).map(|p| HandLobe::new(&p)));
+}
+
+/// Hands a level-0 cell's projected area (its lobes' `shares`, of axes `axes`) to a coarse
+/// texel's lobes `lobes` (its lobes `pa..`, [`hand_lobes`]) by the mixture's posterior:
+/// `give(j, m, normal)` for each lobe `j` (counted from `pa`) and area `m` > 0, `normal` the
+/// axis of the level-0 lobe it comes from. `logr` is scratch. A texel of one lobe takes all of
+/// it.
 fn hand_cell(
-    l0: &Level,
-    ct: usize,
+    axes: impl Iterator<Item = glam::DVec3>,
     shares: &[f64],
-    l: &Level,
+    lobes: &[HandLobe],
     pa: usize,
-    pb: usize,
     logr: &mut Vec<f64>,
     mut give: impl FnMut(usize, f64, glam::DVec3),
 ) {
-    if pa == pb {
+    if lobes.is_empty() {
         return;
     }
-    let (ca, cb) = (l0.lobe_start[ct] as usize, l0.lobe_start[ct + 1] as usize);
-    for (lobe, &mj) in l0.lobes.range(ca, cb).zip(shares) {
-        let m = lobe.axis;
+    for (m, &mj) in axes.zip(shares) {
         if mj <= 0.0 {
+            continue;
+        }
+        if lobes.len() == 1 {
+            // Its posterior is 1 (or, opposite it, the nearest axis is its own).
+            give(pa, mj, m);
             continue;
         }
         // Log responsibilities (log-sum-exp: sharp lobes underflow).
         logr.clear();
         let mut best = f64::NEG_INFINITY;
-        for p in l.lobes.range(pa, pb) {
+        for p in lobes {
             let x = 0.5 * (1.0 + p.axis.dot(m));
-            let v = if x > 0.0 && p.weight > 0.0 {
-                p.weight.ln() + (p.exponent + 2.0).ln() + 0.5 * p.exponent * x.ln()
+            let v = if x > 0.0 && p.log_norm > f64::NEG_INFINITY {
+                p.log_norm + p.half_eta * x.ln()
             } else {
                 f64::NEG_INFINITY
             };
@@ -629,21 +674,20 @@ fn hand_cell(
         }
         if best == f64::NEG_INFINITY {
             // Opposite every lobe: the nearest axis takes it.
-            let near = (pa..pb)
-                .max_by(|&x, &y| {
-                    l.lobes
-                        .get(x)
-                        .axis
-                        .dot(m)
-                        .total_cmp(&l.lobes.get(y).axis.dot(m))
-                })
-                .unwrap_or(pa);
-            give(near, mj, m);
+            let near = (0..lobes.len())
+                .max_by(|&x, &y| lobes[x].axis.dot(m).total_cmp(&lobes[y].axis.dot(m)))
+                .unwrap_or(0);
+            give(pa + near, mj, m);
             continue;
         }
-        let z: f64 = logr.iter().map(|v| (v - best).exp()).sum();
-        for (i, v) in logr.iter().enumerate() {
-            let r = (v - best).exp() / z;
+        // The exponentials once: kept in `logr` for the shares.
+        let mut z = 0.0;
+        for v in logr.iter_mut() {
+            *v = (*v - best).exp();
+            z += *v;
+        }
+        for (i, e) in logr.iter().enumerate() {
+            let r = e / z;
             if r > 0.0 {
                 give(pa + i, mj * r, m);
             }
