@@ -722,7 +722,7 @@ impl HorizonJoint {
         } else {
             ((b, v), (a, u))
         };
-        let q = |x: u8| f64::from(x) / 255.0;
+        let q = unit_255;
         let (ma, mb) = (&self.margin[a], &self.margin[b]);
         // Node k of a direction's fractions: 0 below the grid, 1 above it.
         let node = |m: &[u8; JOINT_NODES], k: usize| match k {
@@ -1057,7 +1057,7 @@ impl HorizonCdf {
         }
         let nodes = cdf_nodes_rad()
             .into_iter()
-            .zip(self.frac[d].map(|q| f64::from(q) / 255.0))
+            .zip(self.frac[d].map(unit_255))
             .chain([(FRAC_PI_2, 1.0)]);
         let (mut e0, mut f0) = (0.0, 0.0);
         for (e1, f1) in nodes {
@@ -1174,10 +1174,29 @@ fn fraction_at(f: &[u8; CDF_NODES], d: &HorizonDirection) -> f64 {
     let node = |k: usize| match k {
         0 => 0.0,
         k if k > CDF_NODES => 1.0,
-        k => f64::from(f[k - 1]) / 255.0,
+        k => unit_255(f[k - 1]),
     };
     node(d.node) + d.node_t * (node(d.node + 1) - node(d.node))
 }
+
+/// A fraction stored to 1/255 ([`HorizonCdf`], [`HorizonJoint`], [`HorizonToward`]) as a
+/// number, `x / 255`: read from a table of the 256 quotients (the same values as the division,
+/// which the shading reads dozens of times a lobe).
+#[inline]
+pub(crate) fn unit_255(x: u8) -> f64 {
+    UNIT_255[usize::from(x)]
+}
+
+/// `k / 255` for every `k` of a byte ([`unit_255`]).
+static UNIT_255: [f64; 256] = {
+    let mut t = [0.0; 256];
+    let mut k = 0;
+    while k < 256 {
+        t[k] = k as f64 / 255.0;
+        k += 1;
+    }
+    t
+};
 
 /// `dst += k · src`, row by row: the sums of [`HorizonCdfSum`] and [`HorizonJointSum`] pooled.
 fn add_scaled<const N: usize>(dst: &mut [[f32; N]], src: &[[f32; N]], k: f32) {
@@ -1684,6 +1703,17 @@ mod tests {
             el.cos() * az.sin(),
             el.sin(),
         ))
+    }
+
+    #[test]
+    fn the_table_of_fractions_is_the_division() {
+        for k in 0..=255u8 {
+            assert_eq!(
+                unit_255(k).to_bits(),
+                (f64::from(k) / 255.0).to_bits(),
+                "{k}"
+            );
+        }
     }
 
     #[test]

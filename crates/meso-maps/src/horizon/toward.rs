@@ -166,7 +166,7 @@ impl HorizonToward {
         }
         let slot = |k: usize, w: f64| {
             let f = cdf.at(k, d);
-            let s = f64::from(self.share[k]) / 255.0;
+            let s = super::unit_255(self.share[k]);
             let t = if s > 0.0 { self.at(k, d) } else { f };
             let rest = if 1.0 - s > 1e-6 {
                 ((f - s * t) / (1.0 - s)).clamp(0.0, 1.0)
