@@ -325,6 +325,79 @@ pub fn direction_pairs_with(nbar: DVec3, width: f64, half_phis_deg: &[f64]) -> V
     pairs
 }
 
+/// Most distinct normals [`peak_pairs`] adds a pair for.
+pub const PEAK_NORMALS: usize = 16;
+
+/// Footprint texels [`peak_pairs`] looks at, at most (evenly strided over the footprint).
+pub const PEAK_CANDIDATES: usize = 64;
+
+/// Normals closer than this (degrees) count as one in [`peak_pairs`].
+pub const PEAK_MERGE_DEG: f64 = 2.0;
+
+/// The pairs at the mirror peaks of a footprint's normals: for each of its distinct normals
+/// `n` (up to [`PEAK_NORMALS`], within [`PEAK_MERGE_DEG`] counted as one, read from at most
+/// [`PEAK_CANDIDATES`] of its texels), the viewer along `nbar` and the light mirrored about
+/// `n`, where both lie at least `MIN_COS_Z` above the macro surface and the light above
+/// `nbar`'s horizon. The fit's pairs ([`direction_pairs`]) are fixed in units of the
+/// footprint's width; where its normals split into separate narrow peaks (steep faces and
+/// walls) they can fall between them, and an error measured there alone compares the lobe
+/// with a "peak" far below the footprint's own (`meso export` reported up to 286 % of it on a
+/// steep facade). The reported errors ([`crate::mips::LevelStats`]) are measured on both sets.
+#[must_use]
+pub fn peak_pairs(fine: &[FineTexel], nbar: DVec3) -> Vec<(DVec3, DVec3)> {
+    let merge = PEAK_MERGE_DEG.to_radians().cos();
+    let stride = fine.len().div_ceil(PEAK_CANDIDATES).max(1);
+    let mut normals: Vec<DVec3> = Vec::with_capacity(PEAK_NORMALS);
+    for t in fine.iter().step_by(stride) {
+        if normals.len() == PEAK_NORMALS {
+            break;
+        }
+        if normals.iter().all(|m| m.dot(t.normal) < merge) {
+            normals.push(t.normal);
+        }
+    }
+    let v = nbar;
+    if v.z < MIN_COS_Z {
+        return Vec::new();
+    }
+    normals
+        .iter()
+        .filter_map(|&n| {
+            let l = 2.0 * v.dot(n) * n - v;
+            (l.z >= MIN_COS_Z && l.dot(nbar) > 0.0).then(|| (l.normalize(), v))
+        })
+        .collect()
+}
+
+/// A fit's error as reported: the RMS difference over the fit's pairs (`rms`, on `count`
+/// pairs) and the pairs `extra` (target `extra_target`) together, over the highest target
+/// value of both (`peak`, the fit pairs'); `model(l, v)` the fitted lobe (1/sr). A fraction
+/// (0 where every target is 0).
+#[must_use]
+pub fn relative_error_with(
+    rms: f64,
+    count: usize,
+    peak: f64,
+    extra: &[(DVec3, DVec3)],
+    extra_target: &[f64],
+    model: impl Fn(DVec3, DVec3) -> f64,
+) -> f64 {
+    let peak = extra_target.iter().copied().fold(peak, f64::max);
+    let n = count + extra.len();
+    if peak <= 0.0 || n == 0 {
+        return 0.0;
+    }
+    let extra_sq: f64 = extra
+        .iter()
+        .zip(extra_target)
+        .map(|(&(l, v), t)| {
+            let d = t - model(l, v);
+            d * d
+        })
+        .sum();
+    ((rms * rms * count as f64 + extra_sq) / n as f64).sqrt() / peak
+}
+
 /// The supersampled target: the average over `fine` of each texel's shaded lobe at every pair.
 /// Each pair's sum is added up in the order of `fine`.
 #[must_use]
@@ -851,6 +924,64 @@ pub(crate) fn fit_aniso_with(
 mod tests {
     use super::*;
     use rand::RngExt;
+
+    #[test]
+    fn peak_pairs_hit_each_distinct_normals_mirror_peak() {
+        let tilt = |deg: f64, az: f64| {
+            let (t, p) = (deg.to_radians(), az.to_radians());
+            DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+        };
+        // Two texels alike, one within 1° of another (counted as one), and one so steep that
+        // its mirror light would lie below the macro surface (dropped).
+        let normals = [
+            tilt(0.0, 0.0),
+            tilt(0.0, 0.0),
+            tilt(30.0, 0.0),
+            tilt(31.0, 0.0),
+            tilt(40.0, 90.0),
+            tilt(80.0, 180.0),
+        ];
+        let fine: Vec<FineTexel> = normals
+            .iter()
+            .map(|&normal| FineTexel { normal, alpha: 0.1 })
+            .collect();
+        let nbar = DVec3::Z;
+        let pairs = peak_pairs(&fine, nbar);
+        assert_eq!(pairs.len(), 3, "{pairs:?}");
+        for (&(l, v), want) in pairs.iter().zip([normals[0], normals[2], normals[4]]) {
+            assert_eq!(v, nbar);
+            assert!((l.length() - 1.0).abs() < 1e-12);
+            let h = (l + v).normalize();
+            assert!(h.dot(want) > 1.0 - 1e-12, "{h} vs {want}");
+        }
+        // At most PEAK_NORMALS pairs, however many distinct normals.
+        let many: Vec<FineTexel> = (0..400)
+            .map(|k| FineTexel {
+                normal: tilt(20.0 + 0.1 * f64::from(k % 50), f64::from(k) * 7.3),
+                alpha: 0.1,
+            })
+            .collect();
+        assert!(peak_pairs(&many, nbar).len() <= PEAK_NORMALS);
+        // Below the viewer's floor: none.
+        assert!(peak_pairs(&fine, tilt(89.0, 0.0)).is_empty());
+    }
+
+    #[test]
+    fn the_reported_error_adds_the_extra_pairs_to_the_fits() {
+        // rms 0.3 over 4 pairs; two more pairs missing by 2 and 0 under a peak of 4.
+        let extra = [(DVec3::Z, DVec3::Z), (DVec3::X, DVec3::Z)];
+        let got = relative_error_with(0.3, 4, 1.0, &extra, &[4.0, 1.0], |l, _| {
+            if l == DVec3::Z {
+                2.0
+            } else {
+                1.0
+            }
+        });
+        let want = ((0.09 * 4.0 + 4.0) / 6.0f64).sqrt() / 4.0;
+        assert!((got - want).abs() < 1e-15, "{got} vs {want}");
+        // No extra pairs: the fit's own error.
+        assert_eq!(relative_error_with(0.3, 4, 2.0, &[], &[], |_, _| 0.0), 0.15);
+    }
 
     /// The refinement [`minimise_alpha`] had before Brent's method (until 2026-12-05): 30
     /// golden-section steps in the bracket around the best scan point; the reference of

@@ -101,7 +101,9 @@ pub struct MipLevel {
     pub normals: Vec<DVec3>,
     /// Fitted GGX widths α, map row order.
     pub alphas: Vec<f64>,
-    /// Per-texel relative fit error `rms / peak` (0 at level 0), map row order.
+    /// Per-texel relative fit error `rms / peak` (0 at level 0), map row order: the RMS
+    /// difference over the fit's direction pairs and the footprint's normals' mirror peaks
+    /// ([`ggx::peak_pairs`]) over the highest supersampled value of both.
     pub errors: Vec<f64>,
     /// Per-texel relative error of the standard mip (the base α — the footprint's mean α —
     /// about the averaged normal, no added variance) on the same direction set, for comparison.
@@ -151,7 +153,8 @@ pub fn anisotropy_strength(alpha_t: f64, alpha_b: f64) -> f64 {
         .sqrt()
 }
 
-/// Summary of one level's fit, relative errors in % of the supersampled BRDF peak.
+/// Summary of one level's fit, relative errors in % of the supersampled BRDF peak (each
+/// texel's, on its fit's direction pairs and its normals' mirror peaks: [`MipLevel::errors`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LevelStats {
     /// Level index (0 = full resolution).
@@ -306,24 +309,43 @@ fn fit_texel(fine: &[FineTexel], anisotropic: bool) -> TexelFit {
     // numbers).
     let mut search = ggx::IsoSearch::on(&target, nbar, &arrays);
     let plain = search.rms(mean_alpha);
+    // The errors are reported on the fit's pairs and at the footprint's normals' own mirror
+    // peaks (`ggx::peak_pairs`), relative to the highest value of both.
+    let peaks = ggx::peak_pairs(fine, nbar);
+    let peak_target = if peaks.is_empty() {
+        Vec::new()
+    } else {
+        target_of(fine, &PairArrays::new(&peaks))
+    };
+    let n = pairs.len();
+    let rel = |rms: f64, peak: f64, model: &dyn Fn(DVec3, DVec3) -> f64| {
+        ggx::relative_error_with(rms, n, peak, &peaks, &peak_target, model)
+    };
     if anisotropic {
         let fit = ggx::fit_aniso_with(fine, &mut search, &target, nbar, &pairs);
-        let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
+        let lobe = ggx::AnisoGgx::new(nbar, fit.angle, fit.alpha_t, fit.alpha_b);
         TexelFit {
             normal: nbar,
             alpha: fit.alpha_b,
-            error: rel(fit.rms),
-            plain: rel(plain),
-            aniso: Some((fit.alpha_t, fit.angle, rel(fit.iso_rms))),
+            error: rel(fit.rms, fit.peak, &|l, v| lobe.shaded(l, v)),
+            plain: rel(plain, fit.peak, &|l, v| ggx::shaded(nbar, mean_alpha, l, v)),
+            aniso: Some((
+                fit.alpha_t,
+                fit.angle,
+                rel(fit.iso_rms, fit.peak, &|l, v| {
+                    ggx::shaded(nbar, fit.iso_alpha, l, v)
+                }),
+            )),
         }
     } else {
         let fit = search.fit(ggx::MIN_ALPHA);
-        let rel = |e: f64| if fit.peak > 0.0 { e / fit.peak } else { 0.0 };
         TexelFit {
             normal: nbar,
             alpha: fit.alpha,
-            error: rel(fit.rms),
-            plain: rel(plain),
+            error: rel(fit.rms, fit.peak, &|l, v| {
+                ggx::shaded(nbar, fit.alpha, l, v)
+            }),
+            plain: rel(plain, fit.peak, &|l, v| ggx::shaded(nbar, mean_alpha, l, v)),
             aniso: None,
         }
     }
@@ -403,6 +425,54 @@ pub fn build_chain_aniso(base: &BaseMaps) -> Vec<MipLevel> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A tilted unit normal: `deg` from +z towards azimuth `az_deg`.
+    fn tilted(deg: f64, az_deg: f64) -> DVec3 {
+        let (t, p) = (deg.to_radians(), az_deg.to_radians());
+        DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+    }
+
+    #[test]
+    fn a_footprint_of_separate_narrow_peaks_is_measured_at_its_peaks() {
+        // A steep facade's footprint: flat tops (0°), a slope (45°) and walls (74°), narrow
+        // lobes (α = 0.05). The fit's pairs, laid out in units of the footprint's width, fall
+        // between the peaks: measured there alone the error read several times the "peak".
+        let normals = vec![
+            tilted(0.0, 0.0),
+            tilted(74.0, 0.0),
+            tilted(45.0, 90.0),
+            tilted(74.0, 0.0),
+        ];
+        let fine: Vec<FineTexel> = normals
+            .iter()
+            .map(|&normal| FineTexel {
+                normal,
+                alpha: 0.05,
+            })
+            .collect();
+        let nbar = average_normal(&fine);
+        let old = ggx::fit_alpha(&fine, nbar);
+        let base = BaseMaps::new(2, 2, normals, vec![0.05; 4]).unwrap();
+        let level = build_level(&base, 1);
+        let err = level.errors[0];
+        // The same α as the fit on its own pairs; the error now against the footprint's own
+        // peaks, which the one lobe about the averaged normal misses: measured 16 % of them
+        // (the lobe of one normal, below, 0).
+        assert_eq!(level.alphas[0], old.alpha);
+        assert!(old.rms / old.peak > 1.0, "the case: {}", old.rms / old.peak);
+        assert!((0.1..1.0).contains(&err), "{err}");
+        // The peak the error is relative to is the footprint's highest value at its normals'
+        // mirror peaks.
+        let peaks = ggx::peak_pairs(&fine, nbar);
+        let at_peaks = ggx::average_shaded(&fine, &peaks);
+        let highest = at_peaks.iter().copied().fold(0.0, f64::max);
+        assert!(highest > 10.0 * old.peak, "{highest} vs {}", old.peak);
+        // A footprint of one normal: its peak is the fit's own pair at the averaged normal, and
+        // the lobe fits it exactly.
+        let flat = BaseMaps::new(2, 2, vec![tilted(10.0, 30.0); 4], vec![0.1; 4]).unwrap();
+        let level = build_level(&flat, 1);
+        assert!(level.errors[0] < 1e-3, "{}", level.errors[0]);
+    }
 
     #[test]
     fn level_sizes_follow_the_ktx_rule() {
