@@ -71,10 +71,11 @@ pub use horizon::{
 pub use input::{Input, InputKind};
 pub use pyramid::{
     extract, extract_bytes, extract_stream_bytes, extract_to_file, extract_to_writer, extract_work,
-    lobe_stats, lobe_stats_by_cell, merged_levels, peak_projected_area, rect_lobe_stats_by_cell,
-    relief_shares, texel_lobe_stats, ExtractParams, Level, LevelStats, LobeStat, LobeStats, Method,
-    Progress, ProgressTask, Pyramid, PyramidInfo, Source, StreamedLevel, FACE_SHARE,
-    JOINT_CELLS_SIDE, JOINT_FROM_LEVEL, WALLS_MAX_LOBES, WALL_SHARE,
+    lobe_stats, lobe_stats_by_cell, lobe_stats_by_cell_reporting, merged_levels,
+    peak_projected_area, rect_lobe_stats_by_cell, relief_shares, texel_lobe_stats, ExtractParams,
+    Level, LevelStats, LobeStat, LobeStats, Method, Progress, ProgressTask, Pyramid, PyramidInfo,
+    Source, StreamedLevel, FACE_SHARE, JOINT_CELLS_SIDE, JOINT_FROM_LEVEL, WALLS_MAX_LOBES,
+    WALL_SHARE,
 };
 pub use radiosity::FacetRadiosity;
 pub use resolver::{ExtractProgress, MapsResolver};

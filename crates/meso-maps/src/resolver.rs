@@ -308,6 +308,20 @@ impl MapsResolver {
         }
     }
 
+    /// Report `progress` of work on the input `file` (e.g. a renderer's tables,
+    /// [`crate::ProgressTask::Tables`]) to the hook of [`MapsResolver::with_progress`], if any.
+    pub fn report(&self, file: &Path, progress: crate::pyramid::Progress) {
+        if let Some(f) = &self.progress {
+            f(file, progress);
+        }
+    }
+
+    /// Whether a progress hook is set ([`MapsResolver::with_progress`]).
+    #[must_use]
+    pub fn reports_progress(&self) -> bool {
+        self.progress.is_some()
+    }
+
     /// Report `warning` about the input `file` to the hook of [`MapsResolver::with_warnings`],
     /// unless this resolver reported it before.
     pub fn warn(&self, file: &Path, warning: &str) {

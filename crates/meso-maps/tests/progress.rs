@@ -99,3 +99,52 @@ fn reading_a_map_file_reports_every_band_up_to_its_total() {
         "{calls:?}"
     );
 }
+
+/// The renderer's tables (`lobe_stats_by_cell_reporting`, what `meso render` shows as
+/// "tables"): reported from several threads, yet monotone, starting at 0 with the total set,
+/// ending at it with every level done, weighted so that the levels whose every cell gives a
+/// joint distribution count double; and the very values of `lobe_stats_by_cell`.
+#[test]
+fn tables_progress_is_monotone_and_ends_at_its_total() {
+    let map = fixtures::gaussian(64, 3.0, 0.15, 7, 0.1).unwrap();
+    let pyramid = extract(
+        Source::Heights(&map),
+        &ExtractParams::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let calls = std::sync::Mutex::new(Vec::new());
+    let stats = meso_maps::lobe_stats_by_cell_reporting(&pyramid, true, &|p| {
+        calls.lock().unwrap().push(p);
+    });
+    assert_eq!(stats, meso_maps::lobe_stats_by_cell(&pyramid, true));
+    let calls = calls.into_inner().unwrap();
+    assert!(calls.iter().all(|p| p.task == ProgressTask::Tables));
+    let first = calls[0];
+    assert_eq!((first.work_done, first.levels_done), (0, 0));
+    // 64² cells: level 0's pass, then levels 1–6 visiting every cell, levels 2 and 3 (texels of
+    // 4 and 8 cells a side) counted twice.
+    let levels = pyramid.levels.len();
+    assert_eq!(levels, 7);
+    assert_eq!(first.work_total, 64 * 64 * (1 + 6 + 2));
+    for w in calls.windows(2) {
+        assert_eq!(w[0].work_total, w[1].work_total, "the total never changes");
+        assert!(
+            w[1].work_done >= w[0].work_done,
+            "{:?} then {:?}",
+            w[0],
+            w[1]
+        );
+        assert!(w[1].work_done <= w[1].work_total);
+    }
+    let last = calls.last().unwrap();
+    assert_eq!(
+        (last.work_done, last.levels_done),
+        (last.work_total, levels)
+    );
+    // Reports along the way, not only the first and the last: one per coarse row (63 in levels
+    // 1–6), less those a faster thread's larger figure made moot.
+    let rows: usize = pyramid.levels[1..].iter().map(|l| l.rows).sum();
+    assert_eq!(rows, 63);
+    assert!(calls.len() > 8, "{}", calls.len());
+}

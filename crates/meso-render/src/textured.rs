@@ -290,12 +290,20 @@ fn height_textured(t: &Texture<'_>, file: &Path) -> Result<Arc<dyn Shader>, Stri
                 .heightmap_pyramid(&map_table, file)
                 .map_err(texture_err)?;
             let texels_per_uv = texels_per_uv(tex, pyramid.levels[0].cols)?;
-            Arc::new(t.filtered(NdfMapped::new(
-                &pyramid,
-                &surface,
-                texels_per_uv,
-                shadowing,
-            )?))
+            // The tables' sums take seconds on a big map: reported as the resolver's
+            // progress, under the height map's name.
+            let report = |p: meso_maps::Progress| t.maps.report(file, p);
+            Arc::new(
+                t.filtered(NdfMapped::new_reporting(
+                    &pyramid,
+                    &surface,
+                    texels_per_uv,
+                    shadowing,
+                    t.maps
+                        .reports_progress()
+                        .then_some(&report as &(dyn Fn(meso_maps::Progress) + Sync)),
+                )?),
+            )
         }
     })
 }

@@ -65,6 +65,8 @@ fn format_of(path: &Path) -> Result<Format> {
 static PYRAMID_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 /// Time spent marching the facet horizons of `represent = "facets"` materials (nanoseconds).
 static FACETS_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+/// Time spent summing the NDF-mapped materials' tables (nanoseconds, all materials).
+static TABLES_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// The scene's material resolver: meso material files as `MaterialShader`s, and material
 /// files with a `[texture]` table as bump- or NDF-mapped materials
@@ -86,9 +88,12 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
                 ProgressTask::Extract => "pyramid",
                 ProgressTask::Facets => "facets",
                 ProgressTask::Read => "map file",
+                ProgressTask::Tables => "tables",
             };
             let b = shown.get_or_init(|| crate::util::progress_work(p.work_total, what));
             if b.prefix() != what {
+                // A new phase: its own position and clock from 0 (not the last phase's 100 %).
+                b.reset();
                 b.set_prefix(what);
             }
             b.set_length(p.work_total);
@@ -97,6 +102,7 @@ pub fn resolve_material(path: &Path) -> std::result::Result<Arc<dyn Shader>, Res
             let total = match p.task {
                 ProgressTask::Extract => &PYRAMID_NANOS,
                 ProgressTask::Facets => &FACETS_NANOS,
+                ProgressTask::Tables => &TABLES_NANOS,
                 ProgressTask::Read => return,
             };
             let mut s = st.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -202,21 +208,26 @@ pub fn run(a: Args) -> Result<()> {
     };
     PYRAMID_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     FACETS_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
+    TABLES_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let t = std::time::Instant::now();
     let scene = Scene::from_toml_file(&a.scene, &resolver)
         // The scene's errors start with the file they are about (the scene or a file it names).
         .context("cannot load the scene")?;
     let pyramid = PYRAMID_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
     let facets = FACETS_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
+    let tables = TABLES_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
     phases.add(
         "load",
-        (t.elapsed().as_secs_f64() - pyramid - facets).max(0.0),
+        (t.elapsed().as_secs_f64() - pyramid - facets - tables).max(0.0),
     );
     if pyramid > 0.0 {
         phases.add("pyramid", pyramid);
     }
     if facets > 0.0 {
         phases.add("facets", facets);
+    }
+    if tables > 0.0 {
+        phases.add("tables", tables);
     }
     let loaded = loaded
         .into_inner()

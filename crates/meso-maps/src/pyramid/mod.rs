@@ -39,8 +39,9 @@ pub use cost::{
 pub use extract::{extract, extract_to_file, extract_to_writer, merged_levels, StreamedLevel};
 pub use info::{LevelInfo, PyramidInfo};
 pub use shares::{
-    lobe_stats, lobe_stats_by_cell, peak_projected_area, rect_lobe_stats_by_cell, texel_lobe_stats,
-    LevelStats, LobeStat, LobeStats, JOINT_CELLS_SIDE, JOINT_FROM_LEVEL,
+    lobe_stats, lobe_stats_by_cell, lobe_stats_by_cell_reporting, peak_projected_area,
+    rect_lobe_stats_by_cell, texel_lobe_stats, LevelStats, LobeStat, LobeStats, JOINT_CELLS_SIDE,
+    JOINT_FROM_LEVEL,
 };
 
 use crate::compact::{Horizons, Lobes, COMPACT_TEXELS};
@@ -211,6 +212,11 @@ pub enum ProgressTask {
     /// Reading and checking a map file ([`Pyramid::read_compact_reporting`]): work in bytes of
     /// its levels, texels in the levels' rows read.
     Read,
+    /// Summing what each lobe of a pyramid stands for, the renderer's tables
+    /// ([`lobe_stats_by_cell_reporting`]): every coarse level visits every level-0 cell, so
+    /// work and texels count the level-0 cells visited (twice at the levels whose every cell
+    /// also gives a joint horizon distribution, which cost about that much more).
+    Tables,
 }
 
 /// Progress of [`extract`]: reported once before any work (everything at 0, the totals set),

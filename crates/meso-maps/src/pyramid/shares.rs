@@ -30,7 +30,7 @@
 //! a grazing light its tops see (0.29 of the bump map's radiance at 16 cells a pixel;
 //! docs/heightmaps.md, "Horizon distributions per lobe").
 
-use super::{Level, Pyramid};
+use super::{Level, Progress, ProgressTask, Pyramid};
 use crate::compact::Horizons;
 use crate::horizon::{
     CellHorizon, HorizonCdf, HorizonCdfSum, HorizonJoint, HorizonJointSum, HorizonToward,
@@ -157,7 +157,7 @@ pub struct LobeStats {
 /// being summed).
 #[must_use]
 pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
-    stats(pyramid, horizons, false)
+    stats(pyramid, horizons, false, None)
 }
 
 /// [`lobe_stats`] with level 0's horizon statistics stored once per level-0 texel rather than
@@ -167,12 +167,49 @@ pub fn lobe_stats(pyramid: &Pyramid, horizons: bool) -> LobeStats {
 /// levels and the shares are [`lobe_stats`]'s.
 #[must_use]
 pub fn lobe_stats_by_cell(pyramid: &Pyramid, horizons: bool) -> LobeStats {
-    stats(pyramid, horizons, true)
+    stats(pyramid, horizons, true, None)
 }
 
-/// [`lobe_stats`] (`by_cell` false) or [`lobe_stats_by_cell`].
-fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
+/// [`lobe_stats_by_cell`], reporting its progress to `report` ([`ProgressTask::Tables`]):
+/// once before any work (at 0, the totals set), after each coarse row of each level (the
+/// levels run in parallel, so the reports come from several threads, `work_done` growing), and
+/// at the end (`work_done = work_total`). What a renderer building its tables up front shows
+/// while it does: seconds on a 1024² height map.
+#[must_use]
+pub fn lobe_stats_by_cell_reporting(
+    pyramid: &Pyramid,
+    horizons: bool,
+    report: &(dyn Fn(Progress) + Sync),
+) -> LobeStats {
+    stats(pyramid, horizons, true, Some(report))
+}
+
+/// The work of [`lobe_stats_by_cell_reporting`]'s coarse level `k` per level-0 cell visited:
+/// 2 where every cell also gives a joint horizon distribution (the levels from
+/// [`JOINT_FROM_LEVEL`] whose texels span at most [`JOINT_CELLS_SIDE`] cells, about twice the
+/// time a cell), else 1.
+fn tables_work_per_cell(pyramid: &Pyramid, k: usize, horizons: bool) -> u64 {
+    let joint_every_cell = horizons
+        && pyramid.levels[0].horizon.is_some()
+        && k >= JOINT_FROM_LEVEL
+        && pyramid.levels[k].span <= JOINT_CELLS_SIDE;
+    if joint_every_cell {
+        2
+    } else {
+        1
+    }
+}
+
+/// [`lobe_stats`] (`by_cell` false) or [`lobe_stats_by_cell`], reporting to `report` when
+/// given ([`lobe_stats_by_cell_reporting`]).
+fn stats(
+    pyramid: &Pyramid,
+    horizons: bool,
+    by_cell: bool,
+    report: Option<&(dyn Fn(Progress) + Sync)>,
+) -> LobeStats {
     use rayon::prelude::*;
+    use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
     let Some(l0) = pyramid.levels.first() else {
         return LobeStats {
             shares: Vec::new(),
@@ -183,6 +220,44 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
         };
     };
     let h0 = l0.horizon.as_ref().filter(|_| horizons);
+    // Progress: level 0's own pass over its cells, then the level-0 cells each coarse level
+    // visits, weighted by their cost.
+    let cells0 = l0.rows as u64 * l0.cols as u64;
+    let work_total: u64 = (cells0
+        + (1..pyramid.levels.len())
+            .map(|k| cells0 * tables_work_per_cell(pyramid, k, horizons))
+            .sum::<u64>())
+    .max(1);
+    let (work_done, levels_done) = (AtomicU64::new(0), AtomicUsize::new(1));
+    let progress = |work: u64| Progress {
+        task: ProgressTask::Tables,
+        levels_done: levels_done.load(Ordering::Relaxed),
+        levels: pyramid.levels.len(),
+        texels_done: work,
+        texels_total: work_total,
+        work_done: work,
+        work_total,
+    };
+    // The work last reported: the rows finish on several threads, each report is made only
+    // when it is past the last one, so `work_done` never goes back.
+    let reported = std::sync::Mutex::new(0u64);
+    let report_work = |w: u64| {
+        if let Some(r) = report {
+            let mut last = reported
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner);
+            if w > *last {
+                *last = w;
+                r(progress(w));
+            }
+        }
+    };
+    if let Some(r) = report {
+        r(Progress {
+            levels_done: 0,
+            ..progress(0)
+        });
+    }
     // Level 0's cells' horizons, and their distributions (`cell_cdf`'s) from them.
     let cells: Option<Vec<CellHorizon>> = h0.map(|h| {
         (0..l0.texels())
@@ -197,6 +272,10 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
     let mut base = Vec::with_capacity(l0.lobes.len());
     for t in 0..l0.texels() {
         cell_shares(l0, t, &mut base);
+    }
+    if report.is_some() {
+        let w = work_done.fetch_add(cells0, Ordering::Relaxed) + cells0;
+        report_work(w.min(work_total));
     }
     // The coarse levels as whole rectangles: a row of texels' sums at a time (520 bytes a lobe
     // of the row), not a level's.
@@ -214,6 +293,13 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
                 shares: &base,
                 cdfs: base_horizon.as_deref(),
             };
+            let per_cell = tables_work_per_cell(pyramid, k1 + 1, horizons);
+            let row_done = |cells: u64| {
+                if report.is_some() {
+                    let w = work_done.fetch_add(cells * per_cell, Ordering::Relaxed);
+                    report_work((w + cells * per_cell).min(work_total));
+                }
+            };
             let st = rect_stats(
                 pyramid,
                 k1 + 1,
@@ -221,10 +307,22 @@ fn stats(pyramid: &Pyramid, horizons: bool, by_cell: bool) -> LobeStats {
                 0..l.cols,
                 horizons,
                 Some(&level0),
+                Some(&row_done),
             );
+            levels_done.fetch_add(1, Ordering::Relaxed);
             (st.shares, st.horizon, st.joint, st.toward)
         })
         .collect();
+    if let Some(r) = report {
+        // The end, once (every row's report is at most this).
+        let _last = reported
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        r(Progress {
+            levels_done: pyramid.levels.len(),
+            ..progress(work_total)
+        });
+    }
     let base_horizon = base_horizon.map(|h| {
         if by_cell {
             return h;
@@ -287,7 +385,7 @@ pub fn rect_lobe_stats_by_cell(
     cols: std::ops::Range<usize>,
     horizons: bool,
 ) -> LevelStats {
-    rect_stats(pyramid, level, rows, cols, horizons, None)
+    rect_stats(pyramid, level, rows, cols, horizons, None, None)
 }
 
 /// What a whole pyramid's stats hold of level 0 already, for the coarse levels to read instead
@@ -299,7 +397,8 @@ struct Level0<'a> {
 }
 
 /// [`rect_lobe_stats_by_cell`], reading level 0's shares and cells' distributions from
-/// `level0` when given (the same values) instead of computing them.
+/// `level0` when given (the same values) instead of computing them, and telling `row_done`
+/// (when given) the level-0 cells each coarse row visited once it is summed.
 fn rect_stats(
     pyramid: &Pyramid,
     level: usize,
@@ -307,6 +406,7 @@ fn rect_stats(
     cols: std::ops::Range<usize>,
     horizons: bool,
     level0: Option<&Level0<'_>>,
+    row_done: Option<&dyn Fn(u64)>,
 ) -> LevelStats {
     let l = &pyramid.levels[level];
     let l0 = &pyramid.levels[0];
@@ -438,6 +538,11 @@ fn rect_stats(
                         .map(HorizonTowardSum::finish),
                 );
             }
+        }
+        if let Some(done) = row_done {
+            let r = (row * l.span).min(l0.rows)..((row + 1) * l.span).min(l0.rows);
+            let c = (cols.start * l.span).min(l0.cols)..(cols.end * l.span).min(l0.cols);
+            done(r.len() as u64 * c.len() as u64);
         }
     }
     LevelStats {

@@ -71,9 +71,28 @@ impl NdfMapped {
         texels_per_uv: f64,
         shadowing: bool,
     ) -> Result<NdfMapped, String> {
+        NdfMapped::new_reporting(pyramid, surface, texels_per_uv, shadowing, None)
+    }
+
+    /// [`NdfMapped::new`], reporting the progress of its lobes' sums (most of the time it
+    /// takes: seconds on a 1024² height map) to `report` when given
+    /// ([`meso_maps::lobe_stats_by_cell_reporting`], task [`meso_maps::ProgressTask::Tables`]).
+    ///
+    /// # Errors
+    /// As [`NdfMapped::new`].
+    pub fn new_reporting(
+        pyramid: &Pyramid,
+        surface: &Material,
+        texels_per_uv: f64,
+        shadowing: bool,
+        report: Option<&(dyn Fn(meso_maps::Progress) + Sync)>,
+    ) -> Result<NdfMapped, String> {
         check_levels(pyramid, texels_per_uv, shadowing)?;
         let facet = Facet::new(&surface.transfer);
-        let stats = lobe_stats_by_cell(pyramid, shadowing);
+        let stats = match report {
+            Some(r) => meso_maps::lobe_stats_by_cell_reporting(pyramid, shadowing, r),
+            None => lobe_stats_by_cell(pyramid, shadowing),
+        };
         let mut lobe_horizons = stats.horizon.map(Vec::into_iter);
         // Level 0 shades with its cells' horizons, not its cells' distributions.
         let mut cells = stats.cells;
