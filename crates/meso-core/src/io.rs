@@ -347,7 +347,19 @@ pub fn stage_with(
         // Subject to the umask, as `File::create` is.
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
-    let tmp = builder.tempfile_in(&dir)?;
+    // The error names the folder, not the temporary file's made-up name.
+    if !dir.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("the directory {} does not exist", dir.display()),
+        ));
+    }
+    let tmp = builder.tempfile_in(&dir).map_err(|e| {
+        std::io::Error::new(
+            e.kind(),
+            format!("cannot create a file in {}: {}", dir.display(), e.kind()),
+        )
+    })?;
     let mut w = std::io::BufWriter::new(tmp);
     fill(&mut w)?;
     let tmp = w.into_inner().map_err(|e| e.into_error())?;
@@ -584,6 +596,19 @@ mod tests {
     use super::*;
 
     /// Long names are cut to the same stem on both sides.
+    #[test]
+    fn a_missing_folder_is_named_not_the_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("nodir/sub/x.map");
+        let e = write_atomic(&target, b"bytes").unwrap_err();
+        let msg = e.to_string();
+        assert_eq!(e.kind(), std::io::ErrorKind::NotFound);
+        assert!(msg.contains("does not exist"), "{msg}");
+        assert!(msg.contains("nodir/sub"), "{msg}");
+        assert!(!msg.contains(TEMP_MARK) && !msg.contains(".x.map"), "{msg}");
+        assert!(!dir.path().join("nodir").exists());
+    }
+
     #[test]
     fn long_names_give_the_same_stem_to_writer_and_cleaner() {
         let long = "x".repeat(250);

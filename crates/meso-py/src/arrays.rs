@@ -6,8 +6,81 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArray
 use pyo3::prelude::*;
 
 /// A 2-D float64 array argument: any array-like numpy converts (lists, other dtypes) is accepted;
-/// anything else raises `TypeError`.
-pub type Arr<'py> = numpy::PyArrayLike2<'py, f64, numpy::AllowTypeChange>;
+/// anything else raises `TypeError` saying what a 2-D array was expected for and what came
+/// (`argument 'wi': expected a 2-D array of numbers, one row per item (one direction:
+/// [[x, y, z]]; …); got an array of shape (3,)`), which pyo3 prefixes with the argument's name.
+pub struct Arr<'py>(numpy::PyArrayLike2<'py, f64, numpy::AllowTypeChange>);
+
+impl<'py> std::ops::Deref for Arr<'py> {
+    type Target = PyReadonlyArray2<'py, f64>;
+
+    fn deref(&self) -> &PyReadonlyArray2<'py, f64> {
+        &self.0
+    }
+}
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Arr<'py> {
+    type Error = PyErr;
+
+    fn extract(ob: pyo3::Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        match numpy::PyArrayLike2::<f64, numpy::AllowTypeChange>::extract(ob) {
+            Ok(a) => Ok(Arr(a)),
+            Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "expected a 2-D array of numbers, a list of rows (one direction: [[x, y, z]]; a \
+                 height map: rows × columns); got {}",
+                describe(&ob)
+            ))),
+        }
+    }
+}
+
+/// What an argument that is not a 2-D array of numbers is: its Python type, with the shape
+/// numpy reads it as (`a list of shape (3,)`, `a str`, `None`), and the dtype where it is not
+/// a number's.
+fn describe(ob: &Bound<'_, PyAny>) -> String {
+    if ob.is_none() {
+        return "None".to_string();
+    }
+    let kind = ob
+        .get_type()
+        .name()
+        .map_or_else(|_| "object".to_string(), |n| n.to_string());
+    let array = ob
+        .py()
+        .import("numpy")
+        .and_then(|np| np.call_method1("asarray", (ob,)));
+    let Ok(a) = array else {
+        return format!("{} {kind}", article(&kind));
+    };
+    let (Ok(shape), Ok(ndim)) = (a.getattr("shape"), a.getattr("ndim")) else {
+        return format!("{} {kind}", article(&kind));
+    };
+    if ndim.extract::<usize>().unwrap_or(0) == 0 {
+        return format!("{} {kind}", article(&kind));
+    }
+    let numeric = a
+        .getattr("dtype")
+        .and_then(|d| d.getattr("kind"))
+        .and_then(|k| k.extract::<String>())
+        .is_ok_and(|k| matches!(k.as_str(), "f" | "i" | "u" | "b"));
+    let dtype = if numeric {
+        String::new()
+    } else {
+        a.getattr("dtype")
+            .map(|d| format!(" and dtype {d}"))
+            .unwrap_or_default()
+    };
+    format!("{} {kind} of shape {shape}{dtype}", article(&kind))
+}
+
+/// "a" or "an" before `word` (as read aloud: "an ndarray").
+fn article(word: &str) -> &'static str {
+    if word.starts_with(['a', 'e', 'i', 'o', 'u']) || word == "ndarray" {
+        "an"
+    } else {
+        "a"
+    }
+}
 
 /// Rows of an `(N, 3)` float64 array as unit directions: each row normalised, non-finite or
 /// zero-length rows refused with their index ([`unit_row`]).
@@ -24,6 +97,21 @@ pub fn rows(name: &str, a: &PyReadonlyArray2<'_, f64>, cols: usize) -> PyResult<
     if let Some(k) = v.iter().position(|x| !x.is_finite()) {
         return Err(value_err(format!(
             "{name}[{}, {}] = {}: not a finite number",
+            k / cols,
+            k % cols,
+            v[k]
+        )));
+    }
+    Ok(v)
+}
+
+/// The values of an `(N, cols)` float64 array of uniform random numbers, row-major: each
+/// finite and in [0, 1] (a sampler's input; outside it, the warped direction means nothing).
+pub fn uniforms(name: &str, a: &PyReadonlyArray2<'_, f64>, cols: usize) -> PyResult<Vec<f64>> {
+    let v = rows(name, a, cols)?;
+    if let Some(k) = v.iter().position(|x| !(0.0..=1.0).contains(x)) {
+        return Err(value_err(format!(
+            "{name}[{}, {}] = {}: random numbers must lie in [0, 1]",
             k / cols,
             k % cols,
             v[k]

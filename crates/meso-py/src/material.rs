@@ -2,7 +2,7 @@
 //! sampler, and its NDF (Eq. 1) evaluated and sampled, on numpy arrays.
 
 use crate::arrays::Arr;
-use crate::arrays::{array_n, array_n3, directions, flat, rows, same_rows, unit_row};
+use crate::arrays::{array_n, array_n3, directions, flat, same_rows, uniforms, unit_row};
 use crate::error::{meso_err, require_exists, value_err};
 use glam::DVec3;
 use meso_core::material::{Material as CoreMaterial, MaterialSpec};
@@ -207,7 +207,7 @@ impl Material {
     /// 1/sr; a declined draw has `wi = 0` and `pdf = 0`.
     fn sample<'py>(&self, py: Python<'py>, wo: Arr<'py>, u: Arr<'py>) -> PyResult<Sampled<'py>> {
         let o = directions("wo", &wo)?;
-        let u = rows("u", &u, 3)?;
+        let u = uniforms("u", &u, 3)?;
         same_rows(("wo", o.len()), ("u", u.len() / 3))?;
         let m = &*self.inner;
         let out = par_rows(py, o.len(), |k| {
@@ -325,7 +325,7 @@ impl Ndf {
     /// Draw normals with uniform numbers `u` `(N, 2)` in [0, 1); returns `(N, 3)` unit normals
     /// whose density is `pdf`.
     fn sample<'py>(&self, py: Python<'py>, u: Arr<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let u = rows("u", &u, 2)?;
+        let u = uniforms("u", &u, 2)?;
         let n = &*self.inner;
         let m = par_rows(py, u.len() / 2, |k| {
             let d: DVec3 = n.sample([u[2 * k], u[2 * k + 1]]);

@@ -406,11 +406,12 @@ impl HorizonStats {
     #[inline]
     #[must_use]
     pub fn visibility_along(&self, d: &HorizonDirection) -> f64 {
-        if self.weight <= 0.0 {
-            return 1.0;
-        }
+        // Below the horizon nothing sees, straight up everything: whatever the statistics.
         if let Some(v) = d.fixed {
             return v;
+        }
+        if self.weight <= 0.0 {
+            return 1.0;
         }
         let mu = d.c2 * self.mean[d.ix] + d.s2 * self.mean[d.iy];
         let var = d.c2 * self.var[d.ix] + d.s2 * self.var[d.iy];
@@ -466,11 +467,13 @@ impl HorizonCdf {
     #[inline]
     #[must_use]
     pub fn visibility_along(&self, d: &HorizonDirection) -> f64 {
-        if self.weight <= 0.0 {
-            return 1.0;
-        }
+        // Below the horizon nothing sees, straight up everything: whatever the distribution
+        // (also one of no weight, which sees every other direction).
         if let Some(v) = d.fixed {
             return v;
+        }
+        if self.weight <= 0.0 {
+            return 1.0;
         }
         d.c2 * self.at(d.ix, d) + d.s2 * self.at(d.iy, d)
     }
@@ -505,13 +508,13 @@ impl HorizonCdf {
         a: &HorizonDirection,
         b: &HorizonDirection,
     ) -> f64 {
-        if self.weight <= 0.0 {
-            return 1.0;
-        }
         match (a.fixed, b.fixed) {
             (Some(va), _) => return va * self.visibility_along(b),
             (_, Some(vb)) => return vb * self.visibility_along(a),
             _ => {}
+        }
+        if self.weight <= 0.0 {
+            return 1.0;
         }
         self.both(joint.filter(|j| j.weight > 0.0), a, b, near_pairs(a, b))
             .0
@@ -555,11 +558,12 @@ impl HorizonCdf {
     #[must_use]
     pub fn pair_fractions(&self, joint: Option<&HorizonJoint>, pair: &HorizonPair) -> [f64; 3] {
         let (l, v) = (&pair.light, &pair.view);
-        if self.weight <= 0.0 {
-            return [1.0; 3];
-        }
         let joint = joint.filter(|j| j.weight > 0.0);
-        if l.fixed.is_some() || v.fixed.is_some() || (joint.is_none() && !pair.together) {
+        if self.weight <= 0.0
+            || l.fixed.is_some()
+            || v.fixed.is_some()
+            || (joint.is_none() && !pair.together)
+        {
             let (a, b) = (self.visibility_along(l), self.visibility_along(v));
             return [a, b, a * b];
         }
@@ -1703,6 +1707,32 @@ mod tests {
             el.cos() * az.sin(),
             el.sin(),
         ))
+    }
+
+    #[test]
+    fn nothing_sees_below_the_horizon_whatever_the_statistics() {
+        // A distribution of no weight (a lobe handed no cell) sees every direction above the
+        // horizon, none below it or along it; straight up is seen by all.
+        let (empty, stats) = (HorizonCdf::default(), HorizonStats::default());
+        assert_eq!(empty.weight, 0.0);
+        let dir = |w: DVec3| HorizonDirection::new(w);
+        for w in [
+            DVec3::new(0.0, 0.0, -1.0),
+            DVec3::X,
+            DVec3::new(0.3, -0.2, -0.5),
+        ] {
+            let d = dir(w);
+            assert_eq!(empty.visibility_along(&d), 0.0, "{w}");
+            assert_eq!(stats.visibility_along(&d), 0.0, "{w}");
+            let up = dir(DVec3::new(0.2, 0.1, 0.9));
+            assert_eq!(empty.joint_visibility_along(None, &d, &up), 0.0);
+            let pair = HorizonPair::new(&d, &up);
+            assert_eq!(empty.pair_fractions(None, &pair)[0], 0.0);
+            assert_eq!(empty.visibility_given(None, &pair), 0.0);
+        }
+        let up = dir(DVec3::new(0.2, 0.1, 0.9));
+        assert_eq!(empty.visibility_along(&up), 1.0);
+        assert_eq!(empty.visibility_along(&dir(DVec3::Z)), 1.0);
     }
 
     #[test]

@@ -134,6 +134,7 @@ def extract(
     border: str = "wrap",
     normals: str = "triangles",
     method: str = "lobes",
+    merge_levels: str = "plain",
 ) -> Pyramid:
     """The NDF pyramid of a (rows, cols) height array (heights × height_scale, length units;
     row 0 at the top of the image). texel_size and height_scale must lie in [1e-12, 1e12] and
@@ -153,6 +154,7 @@ def extract_file(
     border: str = "wrap",
     normals: str = "triangles",
     method: str = "lobes",
+    merge_levels: str = "plain",
 ) -> tuple[Pyramid, list[str]]:
     """``meso extract PATH --out OUT``: the same map file, and the CLI's warnings."""
 
