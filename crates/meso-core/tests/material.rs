@@ -71,6 +71,9 @@ fn bad_materials_are_refused_with_a_message_naming_the_problem() {
         ("[ndf]\nkind = \"deltas\"\nlobes = [{ axis = [0, 0], weight = 1, colour = 3 }]\n", "unknown key `colour`"),
         ("[ndf]\nkind = \"blobs\"\n", "unknown NDF kind"),
         ("[ndf]\nkind = \"beckmann\"\nalpha = 0\n", "alpha"),
+        // A misspelt width is named beside the missing one.
+        ("[ndf]\nkind = \"ggx\"\nalhpa = 0.1\n", "`alhpa` is not a key here: a misspelt width?"),
+        ("[ndf]\nkind = \"ggx\"\nalpha_x = 0.1\nalpha-y = 0.2\n", "`alpha-y` is not a key here"),
         ("[ndf]\nkind = \"tabulated\"\nn_z = 4096\nn_phi = 8192\nof = { kind = \"sphere\" }\n", "limit"),
         ("[ndf]\nkind = \"harmonics\"\nband = 2\ncoefficients = [1, 2]\n", "coefficients"),
         ("[diffuse]\nalbedo = [2, 0, 0]\n", "albedo"),

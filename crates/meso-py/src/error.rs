@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use std::path::Path;
 
 pyo3::create_exception!(
-    _meso,
+    meso,
     MesoError,
     PyException,
     "An error reported by meso: the message names the file, the field and the problem."

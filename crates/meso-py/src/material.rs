@@ -244,8 +244,12 @@ impl Material {
 
     fn __repr__(&self) -> String {
         format!(
-            "meso.Material(name={:?}, ndf={:?}, form={:?})",
-            self.inner.name.as_deref().unwrap_or(""),
+            "meso.Material(name={}, ndf={:?}, form={:?})",
+            // As Python writes the `name` attribute: a string, or None.
+            self.inner
+                .name
+                .as_deref()
+                .map_or_else(|| "None".to_string(), |n| format!("{n:?}")),
             self.inner.ndf.kind(),
             self.form()
         )

@@ -116,6 +116,11 @@ def test_material_toml_is_written_by_meso_and_reads_back():
         meso.material_toml(ndf={"kind": "sphere"})
     with pytest.raises(TypeError, match="ndf.kind"):
         meso.material_toml(ndf={"kind": object()}, transfer={"kind": "lambert"})
+    # A misspelt width is named; the exception is meso's own, as tracebacks print it.
+    with pytest.raises(meso.MesoError, match="`alhpa` is not a key here") as e:
+        meso.Material.from_params(ndf={"kind": "ggx", "alhpa": 0.1}, transfer={"kind": "mirror"})
+    assert type(e.value).__module__ == "meso"
+    assert repr(meso.Material.from_params(transfer={"kind": "lambert"})).startswith("meso.Material(name=None")
 
 
 def test_microfacet_form_is_reciprocal_and_loses_energy():

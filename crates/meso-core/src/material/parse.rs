@@ -560,11 +560,59 @@ fn alphas(f: &mut Fields<'_>) -> Result<(f64, f64), MaterialError> {
     match (a, ax, ay) {
         (Some(a), None, None) => Ok((a, a)),
         (None, Some(x), Some(y)) => Ok((x, y)),
-        _ => err(format!(
-            "{}: give either `alpha` or both `alpha_x` and `alpha_y`",
-            f.name
-        )),
+        _ => {
+            // A key one or two letters off a width's name (`alhpa`, `alpha-x`) is most likely it.
+            let near: Vec<String> = f
+                .table
+                .keys()
+                .filter(|k| {
+                    !["alpha", "alpha_x", "alpha_y"].contains(&k.as_str())
+                        && ["alpha", "alpha_x", "alpha_y"]
+                            .iter()
+                            .any(|w| edit_distance(k, w) <= 2)
+                })
+                .map(|k| format!("`{k}`"))
+                .collect();
+            let hint = if near.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " ({} is not a key here: a misspelt width?)",
+                    near.join(", ")
+                )
+            };
+            err(format!(
+                "{}: give either `alpha` or both `alpha_x` and `alpha_y`{hint}",
+                f.name
+            ))
+        }
     }
+}
+
+/// The edit distance (insertions, deletions, substitutions, and swaps of two neighbours) of
+/// two short keys.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let (a, b): (Vec<char>, Vec<char>) = (a.chars().collect(), b.chars().collect());
+    let mut d = vec![vec![0usize; b.len() + 1]; a.len() + 1];
+    for (i, row) in d.iter_mut().enumerate() {
+        row[0] = i;
+    }
+    for (j, v) in d[0].iter_mut().enumerate() {
+        *v = j;
+    }
+    for i in 1..=a.len() {
+        for j in 1..=b.len() {
+            let cost = usize::from(a[i - 1] != b[j - 1]);
+            let mut v = (d[i - 1][j] + 1)
+                .min(d[i][j - 1] + 1)
+                .min(d[i - 1][j - 1] + cost);
+            if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
+                v = v.min(d[i - 2][j - 2] + 1);
+            }
+            d[i][j] = v;
+        }
+    }
+    d[a.len()][b.len()]
 }
 
 fn parse_fresnel(f: &mut Fields<'_>) -> Result<Fresnel, MaterialError> {
