@@ -504,12 +504,15 @@ impl Level {
         direction: [f64; 3],
         view: Option<[f64; 3]>,
     ) -> PyResult<Option<Bound<'py, PyArray3<f64>>>> {
+        // Normalised, as `Material.brdf` does its directions.
         let unit = |d: [f64; 3]| {
             let w = glam::DVec3::from_array(d);
-            if w.is_finite() && (w.length() - 1.0).abs() < 1e-6 {
-                Ok(w)
+            if w.is_finite() && w.length() > 1e-12 {
+                Ok(w.normalize())
             } else {
-                Err(value_err(format!("direction {d:?} is not a unit vector")))
+                Err(value_err(format!(
+                    "direction {d:?}: not a direction (zero length or not finite)"
+                )))
             }
         };
         let w = unit(direction)?;

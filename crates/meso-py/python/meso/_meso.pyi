@@ -100,9 +100,9 @@ class Level:
     def lobe_visibility(
         self, direction: Sequence[float], view: Optional[Sequence[float]] = None
     ) -> Optional[npt.NDArray[np.float64]]:
-        """(rows, cols, K) per lobe, the fraction of the cells it stands for from which the unit
-        ``direction`` (+z the normal, +y up in the image) is above the horizon, or with ``view``
-        (a unit vector) from which both are (shadowing and masking together); on level 0 each
+        """(rows, cols, K) per lobe, the fraction of the cells it stands for from which
+        ``direction`` (normalised; +z the normal, +y up in the image) is above the horizon (none
+        below it), or with ``view`` (normalised) from which both are (shadowing and masking together); on level 0 each
         lobe reads its cell's horizons point by point, as the renderer does; None for a
         pyramid from a normal map."""
 
