@@ -35,6 +35,7 @@ fn _meso(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::Level>()?;
     m.add_function(wrap_pyfunction!(maps::extract, m)?)?;
     m.add_function(wrap_pyfunction!(maps::extract_file, m)?)?;
+    m.add_function(wrap_pyfunction!(maps::read_heights, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(export::export, m)?)?;
     m.add_function(wrap_pyfunction!(error::set_memory_budget, m)?)?;

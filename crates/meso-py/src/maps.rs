@@ -210,6 +210,39 @@ pub fn extract_file(
     Ok((Pyramid::new(pyr), warnings))
 }
 
+/// A height-map image read as `meso extract` reads it (grey PNG 8/16-bit, JPEG, TGA, 16-bit
+/// TIFF, float EXR; budget, checks, 8-bit dequantisation and the warnings that say so):
+/// `(heights, warnings)`, `heights` a `(rows, cols)` float64 array in image order (row 0 the
+/// top of the image, as `extract` takes it) of the codes in [0, 1] (an EXR's values as they
+/// are), so that `extract(heights, texel_size, height_scale=H)` is `meso extract` of the image
+/// with `--height-scale H`. For a user without an image library, and to see what meso reads.
+#[pyfunction]
+#[pyo3(signature = (path, border = "wrap"))]
+pub fn read_heights<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    border: &str,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Vec<String>)> {
+    require_exists(&path)?;
+    let border = self::border(border)?;
+    let map = py
+        .detach(|| HeightMap::load(&path, 1.0, 1.0, border))
+        .map_err(meso_err)?;
+    let (cols, rows) = (map.width(), map.height());
+    let h = map.heights();
+    // meso's row 0 (y = 0) is the image's bottom row: image order is the rows reversed.
+    let v: Vec<f64> = (0..rows)
+        .rev()
+        .flat_map(|r| h[r * cols..(r + 1) * cols].iter().copied())
+        .collect();
+    let warnings = map
+        .warnings()
+        .iter()
+        .map(|w| format!("{}: {w}", path.display()))
+        .collect();
+    Ok((PyArray1::from_vec(py, v).reshape([rows, cols])?, warnings))
+}
+
 /// An NDF pyramid: level 0 is the finest (one texel per height-map cell), each coarser level
 /// halves the texels, the last (`top`) is one texel for the whole map. Read with
 /// `Pyramid.read(path)`, write with `write(path)` (the map format of docs/map-format.md).

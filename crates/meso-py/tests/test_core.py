@@ -239,6 +239,36 @@ def test_extract_file_equals_the_cli_and_the_array_path(tmp_path):
     assert max(l.shading_error for l in read.levels) > 0
 
 
+def test_read_heights_reads_what_extract_file_reads(tmp_path):
+    codes = bumps(32, seed=4)
+    write_gray16(tmp_path / "h.png", codes)
+    heights, warnings = meso.read_heights(tmp_path / "h.png")
+    # 16-bit codes over 65535, in image order (row 0 at the top), nothing corrected.
+    assert heights.shape == (32, 32) and heights.dtype == np.float64
+    np.testing.assert_array_equal(heights, codes / 65535.0)
+    assert warnings == []
+    from_file, _ = meso.extract_file(tmp_path / "h.png", tmp_path / "h.map", texel_size=1.0, height_scale=4.0, max_lobes=3)
+    from_array = meso.extract(heights, texel_size=1.0, height_scale=4.0, max_lobes=3)
+    for a, b in zip(from_file.levels, from_array.levels):
+        np.testing.assert_array_equal(a.counts, b.counts)
+        np.testing.assert_allclose(a.axes, b.axes, atol=1e-12)
+    # An 8-bit map of gentle slopes, terraces one code high: dequantised as meso extract does,
+    # and said so.
+    from conftest import _png
+
+    y, x = np.mgrid[0:32, 0:32] / 32
+    steps = np.round(20 + 6 * np.sin(2 * np.pi * x) * np.cos(2 * np.pi * y)).astype(np.uint8)
+    _png(tmp_path / "t.png", 32, 32, 8, 0, b"".join(b"\x00" + steps[r].tobytes() for r in range(32)))
+    heights, warnings = meso.read_heights(tmp_path / "t.png")
+    assert any("dequantised" in w and "t.png" in w for w in warnings), warnings
+    assert not np.array_equal(heights, steps / 255.0)
+    assert np.abs(heights - steps / 255.0).max() <= 0.5 / 255 + 1e-12
+    with pytest.raises(FileNotFoundError, match="nope.png"):
+        meso.read_heights(tmp_path / "nope.png")
+    with pytest.raises(ValueError, match="border"):
+        meso.read_heights(tmp_path / "h.png", border="mirror")
+
+
 def test_extract_gives_maps_of_faces_and_walls_six_lobes():
     """max_lobes=None (the default) is the CLI's rule: terraces (flat steps 4 cells wide, 3
     high) get up to six lobes a texel, a gentle map four; a K asked for applies to any map."""

@@ -7,7 +7,8 @@ The native core (``meso._meso``, Rust through PyO3) evaluates on numpy arrays wi
   gives ``(N, 3)`` RGB values in 1/sr, the same numbers as ``meso brdf``; ``sample`` / ``pdf`` are
   its importance sampler.
 * :class:`Ndf` — an NDF normalised as Eq. 1, with ``eval``, ``sample`` and ``pdf``.
-* :func:`extract` / :func:`extract_file` — height maps filtered into NDF pyramids
+* :func:`read_heights` — a height-map image read as meso reads it (a numpy array of its codes);
+  :func:`extract` / :func:`extract_file` — height maps filtered into NDF pyramids
   (:class:`Pyramid`, whose levels read as numpy arrays); :func:`render` — a scene file to a float
   image; :func:`export` — GGX roughness and normal mip chains, KTX2 and glTF.
 * :mod:`meso.mitsuba` — a Mitsuba 3 BSDF plugin; :mod:`meso.batch` — batches on Dask.
@@ -35,6 +36,7 @@ from ._meso import (  # noqa: F401  (re-exported)
     fit_nonparametric,
     fit_samples,
     material_toml as _material_toml,
+    read_heights,
     render,
     set_memory_budget,
 )
@@ -53,6 +55,7 @@ __all__ = [
     "fit_nonparametric",
     "fit_samples",
     "material_toml",
+    "read_heights",
     "render",
     "set_memory_budget",
 ]

@@ -143,6 +143,12 @@ def extract(
     (a tenth of its projected area within 10° of the normal and a tenth more than 45° from it),
     as `meso extract`."""
 
+def read_heights(path: _Path, border: str = "wrap") -> tuple[npt.NDArray[np.float64], list[str]]:
+    """A height-map image read as ``meso extract`` reads it (budget, checks, 8-bit
+    dequantisation): ``(heights, warnings)``, a (rows, cols) array in image order (row 0 the top)
+    of the codes in [0, 1] (an EXR's values as they are); ``extract(heights, S, height_scale=H)``
+    is ``meso extract`` of the image with ``--texel-size S --height-scale H``."""
+
 def extract_file(
     path: _Path,
     out: _Path,
