@@ -84,7 +84,10 @@ class Level:
         """(rows, cols, K) Phong exponents η of cos^η(α/2)."""
     @property
     def residual(self) -> float:
-        """Mean relative NDF L2 residual of the level's measured texels."""
+        """Mean relative NDF L2 residual of the level's measured texels: the lobes' NDF against
+        the histogram of the texel's normals on equal-area bins of about 6°. It reads 1 or more
+        where a relief's normals lie within a few degrees of +z (four bins meet there) however
+        good the fit; ``shading_error`` is the measure of how the lobes shade."""
     @property
     def residual_max(self) -> float:
         """Largest NDF residual among the level's measured texels."""
