@@ -334,7 +334,8 @@ impl Pyramid {
 
     fn __repr__(&self) -> String {
         format!(
-            "meso.Pyramid({}×{}, {} levels, max_lobes={})",
+            // Named, as the levels' rows and cols are (width is the array's cols).
+            "meso.Pyramid(width={}, height={}, {} levels, max_lobes={})",
             self.inner.width,
             self.inner.height,
             self.inner.levels.len(),
