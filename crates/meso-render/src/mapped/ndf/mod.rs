@@ -634,7 +634,10 @@ impl NdfMapped {
     /// [`NdfMapped::new`] are not counted.
     ///
     /// The cap also bounds the box filter's detail ([`NdfMapped::with_box_detail`]): it takes a
-    /// footprint no finer than the finest level whose whole tables fit in half the cap, so that
+    /// footprint no finer than the finest level whose whole tables fit in half the cap (or from
+    /// which all the levels' tables fit in the cap: a map whose every table fits reads as
+    /// [`NdfMapped::new`] of its pyramid, bit for bit; before 2026-12-08 level 0, most of a
+    /// map's tables, never fitted in half of a cap of all of them), so that
     /// a far view, which reads every part of the map, does not rebuild tiles the cache has
     /// dropped (a 2048² map under a 1 GiB budget took minutes instead of seconds), and the
     /// texel responses each rendering thread keeps between shading calls that share their
@@ -645,17 +648,27 @@ impl NdfMapped {
         self.cache.cap = bytes;
         self.memo_cap = MEMO_BYTES.min(bytes / (2 * rayon::current_num_threads().max(1)));
         self.detail_floor = match &self.source {
-            Some(src) => (0..self.levels.len())
-                .find(|&k| {
+            Some(src) => {
+                let level = |k: usize| {
                     build::level_tables_bytes(
                         src.pyramid(),
                         k,
                         &self.facet,
                         self.shadowing,
                         self.view_weighting,
-                    ) <= (bytes / 2) as u64
-                })
-                .unwrap_or(self.levels.len() - 1),
+                    )
+                };
+                let n = self.levels.len();
+                // The finest level whose tables fit in half the cap, or from which every
+                // level's fit in the whole cap (a small map: all of them, so the detail reads
+                // level 0, as `NdfMapped::new` of the same pyramid does).
+                (0..n)
+                    .find(|&k| {
+                        level(k) <= (bytes / 2) as u64
+                            || (k..n).map(level).sum::<u64>() <= bytes as u64
+                    })
+                    .unwrap_or(n - 1)
+            }
             None => 0,
         };
         self
