@@ -88,6 +88,11 @@ impl Phases {
             .map_or(0.0, |(_, s)| *s)
     }
 
+    /// The seconds of every phase together.
+    pub fn total(&self) -> f64 {
+        self.0.iter().map(|(_, s)| s).sum()
+    }
+
     /// `load 0.10 s, pyramid 11.80 s, render 0.05 s`.
     pub fn summary(&self) -> String {
         self.0

@@ -1038,6 +1038,18 @@ fn item13_extract_and_render_report_each_phase_time() {
     ok(&o);
     let e = stderr(&o);
     assert!(e.starts_with("rendered 8x8 at 1 spp in "), "{e}");
+    // The render's own time, then the whole command's (the load and the extraction included).
+    let (render_s, all_s): (f64, f64) = {
+        let head = &e["rendered 8x8 at 1 spp in ".len()..];
+        let render_s = head.split_whitespace().next().unwrap().parse().unwrap();
+        let all = &head[head.find('(').unwrap() + 1..];
+        assert!(all.contains(" s in all) -> "), "{e}");
+        (
+            render_s,
+            all.split_whitespace().next().unwrap().parse().unwrap(),
+        )
+    };
+    assert!(all_s >= render_s, "{e}");
     phases(&e, &["load", "pyramid", "render", "write"]);
     // The default representation, facets: their horizon march is its own phase.
     let m = std::fs::read_to_string(d.join("m.toml")).unwrap();

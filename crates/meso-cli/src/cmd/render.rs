@@ -285,11 +285,13 @@ pub fn run(a: Args) -> Result<()> {
         note!("{d}");
     }
     note!(
-        "rendered {}x{} at {} spp in {:.2} s -> {} ({})",
+        "rendered {}x{} at {} spp in {:.2} s ({:.2} s in all) -> {} ({})",
         img.width(),
         img.height(),
         spp,
         phases.seconds("render"),
+        // The load, extraction and tables can take far longer than the render itself.
+        phases.total(),
         outputs
             .iter()
             .map(|(p, _)| p.display().to_string())
