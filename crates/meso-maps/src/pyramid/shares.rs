@@ -186,13 +186,13 @@ pub fn lobe_stats_by_cell_reporting(
 
 /// The work of [`lobe_stats_by_cell_reporting`]'s coarse level `k` per level-0 cell visited:
 /// 2 where every cell also gives a joint horizon distribution (the levels from
-/// [`JOINT_FROM_LEVEL`] whose texels span at most [`JOINT_CELLS_SIDE`] cells, about twice the
-/// time a cell), else 1.
+/// [`JOINT_FROM_LEVEL`] that pool every cell's, [`joint_every_cell`]: about twice the time a
+/// cell), else 1.
 fn tables_work_per_cell(pyramid: &Pyramid, k: usize, horizons: bool) -> u64 {
     let joint_every_cell = horizons
         && pyramid.levels[0].horizon.is_some()
         && k >= JOINT_FROM_LEVEL
-        && pyramid.levels[k].span <= JOINT_CELLS_SIDE;
+        && joint_every_cell(pyramid.levels[k].span);
     if joint_every_cell {
         2
     } else {
@@ -671,15 +671,22 @@ fn cell_corners(pyramid: &Pyramid, h: &Horizons, t: usize) -> [[f64; 4]; HORIZON
     std::array::from_fn(|d| [a00[d], a01[d], a10[d], a11[d]])
 }
 
+/// Whether a texel of a level `span` cells a side pools the joint horizon distributions of
+/// every cell of its footprint (at most [`JOINT_CELLS_SIDE`] blocks a side), not one of each
+/// block ([`joint_sampled`]).
+fn joint_every_cell(span: usize) -> bool {
+    span / JOINT_CELLS_SIDE <= 1
+}
+
 /// Whether level-0 cell `(r, c)` is one of those texel `(row, col)` of a level `span` cells a
 /// side pools its joint horizon distributions from ([`JOINT_CELLS_SIDE`]): every cell of a
 /// texel of at most that many a side, else one of each block of the footprint, at a place
 /// hashed from the texel and the block.
 fn joint_sampled(span: usize, row: usize, col: usize, r: usize, c: usize) -> bool {
-    let block = span / JOINT_CELLS_SIDE;
-    if block <= 1 {
+    if joint_every_cell(span) {
         return true;
     }
+    let block = span / JOINT_CELLS_SIDE;
     let (lr, lc) = (r - row * span, c - col * span);
     let (br, bc) = (lr / block, lc / block);
     // SplitMix64's finaliser of the texel and the block.
